@@ -1,0 +1,8 @@
+"""servo_toolkit: servo control design for electromechanical actuators."""
+
+from .errors import SceneError, SimulationError
+from .scene import Scene, load_scene
+
+__version__ = "0.1.0"
+
+__all__ = ["Scene", "SceneError", "SimulationError", "load_scene", "__version__"]

@@ -1,0 +1,5 @@
+"""``python -m servo_toolkit``."""
+
+from .cli import entry
+
+entry()

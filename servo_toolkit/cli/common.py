@@ -1,0 +1,52 @@
+"""Helpers shared by the command modules."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+
+def add_scene(parser, optional: bool = False) -> None:
+    """Add the SCENE positional (the built-in reference EMA when optional and absent)."""
+    if optional:
+        parser.add_argument("scene", nargs="?", default=None, help="scene TOML (default: built-in EMA)")
+    else:
+        parser.add_argument("scene", help="scene TOML file")
+
+
+def add_json(parser) -> None:
+    """Add ``--json``."""
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def to_json(data) -> str:
+    """JSON text; infinities become null-safe strings via ``allow_nan`` off -> None."""
+    return json.dumps(_finite(data), default=_default, indent=2)
+
+
+def _finite(obj):
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def emit(args, result, text: str) -> None:
+    """Print JSON (``--json``) or the text table on stdout."""
+    if getattr(args, "json", False):
+        sys.stdout.write(to_json(result.to_dict() if hasattr(result, "to_dict") else result) + "\n")
+    else:
+        sys.stdout.write(text.rstrip() + "\n")

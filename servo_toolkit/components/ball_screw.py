@@ -1,0 +1,76 @@
+"""Ball screw: screw rotation to nut travel."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..fields import Fields, require
+from .base import Element, Jet, Lash, Spring, Stage
+
+
+@dataclass(frozen=True)
+class BallScrew(Stage):
+    """Ball screw; input = screw angle (rad), output = nut travel (m).
+
+    Parameters
+    ----------
+    name : str
+    lead : float
+        Nut travel per screw turn (m); screw angle = 2*pi*x/lead.
+    screw_inertia : float
+        kg*m^2.
+    nut_mass : float
+        kg (plus anything rigidly carried by the nut).
+    efficiency : float
+        Forward power efficiency in (0, 1].
+    axial_stiffness : float
+        N/m; ``inf`` for rigid.
+    backlash : float
+        Axial lash of the nut (m).
+    """
+
+    name: str
+    lead: float
+    screw_inertia: float = 0.0
+    nut_mass: float = 0.0
+    efficiency: float = 1.0
+    axial_stiffness: float = math.inf
+    backlash: float = 0.0
+
+    @property
+    def ratio(self) -> float:
+        """Screw rad per m of nut travel."""
+        return 2 * math.pi / self.lead
+
+    def map(self, z) -> Jet:
+        return Jet.linear(z, self.ratio)
+
+    def elements(self, z) -> list[Element]:
+        return [Element(f"{self.name}: screw", self.screw_inertia, Jet.linear(z, self.ratio)),
+                Element(f"{self.name}: nut", self.nut_mass, Jet.linear(z, 1.0))]
+
+    def springs(self, z) -> list[Spring]:
+        if math.isinf(self.axial_stiffness):
+            return []
+        return [Spring(self.name, self.axial_stiffness, Jet.linear(z, 1.0))]
+
+    def lashes(self, z) -> list[Lash]:
+        return [Lash(f"{self.name}: nut lash", self.backlash, Jet.linear(z, 1.0))] if self.backlash else []
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "BallScrew":
+        """Build from a ``[[drivetrain]]`` table of kind ``ball_screw``."""
+        stage = cls(
+            name=f.text("name", "ball screw"),
+            lead=f.quantity("lead", "m", rule="positive"),
+            screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
+            nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
+            efficiency=f.number("efficiency", 1.0, rule="positive"),
+            axial_stiffness=f.quantity("axial_stiffness", "N/m", math.inf),
+            backlash=f.quantity("backlash", "m", 0.0, rule="nonnegative"),
+        )
+        require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
+        require(stage.axial_stiffness > 0, f.key("axial_stiffness"), "must be positive")
+        f.check_unknown()
+        return stage

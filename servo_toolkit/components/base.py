@@ -1,0 +1,89 @@
+"""What every drivetrain stage provides: a kinematic map, inertial elements, springs, lash.
+
+Sign and coordinate conventions
+-------------------------------
+A *backward* stage (gears, screws, linkages) maps its output coordinate ``z`` to its input
+coordinate ``x(z)``; the chain is walked from the load back to the motor. A *forward* stage
+(a cam) maps its input ``z`` to its output ``y(z)``; it ends a chain, and the generalized
+coordinate is then its input. Every element, spring and lash of a stage is located by a
+coordinate ``u(z)`` with derivatives; the drivetrain composes them with the chain rule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Jet:
+    """A coordinate and its first two derivatives with respect to a parameter."""
+
+    value: np.ndarray
+    d1: np.ndarray
+    d2: np.ndarray
+
+    @classmethod
+    def linear(cls, z, gain: float, offset: float = 0.0) -> "Jet":
+        """``u = gain * z + offset``."""
+        z = np.asarray(z, dtype=float)
+        return cls(gain * z + offset, np.full_like(z, gain), np.zeros_like(z))
+
+    def compose(self, inner: "Jet") -> "Jet":
+        """This jet (a function of z) evaluated along ``inner`` = z(q), as a jet in q."""
+        return Jet(self.value, self.d1 * inner.d1, self.d2 * inner.d1**2 + self.d1 * inner.d2)
+
+
+@dataclass(frozen=True)
+class Element:
+    """An inertial element: mass (kg) or inertia (kg*m^2) moving with coordinate ``u``."""
+
+    label: str
+    inertia: float
+    u: Jet
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A compliance of stiffness ``k`` (N/m or N*m/rad) acting on coordinate ``u``."""
+
+    label: str
+    stiffness: float
+    u: Jet
+
+
+@dataclass(frozen=True)
+class Lash:
+    """Total free play ``lash`` (m or rad) on coordinate ``u``."""
+
+    label: str
+    lash: float
+    u: Jet
+
+
+class Stage:
+    """Mixin with defaults; concrete stages are frozen dataclasses."""
+
+    direction = "backward"
+
+    def map(self, z) -> Jet:  # pragma: no cover - abstract
+        """The other coordinate (input for backward, output for forward stages)."""
+        raise NotImplementedError
+
+    def elements(self, z) -> list[Element]:
+        """Inertial elements located by the stage's local coordinate ``z``."""
+        return []
+
+    def springs(self, z) -> list[Spring]:
+        """Compliances of this stage."""
+        return []
+
+    def lashes(self, z) -> list[Lash]:
+        """Free play of this stage."""
+        return []
+
+    @property
+    def stroke(self):
+        """Admissible range of the local coordinate, or None."""
+        return None

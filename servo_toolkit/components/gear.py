@@ -1,0 +1,91 @@
+"""Spur gear train (with idlers)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..fields import Fields, require
+from .base import Element, Jet, Lash, Spring, Stage
+
+
+@dataclass(frozen=True)
+class GearTrain(Stage):
+    """A gear train from the motor side (first gear) to its output shaft (last gear).
+
+    Parameters
+    ----------
+    name : str
+    ratio : float
+        Input angle per output angle (``teeth[-1] / teeth[0]``: idlers cancel).
+    teeth : tuple of int
+        Tooth counts along the train, or empty when only the ratio is known.
+    inertias : tuple of float
+        Each gear's inertia about its own axis (kg*m^2), in the order of ``teeth``; with no
+        teeth, at most two values (input gear, output gear).
+    efficiency : float
+        Power efficiency in (0, 1].
+    torsional_stiffness : float
+        Mesh stiffness seen at the output shaft (N*m/rad); ``inf`` for rigid.
+    backlash : float
+        Total lost motion at the output shaft (rad).
+    """
+
+    name: str
+    ratio: float
+    teeth: tuple = ()
+    inertias: tuple = ()
+    efficiency: float = 1.0
+    torsional_stiffness: float = math.inf
+    backlash: float = 0.0
+
+    def _speed_ratios(self) -> list[float]:
+        """Each gear's angle per output angle."""
+        if self.teeth:
+            return [self.teeth[-1] / z for z in self.teeth]
+        return [self.ratio, 1.0][: len(self.inertias)]
+
+    def map(self, z) -> Jet:
+        return Jet.linear(z, self.ratio)
+
+    def elements(self, z) -> list[Element]:
+        return [Element(f"{self.name}: gear {i + 1}", j, Jet.linear(z, g))
+                for i, (j, g) in enumerate(zip(self.inertias, self._speed_ratios()))]
+
+    def springs(self, z) -> list[Spring]:
+        if math.isinf(self.torsional_stiffness):
+            return []
+        return [Spring(self.name, self.torsional_stiffness, Jet.linear(z, 1.0))]
+
+    def lashes(self, z) -> list[Lash]:
+        return [Lash(f"{self.name}: backlash", self.backlash, Jet.linear(z, 1.0))] if self.backlash else []
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "GearTrain":
+        """Build from a ``[[drivetrain]]`` table of kind ``gear``."""
+        teeth = tuple(f.raw("teeth", ()))
+        for i, z in enumerate(teeth):
+            require(isinstance(z, int) and not isinstance(z, bool) and z > 0,
+                    f"{f.key('teeth')}[{i}]", f"tooth count must be a positive integer (got {z!r})")
+        if teeth:
+            require(len(teeth) >= 2, f.key("teeth"), "a gear train needs at least two gears")
+            require(not f.has("ratio"), f.key("ratio"), "give either teeth or ratio, not both")
+            ratio = teeth[-1] / teeth[0]
+        else:
+            ratio = f.quantity("ratio", "dimensionless", rule="positive")
+        inertias = f.quantity_list("inertia", "kg*m^2", (), rule="nonnegative")
+        if teeth:
+            require(len(inertias) in (0, len(teeth)), f.key("inertia"),
+                    f"give one inertia per gear ({len(teeth)}), got {len(inertias)}")
+        else:
+            require(len(inertias) <= 2, f.key("inertia"), "with a ratio only, give at most [input, output]")
+        stage = cls(
+            name=f.text("name", "gear train"), ratio=ratio, teeth=teeth, inertias=inertias,
+            efficiency=f.number("efficiency", 1.0, rule="positive"),
+            torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
+            backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
+        )
+        require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
+        require(stage.torsional_stiffness > 0, f.key("torsional_stiffness"), "must be positive")
+        f.check_unknown()
+        return stage

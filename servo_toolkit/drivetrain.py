@@ -1,0 +1,208 @@
+"""Drivetrain reflection: ratio, inertia, stiffness, lash and efficiency along the stroke.
+
+The generalized coordinate ``q`` is the output angle of the chain (the cam angle when the
+chain ends in a cam). Every inertial element i moves with a coordinate u_i(q); with the
+Jacobians T_i = du_i/dq and T2_i = d2u_i/dq2 the equivalent-element method of seed 000 gives
+
+    J(q) = sum m_i T_i^2 = T' M T,      (1/2) dJ/dq = sum m_i T_i T2_i = T' M T2,
+
+and a spring k on coordinate u reflects to the output as k (du/dq)^2 (seed 001, eq 8).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .components.base import Element, Jet, Lash, Spring
+from .errors import SceneError
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Every coordinate of the chain as a function of q (arrays over q)."""
+
+    q: np.ndarray
+    motor: Jet
+    output: Jet
+    elements: tuple
+    springs: tuple
+    lashes: tuple
+
+
+@dataclass(frozen=True)
+class StiffnessChain:
+    """Series stiffness at the output and each spring's share of the compliance.
+
+    Attributes
+    ----------
+    names : tuple of str
+    stage_stiffness : numpy.ndarray
+        Each spring reflected to the output, shape (n_springs, n_q) (N*m/rad).
+    total : numpy.ndarray
+        Series total, shape (n_q,).
+    shares : numpy.ndarray
+        Compliance shares (sum to 1 over springs).
+    ratio_to_output : numpy.ndarray
+        |du/dq| of each spring's coordinate.
+    """
+
+    names: tuple
+    stage_stiffness: np.ndarray
+    total: np.ndarray
+    shares: np.ndarray
+    ratio_to_output: np.ndarray
+
+    def negligible(self, threshold: float = 1e-3) -> np.ndarray:
+        """Seed 001's criterion in numbers: a stage whose compliance share is below
+        ``threshold`` everywhere may be left out (its reflected stiffness is then orders
+        of magnitude above the rest)."""
+        return np.all(self.shares < threshold, axis=-1)
+
+
+def series(stiffnesses) -> float | np.ndarray:
+    """Series combination 1 / sum(1/k_i) along axis 0."""
+    k = np.asarray(stiffnesses, dtype=float)
+    return 1.0 / np.sum(1.0 / k, axis=0)
+
+
+@dataclass(frozen=True)
+class Drivetrain:
+    """Motor, stages and load of a scene; immutable, evaluated on demand.
+
+    Parameters
+    ----------
+    motor : DCMotor
+    stages : tuple
+    load : Load
+    """
+
+    motor: object
+    stages: tuple
+    load: object
+
+    @classmethod
+    def from_scene(cls, scene) -> "Drivetrain":
+        """The drivetrain of a scene."""
+        if not scene.stages or scene.motor is None:
+            raise SceneError("drivetrain", "this scene has no motor-driven drivetrain")
+        return cls(scene.motor, scene.stages, scene.load)
+
+    @property
+    def ends_in_cam(self) -> bool:
+        """True when q is a cam angle rather than an output angle."""
+        return self.stages[-1].direction == "forward"
+
+    @property
+    def stroke(self) -> tuple:
+        """Range of q (rad); the linkage's stroke, else one turn or +-pi."""
+        for stage in self.stages:
+            if stage.stroke is not None:
+                return tuple(stage.stroke)
+        return (0.0, 2 * math.pi) if self.ends_in_cam else (-math.pi, math.pi)
+
+    @property
+    def mid_stroke(self) -> float:
+        """Default operating point q0 (rad)."""
+        lo, hi = self.stroke
+        return 0.5 * (lo + hi)
+
+    @property
+    def efficiency(self) -> float:
+        """Product of the stages' efficiencies."""
+        return float(np.prod([getattr(s, "efficiency", 1.0) for s in self.stages]))
+
+    def kinematics(self, q) -> Kinematics:
+        """Compose every stage's coordinates into jets in q."""
+        q = np.atleast_1d(np.asarray(q, dtype=float))
+        local = {}  # stage index -> its local coordinate as a jet in q
+        z = Jet.linear(q, 1.0)
+        for i, stage in enumerate(self.stages):
+            if stage.direction == "forward":
+                local[i] = z
+                z = stage.map(z.value).compose(z)
+        output = z
+        z = Jet.linear(q, 1.0)
+        for i in reversed(range(len(self.stages))):
+            if self.stages[i].direction == "backward":
+                local[i] = z
+                z = self.stages[i].map(z.value).compose(z)
+        motor = z
+        elements, springs, lashes = [], [], []
+        for i, stage in enumerate(self.stages):  # listed from the motor to the load
+            self._collect(stage, local[i], elements, springs, lashes)
+        elements.append(Element("motor rotor", self.motor.rotor_inertia, motor))
+        if self.load.inertia:
+            elements.append(Element("load", self.load.inertia, output))
+        return Kinematics(q, motor, output, tuple(elements), tuple(springs), tuple(lashes))
+
+    @staticmethod
+    def _collect(stage, z: Jet, elements, springs, lashes) -> None:
+        elements += [Element(e.label, e.inertia, e.u.compose(z)) for e in stage.elements(z.value)]
+        springs += [Spring(s.label, s.stiffness, s.u.compose(z)) for s in stage.springs(z.value)]
+        lashes += [Lash(b.label, b.lash, b.u.compose(z)) for b in stage.lashes(z.value)]
+
+    def ratio(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Overall ratio N(q) = d(motor angle)/dq and dN/dq."""
+        m = self.kinematics(q).motor
+        return m.d1, m.d2
+
+    def jacobians(self, q):
+        """Equivalent-element data: labels, masses M (diagonal), T = du/dq, T2 = d2u/dq2.
+
+        Returns
+        -------
+        labels : tuple of str
+        masses : numpy.ndarray, shape (n,)
+        T, T2 : numpy.ndarray, shape (n, len(q))
+        """
+        kin = self.kinematics(q)
+        labels = tuple(e.label for e in kin.elements)
+        masses = np.array([e.inertia for e in kin.elements])
+        return labels, masses, np.array([e.u.d1 for e in kin.elements]), np.array([e.u.d2 for e in kin.elements])
+
+    def inertia(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Reflected inertia at q, J(q) = T'MT, and dJ/dq = 2 T'M T2 (kg*m^2, kg*m^2/rad)."""
+        _, m, t, t2 = self.jacobians(q)
+        return m @ t**2, 2 * m @ (t * t2)
+
+    def motor_inertia(self, q) -> np.ndarray:
+        """Reflected inertia seen at the motor shaft, J(q) / N(q)^2."""
+        n, _ = self.ratio(q)
+        return self.inertia(q)[0] / n**2
+
+    def stiffness(self, q) -> StiffnessChain:
+        """Each spring reflected to q and the series total."""
+        kin = self.kinematics(q)
+        if not kin.springs:
+            inf = np.full_like(kin.q, np.inf)
+            return StiffnessChain((), np.zeros((0, kin.q.size)), inf, np.zeros((0, kin.q.size)),
+                                  np.zeros((0, kin.q.size)))
+        ratio = np.array([np.abs(s.u.d1) for s in kin.springs])
+        k = np.array([s.stiffness for s in kin.springs])[:, None] * ratio**2
+        compliance = 1.0 / k
+        total = 1.0 / compliance.sum(axis=0)
+        return StiffnessChain(tuple(s.label for s in kin.springs), k, total,
+                              compliance / compliance.sum(axis=0), ratio)
+
+    def backlash(self, q) -> np.ndarray:
+        """Total lost motion seen at q (rad): each lash divided by its ratio to q."""
+        kin = self.kinematics(q)
+        total = np.zeros_like(kin.q)
+        for lash in kin.lashes:
+            total = total + lash.lash / np.abs(lash.u.d1)
+        return total
+
+    def check(self) -> None:
+        """Validate along the stroke: finite ratio and positive-definite inertia."""
+        q = np.linspace(*self.stroke, 181)
+        n, _ = self.ratio(q)
+        if not np.all(np.isfinite(n)) or np.any(n == 0):
+            raise SceneError("drivetrain", "the ratio is zero or not finite somewhere in the stroke")
+        j, _ = self.inertia(q)
+        if np.any(j <= 0):
+            i = int(np.argmin(j))
+            raise SceneError("drivetrain", f"reflected inertia is not positive at q = "
+                             f"{math.degrees(q[i]):.2f} deg ({j[i]:.4g} kg*m^2): mass matrix indefinite")

@@ -1,0 +1,32 @@
+"""Errors raised at the scene boundary."""
+
+from __future__ import annotations
+
+
+class SceneError(ValueError):
+    """A scene violates a rule.
+
+    Parameters
+    ----------
+    key : str
+        Key path inside the scene, e.g. ``drivetrain[2].rod_length``.
+    rule : str
+        The rule that was broken, in plain words.
+    source : str, optional
+        File the scene came from.
+    """
+
+    def __init__(self, key: str, rule: str, source: str | None = None):
+        self.key = key
+        self.rule = rule
+        self.source = source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}{key}: {rule}")
+
+    def with_source(self, source: str) -> "SceneError":
+        """Return the same error tagged with the file it came from."""
+        return SceneError(self.key, self.rule, source)
+
+
+class SimulationError(RuntimeError):
+    """A simulation left its validity domain (non-finite state, unstable step)."""

@@ -1,0 +1,273 @@
+"""Scene files: TOML with units -> validated, frozen component descriptions."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+
+from .components.ball_screw import BallScrew
+from .components.cam import Cam
+from .components.compliance import Compliance, Load
+from .components.gear import GearTrain
+from .components.linkage import RockerLinkage
+from .components.motor import DCMotor
+from .components.platform import CrossedArchPlatform
+from .components.roller_screw import RollerScrewOperating, RollerScrewStage
+from .errors import SceneError
+from .fields import Fields, require
+from .units import parse_si
+
+STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": RockerLinkage,
+               "compliance": Compliance, "cam": Cam}
+STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
+MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
+_TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
+             "studies", "mechanism", "stages", "operating"}
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """Position sensing and sampling.
+
+    Parameters
+    ----------
+    output_encoder_bits : int
+        Output encoder resolution, counts per revolution = 2**bits (0 = ideal).
+    motor_encoder_counts : int
+        Motor encoder counts per revolution (0 = ideal).
+    sample_time : float
+        Controller sample time (s); 0 = continuous.
+    """
+
+    output_encoder_bits: int = 0
+    motor_encoder_counts: int = 0
+    sample_time: float = 0.0
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Sensors":
+        """Build from a ``[sensors]`` table."""
+        s = cls(output_encoder_bits=f.integer("output_encoder_bits", 0, minimum=0),
+                motor_encoder_counts=f.integer("motor_encoder_counts", 0, minimum=0),
+                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"))
+        f.check_unknown()
+        return s
+
+
+@dataclass(frozen=True)
+class Requirements:
+    """Loop requirements; ``None`` where the scene sets none.
+
+    Bandwidth in Hz, angles in rad, levels in dB.
+    """
+
+    bandwidth: float | None = None
+    max_phase_lag_at_bandwidth: float | None = None
+    min_gain_margin: float | None = None
+    min_phase_margin: float | None = None
+    max_sensitivity_peak: float | None = None
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Requirements":
+        """Build from a ``[requirements]`` table."""
+        def opt(name, unit, rule="positive"):
+            return f.quantity(name, unit, rule=rule) if f.has(name) else None
+        r = cls(bandwidth=opt("bandwidth", "Hz"),
+                max_phase_lag_at_bandwidth=opt("max_phase_lag_at_bandwidth", "rad"),
+                min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
+                min_phase_margin=opt("min_phase_margin", "rad"),
+                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"))
+        f.check_unknown()
+        return r
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named study of the scene: its kind and parameters in SI (angles rad, Hz for frequency)."""
+
+    name: str
+    kind: str
+    params: MappingProxyType
+
+    def get(self, key: str, default=None):
+        """A parameter or ``default``."""
+        return self.params.get(key, default)
+
+    def key(self, name: str) -> str:
+        """Key path of a parameter, for error messages."""
+        return f"studies.{self.name}.{name}"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated actuator description. Everything is SI.
+
+    Attributes
+    ----------
+    name, description : str
+    motor : DCMotor or None
+    stages : tuple
+        Drivetrain stages from the motor to the load.
+    load : Load
+    sensors : Sensors
+    requirements : Requirements
+    studies : mapping of str to Study
+    mechanism : object or None
+        A multi-DOF mechanism (``[mechanism]``), e.g. :class:`CrossedArchPlatform`.
+    roller_screw : tuple of RollerScrewStage
+        ``[[stages]]`` of a roller-screw scene.
+    operating : RollerScrewOperating or None
+    source : str or None
+        File the scene was read from.
+    """
+
+    name: str
+    description: str = ""
+    motor: DCMotor | None = None
+    stages: tuple = ()
+    load: Load = field(default_factory=Load)
+    sensors: Sensors = field(default_factory=Sensors)
+    requirements: Requirements = field(default_factory=Requirements)
+    studies: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    mechanism: object = None
+    roller_screw: tuple = ()
+    operating: RollerScrewOperating | None = None
+    source: str | None = None
+
+    def study(self, name: str) -> Study:
+        """The study called ``name``; a SceneError lists the available ones."""
+        if name not in self.studies:
+            raise SceneError(f"studies.{name}", f"no such study; the scene has {sorted(self.studies)}")
+        return self.studies[name]
+
+    def studies_of_kind(self, kind: str) -> list[Study]:
+        """All studies of one kind, in file order."""
+        return [s for s in self.studies.values() if s.kind == kind]
+
+    @property
+    def drivetrain(self):
+        """The reflected drivetrain (motor, stages, load); see :mod:`servo_toolkit.drivetrain`."""
+        from .drivetrain import Drivetrain
+        return Drivetrain.from_scene(self)
+
+
+def _stage(table, i: int):
+    f = Fields(table, f"drivetrain[{i}]")
+    kind = f.text("kind")
+    cls = STAGE_KINDS.get(kind)
+    require(cls is not None, f.key("kind"), f"unknown stage kind {kind!r}; known: {sorted(STAGE_KINDS)}")
+    return cls.from_table(f)
+
+
+def _study(name: str, table) -> Study:
+    f = Fields(table, f"studies.{name}")
+    kind = f.text("kind", choices=set(STUDY_KINDS))
+    params = {k: parse_si(v, f"studies.{name}.{k}") for k, v in table.items() if k != "kind"}
+    return Study(name=name, kind=kind, params=MappingProxyType(params))
+
+
+def scene_from_dict(data: dict, source: str | None = None) -> Scene:
+    """Build a :class:`Scene` from parsed TOML.
+
+    Raises
+    ------
+    SceneError
+        With the key path and the rule broken.
+    """
+    try:
+        unknown = sorted(set(data) - _TOP_KEYS)
+        require(not unknown, unknown[0] if unknown else "", f"unknown top-level key; known: {sorted(_TOP_KEYS)}")
+        name = data.get("name")
+        require(isinstance(name, str) and name.strip(), "name", "missing key (required): a non-empty string")
+        motor = DCMotor.from_table(Fields(data["motor"], "motor")) if "motor" in data else None
+        raw_stages = data.get("drivetrain", [])
+        require(isinstance(raw_stages, list), "drivetrain", "must be an array of tables [[drivetrain]]")
+        stages = tuple(_stage(t, i) for i, t in enumerate(raw_stages))
+        forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
+        require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
+                f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
+        if stages:
+            require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
+        load = Load.from_table(Fields(data["load"], "load")) if "load" in data else Load()
+        sensors = Sensors.from_table(Fields(data["sensors"], "sensors")) if "sensors" in data else Sensors()
+        req = (Requirements.from_table(Fields(data["requirements"], "requirements"))
+               if "requirements" in data else Requirements())
+        studies = data.get("studies", {})
+        require(isinstance(studies, dict), "studies", "must be a table of [studies.NAME] tables")
+        mechanism = None
+        if "mechanism" in data:
+            f = Fields(data["mechanism"], "mechanism")
+            kind = f.text("kind")
+            require(kind in MECHANISM_KINDS, f.key("kind"),
+                    f"unknown mechanism kind {kind!r}; known: {sorted(MECHANISM_KINDS)}")
+            mechanism = MECHANISM_KINDS[kind].from_table(f)
+        raw_rs = data.get("stages", [])
+        require(isinstance(raw_rs, list), "stages", "must be an array of tables [[stages]]")
+        roller = tuple(RollerScrewStage.from_table(Fields(t, f"stages[{i}]"), i == 0)
+                       for i, t in enumerate(raw_rs))
+        operating = (RollerScrewOperating.from_table(Fields(data["operating"], "operating"))
+                     if "operating" in data else None)
+        require(bool(stages or mechanism or roller), "drivetrain",
+                "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
+        scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
+                      stages=stages, load=load, sensors=sensors, requirements=req,
+                      studies=MappingProxyType({k: _study(k, v) for k, v in studies.items()}),
+                      mechanism=mechanism, roller_screw=roller, operating=operating, source=source)
+        if stages:
+            scene.drivetrain.check()
+        return scene
+    except SceneError as exc:
+        raise exc.with_source(source) if source else exc from None
+
+
+def default_scene_path() -> Path:
+    """Path of the built-in reference EMA scene (package data)."""
+    return Path(str(resources.files("servo_toolkit") / "data" / "ema_reference.toml"))
+
+
+def load_scene(path=None) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or path-like, optional
+        TOML scene file; ``None`` loads the built-in reference EMA.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        The file is missing or malformed, or a value breaks a rule; the message names the
+        key path and the rule.
+
+    Examples
+    --------
+    >>> scene = load_scene()
+    >>> scene.motor.torque_constant
+    0.2
+    """
+    path = default_scene_path() if path is None else Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError("(file)", f"cannot read scene: {exc.strerror}", str(path)) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError("(file)", f"not valid TOML: {exc}", str(path)) from None
+    return scene_from_dict(data, str(path))
+
+
+def replace_params(scene: Scene, **changes) -> Scene:
+    """A copy of ``scene`` with top-level fields replaced (studies never edit scenes)."""
+    from dataclasses import replace
+    return replace(scene, **changes)
+
+
+__all__ = ["Scene", "Sensors", "Requirements", "Study", "load_scene", "scene_from_dict",
+           "default_scene_path", "replace_params"]

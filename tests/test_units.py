@@ -1,0 +1,46 @@
+"""Unit parsing at the scene boundary."""
+
+import math
+
+import pytest
+
+from servo_toolkit import SceneError
+from servo_toolkit.units import parse_quantity, parse_si
+
+
+@pytest.mark.parametrize("text, unit, expected", [
+    ("0.5 mH", "H", 5e-4),
+    ("0.015 kgf*m/A", "N*m/A", 0.015 * 9.80665),
+    ("1696.8 N*m/deg", "N*m/rad", 1696.8 * 180 / math.pi),
+    ("6 dB", "dB", 6.0),
+    ("2.0e-4 kg*m^2", "kg*m^2", 2e-4),
+    ("12.25 kg*mm^2", "kg*m^2", 12.25e-6),
+    ("0.146 V*s/rad", "V*s/rad", 0.146),
+    ("10 um", "m", 1e-5),
+    ("3 deg/s", "rad/s", math.radians(3)),
+    ("8 Hz", "Hz", 8.0),
+    (0.25, "m", 0.25),
+])
+def test_parse_quantity(text, unit, expected):
+    assert parse_quantity(text, unit, "k") == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("5 kg", "dimension mismatch"),
+    ("5 parsecs_per_foo", "unknown unit"),
+    ("fast", "expected a number"),
+])
+def test_parse_errors_name_key(text, message):
+    with pytest.raises(SceneError, match=message) as info:
+        parse_quantity(text, "m", "drivetrain[1].lead")
+    assert info.value.key == "drivetrain[1].lead"
+
+
+def test_nan_rejected():
+    with pytest.raises(SceneError, match="NaN"):
+        parse_quantity(float("nan"), "m", "x")
+
+
+def test_parse_si_keeps_words_and_recurses():
+    out = parse_si({"f": {"start": "0.5 Hz"}, "t": "sine", "j": ["2 kg*m^2"]}, "s")
+    assert out == {"f": {"start": 0.5}, "t": "sine", "j": [2.0]}
