@@ -1,0 +1,135 @@
+"""Assemble the report: run each section builder, isolate failures, write HTML and PDF."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from ..errors import SceneError
+from . import sections_drivetrain as drv
+from . import sections_loop as loop
+from . import sections_studies as studies
+from .context import Context
+from .section import NotApplicable, NotAvailable, Section
+
+#: Section builders in report order (the requirements table is built last, shown first).
+SECTIONS = (
+    ("scene", "Scene summary", drv.scene_summary),
+    ("stiffness", "Stiffness chain and compliance shares", drv.stiffness_chain),
+    ("inertia", "Reflected inertia and ratio along the stroke", drv.ratio_and_inertia),
+    ("plant", "Plant Bode with the drivetrain resonance", loop.plant_bode),
+    ("controller", "Designed controller", loop.controller),
+    ("loop", "Loop Bode and Nyquist with margins", loop.loop_margins),
+    ("time", "Step response and 8 Hz sine tracking", loop.time_responses),
+    ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
+    ("kv", "Dynamic-load factor Kv", studies.kv_tables),
+    ("reduce", "What the model leaves out", studies.leaves_out),
+    ("accuracy", "Solver accuracy", studies.accuracy),
+)
+REQUIREMENTS = ("requirements", "Requirements", loop.requirements)
+
+
+@dataclass(frozen=True)
+class Report:
+    """A built report.
+
+    Attributes
+    ----------
+    scene_name, subtitle : str
+    sections : tuple of Section
+        Requirements first, then :data:`SECTIONS` in order.
+    requirements : tuple of (name, required, achieved, status)
+    """
+
+    scene_name: str
+    subtitle: str
+    sections: tuple
+    requirements: tuple
+
+    def section(self, key: str) -> Section:
+        """The section with ``key``."""
+        return next(s for s in self.sections if s.key == key)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary: section statuses and the requirements table."""
+        return {"scene": self.scene_name,
+                "sections": [s.to_dict() for s in self.sections],
+                "requirements": [dict(zip(("requirement", "required", "achieved", "status"), r))
+                                 for r in self.requirements]}
+
+    def close(self) -> None:
+        """Release the figures' memory."""
+        for s in self.sections:
+            for f in s.figures:
+                f.figure.clear()
+
+
+def run_section(key: str, title: str, builder, ctx: Context) -> Section:
+    """Build one section; a missing capability or an error becomes a visible box."""
+    try:
+        section = builder(ctx)
+    except NotApplicable as exc:
+        return Section(title, status="n/a", reason=str(exc), key=key)
+    except NotAvailable as exc:
+        return Section(title, status="unavailable", reason=str(exc), key=key)
+    except (ImportError, AttributeError) as exc:
+        return Section(title, status="unavailable", reason=f"{type(exc).__name__}: {exc}", key=key)
+    except SceneError as exc:
+        return Section(title, status="unavailable", reason=f"the scene does not support it: {exc}", key=key)
+    except Exception as exc:  # noqa: BLE001 - a failing section must not kill the report
+        return Section(title, status="unavailable", reason=f"{type(exc).__name__}: {exc}", key=key)
+    if not section.key:
+        section = Section(section.title, section.html, section.figures, section.status, section.reason, key)
+    return section
+
+
+def build_report(scene, light: bool = True, executor=None, progress: bool = True) -> Report:
+    """Build every section of the report of ``scene``.
+
+    Parameters
+    ----------
+    scene : Scene
+    light : bool
+        Light settings for expensive studies (the report then takes well under a minute).
+    executor : concurrent.futures.Executor, optional
+        Passed on to studies that run cases in parallel.
+    progress : bool
+        Show a tqdm progress bar (stderr), one step per section.
+
+    Returns
+    -------
+    Report
+    """
+    ctx = Context(scene, light=light, executor=executor)
+    built = []
+    steps = list(SECTIONS) + [REQUIREMENTS]
+    bar = tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False)
+    for key, title, builder in bar:
+        bar.set_postfix_str(title[:40])
+        built.append(run_section(key, title, builder, ctx))
+    bar.close()
+    req_section = built.pop()
+    try:
+        rows = tuple(loop.requirement_rows(ctx))
+    except Exception:  # noqa: BLE001 - the section already shows why
+        rows = ()
+    stamp = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
+    subtitle = f"{scene.description or scene.name}. Generated {stamp} by servo_toolkit."
+    return Report(scene.name, subtitle, tuple([req_section] + built), rows)
+
+
+def write_report(report: Report, out_dir) -> dict:
+    """Write ``index.html`` and ``report.pdf`` into ``out_dir``; returns their paths."""
+    from .html_writer import render_html
+    from .pdf_writer import write_pdf
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    html_path = out / "index.html"
+    html_path.write_text(render_html(report), encoding="utf-8")
+    pdf_path = out / "report.pdf"
+    write_pdf(report, pdf_path)
+    return {"html": html_path, "pdf": pdf_path}

@@ -1,0 +1,85 @@
+"""Results shared between report sections, computed once and cached (errors included)."""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+
+from .section import NotApplicable, NotAvailable
+
+
+def api(module: str, name: str):
+    """``module.name`` from the toolkit, or :class:`NotAvailable` saying why not.
+
+    Parameters
+    ----------
+    module : str
+        Absolute module path, e.g. ``"servo_toolkit.loop"``.
+    name : str
+        Attribute of that module.
+    """
+    try:
+        return getattr(importlib.import_module(module), name)
+    except ImportError as exc:
+        raise NotAvailable(f"{module}.{name} cannot be imported ({exc})") from None
+    except AttributeError:
+        raise NotAvailable(f"{module} has no {name!r}") from None
+
+
+@dataclass
+class Context:
+    """What the section builders share: the scene, the settings and cached results.
+
+    Parameters
+    ----------
+    scene : Scene
+    light : bool
+        Use light settings for expensive studies (fewer points and shorter runs), so that a
+        report of the reference EMA takes well under a minute.
+    executor : concurrent.futures.Executor or None
+        Passed to studies that accept one.
+    """
+
+    scene: object
+    light: bool = True
+    executor: object = None
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def result(self, key: str, compute):
+        """``compute()`` once per key; a failure is cached and re-raised to every caller."""
+        if key not in self._cache:
+            try:
+                self._cache[key] = (True, compute())
+            except Exception as exc:  # noqa: BLE001 - re-raised below to each section
+                self._cache[key] = (False, exc)
+        ok, value = self._cache[key]
+        if not ok:
+            raise value
+        return value
+
+    def has_drivetrain(self) -> bool:
+        """True when the scene has a motor-driven drivetrain."""
+        return bool(self.scene.stages) and self.scene.motor is not None
+
+    def require_drivetrain(self, what: str = "this section") -> None:
+        """Raise :class:`NotApplicable` with a polite reason when there is no drivetrain."""
+        if not self.has_drivetrain():
+            kind = describe_kind(self.scene)
+            raise NotApplicable(f"{what} needs a motor-driven drivetrain; this scene describes {kind}, "
+                                "which the toolkit analyses with its own studies instead")
+
+    def design(self):
+        """The designed loop (``servo_toolkit.loop.design``)."""
+        self.require_drivetrain("loop design")
+        return self.result("design", lambda: api("servo_toolkit.loop", "design")(self.scene))
+
+
+def describe_kind(scene) -> str:
+    """A few words on what a scene describes."""
+    if scene.mechanism is not None:
+        return f"a multi-axis mechanism ({type(scene.mechanism).__name__})"
+    if scene.roller_screw:
+        return f"a {len(scene.roller_screw)}-stage planetary roller screw"
+    if scene.stages:
+        return "a drivetrain without a motor"
+    return "no drivetrain"

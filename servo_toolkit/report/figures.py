@@ -1,0 +1,80 @@
+"""Figures for the report: created without pyplot (no global state), encoded as PNG."""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+
+import numpy as np
+from matplotlib.figure import Figure
+
+DPI = 110
+
+
+def new_figure(nrows: int = 1, ncols: int = 1, size=(7.0, 3.4), **kwargs):
+    """A matplotlib Figure (Agg canvas, not registered with pyplot) and its axes."""
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=True, **kwargs)
+    return fig, axes
+
+
+def png_base64(fig, dpi: int = DPI) -> str:
+    """The figure as a base64-encoded PNG."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def stroke_grid(drivetrain, points: int = 121) -> np.ndarray:
+    """Output angles q over the stroke (rad)."""
+    lo, hi = drivetrain.stroke
+    return np.linspace(lo, hi, points)
+
+
+def shares_along_stroke(chain, q, ax) -> None:
+    """Stacked compliance shares of each stage along the stroke."""
+    ax.stackplot(np.degrees(q), chain.shares * 100, labels=chain.names, alpha=0.85)
+    ax.set_xlabel("output angle [deg]")
+    ax.set_ylabel("share of compliance [%]")
+    ax.set_ylim(0, 100)
+    ax.set_xlim(math.degrees(q[0]), math.degrees(q[-1]))
+    ax.legend(fontsize="small", loc="lower right")
+    ax.set_title("Who is compliant: each stage's share of the series compliance")
+
+
+def stiffness_along_stroke(chain, q, ax) -> None:
+    """Each stage's stiffness at the output and the series total (N*m/deg, log scale)."""
+    deg = np.degrees(q)
+    for name, k in zip(chain.names, chain.stage_stiffness):
+        ax.semilogy(deg, k * math.pi / 180, label=name)
+    ax.semilogy(deg, chain.total * math.pi / 180, "k", lw=2.2, label="series total")
+    ax.set_xlabel("output angle [deg]")
+    ax.set_ylabel("stiffness at the output [N*m/deg]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    ax.set_title("Stage stiffness reflected to the output (k times ratio squared)")
+
+
+def ratio_inertia_along_stroke(drivetrain, q, axes) -> None:
+    """Ratio N(q) and reflected inertia J(q) (at the output and at the motor)."""
+    deg = np.degrees(q)
+    n, dn = drivetrain.ratio(q)
+    j, dj = drivetrain.inertia(q)
+    ax1, ax2 = axes
+    ax1.plot(deg, n, label="N(q)")
+    ax1.set_ylabel("ratio N [motor rad / output rad]")
+    ax1b = ax1.twinx()
+    ax1b.plot(deg, dn, "C1--", label="dN/dq")
+    ax1b.set_ylabel("dN/dq [1/rad]", color="C1")
+    ax1.set_title("Kinematic ratio along the stroke")
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(deg, j, label="J(q) at the output")
+    ax2.set_ylabel("J at the output [kg*m^2]")
+    ax2b = ax2.twinx()
+    ax2b.plot(deg, j / n**2 * 1e4, "C2--", label="J / N^2 at the motor")
+    ax2b.set_ylabel("J at the motor [kg*cm^2]", color="C2")
+    ax2.set_title("Reflected inertia along the stroke")
+    ax2.grid(True, alpha=0.3)
+    for ax in axes:
+        ax.set_xlabel("output angle [deg]")

@@ -1,0 +1,54 @@
+"""The PDF report: a title page with the requirements table and section statuses, then figures."""
+
+from __future__ import annotations
+
+import textwrap
+
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+A4 = (8.27, 11.69)
+_COLOURS = {"pass": "#dafbe1", "fail": "#ffebe9", "unavailable": "#fff8c5", "n/a": "#eaeef2", "info": "#ddf4ff"}
+
+
+def _title_page(report) -> Figure:
+    fig = Figure(figsize=A4)
+    fig.text(0.08, 0.95, f"Servo report: {report.scene_name}", fontsize=18, weight="bold", va="top")
+    fig.text(0.08, 0.915, textwrap.fill(report.subtitle, 95), fontsize=9, va="top")
+    fig.text(0.08, 0.87, "Requirements", fontsize=13, weight="bold", va="top")
+    rows = [list(r[:3]) + [r[3]] for r in report.requirements] or [["(the scene sets no requirements)", "", "", "n/a"]]
+    ax = fig.add_axes((0.08, 0.55, 0.84, 0.30))
+    ax.axis("off")
+    tab = ax.table(cellText=rows, colLabels=["requirement", "required", "achieved", "status"],
+                   loc="upper center", cellLoc="left", colWidths=[0.42, 0.2, 0.2, 0.18])
+    tab.auto_set_font_size(False)
+    tab.set_fontsize(8)
+    tab.scale(1, 1.3)
+    for i, r in enumerate(rows, 1):
+        tab[i, 3].set_facecolor(_COLOURS.get(r[3], "white"))
+    fig.text(0.08, 0.52, "Sections", fontsize=13, weight="bold", va="top")
+    y = 0.49
+    for i, s in enumerate(report.sections, 1):
+        line = f"{i:2d}. {s.title}  [{s.status}]"
+        if s.reason:
+            line += f"  {s.reason}"
+        for part in textwrap.wrap(line, 110, subsequent_indent="      "):
+            fig.text(0.08, y, part, fontsize=7.5, va="top", family="monospace")
+            y -= 0.016
+    return fig
+
+
+def write_pdf(report, path) -> None:
+    """Write ``report`` to ``path`` (title page, then one page per figure)."""
+    with PdfPages(path) as pdf:
+        pdf.savefig(_title_page(report))
+        for i, section in enumerate(report.sections, 1):
+            for k, spec in enumerate(section.figures, 1):
+                fig = spec.figure
+                old = fig.get_suptitle() if hasattr(fig, "get_suptitle") else ""
+                fig.suptitle(f"{i}. {section.title}  (figure {i}.{k})", fontsize=9)
+                pdf.savefig(fig)
+                fig.suptitle(old)
+        info = pdf.infodict()
+        info["Title"] = f"Servo report: {report.scene_name}"
+        info["Subject"] = report.subtitle

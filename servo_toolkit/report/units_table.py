@@ -1,0 +1,82 @@
+"""Display units for the scene summary: SI floats inside, engineering units in the report."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+DEG = 180.0 / math.pi
+
+#: field name -> (display unit, factor from SI)
+UNITS = {
+    "resistance": ("ohm", 1.0), "inductance": ("mH", 1e3), "torque_constant": ("N*m/A", 1.0),
+    "back_emf_constant": ("V*s/rad", 1.0), "rotor_inertia": ("kg*m^2", 1.0),
+    "viscous_friction": ("N*m*s/rad", 1.0), "coulomb_friction": ("N*m", 1.0),
+    "voltage_limit": ("V", 1.0), "current_limit": ("A", 1.0),
+    "ratio": ("-", 1.0), "teeth": ("-", 1.0), "inertias": ("kg*m^2", 1.0), "efficiency": ("-", 1.0),
+    "torsional_stiffness": ("N*m/rad", 1.0), "lead": ("mm", 1e3), "screw_inertia": ("kg*m^2", 1.0),
+    "nut_mass": ("kg", 1.0), "axial_stiffness": ("N/m", 1.0), "arm_length": ("mm", 1e3),
+    "rod_length": ("mm", 1e3), "rod_offset": ("mm", 1e3), "rod_mass": ("kg", 1.0),
+    "output_shaft_mass": ("kg", 1.0), "output_shaft_inertia": ("kg*m^2", 1.0),
+    "rod_axial_stiffness": ("N/m", 1.0), "stroke_range": ("deg", DEG), "stroke": ("deg", DEG),
+    "stiffness": ("N*m/deg", 1.0 / DEG), "inertia": ("kg*m^2", 1.0), "hinge_moment": ("N*m", 1.0),
+    "hinge_stiffness": ("N*m/rad", 1.0), "damping": ("N*m*s/rad", 1.0),
+    "profile_constant": ("mm", 1e3), "follower_mass": ("kg", 1.0), "follower_weight": ("N", 1.0),
+    "guide_friction_coefficient": ("-", 1.0), "gravity_tilt": ("deg", DEG),
+    "gravity_heading": ("deg", DEG), "clearance": ("mm", 1e3),
+    "output_encoder_bits": ("bit", 1.0), "motor_encoder_counts": ("counts/rev", 1.0),
+    "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG),
+    "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG), "max_sensitivity_peak": ("dB", 1.0),
+    "screw_radius": ("mm", 1e3), "roller_radius": ("mm", 1e3), "nut_radius": ("mm", 1e3),
+    "screw_spline_radius": ("mm", 1e3), "nut_screw_joint_radius": ("mm", 1e3),
+    "screw_starts": ("-", 1.0), "rollers": ("-", 1.0), "flank_angle": ("deg", DEG),
+    "ring_gear_pressure_angle": ("deg", DEG), "roller_mass": ("kg", 1.0), "screw_mass": ("kg", 1.0),
+    "roller_inertia": ("kg*m^2", 1.0), "carrier_inertia": ("kg*m^2", 1.0),
+    "screw_speed": ("rad/s", 1.0), "load": ("N", 1.0), "roller_screw_friction": ("-", 1.0),
+    "screw_screw_friction": ("-", 1.0), "nut_screw_friction": ("-", 1.0),
+    "ratio_x": ("-", 1.0), "ratio_y": ("-", 1.0), "platform_inertia": ("kg*m^2", 1.0),
+}
+#: (class name, field) overrides where one name means different quantities
+OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6)}
+_SKIP = {"name", "direction"}
+
+
+def _scaled(value, factor):
+    if isinstance(value, (list, tuple)):
+        return [_scaled(v, factor) for v in value]
+    if hasattr(value, "tolist"):
+        return _scaled(value.tolist(), factor)
+    if isinstance(value, dict):
+        return {k: _scaled(v, factor) for k, v in value.items()}
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return value
+    return value * factor
+
+
+def _text(value) -> str:
+    from .section import fmt
+    if isinstance(value, list):
+        return "[" + ", ".join(_text(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return ", ".join(f"{k}: {_text(v)}" for k, v in value.items())
+    return fmt(value, 5)
+
+
+def rows(obj) -> list[tuple[str, str, str]]:
+    """(field, value, unit) rows of a frozen dataclass, values in display units.
+
+    Fields without a known unit are shown in SI with the unit ``SI``.
+    """
+    out = []
+    cls = type(obj).__name__
+    for f in dataclasses.fields(obj):
+        if f.name in _SKIP or f.name.startswith("_"):
+            continue
+        value = getattr(obj, f.name)
+        if value is None:
+            continue
+        unit, factor = OVERRIDES.get((cls, f.name), UNITS.get(f.name, ("SI", 1.0)))
+        if isinstance(value, str):
+            unit = ""
+        out.append((f.name, _text(_scaled(value, factor)), unit))
+    return out

@@ -1,0 +1,81 @@
+"""The report on every reference scene, failure isolation, and bad input."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from servo_toolkit import load_scene
+from servo_toolkit.cli import main
+from servo_toolkit.report import NotAvailable, Section, api, build_report, run_section
+from servo_toolkit.report.context import Context
+
+from .conftest import SCENES
+
+
+@pytest.mark.parametrize("name", ["cam_follower", "deflection_platform", "roller_screw_two_stage"])
+def test_report_on_other_scenes_completes(name, tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["report", str(SCENES / f"{name}.toml"), "-o", str(out)]) == 0
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert (out / "report.pdf").read_bytes().startswith(b"%PDF")
+    assert "Scene summary" in html and name in html
+    if name != "cam_follower":
+        # no motor-driven drivetrain: the drivetrain sections say so, politely
+        stiff = re.search(r'<section id="stiffness" data-status="([^"]+)">(.*?)</section>', html, re.S)
+        assert stiff.group(1) == "n/a" and "needs a motor-driven drivetrain" in stiff.group(2)
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_bad_scene_exits_2(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((SCENES / "ema_reference.toml").read_text().replace('lead = "5 mm"', 'lead = "0 mm"'))
+    assert main(["report", str(bad), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "drivetrain[1].lead" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_failing_section_becomes_a_box_and_the_report_completes():
+    ctx = Context(load_scene())
+
+    def broken(_ctx):
+        raise ZeroDivisionError("float division by zero")
+
+    def missing(_ctx):
+        api("servo_toolkit.no_such_module", "thing")
+
+    s = run_section("x", "Broken", broken, ctx)
+    assert s.status == "unavailable" and "ZeroDivisionError" in s.reason
+    s = run_section("y", "Missing", missing, ctx)
+    assert s.status == "unavailable" and "servo_toolkit.no_such_module" in s.reason
+    with pytest.raises(NotAvailable):
+        api("servo_toolkit.scene", "no_such_function")
+
+
+def test_section_status_is_validated():
+    with pytest.raises(ValueError):
+        Section("x", status="maybe")
+
+
+def test_shared_results_are_computed_once():
+    ctx = Context(load_scene())
+    calls = []
+
+    def compute():
+        calls.append(1)
+        raise RuntimeError("boom")
+
+    for _ in range(3):
+        with pytest.raises(RuntimeError):
+            ctx.result("k", compute)
+    assert len(calls) == 1
+
+
+def test_report_to_dict_lists_every_section():
+    report = build_report(load_scene(SCENES / "roller_screw_two_stage.toml"), progress=False)
+    d = report.to_dict()
+    assert [s["key"] for s in d["sections"]][0] == "requirements"
+    assert all(s["status"] in ("info", "pass", "fail", "n/a", "unavailable") for s in d["sections"])
+    report.close()
