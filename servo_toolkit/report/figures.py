@@ -39,7 +39,7 @@ def shares_along_stroke(chain, q, ax) -> None:
     ax.set_ylabel("share of compliance [%]")
     ax.set_ylim(0, 100)
     ax.set_xlim(math.degrees(q[0]), math.degrees(q[-1]))
-    ax.legend(fontsize="small", loc="lower right")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_title("Who is compliant: each stage's share of the series compliance")
 
 
