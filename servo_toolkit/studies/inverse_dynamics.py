@@ -1,0 +1,249 @@
+"""Inverse dynamics of a one-DOF drivetrain along a prescribed motion (seed 000, eq 10).
+
+With the equivalent-element data of :meth:`Drivetrain.jacobians` (masses M, T = du/dq,
+T2 = d2u/dq2) the generalized inertial force of a set of elements is
+
+    I(q, qd, qdd) = (T'MT) qdd + (T'M T2) qd^2 = J(q) qdd + (1/2) J'(q) qd^2,
+
+and the motor torque follows by walking the chain from the load back to the motor.
+
+Loads and losses (the documented model)
+---------------------------------------
+* External moments at the output coordinate y (y = q for a rocker actuator): the load's
+  hinge moment M_h (a constant moment opposing positive motion, so the drive must supply
+  +M_h), hinge stiffness k*y and damping c*y'. Their generalized force is
+  (M_h + k y + c y') dy/dq. The load inertia is one of the elements.
+* Stage losses, stage by stage from the load back to the motor. Let G be the generalized
+  force (at q) the stages beyond stage k require, and add stage k's own elements' inertial
+  force (a stage's elements are counted on the loss side of that stage). With P = raw * qd
+  the power flowing through stage k:
+  motoring (P >= 0, power flows motor -> load): G_k = raw / eta_k;
+  back-driving (P < 0, the load drives the motor): G_k = raw * eta_k.
+  The same eta_k is used in both directions (the scenes give one efficiency per stage).
+  ``losses="none"`` sets every eta_k = 1.
+* The motor rotor is before every loss: T_m = (G_0 + I_rotor) / N + b w_m + Tc sign(w_m)
+  with the motor's viscous and Coulomb friction, w_m = N qd.
+
+Forces in the chain
+-------------------
+* Nut pin force F_pin = G_beyond / (dx_A/dq): what the chain beyond the ball screw needs,
+  divided by the screw-to-output ratio (positive pushes the nut towards +x_A, i.e. towards
+  positive q; with the nut pin behind the arm that compresses the link rod).
+* Screw thrust = F_pin + m_nut * x_A'': the axial force the screw thread puts on the nut
+  (what the screw and its bearings carry).
+* Link-rod force = F_pin / cos(psi), psi the rod angle against the screw axis: the pin force
+  taken along the rod (the rod's own transverse inertial load is neglected here).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..components.ball_screw import BallScrew
+from ..components.linkage import RockerLinkage
+from ..drivetrain import Drivetrain
+
+LOSS_MODELS = ("directional", "none")
+
+
+@dataclass(frozen=True)
+class InverseDynamicsResult:
+    """Loads along a prescribed motion.
+
+    Attributes
+    ----------
+    t, q, qd, qdd : numpy.ndarray
+        Time (s) and the prescribed motion of q (rad, rad/s, rad/s^2).
+    ratio : numpy.ndarray
+        N(q), motor rad per rad of q.
+    motor_speed : numpy.ndarray
+        rad/s.
+    motor_torque : numpy.ndarray
+        N*m at the motor shaft (what the motor's electromagnetic torque must be).
+    inertial_torque, external_torque, loss_torque, friction_torque : numpy.ndarray
+        Parts of ``motor_torque`` (N*m): all inertial forces over N, external moments over
+        N, stage losses, motor friction. They add up to ``motor_torque``.
+    screw_thrust, rod_force : numpy.ndarray or None
+        N; None when the chain has no ball screw / no rocker linkage after it.
+    losses : str
+        Loss model used.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    ratio: np.ndarray
+    motor_speed: np.ndarray
+    motor_torque: np.ndarray
+    inertial_torque: np.ndarray
+    external_torque: np.ndarray
+    loss_torque: np.ndarray
+    friction_torque: np.ndarray
+    screw_thrust: np.ndarray | None
+    rod_force: np.ndarray | None
+    losses: str
+
+    @property
+    def peak_motor_torque(self) -> float:
+        """max |motor torque| (N*m)."""
+        return float(np.max(np.abs(self.motor_torque)))
+
+    @property
+    def peak_screw_thrust(self) -> float | None:
+        """max |screw thrust| (N), or None."""
+        return None if self.screw_thrust is None else float(np.max(np.abs(self.screw_thrust)))
+
+    @property
+    def peak_rod_force(self) -> float | None:
+        """max |link-rod force| (N), or None."""
+        return None if self.rod_force is None else float(np.max(np.abs(self.rod_force)))
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (time series as lists)."""
+        def opt(a):
+            return None if a is None else a.tolist()
+        return {
+            "losses": self.losses,
+            "t_s": self.t.tolist(), "q_deg": np.degrees(self.q).tolist(),
+            "qd_deg_s": np.degrees(self.qd).tolist(), "qdd_deg_s2": np.degrees(self.qdd).tolist(),
+            "ratio": self.ratio.tolist(), "motor_speed_rad_s": self.motor_speed.tolist(),
+            "motor_torque_Nm": self.motor_torque.tolist(),
+            "inertial_torque_Nm": self.inertial_torque.tolist(),
+            "external_torque_Nm": self.external_torque.tolist(),
+            "loss_torque_Nm": self.loss_torque.tolist(),
+            "friction_torque_Nm": self.friction_torque.tolist(),
+            "screw_thrust_N": opt(self.screw_thrust), "rod_force_N": opt(self.rod_force),
+            "peak_motor_torque_Nm": self.peak_motor_torque,
+            "peak_screw_thrust_N": self.peak_screw_thrust, "peak_rod_force_N": self.peak_rod_force,
+        }
+
+    def plot(self, axes=None, label: str | None = None):
+        """Motion, motor torque and screw thrust over time; returns the axes (3 rows)."""
+        import matplotlib.pyplot as plt
+        if axes is None:
+            _, axes = plt.subplots(3, 1, figsize=(7, 6.5), sharex=True)
+        axes[0].plot(self.t, np.degrees(self.q), label=label)
+        axes[0].set_ylabel("q [deg]")
+        axes[1].plot(self.t, self.motor_torque, label=label)
+        axes[1].set_ylabel("motor torque [N*m]")
+        if self.screw_thrust is not None:
+            axes[2].plot(self.t, self.screw_thrust / 1e3, label=label)
+        axes[2].set_ylabel("screw thrust [kN]")
+        axes[2].set_xlabel("t [s]")
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+        if label:
+            axes[1].legend(fontsize="small")
+        return axes
+
+
+def subchain(drivetrain: Drivetrain, start: int) -> Drivetrain:
+    """The stages from index ``start`` to the load, without the motor rotor.
+
+    Its ``ratio(q)`` is d(input coordinate of stage ``start``)/dq and its ``inertia(q)`` the
+    reflected inertia of those stages' elements and the load.
+    """
+    motor = replace(drivetrain.motor, rotor_inertia=0.0)
+    return Drivetrain(motor, tuple(drivetrain.stages[start:]), drivetrain.load)
+
+
+def inertial_force(drivetrain: Drivetrain, q, qd, qdd) -> np.ndarray:
+    """J(q) qdd + (1/2) J'(q) qd^2 of every element of ``drivetrain`` (generalized, at q)."""
+    j, dj = drivetrain.inertia(q)
+    return j * qdd + 0.5 * dj * np.asarray(qd) ** 2
+
+
+def external_force(drivetrain: Drivetrain, q, qd) -> np.ndarray:
+    """Generalized force (at q) the drive must supply against the load's moments."""
+    load = drivetrain.load
+    y = drivetrain.kinematics(q).output
+    moment = load.hinge_moment + load.hinge_stiffness * y.value + load.damping * y.d1 * qd
+    return moment * y.d1
+
+
+def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "directional",
+                     friction: bool = True) -> InverseDynamicsResult:
+    """Motor torque, screw thrust and link-rod force along a prescribed motion.
+
+    Parameters
+    ----------
+    drivetrain : Drivetrain
+        E.g. ``scene.drivetrain`` (the load's inertia is part of it).
+    motion : callable
+        ``motion(t) -> (q, qd, qdd)``, e.g. :class:`~servo_toolkit.studies.trajectories.SineMotion`.
+    t : array_like
+        Sample times (s).
+    losses : {"directional", "none"}
+        Stage-efficiency model (module docstring).
+    friction : bool
+        Include the motor's viscous and Coulomb friction.
+
+    Returns
+    -------
+    InverseDynamicsResult
+    """
+    if losses not in LOSS_MODELS:
+        raise ValueError(f"losses must be one of {LOSS_MODELS}, got {losses!r}")
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    q, qd, qdd = (np.broadcast_to(np.asarray(a, dtype=float), t.shape).copy() for a in motion(t))
+    stages = drivetrain.stages
+    n = len(stages)
+    chains = [subchain(drivetrain, k) for k in range(n + 1)]
+    inertial = [inertial_force(c, q, qd, qdd) for c in chains]   # inertial[n] = load only
+    external = external_force(drivetrain, q, qd)
+    required = [None] * (n + 1)
+    required[n] = inertial[n] + external
+    for k in reversed(range(n)):
+        raw = required[k + 1] + (inertial[k] - inertial[k + 1])
+        eta = 1.0 if losses == "none" else float(getattr(stages[k], "efficiency", 1.0))
+        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta)
+    ratio, _ = drivetrain.ratio(q)
+    if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
+        raise ValueError("the drivetrain ratio is zero or not finite along the motion")
+    total_inertial = inertial_force(drivetrain, q, qd, qdd)
+    rotor = total_inertial - inertial[0]
+    motor_speed = ratio * qd
+    motor = drivetrain.motor
+    fric = (motor.viscous_friction * motor_speed + motor.coulomb_friction * np.sign(motor_speed)
+            if friction else np.zeros_like(q))
+    torque = (required[0] + rotor) / ratio + fric
+    lossless = (total_inertial + external) / ratio
+    screw, rod = _chain_forces(drivetrain, chains, required, q, qd, qdd)
+    if not np.all(np.isfinite(torque)):
+        raise ValueError("inverse dynamics produced a non-finite motor torque")
+    return InverseDynamicsResult(
+        t=t, q=q, qd=qd, qdd=qdd, ratio=ratio, motor_speed=motor_speed, motor_torque=torque,
+        inertial_torque=total_inertial / ratio, external_torque=external / ratio,
+        loss_torque=(required[0] + rotor) / ratio - lossless, friction_torque=fric,
+        screw_thrust=screw, rod_force=rod, losses=losses)
+
+
+def _chain_forces(drivetrain, chains, required, q, qd, qdd):
+    """Screw thrust and link-rod force from the first ball screw of the chain."""
+    stages = drivetrain.stages
+    k = next((i for i, s in enumerate(stages) if isinstance(s, BallScrew)), None)
+    if k is None:
+        return None, None
+    beyond = chains[k + 1]
+    kin = beyond.kinematics(q).motor            # nut travel x_A as a jet in q
+    rate, curvature = kin.d1, kin.d2
+    pin = required[k + 1] / rate
+    thrust = pin + stages[k].nut_mass * (rate * qdd + curvature * qd**2)
+    rod = None
+    if k + 1 < len(stages) and isinstance(stages[k + 1], RockerLinkage):
+        phi = chains[k + 2].kinematics(q).motor.value   # the linkage's own output angle
+        psi = stages[k + 1].rod_angle(phi).value
+        rod = pin / np.cos(psi)
+    return thrust, rod
+
+
+def motor_torque_at(drivetrain: Drivetrain, motion, t: float, **options) -> float:
+    """Motor torque at one instant (convenience for forward checks)."""
+    return float(inverse_dynamics(drivetrain, motion, [t], **options).motor_torque[0])
+
+
+__all__ = ["InverseDynamicsResult", "inverse_dynamics", "inertial_force", "external_force",
+           "subchain", "motor_torque_at", "LOSS_MODELS"]

@@ -1,0 +1,120 @@
+"""Kv dynamic-load studies (seed 000) and the ``kv`` command."""
+
+import json
+import math
+import sys
+import types
+
+import pytest
+
+from servo_toolkit.cli import main
+from servo_toolkit.errors import SceneError
+from servo_toolkit.scene import load_scene
+from servo_toolkit.studies.kv import kv_studies, kv_study
+
+from .conftest import SCENES, build, variant
+
+EMA = str(SCENES / "ema_reference.toml")
+SEED_KV_MOTOR = [1.0, 1.11, 1.25, 1.34]        # seed 000 table 2, inertias 0, 1, 2, 4 kg*m^2
+SEED_KV_SCREW = [1.0, 1.13, 1.33, 1.55]        # seed 000 table 3
+
+
+@pytest.fixture(scope="module")
+def ema():
+    return load_scene(EMA)
+
+
+@pytest.fixture(scope="module")
+def stroke(ema):
+    return kv_study(ema, "kv_stroke", samples_per_period=800, progress=False)
+
+
+def test_kv_is_one_at_zero_inertia_and_rises_with_inertia(stroke):
+    cases = stroke.cases
+    assert [c.load_inertia for c in cases] == [0.0, 1.0, 2.0, 4.0]
+    assert cases[0].kv_motor == 1.0 and cases[0].kv_screw == 1.0 and cases[0].kv_rod == 1.0
+    for a, b in zip(cases, cases[1:]):
+        assert b.kv_motor > a.kv_motor and b.kv_screw > a.kv_screw
+        assert b.peak_motor_torque > a.peak_motor_torque
+
+
+def test_trend_matches_the_seed_tables(stroke):
+    """Seed tables 2-3: both factors rise, the screw's faster than the motor's (the motor's
+    zero-inertia peak already carries the rotor and gear inertias). Values differ: the seed's
+    geometry and static load are not printed."""
+    for c, seed_m, seed_s in zip(stroke.cases[1:], SEED_KV_MOTOR[1:], SEED_KV_SCREW[1:]):
+        assert (c.kv_screw > c.kv_motor) == (seed_s > seed_m)
+    assert all(1.0 < c.kv_motor < 2.0 for c in stroke.cases[1:])
+
+
+def test_8hz_study_rises_with_amplitude_and_reads_output_amplitudes(ema):
+    r = kv_study(ema, "kv_8hz", samples_per_period=400, progress=False)
+    assert [round(math.degrees(a), 9) for a in r.amplitudes] == [2.0, 3.0, 4.0]
+    loaded = [c for c in r.cases if c.load_inertia == 2.3]
+    assert len(loaded) == 3 and all(c.kv_motor > 1 for c in loaded)
+    assert loaded[0].kv_motor < loaded[1].kv_motor < loaded[2].kv_motor    # seed table 4 trend
+    seed_reading = r.kv_against_first()
+    assert seed_reading[0] == 1.0 and seed_reading[-1] > loaded[-1].kv_motor
+
+
+def test_literal_motor_gear_reading_gives_no_dynamic_effect(ema_dict):
+    """2 deg at the motor gear is ~0.015 deg at the output: Kv stays within 0.5 % of 1,
+    far from the seed's 1.05 - the reason the default reads the amplitude at the output."""
+    data = variant(ema_dict, studies__kv_8hz__amplitude_at="motor")
+    r = kv_study(build(data), "kv_8hz", samples_per_period=400, progress=False)
+    assert all(abs(c.kv_motor - 1) < 5e-3 for c in r.cases)
+    assert math.degrees(r.cases[0].amplitude) == pytest.approx(2 / 138.858, rel=1e-3)
+
+
+def test_zero_reference_is_added_and_bad_studies_name_their_key(ema_dict):
+    data = variant(ema_dict, studies__kv_stroke__load_inertias=["2 kg*m^2"])
+    r = kv_study(build(data), "kv_stroke", samples_per_period=400, progress=False)
+    assert [c.load_inertia for c in r.cases] == [0.0, 2.0]
+    assert any("added" in n for n in r.notes)
+    with pytest.raises(SceneError, match="studies.kv_stroke.trajectory"):
+        kv_study(build(variant(ema_dict, studies__kv_stroke__trajectory="ramp")), "kv_stroke")
+    with pytest.raises(SceneError, match="studies.kv_stroke.amplitude.*stroke"):
+        kv_study(build(variant(ema_dict, studies__kv_stroke__amplitude="40 deg")), "kv_stroke")
+    with pytest.raises(SceneError, match="studies.sweep.kind"):
+        kv_study(build(ema_dict), "sweep")
+
+
+def test_every_kv_study_runs(ema):
+    assert [r.study for r in kv_studies(ema, samples_per_period=200, progress=False)] == ["kv_stroke", "kv_8hz"]
+
+
+def test_result_table_dict_and_plot(stroke):
+    import matplotlib
+    matplotlib.use("Agg")
+    d = stroke.to_dict()
+    assert json.loads(json.dumps(d))["cases"][3]["load_inertia_kg_m2"] == 4.0
+    assert "Kv motor" in stroke.table() and "screw thrust" in stroke.table()
+    assert stroke.plot().get_ylabel() == "Kv"
+
+
+def test_cli_json_cases(capsys):
+    assert main(["kv", EMA, "--study", "kv_stroke", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    keys = {"load_inertia_kg_m2", "amplitude_deg", "peak_motor_torque_Nm", "peak_screw_thrust_N",
+            "kv_motor", "kv_screw"}
+    assert len(out["cases"]) == 4 and all(keys <= set(c) for c in out["cases"])
+    assert out["cases"][0]["kv_motor"] == 1.0 and out["cases"][0]["amplitude_deg"] == pytest.approx(30)
+
+
+def test_cli_text_and_errors(capsys):
+    assert main(["kv", EMA]) == 0
+    text = capsys.readouterr().out
+    assert "kv_stroke" in text and "kv_8hz" in text and "Kv motor" in text
+    assert main(["kv", str(SCENES / "cam_follower.toml")]) == 2
+    assert "no study of kind 'kv'" in capsys.readouterr().err
+    assert main(["kv", EMA, "--study", "nope"]) == 2
+    assert "studies.nope" in capsys.readouterr().err
+
+
+def test_cli_dispatches_to_a_mechanism_module(monkeypatch, capsys):
+    fake = types.ModuleType("servo_toolkit.mechanisms")
+    fake.handles = lambda scene, study: study.name == "sweep"
+    fake.run_study = lambda scene, study: {"cases": [{"from": "mechanisms"}]}
+    monkeypatch.setitem(sys.modules, "servo_toolkit.mechanisms", fake)
+    assert main(["kv", EMA, "--study", "sweep", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cases"] == [{"from": "mechanisms", "study": "sweep"}]
