@@ -1,8 +1,9 @@
 """servo_toolkit: servo control design for electromechanical actuators."""
 
 from .errors import SceneError, SimulationError
+from .loop import design
 from .scene import Scene, load_scene
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "SceneError", "SimulationError", "load_scene", "__version__"]
+__all__ = ["Scene", "SceneError", "SimulationError", "design", "load_scene", "__version__"]

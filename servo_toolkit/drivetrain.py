@@ -30,6 +30,8 @@ class Kinematics:
     elements: tuple
     springs: tuple
     lashes: tuple
+    element_stage: tuple = ()
+    spring_stage: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -60,6 +62,18 @@ class StiffnessChain:
         ``threshold`` everywhere may be left out (its reflected stiffness is then orders
         of magnitude above the rest)."""
         return np.all(self.shares < threshold, axis=-1)
+
+
+@dataclass(frozen=True)
+class TwoMassSplit:
+    """Motor-side and load-side inertia (reflected to the output) and the series stiffness
+    between them, arrays over q (kg*m^2, kg*m^2, N*m/rad); ``spring`` names the most
+    compliant spring where the chain is split (empty when the chain is rigid)."""
+
+    motor_side: np.ndarray
+    load_side: np.ndarray
+    stiffness: np.ndarray
+    spring: tuple
 
 
 def series(stiffnesses) -> float | np.ndarray:
@@ -131,12 +145,19 @@ class Drivetrain:
                 z = self.stages[i].map(z.value).compose(z)
         motor = z
         elements, springs, lashes = [], [], []
+        element_stage, spring_stage = [], []
         for i, stage in enumerate(self.stages):  # listed from the motor to the load
+            n_e, n_s = len(elements), len(springs)
             self._collect(stage, local[i], elements, springs, lashes)
+            element_stage += [i] * (len(elements) - n_e)
+            spring_stage += [i] * (len(springs) - n_s)
         elements.append(Element("motor rotor", self.motor.rotor_inertia, motor))
+        element_stage.append(-1)
         if self.load.inertia:
             elements.append(Element("load", self.load.inertia, output))
-        return Kinematics(q, motor, output, tuple(elements), tuple(springs), tuple(lashes))
+            element_stage.append(len(self.stages))
+        return Kinematics(q, motor, output, tuple(elements), tuple(springs), tuple(lashes),
+                          tuple(element_stage), tuple(spring_stage))
 
     @staticmethod
     def _collect(stage, z: Jet, elements, springs, lashes) -> None:
@@ -186,6 +207,32 @@ class Drivetrain:
         total = 1.0 / compliance.sum(axis=0)
         return StiffnessChain(tuple(s.label for s in kin.springs), k, total,
                               compliance / compliance.sum(axis=0), ratio)
+
+    def two_mass_split(self, q) -> TwoMassSplit:
+        """Split the reflected inertia at the most compliant spring (two-mass model).
+
+        The split lies at the stage holding the spring with the largest compliance share at
+        each q: the motor rotor and the elements of the stages before it are motor side,
+        the elements of that stage and the later ones, and the load, are load side. The
+        whole series stiffness acts between the two inertias. Both inertias are reflected
+        to the output; J_motor_side + J_load_side = J(q).
+        """
+        kin = self.kinematics(q)
+        chain = self.stiffness(q)
+        n_q = kin.q.size
+        if not kin.springs:
+            split = np.full(n_q, len(self.stages))
+            label = ("",) * n_q
+        else:
+            worst = np.argmax(chain.shares, axis=0)
+            split = np.asarray(kin.spring_stage)[worst]
+            label = tuple(chain.names[w] for w in worst)
+        owner = np.asarray(kin.element_stage)[:, None]
+        m = np.array([e.inertia for e in kin.elements])[:, None]
+        reflected = m * np.array([e.u.d1 for e in kin.elements])**2
+        motor_side = np.sum(np.where(owner < split[None, :], reflected, 0.0), axis=0)
+        load_side = np.sum(np.where(owner >= split[None, :], reflected, 0.0), axis=0)
+        return TwoMassSplit(motor_side, load_side, chain.total, label)
 
     def backlash(self, q) -> np.ndarray:
         """Total lost motion seen at q (rad): each lash divided by its ratio to q."""

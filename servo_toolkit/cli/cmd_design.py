@@ -1,0 +1,41 @@
+"""``servo-toolkit design``: loop design and margins of one scene."""
+
+from __future__ import annotations
+
+from ..loop import design
+from ..loop.requirements import parse_override
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+
+
+def add_design_options(p) -> None:
+    """Options shared by ``design`` and ``check``."""
+    p.add_argument("--require", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a requirement, e.g. bandwidth=200Hz, phase_margin=50deg (repeatable)")
+    p.add_argument("--structure", default="cascade", choices=("cascade", "pid", "lead_lag", "pi"),
+                   help="controller structure (default cascade: current -> speed -> position)")
+    p.add_argument("--filter", dest="resonance_filter", default="auto",
+                   choices=("auto", "none", "notch", "lowpass"), help="drivetrain resonance filter")
+
+
+def design_from_args(scene, args):
+    """Run the design with the command-line options."""
+    require = dict(parse_override(text) for text in args.require)
+    return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require)
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("design", help="loop design and margins")
+    add_scene(p)
+    add_design_options(p)
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command; 0 whatever the requirements (``check`` gates on them)."""
+    scene = load_scene(args.scene)
+    result = design_from_args(scene, args)
+    emit(args, result, result.table())
+    return 0

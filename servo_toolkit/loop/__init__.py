@@ -1,0 +1,10 @@
+"""Loop design, margins, requirement checks and robustness of a scene's position loop."""
+
+from .closed_loop import linear_closed_loop, open_loop
+from .design import design, evaluate
+from .margins import Margins, loop_margins
+from .requirements import Check, Requirement, parse_override, requirements_of
+from .result import DesignResult
+
+__all__ = ["Check", "DesignResult", "Margins", "Requirement", "design", "evaluate", "linear_closed_loop",
+           "loop_margins", "open_loop", "parse_override", "requirements_of"]

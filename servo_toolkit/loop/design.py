@@ -1,0 +1,222 @@
+"""Loop shaping: choose controller gains to meet a scene's requirements.
+
+The search evaluates candidate controllers on a frequency grid with the closed-form plant
+responses (:mod:`.response`), ranks them by their smallest normalized slack against the
+requirements, and confirms the best with python-control (closed-loop poles). The reported
+figures of the chosen design are python-control's (:func:`.margins.loop_margins`).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from ..controller import CascadeController
+from ..plant import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, plant, plant_matrices, plant_parameters
+from .assembly import closed_loop_matrix, controller_matrices
+from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
+from .margins import frequency_grid, loop_margins
+from .metrics import grid_figures
+from .requirements import check, requirements_of
+from .response import loop_response, plant_responses
+from .result import DesignResult
+from .structures import FILTERS, STRUCTURES, Motion
+
+SPEED_RATIOS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
+"""Speed-loop crossover as multiples of the required bandwidth (cascade search)."""
+TARGET_FALLBACK = (1.0, 1 / 3, 1 / 10)
+"""When no stable design reaches the required bandwidth, aim lower by these factors."""
+GAIN_SCAN = np.logspace(-0.8, 0.5, 27)
+"""Position gain (cascade) or crossover (other structures) as multiples of the bandwidth."""
+
+
+def _delay_response(s, sample_time):
+    """Pade(2) of the sampling delay at ``s`` (what :func:`plant.sample_delay` builds)."""
+    from ..plant import sample_delay
+    d = sample_delay(sample_time, DELAY_SAMPLES)
+    if d.nstates == 0:
+        return np.ones_like(s)
+    return np.asarray(d(s)).reshape(s.shape)
+
+
+def _slack(figs, reqs, f_req):
+    """Smallest normalized slack over the requirements (negative: some requirement missed)."""
+    achieved = _achieved(figs)
+    cols = []
+    for r in reqs:
+        a = np.asarray(achieved[r.name], float)
+        if r.name == "bandwidth":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sl = np.log(a / r.value)
+        else:
+            sl = (a - r.value if r.sense == ">=" else r.value - a) / max(abs(r.value), 1.0)
+        cols.append(np.where(np.isfinite(sl), sl, np.where(sl > 0, 10.0, -10.0)))
+    return np.min(cols, axis=0)
+
+
+def _achieved(figs) -> dict:
+    return {"bandwidth": figs["bandwidth_hz"], "phase_lag_at_bandwidth": -figs["phase_at_freq_deg"],
+            "gain_margin": np.abs(figs["gain_margin_db"]), "phase_margin": figs["phase_margin_deg"],
+            "sensitivity_peak": figs["sensitivity_peak_db"]}
+
+
+def _candidates(structure, p, s, delay, wb, filters, zeta, sample_time, current_gains):
+    """Yield (Motion, L on the grid) for the scan of one structure."""
+    n = p.N
+    kp_i, ki_i = current_gains
+    P1, P2 = plant_responses(s, p, kp_i, ki_i)
+    wa = 2 * math.pi * p.antiresonance_hz
+    for filt in filters:
+        fparams = {}
+        if filt == "notch":
+            fparams = {"wn": wa, "zeta_zero": max(zeta, 0.05), "zeta_pole": 0.7}
+        elif filt == "lowpass":
+            fparams = {"wn": 0.5 * wa, "zeta": 0.5}
+        if structure == "cascade":
+            for r in SPEED_RATIOS:
+                wv = r * wb
+                sv = np.array([1j * wv])
+                P1v, _ = plant_responses(sv, p, kp_i, ki_i)
+                dv = _delay_response(sv, sample_time)
+                kv = float(1.0 / np.abs(dv * (1 + (wv / 4) / sv) * sv * P1v)[0])
+                for k in GAIN_SCAN:
+                    m = Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wv / 4}, filt, fparams, n)
+                    cy, cw = m.responses(s)
+                    yield m, loop_response(s, P1, P2, delay, cy, cw, n)
+        else:
+            for k in GAIN_SCAN:
+                wc = k * wb
+                gains = {"pid": {"kc": 1.0, "wi": wc / 5, "wz": wc / 3, "wp": 3 * wc},
+                         "lead_lag": {"kc": 1.0, "wz": wc / 3, "wp": 3 * wc},
+                         "pi": {"kc": 1.0, "wi": wc / 5}}[structure]
+                unit = Motion(structure, gains, filt, fparams, n)
+                sc = np.array([1j * wc])
+                cy1, _ = unit.responses(sc)
+                P1c, P2c = plant_responses(sc, p, kp_i, ki_i)
+                lc = _delay_response(sc, sample_time) * cy1 * P2c
+                gains = dict(gains, kc=float(1.0 / abs(lc[0])))
+                m = Motion(structure, gains, filt, fparams, n)
+                cy, cw = m.responses(s)
+                yield m, loop_response(s, P1, P2, delay, cy, cw, n)
+
+
+def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sample_time, current_gains,
+            structural_damping, stable_only=True):
+    """Best-ranked (stable) candidate aiming at ``f_target``: (Motion, CascadeController) or None."""
+    w = frequency_grid(f_min=0.01, f_max=5e3, points=700, extra=[f_req, phase_hz])
+    s = 1j * w
+    delay = _delay_response(s, sample_time)
+    motions, loops = [], []
+    for m, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, structural_damping,
+                            sample_time, current_gains):
+        motions.append(m)
+        loops.append(L)
+    figs = grid_figures(w, np.array(loops), phase_freq=f_req)
+    order = np.argsort(-_slack(figs, reqs, f_req))
+    A, B, C, D, _ = plant_matrices(p, inductance=True)
+    for idx in order:
+        ctrl = CascadeController(motions[idx].state_space(), *current_gains, sample_time, motions[idx].describe())
+        if not stable_only:
+            return motions[idx], ctrl
+        acl = closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *controller_matrices(ctrl, scene.motor))
+        if np.all(np.linalg.eigvals(acl).real < 0):
+            return motions[idx], ctrl
+    return None
+
+
+def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
+           current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
+           model: str = "auto", require=None, phase_hz: float = 8.0) -> DesignResult:
+    """Design the position loop of a scene at the operating point ``q0``.
+
+    Parameters
+    ----------
+    scene : Scene
+    q0 : float, optional
+        Operating point (rad), default mid-stroke.
+    structure : {"cascade", "pid", "lead_lag", "pi"}
+        ``cascade`` = current -> speed PI -> position P, the usual EMA structure.
+    resonance_filter : {"auto", "none", "notch", "lowpass"}
+        Filter on the position path for the drivetrain resonance; ``auto`` tries all three
+        and keeps the best (a rigid plant gets none).
+    current_bandwidth_hz : float
+        Bandwidth of the analog current PI (pole-cancelling tuning).
+    structural_damping : float
+        Damping ratio assumed for the drivetrain mode.
+    model : {"auto", "two_mass", "rigid"}
+    require : dict, optional
+        Requirement overrides, name -> value in display units (Hz, deg, dB).
+    phase_hz : float
+        Frequency of the reported closed-loop phase (Hz).
+
+    Returns
+    -------
+    DesignResult
+    """
+    if structure not in STRUCTURES:
+        from ..errors import SceneError
+        raise SceneError("structure", f"unknown loop structure {structure!r}; known: {STRUCTURES}")
+    p = plant_parameters(scene, q0, model, structural_damping)
+    reqs = requirements_of(scene, require)
+    notes = [f"{r.name} {r.sense} {r.value:g} {r.unit}: default (the scene sets none)"
+             for r in reqs if r.source == "default"]
+    sample_time = scene.sensors.sample_time
+    if sample_time == 0:
+        notes.append("continuous controller: the scene gives no sample time")
+    kp_i, ki_i = current_loop_gains(scene.motor, current_bandwidth_hz) if p.L > 0 else (0.0, 0.0)
+    if p.L == 0:
+        notes.append("zero inductance: ideal current loop u = R i_ref + Ke omega_m")
+    f_req = next(r.value for r in reqs if r.name == "bandwidth")
+    if p.rigid:
+        filters = ("none",)
+    elif resonance_filter == "auto":
+        filters = FILTERS
+    else:
+        filters = (resonance_filter,)
+    chosen = None
+    for target in TARGET_FALLBACK:
+        chosen = _search(scene, p, reqs, structure, filters, f_req, f_req * target, phase_hz,
+                         sample_time, (kp_i, ki_i), structural_damping)
+        if chosen is not None:
+            if target < 1:
+                notes.append(f"no stable {structure} design reaches {f_req:g} Hz; the best stable one found "
+                             f"aiming at {f_req * target:.3g} Hz is shown")
+            break
+    if chosen is None:
+        chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
+                         (kp_i, ki_i), structural_damping, stable_only=False)
+        notes.append(f"no stable {structure} design was found in the search; the best-ranked one is shown")
+    motion, ctrl = chosen
+    return evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes, motion=motion, model=model,
+                    structural_damping=structural_damping, phase_hz=phase_hz)
+
+
+def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
+             structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = 8.0, closed=None,
+             require=None) -> DesignResult:
+    """Margins and requirement checks of a given controller on a scene (python-control)."""
+    p = plant_parameters(scene, q0, model, structural_damping)
+    reqs = requirements_of(scene, require) if reqs is None else reqs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cl = closed if closed is not None else linear_closed_loop(scene, controller, p.q0, model,
+                                                                   structural_damping)
+        loop = open_loop(scene, controller, p.q0, model, structural_damping)
+    cl_siso = cl["theta", "theta_ref"]
+    f_req = next(r.value for r in reqs if r.name == "bandwidth")
+    mg = loop_margins(loop, cl_siso, phase_hz=phase_hz,
+                      omega=frequency_grid(extra=[phase_hz, f_req]))
+    lag_at = loop_margins(loop, cl_siso, phase_hz=f_req).phase_at_freq_deg if f_req != phase_hz \
+        else mg.phase_at_freq_deg
+    achieved = {"bandwidth": mg.bandwidth_hz if mg.closed_loop_stable else 0.0,
+                "phase_lag_at_bandwidth": -lag_at if mg.closed_loop_stable else math.inf,
+                "gain_margin": abs(mg.gain_margin_db) if mg.closed_loop_stable else 0.0,
+                "phase_margin": mg.phase_margin_deg if mg.closed_loop_stable else -math.inf,
+                "sensitivity_peak": mg.sensitivity_peak_db if mg.closed_loop_stable else math.inf}
+    checks = check(reqs, achieved)
+    g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
+    return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
+                        loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
+                        motion=motion, notes=tuple(notes), closed_loop_full=cl)

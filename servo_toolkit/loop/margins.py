@@ -1,0 +1,136 @@
+"""Stability margins of a loop with python-control: every crossing, disk margin, Ms,
+closed-loop bandwidth and phase at a given frequency (MATLAB ``allmargin`` in spirit)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Margins of an open loop ``L`` with negative unit feedback.
+
+    Attributes
+    ----------
+    gain_margins_db : tuple of float
+        20 log10 of python-control's gain margin at every phase crossing (positive: the gain
+        may rise by that much; negative: it may fall by that much).
+    phase_crossover_hz : tuple of float
+    phase_margins_deg : tuple of float
+        At every gain crossing.
+    gain_crossover_hz : tuple of float
+    delay_margins_s : tuple of float
+        Phase margin / crossover frequency at every gain crossing.
+    gain_margin_db, phase_margin_deg, delay_margin_s : float
+        The smallest of each (``inf`` without a crossing); the gain margin is the smallest
+        in magnitude.
+    disk_margin : float
+        Balanced (skew 0) disk margin alpha, python-control's ``disk_margins``.
+    disk_gain_margin_db, disk_phase_margin_deg : float
+    sensitivity_peak_db : float
+        Ms = max |1 / (1 + L)| (dB).
+    bandwidth_hz : float
+        -3 dB bandwidth of the closed loop (python-control's ``bandwidth``).
+    phase_at_hz : float
+        Frequency where the closed-loop phase is reported (Hz).
+    phase_at_freq_deg : float
+        Closed-loop phase there, unwrapped from low frequency (deg).
+    closed_loop_stable : bool
+        Every closed-loop pole in the open left half plane.
+    max_closed_loop_pole_real : float
+        Largest real part of the closed-loop poles (1/s).
+    """
+
+    gain_margins_db: tuple
+    phase_crossover_hz: tuple
+    phase_margins_deg: tuple
+    gain_crossover_hz: tuple
+    delay_margins_s: tuple
+    gain_margin_db: float
+    phase_margin_deg: float
+    delay_margin_s: float
+    disk_margin: float
+    disk_gain_margin_db: float
+    disk_phase_margin_deg: float
+    sensitivity_peak_db: float
+    bandwidth_hz: float
+    phase_at_hz: float
+    phase_at_freq_deg: float
+    closed_loop_stable: bool
+    max_closed_loop_pole_real: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the key names."""
+        d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == 8.0 else None
+        if d["phase_at_8hz_deg"] is None:
+            d["phase_at_freq_deg"] = self.phase_at_freq_deg
+        return d
+
+    def table(self) -> str:
+        """Every crossing, as text."""
+        lines = ["  phase crossings:  " + (", ".join(f"{g:+.2f} dB at {f:.3g} Hz" for g, f in
+                                                 zip(self.gain_margins_db, self.phase_crossover_hz)) or "none"),
+                 "  gain crossings:   " + (", ".join(f"PM {p:.1f} deg, delay {d * 1e3:.3g} ms at {f:.3g} Hz"
+                                                   for p, d, f in zip(self.phase_margins_deg, self.delay_margins_s,
+                                                                      self.gain_crossover_hz)) or "none")]
+        return "\n".join(lines)
+
+
+def frequency_grid(f_min: float = 0.01, f_max: float = 5e3, points: int = 2000, extra=()) -> np.ndarray:
+    """Log-spaced angular frequencies (rad/s) including ``extra`` frequencies (Hz)."""
+    f = np.unique(np.concatenate([np.logspace(np.log10(f_min), np.log10(f_max), points),
+                                  np.asarray(extra, float)]))
+    return 2 * np.pi * f
+
+
+def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margins:
+    """Margins of the SISO open loop ``loop`` and its SISO closed loop ``closed_loop``.
+
+    Parameters
+    ----------
+    loop : control.LTI
+        Open loop, negative unit feedback.
+    closed_loop : control.LTI
+        Reference to output, for the bandwidth and the phase at ``phase_hz``.
+    phase_hz : float
+        Frequency of the reported closed-loop phase (Hz).
+    omega : array_like, optional
+        Grid (rad/s) for the disk margin and Ms; default 0.01 Hz .. 5 kHz.
+    """
+    omega = frequency_grid(extra=[phase_hz]) if omega is None else np.asarray(omega, float)
+    gm, pm, _, wpc, wgc, _ = ct.stability_margins(loop, returnall=True)
+    gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(x, float)) for x in (gm, pm, wpc, wgc))
+    keep = np.isfinite(gm) & (gm > 0) & (wpc > 1e-3)  # crossings at w ~ 0 are integrators, not margins
+    gm_db = 20 * np.log10(gm[keep])
+    wpc = wpc[keep]
+    keep = np.isfinite(pm)
+    pm, wgc = pm[keep], wgc[keep]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dm = np.where((wgc > 0) & (pm > 0), np.radians(pm) / wgc, np.where(pm > 0, np.inf, 0.0))
+    dmarg, dgm, dpm = ct.disk_margins(loop, omega)
+    resp = ct.frequency_response(loop, omega)
+    lw = np.asarray(resp.complex).reshape(-1)
+    ms = float(20 * np.log10(np.max(np.abs(1 / (1 + lw)))))
+    poles = ct.poles(closed_loop)
+    stable = bool(np.all(poles.real < 0))
+    bw = ct.bandwidth(closed_loop) if stable else math.nan
+    bw = float(bw) / (2 * np.pi) if np.isfinite(bw) else math.inf if stable else math.nan
+    w_ph = omega[omega <= 2 * np.pi * phase_hz * (1 + 1e-12)]
+    t = np.asarray(ct.frequency_response(closed_loop, w_ph).complex).reshape(-1)
+    phase = float(np.degrees(np.unwrap(np.angle(t)))[-1])
+    order = np.argsort(np.abs(gm_db)) if gm_db.size else []
+    return Margins(
+        gain_margins_db=tuple(float(x) for x in gm_db), phase_crossover_hz=tuple(float(x) for x in wpc / (2 * np.pi)),
+        phase_margins_deg=tuple(float(x) for x in pm), gain_crossover_hz=tuple(float(x) for x in wgc / (2 * np.pi)),
+        delay_margins_s=tuple(float(x) for x in dm),
+        gain_margin_db=float(gm_db[order[0]]) if gm_db.size else math.inf,
+        phase_margin_deg=float(pm.min()) if pm.size else math.inf,
+        delay_margin_s=float(dm.min()) if dm.size else math.inf,
+        disk_margin=float(dmarg), disk_gain_margin_db=float(dgm), disk_phase_margin_deg=float(dpm),
+        sensitivity_peak_db=ms, bandwidth_hz=bw, phase_at_hz=float(phase_hz), phase_at_freq_deg=phase,
+        closed_loop_stable=stable, max_closed_loop_pole_real=float(np.max(poles.real)) if poles.size else -math.inf)

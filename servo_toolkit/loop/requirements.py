@@ -1,0 +1,126 @@
+"""Loop requirements: the scene's ``[requirements]``, documented defaults, overrides, checks."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import SceneError
+from ..units import parse_quantity
+
+#: name -> (Requirements attribute, sense, unit shown, SI -> shown factor, default in shown units)
+#: sense ">=" means the achieved figure must be at least the requirement.
+SPECS = {
+    "bandwidth": ("bandwidth", ">=", "Hz", 1.0, 5.0),
+    "phase_lag_at_bandwidth": ("max_phase_lag_at_bandwidth", "<=", "deg", 180 / math.pi, 90.0),
+    "gain_margin": ("min_gain_margin", ">=", "dB", 1.0, 6.0),
+    "phase_margin": ("min_phase_margin", ">=", "deg", 180 / math.pi, 45.0),
+    "sensitivity_peak": ("max_sensitivity_peak", "<=", "dB", 1.0, 6.0),
+}
+_PINT_UNITS = {"bandwidth": "Hz", "phase_lag_at_bandwidth": "deg", "gain_margin": "dB",
+               "phase_margin": "deg", "sensitivity_peak": "dB"}
+_ALIASES = {"max_phase_lag_at_bandwidth": "phase_lag_at_bandwidth", "min_gain_margin": "gain_margin",
+            "min_phase_margin": "phase_margin", "max_sensitivity_peak": "sensitivity_peak",
+            "phase_lag": "phase_lag_at_bandwidth", "ms": "sensitivity_peak", "gm": "gain_margin",
+            "pm": "phase_margin"}
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """One requirement in display units.
+
+    Attributes
+    ----------
+    name : str
+    sense : str
+        ``">="`` (achieved at least ``value``) or ``"<="``.
+    value : float
+    unit : str
+    source : str
+        ``"scene"``, ``"default"`` (the scene sets none) or ``"override"`` (command line).
+    """
+
+    name: str
+    sense: str
+    value: float
+    unit: str
+    source: str
+
+
+@dataclass(frozen=True)
+class Check:
+    """A requirement against the achieved figure.
+
+    Attributes
+    ----------
+    name, unit, sense, source : str
+    required, achieved : float
+    passed : bool
+    shortfall : float
+        By how much the requirement is missed (0 when passed), in ``unit``.
+    """
+
+    name: str
+    required: float
+    achieved: float
+    passed: bool
+    unit: str
+    sense: str
+    source: str
+    shortfall: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"required": self.required, "achieved": self.achieved, "passed": self.passed,
+                "unit": self.unit, "sense": self.sense, "source": self.source,
+                "shortfall": self.shortfall}
+
+
+def requirements_of(scene, overrides=None) -> list[Requirement]:
+    """Every requirement of the design: the scene's, defaults where it sets none (stated as
+    such) and ``overrides`` (name -> value in display units, or a string with units)."""
+    given = scene.requirements
+    out = []
+    overrides = dict(overrides or {})
+    for name, (attr, sense, unit, factor, default) in SPECS.items():
+        value = getattr(given, attr)
+        if name in overrides:
+            out.append(Requirement(name, sense, float(overrides.pop(name)), unit, "override"))
+        elif value is not None:
+            out.append(Requirement(name, sense, value * factor, unit, "scene"))
+        else:
+            out.append(Requirement(name, sense, default, unit, "default"))
+    if overrides:
+        raise SceneError(f"require.{next(iter(overrides))}", f"unknown requirement; known: {sorted(SPECS)}")
+    return out
+
+
+def parse_override(text: str) -> tuple[str, float]:
+    """``"bandwidth=200Hz"`` -> ``("bandwidth", 200.0)`` in the requirement's display unit."""
+    if "=" not in text:
+        raise SceneError(f"require.{text}", "expected NAME=VALUE, e.g. bandwidth=200Hz")
+    name, value = (part.strip() for part in text.split("=", 1))
+    name = _ALIASES.get(name, name)
+    if name not in SPECS:
+        raise SceneError(f"require.{name}", f"unknown requirement; known: {sorted(SPECS)}")
+    unit = _PINT_UNITS[name]
+    try:
+        number = float(value)
+    except ValueError:
+        number = parse_quantity(value, unit, f"require.{name}")
+    if not math.isfinite(number):
+        raise SceneError(f"require.{name}", f"must be finite (got {value!r})")
+    return name, number
+
+
+def check(requirements, achieved: dict) -> list[Check]:
+    """Compare each requirement with ``achieved[name]`` (display units)."""
+    checks = []
+    for r in requirements:
+        a = float(achieved[r.name])
+        ok = a >= r.value if r.sense == ">=" else a <= r.value
+        ok = bool(ok and math.isfinite(a)) if r.sense == "<=" else bool(ok)
+        short = 0.0 if ok else (r.value - a if r.sense == ">=" else a - r.value)
+        checks.append(Check(r.name, r.value, a, ok, r.unit, r.sense, r.source,
+                            float(short) if math.isfinite(short) else math.inf))
+    return checks

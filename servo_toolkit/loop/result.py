@@ -1,0 +1,142 @@
+"""The result of a loop design: plant, controller, loop, margins and requirement checks."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+from .margins import Margins
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """A designed (or evaluated) loop.
+
+    Attributes
+    ----------
+    scene_name : str
+    q0 : float
+        Operating point (rad).
+    parameters : PlantParameters
+        Lumped plant parameters at q0.
+    plant : control.StateSpace
+        Voltage-driven plant (inputs ``u``, ``tau_ext``; outputs ``theta``, ``omega_m``,
+        ``i``, ``omega``), see :mod:`servo_toolkit.plant`.
+    controller : CascadeController
+        What the simulation engine runs.
+    loop : control.StateSpace
+        Open loop broken at the position error (``theta_error`` -> ``theta``).
+    closed_loop : control.StateSpace
+        ``theta_ref`` -> ``theta``.
+    margins : Margins
+    requirements : list of Check
+        One per requirement plus ``closed_loop_stable``.
+    motion : Motion or None
+        Structure and gains of the motion controller, when designed here.
+    notes : tuple of str
+        Defaults and assumptions used (e.g. requirements the scene does not set).
+    closed_loop_full : control.StateSpace
+        ``theta_ref``, ``tau_ext`` -> ``theta``, ``i``, ``omega_m``, ``u``, ``omega``.
+    """
+
+    scene_name: str
+    q0: float
+    parameters: object
+    plant: ct.StateSpace
+    controller: object
+    loop: ct.StateSpace
+    closed_loop: ct.StateSpace
+    margins: Margins
+    requirements: list
+    motion: object = None
+    notes: tuple = ()
+    closed_loop_full: ct.StateSpace | None = None
+
+    @property
+    def passed(self) -> bool:
+        """Every requirement met and the closed loop stable."""
+        return self.margins.closed_loop_stable and all(c.passed for c in self.requirements)
+
+    @property
+    def failures(self) -> list:
+        """Checks that are not met."""
+        return [c for c in self.requirements if not c.passed]
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary; the margin figures are at the top level."""
+        p = self.parameters
+        m = self.margins.to_dict()
+        top = {k: m[k] for k in ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "disk_margin",
+                                 "sensitivity_peak_db", "bandwidth_hz", "phase_at_8hz_deg",
+                                 "closed_loop_stable") if k in m}
+        reqs = {c.name: c.to_dict() for c in self.requirements}
+        reqs["closed_loop_stable"] = {"required": True, "achieved": self.margins.closed_loop_stable,
+                                      "passed": self.margins.closed_loop_stable, "unit": "",
+                                      "sense": "==", "source": "always", "shortfall": 0.0}
+        return {"scene": self.scene_name, "q0_deg": math.degrees(self.q0), **top,
+                "requirements_met": self.passed, "requirements": reqs, "margins": m,
+                "plant": {"model": "rigid" if p.rigid else "two_mass",
+                          "motor_side_inertia_kg_m2": p.J1, "load_side_inertia_kg_m2": p.J2,
+                          "stiffness_n_m_per_rad": p.K, "ratio": p.N, "efficiency": p.eta,
+                          "resonance_hz": p.resonance_hz, "antiresonance_hz": p.antiresonance_hz},
+                "controller": {"description": self.controller.description,
+                               "current_kp_v_per_a": self.controller.current_kp,
+                               "current_ki_v_per_a_s": self.controller.current_ki,
+                               "sample_time_s": self.controller.sample_time,
+                               "structure": getattr(self.motion, "structure", None),
+                               "gains": dict(getattr(self.motion, "gains", {}) or {}),
+                               "filter": getattr(self.motion, "filter", None),
+                               "filter_params": dict(getattr(self.motion, "filter_params", {}) or {})},
+                "notes": list(self.notes)}
+
+    def table(self) -> str:
+        """Requirements and margins as text."""
+        m = self.margins
+        p = self.parameters
+        lines = [f"Loop design of {self.scene_name} at q0 = {math.degrees(self.q0):.2f} deg",
+                 f"  plant: {'rigid' if p.rigid else 'two-mass'}, J1 = {p.J1:.4g}, J2 = {p.J2:.4g} kg*m^2, "
+                 f"K = {p.K:.4g} N*m/rad, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
+                 f"{p.antiresonance_hz:.3g} Hz",
+                 f"  controller: {self.controller.description}",
+                 f"  closed loop stable: {'yes' if m.closed_loop_stable else 'NO'}; bandwidth "
+                 f"{m.bandwidth_hz:.3g} Hz; phase at {m.phase_at_hz:g} Hz {m.phase_at_freq_deg:.1f} deg",
+                 f"  GM {m.gain_margin_db:.2f} dB, PM {m.phase_margin_deg:.1f} deg, delay margin "
+                 f"{m.delay_margin_s * 1e3:.3g} ms, disk margin {m.disk_margin:.3f}, Ms {m.sensitivity_peak_db:.2f} dB",
+                 m.table(), "", requirements_table(self.requirements)]
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+    def plot(self, axes=None):
+        """Bode of the open loop and the closed loop, and |S|; returns the axes."""
+        import matplotlib.pyplot as plt
+        if axes is None:
+            _, axes = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+        w = 2 * np.pi * np.logspace(-1, 3, 800)
+        for sys, label in ((self.loop, "open loop L"), (self.closed_loop, "closed loop T")):
+            r = np.asarray(ct.frequency_response(sys, w).complex).reshape(-1)
+            axes[0].semilogx(w / (2 * np.pi), 20 * np.log10(np.abs(r)), label=label)
+            axes[1].semilogx(w / (2 * np.pi), np.degrees(np.unwrap(np.angle(r))), label=label)
+        lw = np.asarray(ct.frequency_response(self.loop, w).complex).reshape(-1)
+        axes[0].semilogx(w / (2 * np.pi), 20 * np.log10(np.abs(1 / (1 + lw))), "--", label="sensitivity S")
+        axes[0].axhline(-3, color="0.6", lw=0.8)
+        axes[1].axhline(-180, color="0.6", lw=0.8)
+        axes[0].set_ylabel("magnitude (dB)")
+        axes[1].set_ylabel("phase (deg)")
+        axes[1].set_xlabel("frequency (Hz)")
+        axes[0].legend()
+        axes[0].set_title(f"{self.scene_name}: {'requirements met' if self.passed else 'requirements NOT met'}")
+        return axes
+
+
+def requirements_table(checks) -> str:
+    """Text table: requirement, required, achieved, pass/fail and shortfall."""
+    rows = [f"  {'requirement':<24}{'required':>14}{'achieved':>12}  {'':6}{'short by':>10}"]
+    for c in checks:
+        short = "" if c.passed else f"{c.shortfall:.3g} {c.unit}"
+        rows.append(f"  {c.name:<24}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
+                    f"{c.achieved:>9.3g} {c.unit:<3}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
+                    + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))
+    return "\n".join(rows)

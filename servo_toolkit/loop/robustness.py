@@ -1,0 +1,277 @@
+"""Margins over parameter variations (load inertia, drivetrain stiffness), vectorized.
+
+Every variant's open loop is evaluated on one frequency grid as array arithmetic with the
+closed-form plant responses (:mod:`.response`) and the designed controller's response,
+computed once; closed-loop stability comes from the eigenvalues of the batched closed-loop
+matrices (:mod:`.assembly`). :func:`reference_margins` does the same for one variant with
+python-control, for checks and for the benchmark.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import control as ct
+import numpy as np
+
+from ..errors import SceneError
+from ..parallel import chunks, run_cases
+from ..plant import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, spring_damping
+from .assembly import closed_loop_matrix, controller_matrices
+from .closed_loop import DELAY_SAMPLES, open_loop_of
+from .margins import frequency_grid
+from .metrics import grid_figures
+from .requirements import check
+from .response import loop_response, plant_responses
+
+PARAMETERS = {"load_inertia": "kg*m^2 at the output, replaces the scene's load inertia",
+              "stiffness": "factor on the series stiffness"}
+DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
+
+
+def parse_vary(text: str):
+    """``"load_inertia=0:4"`` -> ``("load_inertia", (0.0, 4.0))``."""
+    name, _, rng = text.partition("=")
+    name = name.strip()
+    if name not in PARAMETERS:
+        raise SceneError(f"vary.{name}", f"unknown parameter; known: {sorted(PARAMETERS)}")
+    try:
+        lo, hi = (float(v) for v in rng.split(":"))
+    except ValueError:
+        raise SceneError(f"vary.{name}", f"expected LO:HI numbers, got {rng!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (name == "stiffness" and lo <= 0) or lo < 0:
+        raise SceneError(f"vary.{name}", f"need 0 <= LO <= HI (stiffness LO > 0), got {rng!r}")
+    return name, (lo, hi)
+
+
+def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0) -> dict:
+    """Arrays of parameter values: explicit arrays are kept, (lo, hi) ranges are sampled
+    uniformly (Monte Carlo, seeded) or on a grid of ``samples`` points in total."""
+    variants = dict(DEFAULT_VARIATIONS if variants is None else variants)
+    ranges = {k: v for k, v in variants.items() if isinstance(v, tuple) and len(v) == 2}
+    out = {k: np.asarray(v, float).ravel() for k, v in variants.items() if k not in ranges}
+    if grid and ranges:
+        per = max(2, int(round(samples ** (1 / len(ranges)))))
+        mesh = np.meshgrid(*[np.linspace(lo, hi, per) for lo, hi in ranges.values()], indexing="ij")
+        out.update({k: m.ravel() for k, m in zip(ranges, mesh)})
+    elif ranges:
+        rng = np.random.default_rng(seed)
+        out.update({k: rng.uniform(lo, hi, samples) for k, (lo, hi) in ranges.items()})
+    sizes = {v.size for v in out.values()}
+    if len(sizes) != 1:
+        raise SceneError("vary", f"explicit variant arrays must have one length, got {sorted(sizes)}")
+    for k in out:
+        if k not in PARAMETERS:
+            raise SceneError(f"vary.{k}", f"unknown parameter; known: {sorted(PARAMETERS)}")
+    return out
+
+
+def varied_parameters(p, load, values: dict, i: int, zeta: float):
+    """PlantParameters of variant ``i``."""
+    delta = values["load_inertia"][i] - load if "load_inertia" in values else 0.0
+    factor = values["stiffness"][i] if "stiffness" in values else 1.0
+    J2 = p.J2 + delta
+    K = p.K * factor
+    return replace(p, J2=J2, K=K, c=float(spring_damping(p.J1, J2, K, zeta)))
+
+
+def _evaluate(case):
+    """Figures and stability of one chunk of variants (module level: picklable)."""
+    p, J2, K, c = case["p"], case["J2"], case["K"], case["c"]
+    s = case["s"]
+    kp, ki = case["current_gains"]
+    P1, P2 = plant_responses(s[None, :], p, kp, ki, J2=J2[:, None], K=K[:, None], c=c[:, None])
+    L = loop_response(s[None, :], P1, P2, case["delay"], case["cy"], case["cw"], p.N)
+    figs = grid_figures(np.imag(s), L, phase_freq=case["f_req"])
+    A, B, C, D = batched_plant_matrices(p, J2, K, c)
+    acl = closed_loop_matrix(A, B[..., :1], C[..., :3, :], D[..., :3, :1], *case["controller"])
+    figs["max_pole_real"] = np.linalg.eigvals(acl).real.max(axis=-1)
+    return figs
+
+
+def batched_plant_matrices(p, J2, K, c):
+    """:func:`plant_matrices` for arrays of J2, K, c (leading batch axis). A two-mass plant
+    only changes in its two mechanical rows; a rigid one is built variant by variant."""
+    if p.rigid:
+        mats = [plant_matrices(replace(p, J2=float(a), K=float(b), c=float(d))) for a, b, d in zip(J2, K, c)]
+        return tuple(np.stack([m[k] for m in mats]) for k in range(4))
+    A0, B0, C0, D0, _ = plant_matrices(p)
+    n = J2.size
+    A = np.repeat(A0[None], n, axis=0)
+    B = np.repeat(B0[None], n, axis=0)
+    electrical = A0[1, 1] + (p.c + p.b1) / p.J1  # back-emf damping without inductance
+    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = -K / p.J1, -(c + p.b1) / p.J1 + electrical, K / p.J1, c / p.J1
+    A[:, 3, 0], A[:, 3, 1], A[:, 3, 2], A[:, 3, 3] = K / J2, c / J2, -(K + p.kh) / J2, -(c + p.b2) / J2
+    B[:, 3, 1] = 1 / J2
+    return A, B, np.repeat(C0[None], n, axis=0), np.repeat(D0[None], n, axis=0)
+
+
+@dataclass(frozen=True)
+class RobustnessResult:
+    """Loop figures over parameter variants and the worst case against the requirements.
+
+    Attributes
+    ----------
+    scene_name : str
+    values : dict of numpy.ndarray
+        Parameter values per variant (see ``PARAMETERS``).
+    figures : dict of numpy.ndarray
+        ``gain_margin_db``, ``phase_margin_deg``, ``sensitivity_peak_db``, ``bandwidth_hz``,
+        ``phase_lag_deg`` (closed loop, at the required bandwidth), ``stable``.
+    requirements : list of Check
+        Worst case over the stable variants against each requirement.
+    worst : dict
+        Per requirement, the parameter values of the worst variant.
+    """
+
+    scene_name: str
+    values: dict
+    figures: dict
+    requirements: list
+    worst: dict
+
+    @property
+    def count(self) -> int:
+        """Number of variants."""
+        return int(self.figures["stable"].size)
+
+    @property
+    def unstable_count(self) -> int:
+        """Variants whose closed loop is unstable."""
+        return int(np.sum(~self.figures["stable"]))
+
+    @property
+    def all_stable(self) -> bool:
+        return self.unstable_count == 0
+
+    @property
+    def passed(self) -> bool:
+        return self.all_stable and all(c.passed for c in self.requirements)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (worst cases, not every variant)."""
+        return {"scene": self.scene_name, "variants": self.count, "unstable_variants": self.unstable_count,
+                "ranges": {k: [float(v.min()), float(v.max())] for k, v in self.values.items()},
+                "worst": {c.name: {**c.to_dict(), "at": self.worst.get(c.name, {})} for c in self.requirements},
+                "passed": self.passed}
+
+    def table(self) -> str:
+        """Worst cases as text."""
+        rng = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())
+        lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
+        for c in self.requirements:
+            at = ", ".join(f"{k}={v:.3g}" for k, v in self.worst.get(c.name, {}).items())
+            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.3g} {c.unit} "
+                         f"{'ok' if c.passed else 'FAIL'}  at {at}")
+        return "\n".join(lines)
+
+    def plot(self, ax=None, figure: str = "phase_margin_deg"):
+        """Scatter of one figure against load inertia, coloured by stiffness factor."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 4))
+        x = self.values.get("load_inertia", np.arange(self.count))
+        c = self.values.get("stiffness", None)
+        y = np.where(self.figures["stable"], self.figures[figure], np.nan)
+        sc = ax.scatter(x, y, c=c, s=6, cmap="viridis")
+        if c is not None:
+            plt.colorbar(sc, ax=ax, label="stiffness factor")
+        ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
+                   label="unstable")
+        ax.set_xlabel("load inertia (kg*m^2)")
+        ax.set_ylabel(figure)
+        ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
+        return ax
+
+
+def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid: bool = False, seed: int = 0,
+               executor=None, chunk_size: int = 2500, progress: bool = True,
+               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> RobustnessResult:
+    """Margins of ``design_result``'s controller over parameter variations.
+
+    Parameters
+    ----------
+    scene : Scene
+    design_result : DesignResult
+    variants : dict, optional
+        name -> (lo, hi) range or array of values; names ``load_inertia`` (kg*m^2) and
+        ``stiffness`` (factor). Default: load inertia 0..4 kg*m^2, stiffness 0.7..1.3.
+    samples : int
+        Monte Carlo samples (or grid points in total with ``grid=True``) for ranges.
+    grid : bool
+    seed : int
+    executor : concurrent.futures.Executor, optional
+        Runs the chunks (e.g. a dask ``Client.get_executor()``).
+    chunk_size : int
+    progress : bool
+    structural_damping : float
+
+    Returns
+    -------
+    RobustnessResult
+    """
+    values = sample_variants(variants, samples, grid, seed)
+    p = design_result.parameters
+    n = next(iter(values.values())).size
+    J2 = p.J2 + (values["load_inertia"] - scene.load.inertia if "load_inertia" in values else np.zeros(n))
+    if np.any(J2 < 0):
+        raise SceneError("vary.load_inertia", "gives a negative load-side inertia")
+    K = p.K * (values["stiffness"] if "stiffness" in values else np.ones(n))
+    c = spring_damping(p.J1, J2, K, structural_damping) * np.ones(n)
+    ctrl = design_result.controller
+    f_req = next(r.required for r in design_result.requirements if r.name == "bandwidth")
+    w = frequency_grid(f_min=0.01, f_max=5e3, points=600, extra=[f_req])
+    s = 1j * w
+    (cy, cw) = _controller_response(ctrl, s)
+    from ..plant import sample_delay
+    d = sample_delay(ctrl.sample_time, DELAY_SAMPLES)
+    delay = np.asarray(d(s)).reshape(-1) if d.nstates else np.ones_like(s)
+    kp_i, ki_i = (ctrl.current_kp, ctrl.current_ki) if p.L > 0 else (0.0, 0.0)
+    common = {"p": p, "s": s, "delay": delay, "cy": cy, "cw": cw, "f_req": f_req,
+              "current_gains": (kp_i, ki_i), "controller": controller_matrices(ctrl, scene.motor)}
+    idx = np.arange(n)
+    cases = [dict(common, J2=J2[i], K=K[i], c=c[i]) for i in chunks(idx, chunk_size)]
+    parts = run_cases(_evaluate, cases, executor=executor, progress=progress, description="robustness")
+    figs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
+    stable = figs.pop("max_pole_real") < 0
+    figs = {"gain_margin_db": np.abs(figs["gain_margin_db"]), "phase_margin_deg": figs["phase_margin_deg"],
+            "sensitivity_peak_db": figs["sensitivity_peak_db"], "bandwidth_hz": figs["bandwidth_hz"],
+            "phase_lag_deg": -figs["phase_at_freq_deg"], "stable": stable}
+    names = {"bandwidth": ("bandwidth_hz", np.argmin), "phase_lag_at_bandwidth": ("phase_lag_deg", np.argmax),
+             "gain_margin": ("gain_margin_db", np.argmin), "phase_margin": ("phase_margin_deg", np.argmin),
+             "sensitivity_peak": ("sensitivity_peak_db", np.argmax)}
+    achieved, worst = {}, {}
+    reqs = [r for r in design_result.requirements]
+    for r in reqs:
+        key, pick = names[r.name]
+        vals = np.where(stable, figs[key], np.nan)
+        if not np.any(stable):
+            achieved[r.name] = math.nan
+            continue
+        k = int(pick(np.where(stable, vals, np.inf if pick is np.argmin else -np.inf)))
+        achieved[r.name] = float(figs[key][k])
+        worst[r.name] = {name: float(v[k]) for name, v in values.items()}
+    from .requirements import Requirement
+    checks = check([Requirement(r.name, r.sense, r.required, r.unit, r.source) for r in reqs], achieved)
+    return RobustnessResult(scene.name, values, figs, checks, worst)
+
+
+def _controller_response(ctrl, s):
+    """Cy (from -theta) and Cw (from -omega_m) of the motion controller at ``s``."""
+    m = ctrl.motion
+    cy = -np.asarray(m["i_ref", "theta"](s)).reshape(-1)
+    cw = -np.asarray(m["i_ref", "omega_m"](s)).reshape(-1)
+    return cy, cw
+
+
+def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
+                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING):
+    """python-control's ``stability_margins`` (gm, pm, sm, wpc, wgc, wms) of one variant,
+    building the plant and the loop as python-control objects (the slow, independent path)."""
+    values = {"load_inertia": np.array([load_inertia]), "stiffness": np.array([stiffness])}
+    p = varied_parameters(design_result.parameters, scene.load.inertia, values, 0, structural_damping)
+    A, B, C, D, states = plant_matrices(p)
+    g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
+    loop = open_loop_of(g, design_result.controller, scene.motor)
+    return ct.stability_margins(loop), loop

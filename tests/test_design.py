@@ -1,0 +1,109 @@
+"""Loop design of the reference EMA and the cam drive."""
+
+import math
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+import servo_toolkit as st
+from servo_toolkit.controller import CascadeController
+from servo_toolkit.loop import evaluate, linear_closed_loop
+from servo_toolkit.loop.assembly import closed_loop_matrix, controller_matrices
+from servo_toolkit.loop.structures import Motion
+from servo_toolkit.plant import current_controller, plant_matrices
+
+from .conftest import SCENES
+
+
+@pytest.fixture(scope="module")
+def ema():
+    return st.load_scene()
+
+
+@pytest.fixture(scope="module")
+def ema_design(ema):
+    return st.design(ema)
+
+
+def test_reference_design_meets_its_requirements(ema_design):
+    r = ema_design
+    assert isinstance(r.controller, CascadeController)
+    assert r.margins.closed_loop_stable
+    assert r.passed, r.table()
+    names = {c.name: c for c in r.requirements}
+    assert names["bandwidth"].achieved >= 8.0 and names["bandwidth"].source == "scene"
+    assert names["phase_margin"].achieved >= 45.0 and names["gain_margin"].achieved >= 6.0
+    assert names["sensitivity_peak"].achieved <= 6.0
+    assert names["phase_lag_at_bandwidth"].achieved <= 90.0
+    assert r.motion.filter in ("notch", "lowpass", "none")
+
+
+def test_reported_margins_agree_with_python_control(ema_design):
+    r = ema_design
+    gm, pm, _, wpc, wgc, _ = ct.stability_margins(r.loop, returnall=True)
+    real = wpc > 1e-3
+    np.testing.assert_allclose(sorted(r.margins.gain_margins_db), sorted(20 * np.log10(gm[real])), rtol=1e-9)
+    np.testing.assert_allclose(r.margins.phase_margin_deg, np.min(pm), rtol=1e-9)
+    gm1, pm1, *_ = ct.stability_margins(r.loop)
+    np.testing.assert_allclose(r.margins.phase_margin_deg, pm1, rtol=1e-6)
+    np.testing.assert_allclose(abs(r.margins.gain_margin_db), abs(20 * np.log10(gm1)), rtol=1e-6)
+    np.testing.assert_allclose(r.margins.bandwidth_hz, ct.bandwidth(r.closed_loop) / (2 * math.pi), rtol=1e-9)
+    # the loop broken at the error closes to the reported closed loop
+    w = 2 * np.pi * np.array([0.5, 3.0, 8.0, 30.0])
+    L = np.asarray(ct.frequency_response(r.loop, w).complex).reshape(-1)
+    T = np.asarray(ct.frequency_response(r.closed_loop, w).complex).reshape(-1)
+    np.testing.assert_allclose(T, L / (1 + L), rtol=1e-6)
+    d = r.to_dict()
+    for key in ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "disk_margin", "sensitivity_peak_db",
+                "bandwidth_hz", "phase_at_8hz_deg", "closed_loop_stable", "requirements"):
+        assert key in d
+    assert d["phase_at_8hz_deg"] == pytest.approx(r.margins.phase_at_freq_deg)
+
+
+def test_plain_pi_position_loop_is_unstable(ema, ema_design):
+    # PI on the position error, crossing over at the required 8 Hz, integral corner a decade below
+    wc = 2 * math.pi * 8.0
+    g = ema_design.plant
+    cur = current_controller(ema_design.controller.current_kp, ema_design.controller.current_ki, ema.motor)
+    p = ct.interconnect([g, cur], inplist=["i_cmd"], outlist=["theta"], check_unused=False)
+    kc = 1.0 / abs(p(1j * wc) * (1 + 0.1 * wc / (1j * wc)))
+    pi = Motion("pi", {"kc": kc, "wi": 0.1 * wc}, ratio=ema_design.parameters.N)
+    ctrl = CascadeController(pi.state_space(), ema_design.controller.current_kp,
+                             ema_design.controller.current_ki, ema.sensors.sample_time, "plain PI")
+    r = evaluate(ema, ctrl)
+    assert not r.margins.closed_loop_stable and not r.passed
+    assert r.margins.max_closed_loop_pole_real > 0
+    # the search finds no PI meeting the requirements either
+    assert not st.design(ema, structure="pi").passed
+
+
+def test_rigid_design_is_unstable_on_the_compliant_drivetrain(ema):
+    # a cascade tuned on the rigid model ignores the ~30 Hz drivetrain mode
+    rigid = st.design(ema, model="rigid")
+    assert rigid.margins.closed_loop_stable
+    real = evaluate(ema, rigid.controller)
+    assert not real.margins.closed_loop_stable
+
+
+def test_linear_closed_loop_matches_numpy_assembly(ema, ema_design):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cl = linear_closed_loop(ema, ema_design.controller)
+    assert cl.input_labels == ["theta_ref", "tau_ext"] and "i" in cl.output_labels
+    A, B, C, D, _ = plant_matrices(ema_design.parameters)
+    acl = closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *controller_matrices(ema_design.controller, ema.motor))
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(acl)), np.sort_complex(cl.poles()), rtol=1e-6)
+    np.testing.assert_allclose(ct.dcgain(cl["theta", "theta_ref"]), 1.0, rtol=1e-9)
+    Ad, Bd, Cd, Dd = ema_design.controller.discrete_motion()
+    assert np.all(np.abs(np.linalg.eigvals(Ad)) <= 1 + 1e-12)
+
+
+def test_cam_drive_gets_a_loop_with_documented_defaults():
+    cam = st.load_scene(SCENES / "cam_follower.toml")
+    r = st.design(cam)
+    assert r.parameters.rigid and r.margins.closed_loop_stable
+    assert all(c.source == "default" for c in r.requirements)
+    assert any("default" in n for n in r.notes) and any("ideal current loop" in n for n in r.notes)
+    assert r.passed
