@@ -101,6 +101,14 @@ def test_cli_json_cases(capsys):
     assert out["cases"][0]["kv_motor"] == 1.0 and out["cases"][0]["amplitude_deg"] == pytest.approx(30)
 
 
+def test_cli_loss_model_option(capsys):
+    peaks = {}
+    for losses in ("directional", "none"):
+        assert main(["kv", EMA, "--study", "kv_stroke", "--losses", losses, "--json"]) == 0
+        peaks[losses] = [c["peak_motor_torque_Nm"] for c in json.loads(capsys.readouterr().out)["cases"]]
+    assert all(a > b for a, b in zip(peaks["directional"], peaks["none"]))
+
+
 def test_cli_text_and_errors(capsys):
     assert main(["kv", EMA]) == 0
     text = capsys.readouterr().out

@@ -44,6 +44,7 @@ import numpy as np
 from ..components.ball_screw import BallScrew
 from ..components.linkage import RockerLinkage
 from ..drivetrain import Drivetrain
+from ..errors import SimulationError
 
 LOSS_MODELS = ("directional", "none")
 
@@ -184,6 +185,11 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     Returns
     -------
     InverseDynamicsResult
+
+    Raises
+    ------
+    SimulationError
+        The ratio vanishes or a load is not finite along the motion.
     """
     if losses not in LOSS_MODELS:
         raise ValueError(f"losses must be one of {LOSS_MODELS}, got {losses!r}")
@@ -202,7 +208,7 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
         required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta)
     ratio, _ = drivetrain.ratio(q)
     if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
-        raise ValueError("the drivetrain ratio is zero or not finite along the motion")
+        raise SimulationError("the drivetrain ratio is zero or not finite along the motion")
     total_inertial = inertial_force(drivetrain, q, qd, qdd)
     rotor = total_inertial - inertial[0]
     motor_speed = ratio * qd
@@ -213,7 +219,7 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     lossless = (total_inertial + external) / ratio
     screw, rod = _chain_forces(drivetrain, chains, required, q, qd, qdd)
     if not np.all(np.isfinite(torque)):
-        raise ValueError("inverse dynamics produced a non-finite motor torque")
+        raise SimulationError("inverse dynamics produced a non-finite motor torque")
     return InverseDynamicsResult(
         t=t, q=q, qd=qd, qdd=qdd, ratio=ratio, motor_speed=motor_speed, motor_torque=torque,
         inertial_torque=total_inertial / ratio, external_torque=external / ratio,
