@@ -13,6 +13,7 @@ from ..errors import SceneError
 from . import sections_drivetrain as drv
 from . import sections_loop as loop
 from . import sections_studies as studies
+from . import sections_time as timing
 from .context import Context
 from .section import NotApplicable, NotAvailable, Section
 
@@ -24,7 +25,7 @@ SECTIONS = (
     ("plant", "Plant Bode with the drivetrain resonance", loop.plant_bode),
     ("controller", "Designed controller", loop.controller),
     ("loop", "Loop Bode and Nyquist with margins", loop.loop_margins),
-    ("time", "Step response and 8 Hz sine tracking", loop.time_responses),
+    ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
     ("reduce", "What the model leaves out", studies.leaves_out),
@@ -42,7 +43,7 @@ class Report:
     scene_name, subtitle : str
     sections : tuple of Section
         Requirements first, then :data:`SECTIONS` in order.
-    requirements : tuple of (name, required, achieved, status)
+    requirements : tuple of (requirement, required, achieved, shortfall, status)
     """
 
     scene_name: str
@@ -58,7 +59,7 @@ class Report:
         """JSON-ready summary: section statuses and the requirements table."""
         return {"scene": self.scene_name,
                 "sections": [s.to_dict() for s in self.sections],
-                "requirements": [dict(zip(("requirement", "required", "achieved", "status"), r))
+                "requirements": [dict(zip(("requirement", "required", "achieved", "shortfall", "status"), r))
                                  for r in self.requirements]}
 
     def close(self) -> None:

@@ -16,11 +16,12 @@ def _title_page(report) -> Figure:
     fig.text(0.08, 0.95, f"Servo report: {report.scene_name}", fontsize=18, weight="bold", va="top")
     fig.text(0.08, 0.915, textwrap.fill(report.subtitle, 95), fontsize=9, va="top")
     fig.text(0.08, 0.87, "Requirements", fontsize=13, weight="bold", va="top")
-    rows = [list(r[:3]) + [r[3]] for r in report.requirements] or [["(the scene sets no requirements)", "", "", "n/a"]]
+    rows = [[r[0], r[1], r[2] + (f" ({r[3]})" if r[3] else ""), r[4]] for r in report.requirements] \
+        or [["(nothing to check for this scene)", "", "", "n/a"]]
     ax = fig.add_axes((0.08, 0.55, 0.84, 0.30))
     ax.axis("off")
     tab = ax.table(cellText=rows, colLabels=["requirement", "required", "achieved", "status"],
-                   loc="upper center", cellLoc="left", colWidths=[0.42, 0.2, 0.2, 0.18])
+                   loc="upper center", cellLoc="left", colWidths=[0.36, 0.18, 0.32, 0.14])
     tab.auto_set_font_size(False)
     tab.set_fontsize(8)
     tab.scale(1, 1.3)

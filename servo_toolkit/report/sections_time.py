@@ -1,0 +1,99 @@
+"""Step response and 8 Hz sine tracking: the linear closed loop and the nonlinear simulation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import figures
+from .context import api
+from .section import FigureSpec, NotAvailable, Section, fmt, para, table
+
+STEP_DEG = 1.0
+SINE_DEG = 2.0
+SINE_HZ = 8.0
+
+
+def _fit_sine(t, y, f):
+    """Amplitude and phase (deg) of the component of ``y`` at ``f`` (least squares with offset)."""
+    w = 2 * np.pi * f
+    a = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
+    (s, c, _), *_ = np.linalg.lstsq(a, y, rcond=None)
+    return math.hypot(s, c), math.degrees(math.atan2(c, s))
+
+
+def _step_metrics(t, y, final):
+    """Rise time 10-90 %, overshoot and 2 % settling time of a step of size ``final``."""
+    yn = y / final
+    rise = t[np.argmax(yn >= 0.9)] - t[np.argmax(yn >= 0.1)] if np.any(yn >= 0.9) else math.nan
+    over = max(0.0, float(yn.max() - 1.0))
+    outside = np.nonzero(np.abs(yn - 1.0) > 0.02)[0]
+    settle = t[outside[-1] + 1] if outside.size and outside[-1] + 1 < t.size else (t[0] if not outside.size else math.nan)
+    return rise, over, settle
+
+
+def time_responses(ctx) -> Section:
+    """Step and 8 Hz sine: linear closed loop (python-control) and, when available, the
+    nonlinear simulation with the same controller (limits, friction, backlash)."""
+    import control as ct
+    d = ctx.design()
+    cl = d.closed_loop
+    q0 = d.q0
+    t_step = np.linspace(0.0, 0.25 if ctx.light else 0.5, 1001)
+    _, y_step = ct.step_response(cl, t_step)
+    y_step = np.asarray(y_step).reshape(-1) * STEP_DEG
+    n_cycles = 6 if ctx.light else 12
+    t_sine = np.linspace(0.0, n_cycles / SINE_HZ, 200 * n_cycles + 1)
+    ref = SINE_DEG * np.sin(2 * np.pi * SINE_HZ * t_sine)
+    _, y_sine = ct.forced_response(cl, t_sine, ref)
+    y_sine = np.asarray(y_sine).reshape(-1)
+    last = t_sine >= (n_cycles - 2) / SINE_HZ
+    amp, ph = _fit_sine(t_sine[last], y_sine[last], SINE_HZ)
+    rise, over, settle = _step_metrics(t_step, y_step, STEP_DEG)
+    rows = [("linear closed loop", fmt(rise * 1e3), f"{over:.1%}", fmt(settle * 1e3),
+             fmt(20 * math.log10(amp / SINE_DEG)), fmt(ph))]
+    notes = []
+    nonlinear = None
+    try:
+        simulate = api("servo_toolkit.sim", "simulate")
+        reference = api("servo_toolkit.sim", "Reference")
+        t_at = 0.01
+        r1 = simulate(ctx.scene, d.controller, reference=reference.step(math.radians(STEP_DEG), at=t_at),
+                      duration=t_step[-1] + t_at, method="rk4")
+        r2 = simulate(ctx.scene, d.controller, reference=reference.sine(math.radians(SINE_DEG), SINE_HZ),
+                      duration=t_sine[-1], method="rk4")
+        ts1 = r1.times - t_at
+        ys1 = np.degrees(r1.output_angle - q0)
+        ys1 -= ys1[ts1 < 0][-1] if np.any(ts1 < 0) else 0.0
+        keep = ts1 >= 0
+        ts2, ys2 = r2.times, np.degrees(r2.output_angle - q0)
+        last2 = ts2 >= (n_cycles - 2) / SINE_HZ
+        amp2, ph2 = _fit_sine(ts2[last2], ys2[last2], SINE_HZ)
+        rise2, over2, settle2 = _step_metrics(ts1[keep], ys1[keep], STEP_DEG)
+        rows.append(("nonlinear simulation", fmt(rise2 * 1e3), f"{over2:.1%}", fmt(settle2 * 1e3),
+                     fmt(20 * math.log10(amp2 / SINE_DEG)), fmt(ph2)))
+        nonlinear = (ts1[keep], ys1[keep], ts2, ys2, r2)
+        notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); peak motor torque "
+                     f"in the sine run {fmt(r2.max_abs_motor_torque)} N*m.")
+    except NotAvailable as exc:
+        notes.append(f"Nonlinear simulation not available: {exc}")
+    fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
+    a1.plot(t_step * 1e3, y_step, label="linear")
+    a1.axhline(STEP_DEG, color="0.6", lw=0.8)
+    a2.plot(t_sine * 1e3, ref, color="0.6", lw=0.8, label="command")
+    a2.plot(t_sine * 1e3, y_sine, label="linear")
+    if nonlinear is not None:
+        a1.plot(nonlinear[0] * 1e3, nonlinear[1], "--", label="nonlinear")
+        a2.plot(nonlinear[2] * 1e3, nonlinear[3], "--", label="nonlinear")
+    a1.set(xlabel="time [ms]", ylabel="output angle change [deg]", title=f"{STEP_DEG:g} deg step")
+    a2.set(xlabel="time [ms]", ylabel="output angle change [deg]", title=f"{SINE_DEG:g} deg sine at {SINE_HZ:g} Hz")
+    for ax in (a1, a2):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small")
+    head = ("model", "rise 10-90 % [ms]", "overshoot", "settling 2 % [ms]", f"gain at {SINE_HZ:g} Hz [dB]",
+            f"phase at {SINE_HZ:g} Hz [deg]")
+    return Section("Step response and 8 Hz sine tracking",
+                   para(f"Small-signal commands about q0 = {math.degrees(q0):+.1f} deg with the designed controller.",
+                        *notes) + table(head, rows),
+                   (FigureSpec(fig, "Step response and 8 Hz sine tracking."),), key="time")
