@@ -1,0 +1,229 @@
+"""Running a model: step choice, stability checks, integrators, and the result."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..errors import SimulationError
+from . import layout as lo
+from .integrators import integrate
+from .ivp import solve_reference
+from .kernel import hermite, reference as ref_at, rhs
+from .reference import Reference, fill, initial_state
+from .result import SimulationResult
+from .stability import fastest
+
+METHODS = ("rk4", "paper", "reference", "auto")
+#: target |lambda dt| for the automatic step (RK4's real-axis limit is 2.785)
+AUTO_Z = 1.0
+#: above this many steps ``auto`` hands the run to the implicit solver
+MAX_STEPS = 20_000_000
+MAX_RECORDS = 4000
+
+
+def _snap(dt, model, duration):
+    """The largest step <= dt that divides the sample time (or the duration)."""
+    span = model.sample_time if model.sample_time > 0 else duration
+    n = max(1, math.ceil(span / dt * (1 - 1e-12)))
+    return span / n
+
+
+def _grid(model, duration, dt, output_dt):
+    n_steps = max(1, int(round(duration / dt)))
+    if output_dt is None:
+        rec = max(1, math.ceil(n_steps / MAX_RECORDS))
+    else:
+        rec = int(round(output_dt / dt))
+        if rec < 1 or abs(rec * dt - output_dt) > 1e-9 * output_dt:
+            raise ValueError(f"output_dt = {output_dt:g} s is not a multiple of dt = {dt:g} s")
+    return n_steps, rec
+
+
+def _stability_probe(model, P, x0):
+    return fastest(model, P, [x0], [0.0], [x0[4] if model.closed_loop else 0.0])
+
+
+def _aux_traces(model, P, times, states, irefs):
+    """Current, voltage, i_ref, torque, motor speed and reference at the records."""
+    n = len(times)
+    aux = np.empty((n, lo.NAUX))
+    dx, a = np.empty(model.nx), np.empty(lo.NAUX)
+    speed, refs = np.empty(n), np.empty(n)
+    for k in range(n):
+        rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
+        aux[k] = a
+        speed[k] = hermite(model.T, lo.T_N, P, states[k, 0])[0] * states[k, 1]
+        refs[k] = ref_at(times[k], P) if model.closed_loop else P[lo.REF_OFF]
+    return aux, speed, refs
+
+
+def _check_finite(model, times, states):
+    bad = ~np.all(np.isfinite(states), axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        names = [model.state_names[j] for j in np.flatnonzero(~np.isfinite(states[k]))]
+        raise SimulationError(f"non-finite state {', '.join(names)} at t = {times[k]:.6g} s")
+
+
+def _fixed(model, P, x0, duration, dt, output_dt, paper):
+    n_steps, rec = _grid(model, duration, dt, output_dt)
+    n_rec = n_steps // rec + 2
+    out_t, out_x, out_aux = np.empty(n_rec), np.empty((n_rec, model.nx)), np.empty((n_rec, lo.NAUX))
+    sub = int(round(model.sample_time / dt)) if P[lo.CMODE] == lo.SAMPLED else 0
+    x = x0.copy()
+    start = time.perf_counter()
+    status, step, k, max_tau, _ = integrate(x, P, model.T, 0.0, dt, n_steps, sub, 0.0, paper,
+                                            rec, out_t, out_x, out_aux)
+    wall = time.perf_counter() - start
+    t_fail = step * dt
+    if status == lo.NONFINITE:
+        row = out_x[k - 1] if k else x
+        names = [model.state_names[j] for j in np.flatnonzero(~np.isfinite(x))] or \
+                [model.state_names[j] for j in np.flatnonzero(~np.isfinite(row))]
+        raise SimulationError(f"non-finite state {', '.join(names) or 'motor torque'} at t = "
+                              f"{t_fail:.6g} s (step {dt:.3g} s)")
+    if status == lo.STROKE_END:
+        qi = 0 if model.rigid else 2
+        raise SimulationError(f"stroke end reached at t = {t_fail:.6g} s: output angle "
+                              f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
+                              f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
+                              f"for an elastic end stop)")
+    return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps
+
+
+def run(model, reference: Reference, duration: float, method: str = "rk4", dt: float | None = None,
+        *, output_dt: float | None = None, x0=None, at_rest: bool = False, solver: str = "LSODA",
+        rtol: float = 1e-10, atol: float = 1e-10, check_stability: bool = True) -> SimulationResult:
+    """Run an assembled model (no recompilation: only the parameter copy changes).
+
+    Parameters
+    ----------
+    model : Model
+        From :func:`build_model`.
+    reference : Reference
+        Position command (closed loop) or :meth:`Reference.voltage` (open loop).
+    duration : float
+        Run length (s).
+    method : {"rk4", "paper", "reference", "auto"}
+        Fixed-step RK4; the cam paper's frozen-configuration scheme; scipy ``solve_ivp``
+        (``solver``, tolerances ``rtol``/``atol``); or automatic choice.
+    dt : float, optional
+        Fixed step (s); snapped down to divide the controller sample time. Default: from the
+        fastest eigenvalue (|lambda dt| = 1) and never above the sample time.
+    output_dt : float, optional
+        Record interval (a multiple of dt; the grid the reference is evaluated on).
+    x0 : array_like, optional
+        Initial state; default static equilibrium at the reference's start.
+    at_rest : bool
+        Start unloaded at rest instead of in equilibrium.
+    check_stability : bool
+        Refuse steps outside RK4's stability region (method "rk4").
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    SimulationError
+        Non-finite state (with time and state name), stroke end, or (``rk4``) a step outside
+        the stability region of the fastest mode.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if not duration > 0:
+        raise ValueError("duration must be positive")
+    P = fill(model, reference)
+    x0 = initial_state(model, P, at_rest) if x0 is None else np.asarray(x0, dtype=float).copy()
+    notes = list(model.notes)
+    probe = _stability_probe(model, P, x0)
+    limit = probe["dt_limit_s"]
+    cap = model.sample_time if model.sample_time > 0 else duration / 200
+    auto_dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration)
+    choice = ""
+    if method == "auto":
+        if duration / auto_dt > MAX_STEPS:
+            method, choice = "reference", (f"fastest eigenvalue |lambda| = {probe['max_abs_lambda']:.3g} 1/s "
+                                          f"needs dt <= {limit:.3g} s, more than {MAX_STEPS} RK4 steps: "
+                                          f"implicit solver instead")
+        else:
+            method, dt = "rk4", auto_dt
+            choice = (f"RK4 with dt = {dt:.4g} s: |lambda dt| = {probe['max_abs_lambda'] * dt:.3g} for the "
+                      f"fastest eigenvalue (stability limit dt = {limit:.4g} s)")
+        requested = "auto"
+    else:
+        requested = method
+    if method in ("rk4", "paper"):
+        if dt is None:
+            dt = auto_dt
+            choice = choice or f"default step {dt:.4g} s (|lambda dt| = {probe['max_abs_lambda'] * dt:.3g})"
+        else:
+            snapped = _snap(dt, model, duration)
+            if abs(snapped - dt) > 1e-12 * dt:
+                notes.append(f"step {dt:.4g} s snapped to {snapped:.4g} s to divide the sample time")
+            dt = snapped
+            choice = choice or f"user step {dt:.4g} s"
+        if method == "rk4" and check_stability and dt > limit:
+            raise SimulationError(
+                f"RK4 step {dt:.4g} s is outside the stability region: fastest eigenvalue "
+                f"lambda = {probe['lambda'][0]:.4g}{probe['lambda'][1]:+.4g}j 1/s at t = 0 gives "
+                f"|lambda dt| = {probe['max_abs_lambda'] * dt:.3g}; use dt <= {limit:.4g} s or method='auto'")
+        tries = 0
+        while True:
+            times, states, aux, max_tau, wall, steps = _fixed(model, P, x0, duration, dt, output_dt,
+                                                              method == "paper")
+            along = fastest(model, P, states[:: max(1, len(states) // 8)], times[:: max(1, len(states) // 8)],
+                            aux[:: max(1, len(states) // 8), lo.AUX_IREF])
+            if method == "paper" or not check_stability or dt <= along["dt_limit_s"]:
+                break
+            if requested != "auto":
+                raise SimulationError(
+                    f"RK4 step {dt:.4g} s left the stability region along the run: |lambda| = "
+                    f"{along['max_abs_lambda']:.4g} 1/s at t = {along['t_s']:.4g} s needs dt <= "
+                    f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'")
+            tries += 1
+            new_dt = _snap(AUTO_Z / along["max_abs_lambda"], model, duration)
+            if tries > 3 or duration / new_dt > MAX_STEPS:
+                method = "reference"
+                choice += f"; along the run |lambda| rose to {along['max_abs_lambda']:.3g} 1/s: implicit solver instead"
+                break
+            choice += f"; reduced to dt = {new_dt:.4g} s after |lambda| = {along['max_abs_lambda']:.3g} 1/s at t = {along['t_s']:.3g} s"
+            dt = new_dt
+        if method != "reference":
+            probe = {**along, "dt_limit_s": min(limit, along["dt_limit_s"])} \
+                if along["max_abs_lambda"] > probe["max_abs_lambda"] else probe
+            aux_t, speed, refs = _aux_traces(model, P, times, states, aux[:, lo.AUX_IREF])
+            return _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps,
+                           requested, choice, probe, reference, notes)
+    # implicit / adaptive reference
+    if output_dt is None:
+        n = min(MAX_RECORDS, max(200, int(duration / (model.sample_time or duration / 1000))))
+        t_out = np.linspace(0.0, duration, n + 1)
+    else:
+        n = int(round(duration / output_dt))
+        t_out = np.arange(n + 1) * output_dt
+    start = time.perf_counter()
+    states, irefs = solve_reference(model, P, x0, t_out, solver=solver, rtol=rtol, atol=atol)
+    wall = time.perf_counter() - start
+    _check_finite(model, t_out, states)
+    aux, speed, refs = _aux_traces(model, P, t_out, states, irefs)
+    choice = choice or f"scipy solve_ivp {solver}, rtol {rtol:g}, atol {atol:g}"
+    return _result(model, t_out, states, aux, speed, refs, float(np.max(np.abs(aux[:, lo.AUX_TAU]))),
+                   wall, f"reference:{solver}", None, 0, requested, choice, probe, reference, notes)
+
+
+def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps, requested,
+            choice, probe, reference, notes):
+    stab = {k: v for k, v in probe.items()}
+    if dt is not None:
+        stab["abs_lambda_dt"] = probe["max_abs_lambda"] * dt
+    return SimulationResult(times=times, states=states, state_names=model.state_names,
+                            reference_angle=refs, motor_speed=speed, motor_current=aux[:, lo.AUX_I],
+                            motor_voltage=aux[:, lo.AUX_V], current_reference=aux[:, lo.AUX_IREF],
+                            motor_torque=aux[:, lo.AUX_TAU], max_abs_motor_torque=float(max_tau),
+                            wall_s=wall, method=method, dt_s=dt, steps=steps, requested=requested,
+                            choice=choice, stability=stab, reference=reference.to_dict(),
+                            controller=model.controller, notes=tuple(notes))

@@ -1,0 +1,245 @@
+"""The compiled right-hand side and the controller sample update (numba, flat arrays).
+
+One physics, used by every integrator (fixed-step RK4, the cam paper's scheme, scipy's
+``solve_ivp``, python-control and the Jacobian estimate): :func:`rhs` and
+:func:`controller_sample`. Layout of ``x`` and ``P`` in :mod:`servo_toolkit.sim.layout`.
+
+Equations (generalized coordinates p, q at the output; N(p) motor rad per output rad)::
+
+    J_d(p) p'' + J_d'(p) p'^2 / 2 = N(p) tau_m - f - K'(p) z^2 / 2
+    J_L q''                       = f + M_hinge(q, q') + M_stop(q, q')
+    tau_m = Kt i - b omega_m - Tc tanh(omega_m / w_s),   omega_m = N(p) p'
+    L i' = v - R i - Ke omega_m                          (or i = (v - Ke omega_m) / R, L = 0)
+
+with the elasto-backlash contact law (Modelica ElastoBacklash): deflection d = p - q, play
++-c, z = d -+ c beyond the play, f = K z + beta K d' clipped so that contact never pulls
+(f = 0 inside the play). The potential K(p) z^2 / 2 gives the K'(p) term, so the undamped
+drivetrain conserves energy exactly. A rigid chain uses J(p) = J_d + J_L and q = p.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
+                     HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
+                     KSTOP, KT, L, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
+                     PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
+                     REF_STEP, REF_T0, RIGID, STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP,
+                     T_DJ, T_DK, T_DN, T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
+                     INV_H, INV_L, INV_JL)
+
+#: numba fast-math flags that keep NaN/inf semantics (non-finite detection must work)
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+#: helpers are inlined at numba-IR level: no call overhead, no array reference counting
+inline = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+
+
+@inline
+def cell(P, q):
+    """Table cell index k and local coordinate t in [0, 1] of q (clamped; periodic wraps)."""
+    s = (q - P[TAB_LO]) * P[INV_H]
+    last = P[TAB_N] - 1.0
+    if P[PERIODIC] > 0.0:
+        s = s - last * math.floor(s / last)
+    if s <= 0.0:
+        return 0, 0.0
+    if s >= last:
+        return int(last) - 1, 1.0
+    k = int(s)
+    return k, s - k
+
+
+@inline
+def interp(T, row, k, t, h, inv_h):
+    """Cubic Hermite value and derivative of table ``row`` (values; ``row + 1`` holds
+    derivatives) in cell k at local coordinate t; h is the grid step."""
+    y0 = T[row, k]
+    y1 = T[row, k + 1]
+    m0 = T[row + 1, k] * h
+    m1 = T[row + 1, k + 1] * h
+    t2 = t * t
+    t3 = t2 * t
+    val = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * m0 + (3 * t2 - 2 * t3) * y1 + (t3 - t2) * m1
+    der = ((6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * m0 + (3 * t2 - 2 * t) * m1) * inv_h
+    return val, der
+
+
+@inline
+def hermite(T, row, P, q):
+    """Cubic Hermite interpolation of table ``row`` at q: value and its exact derivative.
+
+    Outside a non-periodic table the end values are held (derivative 0); periodic tables
+    wrap.
+    """
+    k, t = cell(P, q)
+    if P[PERIODIC] <= 0.0 and (t == 0.0 or t == 1.0) and (q <= P[TAB_LO] or k == P[TAB_N] - 2):
+        return T[row, k + int(t)], 0.0
+    return interp(T, row, k, t, P[TAB_H], P[INV_H])
+
+
+@inline
+def reference(t, P):
+    """The position reference at time t (evaluated inside the kernel)."""
+    kind = int(P[REF_KIND])
+    if kind == REF_SINE:
+        return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
+    if kind == REF_STEP:
+        return P[REF_OFF] + (P[REF_A] if t >= P[REF_T0] else 0.0)
+    if kind == REF_RAMP:
+        return P[REF_OFF] + P[REF_A] * max(t - P[REF_T0], 0.0)
+    return P[REF_OFF]
+
+
+@inline
+def clip(v, lim):
+    """Clamp v to [-lim, lim]."""
+    if v > lim:
+        return lim
+    if v < -lim:
+        return -lim
+    return v
+
+
+@inline
+def _motion(x, P, r, th, wm, dx, base, write_state):
+    """Motion controller: output i_ref (unclamped); state update or derivative into dx."""
+    nc = int(P[NC])
+    oa, ob, oc, od = int(P[OFF_A]), int(P[OFF_B]), int(P[OFF_C]), int(P[OFF_D])
+    y = P[od] * r + P[od + 1] * th + P[od + 2] * wm
+    for j in range(nc):
+        y += P[oc + j] * x[NX_PHYS + j]
+    if write_state:
+        for j in range(nc):
+            acc = P[ob + 3 * j] * r + P[ob + 3 * j + 1] * th + P[ob + 3 * j + 2] * wm
+            for k in range(nc):
+                acc += P[oa + j * nc + k] * x[NX_PHYS + k]
+            dx[base + j] = acc
+    return y
+
+
+@inline
+def measured_angle(q, P):
+    """Output encoder: q rounded to the encoder's least significant bit (0 = ideal)."""
+    lsb = P[LSB]
+    if lsb > 0.0:
+        return lsb * math.floor(q / lsb + 0.5)
+    return q
+
+
+@inline
+def controller_sample(t, x, P, T, work):
+    """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:].
+
+    The output angle is quantized by the encoder; the motor speed is the true omega_m
+    (a tachometer / observer-grade estimate), not a difference of quantized angles.
+    """
+    nc = int(P[NC])
+    n, _ = hermite(T, T_N, P, x[0])
+    wm = n * x[1]
+    r = reference(t, P)
+    th = measured_angle(x[2], P)
+    y = _motion(x, P, r, th, wm, work, 0, True)
+    for j in range(nc):
+        x[NX_PHYS + j] = work[j]
+    return clip(y, P[ILIM])
+
+
+@inline
+def rhs(t, x, P, T, iref_held, dx, aux):
+    """dx/dt of the closed loop; ``aux`` receives current, voltage, i_ref and motor torque."""
+    p, pd, q, qd, cur, xi = x[0], x[1], x[2], x[3], x[4], x[5]
+    kc, tc = cell(P, p)
+    hc = P[TAB_H]
+    ih = P[INV_H]
+    jd, djd = interp(T, T_J, kc, tc, hc, ih)
+    n, _ = interp(T, T_N, kc, tc, hc, ih)
+    wm = n * pd
+    mode = int(P[CMODE])
+    nc = int(P[NC])
+    for j in range(nc):
+        dx[NX_PHYS + j] = 0.0
+    # --- controller and electrics
+    if mode == OPEN_LOOP:
+        iref = 0.0
+        v = clip(P[V_OPEN], P[VLIM])
+        if P[L] > 0.0:
+            dx[4] = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
+        else:
+            cur = (v - P[KE] * wm) / P[R]
+            dx[4] = 0.0
+        dx[5] = 0.0
+    else:
+        if mode == CONTINUOUS:
+            iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
+        else:
+            iref = iref_held
+        if P[L] > 0.0:
+            e = iref - cur
+            vc = P[KPI] * e + xi
+            v = clip(vc, P[VLIM])
+            dx[4] = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
+            # conditional integration: freeze the integral while it pushes into saturation
+            if v != vc and e * vc > 0.0:
+                dx[5] = 0.0
+            else:
+                dx[5] = P[KII] * e
+        else:
+            v = clip(P[R] * iref + P[KE] * wm, P[VLIM])
+            cur = (v - P[KE] * wm) / P[R]
+            dx[4] = 0.0
+            dx[5] = 0.0
+    tau = P[KT] * cur
+    tau_shaft = tau - P[BM] * wm - P[TC] * math.tanh(wm * P[WS])
+    aux[AUX_I] = cur
+    aux[AUX_V] = v
+    aux[AUX_IREF] = iref
+    aux[AUX_TAU] = tau
+    # --- load side: hinge moment and stroke-end stop
+    if P[RIGID] > 0.0:
+        ql, qld = p, pd
+    else:
+        ql, qld = q, qd
+    m_load = -P[HINGE_M] - P[HINGE_K] * ql - P[HINGE_D] * qld
+    if P[STROKE_MODE] == STROKE_STOP:
+        if ql > P[STROKE_HI]:
+            m_load += min(-P[KSTOP] * (ql - P[STROKE_HI]) - P[DSTOP] * qld, 0.0)
+        elif ql < P[STROKE_LO]:
+            m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
+    dx[0] = pd
+    dx[6] = 0.0
+    if P[RIGID] > 0.0:
+        pdd = (n * tau_shaft - 0.5 * djd * pd * pd + m_load) / jd
+        dx[1] = pdd
+        dx[2] = pd
+        dx[3] = pdd
+        return
+    # --- compliance with backlash
+    k, dk = interp(T, T_K, kc, tc, hc, ih)
+    k *= P[KSCALE]
+    dk *= P[KSCALE]
+    c = P[HALF_PLAY]
+    dd = pd - qd
+    if P[PAPER] > 0.0:
+        # the cam paper's play operator: the spring acts on s - q, s held inside the play
+        z = x[6] - q
+        f = k * z
+        if abs(p - x[6]) >= c:
+            f += P[BETA] * k * dd
+    else:
+        d = p - q
+        if d > c:
+            z = d - c
+            f = max(k * z + P[BETA] * k * dd, 0.0)
+        elif d < -c:
+            z = d + c
+            f = min(k * z + P[BETA] * k * dd, 0.0)
+        else:
+            z = 0.0
+            f = 0.0
+    dx[1] = (n * tau_shaft - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
+    dx[2] = qd
+    dx[3] = (f + m_load) * P[INV_JL]

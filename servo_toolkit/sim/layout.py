@@ -1,0 +1,58 @@
+"""Index layout of the flat state and parameter arrays shared by every compiled kernel.
+
+State ``x`` (float64)::
+
+    0 p      motor-side position, expressed as the output angle a rigid chain would give (rad)
+    1 pd     its rate (rad/s); motor speed omega_m = N(p) * pd
+    2 q      load-side (output) angle (rad)
+    3 qd     output rate (rad/s)
+    4 i      armature current (A); unused (held) without inductance
+    5 xi     current-PI integral (V)
+    6 s      play-operator output (rad), used only by the cam paper's discrete scheme
+    7..      motion-controller states (continuous mode integrates them; sampled mode updates
+             them at the sample instants)
+
+Module-level integer constants are compile-time constants inside numba kernels.
+"""
+
+from __future__ import annotations
+
+STATE_NAMES = ("motor_side_angle_rad", "motor_side_rate_rad_s", "output_angle_rad",
+               "output_rate_rad_s", "current_A", "current_integral_V", "play_state_rad")
+NX_PHYS = 7
+
+# motor and current loop
+# WS holds 1 / friction_speed
+R, L, KT, KE, BM, TC, WS, VLIM, ILIM, KPI, KII = range(11)
+# mechanics
+JL, RIGID, KSCALE, BETA, HALF_PLAY, HINGE_M, HINGE_K, HINGE_D = range(11, 19)
+STROKE_LO, STROKE_HI, STROKE_MODE, KSTOP, DSTOP = range(19, 24)
+# tables
+TAB_LO, TAB_H, TAB_N, PERIODIC = range(24, 28)
+# controller
+CMODE, NC, TS, LSB, V_OPEN, OFF_A, OFF_B, OFF_C, OFF_D = range(28, 37)
+# reference
+REF_KIND, REF_A, REF_F, REF_OFF, REF_T0 = range(37, 42)
+# method flag (1 = the cam paper's play operator replaces the elasto-backlash law)
+PAPER = 42
+# reciprocals (the kernel multiplies instead of dividing)
+INV_H, INV_L, INV_JL = 43, 44, 45
+NP_HEADER = 46
+
+# table rows (cubic Hermite: value row followed by derivative row)
+T_J, T_DJ, T_N, T_DN, T_K, T_DK = range(6)
+NT_ROWS = 6
+
+# controller modes
+OPEN_LOOP, SAMPLED, CONTINUOUS = 0, 1, 2
+# stroke-end modes
+STROKE_ERROR, STROKE_STOP, STROKE_NONE = 0, 1, 2
+# reference kinds
+REF_CONST, REF_SINE, REF_STEP, REF_RAMP = 0, 1, 2, 3
+
+# aux outputs written by the right-hand side
+AUX_I, AUX_V, AUX_IREF, AUX_TAU = range(4)
+NAUX = 4
+
+# loop status codes
+OK, NONFINITE, STROKE_END = 0, 1, 2

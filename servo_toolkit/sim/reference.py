@@ -1,0 +1,149 @@
+"""Command signals evaluated inside the kernel, and the initial state of a run.
+
+A :class:`Reference` fills five parameter slots; changing it does not recompile anything,
+so a frequency sweep is a loop over ``run(model, Reference.sine(a, f), ...)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import layout as lo
+from .kernel import hermite, measured_angle
+
+KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP}
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A position command of the output (rad), or an open-loop armature voltage.
+
+    Parameters
+    ----------
+    kind : str
+        ``"hold"``, ``"sine"``, ``"step"``, ``"ramp"`` or ``"voltage"`` (open loop).
+    amplitude : float
+        Sine amplitude or step size (rad), ramp rate (rad/s), or the voltage (V).
+    frequency : float
+        Sine frequency (Hz).
+    offset : float or None
+        Starting / centre value (rad); None = the model's mid-stroke q0.
+    t0 : float
+        Step time, ramp start or sine phase origin (s).
+    """
+
+    kind: str = "hold"
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    offset: float | None = None
+    t0: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in KINDS and self.kind != "voltage":
+            raise ValueError(f"reference kind must be one of {sorted(KINDS) + ['voltage']}, got {self.kind!r}")
+
+    @classmethod
+    def sine(cls, amplitude: float, frequency: float, offset: float | None = None) -> "Reference":
+        """offset + amplitude sin(2 pi f t)."""
+        return cls("sine", amplitude, frequency, offset)
+
+    @classmethod
+    def step(cls, size: float, at: float = 0.0, offset: float | None = None) -> "Reference":
+        """offset, then offset + size from t = at."""
+        return cls("step", size, 0.0, offset, at)
+
+    @classmethod
+    def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
+        """offset + rate * max(t - at, 0)."""
+        return cls("ramp", rate, 0.0, offset, at)
+
+    @classmethod
+    def voltage(cls, volts: float) -> "Reference":
+        """Open loop: constant armature voltage (clamped at the voltage limit)."""
+        return cls("voltage", volts)
+
+    def describe(self) -> str:
+        """One line in engineering units."""
+        deg = 180 / np.pi
+        off = "q0" if self.offset is None else f"{self.offset * deg:.3g} deg"
+        if self.kind == "sine":
+            return f"sine {self.amplitude * deg:.3g} deg at {self.frequency:.3g} Hz about {off}"
+        if self.kind == "step":
+            return f"step {self.amplitude * deg:.3g} deg at t = {self.t0:.3g} s from {off}"
+        if self.kind == "ramp":
+            return f"ramp {self.amplitude * deg:.3g} deg/s from {off}"
+        if self.kind == "voltage":
+            return f"open loop, {self.amplitude:.4g} V"
+        return f"hold {off}"
+
+    def to_dict(self) -> dict:
+        """JSON-ready description (SI)."""
+        return {"kind": self.kind, "amplitude": self.amplitude, "frequency_Hz": self.frequency,
+                "offset_rad": self.offset, "t0_s": self.t0}
+
+
+def fill(model, ref: Reference) -> np.ndarray:
+    """Parameters of ``model`` with the reference slots set."""
+    P = model.parameters()
+    if ref.kind == "voltage":
+        if model.closed_loop:
+            raise ValueError("a voltage reference needs an open-loop model (controller=None)")
+        P[lo.V_OPEN] = ref.amplitude
+        P[lo.REF_OFF] = model.q0 if ref.offset is None else ref.offset
+        return P
+    if not model.closed_loop:
+        raise ValueError("an open-loop model needs Reference.voltage(V)")
+    P[lo.REF_KIND] = KINDS[ref.kind]
+    P[lo.REF_A], P[lo.REF_F], P[lo.REF_T0] = ref.amplitude, ref.frequency, ref.t0
+    P[lo.REF_OFF] = model.q0 if ref.offset is None else ref.offset
+    return P
+
+
+def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
+    """Static equilibrium at the reference's starting angle.
+
+    The compliance carries the hinge moment (deflection beyond the play), the motor holds it
+    with the current f / (N Kt), the current-loop integral supplies R i, and the controller
+    state is the least-squares solution of ``x = A x + B u, C x + D u = i`` (sampled) or
+    ``A x + B u = 0, C x + D u = i`` (continuous). ``at_rest`` starts unloaded instead.
+    """
+    x = np.zeros(model.nx)
+    q = P[lo.REF_OFF]
+    x[0] = x[2] = x[6] = q
+    if at_rest:
+        return x
+    f = P[lo.HINGE_M] + P[lo.HINGE_K] * q  # moment the drivetrain must supply
+    motor_side = f
+    if not model.rigid and f != 0.0:
+        c = P[lo.HALF_PLAY]
+        x[0] = q
+        for _ in range(3):  # K is evaluated at p: a few fixed-point passes
+            k, dk = hermite(model.T, lo.T_K, P, x[0])
+            z = f / (k * P[lo.KSCALE])
+            x[0] = q + z + (c if f > 0 else -c)
+        x[6] = q + z
+        motor_side = f + 0.5 * dk * P[lo.KSCALE] * z * z
+    n = hermite(model.T, lo.T_N, P, x[0])[0]
+    cur = motor_side / (n * P[lo.KT])
+    if not model.closed_loop:
+        return x  # open loop starts at rest
+    cur = float(np.clip(cur, -P[lo.ILIM], P[lo.ILIM]))
+    x[4] = cur
+    x[5] = P[lo.R] * cur
+    nc = int(P[lo.NC])
+    if nc:
+        a, b, c, d = _controller_matrices(P, nc)
+        u = np.array([q, measured_angle(x[2], P), 0.0])
+        lhs = (np.eye(nc) - a) if P[lo.CMODE] == lo.SAMPLED else -a
+        mat = np.vstack([lhs, c])
+        rhs_ = np.concatenate([b @ u, [cur - float(d @ u)]])
+        x[lo.NX_PHYS:] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
+    return x
+
+
+def _controller_matrices(P, nc):
+    oa, ob, oc, od = (int(P[i]) for i in (lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D))
+    return (P[oa:oa + nc * nc].reshape(nc, nc), P[ob:ob + 3 * nc].reshape(nc, 3),
+            P[oc:oc + nc].reshape(1, nc), P[od:od + 3])

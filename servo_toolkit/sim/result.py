@@ -1,0 +1,170 @@
+"""The result of a time simulation: traces, peaks, what ran, and how it was chosen."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Recorded traces of one run.
+
+    Attributes
+    ----------
+    times : numpy.ndarray
+        Record times (s).
+    states : numpy.ndarray
+        (n, nx) state records; columns named by ``state_names``.
+    state_names : tuple of str
+    reference_angle : numpy.ndarray
+        Commanded output angle (rad) at the record times (open loop: the start angle).
+    motor_speed : numpy.ndarray
+        omega_m (rad/s).
+    motor_current, motor_voltage, current_reference, motor_torque : numpy.ndarray
+        A, V, A, N*m (electromagnetic torque Kt i).
+    max_abs_motor_torque : float
+        Peak |Kt i| over every integration step (RK4) or every record (reference).
+    wall_s : float
+        Wall time of the integration (s), compilation excluded.
+    method : str
+        What ran: ``"rk4"``, ``"paper"`` or ``"reference:LSODA"`` / ``"reference:Radau"``.
+    dt_s : float or None
+        Fixed step (None for the adaptive reference).
+    steps : int
+        Fixed steps taken (0 for the reference).
+    requested : str
+        The method asked for (``"auto"`` when chosen automatically).
+    choice : str
+        Why this method and step were used.
+    stability : dict
+        Fastest eigenvalue along the run and the RK4 step limit.
+    reference : dict
+        The command signal.
+    controller : str
+    notes : tuple of str
+    """
+
+    times: np.ndarray
+    states: np.ndarray
+    state_names: tuple
+    reference_angle: np.ndarray
+    motor_speed: np.ndarray
+    motor_current: np.ndarray
+    motor_voltage: np.ndarray
+    current_reference: np.ndarray
+    motor_torque: np.ndarray
+    max_abs_motor_torque: float
+    wall_s: float
+    method: str
+    dt_s: float | None
+    steps: int = 0
+    requested: str = ""
+    choice: str = ""
+    stability: dict = field(default_factory=dict)
+    reference: dict = field(default_factory=dict)
+    controller: str = ""
+    notes: tuple = ()
+
+    def trace(self, name: str) -> np.ndarray:
+        """One state trace by name."""
+        return self.states[:, self.state_names.index(name)]
+
+    @property
+    def output_angle(self) -> np.ndarray:
+        """Load-side output angle q (rad)."""
+        return self.trace("output_angle_rad")
+
+    @property
+    def final_state(self) -> dict:
+        """Last state by name."""
+        return {n: float(v) for n, v in zip(self.state_names, self.states[-1])}
+
+    @property
+    def t_final(self) -> float:
+        """Time of the last record (s)."""
+        return float(self.times[-1])
+
+    def columns(self) -> dict:
+        """Every trace by column name (for CSV/NPZ)."""
+        cols = {"t_s": self.times}
+        cols.update({n: self.states[:, j] for j, n in enumerate(self.state_names)})
+        cols.update({"reference_angle_rad": self.reference_angle, "motor_speed_rad_s": self.motor_speed,
+                     "motor_current_A": self.motor_current, "motor_voltage_V": self.motor_voltage,
+                     "current_reference_A": self.current_reference, "motor_torque_Nm": self.motor_torque})
+        return cols
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (no traces)."""
+        err = self.output_angle - self.reference_angle
+        return {
+            "t_final_s": self.t_final,
+            "final_state": self.final_state,
+            "max_abs_motor_torque_Nm": float(self.max_abs_motor_torque),
+            "max_abs_current_A": float(np.max(np.abs(self.motor_current))),
+            "max_abs_voltage_V": float(np.max(np.abs(self.motor_voltage))),
+            "max_abs_tracking_error_deg": float(np.degrees(np.max(np.abs(err)))),
+            "wall_s": float(self.wall_s),
+            "method": self.method,
+            "requested_method": self.requested,
+            "dt_s": self.dt_s,
+            "steps": int(self.steps),
+            "choice": self.choice,
+            "stability": self.stability,
+            "reference": self.reference,
+            "controller": self.controller,
+            "notes": list(self.notes),
+        }
+
+    def table(self) -> str:
+        """Short text summary."""
+        d = self.to_dict()
+        dt = "adaptive" if self.dt_s is None else f"{self.dt_s:.4g} s"
+        lines = [f"method {self.method} (asked {self.requested}), step {dt}, {self.steps} steps, "
+                 f"wall {self.wall_s * 1e3:.1f} ms",
+                 f"  choice: {self.choice}",
+                 f"  controller: {self.controller}",
+                 f"  t_final {d['t_final_s']:.4g} s, peak motor torque {d['max_abs_motor_torque_Nm']:.4g} N*m, "
+                 f"peak current {d['max_abs_current_A']:.4g} A, peak |error| {d['max_abs_tracking_error_deg']:.4g} deg"]
+        if self.stability:
+            lam = self.stability.get("max_abs_lambda", math.nan)
+            lines.append(f"  fastest eigenvalue |lambda| = {lam:.4g} 1/s, RK4 step limit "
+                         f"{self.stability.get('dt_limit_s', math.nan):.4g} s")
+        lines.append("  final state: " + ", ".join(f"{k} = {v:.6g}" for k, v in d["final_state"].items()))
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+    def save(self, path) -> Path:
+        """Write the traces as CSV (``.csv``) or NumPy archive (``.npz``)."""
+        path = Path(path)
+        cols = self.columns()
+        if path.suffix == ".npz":
+            np.savez(path, **cols)
+        elif path.suffix == ".csv":
+            data = np.column_stack(list(cols.values()))
+            np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+        else:
+            raise ValueError(f"unknown trace format {path.suffix!r}: use .csv or .npz")
+        return path
+
+    def plot(self, axes=None):
+        """Output angle vs reference, current, voltage (three stacked axes)."""
+        import matplotlib.pyplot as plt
+        if axes is None:
+            _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
+        a0, a1, a2 = axes
+        a0.plot(self.times, np.degrees(self.reference_angle), "k--", lw=1, label="reference")
+        a0.plot(self.times, np.degrees(self.output_angle), label=f"output ({self.method})")
+        a0.set_ylabel("angle (deg)")
+        a0.legend(loc="best")
+        a1.plot(self.times, self.current_reference, "k--", lw=1, label="i_ref")
+        a1.plot(self.times, self.motor_current, label="i")
+        a1.set_ylabel("current (A)")
+        a1.legend(loc="best")
+        a2.plot(self.times, self.motor_voltage)
+        a2.set_ylabel("voltage (V)")
+        a2.set_xlabel("time (s)")
+        return axes

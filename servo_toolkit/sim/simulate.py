@@ -1,0 +1,72 @@
+"""``simulate(scene, ...)``: the one-call entry point, and the controller to use."""
+
+from __future__ import annotations
+
+import importlib
+
+from .default_controller import default_controller
+from .engine import run
+from .model import ModelOptions, build_model
+from .reference import Reference
+
+
+def controller_for(scene):
+    """The designed controller (``servo_toolkit.loop.design``) when available, else the
+    conservative fallback cascade.
+
+    Returns
+    -------
+    controller : CascadeController
+    source : str
+        ``"loop.design"`` or ``"fallback"``.
+    """
+    try:
+        loop = importlib.import_module("servo_toolkit.loop")
+    except ImportError:
+        return default_controller(scene), "fallback"
+    design = getattr(loop, "design", None)
+    if design is None:
+        return default_controller(scene), "fallback"
+    return design(scene).controller, "loop.design"
+
+
+def simulate(scene, controller=None, *, reference: Reference | None = None, duration: float = 1.0,
+             method: str = "rk4", dt: float | None = None, voltage: float | None = None,
+             options: ModelOptions | None = None, **run_options):
+    """Simulate a scene in closed loop (or open loop at a constant voltage).
+
+    Parameters
+    ----------
+    scene : Scene
+    controller : CascadeController, optional
+        None with ``voltage`` given: open loop. None otherwise: :func:`controller_for`.
+    reference : Reference, optional
+        Position command; default: hold the mid-stroke angle.
+    duration : float
+        Seconds.
+    method : {"rk4", "paper", "reference", "auto"}
+    dt : float, optional
+        Fixed step (s).
+    voltage : float, optional
+        Open-loop armature voltage (V).
+    options : ModelOptions, optional
+    **run_options
+        Passed to :func:`servo_toolkit.sim.run` (``output_dt``, ``solver``, ``rtol``, ...).
+
+    Returns
+    -------
+    SimulationResult
+    """
+    source = "given"
+    if voltage is not None:
+        if controller is not None:
+            raise ValueError("give either a controller or an open-loop voltage, not both")
+        reference = Reference.voltage(voltage)
+    elif controller is None:
+        controller, source = controller_for(scene)
+    model = build_model(scene, controller, options)
+    result = run(model, reference or Reference(), duration, method, dt, **run_options)
+    if source != "given":
+        from dataclasses import replace
+        result = replace(result, controller=f"{result.controller} [{source}]")
+    return result

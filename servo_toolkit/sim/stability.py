@@ -1,0 +1,114 @@
+"""Step-size stability of RK4 from the fastest eigenvalues of the linearized kernel.
+
+The Jacobian of :func:`kernel.rhs` is taken by central differences (the held current
+reference fixed, as between two samples). RK4 applied to y' = lambda y multiplies y by
+R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24, z = lambda dt; a decaying mode must keep
+|R(z)| <= 1 (on the negative real axis this holds up to z = -2.785, on the imaginary axis up
+to |z| = 2.828). Modes that grow physically (Re lambda >= 0) only bound dt through
+|z| <= 2.828, beyond which RK4 is not an approximation of anything.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import layout as lo
+from .kernel import hermite, rhs
+
+IMAG_LIMIT = 2.8284271247461903  # RK4 stability boundary on the imaginary axis, 2*sqrt(2)
+REAL_LIMIT = 2.785293563405282   # RK4 stability boundary on the negative real axis
+
+
+def rk4_amplification(z):
+    """RK4's stability polynomial R(z)."""
+    z = np.asarray(z, dtype=complex)
+    return 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+
+
+def jacobian(model, P, x, t=0.0, iref=0.0) -> np.ndarray:
+    """d(rhs)/dx at (t, x) by central differences."""
+    n = x.size
+    jac = np.empty((n, n))
+    f1, f2, aux = np.empty(n), np.empty(n), np.empty(lo.NAUX)
+    for j in range(n):
+        h = 1e-7 * (1.0 + abs(x[j]))
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        rhs(t, xp, P, model.T, iref, f1, aux)
+        rhs(t, xm, P, model.T, iref, f2, aux)
+        jac[:, j] = (f1 - f2) / (2 * h)
+    return jac
+
+
+def contact_variant(model, P, x) -> np.ndarray:
+    """The same state with the drivetrain pushed just into contact (stiffest configuration)."""
+    y = x.copy()
+    if model.rigid:
+        return y
+    c = P[lo.HALF_PLAY]
+    d = y[0] - y[2]
+    if abs(d) <= c:
+        y[0] = y[2] + (c + 1e-9 + 1e-6 * c) * (1.0 if d >= 0 else -1.0)
+    return y
+
+
+def max_stable_dt(eigs) -> float:
+    """Largest dt with |R(lambda dt)| <= 1 for every decaying mode (and |z| <= 2.828 for
+    non-decaying ones)."""
+    best = np.inf
+    for lam in np.atleast_1d(eigs):
+        mag = abs(lam)
+        if mag == 0:
+            continue
+        if lam.real >= -1e-9 * mag:
+            best = min(best, IMAG_LIMIT / mag)
+            continue
+        # bisection on s = |z| along the ray; the first exit from |R| <= 1
+        grid = np.linspace(0.05, 3.0, 60)
+        bad = np.abs(rk4_amplification(lam / mag * grid)) > 1 + 1e-12
+        if not bad.any():
+            best = min(best, 3.0 / mag)
+            continue
+        k = int(np.argmax(bad))
+        lo_s, hi_s = (grid[k - 1] if k else 0.0), grid[k]
+        for _ in range(40):
+            mid = 0.5 * (lo_s + hi_s)
+            if abs(rk4_amplification(lam / mag * mid)) > 1 + 1e-12:
+                hi_s = mid
+            else:
+                lo_s = mid
+        best = min(best, lo_s / mag)
+    return float(best)
+
+
+def fastest(model, P, states, times, irefs=None) -> dict:
+    """Fastest eigenvalue and the RK4 step limit over a set of states (and their contact
+    variants).
+
+    Returns
+    -------
+    dict
+        ``max_abs_lambda`` (1/s), ``lambda`` (complex as [re, im]), ``t_s`` where it occurs,
+        ``dt_limit_s`` (the smallest stable-step limit found).
+    """
+    worst = {"max_abs_lambda": 0.0, "lambda": [0.0, 0.0], "t_s": 0.0, "dt_limit_s": np.inf}
+    irefs = np.zeros(len(times)) if irefs is None else irefs
+    for x, t, ir in zip(states, times, irefs):
+        for y in (x, contact_variant(model, P, x)):
+            eigs = np.linalg.eigvals(jacobian(model, P, y, t, ir))
+            if not np.all(np.isfinite(eigs)):
+                continue
+            k = int(np.argmax(np.abs(eigs)))
+            limit = max_stable_dt(eigs)
+            if abs(eigs[k]) > worst["max_abs_lambda"]:
+                worst.update(max_abs_lambda=float(abs(eigs[k])), lam=eigs[k], t_s=float(t),
+                             **{"lambda": [float(eigs[k].real), float(eigs[k].imag)]})
+            worst["dt_limit_s"] = min(worst["dt_limit_s"], limit)
+    worst.pop("lam", None)
+    return worst
+
+
+def motor_speed(model, P, x) -> float:
+    """omega_m = N(p) p' (rad/s)."""
+    return hermite(model.T, lo.T_N, P, x[0])[0] * x[1]
