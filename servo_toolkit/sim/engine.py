@@ -24,9 +24,10 @@ MAX_STEPS = 20_000_000
 MAX_RECORDS = 4000
 
 
-def _snap(dt, model, duration):
-    """The largest step <= dt that divides the sample time (or the duration)."""
-    span = model.sample_time if model.sample_time > 0 else duration
+def _snap(dt, model, duration, output_dt=None):
+    """The largest step <= dt that divides the sample time (else the record interval, else
+    the duration)."""
+    span = model.sample_time if model.sample_time > 0 else (output_dt or duration)
     n = max(1, math.ceil(span / dt * (1 - 1e-12)))
     return span / n
 
@@ -142,7 +143,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
     probe = _stability_probe(model, P, x0)
     limit = probe["dt_limit_s"]
     cap = model.sample_time if model.sample_time > 0 else duration / 200
-    auto_dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration)
+    auto_dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration, output_dt)
     choice = ""
     if method == "auto":
         if duration / auto_dt > MAX_STEPS:
@@ -161,7 +162,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
             dt = auto_dt
             choice = choice or f"default step {dt:.4g} s (|lambda dt| = {probe['max_abs_lambda'] * dt:.3g})"
         else:
-            snapped = _snap(dt, model, duration)
+            snapped = _snap(dt, model, duration, output_dt)
             if abs(snapped - dt) > 1e-12 * dt:
                 notes.append(f"step {dt:.4g} s snapped to {snapped:.4g} s to divide the sample time")
             dt = snapped
@@ -185,7 +186,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
                     f"{along['max_abs_lambda']:.4g} 1/s at t = {along['t_s']:.4g} s needs dt <= "
                     f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'")
             tries += 1
-            new_dt = _snap(AUTO_Z / along["max_abs_lambda"], model, duration)
+            new_dt = _snap(AUTO_Z / along["max_abs_lambda"], model, duration, output_dt)
             if tries > 3 or duration / new_dt > MAX_STEPS:
                 method = "reference"
                 choice += f"; along the run |lambda| rose to {along['max_abs_lambda']:.3g} 1/s: implicit solver instead"

@@ -227,7 +227,7 @@ def rhs(t, x, P, T, iref_held, dx, aux):
         # the cam paper's play operator: the spring acts on s - q, s held inside the play
         z = x[6] - q
         f = k * z
-        if abs(p - x[6]) >= c:
+        if abs(p - x[6]) >= c * (1.0 - 1e-9):  # in contact (s was pushed to p -+ c)
             f += P[BETA] * k * dd
     else:
         d = p - q

@@ -1,0 +1,38 @@
+"""``servo-toolkit accuracy``: error against run time of the fixed-step methods."""
+
+from __future__ import annotations
+
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+
+#: accuracy runs are short: the reference restarts at every controller sample
+ACCURACY_DURATION = 0.1
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("accuracy", help="error against run time: RK4 step ladder vs the stiff reference")
+    add_scene(p)
+    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..sim import build_model, controller_for
+    from ..sim.accuracy import accuracy_study
+    from ..sim.reference import Reference
+    from ..sim.studies import run_spec
+
+    scene = load_scene(args.scene)
+    reference, duration, voltage, _, _ = run_spec(scene, args.study)
+    if voltage is not None:
+        model = build_model(scene, None)
+        reference = Reference.voltage(voltage)
+    else:
+        controller, _ = controller_for(scene)
+        model = build_model(scene, controller)
+    result = accuracy_study(model, reference, min(duration, ACCURACY_DURATION), progress=not args.json)
+    emit(args, result, result.table())
+    return 0

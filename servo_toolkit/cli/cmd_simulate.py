@@ -1,0 +1,61 @@
+"""``servo-toolkit simulate``: a time simulation of a scene (closed loop or open loop)."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("simulate", help="time simulation (compiled RK4, paper scheme or stiff reference)")
+    add_scene(p)
+    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine, 1 s)")
+    p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
+    p.add_argument("--dt", type=float, metavar="S", help="fixed step (s)")
+    p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def _mechanism_dispatch(scene, args):
+    """The mechanism studies' own runner when it handles this study, else None."""
+    if not args.study:
+        return None
+    try:
+        mech = importlib.import_module("servo_toolkit.mechanisms")
+    except ImportError:
+        return None
+    handles = getattr(mech, "handles", None)
+    if handles is None or not handles(scene, args.study):
+        return None
+    return mech.run_study(scene, args.study, method=args.method, dt=args.dt)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..sim import simulate
+    from ..sim.studies import run_spec
+
+    scene = load_scene(args.scene)
+    result = _mechanism_dispatch(scene, args)
+    if result is None:
+        reference, duration, voltage, method, dt = run_spec(scene, args.study)
+        method = args.method or method or "auto"
+        dt = args.dt if args.dt is not None else (dt if method in ("rk4", "paper") else None)
+        result = simulate(scene, None, reference=reference, duration=duration, method=method,
+                          dt=dt, voltage=voltage)
+        text = f"Simulation of {scene.name}\n" + result.table()
+    else:
+        text = result.table() if hasattr(result, "table") else str(result.to_dict())
+    if args.output:
+        if not hasattr(result, "save"):
+            print("servo-toolkit: this study writes no traces", file=sys.stderr)
+            return 2
+        path = result.save(args.output)
+        print(f"traces written to {path}", file=sys.stderr)
+    emit(args, result, text)
+    return 0

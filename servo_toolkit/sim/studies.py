@@ -1,0 +1,40 @@
+"""From a scene's named study (or the defaults) to a reference, a duration and options."""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import SceneError
+from .reference import Reference
+
+#: default closed-loop run: the 8 Hz, 2 deg sine of seed 000, for 1 s
+DEFAULT_SINE = (math.radians(2.0), 8.0, 1.0)
+
+
+def run_spec(scene, study_name=None):
+    """``(reference, duration, voltage, method, dt)`` for a study name or the default.
+
+    Open-loop studies (a ``voltage`` parameter) give ``reference=None`` and the voltage.
+    """
+    if study_name is None:
+        amp, freq, dur = DEFAULT_SINE
+        return Reference.sine(amp, freq), dur, None, None, None
+    study = scene.study(study_name)
+    p = study.params
+    method = p.get("method")
+    dt = p.get("sample_time") if study.kind == "simulate" else None
+    if "voltage" in p:
+        return None, float(p.get("duration", 1.0)), float(p["voltage"]), method, dt
+    freq = p.get("frequency")
+    if freq is None and "period" in p:
+        freq = 1.0 / p["period"]
+    amp = p.get("amplitude")
+    if amp is None and p.get("amplitudes"):
+        amp = p["amplitudes"][0]
+    if isinstance(p.get("frequencies"), dict):
+        freq = freq or p["frequencies"].get("start")
+    if amp is None or freq is None:
+        raise SceneError(study.key("kind"), f"study kind {study.kind!r} has no amplitude/frequency "
+                         "or voltage that a time simulation can use")
+    duration = float(p.get("duration", max(1.0, 3.0 / freq)))
+    return Reference.sine(float(amp), float(freq)), duration, None, method, dt

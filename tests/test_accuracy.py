@@ -1,0 +1,36 @@
+"""Accuracy study and the simulate/accuracy commands."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from servo_toolkit import load_scene
+from servo_toolkit.cli import main
+from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller
+from servo_toolkit.sim.accuracy import accuracy_study
+
+from .conftest import SCENES
+
+
+def test_accuracy_study_orders():
+    scene = load_scene(SCENES / "ema_reference.toml")
+    model = build_model(scene, default_controller(scene))
+    res = accuracy_study(model, Reference.sine(math.radians(2), 8.0), 0.03,
+                         dts=[1e-4, 5e-5, 2.5e-5], progress=False)
+    assert 3.5 < res.order < 4.6
+    assert 0.7 < res.paper_order < 1.4
+    d = res.to_dict()
+    assert {"method", "dt_s", "wall_s", "error"} <= set(d["runs"][0])
+
+
+def test_cli_simulate_and_accuracy_json(capsys, tmp_path):
+    out = tmp_path / "traces.csv"
+    assert main(["simulate", str(SCENES / "ema_reference.toml"), "--method", "rk4", "--json",
+                 "-o", str(out)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    for key in ("t_final_s", "final_state", "max_abs_motor_torque_Nm", "wall_s", "method", "dt_s"):
+        assert key in d
+    assert d["t_final_s"] == 1.0 and d["method"] == "rk4"
+    assert out.read_text().startswith("t_s,")
+    assert main(["simulate", str(SCENES / "ema_reference.toml"), "--study", "nope"]) == 2

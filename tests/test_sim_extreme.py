@@ -1,0 +1,87 @@
+"""Stiff and extreme cases (issue item 7): each matches the reference within the stated
+tolerance or raises a clear SimulationError; none returns NaN.
+
+The runs use the continuous motion controller so that the reference is a single
+``solve_ivp`` call (LSODA, rtol = atol = 1e-10); the integrator under test is ``auto``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+from servo_toolkit import SimulationError
+from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run
+
+from .conftest import SCENES, build, variant
+
+AMP = math.radians(2.0)
+BASE = tomllib.loads((SCENES / "ema_reference.toml").read_text())
+
+
+def _compare(scene, ref, duration, tol, **opts):
+    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous", **opts))
+    a = run(model, ref, duration, "auto", output_dt=1e-3)
+    b = run(model, ref, duration, "reference", output_dt=1e-3)
+    assert np.all(np.isfinite(a.states)) and np.all(np.isfinite(b.states))
+    scale = max(abs(ref.amplitude), np.ptp(b.output_angle) / 2, 1e-3)
+    err = np.max(np.abs(a.output_angle - b.output_angle)) / scale
+    assert err < tol, (err, a.choice)
+    return a, b
+
+
+def test_inductance_1uH_auto_reduces_the_step():
+    scene = build(variant(BASE, motor__inductance="1 uH"))
+    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.05, 1e-6)
+    assert a.dt_s < 1e-5 and a.stability["max_abs_lambda"] > 1e5
+
+
+def test_stiffness_x1000():
+    a, _ = _compare(build(BASE), Reference.sine(AMP, 8.0), 0.1, 1e-6, stiffness_scale=1000.0)
+    # drivetrain mode sqrt(K (1/J_d + 1/J_L)) = sqrt(3.4e7 * (1/4.4 + 1)) = 6.46e3 rad/s
+    assert a.stability["max_abs_lambda"] > 6e3
+
+
+@pytest.mark.parametrize("play_deg, tol", [(0.0, 1e-6), (2.0, 5e-3)])
+def test_zero_and_large_backlash_without_preload(play_deg, tol):
+    """No hinge moment: with 2 deg of play the drivetrain crosses it at every reversal; the
+    contact events fall between fixed steps, so RK4 is only first order there: tolerance
+    5e-3 of the amplitude at the automatic step."""
+    scene = build(variant(BASE, load__hinge_moment="0 N*m"))
+    _compare(scene, Reference.sine(math.radians(5.0), 4.0), 0.3, tol, play=math.radians(play_deg))
+
+
+def test_zero_load_inertia():
+    """Only the output shaft stays on the load side: a fast local mode."""
+    scene = build(variant(BASE, load__inertia="0 kg*m^2"))
+    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.1, 1e-5)
+    assert a.stability["max_abs_lambda"] > 5e3
+
+
+def test_twenty_times_load_inertia():
+    scene = build(variant(BASE, load__inertia="20 kg*m^2"))
+    _compare(scene, Reference.sine(AMP, 8.0), 0.3, 1e-6)
+
+
+def test_current_saturation_held_for_the_whole_run():
+    scene = build(BASE)
+    a, b = _compare(scene, Reference.step(math.radians(20.0), offset=math.radians(-10.0)), 0.02, 1e-6)
+    ilim = scene.motor.current_limit
+    assert np.all(np.abs(b.current_reference[1:]) == pytest.approx(ilim))
+    assert np.all(np.abs(a.current_reference[1:]) == pytest.approx(ilim))
+
+
+def test_stroke_end_raises_or_stops():
+    scene = build(BASE)
+    ramp = Reference.ramp(math.radians(200.0), offset=math.radians(20.0))
+    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous"))
+    with pytest.raises(SimulationError, match="stroke end reached at t = "):
+        run(model, ramp, 0.5, "auto")
+    with pytest.raises(SimulationError, match="stroke end"):
+        run(model, ramp, 0.5, "reference")
+    a, b = _compare(scene, ramp, 0.3, 1e-3, stroke_end="stop")
+    assert b.output_angle.max() > math.radians(30.0)          # it did hit the stop
+    assert b.output_angle.max() < math.radians(31.0)          # and the stop held
