@@ -3,7 +3,8 @@
 from .errors import SceneError, SimulationError
 from .loop import design
 from .scene import Scene, load_scene
+from .sim import simulate
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "SceneError", "SimulationError", "design", "load_scene", "__version__"]
+__all__ = ["Scene", "SceneError", "SimulationError", "design", "load_scene", "simulate", "__version__"]
