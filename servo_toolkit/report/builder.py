@@ -12,6 +12,7 @@ from tqdm.auto import tqdm
 from ..errors import SceneError
 from . import sections_drivetrain as drv
 from . import sections_loop as loop
+from . import sections_limits as limits
 from . import sections_studies as studies
 from . import sections_time as timing
 from .context import Context
@@ -28,7 +29,7 @@ SECTIONS = (
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
-    ("reduce", "What the model leaves out", studies.leaves_out),
+    ("reduce", "What the model leaves out", limits.leaves_out),
     ("accuracy", "Solver accuracy", studies.accuracy),
 )
 REQUIREMENTS = ("requirements", "Requirements", loop.requirements)

@@ -43,12 +43,6 @@ def kv_tables(ctx) -> Section:
     return Section("Dynamic-load factor Kv", "".join(parts), tuple(figs), key="kv")
 
 
-def leaves_out(ctx) -> Section:
-    """What the model leaves out, and why."""
-    api("servo_toolkit.studies.reduce", "reduce")
-    raise NotAvailable("reduction not wired yet")
-
-
 def accuracy(ctx) -> Section:
     """Solver error against run time: RK4 and the cam paper's scheme at a ladder of steps
     against the tight-tolerance reference, with the observed order of convergence."""
