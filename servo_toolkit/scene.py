@@ -15,13 +15,13 @@ from .components.gear import GearTrain
 from .components.linkage import RockerLinkage
 from .components.motor import DCMotor
 from .components.platform import CrossedArchPlatform
-from .components.roller_screw import RollerScrewOperating, RollerScrewStage
+from .components.roller_screw import RollerScrew, RollerScrewOperating, RollerScrewStage
 from .errors import SceneError
 from .fields import Fields, require
 from .units import parse_si
 
 STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": RockerLinkage,
-               "compliance": Compliance, "cam": Cam}
+               "compliance": Compliance, "cam": Cam, "roller_screw": RollerScrew}
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",

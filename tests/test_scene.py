@@ -22,8 +22,9 @@ def test_reference_scenes_load(path):
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared scenes not beside the checkout")
-@pytest.mark.parametrize("path", SCENE_FILES, ids=lambda p: p.stem)
-def test_scenes_are_unchanged_copies(path):
+@pytest.mark.parametrize("path", [p for p in SCENE_FILES if (SHARED / p.name).exists()] or SCENE_FILES,
+                         ids=lambda p: p.stem)
+def test_scenes_are_unchanged_copies(path):  # the reference scenes; example scenes may be added
     assert path.read_bytes() == (SHARED / path.name).read_bytes()
 
 

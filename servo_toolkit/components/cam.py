@@ -63,6 +63,11 @@ class Cam(Stage):
         gamma and beta of seed 002 eq 3 (rad).
     clearance : float
         Half the cam/roller play c (m).
+    base_radius : float
+        Pitch base-circle radius r0 (m) of the pressure angle tan(alpha) = (ds/dtheta)/(r0 + s).
+        The seed does not print it; 0 means "derive it": the smallest r0 that keeps the
+        pressure angle at or below 30 deg (the usual limit for a translating follower),
+        see :attr:`pitch_base_radius`.
     """
 
     name: str
@@ -74,12 +79,26 @@ class Cam(Stage):
     gravity_heading: float = 0.0
     clearance: float = 0.0
     law: str = "modified_constant_velocity"
+    base_radius: float = 0.0
     direction = "forward"
 
     @property
     def stroke_length(self) -> float:
         """Follower stroke 1.5*pi*A (m)."""
         return 1.5 * math.pi * self.profile_constant
+
+    @property
+    def pitch_base_radius(self) -> float:
+        """r0 (m): ``base_radius`` if given, else the smallest radius with alpha <= 30 deg.
+
+        For the conjugate (double-roller) cam both rollers see the same profile half a turn
+        apart, so one bound serves both.
+        """
+        if self.base_radius > 0:
+            return self.base_radius
+        th = np.linspace(0.0, 2 * math.pi, 4097)
+        jet = self.map(th)
+        return float(np.max(np.abs(jet.d1) / math.tan(math.radians(30.0)) - jet.value))
 
     def map(self, z) -> Jet:
         return modified_constant_velocity(z, self.profile_constant)
@@ -103,6 +122,7 @@ class Cam(Stage):
             gravity_tilt=f.quantity("gravity_tilt", "rad", 0.0, rule="finite"),
             gravity_heading=f.quantity("gravity_heading", "rad", 0.0, rule="finite"),
             clearance=f.quantity("clearance", "m", 0.0, rule="nonnegative"),
+            base_radius=f.quantity("base_radius", "m", 0.0, rule="nonnegative"),
         )
         require(cam.guide_friction_coefficient < 1, f.key("guide_friction_coefficient"), "must be below 1")
         f.check_unknown()

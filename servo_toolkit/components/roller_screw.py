@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..fields import Fields, require
+from .base import Element, Jet, Stage
 
 
 @dataclass(frozen=True)
@@ -98,3 +102,165 @@ def _coefficient(value, key: str) -> float:
             f"friction coefficient must be a number (got {value!r})")
     require(0 <= value < 1, key, f"friction coefficient must be in [0, 1) (got {value})")
     return float(value)
+
+
+# --- kinematics and steady-state efficiency shared by the drivetrain stage and the dynamics ---
+
+def nut_travel_per_screw_radian(stages) -> np.ndarray:
+    """|v_Nk| / theta_S' of every stage (m/rad): sum of the leads up to k over 2 pi (eq 3)."""
+    return np.cumsum([s.lead for s in stages]) / (2 * math.pi)
+
+
+def carrier_ratio(stage: RollerScrewStage) -> float:
+    """Steady carrier/screw speed ratio with rolling at the pitch circles, r_S / (2 (r_S + r_R))."""
+    return stage.screw_radius / (2 * (stage.screw_radius + stage.roller_radius))
+
+
+def roller_spin_ratio(stage: RollerScrewStage) -> float:
+    """theta_R' / theta_P' of eq 8, -(n_S - 1)."""
+    return -(stage.screw_starts - 1.0)
+
+
+def carrier_inertia_total(stage: RollerScrewStage) -> float:
+    """Inertia of carrier plus rollers (orbit and spin) about the screw axis, per carrier rad."""
+    orbit = stage.roller_mass * (stage.screw_radius + stage.roller_radius) ** 2
+    spin = stage.roller_inertia * roller_spin_ratio(stage) ** 2
+    return stage.carrier_inertia + stage.rollers * (orbit + spin)
+
+
+def thread_normal_norm(stage: RollerScrewStage) -> float:
+    """|n| / n_z of the screw/roller contact normal (eq 9 at zero offset angle)."""
+    helix = stage.lead / (2 * math.pi * stage.screw_radius)
+    return math.sqrt(1.0 + math.tan(stage.flank_angle) ** 2 + helix**2)
+
+
+def joint_loads(stages, load: float, thread_torque, thread_torques, mu_ss: float, mu_ns: float):
+    """Walk the stages from the last to the first (seed 004, section 2.3).
+
+    Parameters
+    ----------
+    stages : sequence of RollerScrewStage
+    load : float
+        F_N of the last nut (N), resisting its travel.
+    thread_torque : callable
+        ``thread_torque(k, nut_load)`` -> torque on screw k (N*m) of stage k's threads carrying
+        ``nut_load``. (The axial thread force on the screw is the nut load itself: the rise
+        of the normal force due to the axial friction is cancelled, on the screw, by that
+        friction's reaction.)
+    thread_torques : list
+        Filled with each stage's own thread torque (N*m).
+    mu_ss, mu_ns : float
+        Spline and thrust-bearing friction coefficients (eqs 4-5).
+
+    Returns
+    -------
+    screw_torque : float
+        M_S1, the torque at the first screw (N*m).
+    nut_loads : list of float
+        F_Nk of every nut (N).
+    """
+    n = len(stages)
+    nut_loads = [0.0] * n
+    nut_loads[-1] = load
+    spline = 0.0  # torque screw k + 1 takes through its spline, M_S(k+1)
+    for k in reversed(range(n)):
+        torque = thread_torque(k, nut_loads[k])
+        thread_torques.insert(0, torque)
+        x = torque + spline  # screw k's torque before its own thrust-bearing friction
+        if k == 0:
+            return x, nut_loads
+        st = stages[k]
+        # M_Sk = x + mu_ns r_NS |F_N(k-1)|;  F_N(k-1) = F_Nk + mu_ss |M_Sk| / r_SS  (eqs 4, 5, 21)
+        nut_loads[k - 1] = ((nut_loads[k] + mu_ss * abs(x) / st.screw_spline_radius)
+                            / (1 - mu_ss * mu_ns * st.nut_screw_joint_radius / st.screw_spline_radius))
+        spline = x + mu_ns * abs(nut_loads[k - 1]) * st.nut_screw_joint_radius
+    return spline, nut_loads
+
+
+def steady_efficiency(stages, mu_rs: float, mu_ss: float, mu_ns: float) -> float:
+    """Efficiency of eq 32 at steady carrier speed (rolling at the pitch circles).
+
+    With the carriers at their steady ratio the thread slip is purely axial, so the
+    screw/roller Coulomb friction adds ``n mu F_RS`` to each thread's axial load with
+    ``F_RS = (F_N / n) / (1/|n| - mu)``. Load-independent (all losses scale with the load).
+    With ``mu_rs = mu_ns = 0`` this is eq 35.
+    """
+    def thread(k, nut_load):
+        st = stages[k]
+        extra = nut_load * mu_rs / (1.0 / thread_normal_norm(st) - mu_rs)
+        return (nut_load + extra) * st.lead / (2 * math.pi)
+    torque, _ = joint_loads(stages, 1.0, thread, [], mu_ss, mu_ns)
+    return sum(s.lead for s in stages) / (2 * math.pi * torque)
+
+
+def efficiency_eq35(stages, mu_ss: float) -> float:
+    """Seed 004 eq 35 (two stages, spline friction only)."""
+    l1, l2 = stages[0].lead, stages[1].lead
+    return 1.0 / (1.0 + mu_ss * l1 * l2 / (2 * math.pi * stages[1].screw_spline_radius * (l1 + l2)))
+
+
+@dataclass(frozen=True)
+class RollerScrew(Stage):
+    """Multi-stage planetary roller screw as a drivetrain stage (backward, like BallScrew).
+
+    Input = screw angle (rad), output = travel of the last nut (m); every screw turns with
+    the first (eq 1) and nut k travels ``sum(L_1..L_k) / (2 pi)`` per screw radian (eq 3,
+    magnitudes). The carriers turn at their steady rolling ratio, so each adds its carrier
+    and roller inertia at that ratio; nuts, rollers and the riding screws add their masses at
+    their own travel ratios.
+
+    Parameters
+    ----------
+    name : str
+    stages : tuple of RollerScrewStage
+    roller_screw_friction, screw_screw_friction, nut_screw_friction : float
+        mu_RS, mu_SS, mu_NS.
+    efficiency : float
+        Forward efficiency; by default the steady-state value of :func:`steady_efficiency`.
+    """
+
+    name: str
+    stages: tuple
+    roller_screw_friction: float = 0.0
+    screw_screw_friction: float = 0.0
+    nut_screw_friction: float = 0.0
+    efficiency: float = 1.0
+
+    @property
+    def ratio(self) -> float:
+        """Screw rad per m of last-nut travel."""
+        return 1.0 / float(nut_travel_per_screw_radian(self.stages)[-1])
+
+    def map(self, z) -> Jet:
+        return Jet.linear(z, self.ratio)
+
+    def elements(self, z) -> list[Element]:
+        lam = nut_travel_per_screw_radian(self.stages) * self.ratio  # nut travel per last-nut travel
+        out = []
+        for k, st in enumerate(self.stages):
+            out.append(Element(f"{self.name}: screw {k + 1}", st.screw_inertia, Jet.linear(z, self.ratio)))
+            out.append(Element(f"{self.name}: carrier and rollers {k + 1}", carrier_inertia_total(st),
+                               Jet.linear(z, self.ratio * carrier_ratio(st))))
+            out.append(Element(f"{self.name}: nut and rollers {k + 1}", st.nut_mass + st.rollers * st.roller_mass,
+                               Jet.linear(z, lam[k])))
+            if k > 0:
+                out.append(Element(f"{self.name}: screw {k + 1} travel", st.screw_mass, Jet.linear(z, lam[k - 1])))
+        return out
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "RollerScrew":
+        """Build from a ``[[drivetrain]]`` table of kind ``roller_screw`` with ``[[drivetrain.stages]]``."""
+        raw = f.raw("stages")
+        require(isinstance(raw, list) and raw, f.key("stages"),
+                "must be a non-empty array of tables [[drivetrain.stages]]")
+        stages = tuple(RollerScrewStage.from_table(Fields(t, f"{f.key('stages')}[{i}]"), i == 0)
+                       for i, t in enumerate(raw))
+        mus = {name: _coefficient(f.raw(name, 0.0), f.key(name))
+               for name in ("roller_screw_friction", "screw_screw_friction", "nut_screw_friction")}
+        eta = steady_efficiency(stages, mus["roller_screw_friction"], mus["screw_screw_friction"],
+                                mus["nut_screw_friction"])
+        require(eta > 0, f.key("roller_screw_friction"), "the friction coefficients leave no positive efficiency")
+        efficiency = f.number("efficiency", eta, rule="positive")
+        require(efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
+        f.check_unknown()
+        return cls(name=f.text("name", "roller screw"), stages=stages, efficiency=efficiency, **mus)
