@@ -72,10 +72,12 @@ def accuracy(ctx) -> Section:
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize="small")
     text = para(f"{res.description}.",
-                f"Observed order of convergence: RK4 {res.order:.2f}, the cam paper's frozen-configuration "
-                f"scheme {res.paper_order:.2f}. On a smooth model RK4 shows 4 and the paper's scheme 1; a lower "
-                "RK4 figure means the errors have reached the reference's own tolerance or the run has "
-                "non-smooth events (backlash contact, limits).",
+                f"Observed order of convergence: RK4 {res.order:.2f} against the reference (4 on a smooth run; "
+                "less when the errors reach the reference's own tolerance or the run has non-smooth events); "
+                f"the cam paper's frozen-configuration scheme {res.paper_order:.2f} from its self-convergence "
+                "between successive halvings of the step. Against the reference the paper scheme's error levels "
+                "off at the difference between its play operator (seed 002, eqs 6-8) and the elasto-backlash "
+                "law of the reference model, not at a step-size error.",
                 "Error is the largest output-angle difference from the reference, relative to the motion "
                 "amplitude; wall times exclude compilation.")
     return Section("Solver accuracy", text + table(("method", "dt [s]", "wall [ms]", "error / amplitude"), rows),
