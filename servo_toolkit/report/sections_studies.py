@@ -4,16 +4,57 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from . import figures
 from .context import api
 from .section import FigureSpec, NotApplicable, NotAvailable, Section, esc, fmt, para, table
 
 
+LIGHT_SWEEP_POINTS = 8
+
+
 def sweep(ctx) -> Section:
     """Nonlinear sine-dwell sweep against the linear closed loop."""
     ctx.require_drivetrain("the frequency sweep")
-    api("servo_toolkit.studies.sweep", "sweep")
-    raise NotAvailable("sweep not wired yet")
+    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
+    study_points = api("servo_toolkit.studies.sweep", "study_points")
+    controller = ctx.design().controller
+    name, freqs, _ = study_points(ctx.scene)
+    options = {}
+    if ctx.light:
+        plan_cls = api("servo_toolkit.studies.sine_dwell", "DwellPlan")
+        lo, hi = min(freqs), max(freqs)
+        light = np.geomspace(lo, hi, LIGHT_SWEEP_POINTS) if hi > lo else np.array([lo])
+        options["frequencies"] = np.unique(np.concatenate([light, [f for f in freqs if abs(f - 8.0) < 1e-9]]))
+        options["plan"] = plan_cls(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2,
+                                   samples_per_cycle=100)
+    res = run_sweep(ctx.scene, name, controller=controller, executor=ctx.executor, progress=False, **options)
+    fig, axes = figures.new_figure(2, 1, size=(7.5, 5.4), sharex=True)
+    res.plot(axes=axes)
+    head = ("amplitude [deg]", "frequency [Hz]", "gain [dB]", "phase [deg]", "linear gain [dB]",
+            "linear phase [deg]", "flags")
+    rows = []
+    g, p, lg, lp = res.gain_db, res.phase_deg, res.linear_gain_db, res.linear_phase_deg
+    for a, amp in enumerate(res.amplitudes_rad):
+        for k, f in enumerate(res.frequencies_hz):
+            err = res.errors[a * res.frequencies_hz.size + k]
+            flags = ("saturated " if res.saturated[a, k] else "") + (f"failed: {err}" if err else "")
+            rows.append((fmt(math.degrees(amp)), fmt(f), fmt(g[a, k]), fmt(p[a, k]), fmt(lg[k]), fmt(lp[k]),
+                         flags.strip()))
+    dev = res.deviation()
+    text = [f"Sine dwell at each frequency (settling cycles, then estimation cycles; amplitude and phase of the "
+            f"fundamental by correlation), compared with the linear closed loop. Study: {res.study or 'default'}; "
+            f"{'light settings: ' + str(res.frequencies_hz.size) + ' frequencies' if ctx.light else 'full settings'}.",
+            "Largest difference from the linear loop: " + ", ".join(
+                f"{math.degrees(a):.3g} deg amplitude: {dg:.2f} dB and {dp:.1f} deg" for a, dg, dp in
+                zip(res.amplitudes_rad, dev["max_gain_difference_dB"], dev["max_phase_difference_deg"])) + "."]
+    if res.reduced:
+        text.append("The sweep ran the reduced model; left out: " + ("; ".join(res.left_out) or "nothing") + ".")
+    text += list(getattr(res, "notes", ()))
+    return Section("Nonlinear frequency sweep against the linear loop", para(*text) + table(head, rows),
+                   (FigureSpec(fig, "Closed-loop Bode: linear loop (line) and nonlinear sine dwell (markers)."),),
+                   key="sweep")
 
 
 def kv_tables(ctx) -> Section:
