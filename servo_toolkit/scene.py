@@ -20,6 +20,8 @@ from .errors import SceneError
 from .fields import Fields, require
 from .units import parse_si
 
+#: speed signals the speed loop can use (``[sensors] speed_estimator``)
+SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
 STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": RockerLinkage,
                "compliance": Compliance, "cam": Cam, "roller_screw": RollerScrew}
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
@@ -40,19 +42,30 @@ class Sensors:
         Motor encoder counts per revolution (0 = ideal).
     sample_time : float
         Controller sample time (s); 0 = continuous.
+    speed_estimator : str
+        Motor speed fed to the speed loop: ``"ideal"`` (the true speed, a tachometer-grade
+        signal), ``"difference"`` (backward difference of the motor encoder counts over one
+        sample) or ``"kalman"`` (a Kalman filter on the motor encoder counts, see
+        :mod:`servo_toolkit.estimation`). The last two need a motor encoder and a sample time.
     """
 
     output_encoder_bits: int = 0
     motor_encoder_counts: int = 0
     sample_time: float = 0.0
+    speed_estimator: str = "ideal"
 
     @classmethod
     def from_table(cls, f: Fields) -> "Sensors":
         """Build from a ``[sensors]`` table."""
         s = cls(output_encoder_bits=f.integer("output_encoder_bits", 0, minimum=0),
                 motor_encoder_counts=f.integer("motor_encoder_counts", 0, minimum=0),
-                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"))
+                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"),
+                speed_estimator=f.text("speed_estimator", "ideal", choices=SPEED_ESTIMATORS))
         f.check_unknown()
+        if s.speed_estimator != "ideal" and (s.motor_encoder_counts == 0 or s.sample_time == 0):
+            raise SceneError(f.key("speed_estimator"), f"{s.speed_estimator!r} estimates the speed "
+                             "from motor encoder counts: it needs motor_encoder_counts > 0 and "
+                             "sample_time > 0")
         return s
 
 

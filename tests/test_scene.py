@@ -122,3 +122,14 @@ def test_scene_error_names_the_file(tmp_path):
     with pytest.raises(SceneError) as info:
         load_scene(p)
     assert str(p) in str(info.value) and "drivetrain[1].lead" in str(info.value)
+
+
+def test_speed_estimator_rules(ema_dict):
+    """speed_estimator is one of the known names and needs motor counts and a sample time."""
+    assert load_scene().sensors.speed_estimator == "ideal"
+    with pytest.raises(SceneError, match=r"sensors\.speed_estimator"):
+        build(variant(ema_dict, sensors__speed_estimator="magic"))
+    with pytest.raises(SceneError, match=r"sensors\.speed_estimator.*sample_time"):
+        build(variant(ema_dict, sensors__speed_estimator="kalman", sensors__sample_time=0))
+    scene = build(variant(ema_dict, sensors__speed_estimator="kalman"))
+    assert scene.sensors.speed_estimator == "kalman"
