@@ -13,7 +13,7 @@ import sys
 from ..errors import SceneError
 
 #: Command modules; each defines ``NAME``, ``register(subparsers)`` and ``run(args) -> int``.
-COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy")
+COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,49 @@
+"""``servo-toolkit reduce``: what a study's model leaves out, why, and what that costs."""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("reduce", help="what the scene's model leaves out for a study, why, and the measured cost")
+    add_scene(p)
+    p.add_argument("--study", metavar="NAME",
+                   help="a frequency_sweep, kv or simulate (sine) study (default: the sweep, plus 8 Hz)")
+    p.add_argument("--tolerance", type=float, default=None, metavar="X",
+                   help="a-priori bound on the relative response difference (default 0.02 = 0.17 dB / 1.15 deg)")
+    p.add_argument("--estimate-only", action="store_true",
+                   help="only the a-priori estimates and the choice (no full/reduced runs)")
+    p.add_argument("--plot", metavar="FILE", help="save the measured difference per point")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..studies.reduce import reduce, reduced_options
+    from ..studies.reduce_estimates import DEFAULT_TOLERANCE
+    tol = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
+    if not (math.isfinite(tol) and 0 < tol < 1):
+        sys.stderr.write("error: --tolerance must lie in (0, 1) (a relative response difference)\n")
+        return 2
+    scene = load_scene(args.scene)
+    if args.estimate_only:
+        _, plan = reduced_options(scene, args.study, tolerance=tol)
+        lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
+        lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}\n{'':34s}   {e.quantity}" for e in plan.effects]
+        lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
+        emit(args, plan, "\n".join(lines))
+        return 0
+    res = reduce(scene, args.study, tolerance=tol, progress=not args.json and sys.stderr.isatty())
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        res.plot().figure.savefig(args.plot, bbox_inches="tight")
+    emit(args, res, res.table())
+    return 0

@@ -1,0 +1,318 @@
+"""Leave out what a study does not need: the reduced model, why, and its measured error.
+
+:func:`reduce` judges every modelled effect against a study's frequencies and amplitudes
+(:func:`.reduce_estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
+then runs the study on the full and on the reduced model and measures their difference:
+
+- a ``frequency_sweep`` study: the sine-dwell responses of both models (:func:`.sweep.sweep`),
+  difference ``|H_reduced / H_full - 1|`` per point;
+- a ``kv`` or ``simulate`` study with a sine motion: the output-angle traces of both models
+  over the steady part of the run, difference ``RMS(q_reduced - q_full) / RMS(q_full - q0)``
+  (for a sinusoid the same measure as above, plus any harmonics).
+
+The a-priori bound is the reduction's tolerance (module :mod:`.reduce_estimates` explains
+why it holds in the linear range); points where a run reached the current or voltage limit
+are outside that statement and are reported separately.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import SceneError, SimulationError
+from ..parallel import run_cases
+from ..plant import DEFAULT_STRUCTURAL_DAMPING
+from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, lossless, plan_reduction
+from .sine_dwell import DwellPlan
+from .sweep import linear_response, study_points, sweep
+
+TIME_KINDS = ("kv", "simulate")
+
+
+@dataclass(frozen=True)
+class ReductionResult:
+    """What a study's reduced model leaves out, and how much that changes the study.
+
+    Attributes
+    ----------
+    scene : str
+    study : str or None
+    measure : str
+        ``"sweep"`` (sine-dwell responses) or ``"trace"`` (time-trace RMS).
+    plan : ReductionPlan
+        Effects, estimates, the reduced options and the tolerance (the a-priori bound).
+    frequencies_hz : numpy.ndarray
+    amplitudes_rad : numpy.ndarray
+    difference : numpy.ndarray
+        (n_a, n_f) measured relative difference full/reduced (NaN: a run failed in both).
+    saturated : numpy.ndarray
+        (n_a, n_f) bool: a limit was reached in either run (outside the linear statement).
+    full_options, reduced_options : dict
+    full_wall_s, reduced_wall_s : float
+        Wall time of the study on each model.
+    notes : tuple of str
+    """
+
+    scene: str
+    study: str | None
+    measure: str
+    plan: ReductionPlan
+    frequencies_hz: np.ndarray
+    amplitudes_rad: np.ndarray
+    difference: np.ndarray
+    saturated: np.ndarray
+    full_options: dict
+    reduced_options: dict
+    full_wall_s: float
+    reduced_wall_s: float
+    notes: tuple = field(default_factory=tuple)
+
+    @property
+    def bound(self) -> float:
+        """The a-priori bound on the relative difference (the tolerance)."""
+        return self.plan.tolerance
+
+    @property
+    def measured(self) -> float:
+        """Largest measured relative difference over the points within the limits."""
+        ok = ~self.saturated & ~np.isnan(self.difference)
+        return float(np.max(self.difference[ok])) if ok.any() else math.nan
+
+    @property
+    def measured_saturated(self) -> float:
+        """Largest measured relative difference over the points that reached a limit."""
+        sat = self.saturated & ~np.isnan(self.difference)
+        return float(np.max(self.difference[sat])) if sat.any() else math.nan
+
+    @property
+    def within_bound(self) -> bool:
+        """Measured difference (within the limits) <= the a-priori bound."""
+        return bool(self.measured <= self.bound)
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        def db(e):
+            return 20 * math.log10(1 + e) if math.isfinite(e) else e
+
+        def deg(e):
+            return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else e
+        return {"scene": self.scene, "study": self.study, "measure": self.measure,
+                **self.plan.to_dict(),
+                "bound_relative": self.bound, "measured_relative": self.measured,
+                "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
+                "measured_saturated_relative": self.measured_saturated,
+                "within_bound": self.within_bound,
+                "points": [{"frequency_hz": float(f), "amplitude_deg": math.degrees(float(a)),
+                            "difference_relative": float(self.difference[i, k]),
+                            "saturated": bool(self.saturated[i, k])}
+                           for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
+                "full_options": self.full_options, "reduced_options": self.reduced_options,
+                "full_wall_s": self.full_wall_s, "reduced_wall_s": self.reduced_wall_s,
+                "notes": list(self.notes)}
+
+    def table(self) -> str:
+        """Plain-text report: effects, estimates, choice, bound and measured difference."""
+        p = self.plan
+        lines = [f"Reduction of {self.scene} for study {self.study or '(default sweep)'}: "
+                 f"{self.frequencies_hz.size} frequencies {self.frequencies_hz[0]:.3g}..{self.frequencies_hz[-1]:.3g} Hz, "
+                 f"amplitudes {', '.join(f'{math.degrees(a):.3g}' for a in self.amplitudes_rad)} deg",
+                 f"{'effect':34s} {'estimate':>9} {'[dB]':>7} {'[deg]':>6}  decision",
+                 "-" * 96]
+        for e in p.effects:
+            lines.append(f"{e.effect[:34]:34s} {e.estimate:9.2e} {_db(e.estimate):7.3f} {_deg(e.estimate):6.2f}  "
+                         f"{e.reason or ('left out' if e.omitted else 'kept')}")
+            lines.append(f"{'':34s}   {e.quantity}")
+        lines.append("-" * 96)
+        left = [e.effect for e in p.omitted]
+        lines.append("left out: " + (", ".join(left) if left else "nothing"))
+        lines.append(f"a-priori: sum of estimates of the omissions {p.predicted:.2e}; bound (tolerance) "
+                     f"{self.bound:.2e} = {_db(self.bound):.3f} dB / {_deg(self.bound):.2f} deg")
+        what = "sine-dwell response" if self.measure == "sweep" else "output-angle RMS"
+        lines.append(f"measured ({what}, full vs reduced): {self.measured:.2e} = {_db(self.measured):.3f} dB / "
+                     f"{_deg(self.measured):.2f} deg -> {'within' if self.within_bound else 'NOT within'} the bound")
+        if np.any(self.saturated):
+            lines.append(f"points that reached a limit (outside the linear statement): largest difference "
+                         f"{self.measured_saturated:.2e}")
+        lines.append(f"wall time: full {self.full_wall_s:.2f} s, reduced {self.reduced_wall_s:.2f} s")
+        lines += [f"note: {n}" for n in p.notes + self.notes]
+        return "\n".join(lines)
+
+    def plot(self, ax=None):
+        """Measured relative difference per point, with the bound and the a-priori sum."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 3.5))
+        for i, a in enumerate(self.amplitudes_rad):
+            d = np.where(np.isnan(self.difference[i]), np.nan, np.maximum(self.difference[i], 1e-12))
+            line, = ax.loglog(self.frequencies_hz, d, "o-", ms=4, label=f"measured, {math.degrees(a):.3g} deg")
+            sat = self.saturated[i]
+            if sat.any():
+                ax.loglog(self.frequencies_hz[sat], d[sat], "o", mfc="none", ms=8, color=line.get_color(),
+                          label="reached a limit")
+        ax.axhline(self.bound, color="r", lw=1, label="a-priori bound")
+        if self.plan.predicted > 0:
+            ax.axhline(self.plan.predicted, color="k", ls="--", lw=1, label="sum of estimates")
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel("|reduced / full - 1|")
+        ax.set_title(f"{self.scene}: reduced model left out " +
+                     (", ".join(e.effect for e in self.plan.omitted) or "nothing"), fontsize="small")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize="small")
+        return ax
+
+
+def _db(e):
+    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
+
+
+def _deg(e):
+    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
+
+
+def time_points(study):
+    """``(frequencies_hz, amplitudes_rad)`` of a kv or simulate study with a sine motion."""
+    p = study.params
+    if "voltage" in p:
+        raise SceneError(study.key("voltage"), "an open-loop study has no closed loop to reduce")
+    if p.get("trajectory", "sine") != "sine":
+        raise SceneError(study.key("trajectory"), "only sine motions can be reduced")
+    freq = p.get("frequency")
+    if freq is None and p.get("period"):
+        freq = 1.0 / p["period"]
+    amps = p.get("amplitudes") or ([p["amplitude"]] if p.get("amplitude") is not None else None)
+    if freq is None or not amps:
+        raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
+    return np.array([float(freq)]), tuple(float(a) for a in amps)
+
+
+def _trace_case(case):
+    """One closed-loop sine run; returns times, output angle and whether a limit was reached."""
+    from ..sim import Reference, run
+    model, amp, freq, duration, limits = case
+    start = time.perf_counter()
+    try:
+        res = run(model, Reference.sine(amp, freq), duration, "rk4")
+    except SimulationError as exc:
+        return {"error": str(exc), "wall_s": time.perf_counter() - start}
+    sat = (np.max(np.abs(res.current_reference)) >= limits[0] * (1 - 1e-9)
+           or np.max(np.abs(res.motor_voltage)) >= limits[1] * (1 - 1e-9))
+    return {"t": res.times, "q": res.output_angle - model.q0, "saturated": bool(sat), "error": None,
+            "wall_s": time.perf_counter() - start}
+
+
+def _trace_difference(full, red, t_settle):
+    if full["error"] or red["error"]:
+        return (math.nan if full["error"] and red["error"] else math.inf), True
+    keep = full["t"] >= t_settle
+    q_red = np.interp(full["t"][keep], red["t"], red["q"])
+    q_full = full["q"][keep]
+    ref = np.sqrt(np.mean((q_full - q_full.mean()) ** 2))
+    return float(np.sqrt(np.mean((q_red - q_full) ** 2)) / ref), full["saturated"] or red["saturated"]
+
+
+def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
+           executor=None, progress: bool = True) -> ReductionResult:
+    """Reduce the scene's model for a study and measure the reduction on that study.
+
+    Parameters
+    ----------
+    scene : Scene
+    study : str or Study, optional
+        A ``frequency_sweep``, ``kv`` or ``simulate`` (sine) study; default the scene's sweep
+        plus 8 Hz (see :func:`.sweep.study_points`).
+    tolerance : float
+        A-priori bound on the relative response difference between full and reduced model.
+    controller : CascadeController, optional
+        Default: the designed loop.
+    plan : DwellPlan, optional
+        Settling and estimation cycles.
+    executor : concurrent.futures.Executor, optional
+    progress : bool
+
+    Returns
+    -------
+    ReductionResult
+    """
+    from ..sim import ModelOptions, build_model, controller_for
+
+    notes = []
+    if controller is None:
+        controller, source = controller_for(scene)
+        notes.append(f"controller from {source}")
+    if isinstance(study, str):
+        study = scene.study(study)
+    if study is None or study.kind == "frequency_sweep":
+        name, freqs, amps = study_points(scene, study)
+        freqs, measure = np.asarray(freqs), "sweep"
+    elif study.kind in TIME_KINDS:
+        name = study.name
+        freqs, amps = time_points(study)
+        measure = "trace"
+    else:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
+                         "simulate studies")
+    stop = "stop" if measure == "trace" else "error"
+    full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop)
+    rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
+    reduced = rplan.options
+    dwell = plan or DwellPlan()
+    if measure == "sweep":
+        kw = dict(frequencies=freqs, amplitudes=amps, controller=controller, plan=dwell, executor=executor,
+                  progress=progress)
+        s_full = sweep(scene, name, options=full, **kw)
+        s_red = sweep(scene, name, options=reduced, **kw)
+        with np.errstate(invalid="ignore"):
+            diff = np.abs(s_red.response / s_full.response - 1.0)
+        failed_one = np.isnan(s_full.response) ^ np.isnan(s_red.response)
+        diff[failed_one] = math.inf
+        sat = s_full.saturated | s_red.saturated | failed_one
+        walls = (s_full.wall_s, s_red.wall_s)
+        if np.isnan(diff).any():
+            notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
+                         f"{next(e for e in s_full.errors if e)}); not compared")
+    else:
+        notes.append("time runs with an elastic stroke-end stop on both models")
+        _, decay = linear_response(lossless(scene), controller, freqs, full.damping_ratio)
+        f = float(freqs[0])
+        settle, est = dwell.cycles(f, decay)
+        limits = (scene.motor.current_limit, scene.motor.voltage_limit)
+        walls, runs = [], {}
+        for key, opts in (("full", full), ("reduced", reduced)):
+            start = time.perf_counter()
+            model = build_model(scene, controller, opts)
+            runs[key] = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits) for a in amps],
+                                  executor=executor, progress=progress, description=f"{key} model")
+            walls.append(time.perf_counter() - start)
+        pairs = [_trace_difference(a, b, settle / f) for a, b in zip(runs["full"], runs["reduced"])]
+        diff = np.array([[d] for d, _ in pairs])
+        sat = np.array([[s] for _, s in pairs])
+        notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "
+                     f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode)")
+    return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
+                           amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
+                           full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
+                           full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes))
+
+
+def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None):
+    """Only the a-priori part: ``(ModelOptions, ReductionPlan)`` for a study (no runs).
+
+    A time simulation can adopt the reduction with
+    ``simulate(scene, options=reduced_options(scene, name)[0], ...)``.
+    """
+    from ..sim import ModelOptions, controller_for
+    if controller is None:
+        controller, _ = controller_for(scene)
+    if isinstance(study, str):
+        study = scene.study(study)
+    if study is None or study.kind == "frequency_sweep":
+        _, freqs, amps = study_points(scene, study)
+    else:
+        freqs, amps = time_points(study)
+    rplan = plan_reduction(scene, controller, freqs, amps,
+                           base=ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING), tolerance=tolerance)
+    return replace(rplan.options), rplan

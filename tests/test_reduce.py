@@ -1,0 +1,82 @@
+"""Leaving out what a study does not need: a-priori estimates against measured differences."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from servo_toolkit import SceneError, load_scene
+from servo_toolkit.cli import main
+from servo_toolkit.studies.reduce import reduce, reduced_options
+
+from .conftest import build, variant
+
+
+@pytest.fixture
+def slow_sweep(ema_dict):
+    """The reference EMA with its sweep limited to 1 and 3 Hz, well below the 32 Hz mode."""
+    return build(variant(ema_dict, studies__sweep__frequencies=["1 Hz", "3 Hz"]))
+
+
+def test_low_frequency_study_leaves_out_the_compliance_within_its_bound(slow_sweep):
+    """At 1-3 Hz the drivetrain mode (32 Hz) and the inductance do not matter: the reduced
+    model is rigid with an ideal current loop, and the measured sine-dwell difference is
+    within the bound and close to the first-order estimate (the estimate is not a loose
+    upper bound but predicts the difference)."""
+    res = reduce(slow_sweep, "sweep", progress=False)
+    left = {e.effect for e in res.plan.omitted}
+    assert {"drivetrain compliance", "armature inductance"} <= left
+    assert res.reduced_options["compliance"] is False and res.reduced_options["inductance"] is False
+    assert res.within_bound
+    assert res.measured <= res.bound
+    assert 0.5 * res.plan.predicted <= res.measured <= 2.0 * res.plan.predicted
+    assert res.to_dict()["within_bound"] is True
+
+
+def test_tighter_tolerance_keeps_more(slow_sweep):
+    """A bound below the compliance's estimate keeps the compliance; the measurement then
+    still meets the tighter bound."""
+    loose = reduced_options(slow_sweep, "sweep")[1]
+    tight = reduce(slow_sweep, "sweep", tolerance=1e-4, progress=False)
+    assert len(tight.plan.omitted) < len(loose.omitted)
+    assert "drivetrain compliance" not in {e.effect for e in tight.plan.omitted}
+    assert tight.within_bound
+
+
+def test_resonance_in_band_keeps_the_compliance():
+    """The default sweep reaches 40 Hz, past the drivetrain mode: the compliance stays, and
+    its estimate says why (order one)."""
+    _, plan = reduced_options(load_scene())
+    comp = next(e for e in plan.effects if e.effect == "drivetrain compliance")
+    assert not comp.omitted and comp.estimate > 0.1
+    assert "resonance" in comp.quantity
+
+
+def test_time_study_reduction_within_bound():
+    """The 8 Hz kv motion run as closed-loop simulations: output-angle RMS difference of
+    the reduced model within the bound."""
+    res = reduce(load_scene(), "kv_8hz", progress=False)
+    assert res.measure == "trace"
+    assert res.plan.omitted and res.within_bound
+    assert np.all(np.isfinite(res.difference))
+
+
+def test_unsupported_study_names_the_key(ema_dict):
+    """A ramp trajectory cannot be reduced by sine measures: the error names the key."""
+    scene = build(variant(ema_dict, studies__kv_8hz__trajectory="ramp"))
+    with pytest.raises(SceneError, match=r"studies\.kv_8hz\.trajectory"):
+        reduced_options(scene, "kv_8hz")
+
+
+def test_cli_reduce(capsys, scenes_dir):
+    """``reduce --estimate-only --json`` lists every effect with its estimate; a bad
+    tolerance exits 2."""
+    path = str(scenes_dir / "ema_reference.toml")
+    assert main(["reduce", path, "--estimate-only", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert {e["effect"] for e in out["effects"]} >= {"armature inductance", "backlash", "drivetrain compliance"}
+    assert all("reason" in e and "estimate_relative" in e for e in out["effects"])
+    assert main(["reduce", path, "--tolerance", "2"]) == 2
+    capsys.readouterr()
