@@ -73,6 +73,22 @@ def steady_state_gain(sample_time: float, quantum: float, jerk: float):
     return f, h, k.ravel()
 
 
+def steady_state_covariance(sample_time: float, quantum: float, jerk: float):
+    """Steady-state covariances of the Kalman estimator.
+
+    Returns
+    -------
+    prior, posterior : numpy.ndarray
+        (3, 3) before and after the update. A filterpy ``KalmanFilter`` started with
+        ``P = posterior`` keeps the gain of :func:`steady_state_gain` from its first step.
+    """
+    f, h, q, r = _model(sample_time, quantum, jerk)
+    prior = solve_discrete_are(f.T, h.T, q, r)
+    k = prior @ h.T @ np.linalg.inv(h @ prior @ h.T + r)
+    ikh = np.eye(3) - k @ h
+    return prior, ikh @ prior @ ikh.T + k @ r @ k.T
+
+
 class KalmanEstimator:
     """Per-sample Kalman estimator (filterpy) of position, speed and acceleration.
 
@@ -296,4 +312,4 @@ def compare_estimators(t, position, speed, acceleration, quantum: float, jerk: f
 
 __all__ = ["KalmanEstimator", "BackwardDifference", "Estimate", "EstimationComparison", "quantize",
            "encoder_quantum", "kalman_estimate", "backward_difference_estimate", "compare_estimators",
-           "steady_state_gain"]
+           "steady_state_gain", "steady_state_covariance"]

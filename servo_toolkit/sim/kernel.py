@@ -23,7 +23,8 @@ import math
 
 import numba as nb
 
-from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
+from .layout import (EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
+                     AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
                      KSTOP, KT, L, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
                      PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
@@ -131,15 +132,68 @@ def measured_angle(q, P):
 
 
 @inline
+def motor_angle(P, T, p):
+    """Motor angle (rad, 0 at mid-stroke) at motor-side position p; periodic tables add one
+    table period's motor travel per wrap."""
+    val, _ = hermite(T, T_M, P, p)
+    if P[PERIODIC] > 0.0:
+        last = P[TAB_N] - 1.0
+        wraps = math.floor((p - P[TAB_LO]) * P[INV_H] / last)
+        val += wraps * (T[T_M, int(last)] - T[T_M, 0])
+    return val
+
+
+@inline
+def measured_motor_angle(P, T, p):
+    """Motor encoder: the motor angle rounded to the encoder's count (0 = unquantized)."""
+    th = motor_angle(P, T, p)
+    lsb = P[LSB_M]
+    if lsb > 0.0:
+        return lsb * math.floor(th / lsb + 0.5)
+    return th
+
+
+@inline
+def speed_estimate(x, P, T, wm_true):
+    """Motor speed for the speed loop: the true speed ("ideal"), or an estimate from the
+    motor encoder updated once per sample (its states follow the controller's in x).
+
+    "difference": (z_k - z_{k-1}) / Ts. "kalman": constant-gain filter, predict x <- F x,
+    update x <- x + K (z - x[0]) (the measurement is the angle, H = [1, 0, 0]).
+    """
+    est = int(P[EST])
+    if est == 0:
+        return wm_true
+    z = measured_motor_angle(P, T, x[0])
+    e = int(P[OFF_E])
+    if est == EST_DIFFERENCE:
+        wm = (z - x[e]) * P[INV_TS]
+        x[e] = z
+        x[e + 1] = wm
+        return wm
+    o = int(P[OFF_KF])
+    a0, a1, a2 = x[e], x[e + 1], x[e + 2]
+    p0 = P[o] * a0 + P[o + 1] * a1 + P[o + 2] * a2
+    p1 = P[o + 3] * a0 + P[o + 4] * a1 + P[o + 5] * a2
+    p2 = P[o + 6] * a0 + P[o + 7] * a1 + P[o + 8] * a2
+    inn = z - p0
+    x[e] = p0 + P[o + 9] * inn
+    x[e + 1] = p1 + P[o + 10] * inn
+    x[e + 2] = p2 + P[o + 11] * inn
+    return x[e + 1]
+
+
+@inline
 def controller_sample(t, x, P, T, work):
     """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:].
 
-    The output angle is quantized by the encoder; the motor speed is the true omega_m
-    (a tachometer / observer-grade estimate), not a difference of quantized angles.
+    The output angle is quantized by the output encoder; the motor speed is the true
+    omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
+    encoder (:func:`speed_estimate`).
     """
     nc = int(P[NC])
     n, _ = hermite(T, T_N, P, x[0])
-    wm = n * x[1]
+    wm = speed_estimate(x, P, T, n * x[1])
     r = reference(t, P)
     th = measured_angle(x[2], P)
     y = _motion(x, P, r, th, wm, work, 0, True)
@@ -160,8 +214,8 @@ def rhs(t, x, P, T, iref_held, dx, aux):
     wm = n * pd
     mode = int(P[CMODE])
     nc = int(P[NC])
-    for j in range(nc):
-        dx[NX_PHYS + j] = 0.0
+    for j in range(NX_PHYS, x.size):  # sampled controller and estimator states are held
+        dx[j] = 0.0
     # --- controller and electrics
     if mode == OPEN_LOOP:
         iref = 0.0

@@ -11,6 +11,9 @@ State ``x`` (float64)::
     6 s      play-operator output (rad), used only by the cam paper's discrete scheme
     7..      motion-controller states (continuous mode integrates them; sampled mode updates
              them at the sample instants)
+    then     speed-estimator states (sampled mode, updated at the sample instants; their
+             derivative is 0): "difference" [last motor-encoder angle, speed estimate],
+             "kalman" [angle, speed, acceleration estimates] (rad, rad/s, rad/s^2 of the motor)
 
 Module-level integer constants are compile-time constants inside numba kernels.
 """
@@ -37,11 +40,21 @@ REF_KIND, REF_A, REF_F, REF_OFF, REF_T0 = range(37, 42)
 PAPER = 42
 # reciprocals (the kernel multiplies instead of dividing)
 INV_H, INV_L, INV_JL = 43, 44, 45
-NP_HEADER = 46
+# speed estimator: kind, motor-encoder quantum (rad, 0 = unquantized), index in x of its first
+# state, index in P of the constant-gain Kalman filter (F row-major 3x3, then the gain K, 3),
+# 1 / sample time
+EST, LSB_M, OFF_E, OFF_KF, INV_TS = 46, 47, 48, 49, 50
+NP_HEADER = 51
 
-# table rows (cubic Hermite: value row followed by derivative row)
-T_J, T_DJ, T_N, T_DN, T_K, T_DK = range(6)
-NT_ROWS = 6
+# table rows (cubic Hermite: value row followed by derivative row); T_M is the motor angle
+# (rad, 0 at mid-stroke), whose derivative row is N
+T_J, T_DJ, T_N, T_DN, T_K, T_DK, T_M, T_DM = range(8)
+NT_ROWS = 8
+
+# speed estimators (``[sensors] speed_estimator``) and their state counts
+EST_IDEAL, EST_DIFFERENCE, EST_KALMAN = 0, 1, 2
+ESTIMATORS = ("ideal", "difference", "kalman")
+EST_STATES = (0, 2, 3)
 
 # controller modes
 OPEN_LOOP, SAMPLED, CONTINUOUS = 0, 1, 2

@@ -34,7 +34,7 @@ from scipy.interpolate import CubicSpline
 
 from ..errors import SceneError
 from ..controller import MOTION_INPUTS
-from . import layout as lo
+from . import estimator, layout as lo
 from .kernel import hermite
 
 
@@ -72,6 +72,20 @@ class ModelOptions:
     play : float or None
         Total lost motion at the output (rad) replacing the scene's value (None: the scene's
         lost motion at q0).
+    speed_estimator : {None, "ideal", "difference", "kalman"}
+        Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
+        speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
+        difference of the motor-encoder angle over one sample; ``"kalman"``: constant-gain
+        Kalman filter (constant-acceleration model, :func:`servo_toolkit.estimation.steady_state_gain`)
+        on the motor-encoder angle. The estimators quantize the motor encoder
+        (``motor_encoder_counts``) when ``quantization`` is on. Continuous mode always uses
+        the true speed.
+    estimator_jerk : float or None
+        Jerk level (motor rad/s^3) setting the Kalman filter's process noise. None: the jerk
+        of the motor reaching its peak acceleration ``Kt I_max / J_m(q0)`` within one
+        speed-loop time constant, ``a_max * w_c`` with ``w_c = |di_ref/domega_m| Kt / J_m``
+        from the controller's direct speed gain (a tenth of the sample rate, ``0.2 pi / Ts``,
+        when the controller has none).
     """
 
     inductance: bool = True
@@ -86,8 +100,15 @@ class ModelOptions:
     stroke_end: str = "error"
     table_points: int = 1025
     play: float | None = None
+    speed_estimator: str | None = None
+    estimator_jerk: float | None = None
 
     def __post_init__(self):
+        if self.speed_estimator is not None and self.speed_estimator not in lo.ESTIMATORS:
+            raise ValueError(f"speed_estimator must be None or one of {lo.ESTIMATORS}, "
+                             f"got {self.speed_estimator!r}")
+        if self.estimator_jerk is not None and not self.estimator_jerk > 0:
+            raise ValueError(f"estimator_jerk must be positive, got {self.estimator_jerk!r}")
         if self.controller_mode not in ("sampled", "continuous"):
             raise ValueError(f"controller_mode must be 'sampled' or 'continuous', got {self.controller_mode!r}")
         if self.stroke_end not in ("error", "stop"):
@@ -129,6 +150,10 @@ class Model:
         Description of the controller.
     notes : tuple of str
         What was simplified or switched, in words.
+    speed_estimator : str
+        The motor speed the speed loop used: ``"ideal"``, ``"difference"`` or ``"kalman"``.
+    estimator : dict
+        The estimator's data (quantum, jerk, gain, state names); empty for ``"ideal"``.
     """
 
     name: str
@@ -146,6 +171,8 @@ class Model:
     load_side: tuple = ()
     controller: str = ""
     notes: tuple = ()
+    speed_estimator: str = "ideal"
+    estimator: dict = field(default_factory=dict)
 
     def parameters(self) -> np.ndarray:
         """A writable copy of ``P`` (fill the reference slots, then run)."""
@@ -217,8 +244,10 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     q0 = drive.mid_stroke
     j_tot, dj_tot = drive.inertia(q)
     n_tab, dn_tab = drive.ratio(q)
+    m_tab = drive.kinematics(q).motor.value - drive.kinematics([q0]).motor.value[0]
     if np.any(n_tab <= 0):
-        n_tab, dn_tab = -n_tab, -dn_tab  # sign convention: positive motor rotation moves q up
+        # sign convention: positive motor rotation moves q up
+        n_tab, dn_tab, m_tab = -n_tab, -dn_tab, -m_tab
         notes.append("ratio sign flipped so that N(q) > 0")
     if not options.variable_inertia:
         j0 = float(drive.inertia([q0])[0][0])
@@ -240,7 +269,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
-    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row]).astype(float)
+    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]).astype(float)
 
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
@@ -281,6 +310,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
 
     names = list(lo.STATE_NAMES)
     desc, ts, closed = "open loop (constant voltage)", 0.0, controller is not None
+    est_kind, est_info = "ideal", {}
     if closed:
         mode = lo.SAMPLED if (options.controller_mode == "sampled" and controller.sample_time > 0) \
             else lo.CONTINUOUS
@@ -301,6 +331,19 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         P = np.concatenate([P, a.ravel(), b.ravel(), c.ravel(), d.ravel()])
         names += [f"controller[{j}]" for j in range(nc)]
         desc = controller.description or "cascade controller"
+        est_kind = options.speed_estimator or scene.sensors.speed_estimator
+        if est_kind != "ideal" and mode != lo.SAMPLED:
+            notes.append(f"speed estimator {est_kind!r} needs a sampled controller: the continuous "
+                         "loop uses the true motor speed")
+            est_kind = "ideal"
+        if est_kind != "ideal":
+            slots, extra, est_names, est_info, note = estimator.pack(
+                scene, controller, options, est_kind, options.quantization, len(names), P.size)
+            for slot, value in slots.items():
+                P[slot] = value
+            P = np.concatenate([P, extra])
+            names += est_names
+            notes.append(note)
     else:
         P[lo.CMODE] = lo.OPEN_LOOP
     P.setflags(write=False)
@@ -308,7 +351,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     model = Model(name=scene.name, options=options, P=P, T=table, nx=len(names),
                   state_names=tuple(names), sample_time=ts, closed_loop=closed, q0=q0,
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
-                  controller=desc, notes=tuple(notes))
+                  controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info)
     return _with_table_error(model, drive, q)
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import layout as lo
-from .kernel import hermite, measured_angle
+from .kernel import hermite, measured_angle, measured_motor_angle
 
 KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP}
 
@@ -107,13 +107,14 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
     The compliance carries the hinge moment (deflection beyond the play), the motor holds it
     with the current f / (N Kt), the current-loop integral supplies R i, and the controller
     state is the least-squares solution of ``x = A x + B u, C x + D u = i`` (sampled) or
-    ``A x + B u = 0, C x + D u = i`` (continuous). ``at_rest`` starts unloaded instead.
+    ``A x + B u = 0, C x + D u = i`` (continuous); a speed estimator starts at the measured
+    motor angle with zero speed. ``at_rest`` starts unloaded instead.
     """
     x = np.zeros(model.nx)
     q = P[lo.REF_OFF]
     x[0] = x[2] = x[6] = q
     if at_rest:
-        return x
+        return _estimator_at_rest(model, P, x)
     f = P[lo.HINGE_M] + P[lo.HINGE_K] * q  # moment the drivetrain must supply
     motor_side = f
     if not model.rigid and f != 0.0:
@@ -139,7 +140,16 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
         lhs = (np.eye(nc) - a) if P[lo.CMODE] == lo.SAMPLED else -a
         mat = np.vstack([lhs, c])
         rhs_ = np.concatenate([b @ u, [cur - float(d @ u)]])
-        x[lo.NX_PHYS:] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
+        x[lo.NX_PHYS:lo.NX_PHYS + nc] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
+    return _estimator_at_rest(model, P, x)
+
+
+def _estimator_at_rest(model, P, x):
+    """The speed estimator at rest: the measured motor angle, zero speed and acceleration."""
+    if P[lo.EST] != lo.EST_IDEAL:
+        e = int(P[lo.OFF_E])
+        x[e:] = 0.0
+        x[e] = measured_motor_angle(P, model.T, x[0])
     return x
 
 
