@@ -1,19 +1,23 @@
 """Cam drive of seed 002: law, inertia, load torque, clearance, both solvers."""
 
 import math
+import tomllib
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from servo_toolkit import SimulationError, load_scene
+from servo_toolkit import SceneError, SimulationError, load_scene
 from servo_toolkit.components.cam import modified_constant_velocity
 from servo_toolkit.mechanisms import handles, run_study
 from servo_toolkit.mechanisms import cam_kernels
 from servo_toolkit.mechanisms.cam import CamDrive, clearance_hysteresis, constant_speed
+from servo_toolkit.estimation import kalman_estimate, quantize
+from servo_toolkit.mechanisms.cam_estimation import (compare_on_reference, rms_jerk, steady_state_noise,
+                                                     true_acceleration)
 from servo_toolkit.mechanisms.cam_voltage import accurate, constant_voltage, discrete_scheme
 
-from .conftest import SCENES
+from .conftest import SCENES, build, variant
 
 A = 0.035
 
@@ -152,3 +156,128 @@ def test_dispatch(drive):
     r = run_study(scene, "constant_speed")
     assert r.to_dict()["inertia_max_kg_m2"] == pytest.approx(2.004e-3, rel=1e-3)
     assert len(r.to_dict()["cases"]) == 2
+
+
+# --- speed and acceleration estimates: backward differences or a Kalman filter on the counts ---
+
+T_EST, COUNTS = 1e-3, 4096
+Q = 2 * math.pi / COUNTS
+
+
+@pytest.fixture(scope="module")
+def reference_1s(drive):
+    return accurate(drive, 3.5, 1.0, t_eval=np.arange(1001) * T_EST)
+
+
+@pytest.fixture(scope="module")
+def estimation(drive, reference_1s):
+    return compare_on_reference(drive, 3.5, reference_1s, COUNTS)
+
+
+def test_difference_error_is_quantization_noise_plus_lag(estimation):
+    """Backward differences of counts: independent uniform errors of variance q^2/12 give
+    speed noise q/(T sqrt 6) and acceleration noise q/(T^2 sqrt 2); the lags T/2 and T add
+    (T/2) rms(w') and T rms(w'') in quadrature."""
+    pr = estimation.predicted
+    assert pr["difference_speed_noise"] == pytest.approx(Q / (T_EST * math.sqrt(6)))
+    assert pr["difference_acceleration_noise"] == pytest.approx(Q / (T_EST**2 * math.sqrt(2)))
+    for key in ("speed", "acceleration"):
+        expected = math.hypot(pr[f"difference_{key}_noise"], pr[f"difference_{key}_lag"])
+        assert estimation.rms("difference", key) == pytest.approx(expected, rel=0.06), key
+    assert estimation.comparison.lag["backward"]["speed"] == pytest.approx(T_EST / 2, rel=0.05)
+
+
+def test_steady_state_noise_matches_monte_carlo():
+    """The Lyapunov solution of the fixed-gain filter against filterpy on white uniform noise."""
+    jerk = 7e4
+    noise = steady_state_noise(T_EST, Q, jerk)
+    z = np.random.default_rng(1).uniform(-0.5, 0.5, 12000)   # counts' rounding error
+    est = kalman_estimate(z, T_EST, Q, jerk)
+    measured = [np.std(x[2000:]) for x in (est.position, est.speed, est.acceleration)]
+    assert np.allclose(measured, noise, rtol=0.04)
+    assert noise[0] < Q / math.sqrt(12) and noise[1] < Q / (T_EST * math.sqrt(6))
+
+
+def test_kalman_beats_differences_by_the_predicted_factor(estimation):
+    """At 4096 counts/rev and T = 1 ms on the 3.5 V run (first second) the difference's speed
+    error is noise 0.63 (+) lag 0.15 = 0.64 rad/s; the filter's is its steady-state noise
+    0.19 (+) its model bias 0.33 = 0.38 rad/s: a predicted factor 1.7 (acceleration 5)."""
+    for key, floor in (("speed", 1.5), ("acceleration", 4.0)):
+        predicted = estimation.expected("difference", key) / estimation.expected("kalman", key)
+        assert estimation.ratio(key) == pytest.approx(predicted, rel=0.06), key
+        assert estimation.ratio(key) > floor, key
+        assert estimation.rms("kalman", key) == pytest.approx(estimation.expected("kalman", key), rel=0.06)
+    d = estimation.to_dict()
+    assert d["kalman"]["rms_speed_error_rad_s"] < d["difference"]["rms_speed_error_rad_s"]
+    assert d["error_ratio_difference_to_kalman"]["speed"] == pytest.approx(estimation.ratio("speed"))
+    assert "Kalman" in estimation.table()
+
+
+def test_kalman_in_scheme_equals_filterpy_offline(drive, estimation):
+    jerk = estimation.comparison.jerk
+    run = discrete_scheme(drive, 3.5, 0.5, T_EST, "corrected", "kalman", COUNTS, jerk)
+    assert np.array_equal(run.counts, quantize(run.theta, Q))
+    offline = kalman_estimate(run.counts, T_EST, Q, jerk)     # filterpy batch_filter
+    for key in ("position", "speed", "acceleration"):
+        assert np.allclose(getattr(run.estimate, key), getattr(offline, key), rtol=1e-12, atol=1e-12), key
+    # the estimates steer the scheme: a different jerk level gives a different run
+    other = discrete_scheme(drive, 3.5, 0.5, T_EST, "corrected", "kalman", COUNTS, jerk / 10)
+    assert np.abs(other.omega - run.omega).max() > 1e-3
+
+
+def test_kalman_scheme_physics(drive, reference_1s):
+    bare = drive.without_follower()
+    for scheme in ("seed", "corrected"):
+        run = discrete_scheme(bare, 3.5, 0.6, T_EST, scheme, "kalman", COUNTS, 1e4)
+        assert run.omega[-1] == pytest.approx(13.36, abs=0.005)
+    # a fine encoder: the filter removes the differences' lag, which is what keeps the
+    # corrected scheme off the continuous model at T = 1 ms
+    jerk = rms_jerk(true_acceleration(drive, 3.5, reference_1s.theta, reference_1s.omega), T_EST, 100)
+    kal = discrete_scheme(drive, 3.5, 1.0, T_EST, "corrected", "kalman", 2**20, jerk)
+    dif = discrete_scheme(drive, 3.5, 1.0, T_EST, "corrected")
+    rms = lambda run: float(np.sqrt(np.mean((run.omega - reference_1s.omega) ** 2)))
+    assert rms(kal) < 0.05 * rms(dif) and rms(kal) < 0.05
+    # the printed scheme feeds m a s' back explicitly (gain m s'^2 / J = 0.978): through
+    # the fine encoder's filter that loop grows a period-2 oscillation, reported as such
+    with pytest.raises(SimulationError, match="period-2"):
+        discrete_scheme(drive, 3.5, 1.0, T_EST, "seed", "kalman", 2**20, jerk)
+    with pytest.raises(SimulationError, match="clearance"):
+        discrete_scheme(replace(drive, cam=replace(drive.cam, clearance=1e-4)), 3.5, 0.1, T_EST, "seed",
+                        "kalman", COUNTS, jerk)
+    with pytest.raises(ValueError, match="speed_estimator"):
+        discrete_scheme(drive, 3.5, 0.1, T_EST, "seed", "median")
+
+
+def test_default_path_reproduces_published_numbers():
+    """The scene's 3.5 V study with the default (seed's differences) gives the numbers of the
+    committed scheme (README / notebook 04), unchanged by the estimator option."""
+    scene = load_scene(SCENES / "cam_follower.toml")
+    r = run_study(scene, "constant_voltage")
+    d = r.to_dict()
+    assert d["speed_estimator"] == "difference" and r.kalman is None
+    assert d["mean_speed_accurate_rad_s"] == pytest.approx(8.4982, abs=5e-5)
+    assert d["mean_speed_seed_rad_s"] == pytest.approx(6.7811, abs=5e-5)
+    assert d["mean_speed_corrected_rad_s"] == pytest.approx(5.4558, abs=5e-5)
+    assert d["max_abs_difference_seed_minus_accurate_rad_s"] == pytest.approx(39.28, abs=5e-3)
+    assert [c["startup_max_abs_error_seed_rad_s"] for c in d["convergence"]] == pytest.approx(
+        [0.7157, 0.7893, 0.8267, 0.8456], abs=5e-5)
+    assert d["estimation"]["encoder_counts_per_rev"] == 4096
+
+
+def test_study_keys_select_the_estimator():
+    data = tomllib.loads((SCENES / "cam_follower.toml").read_text())
+    base = {"studies__constant_voltage__duration": "0.3 s"}
+    r = run_study(build(variant(data, **base, studies__constant_voltage__speed_estimator="kalman",
+                                studies__constant_voltage__encoder_counts=1024)), "constant_voltage")
+    d = r.to_dict()
+    assert d["speed_estimator"] == "kalman" and set(r.kalman) == {"seed", "corrected"}
+    assert d["estimation"]["encoder_counts_per_rev"] == 1024
+    assert len(d["omega_corrected_kalman_rad_s"]) == len(d["t_s"])
+    assert "Kalman estimates" in r.table()
+    sensors = build(variant(data, **base, sensors={"motor_encoder_counts": 2000}))
+    assert run_study(sensors, "constant_voltage").to_dict()["estimation"]["encoder_counts_per_rev"] == 2000
+    for key, bad in (("speed_estimator", "median"), ("encoder_counts", 0), ("encoder_counts", 10.5),
+                     ("kalman_jerk", "-3 rad/s^3")):
+        with pytest.raises(SceneError, match=f"studies.constant_voltage.{key}"):
+            run_study(build(variant(data, **base, **{f"studies__constant_voltage__{key}": bad})),
+                      "constant_voltage")

@@ -94,9 +94,11 @@ def run_study(scene, study, method=None, dt=None, executor=None):
         if kind == "mechanism_sweep":
             return constant_speed(drive, get("speed", 1.0), dt or get("sample_time", 0.01),
                                   get("gravity_tilts", [drive.cam.gravity_tilt]), get("gravity_headings"))
+        from .cam_estimation import estimation_options
         from .cam_voltage import constant_voltage
         return constant_voltage(drive, _required(st, "voltage"), get("duration", 3.0),
-                                dt or get("sample_time", 1e-3), method=method or get("method"))
+                                dt or get("sample_time", 1e-3), method=method or get("method"),
+                                **estimation_options(scene, st))
     if kind == "inverse_dynamics":
         from .platform import PlatformModel, ramp
         return ramp(PlatformModel.from_scene(scene), _required(st, "rate_alpha"), _required(st, "rate_beta"),

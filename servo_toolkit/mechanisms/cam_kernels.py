@@ -67,12 +67,24 @@ def _sign(x):
 
 
 @njit(cache=True)
+def speed_step(p, voltage, w, load, inertia, step):
+    """One RK4 step of eq 12 for w with the load torque M and inertia J frozen (step 2 of
+    the seed's scheme)."""
+    r, cm, ce = p[10], p[11], p[12]
+    k1 = (cm * voltage - r * load - ce * cm * w) / (r * inertia)
+    k2 = (cm * voltage - r * load - ce * cm * (w + 0.5 * step * k1)) / (r * inertia)
+    k3 = (cm * voltage - r * load - ce * cm * (w + 0.5 * step * k2)) / (r * inertia)
+    k4 = (cm * voltage - r * load - ce * cm * (w + step * k3)) / (r * inertia)
+    return w + step * (k1 + 2 * k2 + 2 * k3 + k4) / 6
+
+
+@njit(cache=True)
 def discrete(p, voltage, n, step, corrected):
     """Seed 002 section 3; ``corrected`` drops the inertia that eq 4 already holds.
 
     Returns theta, omega (n + 1 samples) and a status: 0 ok, 1 non-finite, 2 reversed.
     """
-    a_, m, jm, mf, r, cm, ce, c = p[0], p[1], p[8], p[9], p[10], p[11], p[12], p[13]
+    a_, m, jm, mf, c = p[0], p[1], p[8], p[9], p[13]
     theta = np.zeros(n + 1)
     omega = np.zeros(n + 1)
     s_in = 0.0
@@ -82,11 +94,7 @@ def discrete(p, voltage, n, step, corrected):
     inertia = jm
     for k in range(n):
         w = omega[k]
-        k1 = (cm * voltage - r * load - ce * cm * w) / (r * inertia)
-        k2 = (cm * voltage - r * load - ce * cm * (w + 0.5 * step * k1)) / (r * inertia)
-        k3 = (cm * voltage - r * load - ce * cm * (w + 0.5 * step * k2)) / (r * inertia)
-        k4 = (cm * voltage - r * load - ce * cm * (w + step * k3)) / (r * inertia)
-        wn = w + step * (k1 + 2 * k2 + 2 * k3 + k4) / 6
+        wn = speed_step(p, voltage, w, load, inertia, step)
         if not math.isfinite(wn):
             return theta, omega, 1
         if wn < 0:

@@ -16,6 +16,11 @@ and J = J_m + m (v/w)^2 for the next step. As printed it counts the follower ine
 different continuous model ((J_m + 2 m s'^2) w' + m s' s'' w^2 = ...); the ``"corrected"``
 scheme keeps only the velocity-squared part of m a s' and converges to the model above.
 :func:`constant_voltage` reports both against the accurate solution for halved steps.
+
+The differenced v and a can be replaced by a Kalman filter on the shaft encoder's counts
+(``speed_estimator="kalman"``, :mod:`.cam_estimation`); the default is the seed's
+differences. Either way the study compares both estimators with the accurate solution's true
+speed and acceleration.
 """
 
 from __future__ import annotations
@@ -29,17 +34,21 @@ from scipy.integrate import solve_ivp
 from ..errors import SimulationError
 from . import cam_kernels as kernels
 from .cam import CamDrive
+from .cam_estimation import DEFAULT_ENCODER_COUNTS, ESTIMATORS, compare_on_reference, kalman_scheme
 
 
 @dataclass(frozen=True)
 class Trajectory:
-    """A constant-voltage run: time (s), cam angle (rad), speed (rad/s), current (A)."""
+    """A constant-voltage run: time (s), cam angle (rad), speed (rad/s), current (A); runs
+    with the Kalman estimator also hold the encoder ``counts`` and the filter's ``estimate``."""
 
     method: str
     t: np.ndarray
     theta: np.ndarray
     omega: np.ndarray
     current: np.ndarray
+    counts: np.ndarray | None = None
+    estimate: object = None
 
 
 def steady_speed_without_follower(drive: CamDrive, voltage: float) -> float:
@@ -52,7 +61,8 @@ SCHEMES = ("seed", "corrected")
 
 
 def discrete_scheme(drive: CamDrive, voltage: float, duration: float, step: float,
-                    scheme: str = "seed") -> Trajectory:
+                    scheme: str = "seed", speed_estimator: str = "difference",
+                    encoder_counts: int | None = None, jerk: float | None = None) -> Trajectory:
     """The seed's fixed-step scheme (section 3), started from rest at theta = 0.
 
     Parameters
@@ -67,6 +77,11 @@ def discrete_scheme(drive: CamDrive, voltage: float, duration: float, step: floa
         eq 3, which counts the follower inertia twice; ``"corrected"`` keeps only the
         velocity-squared part ``m s' s'' w^2`` of ``m a s'`` (``a`` minus ``s' dw/dt``, both
         by backward differences), so that the scheme converges to the continuous model.
+    speed_estimator : {"difference", "kalman"}
+        ``"difference"`` (the seed's): v and a by backward differences of the follower
+        travel; ``"kalman"``: a Kalman filter on the shaft encoder's counts of the cam angle
+        (:func:`~.cam_estimation.kalman_scheme`, which needs ``encoder_counts`` (default
+        4096 per revolution) and the jerk level ``jerk`` in rad/s^3).
 
     Raises
     ------
@@ -75,6 +90,11 @@ def discrete_scheme(drive: CamDrive, voltage: float, duration: float, step: floa
     """
     if scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {SCHEMES} (got {scheme!r})")
+    if speed_estimator not in ESTIMATORS:
+        raise ValueError(f"speed_estimator must be one of {ESTIMATORS} (got {speed_estimator!r})")
+    if speed_estimator == "kalman":
+        return kalman_scheme(drive, voltage, duration, step, scheme, encoder_counts or DEFAULT_ENCODER_COUNTS,
+                             jerk)
     n = int(round(duration / step))
     if n < 1 or not step > 0:
         raise SimulationError(f"step {step} s does not fit in a run of {duration} s")
@@ -160,6 +180,17 @@ class CamVoltageResult:
         Closed-form speed with the follower removed (rad/s).
     method : str
         The method the caller asked for (every method is always run).
+    estimation : CamEstimation or None
+        Backward differences and the Kalman filter on the encoder counts of the accurate
+        cam angle, against its true speed and acceleration.
+    speed_estimator : str
+        ``"difference"`` (the seed's) or ``"kalman"``: what the scheme used for v and a.
+    kalman : dict of str to Trajectory, optional
+        With ``speed_estimator="kalman"``: the ``"seed"`` and ``"corrected"`` schemes run
+        with the Kalman estimates (the difference runs above stay for comparison).
+    kalman_failures : dict of str to str, optional
+        Kalman runs that stopped, with the reason (the seed scheme can go unstable, see
+        :func:`~.cam_estimation.kalman_scheme`).
     """
 
     voltage: float
@@ -173,6 +204,10 @@ class CamVoltageResult:
     window: float
     no_follower_speed: float
     method: str = "both"
+    estimation: object = None
+    speed_estimator: str = "difference"
+    kalman: dict | None = None
+    kalman_failures: dict | None = None
 
     @property
     def difference(self) -> np.ndarray:
@@ -213,7 +248,18 @@ class CamVoltageResult:
                              **{f"end_angle_error_{k}_rad": float(e[i]) for k, e in self.angle_errors.items()}}
                             for i, h in enumerate(self.steps)],
             "observed_orders": {k: self.orders(k).tolist() for k in self.errors},
+            "speed_estimator": self.speed_estimator,
+            **({"estimation": self.estimation.to_dict()} if self.estimation is not None else {}),
+            **{k: v for name, run in (self.kalman or {}).items() for k, v in self._kalman_dict(name, run).items()},
+            **({"kalman_failures": dict(self.kalman_failures)} if self.kalman_failures else {}),
         }
+
+    def _kalman_dict(self, name: str, run: Trajectory) -> dict:
+        d = run.omega - self.reference.omega
+        return {f"omega_{name}_kalman_rad_s": run.omega.tolist(),
+                f"mean_speed_{name}_kalman_rad_s": self.mean_speed(run),
+                f"max_abs_difference_{name}_kalman_minus_accurate_rad_s": float(np.abs(d).max()),
+                f"rms_difference_{name}_kalman_minus_accurate_rad_s": float(np.sqrt(np.mean(d**2)))}
 
     def table(self) -> str:
         """Plain-text summary."""
@@ -236,6 +282,14 @@ class CamVoltageResult:
             lines.append(f"{h * 1e3:8.4g} {self.errors['seed'][i]:17.4g} {self.errors['corrected'][i]:10.4g} "
                          f"{oc[i]:6.2f} {self.errors['seed_vs_limit'][i]:18.4g} {ol[i]:6.2f} "
                          f"{self.angle_errors['seed'][i]:16.4g} {self.angle_errors['corrected'][i]:10.4g}")
+        for name, run in (self.kalman or {}).items():
+            d = run.omega - self.reference.omega
+            lines.append(f"{name} scheme with Kalman estimates: mean speed {self.mean_speed(run):.4f} rad/s, "
+                         f"- accurate: max {np.abs(d).max():.4g} rad/s, rms {np.sqrt(np.mean(d**2)):.4g} rad/s")
+        for name, why in (self.kalman_failures or {}).items():
+            lines.append(f"{name} scheme with Kalman estimates stopped: {why}")
+        if self.estimation is not None:
+            lines.append(self.estimation.table())
         return "\n".join(lines)
 
     def plot(self, ax=None):
@@ -246,6 +300,8 @@ class CamVoltageResult:
         ax[0].plot(self.reference.t, self.reference.omega, lw=1.2, label="accurate (solve_ivp)")
         ax[0].plot(self.seed.t, self.seed.omega, "--", lw=1, label="seed's discrete scheme")
         ax[0].plot(self.corrected.t, self.corrected.omega, ":", lw=1, label="corrected scheme")
+        for name, run in (self.kalman or {}).items():
+            ax[0].plot(run.t, run.omega, lw=0.8, alpha=0.8, label=f"{name} scheme, Kalman estimates")
         ax[0].axhline(self.no_follower_speed, color="gray", lw=0.8, label="follower removed")
         ax[0].set_xlabel("time [s]")
         ax[0].set_ylabel("speed [rad/s]")
@@ -261,10 +317,18 @@ class CamVoltageResult:
         ax[1].legend(fontsize="small")
         return ax
 
+    def plot_estimation(self, axes=None, window=None):
+        """True, differenced and Kalman-filtered speed and acceleration (2 rows) over
+        ``window`` (t0, t1) s (default the last 0.3 s); returns the axes."""
+        if self.estimation is None:
+            raise ValueError("this result has no estimator comparison")
+        return self.estimation.plot(axes, window)
+
 
 def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: float,
                      refinements: int = 3, method: str | None = None,
-                     window: float | None = None) -> CamVoltageResult:
+                     window: float | None = None, speed_estimator: str = "difference",
+                     encoder_counts: int | None = None, kalman_jerk: float | None = None) -> CamVoltageResult:
     """Run the constant-voltage study by every method and check convergence.
 
     Parameters
@@ -279,7 +343,19 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
         Recorded in the result; every method always runs.
     window : float, optional
         Start-up window of the pointwise speed error (s); default a tenth of the run.
+    speed_estimator : {"difference", "kalman"}
+        What the scheme uses for the follower speed and acceleration; ``"difference"`` is
+        the seed's. With ``"kalman"`` the seed and corrected schemes also run with the
+        Kalman filter (result field ``kalman``); the convergence ladder always uses the
+        seed's differences. Both estimators are compared on the accurate solution either way.
+    encoder_counts : int, optional
+        Shaft encoder counts per revolution (default 4096).
+    kalman_jerk : float, optional
+        Kalman jerk level (rad/s^3); default the RMS jerk of the accurate solution.
     """
+    if speed_estimator not in ESTIMATORS:
+        raise ValueError(f"speed_estimator must be one of {ESTIMATORS} (got {speed_estimator!r})")
+    encoder_counts = encoder_counts or DEFAULT_ENCODER_COUNTS
     window = 0.1 * duration if window is None else min(window, duration)
     steps = 4 * step / 2.0 ** np.arange(refinements + 1)
     times = np.arange(int(round(duration / steps[-1])) + 1) * steps[-1]
@@ -296,10 +372,22 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
             angles[key].append(abs(run.theta[-1] - np.interp(run.t[-1], against.t, against.theta)))
     seed = discrete_scheme(drive, voltage, duration, step, "seed")
     corr = discrete_scheme(drive, voltage, duration, step, "corrected")
+    estimation = compare_on_reference(drive, voltage, accurate(drive, voltage, duration, t_eval=seed.t),
+                                      encoder_counts, kalman_jerk)
+    kalman, failures = None, None
+    if speed_estimator == "kalman":
+        kalman, failures = {}, {}
+        for name in SCHEMES:
+            try:
+                kalman[name] = kalman_scheme(drive, voltage, duration, step, name, encoder_counts,
+                                             estimation.comparison.jerk)
+            except SimulationError as exc:
+                failures[name] = str(exc)
     return CamVoltageResult(voltage, _at(ref, seed.t), seed, corr, _at(limit, seed.t), steps,
                             {k: np.array(v) for k, v in errors.items()},
                             {k: np.array(v) for k, v in angles.items()}, window,
-                            steady_speed_without_follower(drive, voltage), method or "both")
+                            steady_speed_without_follower(drive, voltage), method or "both",
+                            estimation, speed_estimator, kalman, failures or None)
 
 
 def _at(traj: Trajectory, t) -> Trajectory:
