@@ -224,18 +224,23 @@ class CamEstimation:
         return "\n".join(lines)
 
     def plot(self, axes=None, window=None):
-        """True speed and acceleration with both estimates (2 rows); ``window`` (t0, t1) in s
-        zooms in (default the last 0.3 s). Returns the axes."""
+        """True speed and acceleration with both estimates (2 rows) over ``window`` (t0, t1)
+        in s; by default 0.2 s around the highest speed peak of the record's last third.
+        Returns the axes."""
         c = self.comparison
         axes = c.plot(axes)
-        t0, t1 = window if window is not None else (max(c.t[-1] - 0.3, c.t[0]), c.t[-1])
+        if window is None:
+            last = c.t >= c.t[0] + (c.t[-1] - c.t[0]) * 2 / 3
+            peak = c.t[last][np.argmax(c.truth.speed[last])]
+            window = (max(peak - 0.07, c.t[0]), min(peak + 0.13, c.t[-1]))
+        t0, t1 = window
         keep = (c.t >= t0) & (c.t <= t1)
         for ax, key in zip(axes, ("speed", "acceleration")):
             ax.set_xlim(t0, t1)
-            vals = np.concatenate([getattr(e, key)[keep] for e in (c.truth, c.kalman, c.backward)])
-            lo, hi = np.percentile(vals, [0.5, 99.5])
-            pad = 0.1 * (hi - lo + 1e-12)
-            ax.set_ylim(lo - pad, hi + pad)
+            if keep.any():
+                vals = np.concatenate([getattr(e, key)[keep] for e in (c.truth, c.kalman, c.backward)])
+                pad = 0.05 * (vals.max() - vals.min() + 1e-12)
+                ax.set_ylim(vals.min() - pad, vals.max() + pad)
         axes[0].set_title(f"Cam speed from {self.encoder_counts} counts/rev: true, differences, Kalman")
         return axes
 

@@ -319,7 +319,7 @@ class CamVoltageResult:
 
     def plot_estimation(self, axes=None, window=None):
         """True, differenced and Kalman-filtered speed and acceleration (2 rows) over
-        ``window`` (t0, t1) s (default the last 0.3 s); returns the axes."""
+        ``window`` (t0, t1) s (default 0.2 s around a late speed peak); returns the axes."""
         if self.estimation is None:
             raise ValueError("this result has no estimator comparison")
         return self.estimation.plot(axes, window)
