@@ -27,7 +27,9 @@ STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": Roc
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
-             "studies", "mechanism", "stages", "operating"}
+             "studies", "mechanism", "stages", "operating", "robustness"}
+#: ``[robustness] method`` values
+ROBUSTNESS_METHODS = ("monte_carlo", "grid")
 
 
 @dataclass(frozen=True)
@@ -97,6 +99,92 @@ class Requirements:
 
 
 @dataclass(frozen=True)
+class Robustness:
+    """Parameter variations the loop must tolerate, and what it must achieve over them.
+
+    Variations are at the design operating point: ``load_inertia`` replaces the load's
+    inertia (kg*m^2 at the output), ``stiffness`` multiplies the drivetrain's series
+    stiffness. A margin left ``None`` defaults to the nominal ``[requirements]`` one (see
+    :func:`servo_toolkit.loop.requirements.robust_requirements`).
+
+    Parameters
+    ----------
+    load_inertia : tuple of float or None
+        (lo, hi) in kg*m^2, 0 <= lo <= hi.
+    stiffness : tuple of float or None
+        (lo, hi) factors, 0 < lo <= hi.
+    samples : int
+        Variants in total (Monte Carlo draws, or grid points spread over the axes).
+    method : str
+        ``"monte_carlo"`` (uniform, seeded) or ``"grid"`` (corners included).
+    seed : int
+    min_stable_fraction : float
+        Fraction of the variants whose closed loop must be stable, 0..1.
+    min_gain_margin, max_sensitivity_peak : float or None
+        Worst case over the stable variants (dB).
+    min_phase_margin : float or None
+        Worst case (rad).
+    min_bandwidth : float or None
+        Worst-case closed-loop bandwidth (Hz); not checked when ``None``.
+    """
+
+    load_inertia: tuple | None = (0.0, 4.0)
+    stiffness: tuple | None = (0.7, 1.3)
+    samples: int = 1000
+    method: str = "monte_carlo"
+    seed: int = 0
+    min_stable_fraction: float = 1.0
+    min_gain_margin: float | None = None
+    min_phase_margin: float | None = None
+    max_sensitivity_peak: float | None = None
+    min_bandwidth: float | None = None
+
+    @property
+    def ranges(self) -> dict:
+        """name -> (lo, hi) of the parameters that vary."""
+        return {k: v for k, v in (("load_inertia", self.load_inertia), ("stiffness", self.stiffness))
+                if v is not None}
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Robustness":
+        """Build from a ``[robustness]`` table."""
+        known = {"load_inertia", "stiffness", "samples", "method", "seed", "min_stable_fraction",
+                 "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth"}
+        unknown = sorted(set(f.table) - known)
+        require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
+
+        def span(name, unit, positive):
+            if not f.has(name):
+                return None
+            lo_hi = f.quantity_list(name, unit, rule="positive" if positive else "nonnegative")
+            require(len(lo_hi) == 2, f.key(name), f"expected [lo, hi], got {len(lo_hi)} values")
+            require(lo_hi[0] <= lo_hi[1], f.key(name), f"lo must not exceed hi (got {lo_hi[0]:g} > {lo_hi[1]:g})")
+            return lo_hi
+
+        def opt(name, unit, rule="positive"):
+            return f.quantity(name, unit, rule=rule) if f.has(name) else None
+
+        load, stiff = span("load_inertia", "kg*m^2", False), span("stiffness", "dimensionless", True)
+        require(load is not None or stiff is not None, f.key("load_inertia"),
+                "missing key: give load_inertia and/or stiffness, the ranges to vary")
+        samples = f.integer("samples", 1000, minimum=1)
+        require(samples <= 1_000_000, f.key("samples"), f"at most 1000000 variants (got {samples})")
+        r = cls(load_inertia=load, stiffness=stiff, samples=samples,
+                method=f.text("method", "monte_carlo", choices=ROBUSTNESS_METHODS),
+                seed=f.integer("seed", 0, minimum=0),
+                min_stable_fraction=f.number("min_stable_fraction", 1.0, rule="nonnegative"),
+                min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
+                min_phase_margin=opt("min_phase_margin", "rad"),
+                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
+                min_bandwidth=opt("min_bandwidth", "Hz"))
+        require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
+                f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
+        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
+                f.key("min_phase_margin"), "must be below 180 deg")
+        return r
+
+
+@dataclass(frozen=True)
 class Study:
     """A named study of the scene: its kind and parameters in SI (angles rad, Hz for frequency)."""
 
@@ -132,6 +220,8 @@ class Scene:
     roller_screw : tuple of RollerScrewStage
         ``[[stages]]`` of a roller-screw scene.
     operating : RollerScrewOperating or None
+    robustness : Robustness or None
+        ``[robustness]``: variations the loop must tolerate (None: the scene states none).
     source : str or None
         File the scene was read from.
     """
@@ -147,6 +237,7 @@ class Scene:
     mechanism: object = None
     roller_screw: tuple = ()
     operating: RollerScrewOperating | None = None
+    robustness: Robustness | None = None
     source: str | None = None
 
     def study(self, name: str) -> Study:
@@ -222,12 +313,15 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                        for i, t in enumerate(raw_rs))
         operating = (RollerScrewOperating.from_table(Fields(data["operating"], "operating"))
                      if "operating" in data else None)
+        robust = (Robustness.from_table(Fields(data["robustness"], "robustness"))
+                  if "robustness" in data else None)
         require(bool(stages or mechanism or roller), "drivetrain",
                 "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
         scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
                       stages=stages, load=load, sensors=sensors, requirements=req,
                       studies=MappingProxyType({k: _study(k, v) for k, v in studies.items()}),
-                      mechanism=mechanism, roller_screw=roller, operating=operating, source=source)
+                      mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
+                      source=source)
         if stages:
             scene.drivetrain.check()
         return scene
@@ -282,5 +376,5 @@ def replace_params(scene: Scene, **changes) -> Scene:
     return replace(scene, **changes)
 
 
-__all__ = ["Scene", "Sensors", "Requirements", "Study", "load_scene", "scene_from_dict",
+__all__ = ["Robustness", "Scene", "Sensors", "Requirements", "Study", "load_scene", "scene_from_dict",
            "default_scene_path", "replace_params"]

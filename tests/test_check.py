@@ -59,3 +59,46 @@ def test_design_json(capsys):
     assert main(["design", CAM, "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["closed_loop_stable"] is True and data["plant"]["model"] == "rigid"
+
+
+ROBUST = str(SCENES / "ema_robust.toml")
+
+
+def test_robustness_requirement_exit_1_and_junit(tmp_path, capsys):
+    # the nominal design over the scene's [robustness]: most variants unstable -> exit 1
+    junit = tmp_path / "robust.xml"
+    assert main(["check", ROBUST, "--nominal", "--junit", str(junit)]) == 1
+    out = capsys.readouterr().out
+    line = next(l for l in out.splitlines() if "worst stable_fraction" in l)
+    assert "FAIL" in line and "at load_inertia=" in line
+    suite = ET.parse(junit).getroot().find("testsuite")
+    cases = {c.get("name"): c for c in suite.findall("testcase")}
+    robust = {"robust_stable_fraction", "robust_gain_margin", "robust_phase_margin", "robust_sensitivity_peak"}
+    assert robust <= set(cases)
+    assert cases["robust_stable_fraction"].find("failure") is not None
+    assert "worst case over 1000 variants" in cases["robust_stable_fraction"].find("failure").get("message")
+
+
+def test_robust_design_passes_check_with_exit_0(tmp_path, capsys):
+    # robust design (the scene has [robustness]) with a bandwidth its variants allow
+    junit = tmp_path / "robust.xml"
+    assert main(["check", ROBUST, "--require", "bandwidth=7Hz", "--json", "--junit", str(junit)]) == 0
+    data = json.loads(capsys.readouterr().out)
+    rb = data["scenes"][0]["robustness"]
+    assert data["passed"] is True and rb["passed"] is True and rb["unstable_variants"] == 0
+    for name in ("stable_fraction", "gain_margin", "phase_margin", "sensitivity_peak"):
+        worst = rb["worst"][name]
+        assert worst["passed"] is True and set(worst["at"]) == {"load_inertia", "stiffness"}
+    assert rb["worst"]["gain_margin"]["achieved"] >= 6.0
+    root = ET.parse(junit).getroot()
+    names = [c.get("name") for c in root.iter("testcase")]
+    assert "robust_phase_margin" in names and not root.findall(".//failure")
+
+
+def test_vary_and_samples_override(capsys):
+    assert main(["check", EMA, "--vary", "stiffness=0.95:1.05", "--samples", "40", "--json"]) in (0, 1)
+    rb = json.loads(capsys.readouterr().out)["scenes"][0]["robustness"]
+    assert rb["variants"] == 40 and list(rb["ranges"]) == ["stiffness"]
+    assert 0.95 <= rb["ranges"]["stiffness"][0] <= rb["ranges"]["stiffness"][1] <= 1.05
+    assert main(["check", EMA, "--vary", "stiffness=0:1"]) == 2
+    assert main(["check", EMA, "--vary", "mass=0:1"]) == 2

@@ -107,3 +107,12 @@ def test_cam_drive_gets_a_loop_with_documented_defaults():
     assert all(c.source == "default" for c in r.requirements)
     assert any("default" in n for n in r.notes) and any("ideal current loop" in n for n in r.notes)
     assert r.passed
+
+
+def test_robust_false_on_a_scene_with_robustness_is_the_nominal_design(ema_design):
+    # [robustness] changes nothing in a nominal design; design(scene) without it stays nominal
+    robust_scene = st.load_scene(SCENES / "ema_robust.toml")
+    r = st.design(robust_scene, robust=False)
+    assert ema_design.robustness is None and r.robustness is None
+    assert r.motion == ema_design.motion
+    assert r.margins.bandwidth_hz == pytest.approx(ema_design.margins.bandwidth_hz)

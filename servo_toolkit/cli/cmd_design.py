@@ -16,12 +16,23 @@ def add_design_options(p) -> None:
                    help="controller structure (default cascade: current -> speed -> position)")
     p.add_argument("--filter", dest="resonance_filter", default="auto",
                    choices=("auto", "none", "notch", "lowpass"), help="drivetrain resonance filter")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--robust", dest="robust", action="store_const", const=True, default=None,
+                      help="robust design over the scene's [robustness] ranges (default ranges when it has "
+                           "none); the default when the scene has [robustness]")
+    mode.add_argument("--nominal", dest="robust", action="store_const", const=False,
+                      help="nominal design even when the scene has [robustness]")
 
 
-def design_from_args(scene, args):
-    """Run the design with the command-line options."""
+def design_from_args(scene, args, spec=None):
+    """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
+    scene's ``[robustness]`` for a robust design (``check --vary``)."""
     require = dict(parse_override(text) for text in args.require)
-    return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require)
+    robust = args.robust
+    if spec is not None and (robust is True or (robust is None and scene.robustness is not None)):
+        robust = spec
+    return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require,
+                  robust=robust, progress=False)
 
 
 def register(sub) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -128,8 +129,15 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
 
 def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-           model: str = "auto", require=None, phase_hz: float = 8.0) -> DesignResult:
+           model: str = "auto", require=None, phase_hz: float = 8.0, robust=None,
+           progress: bool = True) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
+
+    A nominal design maximizes the smallest slack against the requirements on the nominal
+    plant. A robust design (``robust``; by default whenever the scene has ``[robustness]``)
+    also holds every parameter variant of the ranges stable with the margins required over
+    them: see :mod:`servo_toolkit.loop.robust_design` for the physics (the load inertia
+    moves the drivetrain mode, so a notch on the nominal mode is defeated) and the search.
 
     Parameters
     ----------
@@ -150,11 +158,26 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         Requirement overrides, name -> value in display units (Hz, deg, dB).
     phase_hz : float
         Frequency of the reported closed-loop phase (Hz).
+    robust : None, bool or Robustness
+        ``None``: robust when the scene has ``[robustness]``; ``False``: nominal design;
+        ``True``: robust over the scene's ``[robustness]`` or, when it has none, the default
+        ranges (load inertia 0..4 kg*m^2, stiffness 0.7..1.3, 1000 Monte Carlo variants);
+        a :class:`~servo_toolkit.scene.Robustness`: robust over it.
+    progress : bool
+        Progress bars for the robust search.
 
     Returns
     -------
     DesignResult
+        With ``.robustness`` (worst cases over the variants) for a robust design. When no
+        candidate meets everything the best one is returned and its notes say which
+        requirement fails and by how much.
     """
+    spec = robust_spec(scene, robust)
+    if spec is not None:
+        return _robust_design(scene, spec, q0=q0, structure=structure, current_bandwidth_hz=current_bandwidth_hz,
+                              structural_damping=structural_damping, model=model, require=require,
+                              phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter)
     if structure not in STRUCTURES:
         from ..errors import SceneError
         raise SceneError("structure", f"unknown loop structure {structure!r}; known: {STRUCTURES}")
@@ -220,3 +243,70 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
                         loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
                         motion=motion, notes=tuple(notes), closed_loop_full=cl)
+
+
+def robust_spec(scene, robust):
+    """The :class:`~servo_toolkit.scene.Robustness` a design must meet, or None (nominal)."""
+    from ..scene import Robustness
+    if robust is None:
+        return scene.robustness
+    if robust is False:
+        return None
+    if robust is True:
+        return scene.robustness if scene.robustness is not None else Robustness()
+    if isinstance(robust, Robustness):
+        return robust
+    from ..errors import SceneError
+    raise SceneError("robust", f"expected None, True, False or a Robustness, got {type(robust).__name__}")
+
+
+def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structural_damping, model, require,
+                   phase_hz, progress, resonance_filter):
+    """Robust design (cascade search), or a nominal design evaluated over the variants."""
+    from .robust_design import robust_search
+    from .robustness import robustness
+    rng = ", ".join(f"{k} {lo:g}..{hi:g}" + (" kg*m^2" if k == "load_inertia" else "")
+                    for k, (lo, hi) in spec.ranges.items())
+    header = f"robust design over {rng} ({spec.samples} {spec.method.replace('_', ' ')} variants at q0)"
+    if structure != "cascade" or resonance_filter != "auto":
+        r = design(scene, q0, structure=structure, resonance_filter=resonance_filter,
+                   current_bandwidth_hz=current_bandwidth_hz, structural_damping=structural_damping, model=model,
+                   require=require, phase_hz=phase_hz, robust=False)
+        rb = robustness(scene, r, spec=spec, progress=progress, structural_damping=structural_damping)
+        notes = (f"{header}: the robust search covers the cascade with its own filter choice; this "
+                 f"{structure} design (filter {resonance_filter}) is nominal, only evaluated over the variants",)
+        r = replace(r, robustness=rb, notes=r.notes + notes)
+        return replace(r, notes=r.notes + _failure_notes(r))
+    p = plant_parameters(scene, q0, model, structural_damping)
+    reqs = requirements_of(scene, require)
+    notes = [f"{r.name} {r.sense} {r.value:g} {r.unit}: default (the scene sets none)"
+             for r in reqs if r.source == "default"]
+    sample_time = scene.sensors.sample_time
+    kp_i, ki_i = current_loop_gains(scene.motor, current_bandwidth_hz) if p.L > 0 else (0.0, 0.0)
+
+    def evaluate_design(ctrl, motion):
+        return evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes, motion=motion, model=model,
+                        structural_damping=structural_damping, phase_hz=phase_hz)
+
+    result, _ = robust_search(scene, p, spec, reqs, (kp_i, ki_i), sample_time, structural_damping,
+                              evaluate_design=evaluate_design, progress=progress)
+    notes = (header + "; priority: every variant stable, then margins, then bandwidth",)
+    result = replace(result, notes=result.notes + notes)
+    return replace(result, notes=result.notes + _failure_notes(result))
+
+
+def _failure_notes(result) -> tuple:
+    """One note per failing requirement, with the figures (never hidden)."""
+    out = []
+    for c in result.requirements:
+        if not c.passed:
+            out.append(f"robust design misses {c.name}: achieved {c.achieved:.4g} {c.unit}, required {c.sense} "
+                       f"{c.required:g} {c.unit}, short by {c.shortfall:.3g} {c.unit}")
+    rb = result.robustness
+    for c in ([] if rb is None else rb.failures):
+        at = ", ".join(f"{k}={v:.3g}" for k, v in rb.worst.get(c.name, {}).items())
+        out.append(f"robust design misses worst-case {c.name}: achieved {c.achieved:.4g} {c.unit}, required "
+                   f"{c.sense} {c.required:g} {c.unit}, short by {c.shortfall:.3g} {c.unit} (at {at})")
+    if not out and result.robustness is not None:
+        out.append(f"every requirement met, nominal and over all {rb.count} variants")
+    return tuple(out)

@@ -124,3 +124,39 @@ def check(requirements, achieved: dict) -> list[Check]:
         checks.append(Check(r.name, r.value, a, ok, r.unit, r.sense, r.source,
                             float(short) if math.isfinite(short) else math.inf))
     return checks
+
+
+#: robust requirement name -> (Robustness attribute, sense, unit shown, SI -> shown factor,
+#: nominal requirement it defaults to or None)
+ROBUST_SPECS = {
+    "stable_fraction": ("min_stable_fraction", ">=", "", 1.0, None),
+    "gain_margin": ("min_gain_margin", ">=", "dB", 1.0, "gain_margin"),
+    "phase_margin": ("min_phase_margin", ">=", "deg", 180 / math.pi, "phase_margin"),
+    "sensitivity_peak": ("max_sensitivity_peak", "<=", "dB", 1.0, "sensitivity_peak"),
+    "bandwidth": ("min_bandwidth", ">=", "Hz", 1.0, None),
+}
+
+
+def robust_requirements(spec, nominal) -> list[Requirement]:
+    """What the variants must achieve: the ``[robustness]`` table's values, else the nominal
+    requirement of the same name (sources ``"robustness"`` and ``"nominal"``): every variant is held to the margins
+    the nominal loop must have. ``stable_fraction`` defaults to 1 (every variant stable); a
+    worst-case bandwidth is only checked when the table sets ``min_bandwidth``.
+
+    Parameters
+    ----------
+    spec : Robustness
+    nominal : list of Requirement or Check
+        The nominal requirements (values in display units).
+    """
+    by_name = {r.name: (r.value if hasattr(r, "value") else r.required) for r in nominal}
+    out = []
+    for name, (attr, sense, unit, factor, default) in ROBUST_SPECS.items():
+        value = getattr(spec, attr)
+        if name == "stable_fraction":
+            out.append(Requirement(name, sense, float(value), unit, "robustness"))
+        elif value is not None:
+            out.append(Requirement(name, sense, value * factor, unit, "robustness"))
+        elif default is not None and default in by_name:
+            out.append(Requirement(name, sense, by_name[default], unit, "nominal"))
+    return out

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import control as ct
 import numpy as np
@@ -40,6 +40,9 @@ class DesignResult:
         Defaults and assumptions used (e.g. requirements the scene does not set).
     closed_loop_full : control.StateSpace
         ``theta_ref``, ``tau_ext`` -> ``theta``, ``i``, ``omega_m``, ``u``, ``omega``.
+    robustness : RobustnessResult or None
+        Worst cases over the parameter variants, for a robust design
+        (``design(scene, robust=...)``, or a scene with ``[robustness]``).
     """
 
     scene_name: str
@@ -54,16 +57,21 @@ class DesignResult:
     motion: object = None
     notes: tuple = ()
     closed_loop_full: ct.StateSpace | None = None
+    robustness: object = None
 
     @property
     def passed(self) -> bool:
-        """Every requirement met and the closed loop stable."""
-        return self.margins.closed_loop_stable and all(c.passed for c in self.requirements)
+        """Every requirement met and the closed loop stable (and, for a robust design, every
+        robustness requirement met)."""
+        return (self.margins.closed_loop_stable and all(c.passed for c in self.requirements)
+                and (self.robustness is None or self.robustness.passed))
 
     @property
     def failures(self) -> list:
-        """Checks that are not met."""
-        return [c for c in self.requirements if not c.passed]
+        """Checks that are not met (robustness checks named ``robust_<name>``)."""
+        robust = [] if self.robustness is None else [replace(c, name=f"robust_{c.name}")
+                                                      for c in self.robustness.failures]
+        return [c for c in self.requirements if not c.passed] + robust
 
     def to_dict(self) -> dict:
         """JSON-ready summary; the margin figures are at the top level."""
@@ -90,7 +98,8 @@ class DesignResult:
                                "gains": dict(getattr(self.motion, "gains", {}) or {}),
                                "filter": getattr(self.motion, "filter", None),
                                "filter_params": dict(getattr(self.motion, "filter_params", {}) or {})},
-                "notes": list(self.notes)}
+                "notes": list(self.notes),
+                **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {})}
 
     def table(self) -> str:
         """Requirements and margins as text."""
@@ -106,6 +115,8 @@ class DesignResult:
                  f"  GM {m.gain_margin_db:.2f} dB, PM {m.phase_margin_deg:.1f} deg, delay margin "
                  f"{m.delay_margin_s * 1e3:.3g} ms, disk margin {m.disk_margin:.3f}, Ms {m.sensitivity_peak_db:.2f} dB",
                  m.table(), "", requirements_table(self.requirements)]
+        if self.robustness is not None:
+            lines.append(self.robustness.table())
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

@@ -10,7 +10,7 @@ python-control, for checks and for the benchmark.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import control as ct
 import numpy as np
@@ -118,11 +118,17 @@ class RobustnessResult:
         Parameter values per variant (see ``PARAMETERS``).
     figures : dict of numpy.ndarray
         ``gain_margin_db``, ``phase_margin_deg``, ``sensitivity_peak_db``, ``bandwidth_hz``,
-        ``phase_lag_deg`` (closed loop, at the required bandwidth), ``stable``.
+        ``phase_lag_deg`` (closed loop, at the required bandwidth), ``max_pole_real``
+        (largest real part of the closed-loop poles, 1/s) and ``stable``.
     requirements : list of Check
-        Worst case over the stable variants against each requirement.
+        ``stable_fraction`` (stable variants / all) and the worst case over the stable
+        variants of each margin requirement (see
+        :func:`servo_toolkit.loop.requirements.robust_requirements`).
     worst : dict
-        Per requirement, the parameter values of the worst variant.
+        Per requirement, the parameter values of the variant that gives the worst figure
+        (for ``stable_fraction``: the variant with the rightmost closed-loop pole).
+    settings : dict
+        ``method``, ``samples``, ``seed`` of the sampling.
     """
 
     scene_name: str
@@ -130,6 +136,7 @@ class RobustnessResult:
     figures: dict
     requirements: list
     worst: dict
+    settings: dict = field(default_factory=dict)
 
     @property
     def count(self) -> int:
@@ -147,11 +154,22 @@ class RobustnessResult:
 
     @property
     def passed(self) -> bool:
-        return self.all_stable and all(c.passed for c in self.requirements)
+        """Every robustness requirement met."""
+        return all(c.passed for c in self.requirements)
+
+    @property
+    def failures(self) -> list:
+        """Checks that are not met."""
+        return [c for c in self.requirements if not c.passed]
+
+    def worst_variant(self, name: str) -> dict:
+        """Parameter values of the variant that gives the worst ``name`` figure."""
+        return dict(self.worst.get(name, {}))
 
     def to_dict(self) -> dict:
-        """JSON-ready summary (worst cases, not every variant)."""
+        """JSON-ready summary (worst cases and the variant giving each, not every variant)."""
         return {"scene": self.scene_name, "variants": self.count, "unstable_variants": self.unstable_count,
+                **self.settings,
                 "ranges": {k: [float(v.min()), float(v.max())] for k, v in self.values.items()},
                 "worst": {c.name: {**c.to_dict(), "at": self.worst.get(c.name, {})} for c in self.requirements},
                 "passed": self.passed}
@@ -162,8 +180,9 @@ class RobustnessResult:
         lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
         for c in self.requirements:
             at = ", ".join(f"{k}={v:.3g}" for k, v in self.worst.get(c.name, {}).items())
-            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.3g} {c.unit} "
-                         f"{'ok' if c.passed else 'FAIL'}  at {at}")
+            short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
+            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
+                         f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
         return "\n".join(lines)
 
     def plot(self, ax=None, figure: str = "phase_margin_deg"):
@@ -185,8 +204,36 @@ class RobustnessResult:
         return ax
 
 
+#: robust requirement -> (figure, worst is min or max)
+_WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_margin_deg", "min"),
+          "sensitivity_peak": ("sensitivity_peak_db", "max"), "bandwidth": ("bandwidth_hz", "min"),
+          "phase_lag_at_bandwidth": ("phase_lag_deg", "max")}
+
+
+def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
+    """Checks of ``requirements`` (robust requirements, display units) against the worst
+    variant of each, and the parameter values of that variant."""
+    stable = figures["stable"]
+    achieved, worst = {}, {}
+    for r in requirements:
+        if r.name == "stable_fraction":
+            achieved[r.name] = float(np.mean(stable))
+            k = int(np.argmax(figures["max_pole_real"]))
+        else:
+            key, kind = _WORST[r.name]
+            if not np.any(stable):
+                achieved[r.name] = math.nan
+                continue
+            vals = figures[key]
+            k = int(np.argmin(np.where(stable, vals, np.inf)) if kind == "min"
+                    else np.argmax(np.where(stable, vals, -np.inf)))
+            achieved[r.name] = float(vals[k])
+        worst[r.name] = {name: float(v[k]) for name, v in values.items()}
+    return check(requirements, achieved), worst
+
+
 def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid: bool = False, seed: int = 0,
-               executor=None, chunk_size: int = 2500, progress: bool = True,
+               spec=None, requirements=None, executor=None, chunk_size: int = 2500, progress: bool = True,
                structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> RobustnessResult:
     """Margins of ``design_result``'s controller over parameter variations.
 
@@ -196,11 +243,19 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     design_result : DesignResult
     variants : dict, optional
         name -> (lo, hi) range or array of values; names ``load_inertia`` (kg*m^2) and
-        ``stiffness`` (factor). Default: load inertia 0..4 kg*m^2, stiffness 0.7..1.3.
+        ``stiffness`` (factor). Default: ``spec``'s ranges, else load inertia 0..4 kg*m^2,
+        stiffness 0.7..1.3.
     samples : int
         Monte Carlo samples (or grid points in total with ``grid=True``) for ranges.
     grid : bool
     seed : int
+    spec : Robustness, optional
+        A scene's ``[robustness]``: its ranges, sampling and requirements (``variants``,
+        ``samples``, ``grid`` and ``seed`` are then taken from it).
+    requirements : list of Requirement, optional
+        What the variants must achieve; default :func:`robust_requirements` of ``spec``
+        (or of the default :class:`~servo_toolkit.scene.Robustness`) and the design's
+        nominal requirements.
     executor : concurrent.futures.Executor, optional
         Runs the chunks (e.g. a dask ``Client.get_executor()``).
     chunk_size : int
@@ -211,17 +266,38 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     -------
     RobustnessResult
     """
+    from ..scene import Robustness
+    from .requirements import robust_requirements
+    if spec is not None:
+        variants = spec.ranges if variants is None else variants
+        samples, grid, seed = spec.samples, spec.method == "grid", spec.seed
     values = sample_variants(variants, samples, grid, seed)
-    p = design_result.parameters
+    if requirements is None:
+        requirements = robust_requirements(spec or Robustness(), design_result.requirements)
+    figs = variant_figures(scene, design_result.parameters, design_result.controller, values,
+                           _bandwidth_requirement(design_result), executor=executor, chunk_size=chunk_size,
+                           progress=progress, structural_damping=structural_damping)
+    checks, worst = worst_cases(values, figs, requirements)
+    settings = {"method": "grid" if grid else "monte_carlo", "samples": int(samples), "seed": int(seed)}
+    return RobustnessResult(scene.name, values, figs, checks, worst, settings)
+
+
+def _bandwidth_requirement(design_result) -> float:
+    return next(r.required for r in design_result.requirements if r.name == "bandwidth")
+
+
+def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None, chunk_size: int = 2500,
+                    progress: bool = True, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
+                    points: int = 600) -> dict:
+    """Figures of controller ``ctrl`` on every variant of plant parameters ``p`` (see
+    :class:`RobustnessResult` ``figures``)."""
     n = next(iter(values.values())).size
     J2 = p.J2 + (values["load_inertia"] - scene.load.inertia if "load_inertia" in values else np.zeros(n))
-    if np.any(J2 < 0):
+    if np.any(J2 < 0) if not p.rigid else np.any(p.J1 + J2 <= 0):  # rigid: the load is in J1
         raise SceneError("vary.load_inertia", "gives a negative load-side inertia")
     K = p.K * (values["stiffness"] if "stiffness" in values else np.ones(n))
     c = spring_damping(p.J1, J2, K, structural_damping) * np.ones(n)
-    ctrl = design_result.controller
-    f_req = next(r.required for r in design_result.requirements if r.name == "bandwidth")
-    w = frequency_grid(f_min=0.01, f_max=5e3, points=600, extra=[f_req])
+    w = frequency_grid(f_min=0.01, f_max=5e3, points=points, extra=[f_req])
     s = 1j * w
     (cy, cw) = _controller_response(ctrl, s)
     from ..plant import sample_delay
@@ -234,27 +310,10 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     cases = [dict(common, J2=J2[i], K=K[i], c=c[i]) for i in chunks(idx, chunk_size)]
     parts = run_cases(_evaluate, cases, executor=executor, progress=progress, description="robustness")
     figs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
-    stable = figs.pop("max_pole_real") < 0
-    figs = {"gain_margin_db": np.abs(figs["gain_margin_db"]), "phase_margin_deg": figs["phase_margin_deg"],
+    return {"gain_margin_db": np.abs(figs["gain_margin_db"]), "phase_margin_deg": figs["phase_margin_deg"],
             "sensitivity_peak_db": figs["sensitivity_peak_db"], "bandwidth_hz": figs["bandwidth_hz"],
-            "phase_lag_deg": -figs["phase_at_freq_deg"], "stable": stable}
-    names = {"bandwidth": ("bandwidth_hz", np.argmin), "phase_lag_at_bandwidth": ("phase_lag_deg", np.argmax),
-             "gain_margin": ("gain_margin_db", np.argmin), "phase_margin": ("phase_margin_deg", np.argmin),
-             "sensitivity_peak": ("sensitivity_peak_db", np.argmax)}
-    achieved, worst = {}, {}
-    reqs = [r for r in design_result.requirements]
-    for r in reqs:
-        key, pick = names[r.name]
-        vals = np.where(stable, figs[key], np.nan)
-        if not np.any(stable):
-            achieved[r.name] = math.nan
-            continue
-        k = int(pick(np.where(stable, vals, np.inf if pick is np.argmin else -np.inf)))
-        achieved[r.name] = float(figs[key][k])
-        worst[r.name] = {name: float(v[k]) for name, v in values.items()}
-    from .requirements import Requirement
-    checks = check([Requirement(r.name, r.sense, r.required, r.unit, r.source) for r in reqs], achieved)
-    return RobustnessResult(scene.name, values, figs, checks, worst)
+            "phase_lag_deg": -figs["phase_at_freq_deg"], "max_pole_real": figs["max_pole_real"],
+            "stable": figs["max_pole_real"] < 0}
 
 
 def _controller_response(ctrl, s):
