@@ -300,12 +300,12 @@ def _failure_notes(result) -> tuple:
     out = []
     for c in result.requirements:
         if not c.passed:
-            out.append(f"robust design misses {c.name}: achieved {c.achieved:.4g} {c.unit}, required {c.sense} "
+            out.append(f"the design misses {c.name}: achieved {c.achieved:.4g} {c.unit}, required {c.sense} "
                        f"{c.required:g} {c.unit}, short by {c.shortfall:.3g} {c.unit}")
     rb = result.robustness
     for c in ([] if rb is None else rb.failures):
         at = ", ".join(f"{k}={v:.3g}" for k, v in rb.worst.get(c.name, {}).items())
-        out.append(f"robust design misses worst-case {c.name}: achieved {c.achieved:.4g} {c.unit}, required "
+        out.append(f"the design misses worst-case {c.name}: achieved {c.achieved:.4g} {c.unit}, required "
                    f"{c.sense} {c.required:g} {c.unit}, short by {c.shortfall:.3g} {c.unit} (at {at})")
     if not out and result.robustness is not None:
         out.append(f"every requirement met, nominal and over all {rb.count} variants")

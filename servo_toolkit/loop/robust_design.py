@@ -280,11 +280,22 @@ def _refine(search: _Search, row, maxfev: int = 90):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         f0 = objective(x0)
-        res = minimize(objective, x0, method="Nelder-Mead", options={"maxfev": maxfev, "xatol": 1e-3,
-                                                                      "fatol": 1e-5})
+        res = minimize(objective, x0, method="Nelder-Mead", bounds=_bounds(search, fp if has_filter else None),
+                       options={"maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-5})
     x, f = (res.x, res.fun) if res.fun <= f0 else (x0, f0)
     filt_, fp_, fv_, q_, kp_ = unpack(x)
     return search.motion(kp_, fv_, q_, filt_, fp_), -f, (-f, filt_, fp_, fv_, q_, kp_)
+
+
+def _bounds(search: _Search, fp):
+    """The search box in log units: kp and the speed crossover within a decade or so of the
+    required bandwidth (a loop on a rigid, delay-free plant would otherwise climb forever)."""
+    wb = 2 * math.pi * search.f_req
+    box = [(0.5 * KP_SCAN[0] * wb, 2 * KP_SCAN[-1] * wb), (0.25 * search.f_req, 3 * FV_RATIOS[-1] * search.f_req),
+           (0.01, 1.0)]
+    if fp is not None:
+        box.append((0.25 * fp["wn"], 4 * fp["wn"]))
+    return [(math.log(lo), math.log(hi)) for lo, hi in box]
 
 
 def design_grid(spec, load_inertia: float, per_axis: int = GRID_PER_AXIS) -> dict:
