@@ -116,3 +116,13 @@ def test_robust_false_on_a_scene_with_robustness_is_the_nominal_design(ema_desig
     assert ema_design.robustness is None and r.robustness is None
     assert r.motion == ema_design.motion
     assert r.margins.bandwidth_hz == pytest.approx(ema_design.margins.bandwidth_hz)
+
+
+def test_robust_design_of_a_rigid_drive_stays_in_its_search_box():
+    # a rigid, delay-free cascade gets better with every gain increase: the search is bounded
+    from servo_toolkit.scene import Robustness
+    cam = st.load_scene(SCENES / "cam_follower.toml")
+    r = st.design(cam, robust=Robustness(load_inertia=(0.0, 1e-4), stiffness=None, samples=100), progress=False)
+    assert r.parameters.rigid and r.robustness.all_stable and r.passed, r.table()
+    assert all(np.isfinite(v) and v < 1e4 for v in r.motion.gains.values())
+    assert r.robustness.worst["phase_margin"]["load_inertia"] > 5e-5  # the heaviest variants are the worst

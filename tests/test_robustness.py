@@ -204,6 +204,8 @@ def test_robust_design_states_what_it_misses(robust_design):
     assert 0 < bw.shortfall < 1.0  # Hz
     d = r.to_dict()
     assert d["requirements_met"] is False and d["robustness"]["passed"] is True
+    confirm = next(n for n in r.notes if "rebuilt with python-control" in n)
+    assert "closed loop stable" in confirm and "DISAGREES" not in confirm
 
 
 def test_worst_case_agrees_with_python_control(robust_scene, robust_design):

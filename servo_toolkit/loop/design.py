@@ -263,7 +263,7 @@ def robust_spec(scene, robust):
 def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structural_damping, model, require,
                    phase_hz, progress, resonance_filter):
     """Robust design (cascade search), or a nominal design evaluated over the variants."""
-    from .robust_design import robust_search
+    from .robust_design import confirm_worst_case, robust_search
     from .robustness import robustness
     rng = ", ".join(f"{k} {lo:g}..{hi:g}" + (" kg*m^2" if k == "load_inertia" else "")
                     for k, (lo, hi) in spec.ranges.items())
@@ -290,7 +290,8 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
 
     result, _ = robust_search(scene, p, spec, reqs, (kp_i, ki_i), sample_time, structural_damping,
                               evaluate_design=evaluate_design, progress=progress)
-    notes = (header + "; priority: every variant stable, then margins, then bandwidth",)
+    notes = (header + "; priority: every variant stable, then margins, then bandwidth",
+             confirm_worst_case(scene, result, structural_damping))
     result = replace(result, notes=result.notes + notes)
     return replace(result, notes=result.notes + _failure_notes(result))
 
