@@ -310,9 +310,11 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
                   evaluate_design, progress: bool = True, rounds: int = 2):
     """Search the cascade over ``spec``'s variations (see module docstring).
 
-    ``evaluate_design(controller, motion, notes)`` turns a controller into a nominal
-    DesignResult (python-control figures). Returns the DesignResult with ``robustness``
-    set (checked on ``spec``'s own variants) and notes saying what was done and what fails.
+    ``evaluate_design(controller, motion)`` turns a controller into a nominal DesignResult
+    (python-control figures). Returns ``(result, search)``: the best DesignResult found, with
+    ``robustness`` checked on ``spec``'s own variants, and the search state (its design grid
+    in ``search.values``). When the scene's variants reveal a worse variant than the grid,
+    it is added to the grid and the refinement runs again (at most ``rounds`` times).
     """
     robust = robust_requirements(spec, nominal)
     search = _Search(scene, p, nominal, robust, current_gains, sample_time, structural_damping)
