@@ -17,13 +17,13 @@ import numpy as np
 
 from ..errors import SceneError
 from ..parallel import chunks, run_cases
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, spring_damping
-from .assembly import closed_loop_matrix, controller_matrices
+from ..plant import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, sample_delay, spring_damping
+from .assembly import _abcd, closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES, open_loop_of
 from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
-from .response import loop_response, plant_responses
+from .response import loop_response, plant_responses, state_space_response
 
 PARAMETERS = {"load_inertia": "kg*m^2 at the output, replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
@@ -79,15 +79,36 @@ def varied_parameters(p, load, values: dict, i: int, zeta: float):
 def _evaluate(case):
     """Figures and stability of one chunk of variants (module level: picklable)."""
     p, J2, K, c = case["p"], case["J2"], case["K"], case["c"]
-    s = case["s"]
-    kp, ki = case["current_gains"]
-    P1, P2 = plant_responses(s[None, :], p, kp, ki, J2=J2[:, None], K=K[:, None], c=c[:, None])
-    L = loop_response(s[None, :], P1, P2, case["delay"], case["cy"], case["cw"], p.N)
-    figs = grid_figures(np.imag(s), L, phase_freq=case["f_req"])
+    w = case["w"]
+    response = VariantLoops(p, J2, K, c, case["current_gains"], case["blocks"])
+    L = response(np.arange(J2.size)[:, None], w[None, :])
+    figs = grid_figures(w, L, phase_freq=case["f_req"], response=response if case["refine"] else None)
     A, B, C, D = batched_plant_matrices(p, J2, K, c)
     acl = closed_loop_matrix(A, B[..., :1], C[..., :3, :], D[..., :3, :1], *case["controller"])
     figs["max_pole_real"] = np.linalg.eigvals(acl).real.max(axis=-1)
     return figs
+
+
+@dataclass(frozen=True)
+class VariantLoops:
+    """The open loop of every variant as a function of frequency, closed form (see
+    :mod:`.response`): ``self(rows, w)`` is ``L`` of variants ``rows`` at angular
+    frequencies ``w`` (arrays broadcasting together)."""
+
+    p: object
+    J2: np.ndarray
+    K: np.ndarray
+    c: np.ndarray
+    current_gains: tuple
+    blocks: tuple  # (motion A, B [theta, omega_m], C, D), (delay A, B, C, D)
+
+    def __call__(self, rows, w):
+        s = 1j * np.asarray(w, float)
+        rows = np.asarray(rows)
+        P1, P2 = plant_responses(s, self.p, *self.current_gains, J2=self.J2[rows], K=self.K[rows],
+                                 c=self.c[rows])
+        cy, cw, delay = _controller_response(self.blocks, s)
+        return loop_response(s, P1, P2, delay, cy, cw, self.p.N)
 
 
 def batched_plant_matrices(p, J2, K, c):
@@ -234,7 +255,7 @@ def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
 
 def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid: bool = False, seed: int = 0,
                spec=None, requirements=None, executor=None, chunk_size: int = 2500, progress: bool = True,
-               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> RobustnessResult:
+               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, refine: bool = True) -> RobustnessResult:
     """Margins of ``design_result``'s controller over parameter variations.
 
     Parameters
@@ -261,6 +282,9 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     chunk_size : int
     progress : bool
     structural_damping : float
+    refine : bool
+        Solve every crossing, the sensitivity peak and the bandwidth to solver precision
+        after the grid brackets them (default); ``False`` interpolates on the grid.
 
     Returns
     -------
@@ -276,7 +300,7 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
         requirements = robust_requirements(spec or Robustness(), design_result.requirements)
     figs = variant_figures(scene, design_result.parameters, design_result.controller, values,
                            _bandwidth_requirement(design_result), executor=executor, chunk_size=chunk_size,
-                           progress=progress, structural_damping=structural_damping)
+                           progress=progress, structural_damping=structural_damping, refine=refine)
     checks, worst = worst_cases(values, figs, requirements)
     settings = {"method": "grid" if grid else "monte_carlo", "samples": int(samples), "seed": int(seed)}
     return RobustnessResult(scene.name, values, figs, checks, worst, settings)
@@ -288,9 +312,12 @@ def _bandwidth_requirement(design_result) -> float:
 
 def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None, chunk_size: int = 2500,
                     progress: bool = True, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-                    points: int = 600) -> dict:
+                    points: int = 600, refine: bool = True) -> dict:
     """Figures of controller ``ctrl`` on every variant of plant parameters ``p`` (see
-    :class:`RobustnessResult` ``figures``)."""
+    :class:`RobustnessResult` ``figures``). The grid of ``points`` frequencies brackets
+    every crossing, the sensitivity peak and the bandwidth; with ``refine`` (default) each
+    is then solved to solver precision with the closed-form loop response, otherwise it is
+    interpolated on the grid."""
     n = next(iter(values.values())).size
     J2 = p.J2 + (values["load_inertia"] - scene.load.inertia if "load_inertia" in values else np.zeros(n))
     if np.any(J2 < 0) if not p.rigid else np.any(p.J1 + J2 <= 0):  # rigid: the load is in J1
@@ -298,13 +325,8 @@ def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None
     K = p.K * (values["stiffness"] if "stiffness" in values else np.ones(n))
     c = spring_damping(p.J1, J2, K, structural_damping) * np.ones(n)
     w = frequency_grid(f_min=0.01, f_max=5e3, points=points, extra=[f_req])
-    s = 1j * w
-    (cy, cw) = _controller_response(ctrl, s)
-    from ..plant import sample_delay
-    d = sample_delay(ctrl.sample_time, DELAY_SAMPLES)
-    delay = np.asarray(d(s)).reshape(-1) if d.nstates else np.ones_like(s)
     kp_i, ki_i = (ctrl.current_kp, ctrl.current_ki) if p.L > 0 else (0.0, 0.0)
-    common = {"p": p, "s": s, "delay": delay, "cy": cy, "cw": cw, "f_req": f_req,
+    common = {"p": p, "w": w, "blocks": _controller_blocks(ctrl), "f_req": f_req, "refine": refine,
               "current_gains": (kp_i, ki_i), "controller": controller_matrices(ctrl, scene.motor)}
     idx = np.arange(n)
     cases = [dict(common, J2=J2[i], K=K[i], c=c[i]) for i in chunks(idx, chunk_size)]
@@ -316,12 +338,19 @@ def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None
             "stable": figs["max_pole_real"] < 0}
 
 
-def _controller_response(ctrl, s):
-    """Cy (from -theta) and Cw (from -omega_m) of the motion controller at ``s``."""
-    m = ctrl.motion
-    cy = -np.asarray(m["i_ref", "theta"](s)).reshape(-1)
-    cw = -np.asarray(m["i_ref", "omega_m"](s)).reshape(-1)
-    return cy, cw
+def _controller_blocks(ctrl):
+    """State-space matrices of the motion controller from [theta, omega_m] to i_ref and of
+    the sampling delay (Pade) from i_ref to i_cmd."""
+    Am, Bm, Cm, Dm = _abcd(ctrl.motion)
+    cols = [ctrl.motion.input_index[name] for name in ("theta", "omega_m")]
+    return (Am, Bm[:, cols], Cm, Dm[:, cols]), _abcd(sample_delay(ctrl.sample_time, DELAY_SAMPLES))
+
+
+def _controller_response(blocks, s):
+    """Cy (from -theta), Cw (from -omega_m) and the delay at ``s``."""
+    h = state_space_response(*blocks[0], s)
+    d = state_space_response(*blocks[1], s)
+    return -h[..., 0, 0], -h[..., 0, 1], d[..., 0, 0]
 
 
 def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
