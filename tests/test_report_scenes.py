@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 import pytest
 
 from servo_toolkit import load_scene
 from servo_toolkit.cli import main
 from servo_toolkit.report import NotAvailable, Section, api, build_report, run_section
 from servo_toolkit.report.context import Context
+from servo_toolkit.report.sections_limits import leaves_out
 
 from .conftest import SCENES
 
@@ -79,3 +82,41 @@ def test_report_to_dict_lists_every_section():
     assert [s["key"] for s in d["sections"]][0] == "requirements"
     assert all(s["status"] in ("info", "pass", "fail", "n/a", "unavailable") for s in d["sections"])
     report.close()
+
+
+def test_a_section_past_the_time_limit_is_stopped_and_says_so():
+    """A stuck section becomes a box naming the limit; the next section still runs."""
+    import time
+
+    ctx = Context(load_scene())
+
+    def stuck(_ctx):
+        deadline = time.perf_counter() + 30.0
+        while time.perf_counter() < deadline:   # pure Python: the alarm interrupts it
+            pass
+        return Section("never", "")
+
+    start = time.perf_counter()
+    s = run_section("slow", "Slow", stuck, ctx, time_limit=0.3)
+    assert time.perf_counter() - start < 5.0
+    assert s.status == "unavailable" and "stopped after 0.3 s" in s.reason
+    assert "--section-time-limit" in s.reason
+    # the timer is cleared: a later quick section is unaffected
+    ok = run_section("quick", "Quick", lambda _c: (time.sleep(0.5), Section("Quick", "done"))[1], ctx)
+    assert ok.status == "info"
+
+
+def test_report_measures_what_the_reduction_costs(tmp_path):
+    """The leaves-out section states the a-priori bound and the measured full-vs-reduced
+    difference of the report's own sweep, and the measurement is within the bound."""
+    from servo_toolkit.report.sections_limits import _measured_reduction
+
+    ctx = Context(load_scene())
+    res = _measured_reduction(ctx)
+    assert res.frequencies_hz.size >= 2 and res.plan.effects
+    # measured, not predicted: two sweeps of the same points, full and reduced model
+    assert np.all(np.isfinite(res.difference[~res.saturated]))
+    assert res.full_options != res.reduced_options or not res.plan.omitted
+    assert res.within_bound, (res.measured, res.bound)
+    section = run_section("reduce", "What the model leaves out", leaves_out, ctx)
+    assert "Measured full against reduced" in section.html and section.figures

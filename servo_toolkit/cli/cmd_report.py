@@ -16,7 +16,12 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", default="servo_report", metavar="DIR",
                    help="output folder (default: servo_report)")
     p.add_argument("--full", action="store_true",
-                   help="full settings for the expensive studies (slower; default: light settings)")
+                   help="run the expensive studies as the scene defines them: every sweep frequency with the "
+                        "default dwell, the measured reduction on that sweep, longer accuracy runs and finer Kv "
+                        "sampling (several minutes; default: light settings, under a minute)")
+    p.add_argument("--section-time-limit", type=float, default=None, metavar="S",
+                   help="stop a section that runs longer than S seconds and say so in the report (default: "
+                        "20 with light settings, none with --full; 0: no limit)")
     p.set_defaults(run=run)
 
 
@@ -25,8 +30,9 @@ def run(args) -> int:
     from ..report import build_report, write_report
     start = time.perf_counter()
     scene = load_scene(args.scene)
-    report = build_report(scene, light=not args.full, progress=True)
-    paths = write_report(report, args.output)
+    limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
+    report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit)
+    paths = write_report(report, args.output, progress=True)
     report.close()
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):

@@ -17,6 +17,10 @@ from . import sections_studies as studies
 from . import sections_time as timing
 from .context import Context
 from .section import NotApplicable, NotAvailable, Section
+from .time_limit import time_limit as _time_limit
+
+#: default wall-time limit per section (s) with light settings; None with full settings
+LIGHT_SECTION_TIME_LIMIT = 20.0
 
 #: Section builders in report order (the requirements table is built last, shown first).
 SECTIONS = (
@@ -70,10 +74,12 @@ class Report:
                 f.figure.clear()
 
 
-def run_section(key: str, title: str, builder, ctx: Context) -> Section:
-    """Build one section; a missing capability or an error becomes a visible box."""
+def run_section(key: str, title: str, builder, ctx: Context, time_limit: float | None = None) -> Section:
+    """Build one section; a missing capability, an error or running past ``time_limit``
+    seconds becomes a visible box."""
     try:
-        section = builder(ctx)
+        with _time_limit(time_limit, f"the section {title!r}"):
+            section = builder(ctx)
     except NotApplicable as exc:
         return Section(title, status="n/a", reason=str(exc), key=key)
     except NotAvailable as exc:
@@ -89,7 +95,8 @@ def run_section(key: str, title: str, builder, ctx: Context) -> Section:
     return section
 
 
-def build_report(scene, light: bool = True, executor=None, progress: bool = True) -> Report:
+def build_report(scene, light: bool = True, executor=None, progress: bool = True,
+                 section_time_limit="auto") -> Report:
     """Build every section of the report of ``scene``.
 
     Parameters
@@ -101,18 +108,24 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         Passed on to studies that run cases in parallel.
     progress : bool
         Show a tqdm progress bar (stderr), one step per section.
+    section_time_limit : float, None or "auto"
+        Wall-time limit per section (s); a section that runs longer is stopped and says so.
+        ``"auto"``: :data:`LIGHT_SECTION_TIME_LIMIT` with light settings, no limit with full
+        ones; None: no limit. Applies in the main thread only (see :mod:`.time_limit`).
 
     Returns
     -------
     Report
     """
+    if section_time_limit == "auto":
+        section_time_limit = LIGHT_SECTION_TIME_LIMIT if light else None
     ctx = Context(scene, light=light, executor=executor)
     built = []
     steps = list(SECTIONS) + [REQUIREMENTS]
     bar = tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False)
     for key, title, builder in bar:
         bar.set_postfix_str(title[:40])
-        built.append(run_section(key, title, builder, ctx))
+        built.append(run_section(key, title, builder, ctx, section_time_limit))
     bar.close()
     req_section = built.pop()
     try:
@@ -124,14 +137,29 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     return Report(scene.name, subtitle, tuple([req_section] + built), rows)
 
 
-def write_report(report: Report, out_dir) -> dict:
-    """Write ``index.html`` and ``report.pdf`` into ``out_dir``; returns their paths."""
+def write_report(report: Report, out_dir, progress: bool = False) -> dict:
+    """Write ``index.html`` and ``report.pdf`` into ``out_dir``; returns their paths.
+
+    Parameters
+    ----------
+    report : Report
+    out_dir : str or pathlib.Path
+        Created if missing.
+    progress : bool
+        Show a tqdm progress bar (stderr), one step per rendered figure.
+    """
     from .html_writer import render_html
     from .pdf_writer import write_pdf
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    n_fig = sum(len(s.figures) for s in report.sections)
+    bar = tqdm(total=2 * n_fig, desc="writing", unit="figure", disable=not progress, file=sys.stderr,
+               leave=False)
     html_path = out / "index.html"
-    html_path.write_text(render_html(report), encoding="utf-8")
+    bar.set_postfix_str("index.html")
+    html_path.write_text(render_html(report, tick=bar.update), encoding="utf-8")
     pdf_path = out / "report.pdf"
-    write_pdf(report, pdf_path)
+    bar.set_postfix_str("report.pdf")
+    write_pdf(report, pdf_path, tick=bar.update)
+    bar.close()
     return {"html": html_path, "pdf": pdf_path}

@@ -27,8 +27,8 @@ nav ol{columns:2;font-size:.9em}
 """
 
 
-def section_html(section, index: int) -> str:
-    """One section as HTML (fragment, figures, status box)."""
+def section_html(section, index: int, tick=None) -> str:
+    """One section as HTML (fragment, figures, status box); ``tick()`` after each figure."""
     anchor = esc(section.key or f"s{index}")
     out = [f'<section id="{anchor}" data-status="{esc(section.status)}">',
            f"<h2>{index}. {esc(section.title)}</h2>"]
@@ -42,15 +42,17 @@ def section_html(section, index: int) -> str:
         alt = esc(spec.caption or section.title)
         out.append(f'<figure><img class="report-figure" alt="{alt}" src="data:image/png;base64,{data}">'
                    f"<figcaption>Figure {index}.{k}. {esc(spec.caption)}</figcaption></figure>")
+        if tick is not None:
+            tick()
     out.append("</section>")
     return "\n".join(out)
 
 
-def render_html(report) -> str:
-    """The whole report as one HTML document."""
+def render_html(report, tick=None) -> str:
+    """The whole report as one HTML document; ``tick()`` is called after each figure."""
     toc = "".join(f'<li><a href="#{esc(s.key or f"s{i}")}">{esc(s.title)}</a></li>'
                   for i, s in enumerate(report.sections, 1))
-    body = "\n".join(section_html(s, i) for i, s in enumerate(report.sections, 1))
+    body = "\n".join(section_html(s, i, tick) for i, s in enumerate(report.sections, 1))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">

@@ -39,8 +39,9 @@ def _title_page(report) -> Figure:
     return fig
 
 
-def write_pdf(report, path) -> None:
-    """Write ``report`` to ``path`` (title page, then one page per figure)."""
+def write_pdf(report, path, tick=None) -> None:
+    """Write ``report`` to ``path`` (title page, then one page per figure); ``tick()`` after
+    each figure page."""
     with PdfPages(path) as pdf:
         pdf.savefig(_title_page(report))
         for i, section in enumerate(report.sections, 1):
@@ -50,6 +51,8 @@ def write_pdf(report, path) -> None:
                 fig.suptitle(f"{i}. {section.title}  (figure {i}.{k})", fontsize=9)
                 pdf.savefig(fig)
                 fig.suptitle(old)
+                if tick is not None:
+                    tick()
         info = pdf.infodict()
         info["Title"] = f"Servo report: {report.scene_name}"
         info["Subject"] = report.subtitle

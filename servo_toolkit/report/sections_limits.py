@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from .context import api
-from .section import NotAvailable, Section, esc, fmt, para, table
+from . import figures
+from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 
 #: seed 001 table 1: measured / model stiffness at 100, 200, 300 N*m
 SEED001_TEST_OVER_MODEL = (434.25 / 637.65, 467.96 / 648.03, 482.42 / 661.06)
@@ -87,19 +88,97 @@ def _simulation_simplifications() -> list[str]:
     return [t[:1].upper() + t[1:] for t in texts]
 
 
-def _reduction(ctx) -> str:
-    reduce = api("servo_toolkit.studies.reduce", "reduce")
-    res = reduce(ctx.scene)
-    if hasattr(res, "to_dict"):
-        d = res.to_dict()
-        rows = []
-        for item in d.get("effects", d.get("items", [])):
-            rows.append((item.get("name", ""), "left out" if item.get("left_out", item.get("dropped")) else "kept",
-                         item.get("reason", ""), fmt(item.get("difference", item.get("error", math.nan)))))
-        if rows:
-            return table(("effect", "decision", "why", "measured difference"), rows)
-        return f"<pre>{esc(res.table() if hasattr(res, 'table') else d)}</pre>"
-    return f"<pre>{esc(res)}</pre>"
+def _measured_reduction(ctx):
+    """The reduction of the report's sweep: the a-priori plan and the measured difference.
+
+    Full settings run :func:`servo_toolkit.studies.reduce.reduce` on the scene's sweep study
+    as defined. Light settings judge the effects with
+    :func:`servo_toolkit.studies.reduce_estimates.plan_reduction` at the report's light sweep
+    points and measure the difference between the report's (reduced) sweep and the full
+    model's sweep at the same points and dwell plan.
+    """
+    from . import sections_studies as studies
+    result_cls = api("servo_toolkit.studies.reduce", "ReductionResult")
+    if not ctx.light:
+        reduce = api("servo_toolkit.studies.reduce", "reduce")
+        return reduce(ctx.scene, controller=ctx.design().controller, executor=ctx.executor, progress=False)
+    plan_reduction = api("servo_toolkit.studies.reduce_estimates", "plan_reduction")
+    options_cls = api("servo_toolkit.sim", "ModelOptions")
+    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
+    zeta = api("servo_toolkit.plant", "DEFAULT_STRUCTURAL_DAMPING")
+    controller = ctx.design().controller
+    name, freqs, amps, options = studies.sweep_settings(ctx)
+    full = options_cls(damping_ratio=zeta)
+    plan = plan_reduction(ctx.scene, controller, freqs, amps, base=full)
+    reduced = studies.reduced_sweep(ctx)
+    notes = ["light settings: the report's sweep points and short dwells (servo-toolkit reduce SCENE, or "
+             "report --full, for the study as defined)"]
+    if reduced.options != dict(plan.options.__dict__):
+        reduced = run_sweep(ctx.scene, name, controller=controller, options=plan.options, progress=False,
+                            executor=ctx.executor, **options)
+    if not plan.omitted:
+        s_full, diff = reduced, np.zeros(reduced.response.shape)
+        notes.append("nothing is left out: the reduced model is the full model")
+    else:
+        s_full = run_sweep(ctx.scene, name, controller=controller, options=full, progress=False,
+                           executor=ctx.executor, **options)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            diff = np.abs(reduced.response / s_full.response - 1.0)
+        failed_one = np.isnan(s_full.response) ^ np.isnan(reduced.response)
+        diff[failed_one] = math.inf
+    sat = reduced.saturated | s_full.saturated | (np.isnan(s_full.response) ^ np.isnan(reduced.response))
+    return result_cls(scene=ctx.scene.name, study=name, measure="sweep", plan=plan,
+                      frequencies_hz=reduced.frequencies_hz, amplitudes_rad=reduced.amplitudes_rad,
+                      difference=diff, saturated=sat, full_options=dict(full.__dict__),
+                      reduced_options=dict(plan.options.__dict__), full_wall_s=float(s_full.wall_s),
+                      reduced_wall_s=float(reduced.wall_s), notes=tuple(notes))
+
+
+def _reduction(ctx):
+    """HTML and figures of the reduction study."""
+    res = _measured_reduction(ctx)
+    plan = res.plan
+    rows = [(e.effect, e.quantity, fmt(e.estimate, 3), fmt(_db(e.estimate), 3), fmt(_deg(e.estimate), 3),
+             badge("left out" if e.omitted else "kept"), _why(e.reason)) for e in plan.effects]
+    head = ("effect", "compared", "estimate |dT/T|", "[dB]", "[deg]", "decision", "why")
+    left = ", ".join(e.effect for e in plan.omitted) or "nothing"
+    freqs = res.frequencies_hz
+    measured, bound = res.measured, res.bound
+    verdict = "within" if res.within_bound else "NOT within"
+    text = [f"Each modelled effect judged against the sweep study {res.study or '(default: 8 Hz)'} "
+            f"({freqs.size} frequencies {fmt(freqs[0], 3)} to {fmt(freqs[-1], 3)} Hz, amplitudes "
+            f"{', '.join(fmt(math.degrees(a), 3) for a in res.amplitudes_rad)} deg): the a-priori estimate is "
+            "the largest relative change of the closed-loop response theta/theta_ref if the effect is left out.",
+            f"The reduced model leaves out: {left}. Sum of the estimates of what is left out "
+            f"{fmt(plan.predicted, 3)}; a-priori bound (tolerance) {fmt(bound, 3)} = {fmt(_db(bound), 3)} dB / "
+            f"{fmt(_deg(bound), 3)} deg.",
+            f"Measured full against reduced (sine dwell): largest relative difference {fmt(measured, 3)} = "
+            f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound; run time full "
+            f"{fmt(res.full_wall_s, 3)} s, reduced {fmt(res.reduced_wall_s, 3)} s."]
+    if np.any(res.saturated):
+        text.append(f"Points where a run reached the current or voltage limit are outside the linear statement; "
+                    f"their largest difference is {fmt(res.measured_saturated, 3)}.")
+    text += [n[:1].upper() + n[1:] + "." for n in tuple(plan.notes) + tuple(res.notes)]
+    fig, ax = figures.new_figure(size=(7.0, 3.4))
+    res.plot(ax=ax)
+    spec = FigureSpec(fig, "Measured relative difference between the full and the reduced model, with the "
+                           "a-priori bound.")
+    return table(head, rows, cls="reduce") + para(*text), spec
+
+
+def _why(reason: str) -> str:
+    for prefix in ("left out: ", "kept: "):
+        if reason.startswith(prefix):
+            return reason[len(prefix):]
+    return reason
+
+
+def _db(e):
+    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
+
+
+def _deg(e):
+    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.nan
 
 
 def leaves_out(ctx) -> Section:
@@ -109,10 +188,13 @@ def leaves_out(ctx) -> Section:
     sim = _simulation_simplifications()
     if sim:
         parts += ["<h3>Nonlinear simulation</h3>", "<ul>" + "".join(f"<li>{esc(t)}</li>" for t in sim) + "</ul>"]
-    parts.append("<h3>Reduction study</h3>")
+    parts.append("<h3>Reduction study: what the sweep's model leaves out, and what that costs</h3>")
+    figs = ()
     try:
-        parts.append(_reduction(ctx))
-    except NotAvailable as exc:
-        parts.append(f'<div class="unavailable-box">not available: {esc(exc)}</div>')
+        html, spec = _reduction(ctx)
+        parts.append(html)
+        figs = (spec,)
+    except Exception as exc:  # noqa: BLE001 - the rest of the section stands on its own
+        parts.append(f'<div class="unavailable-box">not available: {esc(type(exc).__name__)}: {esc(exc)}</div>')
     return Section("What the model leaves out", para("What the models behind this report simplify, and what "
-                   "that may cost.") + "".join(parts), key="reduce")
+                   "that may cost.") + "".join(parts), figs, key="reduce")

@@ -70,7 +70,7 @@ def requirements(ctx) -> Section:
                        status="n/a", reason="nothing to check for this scene", key="requirements")
     statuses = {r[4] for r in rows}
     status = "fail" if "fail" in statuses else ("unavailable" if "unavailable" in statuses else "pass")
-    body = table(("requirement", "required", "achieved", "", "status"),
+    body = table(("requirement", "required", "achieved", "shortfall", "status"),
                  [(r[0], r[1], r[2], r[3], badge(r[4])) for r in rows], table_id="requirements-table")
     verdict = {"pass": "Every requirement is met by the designed loop (linear model at the operating point).",
                "fail": "Some requirements are not met; the table says which and by how much.",

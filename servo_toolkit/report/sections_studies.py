@@ -14,22 +14,43 @@ from .section import FigureSpec, NotApplicable, NotAvailable, Section, esc, fmt,
 LIGHT_SWEEP_POINTS = 8
 
 
-def sweep(ctx) -> Section:
-    """Nonlinear sine-dwell sweep against the linear closed loop."""
-    ctx.require_drivetrain("the frequency sweep")
-    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
+def sweep_settings(ctx):
+    """``(study name, frequencies_hz, amplitudes_rad, options)`` of the report's sweep.
+
+    Full settings: the scene's sweep study as it stands (see
+    :func:`servo_toolkit.studies.sweep.study_points`). Light settings: at most
+    :data:`LIGHT_SWEEP_POINTS` log-spaced frequencies over the study's range plus 8 Hz, and
+    a shorter dwell (3 settling and 2 estimation cycles).
+    """
     study_points = api("servo_toolkit.studies.sweep", "study_points")
-    controller = ctx.design().controller
-    name, freqs, _ = study_points(ctx.scene)
+    name, freqs, amps = study_points(ctx.scene)
+    freqs = np.asarray(freqs, dtype=float)
     options = {}
     if ctx.light:
         plan_cls = api("servo_toolkit.studies.sine_dwell", "DwellPlan")
-        lo, hi = min(freqs), max(freqs)
-        light = np.geomspace(lo, hi, LIGHT_SWEEP_POINTS) if hi > lo else np.array([lo])
-        options["frequencies"] = np.unique(np.concatenate([light, [f for f in freqs if abs(f - 8.0) < 1e-9]]))
-        options["plan"] = plan_cls(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2,
-                                   samples_per_cycle=100)
-    res = run_sweep(ctx.scene, name, controller=controller, executor=ctx.executor, progress=False, **options)
+        lo, hi = freqs.min(), freqs.max()
+        if freqs.size > LIGHT_SWEEP_POINTS:
+            light = np.geomspace(lo, hi, LIGHT_SWEEP_POINTS)
+            freqs = np.unique(np.concatenate([light, freqs[np.abs(freqs - 8.0) < 1e-9]]))
+        options["plan"] = plan_cls(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2)
+    options["frequencies"] = freqs
+    return name, freqs, tuple(amps), options
+
+
+def reduced_sweep(ctx):
+    """The report's sweep (reduced model, as :func:`servo_toolkit.studies.sweep.sweep` runs
+    it by default), computed once and shared by the sweep and reduction sections."""
+    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
+    controller = ctx.design().controller
+    name, _, _, options = sweep_settings(ctx)
+    return ctx.result("sweep", lambda: run_sweep(ctx.scene, name, controller=controller, executor=ctx.executor,
+                                                 progress=False, **options))
+
+
+def sweep(ctx) -> Section:
+    """Nonlinear sine-dwell sweep against the linear closed loop."""
+    ctx.require_drivetrain("the frequency sweep")
+    res = reduced_sweep(ctx)
     fig, axes = figures.new_figure(2, 1, size=(7.5, 5.4), sharex=True)
     res.plot(axes=axes)
     head = ("amplitude [deg]", "frequency [Hz]", "gain [dB]", "phase [deg]", "linear gain [dB]",
@@ -42,15 +63,29 @@ def sweep(ctx) -> Section:
             flags = ("saturated " if res.saturated[a, k] else "") + (f"failed: {err}" if err else "")
             rows.append((fmt(math.degrees(amp)), fmt(f), fmt(g[a, k]), fmt(p[a, k]), fmt(lg[k]), fmt(lp[k]),
                          flags.strip()))
-    dev = res.deviation()
+    dg = np.abs(g - lg[None, :])
+    dp = np.abs(p - lp[None, :])
+    lin = ~res.saturated
+
+    def worst(a, mask):
+        return (f"{np.nanmax(dg[a][mask[a]]):.2f} dB and {np.nanmax(dp[a][mask[a]]):.1f} deg"
+                if np.any(mask[a] & np.isfinite(dg[a])) else "no point")
+    settings = (f"light settings: {res.frequencies_hz.size} frequencies and short dwells (report --full runs "
+                "the study as defined)" if ctx.light else "the study as defined")
     text = [f"Sine dwell at each frequency (settling cycles, then estimation cycles; amplitude and phase of the "
             f"fundamental by correlation), compared with the linear closed loop. Study: {res.study or 'default'}; "
-            f"{'light settings: ' + str(res.frequencies_hz.size) + ' frequencies' if ctx.light else 'full settings'}.",
-            "Largest difference from the linear loop: " + ", ".join(
-                f"{math.degrees(a):.3g} deg amplitude: {dg:.2f} dB and {dp:.1f} deg" for a, dg, dp in
-                zip(res.amplitudes_rad, dev["max_gain_difference_dB"], dev["max_phase_difference_deg"])) + "."]
+            f"{settings}.",
+            "Largest difference from the linear loop where no limit was reached: " + ", ".join(
+                f"{math.degrees(amp):.3g} deg amplitude: {worst(a, lin)}" for a, amp in enumerate(res.amplitudes_rad))
+            + "."]
+    if res.saturated.any():
+        text.append("At the points flagged saturated the current or voltage limit was reached and the loop is no "
+                    "longer linear: " + ", ".join(f"{math.degrees(amp):.3g} deg amplitude: {worst(a, ~lin)}"
+                                                 for a, amp in enumerate(res.amplitudes_rad)) + ".")
     if res.reduced:
-        text.append("The sweep ran the reduced model; left out: " + ("; ".join(res.left_out) or "nothing") + ".")
+        names = [item.split(": ", 1)[0] for item in res.left_out]
+        text.append("The sweep ran the reduced model (see 'What the model leaves out'); left out: "
+                    + (", ".join(names) or "nothing") + ".")
     text += list(getattr(res, "notes", ()))
     return Section("Nonlinear frequency sweep against the linear loop", para(*text) + table(head, rows),
                    (FigureSpec(fig, "Closed-loop Bode: linear loop (line) and nonlinear sine dwell (markers)."),),
