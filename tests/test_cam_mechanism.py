@@ -1,5 +1,6 @@
 """Cam drive of seed 002: law, inertia, load torque, clearance, both solvers."""
 
+import json
 import math
 import tomllib
 from dataclasses import replace
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 
 from servo_toolkit import SceneError, SimulationError, load_scene
+from servo_toolkit.cli import main as cli_main
 from servo_toolkit.components.cam import modified_constant_velocity
 from servo_toolkit.mechanisms import handles, run_study
 from servo_toolkit.mechanisms import cam_kernels
@@ -147,6 +149,72 @@ def test_accurate_refuses_clearance(drive):
         accurate(replace(drive, cam=replace(drive.cam, clearance=1e-4)), 3.5, 0.1)
     run = discrete_scheme(replace(drive, cam=replace(drive.cam, clearance=1e-4)), 3.5, 0.2, 1e-3)
     assert np.all(np.isfinite(run.omega))
+
+
+def test_convergence_ladder_records_failed_steps(drive):
+    """At T = 10 ms the ladder starts at 40 ms, where the explicit corrected scheme reverses
+    the cam; the study records the failures per step and goes on."""
+    r = constant_voltage(drive, 3.5, 0.5, 0.01, refinements=1)
+    expected = set()
+    for h in r.steps:  # which runs stop, found independently
+        for name in ("seed", "corrected"):
+            try:
+                discrete_scheme(drive, 3.5, 0.5, h, name)
+            except SimulationError:
+                expected.add((float(h), name))
+    assert expected and {(h, name) for h, name, _ in r.ladder_failures} == expected
+    for h, name, why in r.ladder_failures:
+        assert "reversed" in why and f"T = {h:.4g} s" in why
+    for i, h in enumerate(r.steps):
+        for key, name in (("seed", "seed"), ("corrected", "corrected"), ("seed_vs_limit", "seed")):
+            assert math.isnan(r.errors[key][i]) == ((float(h), name) in expected)
+    d = r.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert any(c["failures"] for c in d["convergence"])
+    assert "failed" in r.table() and "stopped" in r.table()
+    # the study step itself stopping is an error naming the scheme and the step
+    with pytest.raises(SimulationError, match=r"T = 0.05 s"):
+        constant_voltage(drive, 3.5, 0.5, 0.05)
+
+
+def test_clearance_runs_discrete_schemes_and_skips_accurate(drive):
+    """With clearance c the follower stays put until the cam law has travelled c (eqs 6-8):
+    up to there the drive runs exactly as with the follower removed (flat: no gravity along
+    the guide, v = 0 so no friction), whereas the rigid cam loads it from the start."""
+    c = 1e-4
+    loose = replace(drive, cam=replace(drive.cam, clearance=c))
+    r = constant_voltage(loose, 3.5, 0.3, 1e-3)
+    assert r.reference is None and r.seed_limit is None and r.estimation is None and r.steps.size == 0
+    assert "clearance" in r.skipped and "skipped" in r.table()
+    d = r.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["accurate_comparison"].startswith("skipped") and d["clearance_m"] == c
+    assert "omega_accurate_rad_s" not in d
+    bare = discrete_scheme(drive.without_follower(), 3.5, 0.3, 1e-3, "seed")
+    rigid = discrete_scheme(drive, 3.5, 0.3, 1e-3, "seed")
+    theta_c = (3 * c / (8 * A)) ** (1 / 3)  # A (theta - sin(4 theta)/4) = 8 A theta^3 / 3 = c
+    free = r.seed.theta < 0.95 * theta_c
+    assert free.sum() > 5
+    assert np.array_equal(r.seed.omega[free], bare.omega[free])
+    assert np.abs(rigid.omega[free] - bare.omega[free]).max() > 0
+    assert np.abs(r.seed.omega - bare.omega).max() > 0.1  # engaged later
+    with pytest.raises(SimulationError, match="clearance"):
+        constant_voltage(loose, 3.5, 0.3, 1e-3, speed_estimator="kalman")
+
+
+def test_cli_clearance_and_simulation_errors(tmp_path, capsys):
+    text = (SCENES / "cam_follower.toml").read_text()
+    loose = tmp_path / "loose.toml"
+    loose.write_text(text.replace('clearance = "0 mm"', 'clearance = "0.1 mm"').replace('"3 s"', '"0.3 s"'))
+    assert cli_main(["simulate", str(loose), "--study", "constant_voltage", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["accurate_comparison"].startswith("skipped")
+    # a step too large for the explicit scheme: one line on stderr, exit 2 (not 1, which
+    # means "requirements not met"), no traceback
+    assert cli_main(["simulate", str(SCENES / "cam_follower.toml"), "--study", "constant_voltage",
+                     "--dt", "0.05"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and "T = 0.05 s" in err
 
 
 def test_dispatch(drive):

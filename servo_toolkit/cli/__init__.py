@@ -1,7 +1,9 @@
 """The ``servo-toolkit`` command line; one module per command in this package.
 
 Exit codes: 0 success (and every requirement met for ``check``), 1 requirements not met,
-2 bad input (the message names the scene key).
+2 bad input (the message names the scene key) or a simulation that left its validity domain
+(:class:`~servo_toolkit.errors.SimulationError`, e.g. a step too large for an explicit
+scheme); either way one line on stderr, no traceback.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import argparse
 import importlib
 import sys
 
-from ..errors import SceneError
+from ..errors import SceneError, SimulationError
 
 #: Command modules; each defines ``NAME``, ``register(subparsers)`` and ``run(args) -> int``.
 COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce")
@@ -34,6 +36,9 @@ def main(argv=None) -> int:
         return int(args.run(args) or 0)
     except SceneError as exc:
         print(f"servo-toolkit: error: {exc}", file=sys.stderr)
+        return 2
+    except SimulationError as exc:
+        print(f"servo-toolkit: simulation error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # pragma: no cover
         return 0

@@ -26,7 +26,6 @@ speed and acceleration.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -35,20 +34,7 @@ from ..errors import SimulationError
 from . import cam_kernels as kernels
 from .cam import CamDrive
 from .cam_estimation import DEFAULT_ENCODER_COUNTS, ESTIMATORS, compare_on_reference, kalman_scheme
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """A constant-voltage run: time (s), cam angle (rad), speed (rad/s), current (A); runs
-    with the Kalman estimator also hold the encoder ``counts`` and the filter's ``estimate``."""
-
-    method: str
-    t: np.ndarray
-    theta: np.ndarray
-    omega: np.ndarray
-    current: np.ndarray
-    counts: np.ndarray | None = None
-    estimate: object = None
+from .cam_voltage_result import CamVoltageResult, Trajectory
 
 
 def steady_speed_without_follower(drive: CamDrive, voltage: float) -> float:
@@ -100,11 +86,12 @@ def discrete_scheme(drive: CamDrive, voltage: float, duration: float, step: floa
         raise SimulationError(f"step {step} s does not fit in a run of {duration} s")
     theta, omega, status = kernels.discrete(kernels.pack(drive), float(voltage), n, float(step),
                                             scheme == "corrected")
-    if status == 1:
-        raise SimulationError("discrete cam scheme: non-finite speed")
-    if status == 2:
-        raise SimulationError("discrete cam scheme: the cam reversed (w < 0); the shaft-friction "
-                              "model assumes forward rotation")
+    if status:
+        k = int(np.flatnonzero(omega)[-1]) + 1 if np.any(omega) else 1
+        what = "non-finite speed" if status == 1 else ("the cam reversed (w < 0; the shaft-friction "
+                                                       "model assumes forward rotation)")
+        raise SimulationError(f"discrete cam scheme ({scheme}, T = {step:.4g} s): {what} "
+                              f"at t = {k * step:.4g} s")
     t = np.arange(n + 1) * step
     return Trajectory(f"discrete ({scheme})", t, theta, omega,
                       (voltage - drive.back_emf_constant * omega) / drive.resistance)
@@ -149,182 +136,6 @@ def accurate(drive: CamDrive, voltage: float, duration: float, t_eval=None, rtol
                       (voltage - drive.back_emf_constant * omega) / drive.resistance)
 
 
-@dataclass(frozen=True)
-class CamVoltageResult:
-    """The constant-voltage run by the seed's scheme and the accurate solver, compared.
-
-    Attributes
-    ----------
-    voltage : float
-    reference : Trajectory
-        Accurate solution of the continuous model, at the study's sample times.
-    seed, corrected : Trajectory
-        The seed's scheme as printed, and with the double-counted inertia removed, at the
-        study step.
-    seed_limit : Trajectory
-        Accurate solution of the printed scheme's continuous limit (follower inertia twice).
-    steps : numpy.ndarray
-        Steps T of the convergence check (s).
-    errors : dict of str to numpy.ndarray
-        max |w - w_ref| over the start-up window (the first ``window`` seconds) for each
-        step (rad/s): ``"seed"`` and ``"corrected"`` against the continuous model,
-        ``"seed_vs_limit"`` against its own limit.
-    angle_errors : dict of str to numpy.ndarray
-        |theta - theta_ref| at the end of the whole run (rad), same keys. Over many turns
-        the speed spikes (J drops 45x where ds/dtheta = 0) shift in phase, so the pointwise
-        speed error saturates long before the step is small; the end angle measures the
-        accumulated drift instead.
-    window : float
-        Start-up window of ``errors`` (s).
-    no_follower_speed : float
-        Closed-form speed with the follower removed (rad/s).
-    method : str
-        The method the caller asked for (every method is always run).
-    estimation : CamEstimation or None
-        Backward differences and the Kalman filter on the encoder counts of the accurate
-        cam angle, against its true speed and acceleration.
-    speed_estimator : str
-        ``"difference"`` (the seed's) or ``"kalman"``: what the scheme used for v and a.
-    kalman : dict of str to Trajectory, optional
-        With ``speed_estimator="kalman"``: the ``"seed"`` and ``"corrected"`` schemes run
-        with the Kalman estimates (the difference runs above stay for comparison).
-    kalman_failures : dict of str to str, optional
-        Kalman runs that stopped, with the reason (the seed scheme can go unstable, see
-        :func:`~.cam_estimation.kalman_scheme`).
-    """
-
-    voltage: float
-    reference: Trajectory
-    seed: Trajectory
-    corrected: Trajectory
-    seed_limit: Trajectory
-    steps: np.ndarray
-    errors: dict
-    angle_errors: dict
-    window: float
-    no_follower_speed: float
-    method: str = "both"
-    estimation: object = None
-    speed_estimator: str = "difference"
-    kalman: dict | None = None
-    kalman_failures: dict | None = None
-
-    @property
-    def difference(self) -> np.ndarray:
-        """w_seed - w_accurate at the study's times (rad/s)."""
-        return self.seed.omega - self.reference.omega
-
-    def orders(self, key: str) -> np.ndarray:
-        """Observed convergence orders log(e(T) / e(T/2)) / log 2 between successive steps."""
-        e = self.errors[key]
-        return np.log(e[:-1] / e[1:]) / np.log(self.steps[:-1] / self.steps[1:])
-
-    @staticmethod
-    def mean_speed(trajectory: Trajectory) -> float:
-        """Mean speed over the last full cam turn (rad/s)."""
-        turn = trajectory.theta[-1] - 2 * math.pi
-        if turn <= 0:
-            return float(np.mean(trajectory.omega))
-        i = int(np.searchsorted(trajectory.theta, turn))
-        return float((trajectory.theta[-1] - trajectory.theta[i]) / (trajectory.t[-1] - trajectory.t[i]))
-
-    def to_dict(self) -> dict:
-        """JSON-ready dictionary."""
-        d = self.difference
-        runs = {"accurate": self.reference, "seed": self.seed, "corrected": self.corrected,
-                "seed_limit": self.seed_limit}
-        return {
-            "study": "constant_voltage", "voltage_V": self.voltage, "method": self.method,
-            "step_s": float(self.seed.t[1] - self.seed.t[0]),
-            "t_s": self.seed.t.tolist(),
-            **{f"omega_{k}_rad_s": r.omega.tolist() for k, r in runs.items()},
-            **{f"mean_speed_{k}_rad_s": self.mean_speed(r) for k, r in runs.items()},
-            "max_abs_difference_seed_minus_accurate_rad_s": float(np.abs(d).max()),
-            "rms_difference_seed_minus_accurate_rad_s": float(np.sqrt(np.mean(d**2))),
-            "no_follower_speed_rad_s": self.no_follower_speed,
-            "convergence_window_s": self.window,
-            "convergence": [{"step_s": float(h),
-                             **{f"startup_max_abs_error_{k}_rad_s": float(e[i]) for k, e in self.errors.items()},
-                             **{f"end_angle_error_{k}_rad": float(e[i]) for k, e in self.angle_errors.items()}}
-                            for i, h in enumerate(self.steps)],
-            "observed_orders": {k: self.orders(k).tolist() for k in self.errors},
-            "speed_estimator": self.speed_estimator,
-            **({"estimation": self.estimation.to_dict()} if self.estimation is not None else {}),
-            **{k: v for name, run in (self.kalman or {}).items() for k, v in self._kalman_dict(name, run).items()},
-            **({"kalman_failures": dict(self.kalman_failures)} if self.kalman_failures else {}),
-        }
-
-    def _kalman_dict(self, name: str, run: Trajectory) -> dict:
-        d = run.omega - self.reference.omega
-        return {f"omega_{name}_kalman_rad_s": run.omega.tolist(),
-                f"mean_speed_{name}_kalman_rad_s": self.mean_speed(run),
-                f"max_abs_difference_{name}_kalman_minus_accurate_rad_s": float(np.abs(d).max()),
-                f"rms_difference_{name}_kalman_minus_accurate_rad_s": float(np.sqrt(np.mean(d**2)))}
-
-    def table(self) -> str:
-        """Plain-text summary."""
-        d = self.difference
-        last = self.reference.t >= self.reference.t[-1] - 1
-        lines = [f"cam drive at {self.voltage:g} V for {self.reference.t[-1]:g} s "
-                 f"(follower removed: {self.no_follower_speed:.2f} rad/s)",
-                 f"mean speed over the last turn [rad/s]: accurate {self.mean_speed(self.reference):.4f}, "
-                 f"seed scheme {self.mean_speed(self.seed):.4f}, corrected scheme "
-                 f"{self.mean_speed(self.corrected):.4f}, seed's continuous limit {self.mean_speed(self.seed_limit):.4f}",
-                 f"speed ripple over the last second (accurate): {np.ptp(self.reference.omega[last]):.3f} rad/s",
-                 f"seed scheme - accurate: max {np.abs(d).max():.4g} rad/s, rms {np.sqrt(np.mean(d**2)):.4g} rad/s",
-                 f"max |w - w_ref| [rad/s] over the first {self.window:g} s against the step T "
-                 "(order = observed convergence order), and |theta - theta_ref| [rad] at the end:",
-                 f"{'T [ms]':>8s} {'seed vs accurate':>17s} {'corrected':>10s} {'order':>6s} "
-                 f"{'seed vs its limit':>18s} {'order':>6s} {'end angle: seed':>16s} {'corrected':>10s}"]
-        oc = [math.nan, *self.orders("corrected")]
-        ol = [math.nan, *self.orders("seed_vs_limit")]
-        for i, h in enumerate(self.steps):
-            lines.append(f"{h * 1e3:8.4g} {self.errors['seed'][i]:17.4g} {self.errors['corrected'][i]:10.4g} "
-                         f"{oc[i]:6.2f} {self.errors['seed_vs_limit'][i]:18.4g} {ol[i]:6.2f} "
-                         f"{self.angle_errors['seed'][i]:16.4g} {self.angle_errors['corrected'][i]:10.4g}")
-        for name, run in (self.kalman or {}).items():
-            d = run.omega - self.reference.omega
-            lines.append(f"{name} scheme with Kalman estimates: mean speed {self.mean_speed(run):.4f} rad/s, "
-                         f"- accurate: max {np.abs(d).max():.4g} rad/s, rms {np.sqrt(np.mean(d**2)):.4g} rad/s")
-        for name, why in (self.kalman_failures or {}).items():
-            lines.append(f"{name} scheme with Kalman estimates stopped: {why}")
-        if self.estimation is not None:
-            lines.append(self.estimation.table())
-        return "\n".join(lines)
-
-    def plot(self, ax=None):
-        """Speed by every method and the error against the step; returns the axes."""
-        import matplotlib.pyplot as plt
-        if ax is None:
-            _, ax = plt.subplots(1, 2, figsize=(11, 3.8))
-        ax[0].plot(self.reference.t, self.reference.omega, lw=1.2, label="accurate (solve_ivp)")
-        ax[0].plot(self.seed.t, self.seed.omega, "--", lw=1, label="seed's discrete scheme")
-        ax[0].plot(self.corrected.t, self.corrected.omega, ":", lw=1, label="corrected scheme")
-        for name, run in (self.kalman or {}).items():
-            ax[0].plot(run.t, run.omega, lw=0.8, alpha=0.8, label=f"{name} scheme, Kalman estimates")
-        ax[0].axhline(self.no_follower_speed, color="gray", lw=0.8, label="follower removed")
-        ax[0].set_xlabel("time [s]")
-        ax[0].set_ylabel("speed [rad/s]")
-        ax[0].set_title(f"Cam drive at {self.voltage:g} V")
-        ax[0].legend(fontsize="small")
-        labels = {"seed": "seed vs accurate", "corrected": "corrected vs accurate",
-                  "seed_vs_limit": "seed vs its own limit"}
-        for k, e in self.errors.items():
-            ax[1].loglog(self.steps * 1e3, e, "o-", label=labels[k])
-        ax[1].set_xlabel("step T [ms]")
-        ax[1].set_ylabel(f"max |w - w_ref| in the first {self.window:g} s [rad/s]")
-        ax[1].set_title("Discrete scheme error")
-        ax[1].legend(fontsize="small")
-        return ax
-
-    def plot_estimation(self, axes=None, window=None):
-        """True, differenced and Kalman-filtered speed and acceleration (2 rows) over
-        ``window`` (t0, t1) s (default 0.2 s around a late speed peak); returns the axes."""
-        if self.estimation is None:
-            raise ValueError("this result has no estimator comparison")
-        return self.estimation.plot(axes, window)
-
-
 def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: float,
                      refinements: int = 3, method: str | None = None,
                      window: float | None = None, speed_estimator: str = "difference",
@@ -338,7 +149,8 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
         u (V), run length (s) and the study's step T (s).
     refinements : int
         The convergence check uses steps ``4 T, 2 T, T, T/2, ...`` (``refinements`` halvings
-        below 4 T).
+        below 4 T). A run of the check that stops (a large step can make the explicit scheme
+        reverse the cam) is recorded in ``ladder_failures`` with NaN errors; the study goes on.
     method : str, optional
         Recorded in the result; every method always runs.
     window : float, optional
@@ -352,11 +164,37 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
         Shaft encoder counts per revolution (default 4096).
     kalman_jerk : float, optional
         Kalman jerk level (rad/s^3); default the RMS jerk of the accurate solution.
+
+    Notes
+    -----
+    With clearance (``drive.cam.clearance > 0``) the seed and corrected schemes run with
+    the hysteresis of eqs 6-8 at the study step, and the accurate comparison (reference,
+    continuous limit, convergence check, estimator comparison) is skipped: the rigid
+    accurate model has no clearance. The result's ``skipped`` says so.
+
+    Raises
+    ------
+    SimulationError
+        When a scheme stops at the study step itself (the message names the scheme, the
+        step and the time), or the accurate solver fails.
     """
     if speed_estimator not in ESTIMATORS:
         raise ValueError(f"speed_estimator must be one of {ESTIMATORS} (got {speed_estimator!r})")
     encoder_counts = encoder_counts or DEFAULT_ENCODER_COUNTS
     window = 0.1 * duration if window is None else min(window, duration)
+    clearance = drive.cam.clearance
+    seed = discrete_scheme(drive, voltage, duration, step, "seed")
+    corr = discrete_scheme(drive, voltage, duration, step, "corrected")
+    if clearance > 0:
+        if speed_estimator == "kalman":
+            raise SimulationError("the Kalman option estimates the follower motion from the cam angle; with "
+                                  "clearance the travel is not a function of the angle (use differences)")
+        why = (f"the cam has clearance c = {clearance:.4g} m; its continuous limit is an impact, which the "
+               "rigid accurate model does not describe, so only the discrete schemes (eqs 6-8) ran")
+        empty = {k: np.array([]) for k in ("seed", "corrected", "seed_vs_limit")}
+        return CamVoltageResult(voltage, None, seed, corr, None, np.array([]), empty, dict(empty), window,
+                                steady_speed_without_follower(drive, voltage), method or "both",
+                                skipped=why, clearance=clearance)
     steps = 4 * step / 2.0 ** np.arange(refinements + 1)
     times = np.arange(int(round(duration / steps[-1])) + 1) * steps[-1]
     times = times[times <= duration]
@@ -364,14 +202,21 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
     limit = accurate(drive, voltage, duration, t_eval=times, double_count=True)
     errors = {"seed": [], "corrected": [], "seed_vs_limit": []}
     angles = {"seed": [], "corrected": [], "seed_vs_limit": []}
+    ladder_failures = []
     for h in steps:
-        seed = discrete_scheme(drive, voltage, duration, h, "seed")
-        corr = discrete_scheme(drive, voltage, duration, h, "corrected")
-        for key, run, against in (("seed", seed, ref), ("corrected", corr, ref), ("seed_vs_limit", seed, limit)):
-            errors[key].append(_error(run, against, window))
-            angles[key].append(abs(run.theta[-1] - np.interp(run.t[-1], against.t, against.theta)))
-    seed = discrete_scheme(drive, voltage, duration, step, "seed")
-    corr = discrete_scheme(drive, voltage, duration, step, "corrected")
+        runs = {}
+        for name in SCHEMES:
+            try:
+                runs[name] = discrete_scheme(drive, voltage, duration, h, name)
+            except SimulationError as exc:
+                runs[name] = None
+                ladder_failures.append((float(h), name, str(exc)))
+        for key, name, against in (("seed", "seed", ref), ("corrected", "corrected", ref),
+                                   ("seed_vs_limit", "seed", limit)):
+            run = runs[name]
+            errors[key].append(math.nan if run is None else _error(run, against, window))
+            angles[key].append(math.nan if run is None else
+                               abs(run.theta[-1] - np.interp(run.t[-1], against.t, against.theta)))
     estimation = compare_on_reference(drive, voltage, accurate(drive, voltage, duration, t_eval=seed.t),
                                       encoder_counts, kalman_jerk)
     kalman, failures = None, None
@@ -387,7 +232,7 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
                             {k: np.array(v) for k, v in errors.items()},
                             {k: np.array(v) for k, v in angles.items()}, window,
                             steady_speed_without_follower(drive, voltage), method or "both",
-                            estimation, speed_estimator, kalman, failures or None)
+                            estimation, speed_estimator, kalman, failures or None, tuple(ladder_failures))
 
 
 def _at(traj: Trajectory, t) -> Trajectory:
