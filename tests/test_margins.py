@@ -69,3 +69,90 @@ def test_grid_figures_agree_with_python_control():
     np.testing.assert_allclose(f["bandwidth_hz"][0], m.bandwidth_hz, rtol=2e-3)
     np.testing.assert_allclose(f["sensitivity_peak_db"][0], m.sensitivity_peak_db, atol=0.01)
     np.testing.assert_allclose(f["phase_at_freq_deg"][0], m.phase_at_freq_deg, atol=0.05)
+
+
+# --- delay margin: every crossing of a stable loop, negative phase margins included ---------
+
+#: L = k / (s (1 + s/a)^2) * wp^2 / (s^2 + 2 zeta wp s + wp^2): an integrator loop with a
+#: lightly damped, non-collocated mode whose peak rises above 0 dB after the phase has passed
+#: -180 deg (with |L| < 1 there), so the closed loop is stable with three gain crossings, two
+#: of them at negative phase margins; the fastest one sets the delay margin.
+_K, _A, _WP, _ZETA = 10.0, 80.0, 100.0, 0.01
+
+
+def _resonant_loop():
+    return (ct.tf([_K], [1, 0]) * ct.tf([1], [1 / _A, 1]) ** 2
+            * ct.tf([_WP ** 2], [1, 2 * _ZETA * _WP, _WP ** 2]))
+
+
+def _gain_crossings_closed_form():
+    """Positive real roots of |den(jw)|^2 - |num(jw)|^2, a polynomial in w."""
+    den = np.polymul(np.polymul([1, 0], np.polymul([1 / _A, 1], [1 / _A, 1])), [1, 2 * _ZETA * _WP, _WP ** 2])
+    n = len(den) - 1
+    # den(jw) = sum c_m (jw)^m: real and imaginary parts as polynomials in w (highest first)
+    jw = np.array([1j ** (n - i) for i in range(n + 1)])
+    re, im = np.real(den * jw), np.imag(den * jw)
+    p = np.polyadd(np.polymul(re, re), np.polymul(im, im))
+    p = np.polysub(p, [(_K * _WP ** 2) ** 2])
+    r = np.roots(p)
+    return np.sort(r[(np.abs(r.imag) < 1e-6 * np.abs(r)) & (r.real > 0)].real)
+
+
+def test_delay_margin_of_a_stable_loop_with_negative_phase_margins():
+    L = _resonant_loop()
+    m = _margins(L)
+    assert m.closed_loop_stable
+    wc = _gain_crossings_closed_form()
+    assert len(wc) == 3
+    np.testing.assert_allclose(sorted(m.gain_crossover_hz), wc / (2 * np.pi), rtol=1e-8)
+    # the smallest delay with L(jwc) exp(-j wc tau) = -1: wc tau = (arg L(jwc) + pi) mod 2 pi
+    lw = np.array([complex(L(1j * w)) for w in wc])
+    tau = np.remainder(np.angle(lw) + np.pi, 2 * np.pi) / wc
+    pm = np.degrees(np.remainder(np.angle(lw), 2 * np.pi)) - 180
+    assert np.sum(pm < 0) == 2
+    order = np.argsort(m.gain_crossover_hz)
+    np.testing.assert_allclose(np.array(m.phase_margins_deg)[order], pm, atol=1e-6)
+    np.testing.assert_allclose(np.array(m.delay_margins_s)[order], tau, rtol=1e-8)
+    assert m.delay_margin_s == pytest.approx(tau.min(), rel=1e-8)
+    assert pm[np.argmin(tau)] < 0  # the binding crossing has a negative phase margin
+
+
+def _max_pole_real_with_delay(L, tau, order=14):
+    delay = ct.tf(*ct.pade(tau, order))
+    return float(np.max(ct.poles(ct.feedback(L * delay, 1)).real))
+
+
+def test_delay_margin_is_the_stability_limit_under_a_delay():
+    # a Pade(14) delay (phase exact to ~1e-9 rad up to w tau = 4) below the margin keeps the
+    # closed loop stable, above it destabilizes it, and at it the closed loop has poles on
+    # the imaginary axis at the binding crossover
+    L = _resonant_loop()
+    m = _margins(L)
+    tau = m.delay_margin_s
+    assert _max_pole_real_with_delay(L, 0.97 * tau) < 0
+    assert _max_pole_real_with_delay(L, 1.03 * tau) > 0
+    wc = 2 * np.pi * m.gain_crossover_hz[int(np.argmin(m.delay_margins_s))]
+    poles = ct.poles(ct.feedback(L * ct.tf(*ct.pade(tau, 14)), 1))
+    assert np.min(np.abs(poles - 1j * wc)) < 1e-4 * wc
+
+
+def test_unstable_closed_loop_has_zero_delay_margin():
+    # L = 3 / (s (s + 1)^2): unstable for k > 2; every delay margin is 0
+    m = _margins(ct.tf([3], [1, 2, 1, 0]))
+    assert not m.closed_loop_stable
+    assert m.delay_margin_s == 0.0 and all(d == 0.0 for d in m.delay_margins_s)
+
+
+def test_delay_margin_of_a_designed_loop_with_a_resonant_crossing():
+    # the reference EMA's lead-lag loop without a resonance filter: stable, with resonant
+    # crossings of negative phase margin; a Pade delay confirms the headline delay margin
+    from servo_toolkit.loop import design
+    from servo_toolkit.scene import load_scene
+    r = design(load_scene(), structure="lead_lag", resonance_filter="none", progress=False)
+    m = r.margins
+    assert m.closed_loop_stable and min(m.phase_margins_deg) < 0
+    assert m.delay_margin_s == min(m.delay_margins_s) > 0
+    for pm, f, dm in zip(m.phase_margins_deg, m.gain_crossover_hz, m.delay_margins_s):
+        assert dm == pytest.approx(math.radians(pm % 360) / (2 * math.pi * f), rel=1e-12)
+    assert _max_pole_real_with_delay(r.loop, 0.95 * m.delay_margin_s, 10) < 0
+    assert _max_pole_real_with_delay(r.loop, 1.05 * m.delay_margin_s, 10) > 0

@@ -24,10 +24,16 @@ class Margins:
         At every gain crossing.
     gain_crossover_hz : tuple of float
     delay_margins_s : tuple of float
-        Phase margin / crossover frequency at every gain crossing.
+        At every gain crossing ``w_gc`` of a stable closed loop, the smallest pure delay that
+        puts the loop through -1 there: ``(phase margin mod 360 deg, in rad) / w_gc`` (MATLAB
+        ``allmargin``'s convention; a crossing with a negative phase margin has one too, as
+        the delay must turn the loop clockwise by 360 deg + PM); every one is 0 when the
+        closed loop is unstable. See :func:`delay_margins`.
     gain_margin_db, phase_margin_deg, delay_margin_s : float
-        The smallest of each (``inf`` without a crossing); the gain margin is the smallest
-        in magnitude.
+        The smallest of each (``inf`` without a crossing, but a delay margin of 0 for an
+        unstable closed loop); the gain margin is the smallest in magnitude. The smallest
+        delay margin is the largest delay the loop tolerates: below it the closed loop
+        stays stable, just above it is unstable.
     disk_margin : float
         Balanced (skew 0) disk margin alpha, python-control's ``disk_margins``.
     disk_gain_margin_db, disk_phase_margin_deg : float
@@ -88,6 +94,40 @@ def frequency_grid(f_min: float = 0.01, f_max: float = 5e3, points: int = 2000, 
     return 2 * np.pi * f
 
 
+def delay_margins(phase_margins_deg, gain_crossover, closed_loop_stable: bool) -> np.ndarray:
+    """Delay margin (s) at every gain crossing.
+
+    A delay ``tau`` turns ``L(jw)`` clockwise by ``w tau`` without changing ``|L|``, so the
+    loop passes through -1 at a gain crossing ``w_gc`` when ``w_gc tau`` equals the phase
+    margin modulo 360 deg; a stable closed loop stays stable for every delay below the
+    smallest such ``tau`` over the crossings (closed-loop poles reach the imaginary axis only
+    there). This is MATLAB ``allmargin``'s delay margin.
+
+    Parameters
+    ----------
+    phase_margins_deg : array_like
+        Phase margins (deg) at the gain crossings, python-control's convention (in
+        [-180, 180)).
+    gain_crossover : array_like
+        Gain crossover frequencies (rad/s).
+    closed_loop_stable : bool
+        Without delay; an unstable closed loop has a delay margin of 0 at every crossing.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``radians(pm mod 360) / w_gc``; ``inf`` at a crossing at ``w = 0`` with a
+        nonzero margin (no delay moves ``L(0)``).
+    """
+    pm = np.asarray(phase_margins_deg, float)
+    wgc = np.asarray(gain_crossover, float)
+    if not closed_loop_stable:
+        return np.zeros_like(pm)
+    turn = np.radians(np.remainder(pm, 360.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(wgc > 0, turn / np.where(wgc > 0, wgc, 1.0), np.where(turn > 0, np.inf, 0.0))
+
+
 def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margins:
     """Margins of the SISO open loop ``loop`` and its SISO closed loop ``closed_loop``.
 
@@ -102,6 +142,8 @@ def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margin
     omega : array_like, optional
         Grid (rad/s) for the disk margin and Ms; default 0.01 Hz .. 5 kHz.
     """
+    if not (math.isfinite(phase_hz) and phase_hz > 0):
+        raise ValueError(f"phase_hz must be a positive frequency (got {phase_hz!r})")
     omega = frequency_grid(extra=[phase_hz]) if omega is None else np.asarray(omega, float)
     gm, pm, _, wpc, wgc, _ = ct.stability_margins(loop, returnall=True)
     gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(x, float)) for x in (gm, pm, wpc, wgc))
@@ -110,14 +152,13 @@ def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margin
     wpc = wpc[keep]
     keep = np.isfinite(pm)
     pm, wgc = pm[keep], wgc[keep]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dm = np.where((wgc > 0) & (pm > 0), np.radians(pm) / wgc, np.where(pm > 0, np.inf, 0.0))
     dmarg, dgm, dpm = ct.disk_margins(loop, omega)
     resp = ct.frequency_response(loop, omega)
     lw = np.asarray(resp.complex).reshape(-1)
     ms = float(20 * np.log10(np.max(np.abs(1 / (1 + lw)))))
     poles = ct.poles(closed_loop)
     stable = bool(np.all(poles.real < 0))
+    dm = delay_margins(pm, wgc, stable)
     bw = ct.bandwidth(closed_loop) if stable else math.nan
     bw = float(bw) / (2 * np.pi) if np.isfinite(bw) else math.inf if stable else math.nan
     w_ph = omega[omega <= 2 * np.pi * phase_hz * (1 + 1e-12)]
@@ -130,7 +171,7 @@ def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margin
         delay_margins_s=tuple(float(x) for x in dm),
         gain_margin_db=float(gm_db[order[0]]) if gm_db.size else math.inf,
         phase_margin_deg=float(pm.min()) if pm.size else math.inf,
-        delay_margin_s=float(dm.min()) if dm.size else math.inf,
+        delay_margin_s=float(dm.min()) if dm.size else (math.inf if stable else 0.0),
         disk_margin=float(dmarg), disk_gain_margin_db=float(dgm), disk_phase_margin_deg=float(dpm),
         sensitivity_peak_db=ms, bandwidth_hz=bw, phase_at_hz=float(phase_hz), phase_at_freq_deg=phase,
         closed_loop_stable=stable, max_closed_loop_pole_real=float(np.max(poles.real)) if poles.size else -math.inf)
