@@ -101,3 +101,16 @@ def test_ramp_study(model):
     # Mx = 4 N*m reaches motor 1 as 4 / ratio_x, not 6.36 * 4 as the seed's tables print
     assert r.torques[1, 0].mean() == pytest.approx(4.0 / 6.36, rel=1e-6)
     assert "power residual" in r.table() and len(r.to_dict()["cases"]) == 4
+
+
+def test_motor_inertias_are_twice_a_and_b_of_eq14(model):
+    """A and B of seed 003 eq 14 summed by hand from the scene file's numbers (kg*mm^2):
+    A = [(z3/z4)^2 (I4 + 2 I8 + 2 I11 + I12) + I16] / 2 with I11 the pins' spin inertia,
+    B = [(z1/z2)^2 (I5 + I7 + 2 I11o) + I15] / 2 with I11o the pins' inertia about O."""
+    a = 0.5 * ((1 / 6.36) ** 2 * (2112.51 + 2 * 0.806 + 2 * 2.42 + 1267.677) + 8.244) * 1e-6
+    b = 0.5 * ((1 / 3.2) ** 2 * (763.061 + 219.729 + 2 * 6.325) + 6.043) * 1e-6
+    i1, i2 = model.motor_inertias
+    assert i1 == pytest.approx(2 * a, rel=1e-12) and i2 == pytest.approx(2 * b, rel=1e-12)
+    # and they enter M(q) as I1 J1'J1 + I2 J2'J2 on top of the platform's own inertia
+    assert model.mass_matrix(0.0, 0.0) == pytest.approx(
+        np.diag([10688.89e-6 + 2 * a * 6.36**2, 12600.333e-6 + 2 * b * 3.2**2]), rel=1e-12)
