@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 from servo_toolkit import SceneError, SimulationError, load_scene
 from servo_toolkit.cli import main as cli_main
@@ -89,6 +90,81 @@ def test_load_torque_cycle_integrals(drive):
     # tilted: gravity dominates the ripple (seed section 4.1)
     assert np.ptp(r.torque[1]) > 5 * np.ptp(r.torque[0])
     assert np.degrees(np.abs(r.pressure_angle)).max() == pytest.approx(30.0, abs=0.05)
+
+
+def _seed_law(theta, a):
+    """Seed 002 cam law (REFERENCE.md) written out again: s and ds/dtheta, d2s/dtheta2."""
+    q = math.pi / 4
+    s4, c4 = math.sin(4 * theta), math.cos(4 * theta)
+    if theta < q:
+        return a * (theta - s4 / 4), a * (1 - c4), 4 * a * s4
+    if theta < 3 * q:
+        return 2 * a * theta - math.pi * a / 4, 2 * a, 0.0
+    if theta < 4 * q:
+        return math.pi * a / 2 + a * (theta - s4 / 4), a * (1 - c4), 4 * a * s4
+    if theta < 5 * q:
+        return 2.5 * math.pi * a - a * (theta - s4 / 4), -a * (1 - c4), -4 * a * s4
+    if theta < 7 * q:
+        return 3.75 * math.pi * a - 2 * a * theta, -2 * a, 0.0
+    return 2 * math.pi * a - a * (theta - s4 / 4), -a * (1 - c4), -4 * a * s4
+
+
+@pytest.mark.parametrize("tilt_deg, heading_deg, mu", [(60.0, 120.0, 0.2), (0.0, 0.0, 0.001)])
+def test_load_torque_closed_form_at_several_angles(drive, tilt_deg, heading_deg, mu):
+    """M = M_f + (m a - G sin(gamma) cos(beta) + sign(v) f) ds/dtheta (seed 002 eq 3) with f of
+    eq 1 with the corrected denominator, f = mu ((m a - G_x) tan(alpha) + G_y + |G_z|) /
+    (1 - sign(v) mu tan(alpha)) (tan(alpha) = s' / (r0 + s), signed), evaluated here from the
+    printed law, at angles on both strokes where the cam force and the side reaction are
+    positive (the cases the printed equation covers)."""
+    r0, w = 0.09, 1.0
+    cam = replace(drive.cam, guide_friction_coefficient=mu, base_radius=r0)
+    d = replace(drive, cam=cam)
+    gamma, beta = math.radians(tilt_deg), math.radians(heading_deg)
+    r = constant_speed(d, w, 1e-3, [gamma], [beta])
+    m, g = cam.follower_mass, cam.follower_weight
+    gx, gy, gz = g * math.sin(gamma) * math.cos(beta), g * math.sin(gamma) * math.sin(beta), g * math.cos(gamma)
+    angles = [0.3, 0.6, 1.2, 2.0, 2.6, 2.9, 3.4, 4.5] if tilt_deg else [0.3, 0.6, 1.2, 2.0]
+    for th in angles:
+        k = int(round(th / 1e-3))
+        theta = r.theta[k]
+        s, ds, d2s = _seed_law(theta, A)
+        v, a = ds * w, d2s * w * w
+        sigma = math.copysign(1.0, v)
+        tan_a = ds / (r0 + s)
+        f = mu * ((m * a - gx) * tan_a + gy + abs(gz)) / (1 - sigma * mu * tan_a)
+        p = m * a - gx + sigma * f
+        assert p > 0 and p * tan_a + gy > 0, th  # the printed equation's case
+        expected = drive.shaft_friction + p * ds
+        assert r.torque[0, k] == pytest.approx(expected, rel=1e-10, abs=1e-13), th
+        assert r.gravity[0, k] == pytest.approx(-gx * ds, rel=1e-12, abs=1e-15), th
+        assert r.friction[0, k] == pytest.approx(sigma * f * ds, rel=1e-10, abs=1e-15), th
+
+
+def test_constant_speed_with_clearance_lags_by_c_after_reversal(drive):
+    """Eqs 6-8 at constant speed: after engaging, the follower trails the law by c on the
+    rise; at the top (theta = pi) it stays put while the cam takes up the play 2c, which
+    near the top (s_max - s = A (d - sin(4 d) / 4) ~ 8 A d^3 / 3, d = theta - pi) lasts
+    A (d - sin(4 d) / 4) = 2 c;
+    then it trails by c on the return (s_o = s + c). While it stays put (flat) the shaft
+    only carries M_f."""
+    c, step = 5e-4, 1e-4
+    d = replace(drive, cam=replace(drive.cam, clearance=c))
+    r = constant_speed(d, 1.0, step, [0.0])
+    s = np.array([_seed_law(th, A)[0] for th in r.theta])
+    lag = r.travel - s
+    rise = (r.theta > 0.5) & (r.theta < math.pi - 0.01)
+    fall = (r.theta > math.pi + 0.3) & (r.theta < 2 * math.pi - 0.5)
+    assert np.allclose(lag[rise], -c, atol=1e-12) and np.allclose(lag[fall], c, atol=1e-12)
+    top = (r.theta >= math.pi) & (r.theta <= math.pi + 0.25)
+    held = top & (np.abs(r.travel - 1.5 * math.pi * A + c) < 1e-12)
+    dwell = brentq(lambda x: A * (x - math.sin(4 * x) / 4) - 2 * c, 1e-6, math.pi / 4)
+    assert dwell == pytest.approx((3 * c / (4 * A)) ** (1 / 3), rel=0.02)
+    assert r.theta[held].max() - math.pi == pytest.approx(dwell, abs=2 * step)
+    inner = held & (r.theta > math.pi + 2 * step)
+    assert np.allclose(r.torque[0, inner], drive.shaft_friction, rtol=0, atol=1e-15)
+    assert r.to_dict()["clearance_m"] == c and "clearance" in r.table()
+    # without clearance the travel is the law itself
+    assert np.allclose(constant_speed(drive, 1.0, step, [0.0]).travel, s, atol=1e-15)
 
 
 def test_clearance_hysteresis_is_a_play_operator():

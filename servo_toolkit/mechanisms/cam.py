@@ -187,6 +187,11 @@ class CamSweepResult:
         Parts of M_l per case: m a s', -G_x s', sign(v) f s' (N*m).
     pressure_angle : numpy.ndarray
         Pressure angle of the roller in contact, first case (rad).
+    travel : numpy.ndarray, optional
+        Follower travel s_o (m): the cam law's s, or with clearance its play operator
+        (eqs 6-8), which lags the law by c after every reversal.
+    clearance : float
+        Half the cam/roller play c (m).
     """
 
     theta: np.ndarray
@@ -199,6 +204,8 @@ class CamSweepResult:
     gravity: np.ndarray
     friction: np.ndarray
     pressure_angle: np.ndarray
+    travel: np.ndarray | None = None
+    clearance: float = 0.0
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary."""
@@ -212,6 +219,8 @@ class CamSweepResult:
                        "torque_max_Nm": float(t.max())}
                       for g, b, t in zip(self.tilts, self.headings, self.torque)],
             "max_pressure_angle_deg": float(np.degrees(np.abs(self.pressure_angle)).max()),
+            "clearance_m": self.clearance,
+            **({"travel_m": self.travel.tolist()} if self.travel is not None else {}),
         }
 
     def table(self) -> str:
@@ -220,6 +229,8 @@ class CamSweepResult:
                  f"equivalent inertia J: {self.inertia.min():.4g} .. {self.inertia.max():.4g} kg*m^2 "
                  f"({self.inertia.max() / self.inertia.min():.1f}x)",
                  f"max pressure angle: {np.degrees(np.abs(self.pressure_angle)).max():.2f} deg",
+                 *([f"clearance c = {self.clearance * 1e3:.4g} mm: follower travel through eqs 6-8, "
+                    "v and a by backward differences"] if self.clearance > 0 else []),
                  f"{'tilt [deg]':>10s} {'heading [deg]':>14s} {'M min [N*m]':>12s} {'M max [N*m]':>12s} "
                  f"{'ripple [N*m]':>13s}"]
         for g, b, t in zip(self.tilts, self.headings, self.torque):
@@ -265,6 +276,7 @@ def constant_speed(drive: CamDrive, speed: float = 1.0, sample_time: float = 0.0
         v = np.concatenate([[0.0], np.diff(s) / sample_time])
         a = np.concatenate([[0.0], np.diff(v) / sample_time])
     else:
+        s = jet.value
         v, a = jet.d1 * speed, jet.d2 * speed**2
     tilts = np.atleast_1d(np.asarray(tilts, dtype=float))
     headings = (np.full_like(tilts, drive.cam.gravity_heading) if headings is None
@@ -281,4 +293,4 @@ def constant_speed(drive: CamDrive, speed: float = 1.0, sample_time: float = 0.0
     p0, _ = drive.follower_force(theta, v, a, tilts[0], headings[0])
     return CamSweepResult(theta, speed, drive.inertia(theta)[0], tilts, np.asarray(headings), np.array(torque),
                           np.array(inertial), np.array(grav), np.array(fric),
-                          np.arctan(drive.pressure_tangent(theta, p0)))
+                          np.arctan(drive.pressure_tangent(theta, p0)), s, drive.cam.clearance)
