@@ -104,7 +104,8 @@ def test_cam_drive_gets_a_loop_with_documented_defaults():
     cam = st.load_scene(SCENES / "cam_follower.toml")
     r = st.design(cam)
     assert r.parameters.rigid and r.margins.closed_loop_stable
-    assert all(c.source == "default" for c in r.requirements)
+    assert all(c.source == "default" for c in r.requirements if c.name != "stable_over_stroke")
+    assert next(c for c in r.requirements if c.name == "stable_over_stroke").source == "always"
     assert any("default" in n for n in r.notes) and any("ideal current loop" in n for n in r.notes)
     assert r.passed
 

@@ -23,6 +23,7 @@ from .metrics import grid_figures
 from .requirements import check, requirements_of
 from .response import loop_response, plant_responses
 from .result import DesignResult
+from .stroke import STROKE_POINTS, operating_point, stroke_check
 from .structures import FILTERS, STRUCTURES, Motion
 
 SPEED_RATIOS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
@@ -143,7 +144,11 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     ----------
     scene : Scene
     q0 : float, optional
-        Operating point (rad), default mid-stroke.
+        Operating point (rad). Default: mid-stroke, or, when the motor-side reflected
+        inertia varies along the stroke by more than 1.5x, where it is largest (see
+        :func:`servo_toolkit.loop.stroke.operating_point`; the notes say so). Whatever the
+        operating point, the loop is then checked along the stroke (``result.stroke``, the
+        ``stable_over_stroke`` requirement).
     structure : {"cascade", "pid", "lead_lag", "pi"}
         ``cascade`` = current -> speed PI -> position P, the usual EMA structure.
     resonance_filter : {"auto", "none", "notch", "lowpass"}
@@ -174,17 +179,19 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         requirement fails and by how much.
     """
     spec = robust_spec(scene, robust)
+    q0, op_note = operating_point(scene, q0)
     if spec is not None:
-        return _robust_design(scene, spec, q0=q0, structure=structure, current_bandwidth_hz=current_bandwidth_hz,
-                              structural_damping=structural_damping, model=model, require=require,
-                              phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter)
+        r = _robust_design(scene, spec, q0=q0, structure=structure, current_bandwidth_hz=current_bandwidth_hz,
+                           structural_damping=structural_damping, model=model, require=require,
+                           phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter)
+        return r if op_note is None else replace(r, notes=(op_note,) + r.notes)
     if structure not in STRUCTURES:
         from ..errors import SceneError
         raise SceneError("structure", f"unknown loop structure {structure!r}; known: {STRUCTURES}")
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require)
     notes = [f"{r.name} {r.sense} {r.value:g} {r.unit}: default (the scene sets none)"
-             for r in reqs if r.source == "default"]
+             for r in reqs if r.source == "default"] + ([op_note] if op_note else [])
     sample_time = scene.sensors.sample_time
     if sample_time == 0:
         notes.append("continuous controller: the scene gives no sample time")
@@ -218,8 +225,16 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
              structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = 8.0, closed=None,
-             require=None) -> DesignResult:
-    """Margins and requirement checks of a given controller on a scene (python-control)."""
+             require=None, stroke_points: int = STROKE_POINTS) -> DesignResult:
+    """Margins and requirement checks of a given controller on a scene (python-control).
+
+    The margins are those at ``q0`` (default mid-stroke). With ``stroke_points`` (> 0) the
+    same controller is also evaluated along the stroke (:func:`.stroke.stroke_check`):
+    ``result.stroke`` holds the figures per operating point, the ``stable_over_stroke``
+    requirement (closed loop stable at every point) joins the requirements, and the notes
+    name the unstable points and the worst margins below the nominal requirements
+    (information).
+    """
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require) if reqs is None else reqs
     with warnings.catch_warnings():
@@ -239,10 +254,16 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
                 "phase_margin": mg.phase_margin_deg if mg.closed_loop_stable else -math.inf,
                 "sensitivity_peak": mg.sensitivity_peak_db if mg.closed_loop_stable else math.inf}
     checks = check(reqs, achieved)
+    stroke = None
+    if stroke_points:
+        stroke = stroke_check(scene, controller, p.q0, points=stroke_points, model=model,
+                              structural_damping=structural_damping, f_req=f_req)
+        checks.append(stroke.requirement())
+        notes = tuple(notes) + stroke.notes(reqs)
     g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
                         loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
-                        motion=motion, notes=tuple(notes), closed_loop_full=cl)
+                        motion=motion, notes=tuple(notes), closed_loop_full=cl, stroke=stroke)
 
 
 def robust_spec(scene, robust):

@@ -33,7 +33,8 @@ class DesignResult:
         ``theta_ref`` -> ``theta``.
     margins : Margins
     requirements : list of Check
-        One per requirement plus ``closed_loop_stable``.
+        One per requirement, and ``stable_over_stroke`` when the loop was checked along the
+        stroke (the stability flag at q0 is ``margins.closed_loop_stable``).
     motion : Motion or None
         Structure and gains of the motion controller, when designed here.
     notes : tuple of str
@@ -43,6 +44,9 @@ class DesignResult:
     robustness : RobustnessResult or None
         Worst cases over the parameter variants, for a robust design
         (``design(scene, robust=...)``, or a scene with ``[robustness]``).
+    stroke : StrokeCheck or None
+        The same controller on the plant linearized along the stroke
+        (:mod:`servo_toolkit.loop.stroke`).
     """
 
     scene_name: str
@@ -58,6 +62,7 @@ class DesignResult:
     notes: tuple = ()
     closed_loop_full: ct.StateSpace | None = None
     robustness: object = None
+    stroke: object = None
 
     @property
     def passed(self) -> bool:
@@ -99,7 +104,8 @@ class DesignResult:
                                "filter": getattr(self.motion, "filter", None),
                                "filter_params": dict(getattr(self.motion, "filter_params", {}) or {})},
                 "notes": list(self.notes),
-                **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {})}
+                **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {}),
+                **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {})}
 
     def table(self) -> str:
         """Requirements and margins as text."""
@@ -117,6 +123,8 @@ class DesignResult:
                  m.table(), "", requirements_table(self.requirements)]
         if self.robustness is not None:
             lines.append(self.robustness.table())
+        if self.stroke is not None:
+            lines.append(self.stroke.summary())
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

@@ -1,0 +1,340 @@
+"""The designed loop along the drivetrain's stroke: operating point and stroke check.
+
+A linkage or a cam makes the plant depend on the operating point q: the ratio N(q), the
+reflected inertia J(q) (and its motor-side share J(q) / N(q)^2), the stiffness K(q). A loop
+designed at one q0 runs unchanged (same structure, same gains, same speed-feedback ratio
+N(q0)) at every other q, so it is checked there too: :func:`stroke_check` rebuilds the
+linear plant at a grid of operating points and evaluates the fixed controller on each.
+
+For a cascade (speed PI inside a position P) the speed-loop crossover scales as
+1 / (motor-side inertia): where the inertia is larger than at q0 the crossover falls below
+the PI's integral corner and the loop loses its phase (a fixed-gain design at a cam's
+dwell, where the follower adds nothing, is unstable on the rise); where it is smaller the
+crossover rises, which is safe until it meets the sampling delay or the drivetrain mode.
+Hence the default operating point (:func:`operating_point`): the largest motor-side
+inertia when it varies by more than :data:`INERTIA_SPREAD_LIMIT` along the stroke.
+
+The figures come from the closed-form loop response (:mod:`.response`) refined with
+:func:`.metrics.refined_figures` (the machinery of the robustness study, tested against
+python-control), and stability from the eigenvalues of each closed-loop matrix
+(:mod:`.assembly`); the tests rebuild points with python-control.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SceneError
+from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
+from .assembly import closed_loop_matrix, controller_matrices
+from .margins import frequency_grid
+from .metrics import grid_figures
+from .requirements import Check
+from .response import current_response, loop_response, mechanical_response
+from .robustness import _controller_blocks, _controller_response
+
+STROKE_POINTS = 25
+"""Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
+the end that repeats the start is dropped), plus q0 and the inertia extremes."""
+INERTIA_SPREAD_LIMIT = 1.5
+"""Largest max/min ratio of the motor-side reflected inertia along the stroke for which the
+loop is designed at mid-stroke; above it, at the largest inertia."""
+SCAN_POINTS = 721
+"""Operating points scanned for the inertia extremes (0.5 deg over a cam's turn)."""
+
+_FIGURES = ("gain_margin_db", "phase_margin_deg", "sensitivity_peak_db", "bandwidth_hz")
+#: figure -> worst is its minimum or its maximum (over the stable points)
+_WORST = {"gain_margin_db": "min", "phase_margin_deg": "min", "sensitivity_peak_db": "max",
+          "bandwidth_hz": "min", "max_pole_real": "max"}
+
+
+def _scan(drivetrain, points: int = SCAN_POINTS):
+    q = np.linspace(*drivetrain.stroke, points)
+    return q, drivetrain.motor_inertia(q)
+
+
+def _plateau_middle(q, j) -> float:
+    """The middle of the first run of grid points at the largest value of ``j`` (a cam's
+    constant-velocity segment is a plateau of inertia, not a point)."""
+    top = np.flatnonzero(j >= j.max() * (1 - 1e-9))
+    run = top[: 1 + int(np.argmax(np.diff(top) > 1))] if np.any(np.diff(top) > 1) else top
+    return float(q[run[len(run) // 2]])
+
+
+def operating_point(scene, q0=None) -> tuple[float, str | None]:
+    """The design's operating point and, when it is not mid-stroke by default, why.
+
+    Rule: an explicit ``q0`` wins. Otherwise, when the motor-side reflected inertia
+    J(q) / N(q)^2 varies along the stroke by more than :data:`INERTIA_SPREAD_LIMIT` (max /
+    min over :data:`SCAN_POINTS` points), the loop is designed where it is largest (the
+    middle of the first plateau of that largest value); else at mid-stroke.
+
+    Parameters
+    ----------
+    scene : Scene
+    q0 : float, optional
+        Operating point (rad).
+
+    Returns
+    -------
+    q0 : float
+        Operating point (rad).
+    note : str or None
+        The reason, for the result's notes (None for an explicit q0 or mid-stroke).
+    """
+    dt = scene.drivetrain
+    if q0 is not None:
+        return float(q0), None
+    q, j = _scan(dt)
+    spread = float(j.max() / j.min())
+    if spread <= INERTIA_SPREAD_LIMIT:
+        return float(dt.mid_stroke), None
+    at = _plateau_middle(q, j)
+    return at, (f"operating point q0 = {math.degrees(at):.4g} deg, where the motor-side reflected inertia is "
+                f"largest ({j.max():.4g} kg*m^2, {spread:.3g}x its smallest, {j.min():.4g} kg*m^2 at "
+                f"{math.degrees(q[int(np.argmin(j))]):.4g} deg; rule: largest inertia when it varies by more "
+                f"than {INERTIA_SPREAD_LIMIT:g}x, else mid-stroke); the loop is checked over the stroke")
+
+
+def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarray:
+    """Operating points of the stroke check (rad): ``points`` evenly spaced over the
+    stroke, ends included (for a cam's turn the end repeating the start is dropped), the
+    motor-side inertia's largest and smallest points and ``extra`` (each unless a point
+    lies within 1e-9 rad of it); sorted."""
+    lo, hi = drivetrain.stroke
+    q = np.linspace(lo, hi, max(int(points), 2))
+    if drivetrain.ends_in_cam and math.isclose(hi - lo, 2 * math.pi):
+        q = q[:-1]
+    qs, j = _scan(drivetrain)
+    for x in np.concatenate([[qs[int(np.argmax(j))], qs[int(np.argmin(j))]], np.asarray(extra, float).ravel()]):
+        if np.min(np.abs(q - x)) > 1e-9:  # a grid point already there stays as it is
+            q = np.append(q, x)
+    return np.sort(q)
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """Per-point electrical parameters in the shape :func:`.response.current_response` reads."""
+
+    L: float
+    R: float
+    Ke: float
+    N: np.ndarray
+    torque_gain: np.ndarray
+
+
+@dataclass(frozen=True)
+class StrokeLoops:
+    """The open loop at every operating point as a function of frequency, closed form:
+    ``self(rows, w)`` is ``L`` of points ``rows`` at angular frequencies ``w``. The
+    controller (its speed feedback divides omega_m by the design's ratio) is fixed; the
+    plant's ratio, inertias, stiffness and friction are each point's."""
+
+    params: tuple
+    current_gains: tuple
+    blocks: tuple
+
+    def __post_init__(self):
+        cols = {k: np.array([getattr(p, k) for p in self.params], float)
+                for k in ("J1", "J2", "K", "c", "b1", "b2", "kh", "N", "eta", "Kt")}
+        object.__setattr__(self, "_cols", cols)
+
+    def __call__(self, rows, w):
+        s = 1j * np.asarray(w, float)
+        rows = np.asarray(rows)
+        col = {k: v[rows] for k, v in self._cols.items()}
+        g1, g2 = mechanical_response(s, col["J1"], col["J2"], col["K"], col["c"], col["b1"], col["b2"], col["kh"])
+        p0 = self.params[0]
+        tg = col["eta"] * col["N"] * col["Kt"]
+        ic = current_response(s, _Rows(p0.L, p0.R, p0.Ke, col["N"], tg), g1, *self.current_gains)
+        cy, cw, delay = _controller_response(self.blocks, s)
+        return loop_response(s, tg * g1 * ic, tg * g2 * ic, delay, cy, cw, col["N"])
+
+
+@dataclass(frozen=True)
+class StrokeCheck:
+    """A fixed controller on the plant linearized at operating points along the stroke.
+
+    Attributes
+    ----------
+    q : numpy.ndarray
+        Operating points (rad).
+    q0 : float
+        The design's operating point (rad).
+    ratio : numpy.ndarray
+        |N(q)|, motor rad per output rad.
+    motor_inertia : numpy.ndarray
+        Reflected inertia at the motor shaft, J(q) / N(q)^2 (kg*m^2).
+    inertia : numpy.ndarray
+        Reflected inertia at the output, J(q) (kg*m^2).
+    stable : numpy.ndarray of bool
+        Every closed-loop pole in the open left half plane.
+    max_pole_real : numpy.ndarray
+        Largest real part of the closed-loop poles (1/s).
+    gain_margin_db, phase_margin_deg, sensitivity_peak_db, bandwidth_hz : numpy.ndarray
+        Smallest |gain margin|, smallest phase margin, Ms, closed-loop -3 dB bandwidth
+        (``inf`` without a crossing); meaningful where ``stable``.
+    """
+
+    q: np.ndarray
+    q0: float
+    ratio: np.ndarray
+    motor_inertia: np.ndarray
+    inertia: np.ndarray
+    stable: np.ndarray
+    max_pole_real: np.ndarray
+    gain_margin_db: np.ndarray
+    phase_margin_deg: np.ndarray
+    sensitivity_peak_db: np.ndarray
+    bandwidth_hz: np.ndarray
+
+    @property
+    def all_stable(self) -> bool:
+        """Closed loop stable at every point."""
+        return bool(np.all(self.stable))
+
+    @property
+    def stable_fraction(self) -> float:
+        return float(np.mean(self.stable))
+
+    @property
+    def unstable_q(self) -> np.ndarray:
+        """Operating points (rad) where the closed loop is unstable."""
+        return self.q[~self.stable]
+
+    def worst(self) -> dict:
+        """Per figure, the worst value over the stable points and where (``q_deg``);
+        ``max_pole_real`` over every point. A figure with no stable point is absent."""
+        out = {}
+        for key, kind in _WORST.items():
+            vals = getattr(self, key)
+            ok = np.ones_like(self.stable) if key == "max_pole_real" else self.stable
+            if not np.any(ok):
+                continue
+            k = int(np.argmin(np.where(ok, vals, np.inf)) if kind == "min" else np.argmax(np.where(ok, vals, -np.inf)))
+            out[key] = {"value": float(vals[k]), "q_deg": math.degrees(self.q[k])}
+        return out
+
+    def requirement(self) -> Check:
+        """The ``stable_over_stroke`` check: stable fraction of the points >= 1 (source
+        ``"always"``, like the closed-loop stability at q0: no scene setting turns it off)."""
+        frac = self.stable_fraction
+        return Check("stable_over_stroke", 1.0, frac, self.all_stable, "", ">=", "always",
+                     0.0 if self.all_stable else 1.0 - frac)
+
+    def notes(self, requirements=()) -> tuple:
+        """Where the loop is unstable, and worst margins below the nominal requirements
+        (information: only stability over the stroke is a requirement)."""
+        out = []
+        if not self.all_stable:
+            qs = ", ".join(f"{math.degrees(q):.4g}" for q in self.unstable_q)
+            out.append(f"the loop designed at q0 = {math.degrees(self.q0):.4g} deg is UNSTABLE at "
+                       f"{int(np.sum(~self.stable))} of {self.q.size} stroke points: q = {qs} deg")
+        worst = self.worst()
+        fig = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
+               "sensitivity_peak": "sensitivity_peak_db", "bandwidth": "bandwidth_hz"}
+        for r in requirements:
+            key = fig.get(r.name)
+            if key is None or key not in worst:
+                continue
+            value, value_q = worst[key]["value"], worst[key]["q_deg"]
+            a = abs(value) if key == "gain_margin_db" else value
+            met = a >= r.value if r.sense == ">=" else a <= r.value
+            if not met:
+                out.append(f"over the stroke (stable points) the worst {r.name} is {a:.4g} {r.unit} at q = "
+                           f"{value_q:.4g} deg (required {r.sense} {r.value:g} {r.unit} at q0; information)")
+        return tuple(out)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: per point lists and the worst cases."""
+        def floats(a):
+            return [float(x) for x in np.asarray(a, float)]
+        return {"q0_deg": math.degrees(self.q0), "points": int(self.q.size),
+                "q_deg": floats(np.degrees(self.q)), "ratio": floats(self.ratio),
+                "motor_side_inertia_kg_m2": floats(self.motor_inertia),
+                "output_inertia_kg_m2": floats(self.inertia),
+                "stable": [bool(x) for x in self.stable], "max_pole_real": floats(self.max_pole_real),
+                **{k: floats(getattr(self, k)) for k in _FIGURES},
+                "all_stable": self.all_stable, "worst": self.worst()}
+
+    def summary(self) -> str:
+        """Two lines: the span of the check, stability and the worst cases."""
+        lo, hi = np.degrees(self.q.min()), np.degrees(self.q.max())
+        unstable = int(np.sum(~self.stable))
+        worst = ", ".join(f"{k} {w['value']:.4g} at {w['q_deg']:.4g} deg" for k, w in self.worst().items()
+                          if k != "max_pole_real")
+        return (f"  over the stroke ({self.q.size} points, {lo:.4g}..{hi:.4g} deg, motor-side inertia "
+                f"{self.motor_inertia.min():.4g}..{self.motor_inertia.max():.4g} kg*m^2): "
+                f"{'stable everywhere' if unstable == 0 else f'{unstable} points UNSTABLE'}"
+                + (f"\n  worst over the stable points: {worst}" if worst else ""))
+
+    def table(self) -> str:
+        """One line per point and the worst cases, as text."""
+        lines = [f"  over the stroke ({self.q.size} points, controller of q0 = {math.degrees(self.q0):.4g} deg): "
+                 f"{int(np.sum(~self.stable))} unstable",
+                 f"  {'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}"
+                 f"{'BW Hz':>8}"]
+        for k in range(self.q.size):
+            lines.append(f"  {math.degrees(self.q[k]):9.2f}{self.ratio[k]:9.4g}{self.motor_inertia[k]:11.4g}  "
+                         f"{'yes' if self.stable[k] else 'NO':>6}{self.gain_margin_db[k]:8.2f}"
+                         f"{self.phase_margin_deg[k]:8.1f}{self.sensitivity_peak_db[k]:7.2f}"
+                         f"{self.bandwidth_hz[k]:8.3g}")
+        for key, w in self.worst().items():
+            lines.append(f"  worst {key}: {w['value']:.4g} at q = {w['q_deg']:.4g} deg")
+        return "\n".join(lines)
+
+
+def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: str = "auto",
+                 structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, f_req: float = 5.0) -> StrokeCheck:
+    """Evaluate ``controller`` (unchanged) on the plant linearized along the stroke.
+
+    Parameters
+    ----------
+    scene : Scene
+    controller : CascadeController
+    q0 : float
+        The design's operating point (rad); it is one of the points.
+    points : int
+        Evenly spaced points over the stroke, at least 2 (see :func:`stroke_points`).
+    model : {"auto", "two_mass", "rigid"}
+    structural_damping : float
+    f_req : float
+        Required bandwidth (Hz), added to the frequency grid.
+
+    Returns
+    -------
+    StrokeCheck
+
+    Raises
+    ------
+    SceneError
+        ``stroke_points`` below 2 or not an integer.
+    """
+    if int(points) != points or points < 2:
+        raise SceneError("stroke_points", f"must be an integer of at least 2 (0 skips the stroke check), "
+                                          f"got {points!r}")
+    dt = scene.drivetrain
+    q = stroke_points(dt, int(points), extra=[q0])
+    params = tuple(plant_parameters(scene, qi, model, structural_damping) for qi in q)
+    ratio, _ = dt.ratio(q)
+    j, _ = dt.inertia(q)
+    kc = controller_matrices(controller, scene.motor)
+    max_real = np.empty(q.size)
+    for k, p in enumerate(params):  # a chain may be rigid at some points: one matrix each
+        A, B, C, D, _ = plant_matrices(p, inductance=True)
+        max_real[k] = np.linalg.eigvals(closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *kc)).real.max()
+    gains = (controller.current_kp, controller.current_ki) if params[0].L > 0 else (0.0, 0.0)
+    response = StrokeLoops(params, gains, _controller_blocks(controller))
+    w = frequency_grid(f_min=0.01, f_max=5e3, points=600, extra=[f_req])
+    L = response(np.arange(q.size)[:, None], w[None, :])
+    try:
+        figs = grid_figures(w, L, response=response)
+    except FloatingPointError:  # a refinement that does not converge: the grid's figures
+        figs = grid_figures(w, L)
+    return StrokeCheck(q=q, q0=float(q0), ratio=np.abs(ratio), motor_inertia=j / ratio**2, inertia=j,
+                       stable=max_real < 0, max_pole_real=max_real,
+                       gain_margin_db=np.abs(figs["gain_margin_db"]), phase_margin_deg=figs["phase_margin_deg"],
+                       sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"])
