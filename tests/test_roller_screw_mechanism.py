@@ -6,7 +6,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from servo_toolkit import load_scene
+from servo_toolkit import SceneError, load_scene
 from servo_toolkit.components.roller_screw import RollerScrew, efficiency_eq35, steady_efficiency
 from servo_toolkit.mechanisms import handles, run_study
 from servo_toolkit.mechanisms.roller_screw import RollerScrewModel, carrier_step
@@ -36,7 +36,41 @@ def test_kinematics_eq3_and_eq8(scene):
 def test_joint_friction_eqs_4_5(scene):
     m = RollerScrewModel.from_scene(scene, mu_ss=0.1, mu_ns=0.05)
     assert m.spline_friction(1, 10.0, -0.3) == pytest.approx(0.1 * 10.0 / 12.25e-3)
+    assert m.spline_friction(1, -10.0, 0.3) == pytest.approx(-0.1 * 10.0 / 12.25e-3)
     assert m.bearing_friction(1, 7000.0, 100.0) == pytest.approx(0.05 * 7000 * 21.75e-3)
+    assert m.bearing_friction(1, -7000.0, -100.0) == pytest.approx(-0.05 * 7000 * 21.75e-3)
+
+
+def test_joint_loads_use_the_eq_4_5_methods(scene):
+    """forces() takes its joint friction from spline_friction / bearing_friction: switching
+    either method off equals setting its coefficient to zero, and the nut load passed back
+    is F_N1 = F_N2 + mu_SS |M_S2| / r_SS with M_S2 = (thread 2) + mu_NS F_N1 r_NS, solved by
+    hand here (linear in F_N1)."""
+    w, load, carriers = 100.0, 7000.0, np.array([12.0, 30.0])
+    m = RollerScrewModel.from_scene(scene, mu_ss=0.15, mu_ns=0.05)
+
+    class NoSpline(RollerScrewModel):
+        def spline_friction(self, k, screw_torque, screw_axial_speed):
+            return 0.0
+
+    class NoBearing(RollerScrewModel):
+        def bearing_friction(self, k, nut_load, screw_speed):
+            return 0.0
+    for cls, same in ((NoSpline, dict(mu_ss=0.0, mu_ns=0.05)), (NoBearing, dict(mu_ss=0.15, mu_ns=0.0))):
+        off = cls(m.stages, m.mu_rs, m.mu_ss, m.mu_ns).forces(w, carriers, load)
+        ref = RollerScrewModel.from_scene(scene, **same).forces(w, carriers, load)
+        full = m.forces(w, carriers, load)
+        assert off["screw_torque"] == pytest.approx(ref["screw_torque"], rel=1e-14)
+        assert off["nut_loads"] == pytest.approx(ref["nut_loads"], rel=1e-14)
+        assert abs(full["screw_torque"] - off["screw_torque"]) > 1e-3 * full["screw_torque"]
+    st = scene.roller_screw[1]
+    thread2 = m._contact(1, w, carriers[1], load)[1]
+    f_n1 = (load + 0.15 * thread2 / st.screw_spline_radius) / (
+        1 - 0.15 * 0.05 * st.nut_screw_joint_radius / st.screw_spline_radius)
+    assert m.forces(w, carriers, load)["nut_loads"][0] == pytest.approx(f_n1, rel=1e-13)
+    # self-locking joint friction is refused, naming the stage
+    with pytest.raises(SceneError, match=r"stages\[1\].*lock"):
+        RollerScrewModel.from_scene(scene, mu_ss=0.95, mu_ns=0.95).forces(w, carriers, load)
 
 
 def test_eq35_printed_value_and_limit(scene):

@@ -134,7 +134,19 @@ def thread_normal_norm(stage: RollerScrewStage) -> float:
     return math.sqrt(1.0 + math.tan(stage.flank_angle) ** 2 + helix**2)
 
 
-def joint_loads(stages, load: float, thread_torque, thread_torques, mu_ss: float, mu_ns: float):
+def spline_friction(mu_ss: float, screw_torque: float, spline_radius: float, axial_speed: float) -> float:
+    """f_Sk of seed 004 eq 4 (N): ``-mu_SS |M_Sk| / r_SSk sign(v_Sk)`` on a splined screw."""
+    return -mu_ss * abs(screw_torque) / spline_radius * float(np.sign(axial_speed))
+
+
+def bearing_friction(mu_ns: float, nut_load: float, joint_radius: float, screw_speed: float) -> float:
+    """M_Nk of seed 004 eq 5 (N*m): ``mu_NS |F_Nk| r_NSk sign(theta_S')`` in the thrust
+    bearing between a nut and the next stage's screw."""
+    return mu_ns * abs(nut_load) * joint_radius * float(np.sign(screw_speed))
+
+
+def joint_loads(stages, load: float, thread_torque, thread_torques, mu_ss: float, mu_ns: float,
+                spline=None, bearing=None):
     """Walk the stages from the last to the first (seed 004, section 2.3).
 
     Parameters
@@ -150,7 +162,12 @@ def joint_loads(stages, load: float, thread_torque, thread_torques, mu_ss: float
     thread_torques : list
         Filled with each stage's own thread torque (N*m).
     mu_ss, mu_ns : float
-        Spline and thrust-bearing friction coefficients (eqs 4-5).
+        Spline and thrust-bearing friction coefficients (eqs 4-5), used by the default laws.
+    spline, bearing : callable, optional
+        The joint friction laws ``spline(k, screw_torque)`` -> f_Sk (N) and
+        ``bearing(k, nut_load)`` -> M_Nk (N*m) of stage k >= 1 (0-based); by default
+        :func:`spline_friction` and :func:`bearing_friction` with forward motion. Only their
+        magnitudes enter: both resist the motion.
 
     Returns
     -------
@@ -158,23 +175,43 @@ def joint_loads(stages, load: float, thread_torque, thread_torques, mu_ss: float
         M_S1, the torque at the first screw (N*m).
     nut_loads : list of float
         F_Nk of every nut (N).
+
+    Raises
+    ------
+    SceneError
+        When the joint friction locks a joint (the coupled spline/bearing loop gain
+        mu_SS mu_NS r_NS / r_SS reaches 1).
     """
+    if spline is None:
+        def spline(k, torque):
+            return spline_friction(mu_ss, torque, stages[k].screw_spline_radius, 1.0)
+    if bearing is None:
+        def bearing(k, nut_load):
+            return bearing_friction(mu_ns, nut_load, stages[k].nut_screw_joint_radius, 1.0)
     n = len(stages)
     nut_loads = [0.0] * n
     nut_loads[-1] = load
-    spline = 0.0  # torque screw k + 1 takes through its spline, M_S(k+1)
+    spline_torque = 0.0  # torque screw k + 1 takes through its spline, M_S(k+1)
     for k in reversed(range(n)):
         torque = thread_torque(k, nut_loads[k])
         thread_torques.insert(0, torque)
-        x = torque + spline  # screw k's torque before its own thrust-bearing friction
+        x = torque + spline_torque  # screw k's torque before its own thrust-bearing friction
         if k == 0:
             return x, nut_loads
-        st = stages[k]
-        # M_Sk = x + mu_ns r_NS |F_N(k-1)|;  F_N(k-1) = F_Nk + mu_ss |M_Sk| / r_SS  (eqs 4, 5, 21)
-        nut_loads[k - 1] = ((nut_loads[k] + mu_ss * abs(x) / st.screw_spline_radius)
-                            / (1 - mu_ss * mu_ns * st.nut_screw_joint_radius / st.screw_spline_radius))
-        spline = x + mu_ns * abs(nut_loads[k - 1]) * st.nut_screw_joint_radius
-    return spline, nut_loads
+        # M_Sk = x + |M_N(k-1)| (eq 5), F_N(k-1) = F_Nk + |f_Sk(M_Sk)| (eqs 4, 21): a fixed point
+        # with loop gain mu_ss mu_ns r_NS / r_SS, iterated on the laws themselves
+        gain = abs(spline(k, 1.0)) * abs(bearing(k, 1.0))
+        require(gain < 1, f"stages[{k}]", f"spline and thrust-bearing friction lock the joint "
+                f"(mu_SS mu_NS r_NS / r_SS = {gain:.3g} >= 1)")
+        f_prev = nut_loads[k] + abs(spline(k, x))
+        for _ in range(200):
+            f_new = nut_loads[k] + abs(spline(k, x + abs(bearing(k, f_prev))))
+            if abs(f_new - f_prev) <= 1e-15 * abs(f_new):
+                break
+            f_prev = f_new
+        nut_loads[k - 1] = f_new
+        spline_torque = x + abs(bearing(k, f_new))
+    return spline_torque, nut_loads
 
 
 def steady_efficiency(stages, mu_rs: float, mu_ss: float, mu_ns: float) -> float:

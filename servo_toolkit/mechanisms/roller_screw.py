@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..components.roller_screw import (carrier_inertia_total, carrier_ratio, efficiency_eq35, joint_loads,
-                                       nut_travel_per_screw_radian, roller_spin_ratio, steady_efficiency,
-                                       thread_normal_norm)
+from ..components.roller_screw import (bearing_friction, carrier_inertia_total, carrier_ratio, efficiency_eq35,
+                                       joint_loads, nut_travel_per_screw_radian, roller_spin_ratio,
+                                       spline_friction, steady_efficiency, thread_normal_norm)
 from ..errors import SceneError, SimulationError
 
 
@@ -101,12 +101,13 @@ class RollerScrewModel:
 
     # --- joint friction (eqs 4, 5) ---
     def spline_friction(self, k: int, screw_torque: float, screw_axial_speed: float) -> float:
-        """f_Sk of eq 4 (N) on screw k (0-based, k >= 1)."""
-        return -self.mu_ss * abs(screw_torque) / self.stages[k].screw_spline_radius * np.sign(screw_axial_speed)
+        """f_Sk of eq 4 (N) on screw k (0-based, k >= 1); :meth:`forces` uses it."""
+        return spline_friction(self.mu_ss, screw_torque, self.stages[k].screw_spline_radius, screw_axial_speed)
 
     def bearing_friction(self, k: int, nut_load: float, screw_speed: float) -> float:
-        """M_N of eq 5 (N*m): thrust bearing between nut k-1 and screw k (0-based, k >= 1)."""
-        return self.mu_ns * abs(nut_load) * self.stages[k].nut_screw_joint_radius * np.sign(screw_speed)
+        """M_N of eq 5 (N*m): thrust bearing between nut k-1 and screw k (0-based, k >= 1);
+        :meth:`forces` uses it."""
+        return bearing_friction(self.mu_ns, nut_load, self.stages[k].nut_screw_joint_radius, screw_speed)
 
     # --- contact forces for given carrier speeds ---
     def _contact(self, k: int, screw_speed: float, carrier_speed: float, nut_load: float):
@@ -135,7 +136,11 @@ class RollerScrewModel:
             _, torque, drive, loss = self._contact(k, screw_speed, carrier_speeds[k], nut_load)
             drives[k], losses[k] = drive, loss
             return torque
-        torque, nut_loads = joint_loads(self.stages, load, thread, [], self.mu_ss, self.mu_ns)
+        nut_speeds = self.nut_speeds(screw_speed)  # screw k rides on nut k - 1: v_Sk = v_N(k-1) (eq 2)
+        torque, nut_loads = joint_loads(
+            self.stages, load, thread, [], self.mu_ss, self.mu_ns,
+            spline=lambda k, m_s: self.spline_friction(k, m_s, nut_speeds[k - 1]),
+            bearing=lambda k, f_n: self.bearing_friction(k, f_n, screw_speed))
         return {"screw_torque": torque, "nut_loads": np.array(nut_loads), "carrier_drive": np.array(drives),
                 "contact_loss": np.array(losses)}
 
