@@ -95,6 +95,8 @@ class Requirements:
                 min_phase_margin=opt("min_phase_margin", "rad"),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"))
         f.check_unknown()
+        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
+                f.key("min_phase_margin"), "must be below 180 deg: a phase margin lies in [-180, 180) deg")
         return r
 
 

@@ -10,9 +10,13 @@ designed robustly (``--nominal`` checks the nominal design over the same variant
 
 from __future__ import annotations
 
+import os
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
+from ..errors import SceneError
+from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene import load_scene
 from .cmd_design import add_design_options, design_from_args
@@ -57,7 +61,6 @@ def robustness_spec(scene, varies: dict, samples):
     when neither asks for a robustness study."""
     from dataclasses import replace
 
-    from ..errors import SceneError
     from ..scene import Robustness
     base = scene.robustness
     if base is None and not varies:
@@ -72,56 +75,128 @@ def robustness_spec(scene, varies: dict, samples):
 
 
 def write_junit(path, entries) -> None:
-    """JUnit XML: a testsuite per scene, a testcase per requirement."""
+    """JUnit XML: a testsuite per scene, a testcase per requirement.
+
+    ``entries`` holds (suite name, cases) with cases (test name, passed, message), or
+    (suite name, SceneError) for a scene that could not be checked: one testcase ``check``
+    with an ``error`` element (JUnit's "could not run", apart from a failed requirement).
+    """
     root = ET.Element("testsuites", name="servo-toolkit check")
     for name, cases in entries:
+        if isinstance(cases, SceneError):
+            suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="1")
+            case = ET.SubElement(suite, "testcase", classname=name, name="check")
+            ET.SubElement(case, "error", message=str(cases), type="SceneError").text = str(cases)
+            continue
         suite = ET.SubElement(root, "testsuite", name=name, tests=str(len(cases)),
-                              failures=str(sum(not ok for _, ok, _ in cases)))
+                              failures=str(sum(not ok for _, ok, _ in cases)), errors="0")
         for test, ok, message in cases:
             case = ET.SubElement(suite, "testcase", classname=name, name=test)
             if ok:
                 ET.SubElement(case, "system-out").text = message
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
-    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    try:
+        ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    except OSError as exc:
+        raise SceneError("junit", f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+
+
+def check_writable(path) -> None:
+    """SceneError (key ``junit``) unless a file can be written at ``path``: its folder must
+    exist and ``path`` must not be a folder. Checked before any design runs."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise SceneError("junit", f"cannot write {str(path)!r}: it is a directory")
+    if not parent.is_dir():
+        raise SceneError("junit", f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise SceneError("junit", f"cannot write {str(path)!r}: permission denied")
+
+
+def _tagged(exc: SceneError, path) -> SceneError:
+    """The error naming the scene file it came from."""
+    return exc if exc.source else exc.with_source(str(path))
+
+
+def _check_scene(path, scene, args, varies):
+    """Design and check one scene: (suite name, cases, JSON dict)."""
+    from ..loop.robustness import robustness
+    spec = robustness_spec(scene, varies, args.samples)
+    result = design_from_args(scene, args, spec)
+    robust = result.robustness
+    if robust is None and spec is not None:
+        robust = robustness(scene, result, spec=spec, progress=False)
+    cases = _cases(scene.name, result, robust)
+    ok = all(c[1] for c in cases)
+    d = result.to_dict()
+    d["source"] = str(path)
+    d["passed"] = ok
+    if robust is not None:
+        d["robustness"] = robust.to_dict()
+    if not args.json:
+        print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
+        print(requirements_table(result.requirements))
+        stable = result.margins.closed_loop_stable
+        print(f"  {'closed_loop_stable':<24}{'yes':>14}{'yes' if stable else 'NO':>12}  "
+              f"{'ok' if stable else 'FAIL'}")
+        if robust is not None:
+            print(robust.table())
+        for n in result.notes:
+            print(f"  note: {n}")
+    return scene.name, cases, d
 
 
 def run(args) -> int:
-    """Run the command."""
-    from ..loop.robustness import parse_vary, robustness
+    """Run the command.
+
+    Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
+    ``--junit`` path) stop before any design. A scene that cannot be checked (it does not
+    load, or has no motor-driven drivetrain) is reported on one stderr line naming its file
+    and becomes an ``error`` testcase of the JUnit file; the other scenes are still checked
+    and written, and the exit code is 2.
+    """
+    from ..loop.robustness import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
-    scenes = [load_scene(path) for path in args.scenes]  # bad input -> exit 2 before any design
-    specs = [robustness_spec(scene, varies, args.samples) for scene in scenes]
-    entries, out, all_ok = [], [], True
-    for path, scene, spec in zip(args.scenes, scenes, specs):
-        result = design_from_args(scene, args, spec)
-        robust = result.robustness
-        if robust is None and spec is not None:
-            robust = robustness(scene, result, spec=spec, progress=False)
-        cases = _cases(scene.name, result, robust)
+    for text in args.require:
+        parse_override(text)
+    if args.samples is not None and args.samples < 1:
+        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+    if args.junit:
+        check_writable(args.junit)
+    scenes = []
+    for path in args.scenes:  # every file is read before any design runs
+        try:
+            scenes.append(load_scene(path))
+        except SceneError as exc:
+            scenes.append(_tagged(exc, path))
+            print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
+    entries, out, all_ok, errors = [], [], True, 0
+    for path, scene in zip(args.scenes, scenes):
+        try:
+            if isinstance(scene, SceneError):
+                raise scene
+            name, cases, d = _check_scene(path, scene, args, varies)
+        except SceneError as exc:
+            exc = _tagged(exc, path)
+            if exc is not scene:
+                print(f"servo-toolkit: error: {exc}", file=sys.stderr)
+            errors += 1
+            entries.append((str(path) if isinstance(scene, SceneError) else scene.name, exc))
+            out.append({"source": str(path), "passed": False, "error": str(exc), "key": exc.key,
+                        "rule": exc.rule})
+            continue
         ok = all(c[1] for c in cases)
         all_ok &= ok
-        entries.append((scene.name, cases))
-        d = result.to_dict()
-        d["source"] = str(path)
-        d["passed"] = ok
-        if robust is not None:
-            d["robustness"] = robust.to_dict()
+        entries.append((name, cases))
         out.append(d)
-        if not args.json:
-            print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
-            print(requirements_table(result.requirements))
-            stable = result.margins.closed_loop_stable
-            print(f"  {'closed_loop_stable':<24}{'yes':>14}{'yes' if stable else 'NO':>12}  "
-                  f"{'ok' if stable else 'FAIL'}")
-            if robust is not None:
-                print(robust.table())
-            for n in result.notes:
-                print(f"  note: {n}")
     if args.junit:
         write_junit(args.junit, entries)
     if args.json:
-        sys.stdout.write(to_json({"passed": all_ok, "scenes": out}) + "\n")
+        sys.stdout.write(to_json({"passed": all_ok and not errors, "errors": errors, "scenes": out}) + "\n")
+    elif errors:
+        print(f"{errors} of {len(args.scenes)} scene(s) could not be checked (bad input)")
     else:
         print("all requirements met" if all_ok else "some requirements NOT met")
-    return 0 if all_ok else 1
+    return 2 if errors else 0 if all_ok else 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..errors import SceneError
 from ..loop import design
 from ..loop.requirements import parse_override
 from ..scene import load_scene
@@ -46,7 +47,12 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run the command; 0 whatever the requirements (``check`` gates on them)."""
+    for text in args.require:  # a bad value: exit 2 before the scene is read
+        parse_override(text)
     scene = load_scene(args.scene)
-    result = design_from_args(scene, args)
+    try:
+        result = design_from_args(scene, args)
+    except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file
+        raise (exc if exc.source else exc.with_source(str(args.scene))) from None
     emit(args, result, result.table())
     return 0

@@ -76,41 +76,111 @@ class Check:
                 "shortfall": self.shortfall}
 
 
+#: name -> (lower bound, lower bound included, upper bound or None) in display units: the
+#: scene loader's ``[requirements]`` rules (positive; a gain margin may be 0 dB), and a phase
+#: margin below 180 deg (python-control's phase margins lie in [-180, 180) deg).
+RULES = {
+    "bandwidth": (0.0, False, None),
+    "phase_lag_at_bandwidth": (0.0, False, None),
+    "gain_margin": (0.0, True, None),
+    "phase_margin": (0.0, False, 180.0),
+    "sensitivity_peak": (0.0, False, None),
+}
+
+
+def validate(name: str, value: float, key: str | None = None) -> float:
+    """``value`` (display units) if it is a valid requirement ``name``, else SceneError.
+
+    Parameters
+    ----------
+    name : str
+        Requirement name (a key of :data:`SPECS`).
+    value : float
+        In the requirement's display unit (Hz, deg or dB).
+    key : str, optional
+        Key path for the error; default ``require.<name>``.
+
+    Raises
+    ------
+    SceneError
+        NaN, infinite, not positive (a gain margin: negative), or a phase margin of 180 deg
+        or more.
+    """
+    key = key or f"require.{name}"
+    unit = SPECS[name][2]
+    lo, closed, hi = RULES[name]
+    if math.isnan(value):
+        raise SceneError(key, "value is NaN")
+    if math.isinf(value):
+        raise SceneError(key, f"must be finite (got {value:g} {unit})")
+    if closed and not value >= lo:
+        raise SceneError(key, f"must not be negative (got {value:g} {unit})")
+    if not closed and not value > lo:
+        why = (": |1 / (1 + L)| tends to 1 (0 dB) where the loop gain falls off, so the peak "
+               "exceeds 0 dB" if name == "sensitivity_peak" else "")
+        raise SceneError(key, f"must be positive{why} (got {value:g} {unit})")
+    if hi is not None and not value < hi:
+        raise SceneError(key, f"must be below {hi:g} {unit}: a {name.replace('_', ' ')} lies in "
+                              f"[-180, 180) {unit} (got {value:g} {unit})")
+    return float(value)
+
+
+def override_value(name: str, value) -> float:
+    """An override in display units: a number (already in the display unit) or a string with
+    units (``"200 Hz"``, ``"0.5 rad"``), checked with :func:`validate`."""
+    key = f"require.{name}"
+    if isinstance(value, str):
+        text = value.strip()
+        try:
+            number = float(text)
+        except ValueError:
+            number = parse_quantity(text, _PINT_UNITS[name], key)
+    else:
+        number = parse_quantity(value, _PINT_UNITS[name], key)
+    return validate(name, number, key)
+
+
+def canonical_name(name: str) -> str:
+    """The requirement's name in :data:`SPECS` (aliases such as ``pm`` resolved), else
+    SceneError naming ``require.<name>``."""
+    name = _ALIASES.get(name, name)
+    if name not in SPECS:
+        raise SceneError(f"require.{name}", f"unknown requirement; known: {sorted(SPECS)}")
+    return name
+
+
 def requirements_of(scene, overrides=None) -> list[Requirement]:
     """Every requirement of the design: the scene's, defaults where it sets none (stated as
-    such) and ``overrides`` (name -> value in display units, or a string with units)."""
+    such) and ``overrides`` (name -> value in display units, or a string with units; checked
+    like the command line's ``--require``, :func:`override_value`)."""
     given = scene.requirements
     out = []
-    overrides = dict(overrides or {})
+    overrides = {canonical_name(k): v for k, v in dict(overrides or {}).items()}
     for name, (attr, sense, unit, factor, default) in SPECS.items():
         value = getattr(given, attr)
         if name in overrides:
-            out.append(Requirement(name, sense, float(overrides.pop(name)), unit, "override"))
+            out.append(Requirement(name, sense, override_value(name, overrides[name]), unit, "override"))
         elif value is not None:
             out.append(Requirement(name, sense, value * factor, unit, "scene"))
         else:
             out.append(Requirement(name, sense, default, unit, "default"))
-    if overrides:
-        raise SceneError(f"require.{next(iter(overrides))}", f"unknown requirement; known: {sorted(SPECS)}")
     return out
 
 
 def parse_override(text: str) -> tuple[str, float]:
-    """``"bandwidth=200Hz"`` -> ``("bandwidth", 200.0)`` in the requirement's display unit."""
+    """``"bandwidth=200Hz"`` -> ``("bandwidth", 200.0)`` in the requirement's display unit.
+
+    A bare number is in the display unit (Hz, deg, dB). The value obeys the scene's
+    ``[requirements]`` rules (:func:`validate`): every requirement positive, a gain margin
+    may be 0 dB, a phase margin below 180 deg. Raises SceneError(``require.<name>``, rule).
+    """
     if "=" not in text:
         raise SceneError(f"require.{text}", "expected NAME=VALUE, e.g. bandwidth=200Hz")
     name, value = (part.strip() for part in text.split("=", 1))
-    name = _ALIASES.get(name, name)
-    if name not in SPECS:
-        raise SceneError(f"require.{name}", f"unknown requirement; known: {sorted(SPECS)}")
-    unit = _PINT_UNITS[name]
-    try:
-        number = float(value)
-    except ValueError:
-        number = parse_quantity(value, unit, f"require.{name}")
-    if not math.isfinite(number):
-        raise SceneError(f"require.{name}", f"must be finite (got {value!r})")
-    return name, number
+    name = canonical_name(name)
+    if not value:
+        raise SceneError(f"require.{name}", f"missing value, e.g. {name}=... {SPECS[name][2]}")
+    return name, override_value(name, value)
 
 
 def check(requirements, achieved: dict) -> list[Check]:
