@@ -186,6 +186,36 @@ def test_kernels_match_vectorized_model(drive):
         assert kf == pytest.approx(float(force), rel=1e-12) and kfr == pytest.approx(float(f), rel=1e-12)
 
 
+@pytest.mark.parametrize("tilt_deg, mu", [(0.0, 0.001), (170.0, 0.3), (60.0, 0.2)])
+def test_shaft_acceleration_balances_the_follower_load(drive, tilt_deg, mu):
+    """cam_kernels.shaft_acceleration (the follower's weight and guide friction for another
+    model's kernel): with its w', J_m w' + M_l(theta, v, a) = torque, M_l = P s' from the
+    vectorized CamDrive.follower_force (eqs 1, 3); the inertial part m a s' splits into
+    m s'^2 w' (in J) and m s' s'' w^2 (the velocity term)."""
+    d = replace(drive, cam=replace(drive.cam, gravity_tilt=math.radians(tilt_deg), gravity_heading=0.3,
+                                   guide_friction_coefficient=mu))
+    p = cam_kernels.pack_cam(d.cam)
+    m = d.cam.follower_mass
+    for th, w, torque in [(0.3, 4.0, 0.2), (1.2, 9.0, -0.05), (3.4, 6.0, 0.1), (5.9, -3.0, 0.3)]:
+        jet = d.law(th)
+        s1, s2 = float(jet.d1), float(jet.d2)
+        j = d.rotor_inertia + m * s1 * s1
+        dw, m_g = cam_kernels.shaft_acceleration(p, th, w, torque, j, m * s1 * s2 * w * w, 0.0)
+        a = s2 * w * w + s1 * dw
+        force, f = d.follower_force(th, s1 * w, a)
+        assert d.rotor_inertia * dw + float(force) * s1 == pytest.approx(torque, rel=1e-10, abs=1e-12)
+        gx = d.gravity()[0]
+        assert m_g == pytest.approx((np.sign(s1 * w) * float(f) - gx) * s1, rel=1e-10, abs=1e-14)
+        # smoothed direction: tanh(w / w_s) -> sign(w) for w >> w_s
+        dws, _ = cam_kernels.shaft_acceleration(p, th, w, torque, j, m * s1 * s2 * w * w, 1e3)
+        assert dws == pytest.approx(dw, rel=1e-12)
+    # tilt and guide friction change the shaft load (what the closed-loop model leaves out)
+    flat = cam_kernels.pack_cam(drive.cam)
+    j = drive.rotor_inertia + m * float(drive.law(1.2).d1) ** 2
+    assert (cam_kernels.shaft_acceleration(p, 1.2, 5.0, 0.1, j, 0.0, 0.0)[0]
+            != cam_kernels.shaft_acceleration(flat, 1.2, 5.0, 0.1, j, 0.0, 0.0)[0]) or tilt_deg == 0.0
+
+
 @pytest.mark.parametrize("solver", ["accurate", "seed", "corrected"])
 def test_follower_removed_settles_at_13_36(drive, solver):
     bare = drive.without_follower()

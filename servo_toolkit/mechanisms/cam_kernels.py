@@ -26,6 +26,13 @@ def pack(drive) -> np.ndarray:
                      drive.resistance, drive.torque_constant, drive.back_emf_constant, c.clearance])
 
 
+def pack_cam(cam) -> np.ndarray:
+    """:func:`pack` array of a bare :class:`~servo_toolkit.components.cam.Cam` stage (the
+    motor entries zero), for :func:`shaft_acceleration` inside another model's kernel."""
+    from .cam import CamDrive
+    return pack(CamDrive(cam, 0.0, 0.0, 1.0, 1.0, 0.0))
+
+
 @njit(cache=True)
 def law(theta, a):
     """Modified constant velocity law: s, ds/dtheta, d2s/dtheta2."""
@@ -124,21 +131,62 @@ def discrete(p, voltage, n, step, corrected):
 
 
 @njit(cache=True)
-def rhs(p, voltage, theta, w, double_count):
-    """d(theta)/dt, dw/dt of J w' + J' w^2 / 2 = c_m i - M (``double_count``: the seed's
-    continuous limit, with the follower inertia in both J and m a)."""
-    a_, m, jm, mf, r, cm, ce = p[0], p[1], p[8], p[9], p[10], p[11], p[12]
-    s, d1, d2 = law(theta, a_)
-    torque = cm * (voltage - ce * w) / r - mf
-    sigma = _sign(d1 * w)
-    j = jm + m * d1 * d1 * (2.0 if double_count else 1.0)
+def shaft_acceleration(p, theta, w, torque, inertia, velocity_torque, inv_ws):
+    """Cam-shaft acceleration with the follower's weight and guide friction (eqs 1, 3).
+
+    Solves ``J w' + velocity_torque = torque - M_g`` with the follower load beyond its
+    inertia, ``M_g = (sigma f - G_x) ds/dtheta``, where the guide friction ``f`` (eq 1, via
+    :func:`friction`) depends on the cam force ``m a - G_x + sigma f`` and so on ``w'``
+    through ``a = s'' w^2 + s' w'``; the fixed point is iterated to round-off.
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        :func:`pack` array (motor entries unused).
+    theta, w : float
+        Cam angle (rad) and speed (rad/s).
+    torque : float
+        Every other torque on the cam shaft, reflected to it (N*m): motor torque after its
+        own friction, the scene's load moments.
+    inertia, velocity_torque : float
+        J(theta) with the follower's ``m s'^2`` (kg*m^2) and the velocity term
+        ``J'(theta) w^2 / 2`` (N*m), as the caller's model has them.
+    inv_ws : float
+        1 / smoothing speed (s/rad) of the friction's direction, ``tanh(w / w_s)``;
+        0 for the hard ``sign``.
+
+    Returns
+    -------
+    dw, m_g : float
+        w' (rad/s^2) and M_g (N*m).
+    """
+    s, d1, d2 = law(theta, p[0])
+    m = p[1]
+    if inv_ws > 0.0:
+        sigma = _sign(d1) * math.tanh(w * inv_ws)
+    else:
+        sigma = _sign(d1 * w)
     f = 0.0
     dw = 0.0
     for _ in range(60):
-        dw = (torque - d1 * (m * d2 * w * w - p[3] + sigma * f)) / j
+        dw = (torque - velocity_torque - d1 * (sigma * f - p[3])) / inertia
         acc = d2 * w * w + d1 * dw
         _, new = friction(p, s, d1, sigma, m * acc - p[3], f)
         if abs(new - f) <= 1e-14 * (1.0 + new):
+            f = new
             break
         f = new
+    dw = (torque - velocity_torque - d1 * (sigma * f - p[3])) / inertia
+    return dw, d1 * (sigma * f - p[3])
+
+
+@njit(cache=True)
+def rhs(p, voltage, theta, w, double_count):
+    """d(theta)/dt, dw/dt of J w' + J' w^2 / 2 = c_m i - M (``double_count``: the seed's
+    continuous limit, with the follower inertia in both J and m a)."""
+    m, jm, mf, r, cm, ce = p[1], p[8], p[9], p[10], p[11], p[12]
+    _, d1, d2 = law(theta, p[0])
+    torque = cm * (voltage - ce * w) / r - mf
+    j = jm + m * d1 * d1 * (2.0 if double_count else 1.0)
+    dw, _ = shaft_acceleration(p, theta, w, torque, j, m * d1 * d2 * w * w, 0.0)
     return w, dw
