@@ -12,12 +12,14 @@ and a spring k on coordinate u reflects to the output as k (du/dq)^2 (seed 001, 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .components.base import Element, Jet, Lash, Spring
 from .errors import SceneError
+from .reflection import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, neglect_criterion,
+                         reflect_elements, stage_units)
 
 
 @dataclass(frozen=True)
@@ -42,13 +44,21 @@ class StiffnessChain:
     ----------
     names : tuple of str
     stage_stiffness : numpy.ndarray
-        Each spring reflected to the output, shape (n_springs, n_q) (N*m/rad).
+        Each spring reflected to the output, shape (n_springs, n_q) (N*m/rad; N/m when
+        the output is a travel).
     total : numpy.ndarray
-        Series total, shape (n_q,).
+        Series total, shape (n_q,); ``inf`` when the chain has no spring (rigid).
     shares : numpy.ndarray
         Compliance shares (sum to 1 over springs).
     ratio_to_output : numpy.ndarray
-        |du/dq| of each spring's coordinate.
+        |du/dq| of each spring's coordinate (rad or m per unit of q).
+    native_stiffness : numpy.ndarray
+        Each spring's own stiffness k_i, unreflected, shape (n_springs,).
+    native_units : tuple of str
+        ``"N*m/rad"`` or ``"N/m"`` per spring: the unit of ``native_stiffness``.
+    lever : numpy.ndarray
+        c_i, shape (n_springs,): 1 for a spring on a coordinate of the output's unit, else
+        its ratio to the output at mid-stroke (see :class:`~servo_toolkit.reflection.NeglectCriterion`).
     """
 
     names: tuple
@@ -56,12 +66,34 @@ class StiffnessChain:
     total: np.ndarray
     shares: np.ndarray
     ratio_to_output: np.ndarray
+    native_stiffness: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    native_units: tuple = ()
+    lever: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def negligible(self, threshold: float = 1e-3) -> np.ndarray:
-        """Seed 001's criterion in numbers: a stage whose compliance share is below
-        ``threshold`` everywhere may be left out (its reflected stiffness is then orders
-        of magnitude above the rest)."""
+        """Share rule: a stage whose compliance share is below ``threshold`` at every q
+        may be left out (its reflected stiffness is then orders of magnitude above the
+        rest). See :meth:`criterion` for seed 001's own two conditions."""
         return np.all(self.shares < threshold, axis=-1)
+
+    def criterion(self, min_ratio: float = 10.0, within: float = 10.0) -> NeglectCriterion:
+        """Seed 001's two conditions per stage, stiffnesses compared in the output's unit.
+
+        Parameters
+        ----------
+        min_ratio : float
+            Condition 1: the ratio between the stage and every later stage is at least this.
+        within : float
+            Condition 2: the stage's own stiffness is at least 1/``within`` of some later
+            stage's.
+
+        Returns
+        -------
+        NeglectCriterion
+        """
+        lever = self.lever[:, None] if self.lever.size else np.ones((len(self.names), 1))
+        return neglect_criterion(self.native_stiffness * lever[:, 0] ** 2,
+                                 self.ratio_to_output / lever, min_ratio, within)
 
 
 @dataclass(frozen=True)
@@ -116,6 +148,19 @@ class Drivetrain:
             if stage.stroke is not None:
                 return tuple(stage.stroke)
         return (0.0, 2 * math.pi) if self.ends_in_cam else (-math.pi, math.pi)
+
+    @property
+    def output_unit(self) -> str:
+        """Unit of q: ``"rad"`` (an output angle, or the cam angle of a cam chain) or
+        ``"m"`` (a travel, e.g. the nut of a chain ending in a screw)."""
+        if self.ends_in_cam:
+            return "rad"
+        return stage_units(self.stages)[0][-1]
+
+    @property
+    def output_is_linear(self) -> bool:
+        """True when q is a travel (m): ratio in rad/m, inertia in kg, stiffness in N/m."""
+        return self.output_unit == "m"
 
     @property
     def mid_stroke(self) -> float:
@@ -194,6 +239,24 @@ class Drivetrain:
         n, _ = self.ratio(q)
         return self.inertia(q)[0] / n**2
 
+    def reflected_inertias(self, q) -> ReflectedInertias:
+        """Every element's inertia reflected to q and to the motor, with d/dq.
+
+        J_i = m_i T_i^2 and dJ_i/dq = 2 m_i T_i T2_i at the output (seed 000); J_i / N^2
+        and dJ_i/dq / N^2 - 2 J_i (dN/dq) / N^3 at the motor shaft. The elements sum to
+        :meth:`inertia` and :meth:`motor_inertia`.
+
+        Parameters
+        ----------
+        q : array_like
+            Output coordinate(s) (rad, or m when :attr:`output_is_linear`).
+
+        Returns
+        -------
+        ReflectedInertias
+        """
+        return reflect_elements(self.kinematics(q))
+
     def stiffness(self, q) -> StiffnessChain:
         """Each spring reflected to q and the series total."""
         kin = self.kinematics(q)
@@ -202,11 +265,16 @@ class Drivetrain:
             return StiffnessChain((), np.zeros((0, kin.q.size)), inf, np.zeros((0, kin.q.size)),
                                   np.zeros((0, kin.q.size)))
         ratio = np.array([np.abs(s.u.d1) for s in kin.springs])
-        k = np.array([s.stiffness for s in kin.springs])[:, None] * ratio**2
+        native = np.array([s.stiffness for s in kin.springs])
+        k = native[:, None] * ratio**2
         compliance = 1.0 / k
         total = 1.0 / compliance.sum(axis=0)
+        units = [stage_units(self.stages)[1][i] for i in kin.spring_stage]
+        at_mid = [np.abs(s.u.d1[0]) for s in self.kinematics([self.mid_stroke]).springs]
+        lever = np.array([1.0 if u == self.output_unit else c for u, c in zip(units, at_mid)])
         return StiffnessChain(tuple(s.label for s in kin.springs), k, total,
-                              compliance / compliance.sum(axis=0), ratio)
+                              compliance / compliance.sum(axis=0), ratio, native,
+                              tuple(STIFFNESS_UNIT[u] for u in units), lever)
 
     def two_mass_split(self, q) -> TwoMassSplit:
         """Split the reflected inertia at the most compliant spring (two-mass model).

@@ -13,15 +13,21 @@ from .errors import SceneError
 UREG = pint.UnitRegistry()
 
 _NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+#: a non-finite number written as text ("nan ohm", "-inf N/m"), followed by a unit or the end
+_NONFINITE = re.compile(r"^\s*([-+]?)(nan|inf|infinity)(?=\s|$)", re.IGNORECASE)
 
 
 def looks_like_quantity(text: str) -> bool:
-    """Return True when a string starts with a number (``"3 deg"``, ``"1e-4"``)."""
-    return bool(_NUMBER.match(text))
+    """Return True when a string starts with a number (``"3 deg"``, ``"1e-4"``, ``"nan Hz"``)."""
+    return bool(_NUMBER.match(text) or _NONFINITE.match(text))
 
 
 def _parse_string(text: str, key: str) -> pint.Quantity:
     match = _NUMBER.match(text)
+    nonfinite = None if match else _NONFINITE.match(text)
+    if nonfinite and nonfinite.group(2).lower() == "nan":
+        raise SceneError(key, f"value is NaN (got {text!r}): must be a finite number")
+    match = match or nonfinite
     if not match:
         raise SceneError(key, f"expected a number with units, got {text!r}")
     unit = text[match.end():].strip()

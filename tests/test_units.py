@@ -44,3 +44,26 @@ def test_nan_rejected():
 def test_parse_si_keeps_words_and_recurses():
     out = parse_si({"f": {"start": "0.5 Hz"}, "t": "sine", "j": ["2 kg*m^2"]}, "s")
     assert out == {"f": {"start": 0.5}, "t": "sine", "j": [2.0]}
+
+
+@pytest.mark.parametrize("text", ["nan ohm", "NaN ohm", "-nan ohm", "nan", " NAN  ohm"])
+def test_nan_written_as_text_reports_the_nan_rule(text):
+    with pytest.raises(SceneError, match="value is NaN") as info:
+        parse_quantity(text, "ohm", "motor.resistance")
+    assert info.value.key == "motor.resistance"
+    with pytest.raises(SceneError, match="value is NaN"):
+        parse_si({"f": text}, "studies.s")
+
+
+def test_infinity_written_as_text_is_a_number():
+    """"inf N*m/rad" is infinity (rigid); the component's rules decide whether it is allowed."""
+    assert parse_quantity("inf N*m/rad", "N*m/rad", "k") == math.inf
+    assert parse_quantity("-inf N", "N", "k") == -math.inf
+    assert parse_si({"w": "information", "x": "infinite"}, "s") == {"w": "information", "x": "infinite"}
+
+
+def test_infinite_resistance_breaks_the_finite_rule(ema_dict):
+    from .conftest import build, variant
+    with pytest.raises(SceneError, match="must be finite") as info:
+        build(variant(ema_dict, motor__resistance="inf ohm"))
+    assert info.value.key == "motor.resistance"

@@ -1,4 +1,10 @@
-"""Stiffness chain study (seed 001): each stage's stiffness at the output and its share."""
+"""Stiffness chain study (seed 001): each stage's stiffness at the output and its share.
+
+The output coordinate q is an angle for a rotary output (the cam angle for a cam chain) and
+a travel for a linear one (a chain ending in a screw, :attr:`Drivetrain.output_is_linear`).
+Angles are given in deg, travels in mm; both must be finite and inside the drivetrain's
+stroke (a cam chain is periodic: any finite cam angle).
+"""
 
 from __future__ import annotations
 
@@ -7,30 +13,49 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import SceneError
+from ..reflection import NeglectCriterion
+
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
+DEG = math.pi / 180
+
+
+def _nulls(values) -> list:
+    """List with non-finite entries as None (JSON has no inf or NaN)."""
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=float)]
 
 
 @dataclass(frozen=True)
 class StiffnessResult:
-    """Stiffness chain at a set of output angles.
+    """Stiffness chain at a set of output coordinates.
 
     Attributes
     ----------
     angles_deg : numpy.ndarray
+        Output angles (deg); NaN for a linear output (see ``positions_mm``).
     names : tuple of str
-        One per compliant stage, motor side last.
+        One per compliant stage, motor side first.
     stage_stiffness : numpy.ndarray
-        (n_stages, n_angles), N*m/rad at the output.
+        (n_stages, n_points), reflected to the output: N*m/rad, or N/m for a linear output.
     shares : numpy.ndarray
-        Compliance shares (n_stages, n_angles).
+        Compliance shares (n_stages, n_points).
     total : numpy.ndarray
-        Series total, N*m/rad.
+        Series total, N*m/rad (N/m for a linear output); ``inf`` for a rigid chain.
     ratio : numpy.ndarray
-        Motor angle per output angle N(q).
+        Motor angle per unit of output N(q): rad/rad, or rad/m for a linear output.
     reflected_inertia : numpy.ndarray
-        J(q) at the output, kg*m^2.
+        J(q) at the output, kg*m^2 (a mass in kg for a linear output).
     negligible : numpy.ndarray of bool
-        Per stage: compliance share below 1e-3 at every angle (seed 001 criterion).
+        Per stage: compliance share below 1e-3 at every point (share rule).
+    output_unit : str
+        ``"rad"`` or ``"m"``.
+    positions_mm : numpy.ndarray or None
+        Output travels (mm) of a linear output, else None.
+    criterion : NeglectCriterion or None
+        Seed 001's two conditions per stage (None when the chain is rigid).
+    native_stiffness : numpy.ndarray
+        Each stage's own, unreflected stiffness, in ``native_units``.
+    native_units : tuple of str
     """
 
     angles_deg: np.ndarray
@@ -41,40 +66,124 @@ class StiffnessResult:
     ratio: np.ndarray
     reflected_inertia: np.ndarray
     negligible: np.ndarray
+    output_unit: str = "rad"
+    positions_mm: np.ndarray | None = None
+    criterion: NeglectCriterion | None = None
+    native_stiffness: np.ndarray | None = None
+    native_units: tuple = ()
+
+    @property
+    def linear(self) -> bool:
+        """True for a linear output (q in m)."""
+        return self.output_unit == "m"
+
+    @property
+    def stiffness_unit(self) -> str:
+        """SI unit of the stiffnesses at the output."""
+        return "N/m" if self.linear else "N*m/rad"
+
+    def _stages(self) -> list:
+        crit = self.criterion
+        out = []
+        for i, (n, k, s, neg) in enumerate(zip(self.names, self.stage_stiffness, self.shares, self.negligible)):
+            stage = {"name": n, "stiffness_Nm_per_rad": k.tolist(), "share": s.tolist(), "negligible": bool(neg)}
+            if self.linear:
+                stage["stiffness_N_per_m"] = k.tolist()
+            if self.native_stiffness is not None:
+                stage["native_stiffness"] = float(self.native_stiffness[i])
+                stage["native_unit"] = self.native_units[i]
+            if crit is not None:
+                stage.update({
+                    "own_stiffness": float(crit.own_stiffness[i]),
+                    "ratio_to_output": crit.ratio[i].tolist(),
+                    "later_ratio": _nulls(crit.later_ratio[i]),
+                    "stiffness_to_later": _nulls([crit.stiffness_to_later[i]])[0],
+                    "later_ratio_large": bool(np.all(crit.ratio_large[i])),
+                    "stiffness_comparable": bool(crit.stiffness_comparable[i]),
+                    "seed_negligible": bool(crit.negligible[i]),
+                })
+            out.append(stage)
+        return out
 
     def to_dict(self) -> dict:
-        """JSON-ready dictionary (lists over angles)."""
-        return {
-            "angles_deg": self.angles_deg.tolist(),
-            "stages": [{"name": n, "stiffness_Nm_per_rad": k.tolist(), "share": s.tolist(),
-                        "negligible": bool(neg)}
-                       for n, k, s, neg in zip(self.names, self.stage_stiffness, self.shares, self.negligible)],
-            "total_Nm_per_rad": self.total.tolist(),
-            "total_Nm_per_deg": (self.total * math.pi / 180).tolist(),
+        """JSON-ready dictionary (lists over the points).
+
+        JSON has no infinity: a rigid chain (no stage declares a stiffness) has ``null``
+        totals and ``"rigid": true``. Contract keys keep their SI values in the output's
+        unit; a linear output also gets unit-correct duplicates (``total_N_per_m``,
+        ``ratio_rad_per_m``, ``reflected_mass_kg``, per stage ``stiffness_N_per_m``),
+        ``positions_mm``, and ``null`` for ``angles_deg`` and ``total_Nm_per_deg``.
+        """
+        n = len(self.total)
+        data = {
+            "angles_deg": [None] * n if self.linear else self.angles_deg.tolist(),
+            "output_unit": self.output_unit,
+            "stages": self._stages(),
+            "total_Nm_per_rad": _nulls(self.total),
+            "total_Nm_per_deg": [None] * n if self.linear else _nulls(self.total * DEG),
             "ratio": self.ratio.tolist(),
             "reflected_inertia_kg_m2": self.reflected_inertia.tolist(),
+            "rigid": not self.names,
         }
+        if self.criterion is not None:
+            data["criterion"] = {"min_ratio": self.criterion.min_ratio, "within": self.criterion.within,
+                                 "own_stiffness_unit": self.stiffness_unit}
+        if self.linear:
+            data.update({"positions_mm": self.positions_mm.tolist(), "total_N_per_m": _nulls(self.total),
+                         "total_N_per_mm": _nulls(self.total * 1e-3), "ratio_rad_per_m": self.ratio.tolist(),
+                         "reflected_mass_kg": self.reflected_inertia.tolist()})
+        return data
 
     def table(self) -> str:
-        """Plain-text table, one block of columns per angle."""
-        head = f"{'stage':28s}" + "".join(f"{a:>+10.1f} deg   share " for a in self.angles_deg)
+        """Plain-text table, one block of columns per point, then seed 001's criterion."""
+        if self.linear:
+            cols, scale, unit = [f"{p:>+10.2f} mm    share " for p in self.positions_mm], 1e-3, "N/mm"
+            ratio_label, inertia_label = "ratio N [rad/m]", "reflected mass [kg]"
+        else:
+            cols, scale, unit = [f"{a:>+10.1f} deg   share " for a in self.angles_deg], DEG, "N*m/deg"
+            ratio_label, inertia_label = "ratio N [rad/rad]", "reflected inertia [kg*m^2]"
+        head = f"{'stage [' + unit + ']':28s}" + "".join(cols)
         lines = [head, "-" * len(head)]
         for n, k, s, neg in zip(self.names, self.stage_stiffness, self.shares, self.negligible):
-            row = f"{n[:28]:28s}" + "".join(f"{ki * math.pi / 180:>14.6g} {si:>7.2%}" for ki, si in zip(k, s))
+            row = f"{n[:28]:28s}" + "".join(f"{ki * scale:>14.6g} {si:>7.2%}" for ki, si in zip(k, s))
             lines.append(row + ("   (negligible)" if neg else ""))
         lines.append("-" * len(head))
-        lines.append(f"{'series total [N*m/deg]':28s}" + "".join(f"{t * math.pi / 180:>14.6g}        " for t in self.total))
-        lines.append(f"{'ratio N [rad/rad]':28s}" + "".join(f"{r:>14.5g}        " for r in self.ratio))
-        lines.append(f"{'reflected inertia [kg*m^2]':28s}" + "".join(f"{j:>14.5g}        " for j in self.reflected_inertia))
+        total = "rigid" if not self.names else ""
+        lines.append(f"{'series total [' + unit + ']':28s}"
+                     + "".join(f"{total or f'{t * scale:.6g}':>14s}        " for t in self.total))
+        lines.append(f"{ratio_label:28s}" + "".join(f"{r:>14.5g}        " for r in self.ratio))
+        lines.append(f"{inertia_label:28s}" + "".join(f"{j:>14.5g}        " for j in self.reflected_inertia))
+        if self.criterion is not None and len(self.names) > 1:
+            lines += ["", self._criterion_table()]
+        return "\n".join(lines)
+
+    def _criterion_table(self) -> str:
+        c = self.criterion
+        head = (f"{'seed 001 neglect criterion':28s}{'own K [' + self.stiffness_unit + ']':>18s}"
+                f"{'ratio to output':>17s}{'later ratio':>13s}{'K / later':>11s}  neglect")
+        lines = [head, "-" * len(head)]
+        for i, n in enumerate(self.names):
+            later = c.later_ratio[i]
+            lat = "-" if np.all(np.isnan(later)) else f"{np.nanmin(later):.3g}"
+            stiff = "-" if np.isnan(c.stiffness_to_later[i]) else f"{c.stiffness_to_later[i]:.3g}"
+            flags = ("ratio " + ("yes" if np.all(c.ratio_large[i]) else "no") + ", K "
+                     + ("yes" if c.stiffness_comparable[i] else "no"))
+            lines.append(f"{n[:28]:28s}{c.own_stiffness[i]:>18.4g}"
+                         f"{f'{c.ratio[i].min():.3g}..{c.ratio[i].max():.3g}':>17s}{lat:>13s}{stiff:>11s}  "
+                         f"{'YES' if c.negligible[i] else 'no'} ({flags})")
+        lines.append(f"neglect: ratio to every later stage >= {c.min_ratio:g} and own stiffness >= "
+                     f"1/{c.within:g} of some later stage's (seed 001);")
+        lines.append("own K of a spring on the other kind of coordinate is taken through its ratio at mid-stroke")
         return "\n".join(lines)
 
     def plot(self, ax=None):
-        """Bar chart of compliance shares per angle; returns the Axes."""
+        """Bar chart of compliance shares per point; returns the Axes."""
         import matplotlib.pyplot as plt
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 3.5))
         bottom = np.zeros_like(self.total)
-        labels = [f"{a:+.0f} deg" for a in self.angles_deg]
+        labels = ([f"{p:+.1f} mm" for p in self.positions_mm] if self.linear
+                  else [f"{a:+.0f} deg" for a in self.angles_deg])
         for n, s in zip(self.names, self.shares):
             ax.bar(labels, s * 100, bottom=bottom * 100, label=n)
             bottom = bottom + s
@@ -84,24 +193,88 @@ class StiffnessResult:
         return ax
 
 
-def stiffness_study(scene, angles_deg=DEFAULT_ANGLES_DEG) -> StiffnessResult:
-    """Reflect each stage's stiffness to the output at the given angles.
+def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, np.ndarray]:
+    """Validated output coordinates: q (rad, or m for a linear output) and the values given.
+
+    Parameters
+    ----------
+    dt : Drivetrain
+    angles_deg : sequence of float, optional
+        Output angles (deg) of a rotary output; default -30, 0, 10, 30.
+    positions_mm : sequence of float, optional
+        Output travels (mm) of a linear output; default mid-stroke.
+
+    Returns
+    -------
+    q, values : numpy.ndarray
+        SI coordinates and the same points in deg or mm.
+
+    Raises
+    ------
+    SceneError
+        Key ``angle`` or ``position``: the wrong kind of coordinate for this output, a
+        non-finite value, or a value outside :attr:`Drivetrain.stroke`.
+    """
+    lo, hi = dt.stroke
+    if dt.output_is_linear:
+        if angles_deg is not None:
+            raise SceneError("angle", "the output of this drivetrain is a travel (m), not an angle: "
+                             "give positions in mm (--position MM)")
+        key, unit, scale = "position", "mm", 1e-3
+        values = [dt.mid_stroke / scale] if positions_mm is None else positions_mm
+    else:
+        if positions_mm is not None:
+            raise SceneError("position", "the output of this drivetrain is an angle: give angles "
+                             "in deg (--angle DEG)")
+        key, unit, scale = "angle", "deg", DEG
+        values = DEFAULT_ANGLES_DEG if angles_deg is None else angles_deg
+    values = np.atleast_1d(np.asarray(values, dtype=float))
+    if values.size == 0:
+        raise SceneError(key, "give at least one value")
+    bad = values[~np.isfinite(values)]
+    if bad.size:
+        raise SceneError(key, f"must be a finite number (got {bad[0]:g} {unit})")
+    q = values * scale
+    if not dt.ends_in_cam:  # a cam law is periodic: any finite cam angle is fine
+        tol = 1e-9 * max(1.0, hi - lo)
+        out = values[(q < lo - tol) | (q > hi + tol)]
+        if out.size:
+            raise SceneError(key, f"must lie within the drivetrain stroke [{lo / scale:.6g}, "
+                             f"{hi / scale:.6g}] {unit} (got {out[0]:g} {unit})")
+    return q, values
+
+
+def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: float = 10.0,
+                    within: float = 10.0) -> StiffnessResult:
+    """Reflect each stage's stiffness to the output at the given points.
 
     Parameters
     ----------
     scene : Scene
-    angles_deg : sequence of float
-        Output angles (deg); q for a cam chain.
+    angles_deg : sequence of float, optional
+        Output angles (deg) of a rotary output (q for a cam chain); default -30, 0, 10, 30.
+    positions_mm : sequence of float, optional
+        Output travels (mm) of a linear output; default mid-stroke.
+    min_ratio, within : float
+        Thresholds of seed 001's neglect criterion (see :class:`NeglectCriterion`).
 
     Returns
     -------
     StiffnessResult
+
+    Raises
+    ------
+    SceneError
+        See :func:`output_points`.
     """
     dt = scene.drivetrain
-    angles = np.asarray(angles_deg, dtype=float)
-    q = np.radians(angles)
+    q, values = output_points(dt, angles_deg, positions_mm)
     chain = dt.stiffness(q)
     n, _ = dt.ratio(q)
     j, _ = dt.inertia(q)
-    return StiffnessResult(angles, chain.names, chain.stage_stiffness, chain.shares, chain.total,
-                           n, j, chain.negligible())
+    linear = dt.output_is_linear
+    crit = chain.criterion(min_ratio, within) if chain.names else None
+    return StiffnessResult(np.full(q.size, np.nan) if linear else values, chain.names,
+                           chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
+                           dt.output_unit, values if linear else None, crit,
+                           chain.native_stiffness, chain.native_units)
