@@ -5,6 +5,7 @@ import math
 import sys
 import types
 
+import numpy as np
 import pytest
 
 from servo_toolkit.cli import main
@@ -126,3 +127,44 @@ def test_cli_dispatches_to_a_mechanism_module(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "servo_toolkit.mechanisms", fake)
     assert main(["kv", EMA, "--study", "sweep", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["cases"] == [{"from": "mechanisms", "study": "sweep"}]
+
+
+def test_notes_name_the_rigid_model_and_what_the_compliance_would_change(ema, capsys):
+    """The loads come from rigid inverse dynamics; the note says so, and its number is the
+    change of the inertial motor torque that the drivetrain compliance would make. Checked
+    against the undamped two-mass equations solved here for a prescribed output sine:
+    -w^2 J1 P = T - K (P - Q), -w^2 J2 Q = K (P - Q)."""
+    from servo_toolkit.plant import plant_parameters
+    r = kv_study(ema, "kv_8hz", samples_per_period=200, progress=False)
+    note = next(n for n in r.notes if n.startswith("model:"))
+    for word in ("rigid inverse dynamics", "compliance", "backlash", "inductance", "Hz"):
+        assert word in note
+    w = 2 * math.pi * 8.0
+    effects = []
+    for j in (0.0, 2.3):
+        p = plant_parameters(ema).with_variation(load_inertia_delta=j - ema.load.inertia)
+        J1, J2, K = p.J1, p.J2, p.K
+        # unknowns P (motor-side angle) and T (torque at the output) for Q = 1
+        a = [[-w**2 * J1 + K, -1.0], [K, 0.0]]
+        P, T = np.linalg.solve(a, [K * 1.0, (K - w**2 * J2) * 1.0])
+        effects.append(1 - abs(T) / (w**2 * (J1 + J2)))
+    assert r.compliance_effect == pytest.approx(max(effects), rel=1e-9)
+    assert 0.05 < r.compliance_effect < 0.2      # 8 Hz against a ~24 Hz mode: not negligible
+    assert r.to_dict()["compliance_effect_relative"] == r.compliance_effect
+    assert main(["kv", EMA, "--study", "kv_8hz", "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["studies"][0]["notes"]
+    assert any("rigid inverse dynamics" in n for n in notes)
+    assert main(["kv", EMA, "--study", "kv_8hz"]) == 0
+    assert "note: model: rigid inverse dynamics" in capsys.readouterr().out
+
+
+def test_cli_runs_the_built_in_roller_screw_studies(capsys):
+    """``kv --study efficiency`` on a roller-screw scene (no [studies] table) runs the
+    built-in study instead of 'no such study'; an unknown name lists the built-in ones."""
+    scene = str(SCENES / "roller_screw_two_stage.toml")
+    for name in ("efficiency", "carrier_step"):
+        assert main(["kv", scene, "--study", name, "--json"]) == 0, capsys.readouterr().err
+        assert json.loads(capsys.readouterr().out)["studies"]
+    assert main(["kv", scene, "--study", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "studies.nope" in err and "efficiency" in err and "carrier_step" in err

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -12,6 +13,10 @@ from servo_toolkit.cli import main
 from servo_toolkit.studies.reduce import reduce, reduced_options
 
 from .conftest import build, variant
+
+
+#: explicit frequencies replace the study's (and the 8 Hz that a sweep study always gets)
+LOW = [1.0, 3.0]
 
 
 @pytest.fixture
@@ -25,7 +30,7 @@ def test_low_frequency_study_leaves_out_the_compliance_within_its_bound(slow_swe
     model is rigid with an ideal current loop, and the measured sine-dwell difference is
     within the bound and close to the first-order estimate (the estimate is not a loose
     upper bound but predicts the difference)."""
-    res = reduce(slow_sweep, "sweep", progress=False)
+    res = reduce(slow_sweep, "sweep", frequencies=LOW, progress=False)
     left = {e.effect for e in res.plan.omitted}
     assert {"drivetrain compliance", "armature inductance"} <= left
     assert res.reduced_options["compliance"] is False and res.reduced_options["inductance"] is False
@@ -35,11 +40,22 @@ def test_low_frequency_study_leaves_out_the_compliance_within_its_bound(slow_swe
     assert res.to_dict()["within_bound"] is True
 
 
+def test_a_named_sweep_study_gets_8hz_unless_frequencies_are_given(slow_sweep):
+    """Without explicit frequencies the study's 1 and 3 Hz gain the seed's 8 Hz, where the
+    compliance (32 Hz mode) matters more: its estimate grows roughly as f^2."""
+    with_8 = reduced_options(slow_sweep, "sweep")[1]
+    low = reduced_options(slow_sweep, "sweep", frequencies=LOW)[1]
+    comp = {p: next(e for e in plan.effects if e.effect == "drivetrain compliance") for p, plan in
+            (("8", with_8), ("low", low))}
+    assert comp["8"].estimate > 3 * comp["low"].estimate
+    assert "8 Hz" in comp["8"].quantity
+
+
 def test_tighter_tolerance_keeps_more(slow_sweep):
     """A bound below the compliance's estimate keeps the compliance; the measurement then
     still meets the tighter bound."""
-    loose = reduced_options(slow_sweep, "sweep")[1]
-    tight = reduce(slow_sweep, "sweep", tolerance=1e-4, progress=False)
+    loose = reduced_options(slow_sweep, "sweep", frequencies=LOW)[1]
+    tight = reduce(slow_sweep, "sweep", tolerance=1e-4, frequencies=LOW, progress=False)
     assert len(tight.plan.omitted) < len(loose.omitted)
     assert "drivetrain compliance" not in {e.effect for e in tight.plan.omitted}
     assert tight.within_bound
@@ -80,3 +96,40 @@ def test_cli_reduce(capsys, scenes_dir):
     assert all("reason" in e and "estimate_relative" in e for e in out["effects"])
     assert main(["reduce", path, "--tolerance", "2"]) == 2
     capsys.readouterr()
+
+
+def test_kv_stroke_start_up_saturation_is_outside_the_compared_window():
+    """The 30 deg, 0.6 s stroke motion needs at most 8.1 N*m from the motor in steady state
+    (rigid inverse dynamics, lossless: 40 A < the 60 A limit), but the sine command starts
+    with its full slope, so the start-up transient reaches the current limit. Saturation is
+    judged over the compared window, as the sweep does: the point is in the linear range and
+    its measured difference is within the bound (not NaN)."""
+    from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+    from servo_toolkit.studies.trajectories import SineMotion
+    scene = load_scene()
+    motion = SineMotion(np.radians(30.0), 1 / 0.6, scene.drivetrain.mid_stroke)
+    need = inverse_dynamics(scene.drivetrain, motion, motion.times(400), losses="none").peak_motor_torque
+    assert need / scene.motor.torque_constant < scene.motor.current_limit
+    res = reduce(scene, "kv_stroke", progress=False)
+    assert not res.saturated.any() and res.bound_applies
+    assert np.isfinite(res.measured) and res.within_bound is True
+    assert any("start-up transient" in n for n in res.notes)
+    assert not re.search(r"\bnan\b", res.table())
+
+
+def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
+    """With the current limit at 30 A the stroke motion's steady state needs more (~40 A,
+    rigid inverse dynamics): every point saturates in the window, so the linear bound does
+    not apply. within_bound is None (not False), and the text says why and gives the
+    difference at the saturated points instead of 'nan ... NOT within'."""
+    scene = build(variant(ema_dict, motor__current_limit="30 A"))
+    res = reduce(scene, "kv_stroke", progress=False)
+    assert res.saturated.all() and not res.bound_applies
+    assert res.within_bound is None and res.verdict == "not applicable"
+    d = res.to_dict()
+    assert d["within_bound"] is None and d["bound_applies"] is False
+    assert np.isfinite(d["measured_saturated_relative"])
+    text = res.table()
+    assert "no point stayed within the current and voltage limits" in text
+    assert "does not apply" in text and "NOT within" not in text and not re.search(r"\bnan\b", text)
+    assert f"{res.measured_saturated:.2e}" in text

@@ -95,3 +95,46 @@ def test_cli_sweep_json(capsys, scenes_dir):
     assert {"gain_db", "phase_deg", "linear_gain_db", "linear_phase_deg"} <= set(out["points"][0])
     assert main(["sweep", str(scenes_dir / "ema_reference.toml"), "--amplitude", "-1"]) == 2
     capsys.readouterr()
+
+
+def test_a_named_study_keeps_8hz_unless_frequencies_are_given():
+    """The seed's 8 Hz joins a named study's frequencies (once) as it joins the default;
+    explicit frequencies replace the whole list."""
+    scene = load_scene()
+    name, freqs, _ = study_points(scene, "sweep")
+    assert name == "sweep" and 8.0 in freqs
+    assert len(freqs) == 31 and freqs == tuple(sorted(freqs))     # 30 log points + 8 Hz
+    assert study_points(scene, "sweep") == study_points(scene)
+    res = sweep(scene, "sweep", frequencies=[3.0], amplitudes=[math.radians(0.5)], progress=False)
+    assert res.frequencies_hz.tolist() == [3.0]
+
+
+def test_a_study_of_another_kind_is_refused(capsys, scenes_dir):
+    """``sweep --study kv_8hz`` is a kv study: SceneError naming studies.kv_8hz.kind, exit 2."""
+    with pytest.raises(SceneError, match=r"studies\.kv_8hz\.kind.*frequency_sweep"):
+        study_points(load_scene(), "kv_8hz")
+    assert main(["sweep", str(scenes_dir / "ema_reference.toml"), "--study", "kv_8hz", "--frequency", "8"]) == 2
+    err = capsys.readouterr().err
+    assert "studies.kv_8hz.kind" in err and err.count("\n") == 1
+
+
+def test_a_point_that_fails_after_reaching_a_limit_is_flagged_saturated():
+    """Commands beyond the +-30 deg stroke end the run at the stroke end. At 2 Hz a 35 deg
+    command needs far more than the 60 A limit (the current reference is clipped there before
+    the failure): failed and saturated. At 0.5 Hz a 31 deg command stays below both limits
+    until it reaches the stroke end: failed, not saturated."""
+    scene = load_scene()
+    opts = ModelOptions()    # stroke_end="error"
+    fast = sweep(scene, frequencies=[2.0], amplitudes=[math.radians(35.0)], options=opts, progress=False)
+    slow = sweep(scene, frequencies=[0.5], amplitudes=[math.radians(31.0)], options=opts, progress=False)
+    assert fast.failed[0, 0] and slow.failed[0, 0]
+    assert "stroke end" in fast.errors[0] and "stroke end" in slow.errors[0]
+    assert fast.saturated[0, 0]
+    assert fast.peak_current_A[0, 0] == pytest.approx(scene.motor.current_limit, rel=1e-9)
+    assert not slow.saturated[0, 0]
+    assert slow.peak_current_A[0, 0] < scene.motor.current_limit
+    assert slow.peak_voltage_V[0, 0] < scene.motor.voltage_limit
+    point = fast.to_dict()["points"][0]
+    assert point["failed"] is True and point["saturated"] is True
+    assert "saturated before failing" in fast.table()
+    assert "saturated" not in slow.table().split("amplitude 31 deg")[1].split("FAILED")[0]

@@ -14,7 +14,10 @@ def register(sub) -> None:
     p = sub.add_parser("reduce", help="what the scene's model leaves out for a study, why, and the measured cost")
     add_scene(p)
     p.add_argument("--study", metavar="NAME",
-                   help="a frequency_sweep, kv or simulate (sine) study (default: the sweep, plus 8 Hz)")
+                   help="a frequency_sweep study (plus 8 Hz), or a kv or simulate (sine) study "
+                   "(default: the scene's first sweep)")
+    p.add_argument("--frequency", type=float, action="append", metavar="HZ",
+                   help="frequency in Hz, repeatable: replaces a sweep study's frequencies (and its 8 Hz)")
     p.add_argument("--tolerance", type=float, default=None, metavar="X",
                    help="a-priori bound on the relative response difference (default 0.02 = 0.17 dB / 1.15 deg)")
     p.add_argument("--estimate-only", action="store_true",
@@ -32,15 +35,19 @@ def run(args) -> int:
     if not (math.isfinite(tol) and 0 < tol < 1):
         sys.stderr.write("error: --tolerance must lie in (0, 1) (a relative response difference)\n")
         return 2
+    if args.frequency and not all(math.isfinite(f) and f > 0 for f in args.frequency):
+        sys.stderr.write("error: --frequency must be positive and finite\n")
+        return 2
     scene = load_scene(args.scene)
     if args.estimate_only:
-        _, plan = reduced_options(scene, args.study, tolerance=tol)
+        _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency)
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}\n{'':34s}   {e.quantity}" for e in plan.effects]
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0
-    res = reduce(scene, args.study, tolerance=tol, progress=not args.json and sys.stderr.isatty())
+    res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
+                 progress=not args.json and sys.stderr.isatty())
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import importlib
 import sys
 
 from ..scene import load_scene
+from . import mechanism_dispatch as dispatch
 from .common import add_json, add_scene, emit
 
 
@@ -25,14 +25,11 @@ def _mechanism_dispatch(scene, args):
     """The mechanism studies' own runner when it handles this study, else None."""
     if not args.study:
         return None
-    try:
-        mech = importlib.import_module("servo_toolkit.mechanisms")
-    except ImportError:
+    dispatch.require(scene, args.study)
+    study = scene.studies.get(args.study, args.study)
+    if not dispatch.handled(scene, study):
         return None
-    handles = getattr(mech, "handles", None)
-    if handles is None or not handles(scene, args.study):
-        return None
-    return mech.run_study(scene, args.study, method=args.method, dt=args.dt)
+    return dispatch.run_mechanism(scene, study, method=args.method, dt=args.dt)
 
 
 def run(args) -> int:

@@ -5,7 +5,11 @@ from __future__ import annotations
 import math
 import sys
 
+import numpy as np
+
+from ..errors import SceneError
 from ..scene import load_scene
+from . import mechanism_dispatch as dispatch
 from .common import add_json, add_scene, emit
 
 
@@ -13,7 +17,9 @@ def register(sub) -> None:
     """Register the command."""
     p = sub.add_parser("sweep", help="nonlinear closed-loop sine-dwell sweep against the linear loop")
     add_scene(p)
-    p.add_argument("--study", metavar="NAME", help="a frequency_sweep study (default: the scene's first, plus 8 Hz)")
+    p.add_argument("--study", metavar="NAME",
+                   help="a frequency_sweep study, plus 8 Hz (default: the scene's first), or a "
+                   "seed-mechanism study (run as simulate runs it)")
     p.add_argument("--frequency", type=float, action="append", metavar="HZ",
                    help="drive frequency in Hz, repeatable (replaces the study's)")
     p.add_argument("--amplitude", type=float, action="append", metavar="DEG",
@@ -25,10 +31,38 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _run_mechanism(scene, study, args) -> int:
+    """A seed-mechanism study: its own runner; the sine-dwell options do not apply."""
+    name = getattr(study, "name", study)
+    given = [opt for opt, value in (("--frequency", args.frequency), ("--amplitude", args.amplitude),
+                                    ("--full", args.full)) if value]
+    if given:
+        raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
+                         f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
+    if args.workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(args.workers) as pool:
+            res = dispatch.run_mechanism(scene, study, executor=pool)
+    else:
+        res = dispatch.run_mechanism(scene, study)
+    if args.plot and hasattr(res, "plot"):
+        import matplotlib
+        matplotlib.use("Agg")
+        ax = np.ravel(res.plot())[0]
+        ax.figure.savefig(args.plot, bbox_inches="tight")
+    emit(args, res, res.table() if hasattr(res, "table") else str(res))
+    return 0
+
+
 def run(args) -> int:
     """Run the command."""
     from ..studies.sweep import sweep
     scene = load_scene(args.scene)
+    if args.study:
+        dispatch.require(scene, args.study)
+        study = scene.studies.get(args.study, args.study)
+        if dispatch.handled(scene, study):
+            return _run_mechanism(scene, study, args)
     amps = [math.radians(a) for a in args.amplitude] if args.amplitude else None
     for name, values in (("--frequency", args.frequency), ("--amplitude", args.amplitude)):
         if values and (min(values) <= 0 or not all(math.isfinite(v) for v in values)):

@@ -94,6 +94,10 @@ class KvResult:
     cases : tuple of KvCase
         Ordered by amplitude, then inertia.
     notes : tuple of str
+        Including which model the loads come from and what it leaves out.
+    compliance_effect : float
+        Relative change of the inertial motor torque that the drivetrain compliance would
+        make, (f / f_n)^2 at the lowest mode over the load inertias (:func:`rigid_model_effect`).
     """
 
     scene: str
@@ -103,6 +107,7 @@ class KvResult:
     losses: str
     cases: tuple
     notes: tuple = field(default=())
+    compliance_effect: float = 0.0
 
     @property
     def amplitudes(self) -> list:
@@ -119,7 +124,8 @@ class KvResult:
         """JSON-ready dictionary with the ``cases`` list."""
         return {"scene": self.scene, "study": self.study, "motion": self.motion,
                 "amplitude_at": self.amplitude_at, "losses": self.losses,
-                "cases": [c.to_dict() for c in self.cases], "notes": list(self.notes)}
+                "cases": [c.to_dict() for c in self.cases], "notes": list(self.notes),
+                "compliance_effect_relative": self.compliance_effect}
 
     def table(self) -> str:
         """Plain-text table in the spirit of seed 000's tables 2-4."""
@@ -135,6 +141,7 @@ class KvResult:
                          f"{c.peak_motor_torque:>13.4f} {c.kv_motor:>9.3f} "
                          f"{num(c.peak_screw_thrust, '>13.1f')} {num(c.kv_screw, '>9.3f')} "
                          f"{num(c.peak_rod_force, '>11.1f')}")
+        lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
 
     def plot(self, ax=None):
@@ -242,6 +249,39 @@ def _motions(scene, study):
     return [SineMotion(float(a), float(freq), offset) for a in amps], at
 
 
+def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, float]:
+    """What the rigid inverse dynamics leaves out: ``(lowest drivetrain mode (Hz), effect)``.
+
+    With the two-mass split at mid-stroke (:func:`servo_toolkit.plant.plant_parameters`;
+    motor side J1, load side J2, series stiffness K, mode ``w_n^2 = K (1/J1 + 1/J2)``) and the
+    output prescribed as a sine of angular frequency w, the spring carries ``-J2 w^2 q`` and
+    the motor side winds it up, ``p = q (1 - J2 w^2 / K)``, so the motor's inertial torque is
+    the rigid one times ``1 - (w / w_n)^2``. ``effect`` is the largest ``(f / f_n)^2`` over
+    the load inertias (0 for a rigid chain; the mode falls as the load inertia grows).
+    """
+    from ..plant import plant_parameters
+    base = plant_parameters(scene)
+    modes = [base.with_variation(load_inertia_delta=float(j) - scene.load.inertia).resonance_hz
+             for j in load_inertias]
+    f_n = min(modes) if modes else math.inf
+    return f_n, (0.0 if not math.isfinite(f_n) else (frequency / f_n) ** 2)
+
+
+def _model_note(scene, frequency, inertias) -> tuple[str, float]:
+    f_n, effect = rigid_model_effect(scene, frequency, inertias)
+    if math.isfinite(f_n):
+        mode = (f"the compliance's drivetrain mode is down to {f_n:.3g} Hz at mid-stroke over these load inertias; "
+                f"the motion's frequency content is {frequency:.3g} Hz (plus harmonics from the ratio variation), so "
+                f"a compliant chain would change the inertial motor torque by about (f/f_n)^2 = {effect:.2%} "
+                f"(the motor side winds up the spring: factor 1 - (f/f_n)^2), more for the harmonics nearer the mode")
+    else:
+        mode = "the chain has no compliance, so the rigid model leaves nothing out there"
+    return ("model: rigid inverse dynamics (seed 000 eq 10) - drivetrain compliance, backlash and armature "
+            f"inductance are not modelled; {mode}. Backlash does not change the loads while the force through "
+            "the chain keeps its sign (impacts otherwise); inductance changes only the voltage needed "
+            "(L di/dt), not the torque"), effect
+
+
 def kv_study(scene, study=None, *, losses: str = "directional", samples_per_period: int = 2000,
              executor=None, progress: bool = True) -> KvResult:
     """Run a ``[studies.NAME]`` of kind ``"kv"`` on the scene's drivetrain.
@@ -285,15 +325,16 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
         for j, (torque, thrust, rod) in sorted(rows, key=lambda r: r[0]):
             cases.append(KvCase(motion.amplitude, motion.frequency, j, torque, thrust, rod,
                                 _ratio(torque, ref[0]), _ratio(thrust, ref[1]), _ratio(rod, ref[2])))
+    model_note, effect = _model_note(scene, motions[0].frequency, [0.0] + [float(j) for j in inertias])
     notes = ["Kv = peak with the external inertia / peak of the same motion at zero external inertia",
-             "motor torque includes the rotor inertia, stage losses and motor friction"]
+             "motor torque includes the rotor inertia, stage losses and motor friction", model_note]
     if 0.0 not in [float(j) for j in inertias]:
         notes.append("the zero-inertia reference case was added to the study's inertias")
     if at == "motor":
         notes.append("amplitudes were given at the motor gear and divided by N(offset)")
     return KvResult(scene.name, study.name, motions[0].describe() if len(motions) == 1 else
                     f"sine {', '.join(f'{math.degrees(m.amplitude):.4g}' for m in motions)} deg, "
-                    f"{motions[0].frequency:.4g} Hz", at, losses, tuple(cases), tuple(notes))
+                    f"{motions[0].frequency:.4g} Hz", at, losses, tuple(cases), tuple(notes), effect)
 
 
 def kv_studies(scene, **options) -> list[KvResult]:
@@ -301,4 +342,4 @@ def kv_studies(scene, **options) -> list[KvResult]:
     return [kv_study(scene, s, **options) for s in scene.studies_of_kind("kv")]
 
 
-__all__ = ["KvCase", "KvResult", "kv_grid", "kv_study", "kv_studies", "with_load_inertia"]
+__all__ = ["KvCase", "KvResult", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]

@@ -89,9 +89,23 @@ class ReductionResult:
         return float(np.max(self.difference[sat])) if sat.any() else math.nan
 
     @property
-    def within_bound(self) -> bool:
-        """Measured difference (within the limits) <= the a-priori bound."""
+    def bound_applies(self) -> bool:
+        """True when at least one point stayed within the current and voltage limits (and ran
+        on both models): the a-priori bound is a statement about the linear range only."""
+        return bool(np.any(~self.saturated & ~np.isnan(self.difference)))
+
+    @property
+    def within_bound(self) -> bool | None:
+        """Measured difference (within the limits) <= the a-priori bound; None (not
+        applicable) when no point stayed within the limits."""
+        if not self.bound_applies:
+            return None
         return bool(self.measured <= self.bound)
+
+    @property
+    def verdict(self) -> str:
+        """``"within"``, ``"NOT within"`` or ``"not applicable"`` (no point within the limits)."""
+        return {True: "within", False: "NOT within", None: "not applicable"}[self.within_bound]
 
     def to_dict(self) -> dict:
         """JSON-ready."""
@@ -105,7 +119,7 @@ class ReductionResult:
                 "bound_relative": self.bound, "measured_relative": self.measured,
                 "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
                 "measured_saturated_relative": self.measured_saturated,
-                "within_bound": self.within_bound,
+                "within_bound": self.within_bound, "bound_applies": self.bound_applies,
                 "points": [{"frequency_hz": float(f), "amplitude_deg": math.degrees(float(a)),
                             "difference_relative": float(self.difference[i, k]),
                             "saturated": bool(self.saturated[i, k])}
@@ -132,9 +146,15 @@ class ReductionResult:
         lines.append(f"a-priori: sum of estimates of the omissions {p.predicted:.2e}; bound (tolerance) "
                      f"{self.bound:.2e} = {_db(self.bound):.3f} dB / {_deg(self.bound):.2f} deg")
         what = "sine-dwell response" if self.measure == "sweep" else "output-angle RMS"
-        lines.append(f"measured ({what}, full vs reduced): {self.measured:.2e} = {_db(self.measured):.3f} dB / "
-                     f"{_deg(self.measured):.2f} deg -> {'within' if self.within_bound else 'NOT within'} the bound")
-        if np.any(self.saturated):
+        if self.bound_applies:
+            lines.append(f"measured ({what}, full vs reduced): {self.measured:.2e} = {_db(self.measured):.3f} dB / "
+                         f"{_deg(self.measured):.2f} deg -> {self.verdict} the bound")
+        else:
+            sat = self.measured_saturated
+            lines.append(f"measured ({what}, full vs reduced): no point stayed within the current and voltage "
+                         f"limits, so the linear bound does not apply (not applicable); difference at the "
+                         f"saturated points {sat:.2e} = {_db(sat):.3f} dB / {_deg(sat):.2f} deg")
+        if np.any(self.saturated) and self.bound_applies:
             lines.append(f"points that reached a limit (outside the linear statement): largest difference "
                          f"{self.measured_saturated:.2e}")
         lines.append(f"wall time: full {self.full_wall_s:.2f} s, reduced {self.reduced_wall_s:.2f} s")
@@ -190,17 +210,21 @@ def time_points(study):
 
 
 def _trace_case(case):
-    """One closed-loop sine run; returns times, output angle and whether a limit was reached."""
+    """One closed-loop sine run; returns times, output angle and whether a limit was reached
+    in the compared window (``t >= t_settle``, as the sweep flags its dwell window) and
+    before it (the start-up transient: the command starts with its full slope)."""
     from ..sim import Reference, run
-    model, amp, freq, duration, limits = case
+    model, amp, freq, duration, limits, t_settle = case
     start = time.perf_counter()
     try:
         res = run(model, Reference.sine(amp, freq), duration, "rk4")
     except SimulationError as exc:
         return {"error": str(exc), "wall_s": time.perf_counter() - start}
-    sat = (np.max(np.abs(res.current_reference)) >= limits[0] * (1 - 1e-9)
-           or np.max(np.abs(res.motor_voltage)) >= limits[1] * (1 - 1e-9))
-    return {"t": res.times, "q": res.output_angle - model.q0, "saturated": bool(sat), "error": None,
+    hit = ((np.abs(res.current_reference) >= limits[0] * (1 - 1e-9))
+           | (np.abs(res.motor_voltage) >= limits[1] * (1 - 1e-9)))
+    window = res.times >= t_settle
+    return {"t": res.times, "q": res.output_angle - model.q0, "saturated": bool(np.any(hit[window])),
+            "startup_saturated": bool(np.any(hit[~window])), "error": None,
             "wall_s": time.perf_counter() - start}
 
 
@@ -215,7 +239,7 @@ def _trace_difference(full, red, t_settle):
 
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
-           executor=None, progress: bool = True) -> ReductionResult:
+           executor=None, progress: bool = True, frequencies=None) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -232,6 +256,8 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         Settling and estimation cycles.
     executor : concurrent.futures.Executor, optional
     progress : bool
+    frequencies : sequence of float, optional
+        Hz, replacing a sweep study's frequencies (8 Hz is then not added).
 
     Returns
     -------
@@ -246,9 +272,12 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     if isinstance(study, str):
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":
-        name, freqs, amps = study_points(scene, study)
+        name, freqs, amps = _sweep_points(scene, study, frequencies)
         freqs, measure = np.asarray(freqs), "sweep"
     elif study.kind in TIME_KINDS:
+        if frequencies is not None:
+            raise SceneError(study.key("kind"), f"is {study.kind!r}; frequencies replace a frequency_sweep "
+                             "study's only (a time study's motion sets its frequency)")
         name = study.name
         freqs, amps = time_points(study)
         measure = "trace"
@@ -284,21 +313,39 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         for key, opts in (("full", full), ("reduced", reduced)):
             start = time.perf_counter()
             model = build_model(scene, controller, opts)
-            runs[key] = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits) for a in amps],
+            runs[key] = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits, settle / f) for a in amps],
                                   executor=executor, progress=progress, description=f"{key} model")
             walls.append(time.perf_counter() - start)
         pairs = [_trace_difference(a, b, settle / f) for a, b in zip(runs["full"], runs["reduced"])]
         diff = np.array([[d] for d, _ in pairs])
         sat = np.array([[s] for _, s in pairs])
         notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "
-                     f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode)")
+                     f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode); "
+                     "a point counts as saturated when a limit was reached in that window")
+        early = [math.degrees(a) for a, r_f, r_r in zip(amps, runs["full"], runs["reduced"])
+                 if r_f.get("startup_saturated") or r_r.get("startup_saturated")]
+        if early:
+            notes.append(f"the start-up transient (the sine command starts with its full slope) reached a limit "
+                         f"before the compared window at {', '.join(f'{a:.3g}' for a in early)} deg; it has "
+                         "decayed by then")
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
                            full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes))
 
 
-def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None):
+def _sweep_points(scene, study, frequencies):
+    """:func:`.sweep.study_points`, with ``frequencies`` (Hz) replacing the study's."""
+    name, freqs, amps = study_points(scene, study)
+    if frequencies is not None:
+        freqs = tuple(sorted(float(f) for f in np.atleast_1d(frequencies)))
+        if not freqs or not all(math.isfinite(f) and f > 0 for f in freqs):
+            raise ValueError("frequencies must be non-empty, positive and finite")
+    return name, freqs, amps
+
+
+def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None,
+                    frequencies=None):
     """Only the a-priori part: ``(ModelOptions, ReductionPlan)`` for a study (no runs).
 
     A time simulation can adopt the reduction with
@@ -310,7 +357,7 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     if isinstance(study, str):
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":
-        _, freqs, amps = study_points(scene, study)
+        _, freqs, amps = _sweep_points(scene, study, frequencies)
     else:
         freqs, amps = time_points(study)
     rplan = plan_reduction(scene, controller, freqs, amps,

@@ -19,7 +19,9 @@ left out; ``full=True`` runs the full model.
 from __future__ import annotations
 
 import math
+import re
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,18 +40,28 @@ DEFAULT_AMPLITUDE = math.radians(2.0)
 def study_points(scene, study=None):
     """``(name, frequencies_hz, amplitudes_rad)`` of a sweep study.
 
-    ``study=None`` takes the scene's first ``frequency_sweep`` study and adds 8 Hz; without
-    one, 8 Hz at 2 deg. A study gives ``amplitude`` or ``amplitudes``, and ``frequencies`` as
-    a list or a table ``{start, stop, points, spacing = "log" | "linear"}`` (or ``frequency``).
+    ``study=None`` takes the scene's first ``frequency_sweep`` study; without one, 8 Hz at
+    2 deg. The seed's 8 Hz is always added to a study's frequencies (callers that give
+    frequencies explicitly replace the whole list). A study gives ``amplitude`` or
+    ``amplitudes``, and ``frequencies`` as a list or a table ``{start, stop, points,
+    spacing = "log" | "linear"}`` (or ``frequency``).
+
+    Raises
+    ------
+    SceneError
+        The named study is not of kind ``frequency_sweep`` (key ``studies.NAME.kind``), or
+        its amplitudes or frequencies are missing or not positive.
     """
-    extra = ()
+    extra = (DEFAULT_FREQUENCY_HZ,)
     if study is None:
         found = scene.studies_of_kind("frequency_sweep")
         if not found:
             return None, (DEFAULT_FREQUENCY_HZ,), (DEFAULT_AMPLITUDE,)
-        study, extra = found[0], (DEFAULT_FREQUENCY_HZ,)
+        study = found[0]
     elif isinstance(study, str):
         study = scene.study(study)
+    if study.kind != "frequency_sweep":
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind 'frequency_sweep'")
     p = study.params
     if p.get("amplitudes"):
         amps = tuple(float(a) for a in p["amplitudes"])
@@ -89,8 +101,10 @@ def _dwell_case(case):
         # a quarter cycle beyond the window, so that the records cover its end
         res = run(model, Reference.sine(amp, freq), (settle + est + 0.25) / freq, method)
     except SimulationError as exc:
-        return {"response": complex(math.nan, math.nan), "change": math.nan, "saturated": False,
-                "peak_current_A": math.nan, "peak_voltage_V": math.nan, "error": str(exc),
+        i_peak, v_peak = _peaks_before_failure(model, amp, freq, method, str(exc))
+        sat = i_peak >= limits[0] * (1 - 1e-9) or v_peak >= limits[1] * (1 - 1e-9)
+        return {"response": complex(math.nan, math.nan), "change": math.nan, "saturated": bool(sat),
+                "peak_current_A": i_peak, "peak_voltage_V": v_peak, "error": str(exc),
                 "wall_s": time.perf_counter() - start}
     y = res.output_angle - model.q0
     phasor, change = dwell_estimate(res.times, y, freq, settle, est)
@@ -100,6 +114,24 @@ def _dwell_case(case):
     sat = i_peak >= limits[0] * (1 - 1e-9) or v_peak >= limits[1] * (1 - 1e-9)
     return {"response": phasor / amp, "change": change, "saturated": bool(sat), "peak_current_A": i_peak,
             "peak_voltage_V": v_peak, "error": None, "wall_s": time.perf_counter() - start}
+
+
+def _peaks_before_failure(model, amp, freq, method, message):
+    """Peaks of |i_ref| and |v| (NaN if unknown) of a failed dwell up to its failure.
+
+    The run is repeated up to 99 % of the failure time named in the message ("at t = ... s"),
+    so that a point that reached the current or voltage limit before failing is flagged.
+    """
+    from ..sim import Reference, run
+    found = re.search(r"at t = ([0-9.eE+-]+) s", message)
+    t_fail = float(found.group(1)) if found else 0.0
+    if not t_fail > 0:
+        return math.nan, math.nan
+    try:
+        res = run(model, Reference.sine(amp, freq), 0.99 * t_fail, method)
+    except (SimulationError, ValueError):
+        return math.nan, math.nan
+    return float(np.max(np.abs(res.current_reference))), float(np.max(np.abs(res.motor_voltage)))
 
 
 def _wrap_near(phase, ref):
@@ -128,9 +160,10 @@ class SweepResult:
     settling_change : numpy.ndarray
         (n_a, n_f) relative change of the estimate between the halves of the window.
     saturated : numpy.ndarray
-        (n_a, n_f) bool: the current or voltage limit was reached in the window.
+        (n_a, n_f) bool: the current or voltage limit was reached in the window (a failed
+        run: before it failed; see :attr:`failed`).
     peak_current_A, peak_voltage_V : numpy.ndarray
-        (n_a, n_f) peaks of |i_ref| and |v| in the window.
+        (n_a, n_f) peaks of |i_ref| and |v| in the window (a failed run: up to the failure).
     errors : tuple
         (n_a * n_f) row-major: None, or why the run failed.
     reduced : bool
@@ -171,6 +204,12 @@ class SweepResult:
     notes: tuple = field(default_factory=tuple)
 
     @property
+    def failed(self) -> np.ndarray:
+        """(n_a, n_f) bool: the run failed (see ``errors``); ``saturated`` then tells whether
+        it reached a limit before failing."""
+        return np.array([e is not None for e in self.errors], dtype=bool).reshape(self.response.shape)
+
+    @property
     def linear_phase(self) -> np.ndarray:
         """Unwrapped phase (rad) of the linear loop at the sweep frequencies."""
         grid = np.unwrap(np.angle(self.linear_grid_response))
@@ -202,8 +241,10 @@ class SweepResult:
         per amplitude (lists), over the points that ran."""
         dg = np.abs(self.gain_db - self.linear_gain_db[None, :])
         dp = np.abs(self.phase_deg - self.linear_phase_deg[None, :])
-        return {"max_gain_difference_dB": np.nanmax(dg, axis=1).tolist() if dg.size else [],
-                "max_phase_difference_deg": np.nanmax(dp, axis=1).tolist() if dp.size else []}
+        with warnings.catch_warnings():  # an amplitude whose every point failed gives NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return {"max_gain_difference_dB": np.nanmax(dg, axis=1).tolist() if dg.size else [],
+                    "max_phase_difference_deg": np.nanmax(dp, axis=1).tolist() if dp.size else []}
 
     def to_dict(self) -> dict:
         """JSON-ready: ``points`` [{frequency_hz, gain_db, phase_deg, linear_gain_db,
@@ -219,6 +260,7 @@ class SweepResult:
                     pt["amplitude_deg"] = math.degrees(float(amp))
                 pt.update({"settling_change": float(self.settling_change[a, k]),
                            "saturated": bool(self.saturated[a, k]),
+                           "failed": bool(self.failed[a, k]),
                            "peak_current_A": float(self.peak_current_A[a, k]),
                            "peak_voltage_V": float(self.peak_voltage_V[a, k]),
                            "error": self.errors[a * self.frequencies_hz.size + k]})
@@ -244,7 +286,8 @@ class SweepResult:
                          f"{'linear deg':>11} {'dG [dB]':>8} {'dP [deg]':>9}  flags")
             for k, f in enumerate(self.frequencies_hz):
                 err = self.errors[a * self.frequencies_hz.size + k]
-                flags = ("saturated " if self.saturated[a, k] else "") + \
+                sat = ("saturated before failing " if err else "saturated ") if self.saturated[a, k] else ""
+                flags = sat + \
                         (f"unsettled ({self.settling_change[a, k]:.1%}) " if self.settling_change[a, k] > 0.01 else "") + \
                         (f"FAILED: {err}" if err else "")
                 lines.append(f"{f:9.4g} {g[a, k]:10.3f} {p[a, k]:12.2f} {lg[k]:10.3f} {lp[k]:11.2f} "
@@ -313,8 +356,8 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     ----------
     scene : Scene
     study : str or Study, optional
-        A ``frequency_sweep`` study; default the scene's first one plus 8 Hz (see
-        :func:`study_points`).
+        A ``frequency_sweep`` study (8 Hz is added to its frequencies); default the scene's
+        first one (see :func:`study_points`).
     frequencies : sequence of float, optional
         Hz, replacing the study's.
     amplitudes : sequence of float, optional
