@@ -106,6 +106,8 @@ def test_multi_scene_check_writes_junit_for_the_scenes_it_could_check(tmp_path, 
     err = captured.err.strip().splitlines()
     assert len(err) == 1 and PLATFORM in err[0] and "no motor-driven drivetrain" in err[0]
     assert "cam_follower" in captured.out and "1 of 2 scene(s) could not be checked" in captured.out
+    assert "every scene checked meets its requirements" in captured.out
+    assert "all requirements met" not in captured.out
     suites = ET.parse(junit).getroot().findall("testsuite")
     assert [s.get("name") for s in suites] == ["cam_follower", load_scene(PLATFORM).name]
     assert not suites[0].findall(".//failure") and not suites[0].findall(".//error")

@@ -195,8 +195,10 @@ def run(args) -> int:
         write_junit(args.junit, entries)
     if args.json:
         sys.stdout.write(to_json({"passed": all_ok and not errors, "errors": errors, "scenes": out}) + "\n")
-    elif errors:
-        print(f"{errors} of {len(args.scenes)} scene(s) could not be checked (bad input)")
     else:
-        print("all requirements met" if all_ok else "some requirements NOT met")
+        if len(entries) > errors:
+            print("some requirements NOT met" if not all_ok else "all requirements met" if not errors
+                  else "every scene checked meets its requirements")
+        if errors:
+            print(f"{errors} of {len(args.scenes)} scene(s) could not be checked (bad input)")
     return 2 if errors else 0 if all_ok else 1
