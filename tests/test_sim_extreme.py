@@ -45,11 +45,12 @@ def test_stiffness_x1000():
     assert a.stability["max_abs_lambda"] > 6e3
 
 
-@pytest.mark.parametrize("play_deg, tol", [(0.0, 1e-6), (2.0, 5e-3)])
+@pytest.mark.parametrize("play_deg, tol", [(0.0, 1e-6), (2.0, 5e-4)])
 def test_zero_and_large_backlash_without_preload(play_deg, tol):
-    """No hinge moment: with 2 deg of play the drivetrain crosses it at every reversal; the
-    contact events fall between fixed steps, so RK4 is only first order there: tolerance
-    5e-3 of the amplitude at the automatic step."""
+    """No hinge moment: with 2 deg of play the load flies freely through the play and hits
+    it at every reversal. The contact moment is continuous at engagement (ElastoBacklash),
+    so the fixed steps straddling a contact cost little: 8.5e-5 of the amplitude measured at
+    the automatic step (the discontinuous max(k z + d z', 0) law gave 1.6e-2)."""
     scene = build(variant(BASE, load__hinge_moment="0 N*m"))
     _compare(scene, Reference.sine(math.radians(5.0), 4.0), 0.3, tol, play=math.radians(play_deg))
 

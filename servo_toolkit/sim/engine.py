@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import SimulationError
 from . import layout as lo
 from .integrators import integrate
-from .ivp import solve_reference
+from .ivp import MAX_RHS_EVALS, solve_reference
 from .kernel import hermite, reference as ref_at, rhs
 from .reference import Reference, fill, initial_state
 from .result import SimulationResult
@@ -97,7 +97,8 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
 
 def run(model, reference: Reference, duration: float, method: str = "rk4", dt: float | None = None,
         *, output_dt: float | None = None, x0=None, at_rest: bool = False, solver: str = "LSODA",
-        rtol: float = 1e-10, atol: float = 1e-10, check_stability: bool = True) -> SimulationResult:
+        rtol: float = 1e-10, atol: float = 1e-10, check_stability: bool = True,
+        max_rhs_evals: int | None = MAX_RHS_EVALS, time_limit_s: float | None = None) -> SimulationResult:
     """Run an assembled model (no recompilation: only the parameter copy changes).
 
     Parameters
@@ -121,7 +122,10 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
     at_rest : bool
         Start unloaded at rest instead of in equilibrium.
     check_stability : bool
-        Refuse steps outside RK4's stability region (method "rk4").
+        Refuse steps outside RK4's stability region (methods "rk4" and "paper").
+    max_rhs_evals, time_limit_s : int or None, float or None
+        Budget of the reference solve (right-hand-side evaluations, wall seconds); a spent
+        budget raises SimulationError with the time reached instead of hanging.
 
     Returns
     -------
@@ -207,7 +211,8 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         n = int(round(duration / output_dt))
         t_out = np.arange(n + 1) * output_dt
     start = time.perf_counter()
-    states, irefs = solve_reference(model, P, x0, t_out, solver=solver, rtol=rtol, atol=atol)
+    states, irefs = solve_reference(model, P, x0, t_out, solver=solver, rtol=rtol, atol=atol,
+                                    max_rhs_evals=max_rhs_evals, time_limit_s=time_limit_s)
     wall = time.perf_counter() - start
     _check_finite(model, t_out, states)
     aux, speed, refs = _aux_traces(model, P, t_out, states, irefs)

@@ -11,10 +11,18 @@ Equations (generalized coordinates p, q at the output; N(p) motor rad per output
     tau_m = Kt i - b omega_m - Tc tanh(omega_m / w_s),   omega_m = N(p) p'
     L i' = v - R i - Ke omega_m                          (or i = (v - Ke omega_m) / R, L = 0)
 
-with the elasto-backlash contact law (Modelica ElastoBacklash): deflection d = p - q, play
-+-c, z = d -+ c beyond the play, f = K z + beta K d' clipped so that contact never pulls
-(f = 0 inside the play). The potential K(p) z^2 / 2 gives the K'(p) term, so the undamped
-drivetrain conserves energy exactly. A rigid chain uses J(p) = J_d + J_L and q = p.
+with the elasto-backlash contact law of Modelica's ``ElastoBacklash`` (:func:`contact`):
+deflection d = p - q, play +-c, penetration z = d -+ c beyond the play, spring part
+tau_c = K z, damper part tau_d = beta K d', and on the positive side
+f = tau_c + min(tau_c, tau_d) if tau_c + tau_d > 0 else 0 (mirrored on the negative side;
+f = 0 inside the play; with no play, f = tau_c + tau_d). The damper part is bounded by the spring part, |f - tau_c| <= |tau_c|,
+so f is continuous at engagement (f -> 0 as z -> 0 at any d') and never pulls. The potential
+K(p) z^2 / 2 gives the K'(p) term, so the undamped drivetrain conserves energy exactly and
+the damped one never gains energy. A rigid chain uses J(p) = J_d + J_L and q = p.
+
+Current loop: PI with voltage clamp and back-calculation anti-windup,
+xi' = Kii e + (v - v_c) Kii / Kpi (tracking time constant = the integral time Kpi / Kii):
+continuous in the state, so adaptive solvers integrate through saturation.
 """
 
 from __future__ import annotations
@@ -26,12 +34,15 @@ import numba as nb
 from .layout import (EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
-                     KSTOP, KT, L, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
+                     KSTOP, KT, KAW, L, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
                      PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
                      REF_STEP, REF_T0, RIGID, STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP,
                      T_DJ, T_DK, T_DN, T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
                      INV_H, INV_L, INV_JL)
 
+#: half plays at or below this (rad) act as a plain spring-damper (Modelica's bEps = 1e-10 rad
+#: total backlash)
+B_EPS = 0.5e-10
 #: numba fast-math flags that keep NaN/inf semantics (non-finite detection must work)
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -103,6 +114,25 @@ def clip(v, lim):
     if v < -lim:
         return -lim
     return v
+
+
+@inline
+def contact(tau_c, tau_d):
+    """Modelica ``ElastoBacklash`` contact moment from the spring part ``tau_c = K z`` (sign =
+    contact side, 0 inside the play) and the damper part ``tau_d = beta K d'``.
+
+    Positive side: 0 if tau_c + tau_d <= 0 (no pulling), else tau_c + min(tau_c, tau_d);
+    negative side mirrored. Continuous in z (|f| <= 2 |tau_c|), no events.
+    """
+    if tau_c > 0.0:
+        if tau_c + tau_d <= 0.0:
+            return 0.0
+        return tau_c + min(tau_c, tau_d)
+    if tau_c < 0.0:
+        if tau_c + tau_d >= 0.0:
+            return 0.0
+        return tau_c + max(tau_c, tau_d)
+    return 0.0
 
 
 @inline
@@ -236,11 +266,8 @@ def rhs(t, x, P, T, iref_held, dx, aux):
             vc = P[KPI] * e + xi
             v = clip(vc, P[VLIM])
             dx[4] = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
-            # conditional integration: freeze the integral while it pushes into saturation
-            if v != vc and e * vc > 0.0:
-                dx[5] = 0.0
-            else:
-                dx[5] = P[KII] * e
+            # back-calculation anti-windup: continuous, bleeds the clamp excess off the integral
+            dx[5] = P[KII] * e + (v - vc) * P[KAW]
         else:
             v = clip(P[R] * iref + P[KE] * wm, P[VLIM])
             cur = (v - P[KE] * wm) / P[R]
@@ -283,17 +310,19 @@ def rhs(t, x, P, T, iref_held, dx, aux):
         f = k * z
         if abs(p - x[6]) >= c * (1.0 - 1e-9):  # in contact (s was pushed to p -+ c)
             f += P[BETA] * k * dd
+    elif c <= B_EPS:
+        # no play (Modelica: b <= 1e-10 rad): a plain spring-damper, which may pull
+        z = p - q
+        f = k * z + P[BETA] * k * dd
     else:
         d = p - q
         if d > c:
             z = d - c
-            f = max(k * z + P[BETA] * k * dd, 0.0)
         elif d < -c:
             z = d + c
-            f = min(k * z + P[BETA] * k * dd, 0.0)
         else:
             z = 0.0
-            f = 0.0
+        f = contact(k * z, P[BETA] * k * dd)
     dx[1] = (n * tau_shaft - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
     dx[2] = qd
     dx[3] = (f + m_load) * P[INV_JL]

@@ -44,7 +44,9 @@ INV_H, INV_L, INV_JL = 43, 44, 45
 # state, index in P of the constant-gain Kalman filter (F row-major 3x3, then the gain K, 3),
 # 1 / sample time
 EST, LSB_M, OFF_E, OFF_KF, INV_TS = 46, 47, 48, 49, 50
-NP_HEADER = 51
+# back-calculation anti-windup gain of the current PI (1/s): Kii / Kpi (R / L for a pure I)
+KAW = 51
+NP_HEADER = 52
 
 # table rows (cubic Hermite: value row followed by derivative row); T_M is the motor angle
 # (rad, 0 at mid-stroke), whose derivative row is N

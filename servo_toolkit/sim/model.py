@@ -318,6 +318,9 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         nc = a.shape[0]
         P[lo.CMODE], P[lo.NC] = mode, nc
         P[lo.KPI], P[lo.KII] = controller.current_kp, controller.current_ki
+        # back-calculation tracking time = the PI's integral time Kpi / Kii
+        P[lo.KAW] = (P[lo.KII] / P[lo.KPI] if P[lo.KPI] > 0 else
+                     P[lo.R] * P[lo.INV_L] if P[lo.L] > 0 else 0.0)
         if P[lo.L] > 0 and controller.current_kp <= 0 and controller.current_ki <= 0:
             raise SceneError("controller", "current loop gains are zero but the motor has inductance")
         if mode == lo.SAMPLED:
