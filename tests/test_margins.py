@@ -136,6 +136,22 @@ def test_delay_margin_is_the_stability_limit_under_a_delay():
     assert np.min(np.abs(poles - 1j * wc)) < 1e-4 * wc
 
 
+def test_every_crossing_delay_is_where_stability_changes():
+    # each crossing's delay puts closed-loop poles on the imaginary axis: across the falling
+    # crossing's (|L| decreasing) the loop destabilizes, across the rising crossing's
+    # (|L| increasing, Re ds/dtau = -w dln|L|/dw / |...|^2 < 0) it recovers, and the falling
+    # crossing destabilizes it again one period 2 pi / wc later
+    L = _resonant_loop()
+    m = _margins(L)
+    order = np.argsort(m.gain_crossover_hz)
+    wc = 2 * np.pi * np.array(m.gain_crossover_hz)[order]
+    _, rising, falling = np.array(m.delay_margins_s)[order]
+    assert falling < rising < falling + 2 * np.pi / wc[2]
+    assert _max_pole_real_with_delay(L, 0.5 * (falling + rising)) > 0
+    assert _max_pole_real_with_delay(L, 0.5 * (rising + falling + 2 * np.pi / wc[2]), 20) < 0
+    assert _max_pole_real_with_delay(L, 1.03 * (falling + 2 * np.pi / wc[2]), 20) > 0
+
+
 def test_unstable_closed_loop_has_zero_delay_margin():
     # L = 3 / (s (s + 1)^2): unstable for k > 2; every delay margin is 0
     m = _margins(ct.tf([3], [1, 2, 1, 0]))

@@ -28,7 +28,9 @@ class Margins:
         puts the loop through -1 there: ``(phase margin mod 360 deg, in rad) / w_gc`` (MATLAB
         ``allmargin``'s convention; a crossing with a negative phase margin has one too, as
         the delay must turn the loop clockwise by 360 deg + PM); every one is 0 when the
-        closed loop is unstable. See :func:`delay_margins`.
+        closed loop is unstable. See :func:`delay_margins`. Each is a delay at which
+        closed-loop poles reach the imaginary axis; past the smallest the loop may regain
+        stability (at a crossing where ``|L|`` rises) and lose it again.
     gain_margin_db, phase_margin_deg, delay_margin_s : float
         The smallest of each (``inf`` without a crossing, but a delay margin of 0 for an
         unstable closed loop); the gain margin is the smallest in magnitude. The smallest
