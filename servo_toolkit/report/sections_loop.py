@@ -20,7 +20,8 @@ _REQ_TEXT = {
 }
 _CHECK_TEXT = {"bandwidth": "closed-loop bandwidth (-3 dB)", "phase_lag_at_bandwidth": "phase lag at the bandwidth",
                "gain_margin": "gain margin", "phase_margin": "phase margin",
-               "sensitivity_peak": "sensitivity peak Ms"}
+               "sensitivity_peak": "sensitivity peak Ms",
+               "stable_over_stroke": "closed loop stable over the stroke (fraction of points)"}
 F_MIN, F_MAX = 0.1, 1000.0
 
 
@@ -51,7 +52,7 @@ def _requirement_rows(ctx):
             + (("(loop design)", "", str(exc), "", "unavailable"),)
     rows = []
     for c in design.requirements:
-        label = _CHECK_TEXT.get(c.name, c.name) + ("" if c.source == "scene" else f" ({c.source})")
+        label = _CHECK_TEXT.get(c.name, c.name) + ("" if c.source in ("scene", "always") else f" ({c.source})")
         short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
         rows.append((label, f"{c.sense} {fmt(c.required)} {c.unit}", f"{fmt(c.achieved)} {c.unit}", short,
                      "pass" if c.passed else "fail"))
