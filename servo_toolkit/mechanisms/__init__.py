@@ -16,6 +16,9 @@ roller-screw           ``efficiency`` (default, built   :class:`~.roller_screw.E
                        the single-stage check)
 =====================  ===============================  ====================================
 
+The platform is also a plant: :func:`platform_plant` gives its linear MIMO model (motor
+torques in, tilts and motor angles out) at an operating point.
+
 Studies are matched by kind and scene content, so any ``mechanism_sweep`` / ``simulate``
 study of a cam scene, or ``inverse_dynamics`` study of a platform scene, is handled.
 """
@@ -25,6 +28,7 @@ from __future__ import annotations
 from ..components.cam import Cam
 from ..components.platform import CrossedArchPlatform
 from ..errors import SceneError
+from .platform_plant import platform_plant
 
 #: Built-in studies of roller-screw scenes (which have no ``[studies]`` table).
 ROLLER_SCREW_STUDIES = ("efficiency", "carrier_step")
@@ -116,4 +120,4 @@ def _required(study, key):
     return value
 
 
-__all__ = ["handles", "run_study", "ROLLER_SCREW_STUDIES"]
+__all__ = ["handles", "run_study", "platform_plant", "ROLLER_SCREW_STUDIES"]
