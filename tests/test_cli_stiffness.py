@@ -50,6 +50,10 @@ def test_stiffness_json(capsys):
     assert [s["later_ratio_large"] for s in data["stages"]] == [True, False, False, False]
     gear = data["stages"][0]
     assert gear["native_stiffness"] == 1.6e4 and gear["native_unit"] == "N*m/rad"
+    # own ratio of the gear mesh (screw shaft rad per output rad) squared times its stiffness
+    assert gear["stiffness_Nm_per_rad"] == pytest.approx(
+        [1.6e4 * n**2 for n in gear["native_ratio_to_output"]], rel=1e-12)
+    assert gear["ratio_to_output"] == gear["native_ratio_to_output"]
     assert gear["stiffness_comparable"] and gear["stiffness_to_later"] > 0.1
     assert data["stages"][3]["stiffness_to_later"] is None and data["stages"][3]["later_ratio"] == [None] * 4
 
@@ -58,6 +62,10 @@ def test_stiffness_table_with_angles(capsys):
     assert main(["stiffness", EMA, "--angle", "5", "--angle", "-5"]) == 0
     out = capsys.readouterr().out
     assert "+5.0 deg" in out and "-5.0 deg" in out and "series total" in out
+    assert "seed 001 neglect criterion" in out
+    rows = {line.split("  ")[0]: line for line in out.splitlines()[-7:]}
+    assert rows["spur gear train"].rstrip().endswith("YES (ratio yes, K yes)")
+    assert rows["ball screw"].rstrip().endswith("no (ratio no, K yes)")
 
 
 def test_bad_scene_exits_2_with_one_line(tmp_path):

@@ -56,6 +56,9 @@ class StiffnessResult:
     native_stiffness : numpy.ndarray
         Each stage's own, unreflected stiffness, in ``native_units``.
     native_units : tuple of str
+    native_ratio : numpy.ndarray or None
+        |du_i/dq| of each stage's spring coordinate, (n_stages, n_points): rad or m per
+        unit of q.
     """
 
     angles_deg: np.ndarray
@@ -71,6 +74,7 @@ class StiffnessResult:
     criterion: NeglectCriterion | None = None
     native_stiffness: np.ndarray | None = None
     native_units: tuple = ()
+    native_ratio: np.ndarray | None = None
 
     @property
     def linear(self) -> bool:
@@ -92,6 +96,8 @@ class StiffnessResult:
             if self.native_stiffness is not None:
                 stage["native_stiffness"] = float(self.native_stiffness[i])
                 stage["native_unit"] = self.native_units[i]
+            if self.native_ratio is not None:
+                stage["native_ratio_to_output"] = self.native_ratio[i].tolist()
             if crit is not None:
                 stage.update({
                     "own_stiffness": float(crit.own_stiffness[i]),
@@ -277,4 +283,4 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
     return StiffnessResult(np.full(q.size, np.nan) if linear else values, chain.names,
                            chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
                            dt.output_unit, values if linear else None, crit,
-                           chain.native_stiffness, chain.native_units)
+                           chain.native_stiffness, chain.native_units, chain.ratio_to_output)
