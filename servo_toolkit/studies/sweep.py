@@ -26,70 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
+from ..errors import SimulationError
 from ..parallel import run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING
 from .sine_dwell import DwellPlan, dwell_estimate
-
-#: the seed's key frequency, always in the default sweep
-DEFAULT_FREQUENCY_HZ = 8.0
-#: command amplitude when the scene has no sweep study (seed 000's 8 Hz case)
-DEFAULT_AMPLITUDE = math.radians(2.0)
-
-
-def study_points(scene, study=None):
-    """``(name, frequencies_hz, amplitudes_rad)`` of a sweep study.
-
-    ``study=None`` takes the scene's first ``frequency_sweep`` study; without one, 8 Hz at
-    2 deg. The seed's 8 Hz is always added to a study's frequencies (callers that give
-    frequencies explicitly replace the whole list). A study gives ``amplitude`` or
-    ``amplitudes``, and ``frequencies`` as a list or a table ``{start, stop, points,
-    spacing = "log" | "linear"}`` (or ``frequency``).
-
-    Raises
-    ------
-    SceneError
-        The named study is not of kind ``frequency_sweep`` (key ``studies.NAME.kind``), or
-        its amplitudes or frequencies are missing or not positive.
-    """
-    extra = (DEFAULT_FREQUENCY_HZ,)
-    if study is None:
-        found = scene.studies_of_kind("frequency_sweep")
-        if not found:
-            return None, (DEFAULT_FREQUENCY_HZ,), (DEFAULT_AMPLITUDE,)
-        study = found[0]
-    elif isinstance(study, str):
-        study = scene.study(study)
-    if study.kind != "frequency_sweep":
-        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind 'frequency_sweep'")
-    p = study.params
-    if p.get("amplitudes"):
-        amps = tuple(float(a) for a in p["amplitudes"])
-    elif p.get("amplitude") is not None:
-        amps = (float(p["amplitude"]),)
-    else:
-        raise SceneError(study.key("amplitude"), "a sweep needs an amplitude (or amplitudes)")
-    spec = p.get("frequencies", p.get("frequency"))
-    if isinstance(spec, dict):
-        try:
-            lo_, hi, n = float(spec["start"]), float(spec["stop"]), int(spec.get("points", 20))
-        except KeyError as exc:
-            raise SceneError(study.key("frequencies"), f"missing {exc.args[0]!r} (start, stop, points)") from None
-        spacing = spec.get("spacing", "log")
-        if spacing not in ("log", "linear") or not 0 < lo_ < hi or n < 1:
-            raise SceneError(study.key("frequencies"), "needs 0 < start < stop, points >= 1, "
-                             "spacing 'log' or 'linear'")
-        freqs = np.geomspace(lo_, hi, n) if spacing == "log" else np.linspace(lo_, hi, n)
-    elif spec is not None:
-        freqs = np.atleast_1d(np.asarray(spec, dtype=float))
-    else:
-        raise SceneError(study.key("frequencies"), "a sweep needs frequencies (or frequency)")
-    if np.any(~np.isfinite(freqs)) or np.any(freqs <= 0) or any(a <= 0 for a in amps):
-        raise SceneError(study.key("frequencies"), "frequencies and amplitudes must be positive")
-    freqs = np.concatenate([freqs, extra])
-    freqs = np.unique(np.round(freqs, 12))
-    return study.name, tuple(float(f) for f in freqs), amps
-
+from .sweep_points import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY_HZ, study_points
 
 def _dwell_case(case):
     """One sine dwell (module level so that executors can pickle it)."""
@@ -435,3 +376,6 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
                        errors=tuple(o["error"] for o in out), reduced=reduced, left_out=left_out,
                        options=opts, plan=plan, decay_rate=decay, controller=model.controller,
                        method=method, wall_s=time.perf_counter() - start, notes=tuple(notes))
+
+
+__all__ = ["DEFAULT_AMPLITUDE", "DEFAULT_FREQUENCY_HZ", "SweepResult", "linear_response", "study_points", "sweep"]
