@@ -144,7 +144,7 @@ def _reduction(ctx):
     left = ", ".join(e.effect for e in plan.omitted) or "nothing"
     freqs = res.frequencies_hz
     measured, bound = res.measured, res.bound
-    verdict = "within" if res.within_bound else "NOT within"
+    verdict = res.verdict  # "within", "NOT within" or "not applicable" (no point within the limits)
     text = [f"Each modelled effect judged against the sweep study {res.study or '(default: 8 Hz)'} "
             f"({freqs.size} frequencies {fmt(freqs[0], 3)} to {fmt(freqs[-1], 3)} Hz, amplitudes "
             f"{', '.join(fmt(math.degrees(a), 3) for a in res.amplitudes_rad)} deg): the a-priori estimate is "
