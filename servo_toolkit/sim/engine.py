@@ -22,6 +22,10 @@ AUTO_Z = 1.0
 #: above this many steps ``auto`` hands the run to the implicit solver
 MAX_STEPS = 20_000_000
 MAX_RECORDS = 4000
+#: states checked for the step limit along a fixed-step run
+ALONG_SAMPLES = 48
+#: |lambda dt| limit of the paper scheme's explicit position sum
+PAPER_LIMIT = 2.0
 
 
 def _snap(dt, model, duration, output_dt=None):
@@ -61,6 +65,25 @@ def _aux_traces(model, P, times, states, irefs):
     return aux, speed, refs
 
 
+def paper_limit(probe) -> float:
+    """Step limit of the paper's scheme: RK4's on the velocities and currents, and at most
+    2 / |lambda| because the positions follow by an explicit sum after the velocity step
+    (symplectic Euler on an oscillator is stable for |lambda dt| < 2)."""
+    return min(probe["dt_limit_s"], PAPER_LIMIT / max(probe["max_abs_lambda"], 1e-300))
+
+
+def _along_samples(states, aux, n=ALONG_SAMPLES):
+    """Record indices where the step is checked along the run: an even spread, plus the
+    records of peak current, of the largest drivetrain deflection (stiffest contact) and of
+    the output angles farthest either way (deepest into an elastic end stop)."""
+    m = len(states)
+    pick = set(np.linspace(0, m - 1, min(n, m)).astype(int).tolist())
+    pick.add(int(np.argmax(np.abs(aux[:, lo.AUX_I]))))
+    pick.add(int(np.argmax(np.abs(states[:, 0] - states[:, 2]))))
+    pick.update((int(np.argmax(states[:, 2])), int(np.argmin(states[:, 2]))))
+    return np.array(sorted(pick))
+
+
 def _check_finite(model, times, states):
     bad = ~np.all(np.isfinite(states), axis=1)
     if bad.any():
@@ -74,6 +97,10 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     n_rec = n_steps // rec + 2
     out_t, out_x, out_aux = np.empty(n_rec), np.empty((n_rec, model.nx)), np.empty((n_rec, lo.NAUX))
     sub = int(round(model.sample_time / dt)) if P[lo.CMODE] == lo.SAMPLED else 0
+    # warm-up: a zero-step call on copies loads (or compiles) the machine code, so wall_s
+    # measures integration only (result.py: compilation excluded)
+    integrate(x0.copy(), P.copy(), model.T, 0.0, dt, 0, sub, 0.0, paper, rec, out_t[:1].copy(),
+              out_x[:1].copy(), out_aux[:1].copy())
     x = x0.copy()
     start = time.perf_counter()
     status, step, k, max_tau, _ = integrate(x, P, model.T, 0.0, dt, n_steps, sub, 0.0, paper,
@@ -88,6 +115,14 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
                               f"{t_fail:.6g} s (step {dt:.3g} s)")
     if status == lo.STROKE_END:
         qi = 0 if model.rigid else 2
+        lo_q, hi_q = model.stroke
+        if max(x[qi] - hi_q, lo_q - x[qi]) > hi_q - lo_q:
+            # one step cannot carry a physical motion a whole stroke past its end
+            scheme = "paper scheme" if paper else "RK4"
+            state = ", ".join(f"{n} = {v:.4g}" for n, v in zip(model.state_names[:6], x[:6]))
+            raise SimulationError(f"{scheme} diverged at t = {t_fail:.6g} s with step {dt:.3g} s "
+                                  f"(output angle {math.degrees(x[qi]):.4g} deg; {state}); use a "
+                                  f"smaller dt or method='auto'")
         raise SimulationError(f"stroke end reached at t = {t_fail:.6g} s: output angle "
                               f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
                               f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
@@ -171,22 +206,27 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
                 notes.append(f"step {dt:.4g} s snapped to {snapped:.4g} s to divide the sample time")
             dt = snapped
             choice = choice or f"user step {dt:.4g} s"
-        if method == "rk4" and check_stability and dt > limit:
+        scheme = "paper scheme" if method == "paper" else "RK4"
+        if method == "paper":
+            limit = paper_limit(probe)
+        if check_stability and dt > limit:
             raise SimulationError(
-                f"RK4 step {dt:.4g} s is outside the stability region: fastest eigenvalue "
+                f"{scheme} step {dt:.4g} s is outside the stability region: fastest eigenvalue "
                 f"lambda = {probe['lambda'][0]:.4g}{probe['lambda'][1]:+.4g}j 1/s at t = 0 gives "
                 f"|lambda dt| = {probe['max_abs_lambda'] * dt:.3g}; use dt <= {limit:.4g} s or method='auto'")
         tries = 0
         while True:
             times, states, aux, max_tau, wall, steps = _fixed(model, P, x0, duration, dt, output_dt,
                                                               method == "paper")
-            along = fastest(model, P, states[:: max(1, len(states) // 8)], times[:: max(1, len(states) // 8)],
-                            aux[:: max(1, len(states) // 8), lo.AUX_IREF])
-            if method == "paper" or not check_stability or dt <= along["dt_limit_s"]:
+            pick = _along_samples(states, aux)
+            along = fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
+            if method == "paper":
+                along["dt_limit_s"] = paper_limit(along)
+            if not check_stability or dt <= along["dt_limit_s"]:
                 break
             if requested != "auto":
                 raise SimulationError(
-                    f"RK4 step {dt:.4g} s left the stability region along the run: |lambda| = "
+                    f"{scheme} step {dt:.4g} s left the stability region along the run: |lambda| = "
                     f"{along['max_abs_lambda']:.4g} 1/s at t = {along['t_s']:.4g} s needs dt <= "
                     f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'")
             tries += 1

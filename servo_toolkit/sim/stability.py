@@ -42,14 +42,22 @@ def jacobian(model, P, x, t=0.0, iref=0.0) -> np.ndarray:
 
 
 def contact_variant(model, P, x) -> np.ndarray:
-    """The same state with the drivetrain pushed just into contact (stiffest configuration)."""
+    """The same state in its stiffest configuration: the drivetrain pushed just into contact
+    and closing (there the damper part is capped at the spring part, f = 2 K z, an undamped
+    stiffness 2 K), and at rest against an elastic end stop it has passed (its spring
+    engaged)."""
     y = x.copy()
+    qi = 0 if model.rigid else 2
+    if P[lo.STROKE_MODE] == lo.STROKE_STOP and not P[lo.STROKE_LO] <= y[qi] <= P[lo.STROKE_HI]:
+        y[1] = y[qi + 1] = 0.0
     if model.rigid:
         return y
     c = P[lo.HALF_PLAY]
     d = y[0] - y[2]
+    side = 1.0 if d >= 0 else -1.0
     if abs(d) <= c:
-        y[0] = y[2] + (c + 1e-9 + 1e-6 * c) * (1.0 if d >= 0 else -1.0)
+        y[0] = y[2] + (c + 1e-9 + 1e-6 * c) * side
+    y[1] = y[3] + side * max(abs(y[1] - y[3]), 1e-3)
     return y
 
 
