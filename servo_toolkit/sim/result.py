@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import SceneError
+
 
 @dataclass(frozen=True)
 class SimulationResult:
@@ -139,15 +141,13 @@ class SimulationResult:
 
     def save(self, path) -> Path:
         """Write the traces as CSV (``.csv``) or NumPy archive (``.npz``)."""
-        path = Path(path)
+        path = check_trace_path(path)
         cols = self.columns()
         if path.suffix == ".npz":
             np.savez(path, **cols)
         elif path.suffix == ".csv":
             data = np.column_stack(list(cols.values()))
             np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
-        else:
-            raise ValueError(f"unknown trace format {path.suffix!r}: use .csv or .npz")
         return path
 
     def plot(self, axes=None):
@@ -168,3 +168,35 @@ class SimulationResult:
         a2.set_ylabel("voltage (V)")
         a2.set_xlabel("time (s)")
         return axes
+
+
+TRACE_SUFFIXES = (".csv", ".npz")
+
+
+def check_trace_path(path, key: str = "--output"):
+    """A trace file name :meth:`SimulationResult.save` can write (checked before a run).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path or None
+        None passes (nothing to write).
+    key : str
+        Name of the option, for the error.
+
+    Returns
+    -------
+    pathlib.Path or None
+
+    Raises
+    ------
+    SceneError
+        Suffix other than ``.csv`` / ``.npz``, or a folder that does not exist.
+    """
+    if path is None:
+        return None
+    path = Path(path)
+    if path.suffix not in TRACE_SUFFIXES:
+        raise SceneError(key, f"trace file {path.name!r} must end in .csv or .npz")
+    if not path.parent.is_dir():
+        raise SceneError(key, f"folder {str(path.parent)!r} of the trace file does not exist")
+    return path
