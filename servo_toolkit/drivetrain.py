@@ -108,6 +108,10 @@ class TwoMassSplit:
     spring: tuple
 
 
+#: stroke of an output travel (m) when the scene gives none
+DEFAULT_LINEAR_STROKE = (-0.05, 0.05)
+
+
 def series(stiffnesses) -> float | np.ndarray:
     """Series combination 1 / sum(1/k_i) along axis 0."""
     k = np.asarray(stiffnesses, dtype=float)
@@ -143,11 +147,15 @@ class Drivetrain:
 
     @property
     def stroke(self) -> tuple:
-        """Range of q (rad); the linkage's stroke, else one turn or +-pi."""
+        """Range of q: a stage's stroke (a linkage's angles, a roller screw's ``stroke`` in m),
+        else one turn for a cam, +-pi for an output angle, :data:`DEFAULT_LINEAR_STROKE` for
+        an output travel."""
         for stage in self.stages:
             if stage.stroke is not None:
                 return tuple(stage.stroke)
-        return (0.0, 2 * math.pi) if self.ends_in_cam else (-math.pi, math.pi)
+        if self.ends_in_cam:
+            return (0.0, 2 * math.pi)
+        return DEFAULT_LINEAR_STROKE if self.output_is_linear else (-math.pi, math.pi)
 
     @property
     def output_unit(self) -> str:

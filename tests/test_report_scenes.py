@@ -120,3 +120,37 @@ def test_report_measures_what_the_reduction_costs(tmp_path):
     assert res.within_bound, (res.measured, res.bound)
     section = run_section("reduce", "What the model leaves out", leaves_out, ctx)
     assert "Measured full against reduced" in section.html and section.figures
+
+
+def test_linear_output_sections_use_travel_units():
+    """A drivetrain ending in a roller screw has an output travel: the report speaks mm, kg,
+    rad/m and N/mm, over the scene's stroke, not degrees."""
+    from servo_toolkit.report.sections_drivetrain import ratio_and_inertia
+
+    scene = load_scene(SCENES / "linear_roller_screw_actuator.toml")
+    lo, hi = scene.drivetrain.stroke
+    ctx = Context(scene)
+    inertia = run_section("inertia", "Reflected inertia", ratio_and_inertia, ctx)
+    assert inertia.status == "info", inertia.reason
+    assert f"{lo * 1e3:+.4g} to {hi * 1e3:+.4g} mm" in inertia.html
+    assert "rad/m" in inertia.html and "kg*m^2</td>" in inertia.html and "mass at the output" in inertia.html
+    assert " deg" not in inertia.html
+    # the reflected mass is the drivetrain's, in kg (independent: every element's m T^2 summed)
+    parts = scene.drivetrain.reflected_inertias(np.array([0.0]))
+    assert f"<td>{parts.total[0]:.4g}</td>" in inertia.html
+
+
+def test_roller_screw_stroke_key():
+    import tomllib
+
+    from servo_toolkit.components.roller_screw import RollerScrew
+    from servo_toolkit.errors import SceneError
+    from servo_toolkit.fields import Fields
+
+    table = tomllib.loads((SCENES / "linear_roller_screw_actuator.toml").read_text())["drivetrain"][1]
+    assert RollerScrew.from_table(Fields(table, "drivetrain[1]")).stroke == pytest.approx((-0.06, 0.06))
+    table["stroke"] = ["60 mm", "-60 mm"]
+    with pytest.raises(SceneError, match=r"drivetrain\[1\]\.stroke"):
+        RollerScrew.from_table(Fields(table, "drivetrain[1]"))
+    del table["stroke"]
+    assert RollerScrew.from_table(Fields(table, "drivetrain[1]")).stroke is None

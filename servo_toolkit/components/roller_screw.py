@@ -254,6 +254,8 @@ class RollerScrew(Stage):
         mu_RS, mu_SS, mu_NS.
     efficiency : float
         Forward efficiency; by default the steady-state value of :func:`steady_efficiency`.
+    travel_range : tuple of float or None
+        Admissible travel of the last nut (m), scene key ``stroke``; None when not given.
     """
 
     name: str
@@ -262,6 +264,11 @@ class RollerScrew(Stage):
     screw_screw_friction: float = 0.0
     nut_screw_friction: float = 0.0
     efficiency: float = 1.0
+    travel_range: tuple | None = None
+
+    @property
+    def stroke(self):
+        return self.travel_range
 
     @property
     def ratio(self) -> float:
@@ -299,5 +306,11 @@ class RollerScrew(Stage):
         require(eta > 0, f.key("roller_screw_friction"), "the friction coefficients leave no positive efficiency")
         efficiency = f.number("efficiency", eta, rule="positive")
         require(efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
+        travel = None
+        if f.raw("stroke", None) is not None:
+            travel = tuple(f.quantity_list("stroke", "m"))
+            require(len(travel) == 2 and travel[0] < travel[1], f.key("stroke"),
+                    "must be [lowest, highest] nut travel with lowest < highest")
         f.check_unknown()
-        return cls(name=f.text("name", "roller screw"), stages=stages, efficiency=efficiency, **mus)
+        return cls(name=f.text("name", "roller screw"), stages=stages, efficiency=efficiency,
+                   travel_range=travel, **mus)

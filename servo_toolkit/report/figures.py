@@ -32,25 +32,33 @@ def stroke_grid(drivetrain, points: int = 121) -> np.ndarray:
     return np.linspace(lo, hi, points)
 
 
-def shares_along_stroke(chain, q, ax) -> None:
+def _x(q, linear: bool):
+    """Stroke coordinate for plotting: degrees, or mm for a linear output."""
+    return (np.asarray(q) * 1e3, "output travel [mm]") if linear else (np.degrees(q), "output angle [deg]")
+
+
+def shares_along_stroke(chain, q, ax, linear: bool = False) -> None:
     """Stacked compliance shares of each stage along the stroke."""
-    ax.stackplot(np.degrees(q), chain.shares * 100, labels=chain.names, alpha=0.85)
-    ax.set_xlabel("output angle [deg]")
+    x, xlabel = _x(q, linear)
+    ax.stackplot(x, chain.shares * 100, labels=chain.names, alpha=0.85)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("share of compliance [%]")
     ax.set_ylim(0, 100)
-    ax.set_xlim(math.degrees(q[0]), math.degrees(q[-1]))
+    ax.set_xlim(x[0], x[-1])
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_title("Who is compliant: each stage's share of the series compliance")
 
 
-def stiffness_along_stroke(chain, q, ax) -> None:
-    """Each stage's stiffness at the output and the series total (N*m/deg, log scale)."""
-    deg = np.degrees(q)
+def stiffness_along_stroke(chain, q, ax, linear: bool = False) -> None:
+    """Each stage's stiffness at the output and the series total (N*m/deg, or N/mm for a
+    linear output; log scale)."""
+    x, xlabel = _x(q, linear)
+    scale, unit = (1e-3, "N/mm") if linear else (math.pi / 180, "N*m/deg")
     for name, k in zip(chain.names, chain.stage_stiffness):
-        ax.semilogy(deg, k * math.pi / 180, label=name)
-    ax.semilogy(deg, chain.total * math.pi / 180, "k", lw=2.2, label="series total")
-    ax.set_xlabel("output angle [deg]")
-    ax.set_ylabel("stiffness at the output [N*m/deg]")
+        ax.semilogy(x, k * scale, label=name)
+    ax.semilogy(x, chain.total * scale, "k", lw=2.2, label="series total")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"stiffness at the output [{unit}]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     ax.set_title("Stage stiffness reflected to the output (k times ratio squared)")
@@ -58,23 +66,25 @@ def stiffness_along_stroke(chain, q, ax) -> None:
 
 def ratio_inertia_along_stroke(drivetrain, q, axes) -> None:
     """Ratio N(q) and reflected inertia J(q) (at the output and at the motor)."""
-    deg = np.degrees(q)
+    linear = bool(getattr(drivetrain, "output_is_linear", False))
+    deg, xlabel = _x(q, linear)
+    out_unit, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
     n, dn = drivetrain.ratio(q)
     j, dj = drivetrain.inertia(q)
     ax1, ax2 = axes
     ax1.plot(deg, n, label="N(q)")
-    ax1.set_ylabel("ratio N [motor rad / output rad]")
+    ax1.set_ylabel(f"ratio N [motor rad / output {out_unit}]")
     ax1b = ax1.twinx()
     ax1b.plot(deg, dn, "C1--", label="dN/dq")
-    ax1b.set_ylabel("dN/dq [1/rad]", color="C1")
+    ax1b.set_ylabel(f"dN/dq [rad/{out_unit}^2]" if linear else "dN/dq [1/rad]", color="C1")
     ax1.set_title("Kinematic ratio along the stroke")
     ax1.grid(True, alpha=0.3)
     ax2.plot(deg, j, label="J(q) at the output")
-    ax2.set_ylabel("J at the output [kg*m^2]")
+    ax2.set_ylabel(f"{'mass' if linear else 'J'} at the output [{j_unit}]")
     ax2b = ax2.twinx()
     ax2b.plot(deg, j / n**2 * 1e4, "C2--", label="J / N^2 at the motor")
     ax2b.set_ylabel("J at the motor [kg*cm^2]", color="C2")
     ax2.set_title("Reflected inertia along the stroke")
     ax2.grid(True, alpha=0.3)
     for ax in axes:
-        ax.set_xlabel("output angle [deg]")
+        ax.set_xlabel(xlabel)

@@ -15,6 +15,8 @@ TABLE_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
 
 def _q_label(dt) -> str:
+    if getattr(dt, "output_is_linear", False):
+        return "output travel"
     return "cam angle" if dt.ends_in_cam else "output angle"
 
 
@@ -51,13 +53,21 @@ def scene_summary(ctx) -> Section:
     return Section("Scene summary", "".join(parts), key="scene")
 
 
+def _output_units(dt):
+    """(coordinate unit shown, factor SI -> shown, stiffness unit shown, factor) of the output."""
+    if getattr(dt, "output_is_linear", False):
+        return "mm", 1e3, "N/mm", 1e-3
+    return "deg", DEG, "N*m/deg", 1.0 / DEG
+
+
 def stiffness_chain(ctx) -> Section:
     """Each stage's stiffness at the output, compliance shares, seed 001's neglect criterion."""
     ctx.require_drivetrain("the stiffness chain")
     dt = ctx.scene.drivetrain
-    lo, hi = np.degrees(dt.stroke)
-    angles = [a for a in TABLE_ANGLES_DEG if lo - 1e-9 <= a <= hi + 1e-9] or [math.degrees(dt.mid_stroke)]
-    q = np.radians(angles)
+    qu, qf, ku, kf = _output_units(dt)
+    lo, hi = np.asarray(dt.stroke) * qf
+    points = [a for a in TABLE_ANGLES_DEG if qu == "deg" and lo - 1e-9 <= a <= hi + 1e-9] or [dt.mid_stroke * qf]
+    q = np.asarray(points) / qf
     chain = dt.stiffness(q)
     if not chain.names:
         return Section("Stiffness chain", para(
@@ -65,36 +75,40 @@ def stiffness_chain(ctx) -> Section:
             "there is no drivetrain resonance to report."), key="stiffness")
     qs = figures.stroke_grid(dt)
     along = dt.stiffness(qs)
-    negligible = along.negligible()
-    header = ["stage"] + [f"{a:+.0f} deg: k [N*m/deg]" for a in angles] + [f"{a:+.0f} deg: share" for a in angles] \
-        + ["max share over stroke", "may be neglected"]
+    crit = along.criterion()
+    header = ["stage"] + [f"{a:+.4g} {qu}: k [{ku}]" for a in points] + [f"{a:+.4g} {qu}: share" for a in points] \
+        + ["max share over stroke", "ratio to later stages (min)", "own stiffness / later (max)",
+           "may be neglected (seed 001)"]
     body = []
     for i, name in enumerate(chain.names):
-        body.append([name] + [fmt(k / DEG, 6) for k in chain.stage_stiffness[i]]
+        later = crit.later_ratio[i]
+        body.append([name] + [fmt(k * kf, 6) for k in chain.stage_stiffness[i]]
                     + [f"{s:.3%}" for s in chain.shares[i]]
-                    + [f"{along.shares[i].max():.3%}", "yes" if negligible[i] else "no"])
-    body.append(["series total"] + [fmt(t / DEG, 6) for t in chain.total] + [""] * len(angles) + ["", ""])
+                    + [f"{along.shares[i].max():.3%}", fmt(np.nanmin(later), 3) if np.isfinite(later).any() else "-",
+                       fmt(crit.stiffness_to_later[i], 3) if np.isfinite(crit.stiffness_to_later[i]) else "-",
+                       "yes" if crit.negligible[i] else "no"])
+    body.append(["series total"] + [fmt(t * kf, 6) for t in chain.total] + [""] * len(points) + ["", "", "", ""])
     imin = int(np.argmin(along.total))
     imax = int(np.argmax(along.total))
     text = [
         f"Every stage's stiffness is reflected to the {_q_label(dt)} through the square of its ratio to the "
         "output (seed 001, eq 8); compliances in series add.",
-        f"Along the stroke the series stiffness runs from {along.total[imin] / DEG:.4g} N*m/deg at "
-        f"{math.degrees(qs[imin]):+.1f} deg to {along.total[imax] / DEG:.4g} N*m/deg at "
-        f"{math.degrees(qs[imax]):+.1f} deg.",
+        f"Along the stroke the series stiffness runs from {along.total[imin] * kf:.4g} {ku} at "
+        f"{qs[imin] * qf:+.4g} {qu} to {along.total[imax] * kf:.4g} {ku} at {qs[imax] * qf:+.4g} {qu}.",
+        f"Seed 001's criterion: a front stage may be left out when the ratio between it and every later stage "
+        f"is large (at least {crit.min_ratio:g} over the whole stroke) and its own stiffness is within an order of "
+        f"magnitude of some later stage's (at least 1/{crit.within:g} of it); its compliance is then at most "
+        f"{crit.within / crit.min_ratio ** 2:g} times that of the comparable later stage.",
     ]
-    names = [n for n, neg in zip(along.names, negligible) if neg]
-    if names:
-        text.append("Seed 001's criterion (a stage behind a large ratio whose compliance share stays below "
-                    f"0.1 % over the whole stroke may be left out) holds for: {', '.join(names)}.")
-    else:
-        text.append("No stage meets seed 001's neglect criterion (share below 0.1 % over the whole stroke).")
+    names = [n for n, neg in zip(along.names, crit.negligible) if neg]
+    text.append(f"It holds for: {', '.join(names)}." if names else "It holds for no stage of this chain.")
     fig1, ax1 = figures.new_figure()
-    figures.shares_along_stroke(along, qs, ax1)
-    ax1.set_xlabel(f"{_q_label(dt)} [deg]")
+    linear = qu == "mm"
+    figures.shares_along_stroke(along, qs, ax1, linear)
+    ax1.set_xlabel(f"{_q_label(dt)} [{qu}]")
     fig2, ax2 = figures.new_figure()
-    figures.stiffness_along_stroke(along, qs, ax2)
-    ax2.set_xlabel(f"{_q_label(dt)} [deg]")
+    figures.stiffness_along_stroke(along, qs, ax2, linear)
+    ax2.set_xlabel(f"{_q_label(dt)} [{qu}]")
     return Section("Stiffness chain and compliance shares", para(*text) + table(header, body, table_id="stiffness-table"),
                    (FigureSpec(fig1, "Compliance shares along the stroke."),
                     FigureSpec(fig2, "Stage stiffness at the output and the series total.")), key="stiffness")
@@ -109,25 +123,31 @@ def ratio_and_inertia(ctx) -> Section:
     j, _ = dt.inertia(q)
     jm = j / n**2
     lash = dt.backlash(np.array([dt.mid_stroke]))[0]
+    qu, qf, _, _ = _output_units(dt)
+    linear = qu == "mm"
+    out, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
     rows = [
-        ("ratio N (motor rad per output rad)", fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()), "-"),
-        ("inertia at the output J", fmt(j.min()), fmt(j.max()), fmt(j.max() / j.min()), "kg*m^2"),
+        (f"ratio N (motor rad per output {out})", fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()),
+         "rad/m" if linear else "-"),
+        ("mass at the output" if linear else "inertia at the output J", fmt(j.min()), fmt(j.max()),
+         fmt(j.max() / j.min()), j_unit),
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),
     ]
     load = dt.load.inertia
     motor_j = dt.motor.rotor_inertia * n**2
     text = [
-        f"Over the stroke ({math.degrees(dt.stroke[0]):+.1f} to {math.degrees(dt.stroke[1]):+.1f} deg) the ratio "
+        f"Over the stroke ({dt.stroke[0] * qf:+.4g} to {dt.stroke[1] * qf:+.4g} {qu}) the ratio "
         f"varies by a factor {n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}.",
         f"The motor rotor contributes {motor_j.min() / j.max():.1%} to {motor_j.max() / j.min():.1%} of the inertia "
-        f"at the output; the load inertia is {load:.4g} kg*m^2.",
-        f"Lost motion at mid-stroke, all lashes reflected to the output: {math.degrees(lash) * 60:.3g} arcmin. "
-        f"Drivetrain efficiency (product of the stages): {dt.efficiency:.3g}.",
+        f"at the output; the load {'mass' if linear else 'inertia'} is {load:.4g} {j_unit}.",
+        (f"Lost motion at mid-stroke, all lashes reflected to the output: {lash * 1e6:.3g} um. " if linear else
+         f"Lost motion at mid-stroke, all lashes reflected to the output: {math.degrees(lash) * 60:.3g} arcmin. ")
+        + f"Drivetrain efficiency (product of the stages): {dt.efficiency:.3g}.",
     ]
     fig, axes = figures.new_figure(1, 2, size=(9.0, 3.4))
     figures.ratio_inertia_along_stroke(dt, q, axes)
     for ax in axes:
-        ax.set_xlabel(f"{_q_label(dt)} [deg]")
+        ax.set_xlabel(f"{_q_label(dt)} [{qu}]")
     return Section("Reflected inertia and ratio along the stroke",
                    para(*text) + table(("quantity", "min", "max", "max/min", "unit"), rows),
                    (FigureSpec(fig, "Ratio N(q) with dN/dq, and reflected inertia J(q) at the output and at the motor."),),
