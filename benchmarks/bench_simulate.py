@@ -4,7 +4,10 @@ python-control input_output_response on the same compiled right-hand side.
 Reference EMA scene, 8 Hz 2 deg sine for 1 s, continuous motion controller (so that every
 method integrates the same ODE in one call). Errors are max |q - q_ref| / amplitude on a
 1 ms grid against LSODA at rtol = atol = 1e-12. Also prints the sampled-controller RK4 rate
-(the default model) in steps per second of wall time and of process CPU time.
+(the default model) in steps per second of wall time and of process CPU time, then each
+target (>= 25x LSODA and >= 100x input_output_response at equal error, >= 5 M RK4 steps/s
+on one core) with PASS/FAIL. The RK4 rows show the step actually run (snapped to divide the
+1 ms record interval).
 
 Run: python3 benchmarks/bench_simulate.py
 """
@@ -31,6 +34,8 @@ from servo_toolkit.sim.ivp import make_fun
 from servo_toolkit.sim.reference import fill, initial_state
 
 AMP, FREQ, DURATION = math.radians(2.0), 8.0, 1.0
+#: targets: speed-up at equal error over LSODA and over python-control, raw RK4 step rate
+TARGET_LSODA, TARGET_IOR, TARGET_RATE = 25.0, 100.0, 5e6
 
 
 def main():
@@ -56,7 +61,7 @@ def main():
         except SimulationError as exc:  # outside RK4's stability region: refused, say so
             print(f"toolkit RK4 dt={dt:g}: refused ({str(exc).splitlines()[0]})")
             continue
-        rows.append(("toolkit RK4", f"dt={dt:g}", best.wall_s, err(best.output_angle), best.steps))
+        rows.append(("toolkit RK4", f"dt={best.dt_s:.4g}", best.wall_s, err(best.output_angle), best.steps))
     for method, tols in (("RK45", (1e-5, 1e-7, 1e-9)), ("LSODA", (1e-5, 1e-7, 1e-9))):
         for tol in tols:
             t = time.perf_counter()
@@ -88,11 +93,14 @@ def main():
     e_rk4 = np.log([r[3] for r in rk4])
     w_rk4 = np.log([r[2] for r in rk4])
     print("\nratios at equal error (competitor wall / RK4 wall at the competitor's error):")
+    worst = {}
     for name in ("solve_ivp RK45", "solve_ivp LSODA", "control.input_output_response"):
         for r in (r for r in rows if r[0] == name):
             e = min(max(math.log(r[3]), e_rk4[0]), e_rk4[-1])
             wall = math.exp(np.interp(e, e_rk4, w_rk4))
-            print(f"  {name:30s} {r[1]:10s} error {r[3]:9.2g}: {r[2] / wall:8.0f}x")
+            ratio = r[2] / wall
+            worst[name] = min(worst.get(name, np.inf), ratio)
+            print(f"  {name:30s} {r[1]:10s} error {r[3]:9.2g}: {ratio:8.0f}x")
 
     # raw step rate of the default (sampled) model
     smodel = build_model(scene, controller)
@@ -107,8 +115,19 @@ def main():
         w, c = time.perf_counter(), time.process_time()
         integrate(x, P, smodel.T, 0.0, dt, n, sub, 0.0, False, 1000, *out)
         best_w, best_c = min(best_w, time.perf_counter() - w), min(best_c, time.process_time() - c)
+    rate = n / best_c
     print(f"RK4 steps per second (sampled model, one core): {n / best_w / 1e6:.2f} M (wall), "
-          f"{n / best_c / 1e6:.2f} M (process CPU time)")
+          f"{rate / 1e6:.2f} M (process CPU time)")
+
+    print("\ntargets (worst case over the competitor's settings):")
+    checks = [(f"at equal error >= {TARGET_LSODA:g}x faster than solve_ivp LSODA",
+               worst["solve_ivp LSODA"], TARGET_LSODA, "x"),
+              (f"at equal error >= {TARGET_IOR:g}x faster than control.input_output_response",
+               worst["control.input_output_response"], TARGET_IOR, "x"),
+              (f">= {TARGET_RATE / 1e6:g} M RK4 steps/s on one core (CPU time)", rate / 1e6,
+               TARGET_RATE / 1e6, " M/s")]
+    for text, value, target, unit in checks:
+        print(f"  {'PASS' if value >= target else 'FAIL'}  {text}: {value:.3g}{unit}")
 
 
 if __name__ == "__main__":
