@@ -165,7 +165,7 @@ def test_cam_scene_open_loop_steady_speed():
     (Kt u - R Mf) / (Ke Kt) = 13.36 rad/s with the Coulomb friction smoothed."""
     scene = load_scene(SCENES / "cam_follower.toml")
     import dataclasses
-    cam = dataclasses.replace(scene.stages[0], follower_mass=1e-9)
+    cam = dataclasses.replace(scene.stages[0], follower_mass=1e-9, follower_weight=0.0)
     scene = dataclasses.replace(scene, stages=(cam,))
     res = simulate(scene, voltage=3.5, duration=3.0, method="rk4", dt=1e-3)
     assert res.motor_speed[-1] == pytest.approx(13.36, rel=2e-3)

@@ -93,7 +93,7 @@ def test_viscous_friction_open_loop_steady_speed_matches_closed_form():
     data = tomllib.loads((SCENES / "cam_follower.toml").read_text())
     b = 2e-4
     scene = build(variant(data, motor__viscous_friction=f"{b} N*m*s/rad"))
-    cam = dataclasses.replace(scene.stages[0], follower_mass=1e-9)
+    cam = dataclasses.replace(scene.stages[0], follower_mass=1e-9, follower_weight=0.0)
     scene = dataclasses.replace(scene, stages=(cam,))
     m = scene.motor
     v = 3.5

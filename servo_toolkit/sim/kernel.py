@@ -8,6 +8,9 @@ Equations (generalized coordinates p, q at the output; N(p) motor rad per output
 
     J_d(p) p'' + J_d'(p) p'^2 / 2 = N(p) tau_m - f - K'(p) z^2 / 2
     J_L q''                       = f + M_hinge(q, q') + M_stop(q, q')
+    (rigid chain ending in a cam, q the cam angle: J(q) q'' + J'(q) q'^2 / 2
+     = N tau_m + M_hinge - M_g, M_g = (sigma f - G_x) ds/dq the follower's weight and guide
+     friction, seed 002 eqs 1 and 3, sigma = sign(ds/dq) tanh(omega_m / w_s))
     tau_m = Kt i - b omega_m - Tc tanh(omega_m / w_s),   omega_m = N(p) p'
     L i' = v - R i - Ke omega_m                          (or i = (v - Ke omega_m) / R, L = 0)
 
@@ -31,10 +34,12 @@ import math
 
 import numba as nb
 
+from ..mechanisms.cam_kernels import shaft_acceleration
+
 from .layout import (EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
-                     KSTOP, KT, KAW, L, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
+                     KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
                      PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
                      REF_STEP, REF_T0, RIGID, STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP,
                      T_DJ, T_DK, T_DN, T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
@@ -293,7 +298,14 @@ def rhs(t, x, P, T, iref_held, dx, aux):
     dx[0] = pd
     dx[6] = 0.0
     if P[RIGID] > 0.0:
-        pdd = (n * tau_shaft - 0.5 * djd * pd * pd + m_load) / jd
+        if P[CAM] > 0.0:
+            # chain ends in a cam: the follower's weight and guide friction load the shaft,
+            # M_g = (sigma f - G_x) ds/dq (seed 002 eq 3; its m a part is in J and J')
+            oc = int(P[CAM])
+            pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, n * tau_shaft + m_load, jd,
+                                        0.5 * djd * pd * pd, n * P[WS])
+        else:
+            pdd = (n * tau_shaft - 0.5 * djd * pd * pd + m_load) / jd
         dx[1] = pdd
         dx[2] = pd
         dx[3] = pdd

@@ -46,7 +46,12 @@ INV_H, INV_L, INV_JL = 43, 44, 45
 EST, LSB_M, OFF_E, OFF_KF, INV_TS = 46, 47, 48, 49, 50
 # back-calculation anti-windup gain of the current PI (1/s): Kii / Kpi (R / L for a pure I)
 KAW = 51
-NP_HEADER = 52
+# index in P of a chain-ending cam's parameters (mechanisms.cam_kernels.pack_cam; 0 = none):
+# its follower weight and guide friction load the cam shaft (seed 002 eq 3)
+CAM = 52
+NP_HEADER = 53
+#: length of the packed cam parameters
+NCAM = 14
 
 # table rows (cubic Hermite: value row followed by derivative row); T_M is the motor angle
 # (rad, 0 at mid-stroke), whose derivative row is N

@@ -308,6 +308,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         k_stop, j_stop = 10 * k0, jl
     P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * j_stop)
 
+    P = _with_cam(P, drive, rigid, notes)
     names = list(lo.STATE_NAMES)
     desc, ts, closed = "open loop (constant voltage)", 0.0, controller is not None
     est_kind, est_info = "ideal", {}
@@ -356,6 +357,23 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info)
     return _with_table_error(model, drive, q)
+
+
+def _with_cam(P, drive, rigid, notes):
+    """Append a chain-ending cam's parameters (its follower weight and guide friction load
+    the shaft inside the kernel)."""
+    if not drive.ends_in_cam:
+        return P
+    cam = drive.stages[-1]
+    if cam.follower_weight == 0 and cam.guide_friction_coefficient == 0:
+        return P
+    if not rigid or cam.law != "modified_constant_velocity":
+        notes.append("cam follower weight and guide friction left out (compliant chain or law "
+                     f"{cam.law!r})")
+        return P
+    from ..mechanisms.cam_kernels import pack_cam
+    P[lo.CAM] = P.size
+    return np.concatenate([P, pack_cam(cam)])
 
 
 def _with_table_error(model: Model, drive, q) -> Model:
