@@ -102,7 +102,8 @@ def test_largest_inertia_is_the_stable_direction(cam_design):
 
 
 def test_mid_stroke_cam_design_fails_stable_over_stroke(cam):
-    r = st.design(cam, q0=math.pi)  # the dwell: ds/dtheta = 0, the follower adds nothing
+    # designed on the dwell's plant alone: ds/dtheta = 0, the follower adds nothing
+    r = st.design(cam, q0=math.pi, over_stroke=False)
     assert r.parameters.J1 == pytest.approx(JM, rel=1e-9)
     assert r.margins.closed_loop_stable and r.margins.phase_margin_deg > 45  # fine at q0 ...
     check = next(c for c in r.requirements if c.name == "stable_over_stroke")

@@ -1,8 +1,10 @@
 """Loop shaping: choose controller gains to meet a scene's requirements.
 
 The search evaluates candidate controllers on a frequency grid with the closed-form plant
-responses (:mod:`.response`), ranks them by their smallest normalized slack against the
-requirements, and confirms the best with python-control (closed-loop poles). The reported
+responses (:mod:`.response`) at a few points of the stroke (:mod:`.stroke_design`: q0, the
+ends, the inertia and drivetrain-mode extremes), ranks them by their smallest normalized
+slack against the requirements (margins at their worst over the points, bandwidth and phase
+lag at q0), and confirms the best with the closed-loop poles at every point. The reported
 figures of the chosen design are python-control's (:func:`.margins.loop_margins`).
 """
 
@@ -23,7 +25,8 @@ from .metrics import grid_figures
 from .requirements import check, requirements_of
 from .response import loop_response, plant_responses
 from .result import DesignResult
-from .stroke import STROKE_POINTS, operating_point, stroke_check
+from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, operating_point, show_q, stroke_check
+from .stroke_design import StrokePlants, design_points, stroke_filters
 from .structures import FILTERS, STRUCTURES, Motion
 
 SPEED_RATIOS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
@@ -43,18 +46,26 @@ def _delay_response(s, sample_time):
     return np.asarray(d(s)).reshape(s.shape)
 
 
-def _slack(figs, reqs, f_req):
-    """Smallest normalized slack over the requirements (negative: some requirement missed)."""
+MARGINS = ("gain_margin", "phase_margin", "sensitivity_peak")
+"""Requirements judged at their worst over the design points (the others at q0)."""
+
+
+def _slack(figs, reqs, f_req, points: int = 1):
+    """Smallest normalized slack over the requirements (negative: some requirement missed).
+
+    ``figs`` holds candidates x ``points`` rows (q0 first in each candidate's block): the
+    margins count at their worst over the points, bandwidth and phase lag at q0."""
     achieved = _achieved(figs)
     cols = []
     for r in reqs:
-        a = np.asarray(achieved[r.name], float)
+        a = np.asarray(achieved[r.name], float).reshape(-1, points)
         if r.name == "bandwidth":
             with np.errstate(divide="ignore", invalid="ignore"):
                 sl = np.log(a / r.value)
         else:
             sl = (a - r.value if r.sense == ">=" else r.value - a) / max(abs(r.value), 1.0)
-        cols.append(np.where(np.isfinite(sl), sl, np.where(sl > 0, 10.0, -10.0)))
+        sl = np.where(np.isfinite(sl), sl, np.where(sl > 0, 10.0, -10.0))
+        cols.append(sl.min(axis=1) if r.name in MARGINS else sl[:, 0])
     return np.min(cols, axis=0)
 
 
@@ -64,29 +75,47 @@ def _achieved(figs) -> dict:
             "sensitivity_peak": figs["sensitivity_peak_db"]}
 
 
-def _candidates(structure, p, s, delay, wb, filters, zeta, sample_time, current_gains):
-    """Yield (Motion, L on the grid) for the scan of one structure."""
+def _filters(p, names, zeta, stroke_params):
+    """(name, parameters) of the resonance filters tried: the notch on the anti-resonance at
+    q0 and the low-pass at half of it, and, when the mode walks along the stroke, the
+    stroke-wide ones (:func:`.stroke_design.stroke_filters`)."""
+    wa = 2 * math.pi * p.antiresonance_hz
+    base = {"none": {}, "notch": {"wn": wa, "zeta_zero": max(zeta, 0.05), "zeta_pole": 0.7},
+            "lowpass": {"wn": 0.5 * wa, "zeta": 0.5}}
+    out = [(n, base[n]) for n in names]
+    out += [(n, fp) for n, fp in stroke_filters(stroke_params) if n in names]
+    return out
+
+
+def _speed_references(p, params):
+    """Plants the speed-loop crossover is set on: q0's, and the design point of the largest
+    motor-side inertia J1 / N^2 when it exceeds q0's by more than the stroke check's
+    :data:`~.stroke.INERTIA_SPREAD_LIMIT` (the speed loop's crossover falls in proportion
+    to that inertia, so gains set on a light point lose their phase on the heavy one)."""
+    heavy = max(params, key=lambda q: q.J1 / q.N**2)
+    if heavy.J1 / heavy.N**2 > INERTIA_SPREAD_LIMIT * p.J1 / p.N**2:
+        return (p, heavy)
+    return (p,)
+
+
+def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains, plants):
+    """Yield (Motion, L at every design point on the grid) for the scan of one structure."""
     n = p.N
     kp_i, ki_i = current_gains
-    P1, P2 = plant_responses(s, p, kp_i, ki_i)
-    wa = 2 * math.pi * p.antiresonance_hz
-    for filt in filters:
-        fparams = {}
-        if filt == "notch":
-            fparams = {"wn": wa, "zeta_zero": max(zeta, 0.05), "zeta_pole": 0.7}
-        elif filt == "lowpass":
-            fparams = {"wn": 0.5 * wa, "zeta": 0.5}
+    P1, P2, nq = plants.P1, plants.P2, plants.N
+    refs = _speed_references(p, plants.params)
+    for filt, fparams in filters:
         if structure == "cascade":
-            for r in SPEED_RATIOS:
+            for r, ref in ((r, ref) for ref in refs for r in SPEED_RATIOS):
                 wv = r * wb
                 sv = np.array([1j * wv])
-                P1v, _ = plant_responses(sv, p, kp_i, ki_i)
+                P1v, _ = plant_responses(sv, ref, kp_i, ki_i)
                 dv = _delay_response(sv, sample_time)
-                kv = float(1.0 / np.abs(dv * (1 + (wv / 4) / sv) * sv * P1v)[0])
+                kv = float(n / ref.N / np.abs(dv * (1 + (wv / 4) / sv) * sv * P1v)[0])
                 for k in GAIN_SCAN:
                     m = Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wv / 4}, filt, fparams, n)
                     cy, cw = m.responses(s)
-                    yield m, loop_response(s, P1, P2, delay, cy, cw, n)
+                    yield m, loop_response(s, P1, P2, delay, cy, cw, nq)
         else:
             for k in GAIN_SCAN:
                 wc = k * wb
@@ -101,29 +130,34 @@ def _candidates(structure, p, s, delay, wb, filters, zeta, sample_time, current_
                 gains = dict(gains, kc=float(1.0 / abs(lc[0])))
                 m = Motion(structure, gains, filt, fparams, n)
                 cy, cw = m.responses(s)
-                yield m, loop_response(s, P1, P2, delay, cy, cw, n)
+                yield m, loop_response(s, P1, P2, delay, cy, cw, nq)
 
 
 def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sample_time, current_gains,
-            structural_damping, stable_only=True):
-    """Best-ranked (stable) candidate aiming at ``f_target``: (Motion, CascadeController) or None."""
+            stroke_params, stable_only=True):
+    """Best-ranked candidate aiming at ``f_target``, stable at every design point:
+    (Motion, CascadeController) or None. ``stroke_params``: the plants at the design points,
+    q0 first (:func:`.stroke_design.design_points`)."""
     w = frequency_grid(f_min=0.01, f_max=5e3, points=700, extra=[f_req, phase_hz])
     s = 1j * w
     delay = _delay_response(s, sample_time)
+    plants = StrokePlants(stroke_params, s, current_gains)
     motions, loops = [], []
-    for m, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, structural_damping,
-                            sample_time, current_gains):
+    for m, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, sample_time,
+                            current_gains, plants):
         motions.append(m)
         loops.append(L)
-    figs = grid_figures(w, np.array(loops), phase_freq=f_req)
-    order = np.argsort(-_slack(figs, reqs, f_req))
-    A, B, C, D, _ = plant_matrices(p, inductance=True)
+    npts = plants.count
+    figs = grid_figures(w, np.array(loops).reshape(-1, w.size), phase_freq=f_req)
+    order = np.argsort(-_slack(figs, reqs, f_req, npts), kind="stable")
+    mats = [plant_matrices(q, inductance=True) for q in stroke_params]
     for idx in order:
         ctrl = CascadeController(motions[idx].state_space(), *current_gains, sample_time, motions[idx].describe())
         if not stable_only:
             return motions[idx], ctrl
-        acl = closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *controller_matrices(ctrl, scene.motor))
-        if np.all(np.linalg.eigvals(acl).real < 0):
+        kc = controller_matrices(ctrl, scene.motor)
+        if all(np.all(np.linalg.eigvals(closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *kc)).real < 0)
+               for A, B, C, D, _ in mats):
             return motions[idx], ctrl
     return None
 
@@ -131,7 +165,7 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
 def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
            model: str = "auto", require=None, phase_hz: float = 8.0, robust=None,
-           progress: bool = True) -> DesignResult:
+           progress: bool = True, over_stroke: bool = True) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
 
     A nominal design maximizes the smallest slack against the requirements on the nominal
@@ -170,6 +204,11 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         a :class:`~servo_toolkit.scene.Robustness`: robust over it.
     progress : bool
         Progress bars for the robust search.
+    over_stroke : bool
+        Nominal search: rank each candidate by its worst margins over a few stroke points
+        (:func:`.stroke_design.design_points`; bandwidth and phase lag at q0) and try the
+        resonance filters that cover the mode's walk along the stroke (default). ``False``
+        designs on the plant at q0 alone (the check over the stroke still runs).
 
     Returns
     -------
@@ -200,15 +239,24 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         notes.append("zero inductance: ideal current loop u = R i_ref + Ke omega_m")
     f_req = next(r.value for r in reqs if r.name == "bandwidth")
     if p.rigid:
-        filters = ("none",)
+        names = ("none",)
     elif resonance_filter == "auto":
-        filters = FILTERS
+        names = FILTERS
     else:
-        filters = (resonance_filter,)
+        names = (resonance_filter,)
+    if over_stroke:
+        qd, stroke_params = design_points(scene, p.q0, model, structural_damping)
+        notes.append(f"designed on {qd.size} stroke points, q = "
+                     + ", ".join(show_q(x, scene.drivetrain.output_unit) for x in qd)
+                     + " (q0, stroke ends, motor-side inertia and anti-resonance extremes): margins at "
+                       "their worst over them, bandwidth and phase lag at q0")
+    else:
+        stroke_params = (p,)
+    filters = _filters(p, names, structural_damping, stroke_params)
     chosen = None
     for target in TARGET_FALLBACK:
         chosen = _search(scene, p, reqs, structure, filters, f_req, f_req * target, phase_hz,
-                         sample_time, (kp_i, ki_i), structural_damping)
+                         sample_time, (kp_i, ki_i), stroke_params)
         if chosen is not None:
             if target < 1:
                 notes.append(f"no stable {structure} design reaches {f_req:g} Hz; the best stable one found "
@@ -216,7 +264,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
             break
     if chosen is None:
         chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
-                         (kp_i, ki_i), structural_damping, stable_only=False)
+                         (kp_i, ki_i), stroke_params, stable_only=False)
         notes.append(f"no stable {structure} design was found in the search; the best-ranked one is shown")
     motion, ctrl = chosen
     return evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes, motion=motion, model=model,
@@ -230,10 +278,12 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
 
     The margins are those at ``q0`` (default mid-stroke). With ``stroke_points`` (> 0) the
     same controller is also evaluated along the stroke (:func:`.stroke.stroke_check`):
-    ``result.stroke`` holds the figures per operating point, the ``stable_over_stroke``
-    requirement (closed loop stable at every point) joins the requirements, and the notes
-    name the unstable points and the worst margins below the nominal requirements
-    (information).
+    ``result.stroke`` holds the figures per operating point; the ``stable_over_stroke``
+    requirement (closed loop stable at every point) and the worst-case margins over the
+    stroke (``gain_margin_over_stroke``, ``phase_margin_over_stroke``,
+    ``sensitivity_peak_over_stroke``, each with the required value of its point
+    requirement) join the requirements, and the notes name the unstable points and each
+    worst margin that misses, where and by how much.
     """
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require) if reqs is None else reqs
@@ -259,6 +309,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
         stroke = stroke_check(scene, controller, p.q0, points=stroke_points, model=model,
                               structural_damping=structural_damping, f_req=f_req)
         checks.append(stroke.requirement())
+        checks += stroke.margin_requirements(reqs)
         notes = tuple(notes) + stroke.notes(reqs)
     g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,

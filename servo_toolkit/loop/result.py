@@ -152,10 +152,11 @@ class DesignResult:
 
 def requirements_table(checks) -> str:
     """Text table: requirement, required, achieved, pass/fail and shortfall."""
-    rows = [f"  {'requirement':<24}{'required':>14}{'achieved':>12}  {'':6}{'short by':>10}"]
+    width = max([24] + [len(c.name) + 2 for c in checks])
+    rows = [f"  {'requirement':<{width}}{'required':>14}{'achieved':>12}  {'':6}{'short by':>10}"]
     for c in checks:
         short = "" if c.passed else f"{c.shortfall:.3g} {c.unit}"
-        rows.append(f"  {c.name:<24}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
+        rows.append(f"  {c.name:<{width}}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
                     f"{c.achieved:>9.3g} {c.unit:<3}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
                     + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))
     return "\n".join(rows)

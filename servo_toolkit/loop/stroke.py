@@ -23,7 +23,7 @@ python-control), and stability from the eigenvalues of each closed-loop matrix
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -32,7 +32,7 @@ from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
 from .metrics import grid_figures
-from .requirements import Check
+from .requirements import Check, check
 from .response import current_response, loop_response, mechanical_response
 from .robustness import _controller_blocks, _controller_response
 
@@ -45,10 +45,20 @@ loop is designed at mid-stroke; above it, at the largest inertia."""
 SCAN_POINTS = 721
 """Operating points scanned for the inertia extremes (0.5 deg over a cam's turn)."""
 
+#: margin requirement -> its figure over the stroke; the figure of an unstable loop
+_MARGIN_FIGURES = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
+                   "sensitivity_peak": "sensitivity_peak_db"}
+_UNSTABLE = {"gain_margin": 0.0, "phase_margin": -math.inf, "sensitivity_peak": math.inf}
 _FIGURES = ("gain_margin_db", "phase_margin_deg", "sensitivity_peak_db", "bandwidth_hz")
 #: figure -> worst is its minimum or its maximum (over the stable points)
 _WORST = {"gain_margin_db": "min", "phase_margin_deg": "min", "sensitivity_peak_db": "max",
           "bandwidth_hz": "min", "max_pole_real": "max"}
+
+
+def show_q(q: float, unit: str = "rad", digits: int = 4) -> str:
+    """An operating point for text: degrees for an angle (``unit`` ``"rad"``), mm for a
+    travel (``"m"``)."""
+    return f"{q * 1e3:.{digits}g} mm" if unit == "m" else f"{math.degrees(q):.{digits}g} deg"
 
 
 def _scan(drivetrain, points: int = SCAN_POINTS):
@@ -93,10 +103,11 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
     if spread <= INERTIA_SPREAD_LIMIT:
         return float(dt.mid_stroke), None
     at = _plateau_middle(q, j)
-    return at, (f"operating point q0 = {math.degrees(at):.4g} deg, where the motor-side reflected inertia is "
+    u = dt.output_unit
+    return at, (f"operating point q0 = {show_q(at, u)}, where the motor-side reflected inertia is "
                 f"largest ({j.max():.4g} kg*m^2, {spread:.3g}x its smallest, {j.min():.4g} kg*m^2 at "
-                f"{math.degrees(q[int(np.argmin(j))]):.4g} deg; rule: largest inertia when it varies by more "
-                f"than {INERTIA_SPREAD_LIMIT:g}x, else mid-stroke); the loop is checked over the stroke")
+                f"{show_q(q[int(np.argmin(j))], u)}; rule: largest inertia when it varies by more "
+                f"than {INERTIA_SPREAD_LIMIT:g}x, else mid-stroke); the loop is designed and checked over the stroke")
 
 
 def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarray:
@@ -190,6 +201,11 @@ class StrokeCheck:
     phase_margin_deg: np.ndarray
     sensitivity_peak_db: np.ndarray
     bandwidth_hz: np.ndarray
+    output_unit: str = "rad"
+
+    def show(self, q: float) -> str:
+        """Operating point ``q`` as text (deg, or mm for a travel)."""
+        return show_q(q, self.output_unit)
 
     @property
     def all_stable(self) -> bool:
@@ -215,7 +231,7 @@ class StrokeCheck:
             if not np.any(ok):
                 continue
             k = int(np.argmin(np.where(ok, vals, np.inf)) if kind == "min" else np.argmax(np.where(ok, vals, -np.inf)))
-            out[key] = {"value": float(vals[k]), "q_deg": math.degrees(self.q[k])}
+            out[key] = {"value": float(vals[k]), "q_deg": math.degrees(self.q[k]), "q": float(self.q[k])}
         return out
 
     def requirement(self) -> Check:
@@ -225,27 +241,48 @@ class StrokeCheck:
         return Check("stable_over_stroke", 1.0, frac, self.all_stable, "", ">=", "always",
                      0.0 if self.all_stable else 1.0 - frac)
 
+    def margin_requirements(self, requirements=()) -> list:
+        """Worst-case margins over the stroke as checks: ``gain_margin_over_stroke``,
+        ``phase_margin_over_stroke``, ``sensitivity_peak_over_stroke``, one per margin
+        requirement in ``requirements`` and with its required value (the margins the loop
+        must have at q0 it must have at every point). Achieved is the worst value over the
+        points; when some point is unstable, the unstable loop's figure (0 dB, -inf deg,
+        +inf dB, as at q0), so the row fails with it."""
+        out = []
+        worst = self.worst()
+        for r in requirements:
+            key = _MARGIN_FIGURES.get(r.name)
+            if key is None:
+                continue
+            if self.all_stable and key in worst:
+                a = worst[key]["value"]
+                a = abs(a) if key == "gain_margin_db" else a
+            else:
+                a = _UNSTABLE[r.name]
+            out += check([r], {r.name: a})
+        return [replace(c, name=f"{c.name}_over_stroke") for c in out]
+
     def notes(self, requirements=()) -> tuple:
-        """Where the loop is unstable, and worst margins below the nominal requirements
-        (information: only stability over the stroke is a requirement)."""
+        """Where the loop is unstable, and each worst margin that misses its requirement
+        (rows ``*_over_stroke``), with the operating point and the shortfall."""
         out = []
         if not self.all_stable:
-            qs = ", ".join(f"{math.degrees(q):.4g}" for q in self.unstable_q)
-            out.append(f"the loop designed at q0 = {math.degrees(self.q0):.4g} deg is UNSTABLE at "
-                       f"{int(np.sum(~self.stable))} of {self.q.size} stroke points: q = {qs} deg")
+            qs = ", ".join(self.show(q) for q in self.unstable_q)
+            out.append(f"the loop designed at q0 = {self.show(self.q0)} is UNSTABLE at "
+                       f"{int(np.sum(~self.stable))} of {self.q.size} stroke points: q = {qs}")
         worst = self.worst()
-        fig = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
-               "sensitivity_peak": "sensitivity_peak_db", "bandwidth": "bandwidth_hz"}
         for r in requirements:
-            key = fig.get(r.name)
+            key = _MARGIN_FIGURES.get(r.name)
             if key is None or key not in worst:
                 continue
-            value, value_q = worst[key]["value"], worst[key]["q_deg"]
+            value, value_q = worst[key]["value"], worst[key]["q"]
             a = abs(value) if key == "gain_margin_db" else value
             met = a >= r.value if r.sense == ">=" else a <= r.value
             if not met:
+                short = r.value - a if r.sense == ">=" else a - r.value
                 out.append(f"over the stroke (stable points) the worst {r.name} is {a:.4g} {r.unit} at q = "
-                           f"{value_q:.4g} deg (required {r.sense} {r.value:g} {r.unit} at q0; information)")
+                           f"{self.show(value_q)}: required {r.sense} {r.value:g} {r.unit}, short by {short:.3g} "
+                           f"{r.unit} ({r.name}_over_stroke)")
         return tuple(out)
 
     def to_dict(self) -> dict:
@@ -258,32 +295,33 @@ class StrokeCheck:
                 "output_inertia_kg_m2": floats(self.inertia),
                 "stable": [bool(x) for x in self.stable], "max_pole_real": floats(self.max_pole_real),
                 **{k: floats(getattr(self, k)) for k in _FIGURES},
-                "all_stable": self.all_stable, "worst": self.worst()}
+                "output_unit": self.output_unit, "all_stable": self.all_stable, "worst": self.worst()}
 
     def summary(self) -> str:
         """Two lines: the span of the check, stability and the worst cases."""
-        lo, hi = np.degrees(self.q.min()), np.degrees(self.q.max())
+        lo, hi = self.show(self.q.min()), self.show(self.q.max())
         unstable = int(np.sum(~self.stable))
-        worst = ", ".join(f"{k} {w['value']:.4g} at {w['q_deg']:.4g} deg" for k, w in self.worst().items()
+        worst = ", ".join(f"{k} {w['value']:.4g} at {self.show(w['q'])}" for k, w in self.worst().items()
                           if k != "max_pole_real")
-        return (f"  over the stroke ({self.q.size} points, {lo:.4g}..{hi:.4g} deg, motor-side inertia "
+        return (f"  over the stroke ({self.q.size} points, {lo}..{hi}, motor-side inertia "
                 f"{self.motor_inertia.min():.4g}..{self.motor_inertia.max():.4g} kg*m^2): "
                 f"{'stable everywhere' if unstable == 0 else f'{unstable} points UNSTABLE'}"
                 + (f"\n  worst over the stable points: {worst}" if worst else ""))
 
     def table(self) -> str:
         """One line per point and the worst cases, as text."""
-        lines = [f"  over the stroke ({self.q.size} points, controller of q0 = {math.degrees(self.q0):.4g} deg): "
+        lines = [f"  over the stroke ({self.q.size} points, controller of q0 = {self.show(self.q0)}): "
                  f"{int(np.sum(~self.stable))} unstable",
-                 f"  {'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}"
+                 f"  {'q (mm)' if self.output_unit == 'm' else 'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}"
                  f"{'BW Hz':>8}"]
         for k in range(self.q.size):
-            lines.append(f"  {math.degrees(self.q[k]):9.2f}{self.ratio[k]:9.4g}{self.motor_inertia[k]:11.4g}  "
+            qk = self.q[k] * 1e3 if self.output_unit == "m" else math.degrees(self.q[k])
+            lines.append(f"  {qk:9.2f}{self.ratio[k]:9.4g}{self.motor_inertia[k]:11.4g}  "
                          f"{'yes' if self.stable[k] else 'NO':>6}{self.gain_margin_db[k]:8.2f}"
                          f"{self.phase_margin_deg[k]:8.1f}{self.sensitivity_peak_db[k]:7.2f}"
                          f"{self.bandwidth_hz[k]:8.3g}")
         for key, w in self.worst().items():
-            lines.append(f"  worst {key}: {w['value']:.4g} at q = {w['q_deg']:.4g} deg")
+            lines.append(f"  worst {key}: {w['value']:.4g} at q = {self.show(w['q'])}")
         return "\n".join(lines)
 
 
@@ -337,4 +375,5 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
     return StrokeCheck(q=q, q0=float(q0), ratio=np.abs(ratio), motor_inertia=j / ratio**2, inertia=j,
                        stable=max_real < 0, max_pole_real=max_real,
                        gain_margin_db=np.abs(figs["gain_margin_db"]), phase_margin_deg=figs["phase_margin_deg"],
-                       sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"])
+                       sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"],
+                       output_unit=dt.output_unit)

@@ -1,0 +1,128 @@
+"""Design points along the stroke: the plants a nominal design search must hold together.
+
+Why (physics)
+-------------
+Along a linkage's stroke the kinematic ratio N(q) changes, and with it every quantity the
+loop sees: the motor-side inertia J1(q) (rotor and gears reflected with N^2), the series
+stiffness K(q) (each stage's k times its ratio to the output squared, seed 001 eq 8) and so
+the drivetrain mode sqrt(K (1/J1 + 1/J2)) and its anti-resonance sqrt(K / J2). On the
+reference EMA (rocker, +-30 deg) the anti-resonance walks from 29.3 Hz at 0 deg down to
+25.9 Hz at -30 deg. A notch tuned at q0 then leaves the moved, lightly damped mode
+unfiltered at the end of the stroke: the loop stays stable but with almost no gain margin.
+
+What the search does
+--------------------
+It evaluates every candidate controller on the plants linearized at a few design points
+(:func:`design_points`: q0, the stroke ends, the largest and smallest motor-side inertia,
+the lowest and highest drivetrain anti-resonance), with the same closed-form responses as
+the stroke check (:class:`.stroke.StrokeLoops`: each point's N, J1, J2, K, damping and
+torque gain; the controller's speed feedback keeps the design ratio N(q0)). Margins (gain
+margin, phase margin, sensitivity peak) count at their worst over the points; bandwidth and
+phase lag are judged at q0, the operating point the requirement is stated for (the worst
+bandwidth over the stroke stays in the stroke check's summary). Resonance-filter candidates
+include a notch centred on the anti-resonance's walk and widened to cover it, and a
+low-pass below its lowest value (:func:`stroke_filters`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
+from .response import plant_responses
+from .stroke import STROKE_POINTS, stroke_points
+
+MAX_DESIGN_POINTS = 7
+"""At most this many design points (q0 first)."""
+WALK_LIMIT = 1.02
+"""Highest / lowest anti-resonance over the design points above which the stroke-wide
+filters join the candidates."""
+
+
+def design_points(scene, q0: float, model: str = "auto", structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
+                  scan_points: int = STROKE_POINTS):
+    """The stroke points a nominal design is evaluated on, q0 first.
+
+    Parameters
+    ----------
+    scene : Scene
+    q0 : float
+        Operating point (rad).
+    model : {"auto", "two_mass", "rigid"}
+    structural_damping : float
+    scan_points : int
+        Evenly spaced points (those of the stroke check) scanned for the extremes.
+
+    Returns
+    -------
+    q : numpy.ndarray
+        Design points (rad): q0, the stroke ends, the largest and smallest motor-side
+        inertia, the lowest and highest anti-resonance (duplicates removed; at most
+        :data:`MAX_DESIGN_POINTS`).
+    params : tuple of PlantParameters
+        The plant at each point.
+    """
+    dt = scene.drivetrain
+    grid = stroke_points(dt, scan_points, extra=[q0])
+    params = [plant_parameters(scene, q, model, structural_damping) for q in grid]
+    motor = dt.motor_inertia(grid)
+    fa = np.array([p.antiresonance_hz if not p.rigid else np.inf for p in params])
+    picks = [int(np.argmin(np.abs(grid - q0))), 0, grid.size - 1, int(np.argmax(motor)), int(np.argmin(motor))]
+    if np.any(np.isfinite(fa)):
+        picks += [int(np.argmin(fa)), int(np.argmax(np.where(np.isfinite(fa), fa, -np.inf)))]
+    keep = list(dict.fromkeys(picks))[:MAX_DESIGN_POINTS]
+    q = grid[keep]
+    q[0] = q0
+    ps = [plant_parameters(scene, q0, model, structural_damping)] + [params[k] for k in keep[1:]]
+    return q, tuple(ps)
+
+
+def antiresonance_range(params) -> tuple[float, float] | None:
+    """(lowest, highest) drivetrain anti-resonance (Hz) over ``params``; None if rigid."""
+    fa = [p.antiresonance_hz for p in params if not p.rigid and math.isfinite(p.antiresonance_hz)]
+    return (min(fa), max(fa)) if fa else None
+
+
+def stroke_filters(params) -> list:
+    """Resonance filters for the anti-resonance's walk over ``params`` (name, parameters):
+    a notch at the geometric centre of the walk whose pole damping spans it (two depths),
+    and a low-pass at half the lowest anti-resonance. Empty when the mode does not walk
+    (ratio below :data:`WALK_LIMIT`) or the plant is rigid."""
+    rng = antiresonance_range(params)
+    if rng is None or rng[1] / rng[0] <= WALK_LIMIT:
+        return []
+    lo, hi = rng
+    wc = 2 * math.pi * math.sqrt(lo * hi)
+    spread = (hi - lo) / math.sqrt(lo * hi)
+    out = []
+    for zp in (max(0.7, 2 * spread), max(1.0, 4 * spread)):
+        for depth in (0.07, 0.2):
+            out.append(("notch", {"wn": wc, "zeta_zero": depth * zp, "zeta_pole": zp}))
+    out.append(("lowpass", {"wn": 0.5 * 2 * math.pi * lo, "zeta": 0.5}))
+    return out
+
+
+class StrokePlants:
+    """Plant responses P1, P2 (rad/A) at each design point on a frequency grid.
+
+    Parameters
+    ----------
+    params : sequence of PlantParameters
+    s : numpy.ndarray
+        Complex frequencies (1/s).
+    current_gains : tuple
+        Current PI (kp, ki).
+    """
+
+    def __init__(self, params, s, current_gains):
+        self.params = tuple(params)
+        pairs = [plant_responses(s, p, *current_gains) for p in self.params]
+        self.P1 = np.array([a for a, _ in pairs])
+        self.P2 = np.array([b for _, b in pairs])
+        self.N = np.array([p.N for p in self.params], float)[:, None]
+
+    @property
+    def count(self) -> int:
+        return len(self.params)
