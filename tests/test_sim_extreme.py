@@ -1,8 +1,10 @@
 """Stiff and extreme cases (issue item 7): each matches the reference within the stated
 tolerance or raises a clear SimulationError; none returns NaN.
 
-The runs use the continuous motion controller so that the reference is a single
-``solve_ivp`` call (LSODA, rtol = atol = 1e-10); the integrator under test is ``auto``.
+Every case runs on two paths: the continuous motion controller with the fallback cascade
+(the reference is a single ``solve_ivp`` call), and the default path, the sampled controller
+with the designed cascade (``loop.design``; the reference restarts at every sample). The
+reference is LSODA at rtol = atol = 1e-10; the integrator under test is ``auto``.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import pytest
 
 from servo_toolkit import SimulationError
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run
+from servo_toolkit.sim.simulate import controller_for
 
 from .conftest import SCENES, build, variant
 
@@ -22,8 +25,21 @@ AMP = math.radians(2.0)
 BASE = tomllib.loads((SCENES / "ema_reference.toml").read_text())
 
 
-def _compare(scene, ref, duration, tol, **opts):
-    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous", **opts))
+@pytest.fixture(params=["continuous-fallback", "sampled-designed"])
+def path(request):
+    return request.param
+
+
+def _model(scene, path, **opts):
+    if path == "continuous-fallback":
+        return build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous", **opts))
+    controller, source = controller_for(scene)
+    assert source == "loop.design"
+    return build_model(scene, controller, ModelOptions(controller_mode="sampled", **opts))
+
+
+def _compare(scene, ref, duration, tol, path="continuous-fallback", **opts):
+    model = _model(scene, path, **opts)
     a = run(model, ref, duration, "auto", output_dt=1e-3)
     b = run(model, ref, duration, "reference", output_dt=1e-3)
     assert np.all(np.isfinite(a.states)) and np.all(np.isfinite(b.states))
@@ -33,43 +49,43 @@ def _compare(scene, ref, duration, tol, **opts):
     return a, b
 
 
-def test_inductance_1uH_auto_reduces_the_step():
+def test_inductance_1uH_auto_reduces_the_step(path):
     scene = build(variant(BASE, motor__inductance="1 uH"))
-    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.05, 1e-6)
+    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.05, 1e-6, path)
     assert a.dt_s < 1e-5 and a.stability["max_abs_lambda"] > 1e5
 
 
-def test_stiffness_x1000():
-    a, _ = _compare(build(BASE), Reference.sine(AMP, 8.0), 0.1, 1e-6, stiffness_scale=1000.0)
+def test_stiffness_x1000(path):
+    a, _ = _compare(build(BASE), Reference.sine(AMP, 8.0), 0.1, 1e-6, path, stiffness_scale=1000.0)
     # drivetrain mode sqrt(K (1/J_d + 1/J_L)) = sqrt(3.4e7 * (1/4.4 + 1)) = 6.46e3 rad/s
     assert a.stability["max_abs_lambda"] > 6e3
 
 
 @pytest.mark.parametrize("play_deg, tol", [(0.0, 1e-6), (2.0, 5e-4)])
-def test_zero_and_large_backlash_without_preload(play_deg, tol):
+def test_zero_and_large_backlash_without_preload(play_deg, tol, path):
     """No hinge moment: with 2 deg of play the load flies freely through the play and hits
     it at every reversal. The contact moment is continuous at engagement (ElastoBacklash),
     so the fixed steps straddling a contact cost little: 8.5e-5 of the amplitude measured at
     the automatic step (the discontinuous max(k z + d z', 0) law gave 1.6e-2)."""
     scene = build(variant(BASE, load__hinge_moment="0 N*m"))
-    _compare(scene, Reference.sine(math.radians(5.0), 4.0), 0.3, tol, play=math.radians(play_deg))
+    _compare(scene, Reference.sine(math.radians(5.0), 4.0), 0.3, tol, path, play=math.radians(play_deg))
 
 
-def test_zero_load_inertia():
+def test_zero_load_inertia(path):
     """Only the output shaft stays on the load side: a fast local mode."""
     scene = build(variant(BASE, load__inertia="0 kg*m^2"))
-    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.1, 1e-5)
+    a, _ = _compare(scene, Reference.sine(AMP, 8.0), 0.1, 1e-5, path)
     assert a.stability["max_abs_lambda"] > 5e3
 
 
-def test_twenty_times_load_inertia():
+def test_twenty_times_load_inertia(path):
     scene = build(variant(BASE, load__inertia="20 kg*m^2"))
-    _compare(scene, Reference.sine(AMP, 8.0), 0.3, 1e-6)
+    _compare(scene, Reference.sine(AMP, 8.0), 0.3, 1e-6, path)
 
 
-def test_current_saturation_held_for_the_whole_run():
+def test_current_saturation_held_for_the_whole_run(path):
     scene = build(BASE)
-    a, b = _compare(scene, Reference.step(math.radians(20.0), offset=math.radians(-10.0)), 0.02, 1e-6)
+    a, b = _compare(scene, Reference.step(math.radians(20.0), offset=math.radians(-10.0)), 0.02, 1e-6, path)
     ilim = scene.motor.current_limit
     assert np.all(np.abs(b.current_reference[1:]) == pytest.approx(ilim))
     assert np.all(np.abs(a.current_reference[1:]) == pytest.approx(ilim))
