@@ -35,9 +35,11 @@ def _mechanism_dispatch(scene, args):
 def run(args) -> int:
     """Run the command."""
     from ..sim import simulate
+    from ..sim.result import check_trace_path
     from ..sim.studies import run_spec
 
     scene = load_scene(args.scene)
+    check_trace_path(args.output)  # a bad -o name fails before the run, exit 2
     result = _mechanism_dispatch(scene, args)
     if result is None:
         reference, duration, voltage, method, dt = run_spec(scene, args.study)
