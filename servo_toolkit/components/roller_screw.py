@@ -254,7 +254,7 @@ class RollerScrew(Stage):
         mu_RS, mu_SS, mu_NS.
     efficiency : float
         Forward efficiency; by default the steady-state value of :func:`steady_efficiency`.
-    travel_range : tuple of float or None
+    stroke_range : tuple of float or None
         Admissible travel of the last nut (m), scene key ``stroke``; None when not given.
     """
 
@@ -264,11 +264,11 @@ class RollerScrew(Stage):
     screw_screw_friction: float = 0.0
     nut_screw_friction: float = 0.0
     efficiency: float = 1.0
-    travel_range: tuple | None = None
+    stroke_range: tuple | None = None
 
     @property
     def stroke(self):
-        return self.travel_range
+        return self.stroke_range
 
     @property
     def ratio(self) -> float:
@@ -313,4 +313,4 @@ class RollerScrew(Stage):
                     "must be [lowest, highest] nut travel with lowest < highest")
         f.check_unknown()
         return cls(name=f.text("name", "roller screw"), stages=stages, efficiency=efficiency,
-                   travel_range=travel, **mus)
+                   stroke_range=travel, **mus)
