@@ -162,3 +162,21 @@ def test_design_stays_fast(ema):
     t = time.perf_counter()
     st.design(ema)
     assert time.perf_counter() - t < 5.0  # measured ~1.9 s (0.6 s designing at q0 alone)
+
+
+def test_a_worst_point_between_design_points_is_added_and_redesigned(ema, monkeypatch):
+    import importlib
+    design_module = importlib.import_module("servo_toolkit.loop.design")  # the module, not the function
+    real = design_module.design_points
+
+    def only_q0(scene, q0, model="auto", structural_damping=0.02):
+        q, params = real(scene, q0, model, structural_damping)
+        return q[:1], params[:1]  # as if the search saw q0 alone
+
+    monkeypatch.setattr(design_module, "design_points", only_q0)
+    r = st.design(ema)
+    note = next(n for n in r.notes if n.startswith("designed on"))
+    assert "worst points of the first search" in note and "-30 deg" in note
+    assert r.passed and all(c.passed for c in _rows(r).values())
+    stable, gm, pm, ms = _margins(ema, r.controller, math.radians(-30.0))
+    assert stable and gm >= 6.0 and pm >= 45.0 and ms <= 6.0

@@ -10,6 +10,7 @@ figures of the chosen design are python-control's (:func:`.margins.loop_margins`
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import replace
@@ -37,13 +38,26 @@ GAIN_SCAN = np.logspace(-0.8, 0.5, 27)
 """Position gain (cascade) or crossover (other structures) as multiples of the bandwidth."""
 
 
-def _delay_response(s, sample_time):
-    """Pade(2) of the sampling delay at ``s`` (what :func:`plant.sample_delay` builds)."""
+@functools.lru_cache(maxsize=16)
+def _delay_polys(sample_time: float):
+    """Numerator and denominator of :func:`plant.sample_delay` (None without a delay)."""
+    import control as ct
+
     from ..plant import sample_delay
     d = sample_delay(sample_time, DELAY_SAMPLES)
     if d.nstates == 0:
+        return None
+    tf = ct.ss2tf(d)
+    return np.ravel(tf.num[0][0]), np.ravel(tf.den[0][0])
+
+
+def _delay_response(s, sample_time):
+    """Pade(2) of the sampling delay at ``s`` (what :func:`plant.sample_delay` builds)."""
+    polys = _delay_polys(float(sample_time))
+    s = np.asarray(s, complex)
+    if polys is None:
         return np.ones_like(s)
-    return np.asarray(d(s)).reshape(s.shape)
+    return np.polyval(polys[0], s) / np.polyval(polys[1], s)
 
 
 MARGINS = ("gain_margin", "phase_margin", "sensitivity_peak")
@@ -244,31 +258,74 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         names = FILTERS
     else:
         names = (resonance_filter,)
+    unit = scene.drivetrain.output_unit
     if over_stroke:
         qd, stroke_params = design_points(scene, p.q0, model, structural_damping)
-        notes.append(f"designed on {qd.size} stroke points, q = "
-                     + ", ".join(show_q(x, scene.drivetrain.output_unit) for x in qd)
-                     + " (q0, stroke ends, motor-side inertia and anti-resonance extremes): margins at "
-                       "their worst over them, bandwidth and phase lag at q0")
     else:
-        stroke_params = (p,)
-    filters = _filters(p, names, structural_damping, stroke_params)
-    chosen = None
+        qd, stroke_params = np.array([p.q0]), (p,)
+    best = None
+    for round_ in range(2 if over_stroke else 1):
+        filters = _filters(p, names, structural_damping, stroke_params)
+        motion, ctrl, found = _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time,
+                                    (kp_i, ki_i), stroke_params)
+        where = ([f"designed on {qd.size} stroke points, q = " + ", ".join(show_q(x, unit) for x in qd)
+                  + " (q0, stroke ends, motor-side inertia and anti-resonance extremes"
+                  + (", and the worst points of the first search's stroke check" if round_ else "")
+                  + "): margins at their worst over them, bandwidth and phase lag at q0"] if over_stroke else [])
+        r = evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes + found + where, motion=motion, model=model,
+                     structural_damping=structural_damping, phase_hz=phase_hz)
+        if best is None or _result_slack(r) > _result_slack(best):
+            best = r
+        extra = [x for x in _missed_points(r) if np.min(np.abs(qd - x)) > 1e-9]
+        if not extra:
+            break
+        qd = np.concatenate([qd, extra])
+        stroke_params = stroke_params + tuple(plant_parameters(scene, x, model, structural_damping) for x in extra)
+    return best
+
+
+def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, current_gains, stroke_params):
+    """The search with its fallbacks: (Motion, CascadeController, notes)."""
     for target in TARGET_FALLBACK:
         chosen = _search(scene, p, reqs, structure, filters, f_req, f_req * target, phase_hz,
-                         sample_time, (kp_i, ki_i), stroke_params)
+                         sample_time, current_gains, stroke_params)
         if chosen is not None:
-            if target < 1:
-                notes.append(f"no stable {structure} design reaches {f_req:g} Hz; the best stable one found "
-                             f"aiming at {f_req * target:.3g} Hz is shown")
-            break
-    if chosen is None:
-        chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
-                         (kp_i, ki_i), stroke_params, stable_only=False)
-        notes.append(f"no stable {structure} design was found in the search; the best-ranked one is shown")
-    motion, ctrl = chosen
-    return evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes, motion=motion, model=model,
-                    structural_damping=structural_damping, phase_hz=phase_hz)
+            return chosen + ([] if target == 1 else
+                             [f"no stable {structure} design reaches {f_req:g} Hz; the best stable one found "
+                              f"aiming at {f_req * target:.3g} Hz is shown"],)
+    chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
+                     current_gains, stroke_params, stable_only=False)
+    return chosen + ([f"no stable {structure} design was found in the search; the best-ranked one is shown"],)
+
+
+def _result_slack(result) -> float:
+    """Smallest normalized slack over a result's checks (as in the search's ranking)."""
+    out = math.inf
+    for c in result.requirements:
+        if c.name == "bandwidth" or c.name.startswith("bandwidth"):
+            sl = math.log(c.achieved / c.required) if c.achieved > 0 else -10.0
+        else:
+            sl = (c.achieved - c.required if c.sense == ">=" else c.required - c.achieved) / max(abs(c.required), 1.0)
+        out = min(out, sl if math.isfinite(sl) else (10.0 if sl > 0 else -10.0))
+    return out if result.margins.closed_loop_stable else out - 10.0
+
+
+def _missed_points(result) -> list:
+    """Stroke points where the stroke check finds a missed margin row or instability: the
+    point of each failing row's worst figure, and the least stable unstable point."""
+    s = result.stroke
+    if s is None:
+        return []
+    out = []
+    if not s.all_stable:
+        out.append(float(s.q[int(np.argmax(s.max_pole_real))]))
+    worst = s.worst()
+    key = {"gain_margin_over_stroke": "gain_margin_db", "phase_margin_over_stroke": "phase_margin_deg",
+           "sensitivity_peak_over_stroke": "sensitivity_peak_db"}
+    for c in result.requirements:
+        if not c.passed and c.name in key and key[c.name] in worst:
+            out.append(float(worst[key[c.name]]["q"]))
+    return list(dict.fromkeys(out))
 
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
