@@ -26,8 +26,9 @@ from .metrics import grid_figures
 from .requirements import check, requirements_of
 from .response import loop_response, plant_responses
 from .result import DesignResult
-from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, operating_point, show_q, stroke_check
-from .stroke_design import StrokePlants, design_points, stroke_filters
+from .stroke import STROKE_POINTS, operating_point, show_q, stroke_check
+from .stroke_design import (StrokePlants, design_points, missed_points, result_slack, speed_references,
+                            stroke_filters)
 from .structures import FILTERS, STRUCTURES, Motion
 
 SPEED_RATIOS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
@@ -101,23 +102,12 @@ def _filters(p, names, zeta, stroke_params):
     return out
 
 
-def _speed_references(p, params):
-    """Plants the speed-loop crossover is set on: q0's, and the design point of the largest
-    motor-side inertia J1 / N^2 when it exceeds q0's by more than the stroke check's
-    :data:`~.stroke.INERTIA_SPREAD_LIMIT` (the speed loop's crossover falls in proportion
-    to that inertia, so gains set on a light point lose their phase on the heavy one)."""
-    heavy = max(params, key=lambda q: q.J1 / q.N**2)
-    if heavy.J1 / heavy.N**2 > INERTIA_SPREAD_LIMIT * p.J1 / p.N**2:
-        return (p, heavy)
-    return (p,)
-
-
 def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains, plants):
     """Yield (Motion, L at every design point on the grid) for the scan of one structure."""
     n = p.N
     kp_i, ki_i = current_gains
     P1, P2, nq = plants.P1, plants.P2, plants.N
-    refs = _speed_references(p, plants.params)
+    refs = speed_references(p, plants.params)
     for filt, fparams in filters:
         if structure == "cascade":
             for r, ref in ((r, ref) for ref in refs for r in SPEED_RATIOS):
@@ -274,9 +264,9 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
                   + "): margins at their worst over them, bandwidth and phase lag at q0"] if over_stroke else [])
         r = evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes + found + where, motion=motion, model=model,
                      structural_damping=structural_damping, phase_hz=phase_hz)
-        if best is None or _result_slack(r) > _result_slack(best):
+        if best is None or result_slack(r) > result_slack(best):
             best = r
-        extra = [x for x in _missed_points(r) if np.min(np.abs(qd - x)) > 1e-9]
+        extra = [x for x in missed_points(r) if np.min(np.abs(qd - x)) > 1e-9]
         if not extra:
             break
         qd = np.concatenate([qd, extra])
@@ -296,36 +286,6 @@ def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, curr
     chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
                      current_gains, stroke_params, stable_only=False)
     return chosen + ([f"no stable {structure} design was found in the search; the best-ranked one is shown"],)
-
-
-def _result_slack(result) -> float:
-    """Smallest normalized slack over a result's checks (as in the search's ranking)."""
-    out = math.inf
-    for c in result.requirements:
-        if c.name == "bandwidth" or c.name.startswith("bandwidth"):
-            sl = math.log(c.achieved / c.required) if c.achieved > 0 else -10.0
-        else:
-            sl = (c.achieved - c.required if c.sense == ">=" else c.required - c.achieved) / max(abs(c.required), 1.0)
-        out = min(out, sl if math.isfinite(sl) else (10.0 if sl > 0 else -10.0))
-    return out if result.margins.closed_loop_stable else out - 10.0
-
-
-def _missed_points(result) -> list:
-    """Stroke points where the stroke check finds a missed margin row or instability: the
-    point of each failing row's worst figure, and the least stable unstable point."""
-    s = result.stroke
-    if s is None:
-        return []
-    out = []
-    if not s.all_stable:
-        out.append(float(s.q[int(np.argmax(s.max_pole_real))]))
-    worst = s.worst()
-    key = {"gain_margin_over_stroke": "gain_margin_db", "phase_margin_over_stroke": "phase_margin_deg",
-           "sensitivity_peak_over_stroke": "sensitivity_peak_db"}
-    for c in result.requirements:
-        if not c.passed and c.name in key and key[c.name] in worst:
-            out.append(float(worst[key[c.name]]["q"]))
-    return list(dict.fromkeys(out))
 
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",

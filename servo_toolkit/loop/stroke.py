@@ -312,8 +312,8 @@ class StrokeCheck:
         """One line per point and the worst cases, as text."""
         lines = [f"  over the stroke ({self.q.size} points, controller of q0 = {self.show(self.q0)}): "
                  f"{int(np.sum(~self.stable))} unstable",
-                 f"  {'q (mm)' if self.output_unit == 'm' else 'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}"
-                 f"{'BW Hz':>8}"]
+                 f"  {'q (mm)' if self.output_unit == 'm' else 'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}"
+                 f"{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}{'BW Hz':>8}"]
         for k in range(self.q.size):
             qk = self.q[k] * 1e3 if self.output_unit == "m" else math.degrees(self.q[k])
             lines.append(f"  {qk:9.2f}{self.ratio[k]:9.4g}{self.motor_inertia[k]:11.4g}  "

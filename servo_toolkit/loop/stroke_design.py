@@ -32,7 +32,7 @@ import numpy as np
 
 from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
 from .response import plant_responses
-from .stroke import STROKE_POINTS, stroke_points
+from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, stroke_points
 
 MAX_DESIGN_POINTS = 7
 """At most this many design points (q0 first)."""
@@ -126,3 +126,44 @@ class StrokePlants:
     @property
     def count(self) -> int:
         return len(self.params)
+
+
+def speed_references(p, params):
+    """Plants the speed-loop crossover is set on: q0's, and the design point of the largest
+    motor-side inertia J1 / N^2 when it exceeds q0's by more than the stroke check's
+    :data:`~.stroke.INERTIA_SPREAD_LIMIT` (the speed loop's crossover falls in proportion
+    to that inertia, so gains set on a light point lose their phase on the heavy one)."""
+    heavy = max(params, key=lambda q: q.J1 / q.N**2)
+    if heavy.J1 / heavy.N**2 > INERTIA_SPREAD_LIMIT * p.J1 / p.N**2:
+        return (p, heavy)
+    return (p,)
+
+
+def result_slack(result) -> float:
+    """Smallest normalized slack over a result's checks (as in the search's ranking)."""
+    out = math.inf
+    for c in result.requirements:
+        if c.name == "bandwidth":
+            sl = math.log(c.achieved / c.required) if c.achieved > 0 else -10.0
+        else:
+            sl = (c.achieved - c.required if c.sense == ">=" else c.required - c.achieved) / max(abs(c.required), 1.0)
+        out = min(out, sl if math.isfinite(sl) else (10.0 if sl > 0 else -10.0))
+    return out if result.margins.closed_loop_stable else out - 10.0
+
+
+def missed_points(result) -> list:
+    """Stroke points where the stroke check finds a missed margin row or instability: the
+    point of each failing row's worst figure, and the least stable unstable point."""
+    s = result.stroke
+    if s is None:
+        return []
+    out = []
+    if not s.all_stable:
+        out.append(float(s.q[int(np.argmax(s.max_pole_real))]))
+    worst = s.worst()
+    key = {"gain_margin_over_stroke": "gain_margin_db", "phase_margin_over_stroke": "phase_margin_deg",
+           "sensitivity_peak_over_stroke": "sensitivity_peak_db"}
+    for c in result.requirements:
+        if not c.passed and c.name in key and key[c.name] in worst:
+            out.append(float(worst[key[c.name]]["q"]))
+    return list(dict.fromkeys(out))
