@@ -21,7 +21,10 @@ _REQ_TEXT = {
 _CHECK_TEXT = {"bandwidth": "closed-loop bandwidth (-3 dB)", "phase_lag_at_bandwidth": "phase lag at the bandwidth",
                "gain_margin": "gain margin", "phase_margin": "phase margin",
                "sensitivity_peak": "sensitivity peak Ms",
-               "stable_over_stroke": "closed loop stable over the stroke (fraction of points)"}
+               "stable_over_stroke": "closed loop stable over the stroke (fraction of points)",
+               "gain_margin_over_stroke": "gain margin, worst over the stroke",
+               "phase_margin_over_stroke": "phase margin, worst over the stroke",
+               "sensitivity_peak_over_stroke": "sensitivity peak Ms, worst over the stroke"}
 F_MIN, F_MAX = 0.1, 1000.0
 
 
