@@ -33,8 +33,11 @@ class DesignResult:
         ``theta_ref`` -> ``theta``.
     margins : Margins
     requirements : list of Check
-        One per requirement, and ``stable_over_stroke`` when the loop was checked along the
-        stroke (the stability flag at q0 is ``margins.closed_loop_stable``).
+        One per requirement, and, when the loop was checked along the stroke,
+        ``stable_over_stroke`` and the worst-case margins over the stroke
+        (``gain_margin_over_stroke``, ``phase_margin_over_stroke``,
+        ``sensitivity_peak_over_stroke``, with the point requirements' values); the stability
+        flag at q0 is ``margins.closed_loop_stable``.
     motion : Motion or None
         Structure and gains of the motion controller, when designed here.
     notes : tuple of str
