@@ -17,6 +17,9 @@ def register(sub) -> None:
     p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
     p.add_argument("--dt", type=float, metavar="S", help="fixed step (s)")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
+    p.add_argument("--full", action="store_true",
+                   help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
+                        "left out)")
     add_json(p)
     p.set_defaults(run=run)
 
@@ -34,19 +37,14 @@ def _mechanism_dispatch(scene, args):
 
 def run(args) -> int:
     """Run the command."""
-    from ..sim import simulate
     from ..sim.result import check_trace_path
-    from ..sim.studies import run_spec
+    from ..studies.time_run import simulate_study
 
     scene = load_scene(args.scene)
     check_trace_path(args.output)  # a bad -o name fails before the run, exit 2
     result = _mechanism_dispatch(scene, args)
     if result is None:
-        reference, duration, voltage, method, dt = run_spec(scene, args.study)
-        method = args.method or method or "auto"
-        dt = args.dt if args.dt is not None else (dt if method in ("rk4", "paper") else None)
-        result = simulate(scene, None, reference=reference, duration=duration, method=method,
-                          dt=dt, voltage=voltage)
+        result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full)
         text = f"Simulation of {scene.name}\n" + result.table()
     else:
         text = result.table() if hasattr(result, "table") else str(result.to_dict())

@@ -1,0 +1,63 @@
+"""A time simulation as a study: the reduced model by default, saying what it left out.
+
+The closed-loop sine runs of ``servo-toolkit simulate`` (the default 8 Hz sine and the
+scene's ``simulate`` / ``kv`` sine studies) are judged by
+:func:`~.reduce_estimates.plan_reduction` at their frequency and amplitude, as sweeps are,
+and run the reduced model unless the full one is asked for. Open-loop voltage runs and
+explicit ``ModelOptions`` run as given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ..sim import ModelOptions, controller_for, simulate
+from ..sim.studies import run_spec
+
+
+def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
+                   full: bool = False):
+    """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
+
+    Parameters
+    ----------
+    scene : Scene
+    study : str, optional
+        A ``[studies.NAME]`` with a sine (``simulate`` or ``kv`` kind) or a ``voltage``.
+    method : {"rk4", "paper", "reference", "auto"}, optional
+        Default: the study's ``method``, else ``"auto"``.
+    dt : float, optional
+        Fixed step (s); default the study's ``sample_time`` for the fixed-step methods.
+    full : bool
+        Run the full model; by default a closed-loop sine runs the reduced model.
+
+    Returns
+    -------
+    SimulationResult
+        Its ``notes`` say which model ran and, for the reduced one, what it left out and
+        the a-priori bound on what that costs.
+    """
+    from ..plant import DEFAULT_STRUCTURAL_DAMPING
+    from .reduce_estimates import plan_reduction
+
+    reference, duration, voltage, study_method, study_dt = run_spec(scene, study)
+    method = method or study_method or "auto"
+    if dt is None and method in ("rk4", "paper"):
+        dt = study_dt
+    if voltage is not None:
+        return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage)
+    controller, source = controller_for(scene)
+    options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
+    notes = [f"controller from {source}"]
+    if full:
+        notes.append("full model (every modelled effect kept)")
+    else:
+        plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
+        options = plan.options
+        left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
+        notes.append(f"reduced model for {reference.frequency:g} Hz, {abs(reference.amplitude) * 57.29577951308232:.3g}"
+                     f" deg: left out {', '.join(left) or 'nothing'}; a-priori bound {plan.tolerance:g} on the "
+                     "relative response (servo-toolkit reduce SCENE for the reasoning, --full for the full model)")
+    result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
+                      options=options)
+    return replace(result, notes=tuple(notes) + tuple(result.notes))
