@@ -21,9 +21,10 @@ import math
 
 import numpy as np
 
-from .kernel import controller_sample, jit, rhs
-from .layout import (AUX_TAU, HALF_PLAY, NAUX, NONFINITE, OK, RIGID, STROKE_END, STROKE_HI,
-                     STROKE_LO, STROKE_MODE)
+from .kernel import controller_sample, jit, rhs, rhs_phys
+from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
+                     NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
+                     STROKE_MODE)
 
 
 @jit
@@ -52,6 +53,115 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     iref : float
         The held current reference at the end (A).
     """
+    if paper:
+        return _paper(x, P, T, t0, dt, n_steps, sub, iref, True, rec_every, out_t, out_x, out_aux)
+    return _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux)
+
+
+@jit
+def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
+    """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
+
+    Same arithmetic as the array form (:func:`kernel.rhs`); x[0:7] is written back before
+    each controller sample and at the end. The controller and estimator states x[7:] change
+    only at the samples unless the motion controller is continuous.
+    """
+    nx = x.size
+    k1 = np.zeros(nx)
+    k2 = np.zeros(nx)
+    k3 = np.zeros(nx)
+    k4 = np.zeros(nx)
+    xs = np.zeros(nx)
+    work = np.empty(max(nx, 1))
+    n_rec = 0
+    max_tau = 0.0
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    err_mode = P[STROKE_MODE] == 0.0
+    rigid = P[RIGID] > 0.0
+    cont = int(P[CMODE]) == CONTINUOUS
+    p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    to_sample = 0
+    to_record = 0
+    status = OK
+    for step in range(n_steps + 1):
+        t = t0 + step * dt
+        if sub > 0:
+            if to_sample == 0:
+                x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
+                iref = controller_sample(t, x, P, T, work)
+                to_sample = sub
+            to_sample -= 1
+        a0, a1, a2, a3, a4, a5, i_, v_, r_, tau_ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T,
+                                                            iref, x, k1)
+        tau = abs(tau_)
+        if tau > max_tau:
+            max_tau = tau
+        if to_record == 0 or step == n_steps:
+            to_record = rec_every
+            out_t[n_rec] = t
+            out_x[n_rec, 0] = p
+            out_x[n_rec, 1] = pd
+            out_x[n_rec, 2] = q
+            out_x[n_rec, 3] = qd
+            out_x[n_rec, 4] = cur
+            out_x[n_rec, 5] = xi
+            out_x[n_rec, 6] = s
+            for j in range(NX_PHYS, nx):
+                out_x[n_rec, j] = x[j]
+            out_aux[n_rec, AUX_I] = i_
+            out_aux[n_rec, AUX_V] = v_
+            out_aux[n_rec, AUX_IREF] = r_
+            out_aux[n_rec, AUX_TAU] = tau_
+            n_rec += 1
+        to_record -= 1
+        acc = p + pd + q + qd + cur + xi + s
+        for j in range(NX_PHYS, nx):
+            acc += x[j]
+        if not math.isfinite(acc) or not math.isfinite(tau):
+            status = NONFINITE
+            break
+        if err_mode and ((q if not rigid else p) > P[STROKE_HI] or (q if not rigid else p) < P[STROKE_LO]):
+            status = STROKE_END
+            break
+        if step == n_steps:
+            break
+        if cont:
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + half * k1[j]
+        b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
+            t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
+            cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
+        if cont:
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + half * k2[j]
+        c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
+            t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
+            cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
+        if cont:
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + dt * k3[j]
+        d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
+            t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
+            cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
+        p += sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+        pd += sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+        q += sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
+        qd += sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
+        cur += sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4)
+        xi += sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5)
+        if cont:
+            for j in range(NX_PHYS, nx):
+                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
+    if status != OK:
+        return status, step, n_rec, max_tau, iref
+    return OK, n_steps, n_rec, max_tau, iref
+
+
+@jit
+def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux):
+    """The cam paper's scheme (and the array form of RK4 when ``paper`` is False)."""
     nx = x.size
     k1 = np.empty(nx)
     k2 = np.empty(nx)

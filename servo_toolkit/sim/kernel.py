@@ -238,9 +238,14 @@ def controller_sample(t, x, P, T, work):
 
 
 @inline
-def rhs(t, x, P, T, iref_held, dx, aux):
-    """dx/dt of the closed loop; ``aux`` receives current, voltage, i_ref and motor torque."""
-    p, pd, q, qd, cur, xi = x[0], x[1], x[2], x[3], x[4], x[5]
+def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
+    """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
+
+    Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
+    motion controller touches the arrays: it reads its states ``x[NX_PHYS:]`` and writes their
+    derivatives into ``dx[NX_PHYS:]`` (nothing else is written). Scalars in and out let the
+    fixed-step loop keep the physical state in registers.
+    """
     kc, tc = cell(P, p)
     hc = P[TAB_H]
     ih = P[INV_H]
@@ -248,19 +253,16 @@ def rhs(t, x, P, T, iref_held, dx, aux):
     n, _ = interp(T, T_N, kc, tc, hc, ih)
     wm = n * pd
     mode = int(P[CMODE])
-    nc = int(P[NC])
-    for j in range(NX_PHYS, x.size):  # sampled controller and estimator states are held
-        dx[j] = 0.0
     # --- controller and electrics
     if mode == OPEN_LOOP:
         iref = 0.0
         v = clip(P[V_OPEN], P[VLIM])
         if P[L] > 0.0:
-            dx[4] = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
+            di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
         else:
             cur = (v - P[KE] * wm) / P[R]
-            dx[4] = 0.0
-        dx[5] = 0.0
+            di = 0.0
+        dxi = 0.0
     else:
         if mode == CONTINUOUS:
             iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
@@ -270,20 +272,16 @@ def rhs(t, x, P, T, iref_held, dx, aux):
             e = iref - cur
             vc = P[KPI] * e + xi
             v = clip(vc, P[VLIM])
-            dx[4] = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
+            di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
             # back-calculation anti-windup: continuous, bleeds the clamp excess off the integral
-            dx[5] = P[KII] * e + (v - vc) * P[KAW]
+            dxi = P[KII] * e + (v - vc) * P[KAW]
         else:
             v = clip(P[R] * iref + P[KE] * wm, P[VLIM])
             cur = (v - P[KE] * wm) / P[R]
-            dx[4] = 0.0
-            dx[5] = 0.0
+            di = 0.0
+            dxi = 0.0
     tau = P[KT] * cur
     tau_shaft = tau - P[BM] * wm - P[TC] * math.tanh(wm * P[WS])
-    aux[AUX_I] = cur
-    aux[AUX_V] = v
-    aux[AUX_IREF] = iref
-    aux[AUX_TAU] = tau
     # --- load side: hinge moment and stroke-end stop
     if P[RIGID] > 0.0:
         ql, qld = p, pd
@@ -295,8 +293,6 @@ def rhs(t, x, P, T, iref_held, dx, aux):
             m_load += min(-P[KSTOP] * (ql - P[STROKE_HI]) - P[DSTOP] * qld, 0.0)
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
-    dx[0] = pd
-    dx[6] = 0.0
     if P[RIGID] > 0.0:
         if P[CAM] > 0.0:
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
@@ -306,10 +302,7 @@ def rhs(t, x, P, T, iref_held, dx, aux):
                                         0.5 * djd * pd * pd, n * P[WS])
         else:
             pdd = (n * tau_shaft - 0.5 * djd * pd * pd + m_load) / jd
-        dx[1] = pdd
-        dx[2] = pd
-        dx[3] = pdd
-        return
+        return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     # --- compliance with backlash
     k, dk = interp(T, T_K, kc, tc, hc, ih)
     k *= P[KSCALE]
@@ -318,9 +311,9 @@ def rhs(t, x, P, T, iref_held, dx, aux):
     dd = pd - qd
     if P[PAPER] > 0.0:
         # the cam paper's play operator: the spring acts on s - q, s held inside the play
-        z = x[6] - q
+        z = s - q
         f = k * z
-        if abs(p - x[6]) >= c * (1.0 - 1e-9):  # in contact (s was pushed to p -+ c)
+        if abs(p - s) >= c * (1.0 - 1e-9):  # in contact (s was pushed to p -+ c)
             f += P[BETA] * k * dd
     elif c <= B_EPS:
         # no play (Modelica: b <= 1e-10 rad): a plain spring-damper, which may pull
@@ -335,6 +328,25 @@ def rhs(t, x, P, T, iref_held, dx, aux):
         else:
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
-    dx[1] = (n * tau_shaft - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
-    dx[2] = qd
-    dx[3] = (f + m_load) * P[INV_JL]
+    pdd = (n * tau_shaft - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
+    return pd, pdd, qd, (f + m_load) * P[INV_JL], di, dxi, cur, v, iref, tau
+
+
+@inline
+def rhs(t, x, P, T, iref_held, dx, aux):
+    """dx/dt of the closed loop; ``aux`` receives current, voltage, i_ref and motor torque."""
+    for j in range(NX_PHYS, x.size):  # sampled controller and estimator states are held
+        dx[j] = 0.0
+    d0, d1, d2, d3, d4, d5, cur, v, iref, tau = rhs_phys(t, x[0], x[1], x[2], x[3], x[4], x[5],
+                                                         x[6], P, T, iref_held, x, dx)
+    dx[0] = d0
+    dx[1] = d1
+    dx[2] = d2
+    dx[3] = d3
+    dx[4] = d4
+    dx[5] = d5
+    dx[6] = 0.0
+    aux[AUX_I] = cur
+    aux[AUX_V] = v
+    aux[AUX_IREF] = iref
+    aux[AUX_TAU] = tau
