@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 import servo_toolkit as st
 from servo_toolkit.cli import main
@@ -48,3 +49,12 @@ def test_cli_simulate_says_which_model_ran(capsys):
     full = json.loads(capsys.readouterr().out)
     assert any(n.startswith("full model") for n in full["notes"])
     assert not any("inductance left out" in n for n in full["notes"])
+
+
+def test_default_run_of_an_output_travel_is_a_millimetre_sine():
+    """A linear actuator's default run commands 1 mm at 8 Hz (not 2 deg read as 35 mm)."""
+    scene = st.load_scene(SCENES / "linear_roller_screw_actuator.toml")
+    res = simulate_study(scene)
+    assert any("8 Hz, 1 mm" in n for n in res.notes)
+    assert np.max(np.abs(res.reference_angle - np.mean(res.reference_angle))) == pytest.approx(1e-3, rel=1e-2)
+    assert np.max(np.abs(res.motor_current)) < scene.motor.current_limit

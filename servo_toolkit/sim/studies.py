@@ -9,15 +9,21 @@ from .reference import Reference
 
 #: default closed-loop run: the 8 Hz, 2 deg sine of seed 000, for 1 s
 DEFAULT_SINE = (math.radians(2.0), 8.0, 1.0)
+#: its amplitude for an output travel (m): 1 mm
+DEFAULT_LINEAR_AMPLITUDE = 1e-3
 
 
 def run_spec(scene, study_name=None):
     """``(reference, duration, voltage, method, dt)`` for a study name or the default.
 
     Open-loop studies (a ``voltage`` parameter) give ``reference=None`` and the voltage.
+    The default is :data:`DEFAULT_SINE`, with :data:`DEFAULT_LINEAR_AMPLITUDE` for an
+    output travel.
     """
     if study_name is None:
         amp, freq, dur = DEFAULT_SINE
+        if scene.drivetrain.output_is_linear:
+            amp = DEFAULT_LINEAR_AMPLITUDE
         return Reference.sine(amp, freq), dur, None, None, None
     study = scene.study(study_name)
     p = study.params

@@ -9,6 +9,7 @@ explicit ``ModelOptions`` run as given.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 from ..sim import ModelOptions, controller_for, simulate
@@ -55,9 +56,10 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
         options = plan.options
         left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
-        notes.append(f"reduced model for {reference.frequency:g} Hz, {abs(reference.amplitude) * 57.29577951308232:.3g}"
-                     f" deg: left out {', '.join(left) or 'nothing'}; a-priori bound {plan.tolerance:g} on the "
-                     "relative response (servo-toolkit reduce SCENE for the reasoning, --full for the full model)")
+        amp = abs(reference.amplitude)
+        size = f"{amp * 1e3:.3g} mm" if scene.drivetrain.output_is_linear else f"{math.degrees(amp):.3g} deg"
+        notes.append(f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
+                     f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for the reasoning, --full for the full model)")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
                       options=options)
     return replace(result, notes=tuple(notes) + tuple(result.notes))
