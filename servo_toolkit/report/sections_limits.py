@@ -91,47 +91,23 @@ def _simulation_simplifications() -> list[str]:
 def _measured_reduction(ctx):
     """The reduction of the report's sweep: the a-priori plan and the measured difference.
 
-    Full settings run :func:`servo_toolkit.studies.reduce.reduce` on the scene's sweep study
-    as defined. Light settings judge the effects with
-    :func:`servo_toolkit.studies.reduce_estimates.plan_reduction` at the report's light sweep
-    points and measure the difference between the report's (reduced) sweep and the full
-    model's sweep at the same points and dwell plan.
+    :func:`servo_toolkit.studies.reduce.reduce` on the scene's sweep study, with the report's
+    sweep settings: as defined under full settings, the report's light points and short
+    dwells otherwise.
     """
+    from dataclasses import replace
+
     from . import sections_studies as studies
-    result_cls = api("servo_toolkit.studies.reduce", "ReductionResult")
-    if not ctx.light:
-        reduce = api("servo_toolkit.studies.reduce", "reduce")
-        return reduce(ctx.scene, controller=ctx.design().controller, executor=ctx.executor, progress=False)
-    plan_reduction = api("servo_toolkit.studies.reduce_estimates", "plan_reduction")
-    options_cls = api("servo_toolkit.sim", "ModelOptions")
-    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
-    zeta = api("servo_toolkit.plant", "DEFAULT_STRUCTURAL_DAMPING")
-    controller = ctx.design().controller
-    name, freqs, amps, options = studies.sweep_settings(ctx)
-    full = options_cls(damping_ratio=zeta)
-    plan = plan_reduction(ctx.scene, controller, freqs, amps, base=full)
-    reduced = studies.reduced_sweep(ctx)
-    notes = ["light settings: the report's sweep points and short dwells (servo-toolkit reduce SCENE, or "
-             "report --full, for the study as defined)"]
-    if reduced.options != dict(plan.options.__dict__):
-        reduced = run_sweep(ctx.scene, name, controller=controller, options=plan.options, progress=False,
-                            executor=ctx.executor, **options)
-    if not plan.omitted:
-        s_full, diff = reduced, np.zeros(reduced.response.shape)
-        notes.append("nothing is left out: the reduced model is the full model")
-    else:
-        s_full = run_sweep(ctx.scene, name, controller=controller, options=full, progress=False,
-                           executor=ctx.executor, **options)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            diff = np.abs(reduced.response / s_full.response - 1.0)
-        failed_one = np.isnan(s_full.response) ^ np.isnan(reduced.response)
-        diff[failed_one] = math.inf
-    sat = reduced.saturated | s_full.saturated | (np.isnan(s_full.response) ^ np.isnan(reduced.response))
-    return result_cls(scene=ctx.scene.name, study=name, measure="sweep", plan=plan,
-                      frequencies_hz=reduced.frequencies_hz, amplitudes_rad=reduced.amplitudes_rad,
-                      difference=diff, saturated=sat, full_options=dict(full.__dict__),
-                      reduced_options=dict(plan.options.__dict__), full_wall_s=float(s_full.wall_s),
-                      reduced_wall_s=float(reduced.wall_s), notes=tuple(notes))
+    reduce = api("servo_toolkit.studies.reduce", "reduce")
+    name, freqs, _, options = studies.sweep_settings(ctx)
+    light = {"frequencies": freqs, "plan": options["plan"]} if ctx.light else {}
+    res = reduce(ctx.scene, name, controller=ctx.design().controller, executor=ctx.executor, progress=False,
+                 **light)
+    if ctx.light:
+        res = replace(res, notes=tuple(res.notes) + (
+            "light settings: the report's sweep points and short dwells (servo-toolkit reduce SCENE, or "
+            "report --full, for the study as defined)",))
+    return res
 
 
 def _reduction(ctx):
