@@ -1,0 +1,110 @@
+"""``export(design_result, scene, ...)``: the designed controller as JSON and C99 sources."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import control as ct
+
+from ..controller import CascadeController
+from ..errors import SceneError
+from .blocks import blocks_of, tustin_to_continuous
+from .c_code import HEADER_NAME, SOURCE_NAME, header, source
+from .quantize import filter_shifts, quantize
+from .result import ExportResult
+from .writer import check_directory, write_files
+
+
+def quantized_controller(design_result, quantized) -> CascadeController:
+    """The quantized motion controller as a :class:`CascadeController` that the simulation
+    and the loop analysis run: the continuous system whose Tustin sampling is the quantized
+    discrete controller, with the design's current loop."""
+    c = design_result.controller
+    motion = tustin_to_continuous(quantized.blocks.state_space())
+    return CascadeController(motion, c.current_kp, c.current_ki, c.sample_time,
+                             f"{c.description} [quantized {quantized.fmt}]")
+
+
+def _requirements(design_result):
+    from ..loop.requirements import SPECS, Requirement
+    return [Requirement(c.name, c.sense, c.required, c.unit, c.source)
+            for c in design_result.requirements if c.name in SPECS]
+
+
+def _failures(design_result, qdesign) -> tuple:
+    """Requirements the design meets and the quantized controller misses."""
+    out = []
+    if not qdesign.margins.closed_loop_stable:
+        out.append("the closed loop with the quantized controller is unstable")
+    met = {c.name for c in design_result.requirements if c.passed}
+    for c in qdesign.requirements:
+        if c.name in met and not c.passed:
+            out.append(f"quantization costs {c.name}: {c.achieved:.4g} {c.unit} with the quantized controller, "
+                       f"required {c.sense} {c.required:g} {c.unit}")
+    return tuple(out)
+
+
+def export(design_result, scene, directory=None, *, fixed_point: str | None = None,
+           current_sample_time: float | None = None, inputs=(), bound_horizon_s: float = 0.1) -> ExportResult:
+    """Export a designed cascade as ``controller.json`` and C99 sources.
+
+    Parameters
+    ----------
+    design_result : DesignResult
+        From :func:`servo_toolkit.design` on ``scene``.
+    scene : Scene
+        The scene it was designed for (limits, sensors, speed estimator).
+    directory : str or Path, optional
+        Output folder (checked before work, written atomically); None: nothing is written.
+    fixed_point : {None, "q15", "q31"}
+        Quantize the motion controller; the margins are recomputed with the quantized
+        coefficients and ``result.failures`` says what the quantization costs.
+    current_sample_time : float, optional
+        Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
+    inputs : sequence of path
+        Files the export must not overwrite (e.g. the scene file).
+    bound_horizon_s : float
+        Horizon (s) of the stated fixed-point rounding bound on i_ref.
+
+    Returns
+    -------
+    ExportResult
+    """
+    if directory is not None:
+        directory = check_directory(directory, inputs)
+    if not (math.isfinite(bound_horizon_s) and bound_horizon_s > 0):
+        raise SceneError("bound_horizon_s", f"must be > 0, got {bound_horizon_s!r}")
+    blocks = blocks_of(design_result, scene, current_sample_time)
+    ctrl = design_result.controller
+    motion = ct.sample_system(ctrl.motion, ctrl.sample_time, method="tustin")
+    result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s)
+    if fixed_point is not None:
+        from ..loop.design import evaluate
+        q = quantize(blocks, scene.motor, fixed_point)
+        qdesign = evaluate(scene, quantized_controller(design_result, q), design_result.q0,
+                           reqs=_requirements(design_result), phase_hz=design_result.margins.phase_at_hz)
+        result = replace(result, quantized=q, quantized_design=qdesign, filters=filter_shifts(blocks, q),
+                         failures=_failures(design_result, qdesign))
+    from .. import __version__
+    files = {"controller.json": json.dumps(_finite(result.controller_json()), indent=2) + "\n",
+             HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),
+             SOURCE_NAME: source(blocks, result.quantized)}
+    result = replace(result, files=files)
+    if directory is not None:
+        result = replace(result, directory=write_files(directory, files))
+    return result
+
+
+def _finite(obj):
+    """JSON has no inf/nan: they become strings (``"inf"``) or null."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if hasattr(obj, "item"):
+        return _finite(obj.item())
+    return obj

@@ -1,0 +1,222 @@
+"""Fixed-point form of the motion controller: integer coefficients, signal scales, bounds.
+
+Formats (``fixed_point``):
+
+* ``"q15"``: coefficients int16 in Q(m).(n), m + n = 15; signals int16 values, full scale
+  2^15 counts; biquad states int64 with 16 extra fraction bits.
+* ``"q31"``: coefficients int32 in Q(m).(n), m + n = 31; signals int32 values with full scale
+  2^29 counts (two guard bits keep every 64-bit product sum in range); states int64.
+
+Each section has one Q format for its numerator and one for its denominator (the largest
+coefficient of each uses the full word). A signal is an integer count of its LSB: the output
+angle ``pi / 2^S`` rad, the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
+``Wfs`` and ``Ifs`` the powers of two above the no-load speed ``Vlim / Ke`` and the current
+limit. In the integer domain a section's numerator carries ``LSB_in / LSB_out``.
+
+Rounding (the C ``rshift_round``: half away from zero): every product shifted right loses at
+most half a count of the state scale ``2^-G`` LSB, and the DF2T recursion sums five of them
+per output, amplified by the recursive part ``1 / A(z)``; the output is rounded to half an
+LSB (the recursion keeps the unrounded value). With the inputs rounded to half an LSB, the
+i_ref difference between the fixed-point code and the same quantized coefficients in exact
+arithmetic is at most :meth:`Quantized.error_bound` (l1 norms of the impulse responses over
+the horizon; the speed PI integrates, so the bound grows with the horizon). The coefficient
+quantization itself is judged by the margins of the quantized controller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import signal
+
+from ..errors import SceneError
+from .blocks import Biquad, Blocks
+
+#: format -> (coefficient fraction word W, signal bits S, extra state fraction bits G)
+FORMATS = {"q15": (15, 15, 16), "q31": (31, 29, 0)}
+
+
+def q_format(values, word: int) -> int:
+    """Fraction bits n so that every ``round(v * 2^n)`` fits in ``word`` bits plus sign."""
+    m = float(np.max(np.abs(values))) if len(values) else 0.0
+    if m == 0.0:
+        return word
+    n = word - (math.floor(math.log2(m)) + 1)
+    while round(m * 2.0**n) > 2**word - 1:
+        n -= 1
+    return n
+
+
+def q_name(word: int, frac: int) -> str:
+    """``"Q2.13"`` style name (integer bits may be negative for small coefficients)."""
+    return f"Q{word - frac}.{frac}"
+
+
+@dataclass(frozen=True)
+class QSection:
+    """A biquad with integer coefficients.
+
+    ``b = b_int 2^-fb`` (counts out per count in) and ``a = a_int 2^-fa``.
+    """
+
+    name: str
+    b_int: tuple
+    a_int: tuple
+    fb: int
+    fa: int
+    lsb_in: float
+    lsb_out: float
+
+    def biquad(self, original: Biquad) -> Biquad:
+        """The quantized coefficients back in physical units."""
+        scale = self.lsb_out / self.lsb_in
+        return replace(original, b=tuple(v * 2.0**-self.fb * scale for v in self.b_int),
+                       a=tuple(v * 2.0**-self.fa for v in self.a_int))
+
+    def counts(self):
+        """``(b, [1, a1, a2])`` in the integer domain (floats)."""
+        return (np.array(self.b_int) * 2.0**-self.fb, np.array([1.0] + [v * 2.0**-self.fa for v in self.a_int]))
+
+    def to_dict(self, word: int) -> dict:
+        return {"name": self.name, "b": list(self.b_int), "a": list(self.a_int),
+                "b_format": q_name(word, self.fb), "a_format": q_name(word, self.fa),
+                "b_fraction_bits": self.fb, "a_fraction_bits": self.fa,
+                "input_lsb": self.lsb_in, "output_lsb": self.lsb_out}
+
+
+@dataclass(frozen=True)
+class Quantized:
+    """The fixed-point motion controller.
+
+    Attributes
+    ----------
+    fmt : str
+        ``"q15"`` or ``"q31"``.
+    lsb : dict
+        ``theta`` (rad), ``omega`` (motor rad/s), ``current`` (A) per count.
+    position : tuple of QSection
+    speed : QSection or None
+    current_limit_counts : int
+    blocks : Blocks
+        The quantized coefficients in physical units (what the fixed-point code computes,
+        up to rounding).
+    """
+
+    fmt: str
+    lsb: dict
+    position: tuple
+    speed: QSection | None
+    current_limit_counts: int
+    blocks: Blocks
+
+    @property
+    def word(self) -> int:
+        return FORMATS[self.fmt][0]
+
+    @property
+    def signal_bits(self) -> int:
+        return FORMATS[self.fmt][1]
+
+    @property
+    def guard(self) -> int:
+        return FORMATS[self.fmt][2]
+
+    def sections(self) -> tuple:
+        return self.position + ((self.speed,) if self.speed is not None else ())
+
+    def error_bound(self, steps: int) -> float:
+        """Largest |i_ref| difference (A) over ``steps`` samples between the fixed-point code
+        and exact arithmetic on the quantized coefficients, inputs rounded to the nearest
+        count, while no signal saturates (see the module docstring)."""
+        err = 1.0  # theta_ref and theta rounded: half a count each
+        for sec in self.position:  # later sections take the previous one's counts
+            err = _section_error(sec, err, steps, self.guard)
+        if self.speed is not None:
+            err = _section_error(self.speed, err * self.position[-1].lsb_out / self.speed.lsb_in + 0.5,
+                                 steps, self.guard)
+        return err * self.sections()[-1].lsb_out
+
+    def to_dict(self) -> dict:
+        return {"format": self.fmt, "coefficient_word_bits": self.word + 1,
+                "signal_full_scale_counts": 2**self.signal_bits, "state_extra_fraction_bits": self.guard,
+                "lsb": {"theta_rad": self.lsb["theta"], "omega_m_rad_s": self.lsb["omega"],
+                        "current_A": self.lsb["current"]},
+                "sections": [s.to_dict(self.word) for s in self.sections()],
+                "current_limit_counts": self.current_limit_counts}
+
+
+def _l1(b, a, steps: int) -> float:
+    """l1 norm of the first ``steps`` samples of the impulse response of b / a."""
+    x = np.zeros(steps)
+    x[0] = 1.0
+    return float(np.sum(np.abs(signal.lfilter(b, a, x))))
+
+
+def _section_error(sec: QSection, err_in: float, steps: int, guard: int) -> float:
+    """Bound on the output error (counts) of a section from its input error (counts)."""
+    b, a = sec.counts()
+    shifts = [sec.fb - guard] * sum(1 for v in sec.b_int if v) + [sec.fa] * sum(1 for v in sec.a_int if v)
+    injected = 0.5 * sum(1 for k in shifts if k > 0) * 2.0**-guard
+    return 0.5 + injected * _l1([1.0], a, steps) + err_in * _l1(b, a, steps)
+
+
+def _pow2_above(x: float) -> float:
+    return 2.0 ** (math.floor(math.log2(max(x, 1e-300))) + 1)
+
+
+def quantize(blocks: Blocks, motor, fmt: str) -> Quantized:
+    """Quantize ``blocks`` to ``fmt`` (``"q15"`` or ``"q31"``)."""
+    if fmt not in FORMATS:
+        raise SceneError("fixed_point", f"must be one of {tuple(FORMATS)}, got {fmt!r}")
+    if blocks.estimator.kind != "ideal":
+        raise SceneError("fixed_point", f"the fixed-point export covers the measured motor speed only; "
+                         f"the scene's speed estimator {blocks.estimator.kind!r} needs the floating-point "
+                         "export")
+    word, sbits, _ = FORMATS[fmt]
+    w_fs = _pow2_above(motor.voltage_limit / motor.back_emf_constant) if motor.back_emf_constant > 0 else 2.0**12
+    lsb = {"theta": math.pi / 2**sbits, "omega": w_fs / 2**sbits,
+           "current": _pow2_above(blocks.current_limit) / 2**sbits}
+    out_lsb = lsb["omega"] if blocks.speed is not None else lsb["current"]
+
+    def q(sec: Biquad, lsb_in, lsb_out):
+        b = np.array(sec.b) * lsb_in / lsb_out
+        fb, fa = q_format(b, word), q_format(sec.a, word)
+        return QSection(sec.name, tuple(int(round(v * 2.0**fb)) for v in b),
+                        tuple(int(round(v * 2.0**fa)) for v in sec.a), fb, fa, lsb_in, lsb_out)
+
+    position = tuple(q(s, lsb["theta"] if j == 0 else out_lsb, out_lsb) for j, s in enumerate(blocks.position))
+    speed = None if blocks.speed is None else q(blocks.speed, lsb["omega"], lsb["current"])
+    ilim = int(math.floor(blocks.current_limit / lsb["current"]))
+    qb = replace(blocks, position=tuple(s.biquad(o) for s, o in zip(position, blocks.position)),
+                 speed=None if speed is None else speed.biquad(blocks.speed),
+                 current_limit=ilim * lsb["current"])
+    return Quantized(fmt, lsb, position, speed, ilim, qb)
+
+
+def natural_frequencies(sec: Biquad, sample_time: float) -> dict:
+    """Continuous natural frequencies (Hz) of a section's complex zero and pole pairs (the
+    Tustin map inverted: s = (2 / Ts) (z - 1) / (z + 1))."""
+    out = {}
+    for key, poly in (("zero_hz", sec.b), ("pole_hz", (1.0, *sec.a))):
+        roots = np.roots(np.trim_zeros(np.asarray(poly, float), "b")) if np.any(poly) else np.array([])
+        roots = roots[np.abs(roots.imag) > 0]
+        if roots.size:
+            s = 2.0 / sample_time * (roots[0] - 1) / (roots[0] + 1)
+            out[key] = float(abs(s) / (2 * math.pi))
+    return out
+
+
+def filter_shifts(blocks: Blocks, quantized: Quantized) -> list:
+    """Per position section with a complex zero or pole pair: design and quantized natural
+    frequencies (Hz) and their shift (the notch moves when its coefficients are rounded)."""
+    rows = []
+    for orig, qs in zip(blocks.position, quantized.blocks.position):
+        f0, f1 = natural_frequencies(orig, blocks.sample_time), natural_frequencies(qs, blocks.sample_time)
+        for key in f0:
+            got = f1.get(key, math.nan)
+            rows.append({"section": orig.name, "what": key.split("_")[0], "design_hz": f0[key],
+                         "quantized_hz": got, "shift_hz": got - f0[key],
+                         "shift_relative": (got - f0[key]) / f0[key]})
+    return rows
