@@ -1,0 +1,373 @@
+"""Controller export: the C code and the JSON against the simulation's sampled controller.
+
+The C is compiled with the system compiler (``-std=c99 -Wall -Wextra -Werror -pedantic``) as a
+shared library and driven step by step through ctypes with the same input sequences as the
+Python discrete controller (the Tustin sampling of the designed motion controller that the
+simulation runs).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import json
+import math
+import shutil
+import subprocess
+
+import control as ct
+import numpy as np
+import pytest
+from scipy import integrate, linalg
+
+from servo_toolkit import design, load_scene, simulate
+from servo_toolkit.estimation import steady_state_gain
+from servo_toolkit.export import export, quantized_controller, tustin_to_continuous
+from servo_toolkit.sim.estimator import default_jerk
+from servo_toolkit.sim.reference import Reference
+
+from .conftest import SCENES
+
+CC = shutil.which("gcc") or shutil.which("cc")
+needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (gcc or cc) on PATH to build the exported C")
+
+
+@pytest.fixture(scope="module")
+def ema():
+    scene = load_scene(SCENES / "ema_reference.toml")
+    return scene, design(scene, progress=False)
+
+
+def compile_library(folder):
+    """Build the exported sources in ``folder`` into a ctypes library."""
+    lib = folder / "libservo.so"
+    subprocess.run([CC, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O1", "-shared", "-fPIC",
+                    "-o", str(lib), str(folder / "servo_controller.c")], check=True, capture_output=True, text=True)
+    return ctypes.CDLL(str(lib))
+
+
+class CController:
+    """The exported C controller, one call per sample."""
+
+    def __init__(self, folder, fixed: bool, estimator: bool = False):
+        self.lib = compile_library(folder)
+        self.state = (ctypes.c_double * 256)()
+        sig = ctypes.c_int32 if fixed else ctypes.c_double
+        self.lib.servo_motion_step.argtypes = [ctypes.c_void_p, sig, sig, sig]
+        self.lib.servo_motion_step.restype = sig
+        self.lib.servo_current_step.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 3
+        self.lib.servo_current_step.restype = ctypes.c_double
+        self.lib.servo_init.argtypes = [ctypes.c_void_p, ctypes.c_double]
+        if estimator:
+            self.lib.servo_speed_estimate.argtypes = [ctypes.c_void_p, ctypes.c_double]
+            self.lib.servo_speed_estimate.restype = ctypes.c_double
+
+    def init(self, motor_angle=0.0):
+        self.lib.servo_init(self.state, motor_angle)
+
+    def motion(self, r, th, w):
+        return self.lib.servo_motion_step(self.state, r, th, w)
+
+    def current(self, i_ref, i, w=0.0):
+        return self.lib.servo_current_step(self.state, i_ref, i, w)
+
+    def estimate(self, z):
+        return self.lib.servo_speed_estimate(self.state, z)
+
+
+def python_controller(sys_d, u, limit):
+    """The simulation's sampled controller: y = C x + D u, x <- A x + B u, i_ref clamped."""
+    a, b, c, d = (np.atleast_2d(np.asarray(m, float)) for m in (sys_d.A, sys_d.B, sys_d.C, sys_d.D))
+    x = np.zeros(a.shape[0])
+    out = np.empty(len(u))
+    for k, uk in enumerate(u):
+        out[k] = (c @ x + d @ uk)[0]
+        x = a @ x + b @ uk
+    return np.clip(out, -limit, limit)
+
+
+def inputs(n, sample_time, seed=1, amplitude=0.02, speed=300.0):
+    """theta_ref (8 Hz sine and a step), theta (a lagging random walk), omega_m (noisy)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * sample_time
+    r = amplitude * np.sin(2 * math.pi * 8 * t) + amplitude * (t > 0.3 * t[-1])
+    th = 0.8 * np.roll(r, 20) + np.cumsum(rng.normal(0, amplitude / 200, n))
+    w = speed * np.sin(2 * math.pi * 11 * t) + rng.normal(0, speed / 50, n)
+    return np.column_stack([r, th, w])
+
+
+def test_json_motion_is_the_tustin_sampling(ema, tmp_path):
+    scene, d = ema
+    res = export(d, scene, tmp_path / "out")
+    data = json.loads((tmp_path / "out" / "controller.json").read_text())
+    ref = ct.sample_system(d.controller.motion, d.controller.sample_time, method="tustin")
+    for key in "ABCD":
+        np.testing.assert_allclose(np.array(data["motion"][key]), np.atleast_2d(getattr(ref, key)), rtol=1e-12, atol=0)
+    assert data["motion"]["sample_time_s"] == d.controller.sample_time == ref.dt
+    assert data["motion"]["inputs"] == ["theta_ref", "theta", "omega_m"] and data["motion"]["outputs"] == ["i_ref"]
+    # what the simulation runs
+    for m_json, m_sim in zip("ABCD", d.controller.discrete_motion()):
+        np.testing.assert_allclose(np.array(data["motion"][m_json]), m_sim, rtol=1e-12)
+    assert "quantized" not in data and res.passed
+    assert {s["name"] for s in data["blocks"]["position"]} == {"position"}
+    assert data["blocks"]["speed"]["a"] == [1.0, -1.0, 0.0]  # the speed PI integrates
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["controller.json", "servo_controller.c",
+                                                                     "servo_controller.h"]
+
+
+def test_blocks_compose_to_the_tustin_sampling(ema):
+    """Tustin commutes with series connection: the biquads and the PI give the sampled
+    controller's frequency response (python-control on both)."""
+    scene, d = ema
+    res = export(d, scene)
+    w = np.logspace(-1, math.log10(math.pi / d.controller.sample_time) - 0.01, 200)
+    blocks = res.blocks.state_space()
+    for j in range(3):
+        h_b = ct.frequency_response(blocks[0, j], w).complex.ravel()
+        h_t = ct.frequency_response(res.motion[0, j], w).complex.ravel()
+        np.testing.assert_allclose(h_b, h_t, rtol=1e-8)
+    # the notch sits where the design put it
+    notch = [f for f in res.filters]
+    assert notch == []  # no quantization, no shift table
+    assert res.blocks.position[0].b[0] > 0
+
+
+def test_tustin_inverse_round_trip(ema):
+    scene, d = ema
+    sys_d = ct.sample_system(d.controller.motion, d.controller.sample_time, method="tustin")
+    back = tustin_to_continuous(sys_d)
+    w = np.logspace(0, 3, 50)
+    np.testing.assert_allclose(ct.frequency_response(back[0, 2], w).complex,
+                               ct.frequency_response(d.controller.motion[0, 2], w).complex, rtol=1e-8)
+
+
+@needs_cc
+def test_float_c_matches_python_sampled_controller(ema, tmp_path):
+    scene, d = ema
+    res = export(d, scene, tmp_path)
+    c = CController(tmp_path, fixed=False)
+    ts = d.controller.sample_time
+    for seed, amp in ((1, 0.002), (2, 0.05)):  # the larger one drives i_ref into the clamp
+        u = inputs(3000, ts, seed, amplitude=amp)
+        want = python_controller(res.motion, u, scene.motor.current_limit)
+        c.init()
+        got = np.array([c.motion(*row) for row in u])
+        scale = np.max(np.abs(want))
+        assert np.max(np.abs(got - want)) <= 1e-6 * scale
+    assert np.max(np.abs(want)) == scene.motor.current_limit  # the clamp was exercised
+
+
+@needs_cc
+@pytest.mark.parametrize("fmt", ["q15", "q31"])
+def test_fixed_point_c_within_stated_bound(ema, tmp_path, fmt):
+    scene, d = ema
+    res = export(d, scene, tmp_path, fixed_point=fmt)
+    q = res.quantized
+    data = json.loads((tmp_path / "controller.json").read_text())["quantized"]
+    assert data["format"] == fmt and data["i_ref_error_bound_A"] == pytest.approx(res.error_bound)
+    c = CController(tmp_path, fixed=True)
+    ts = d.controller.sample_time
+    n = round(res.bound_horizon_s / ts)
+    u = inputs(n, ts, 3, amplitude=0.002, speed=100.0)
+    lsb = np.array([q.lsb["theta"], q.lsb["theta"], q.lsb["omega"]])
+    counts = np.rint(u / lsb).astype(int)
+    c.init()
+    got = np.array([c.motion(*map(int, row)) for row in counts]) * q.lsb["current"]
+    want = python_controller(q.blocks.state_space(), u, q.blocks.current_limit)
+    assert np.max(np.abs(want)) < q.blocks.current_limit  # the bound holds where nothing saturates
+    err = np.max(np.abs(got - want))
+    assert err <= res.error_bound
+    # and the bound is not vacuous: well below the signal
+    assert res.error_bound < 0.2 * np.max(np.abs(want))
+    # fixed point against the unquantized controller: close, the rest is coefficient rounding
+    exact = python_controller(res.motion, u, scene.motor.current_limit)
+    assert np.max(np.abs(got - exact)) < 0.2 * np.max(np.abs(exact))
+
+
+def test_quantized_integers_reproduce_coefficients(ema):
+    scene, d = ema
+    res = export(d, scene, fixed_point="q15")
+    q = res.quantized
+    for sec, orig in zip(q.sections(), res.blocks.sections()):
+        b_counts = np.array(orig.b) * sec.lsb_in / sec.lsb_out
+        assert max(abs(v) for v in sec.b_int + sec.a_int) <= 2**15 - 1
+        # one half LSB of each coefficient's own format, and the word is used
+        assert np.all(np.abs(np.array(sec.b_int) * 2.0**-sec.fb - b_counts) <= 2.0**-(sec.fb + 1))
+        assert np.all(np.abs(np.array(sec.a_int) * 2.0**-sec.fa - np.array(orig.a)) <= 2.0**-(sec.fa + 1))
+        assert max(abs(v) for v in sec.b_int) >= 2**14
+    # the notch shift equals the zeros of the quantized section mapped back with Tustin
+    f = next(x for x in res.filters if x["what"] == "zero")
+    b = np.array(q.blocks.position[0].b)
+    z = np.roots(b)
+    s = 2 / d.controller.sample_time * (z - 1) / (z + 1)
+    assert f["quantized_hz"] == pytest.approx(abs(s[0]) / (2 * math.pi), rel=1e-9)
+    assert f["design_hz"] == pytest.approx(d.motion.filter_params["wn"] / (2 * math.pi), rel=1e-9)
+
+
+def test_quantized_margins_are_the_quantized_controllers(ema):
+    scene, d = ema
+    res = export(d, scene, fixed_point="q15")
+    qc = quantized_controller(d, res.quantized)
+    # the simulation samples the continuous equivalent back to the quantized coefficients
+    a, b, c_, dd = qc.discrete_motion()
+    qs = res.quantized.blocks.state_space()
+    np.testing.assert_allclose(a, qs.A, atol=1e-9)
+    np.testing.assert_allclose(dd, qs.D, rtol=1e-9)
+    # the margins move with the coefficients (q15 shifts the notch by per cent)
+    assert res.quantized_design.margins.gain_margin_db != pytest.approx(d.margins.gain_margin_db, abs=1e-3)
+    q31 = export(d, scene, fixed_point="q31")
+    assert q31.quantized_design.margins.gain_margin_db == pytest.approx(d.margins.gain_margin_db, abs=0.01)
+    assert q31.quantized_design.margins.phase_margin_deg == pytest.approx(d.margins.phase_margin_deg, abs=0.05)
+
+
+def test_quantization_that_costs_requirements_fails(ema):
+    """A 20 us sample time puts the notch poles within 5e-3 of z = 1: Q15 loses the notch."""
+    scene, _ = ema
+    fast = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors, sample_time=2e-5))
+    d = design(fast, progress=False)
+    assert d.passed
+    res = export(d, fast, fixed_point="q15")
+    assert not res.passed
+    assert any("stable_over_stroke" in r or "unstable" in r or "margin" in r for r in res.failures)
+    assert export(d, fast, fixed_point="q31").passed
+
+
+def _sine_fit(t, y, f):
+    m = np.column_stack([np.sin(2 * math.pi * f * t), np.cos(2 * math.pi * f * t), np.ones_like(t)])
+    c = np.linalg.lstsq(m, y, rcond=None)[0]
+    return complex(c[0], c[1])
+
+
+@pytest.mark.parametrize("fmt", ["q15", "q31"])
+def test_closed_loop_with_quantized_controller_tracks_8hz(ema, fmt):
+    scene, d = ema
+    res = export(d, scene, fixed_point=fmt)
+    amp = 0.01
+    runs = []
+    for ctrl in (d.controller, quantized_controller(d, res.quantized)):
+        cols = simulate(scene, ctrl, reference=Reference.sine(amp, 8.0), duration=0.5).columns()
+        keep = cols["t_s"] >= 0.25
+        t = cols["t_s"][keep]
+        runs.append(_sine_fit(t, cols["output_angle_rad"][keep], 8.0) / _sine_fit(t, cols["reference_angle_rad"][keep], 8.0))
+    design_t = complex(ct.frequency_response(d.closed_loop, [2 * math.pi * 8.0]).complex.ravel()[0])
+    quant_t = complex(ct.frequency_response(res.quantized_design.closed_loop, [2 * math.pi * 8.0]).complex.ravel()[0])
+    # the simulated design follows its linear analysis (nonlinear plant, sampled, quantized sensors)
+    assert abs(runs[0]) == pytest.approx(abs(design_t), rel=0.1)
+    # the quantized controller tracks like the design, and like its own linear analysis
+    assert abs(runs[1]) == pytest.approx(abs(runs[0]), rel=0.05)
+    assert abs(math.degrees(np.angle(runs[1] / runs[0]))) < 5.0
+    assert abs(runs[1]) == pytest.approx(abs(quant_t), rel=0.1)
+
+
+def _current_plant(scene, ts):
+    """Exact zero-order-hold RL plant: i <- e^{-R Ts / L} i + (1 - e^{-R Ts/L}) / R (v - Ke w)."""
+    m = scene.motor
+    a = math.exp(-m.resistance * ts / m.inductance)
+    return a, (1 - a) / m.resistance
+
+
+@needs_cc
+def test_current_pi_matches_the_analog_loop(ema, tmp_path):
+    """The sampled current PI on the RL circuit follows the simulation's analog PI (same
+    back-calculation anti-windup) through a step that saturates the voltage."""
+    scene, d = ema
+    res = export(d, scene, tmp_path)
+    cur = res.blocks.current
+    m = scene.motor
+    c = CController(tmp_path, fixed=False)
+    c.init()
+    a, g = _current_plant(scene, cur.sample_time)
+    w = 1300.0  # motor speed held (rad/s): back EMF 260 V, 40 A would need 280 V > 270 V
+
+    def command(t):  # settle at 0 A, saturate at 40 A, come back to 5 A
+        return 0.0 if t < 0.002 else 40.0 if t < 0.009 else 5.0
+
+    steps = round(0.012 / cur.sample_time)
+    t = np.arange(steps) * cur.sample_time
+    i, trace = 0.0, []
+    for tk in t:
+        v = c.current(command(tk), i, w)
+        trace.append((i, v))
+        i = a * i + g * (v - m.back_emf_constant * w)
+    trace = np.array(trace)
+    kaw = cur.ki / cur.kp
+
+    def rhs(tt, x):
+        e = command(tt) - x[0]
+        vc = cur.kp * e + x[1]
+        v = min(max(vc, -m.voltage_limit), m.voltage_limit)
+        return [(v - m.resistance * x[0] - m.back_emf_constant * w) / m.inductance, cur.ki * e + (v - vc) * kaw]
+
+    ref = integrate.solve_ivp(rhs, (0, t[-1]), [0.0, 0.0], t_eval=t, max_step=cur.sample_time / 4, rtol=1e-8)
+    assert np.max(trace[:, 1]) == m.voltage_limit  # the step saturated the voltage
+    # saturated: the current settles where the voltage limit leaves it, (Vlim - Ke w) / R
+    assert trace[np.searchsorted(t, 0.0089), 0] == pytest.approx(20.0, abs=0.2)
+    after = t >= 0.002  # from the settled start on (both start with a -260 V back-EMF jolt)
+    assert np.max(np.abs(trace[after, 0] - ref.y[0][after])) < 0.05 * 40.0
+    # no wind-up: after the saturation the current settles at 5 A with little overshoot below
+    assert abs(trace[-1, 0] - 5.0) < 0.05
+    assert np.min(trace[t > 0.009, 0]) > 4.0
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["difference", "kalman"])
+def test_speed_estimator_in_c(ema, tmp_path, kind):
+    scene, d = ema
+    est_scene = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors, speed_estimator=kind))
+    res = export(d, est_scene, tmp_path)
+    assert f"Speed estimator: {kind}" in res.files["servo_controller.h"]
+    c = CController(tmp_path, fixed=False, estimator=True)
+    ts = d.controller.sample_time
+    q = 2 * math.pi / scene.sensors.motor_encoder_counts
+    t = np.arange(2000) * ts
+    z = q * np.round(50.0 * np.sin(2 * math.pi * 5 * t) / q + 3.0)
+    c.init(z[0])
+    got = np.array([c.estimate(zk) for zk in z])
+    if kind == "difference":
+        want = np.diff(np.r_[z[0], z]) / ts
+    else:
+        F, _, K = steady_state_gain(ts, q, default_jerk(scene, d.controller, scene.drivetrain.mid_stroke))
+        x, want = np.array([z[0], 0.0, 0.0]), []
+        for zk in z:
+            x = F @ x
+            x = x + K * (zk - x[0])
+            want.append(x[1])
+        want = np.array(want)
+        # the filter tracks the true speed (independent of the recursion above)
+        true = 50.0 * 2 * math.pi * 5 * np.cos(2 * math.pi * 5 * t)
+        assert np.max(np.abs(got[500:] - true[500:])) < 0.1 * np.max(np.abs(true))
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.max(np.abs(want)))
+
+
+def test_fixed_point_with_estimator_is_refused(ema):
+    from servo_toolkit.errors import SceneError
+    scene, d = ema
+    est_scene = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors, speed_estimator="difference"))
+    with pytest.raises(SceneError, match="fixed_point"):
+        export(d, est_scene, fixed_point="q15")
+
+
+def test_result_dataclass(ema):
+    scene, d = ema
+    res = export(d, scene, fixed_point="q31")
+    text = repr(res)
+    assert "\n" not in text and "q31" in text and "passed" in text
+    assert "<pre>" in res._repr_html_()
+    json.dumps(res.to_dict())
+    import matplotlib
+    matplotlib.use("Agg")
+    axes = res.plot(duration=0.1)
+    assert len(axes[0].lines) == 2
+    import matplotlib.pyplot as plt
+    plt.close("all")
+
+
+def test_discrete_pi_integral_gain(ema):
+    """The speed PI section is the Tustin PI: b0 + b1 = kv wvi Ts / N, b0 - b1 = 2 kv / N."""
+    scene, d = ema
+    res = export(d, scene)
+    g, n, ts = d.motion.gains, d.motion.ratio, d.controller.sample_time
+    b = res.blocks.speed.b
+    assert b[0] + b[1] == pytest.approx(g["kv"] * g["wvi"] * ts / n, rel=1e-9)
+    assert b[0] - b[1] == pytest.approx(2 * g["kv"] / n, rel=1e-9)
+    assert linalg.norm(res.blocks.speed.a) == pytest.approx(1.0)
