@@ -33,17 +33,52 @@ def _requirements(design_result):
             for c in design_result.requirements if c.name in SPECS]
 
 
-def _failures(design_result, qdesign) -> tuple:
+def evaluate_quantized(scene, design_result, controller):
+    """The quantized controller analysed like the design (:func:`servo_toolkit.loop.design.evaluate`);
+    when that analysis breaks down on a degenerate loop (e.g. a notch whose zeros became real
+    and a closed-loop pole at the origin), the margins and stability from python-control
+    directly, every requirement counted as missed, and the reason."""
+    import warnings
+
+    import numpy as np
+
+    from ..loop.closed_loop import linear_closed_loop, open_loop
+    from ..loop.design import evaluate
+    try:
+        return evaluate(scene, controller, design_result.q0, reqs=_requirements(design_result),
+                        phase_hz=design_result.margins.phase_at_hz), None
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        reason = (f"the loop analysis of the quantized controller breaks down (python-control: {exc}); "
+                  "its closed loop has no usable bandwidth")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cl = linear_closed_loop(scene, controller, design_result.q0)["theta", "theta_ref"]
+        gm, pm, *_ = ct.stability_margins(open_loop(scene, controller, design_result.q0))
+    stable = bool(np.all(ct.poles(cl).real < 0))
+    margins = replace(design_result.margins, gain_margin_db=float(20 * np.log10(gm)) if gm > 0 else -math.inf,
+                      phase_margin_deg=float(pm), closed_loop_stable=stable, bandwidth_hz=math.nan)
+    checks = [replace(c, achieved=math.nan, passed=False) for c in design_result.requirements]
+    return replace(design_result, controller=controller, margins=margins, requirements=checks,
+                   closed_loop=cl, motion=None, notes=(reason,)), reason
+
+
+def _failures(design_result, qdesign, reason=None) -> tuple:
     """Requirements the design meets and the quantized controller misses."""
-    out = []
+    out = [reason] if reason else []
     if not qdesign.margins.closed_loop_stable:
         out.append("the closed loop with the quantized controller is unstable")
     met = {c.name for c in design_result.requirements if c.passed}
     for c in qdesign.requirements:
-        if c.name in met and not c.passed:
+        if c.name in met and not c.passed and not (reason and math.isnan(c.achieved)):
             out.append(f"quantization costs {c.name}: {c.achieved:.4g} {c.unit} with the quantized controller, "
                        f"required {c.sense} {c.required:g} {c.unit}")
     return tuple(out)
+
+
+def _lost_filters(rows) -> tuple:
+    """A filter whose complex pair became real is gone: say so."""
+    return tuple(f"quantization turns the {r['what']}s of {r['section']} ({r['design_hz']:.4g} Hz) real: "
+                 "the filter is gone" for r in rows if math.isnan(r["quantized_hz"]))
 
 
 def export(design_result, scene, directory=None, *, fixed_point: str | None = None,
@@ -81,12 +116,11 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     motion = ct.sample_system(ctrl.motion, ctrl.sample_time, method="tustin")
     result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s)
     if fixed_point is not None:
-        from ..loop.design import evaluate
         q = quantize(blocks, scene.motor, fixed_point)
-        qdesign = evaluate(scene, quantized_controller(design_result, q), design_result.q0,
-                           reqs=_requirements(design_result), phase_hz=design_result.margins.phase_at_hz)
-        result = replace(result, quantized=q, quantized_design=qdesign, filters=filter_shifts(blocks, q),
-                         failures=_failures(design_result, qdesign))
+        qdesign, reason = evaluate_quantized(scene, design_result, quantized_controller(design_result, q))
+        shifts = filter_shifts(blocks, q)
+        result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
+                         failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
     from .. import __version__
     files = {"controller.json": json.dumps(_finite(result.controller_json()), indent=2) + "\n",
              HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),

@@ -118,6 +118,9 @@ class ExportResult:
                          f"{'stable' if m.closed_loop_stable else 'UNSTABLE'}; i_ref rounding bound "
                          f"{self.error_bound:.3g} A over {self.bound_horizon_s:g} s")
             for f in self.filters:
+                if math.isnan(f["quantized_hz"]):
+                    lines.append(f"  {f['section']} {f['what']}s: {f['design_hz']:.4g} Hz -> real pair (filter lost)")
+                    continue
                 lines.append(f"  {f['section']} {f['what']}: {f['design_hz']:.4g} Hz -> {f['quantized_hz']:.4g} Hz "
                              f"({100 * f['shift_relative']:+.3g} %)")
             lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantization within the requirements"]

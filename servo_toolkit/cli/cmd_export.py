@@ -1,0 +1,56 @@
+"""``servo-toolkit export``: the designed controller as controller.json and C99 sources."""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import SceneError
+from ..scene import load_scene
+from ..units import parse_quantity
+from .cmd_design import add_design_options, design_from_args
+from .common import add_json, add_scene, emit
+
+#: library keys that are command-line options here
+OPTION_KEYS = {"current_sample_time": "--current-sample-time", "fixed_point": "--fixed-point"}
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("export", help="controller.json and C99 sources of the designed controller")
+    add_scene(p)
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="output folder (created; controller.json, servo_controller.h/.c replaced atomically)")
+    p.add_argument("--fixed-point", choices=("q15", "q31"), default=None,
+                   help="quantize the motion controller and recompute the margins with it")
+    p.add_argument("--current-sample-time", metavar="S", default=None,
+                   help="current-loop sample time, e.g. 25us (default: an integer fraction of the motion "
+                        "sample time with w_i Ts <= 0.2)")
+    add_design_options(p)
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command: 0 exported, 1 the quantization costs a requirement the design meets."""
+    from ..export import export
+    from ..export.writer import check_directory
+    from ..loop.requirements import parse_override
+
+    for text in args.require:
+        parse_override(text)
+    ts_i = None if args.current_sample_time is None else parse_quantity(args.current_sample_time, "s",
+                                                                        "--current-sample-time")
+    check_directory(args.output, inputs=[args.scene])  # before any work
+    scene = load_scene(args.scene)
+    try:
+        result = design_from_args(scene, args)
+        result = export(result, scene, args.output, fixed_point=args.fixed_point, current_sample_time=ts_i,
+                        inputs=[args.scene])
+    except SceneError as exc:
+        if exc.key in OPTION_KEYS:  # an option, not the scene: name the option
+            raise SceneError(OPTION_KEYS[exc.key], exc.rule) from None
+        raise (exc if exc.source else exc.with_source(str(args.scene))) from None
+    emit(args, result, result.table())
+    for reason in result.failures:
+        print(f"servo-toolkit: export: {reason}", file=sys.stderr)
+    return 0 if result.passed else 1

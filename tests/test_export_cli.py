@@ -1,0 +1,84 @@
+"""``servo-toolkit export``: files, JSON, exit codes, output-path checks."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from servo_toolkit.cli import main
+
+from .conftest import SCENES
+
+EMA = SCENES / "ema_reference.toml"
+
+
+def test_export_writes_the_folder_and_one_json_object(tmp_path, capsys):
+    out = tmp_path / "drive" / "ctrl"
+    assert main(["export", str(EMA), "-o", str(out), "--fixed-point", "q31", "--json"]) == 0
+    cap = capsys.readouterr()
+    data = json.loads(cap.out)  # exactly one object, nothing else
+    assert data["passed"] and data["format"] == "q31" and data["directory"] == str(out)
+    assert sorted(p.name for p in out.iterdir()) == ["controller.json", "servo_controller.c", "servo_controller.h"]
+    written = json.loads((out / "controller.json").read_text())
+    assert written["quantized"]["closed_loop_stable"] is True
+    assert written["motion"] == data["motion"]
+    # no temporary folder left beside it
+    assert [p.name for p in out.parent.iterdir()] == ["ctrl"]
+    # a second export replaces the files in place
+    assert main(["export", str(EMA), "-o", str(out)]) == 0
+    assert json.loads((out / "controller.json").read_text())["format"] == "float64"
+    assert "Controller export of ema_reference" in capsys.readouterr().out
+
+
+def test_output_that_is_a_file_is_refused(tmp_path, capsys):
+    target = tmp_path / "file.txt"
+    target.write_text("keep")
+    assert main(["export", str(EMA), "-o", str(target)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("servo-toolkit: error: -o:")
+    assert target.read_text() == "keep"
+
+
+def test_never_overwrites_its_input(tmp_path, capsys):
+    scene = tmp_path / "controller.json"
+    scene.write_text(EMA.read_text())  # a scene that happens to bear an output's name
+    before = scene.read_text()
+    assert main(["export", str(scene), "-o", str(tmp_path)]) == 2
+    assert "overwrite its input" in capsys.readouterr().err
+    assert scene.read_text() == before
+
+
+@pytest.mark.skipif(__import__("os").geteuid() == 0, reason="root writes into read-only folders")
+def test_unwritable_folder_fails_before_work(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        assert main(["export", str(EMA), "-o", str(ro / "out")]) == 2
+        assert "cannot write" in capsys.readouterr().err
+    finally:
+        ro.chmod(0o700)
+
+
+def test_bad_options_name_the_option(tmp_path, capsys):
+    assert main(["export", str(EMA), "-o", str(tmp_path / "o"), "--current-sample-time", "1 s"]) == 2
+    assert capsys.readouterr().err.startswith("servo-toolkit: error: --current-sample-time:")
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(SystemExit) as exc:
+        main(["export", str(EMA), "-o", str(tmp_path / "o"), "--fixed-point", "q7"])
+    assert exc.value.code == 2
+
+
+def test_quantization_that_costs_a_requirement_exits_1(tmp_path, capsys):
+    """At 20 us the notch poles sit within 5e-3 of z = 1; Q15 cannot hold them."""
+    scene = tmp_path / "fast.toml"
+    text = EMA.read_text()
+    assert 'sample_time = "0.1 ms"' in text
+    scene.write_text(text.replace('sample_time = "0.1 ms"', 'sample_time = "20 us"'))
+    assert main(["export", str(scene), "-o", str(tmp_path / "q15"), "--fixed-point", "q15", "--json"]) == 1
+    cap = capsys.readouterr()
+    data = json.loads(cap.out)
+    assert data["passed"] is False and data["quantized"]["failures"]
+    assert "servo-toolkit: export: " in cap.err
+    assert main(["export", str(scene), "-o", str(tmp_path / "q31"), "--fixed-point", "q31"]) == 0
