@@ -11,6 +11,7 @@ from tqdm.auto import tqdm
 
 from ..errors import SceneError
 from . import sections_drivetrain as drv
+from . import sections_export as export_section
 from . import sections_loop as loop
 from . import sections_limits as limits
 from . import sections_studies as studies
@@ -29,6 +30,7 @@ SECTIONS = (
     ("inertia", "Reflected inertia and ratio along the stroke", drv.ratio_and_inertia),
     ("plant", "Plant Bode with the drivetrain resonance", loop.plant_bode),
     ("controller", "Designed controller", loop.controller),
+    ("export", "Exported controller coefficients", export_section.exported_coefficients),
     ("loop", "Loop Bode and Nyquist with margins", loop.loop_margins),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
