@@ -371,3 +371,22 @@ def test_discrete_pi_integral_gain(ema):
     assert b[0] + b[1] == pytest.approx(g["kv"] * g["wvi"] * ts / n, rel=1e-9)
     assert b[0] - b[1] == pytest.approx(2 * g["kv"] / n, rel=1e-9)
     assert linalg.norm(res.blocks.speed.a) == pytest.approx(1.0)
+
+
+@needs_cc
+@pytest.mark.parametrize("options", [{"structure": "pid"}, {"structure": "lead_lag"},
+                                     {"resonance_filter": "lowpass"}, {"resonance_filter": "none"}])
+def test_other_structures_and_filters_in_c(ema, tmp_path, options):
+    """Every structure and filter exports: the C equals the sampled controller (a lead-lag
+    with its notch needs two biquads)."""
+    scene, _ = ema
+    d = design(scene, progress=False, over_stroke=False, **options)
+    res = export(d, scene, tmp_path)
+    assert len(res.blocks.position) == (2 if d.motion.structure == "lead_lag" else 1)
+    assert (res.blocks.speed is None) == (d.motion.structure != "cascade")
+    c = CController(tmp_path, fixed=False)
+    u = inputs(1500, d.controller.sample_time, 4, amplitude=0.002, speed=100.0)
+    want = python_controller(res.motion, u, scene.motor.current_limit)
+    c.init()
+    got = np.array([c.motion(*row) for row in u])
+    assert np.max(np.abs(got - want)) <= 1e-6 * np.max(np.abs(want))

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 
 import control as ct
 
+from ..cli.common import to_json  # JSON without NaN/inf (shared with the command line)
 from ..controller import CascadeController
 from ..errors import SceneError
 from .blocks import blocks_of, tustin_to_continuous
@@ -122,7 +122,7 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
                          failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
     from .. import __version__
-    files = {"controller.json": json.dumps(_finite(result.controller_json()), indent=2) + "\n",
+    files = {"controller.json": to_json(result.controller_json()) + "\n",
              HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),
              SOURCE_NAME: source(blocks, result.quantized)}
     result = replace(result, files=files)
@@ -130,15 +130,3 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         result = replace(result, directory=write_files(directory, files))
     return result
 
-
-def _finite(obj):
-    """JSON has no inf/nan: they become strings (``"inf"``) or null."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if hasattr(obj, "item"):
-        return _finite(obj.item())
-    return obj
