@@ -126,10 +126,11 @@ def test_blocks_compose_to_the_tustin_sampling(ema):
         h_b = ct.frequency_response(blocks[0, j], w).complex.ravel()
         h_t = ct.frequency_response(res.motion[0, j], w).complex.ravel()
         np.testing.assert_allclose(h_b, h_t, rtol=1e-8)
-    # the notch sits where the design put it
-    notch = [f for f in res.filters]
-    assert notch == []  # no quantization, no shift table
-    assert res.blocks.position[0].b[0] > 0
+    assert res.filters == []  # no quantization, no shift table
+    # the position section is kp N times the Tustin notch: its gain at DC is kp N
+    sec = res.blocks.position[0]
+    g = res.blocks.design["gains"]
+    assert sum(sec.b) / (1 + sum(sec.a)) == pytest.approx(g["kp"] * d.motion.ratio, rel=1e-6)
 
 
 def test_tustin_inverse_round_trip(ema):

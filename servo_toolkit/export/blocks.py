@@ -23,7 +23,7 @@ Euler (back-calculation anti-windup with the tracking time Kp / Ki).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import control as ct
 import numpy as np
@@ -134,6 +134,10 @@ class Blocks:
         A.
     current : CurrentLoop
     estimator : Estimator
+    design : dict
+        The continuous design the sections come from: position gain ``kp`` (1/s), speed
+        gains ``kv`` (A per output rad/s) and ``wvi`` (rad/s) or the compensator's gains, the
+        filter and its parameters (rad/s).
     """
 
     structure: str
@@ -144,6 +148,7 @@ class Blocks:
     current_limit: float
     current: CurrentLoop
     estimator: Estimator
+    design: dict = field(default_factory=dict)
 
     def sections(self) -> tuple:
         """Every section, in signal order."""
@@ -168,6 +173,7 @@ class Blocks:
 
     def to_dict(self) -> dict:
         return {"structure": self.structure, "sample_time_s": self.sample_time, "ratio": self.ratio,
+                "design": self.design,
                 "position": [s.to_dict() for s in self.position],
                 "speed": None if self.speed is None else self.speed.to_dict(),
                 "current_limit_A": self.current_limit, "current_loop": self.current.to_dict(),
@@ -263,8 +269,10 @@ def blocks_of(design_result, scene, current_sample_time: float | None = None) ->
         n = motion.ratio
         position = tustin_sections(n * np.asarray(pn), pd, ts, "position", "rad", "rad/s")
         vel = tustin_sections(np.asarray(speed[0]) / n, speed[1], ts, "speed_pi", "rad/s", "A")[0]
+    info = {"gains": {k: float(v) for k, v in motion.gains.items()}, "filter": motion.filter,
+            "filter_params": {k: float(v) for k, v in motion.filter_params.items()}, "method": "tustin"}
     return Blocks(motion.structure, ts, position, vel, motion.ratio, scene.motor.current_limit,
-                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl))
+                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl), info)
 
 
 def tustin_to_continuous(sys_d: ct.StateSpace) -> ct.StateSpace:
