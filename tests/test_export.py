@@ -249,7 +249,8 @@ def test_closed_loop_with_quantized_controller_tracks_8hz(ema, fmt):
         cols = simulate(scene, ctrl, reference=Reference.sine(amp, 8.0), duration=0.5).columns()
         keep = cols["t_s"] >= 0.25
         t = cols["t_s"][keep]
-        runs.append(_sine_fit(t, cols["output_angle_rad"][keep], 8.0) / _sine_fit(t, cols["reference_angle_rad"][keep], 8.0))
+        runs.append(_sine_fit(t, cols["output_angle_rad"][keep], 8.0)
+                    / _sine_fit(t, cols["reference_angle_rad"][keep], 8.0))
     design_t = complex(ct.frequency_response(d.closed_loop, [2 * math.pi * 8.0]).complex.ravel()[0])
     quant_t = complex(ct.frequency_response(res.quantized_design.closed_loop, [2 * math.pi * 8.0]).complex.ravel()[0])
     # the simulated design follows its linear analysis (nonlinear plant, sampled, quantized sensors)

@@ -103,7 +103,8 @@ typedef struct {{
 def _float_tables(blocks) -> str:
     rows = ",\n".join("    {" + ", ".join(_f(v) for v in (*s.b, *s.a)) + "}" + f"  /* {s.name} */"
                       for s in blocks.position)
-    out = f"/* position path sections: b0, b1, b2, a1, a2 (a0 = 1) */\nstatic const double SERVO_POSITION[{len(blocks.position)}][5] = {{\n{rows}\n}};\n"
+    out = ("/* position path sections: b0, b1, b2, a1, a2 (a0 = 1) */\n"
+           f"static const double SERVO_POSITION[{len(blocks.position)}][5] = {{\n{rows}\n}};\n")
     if blocks.speed is not None:
         s = blocks.speed
         out += ("/* speed PI (A per motor rad/s): b0, b1, b2, a1, a2 */\nstatic const double SERVO_SPEED_PI[5] = {"

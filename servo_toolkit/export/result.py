@@ -143,7 +143,8 @@ class ExportResult:
         t = np.linspace(0, duration, 1000)
         cases = [("design", self.design, self.motion)]
         if self.quantized is not None:
-            cases.append((f"quantized {self.quantized.fmt}", self.quantized_design, self.quantized.blocks.state_space()))
+            cases.append((f"quantized {self.quantized.fmt}", self.quantized_design,
+                          self.quantized.blocks.state_space()))
         w = 2 * math.pi * np.logspace(-1, math.log10(0.5 / self.blocks.sample_time), 600)
         for label, d, sysd in cases:
             y = ct.step_response(d.closed_loop, t).outputs
