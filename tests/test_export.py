@@ -18,11 +18,14 @@ import subprocess
 import control as ct
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import integrate, linalg
 
 from servo_toolkit import design, load_scene, simulate
 from servo_toolkit.estimation import steady_state_gain
 from servo_toolkit.export import export, quantized_controller, tustin_to_continuous
+from servo_toolkit.export.quantize import q_format
 from servo_toolkit.sim.estimator import default_jerk
 from servo_toolkit.sim.reference import Reference
 
@@ -392,3 +395,16 @@ def test_other_structures_and_filters_in_c(ema, tmp_path, options):
     c.init()
     got = np.array([c.motion(*row) for row in u])
     assert np.max(np.abs(got - want)) <= 1e-6 * np.max(np.abs(want))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(min_value=-1e6, max_value=1e6, allow_nan=False), min_size=1, max_size=3),
+       st.sampled_from([15, 31]))
+def test_q_format_fits_the_word_and_uses_it(values, word):
+    frac = q_format(values, word)
+    ints = [round(v * 2.0**frac) for v in values]
+    assert max(abs(i) for i in ints) <= 2**word - 1
+    assert frac <= 62
+    if max(abs(v) for v in values) > 0 and frac < 62:
+        assert max(abs(i) for i in ints) >= 2 ** (word - 1) - 1  # one more fraction bit would not fit
+    assert all(abs(i * 2.0**-frac - v) <= 2.0 ** -(frac + 1) for i, v in zip(ints, values))

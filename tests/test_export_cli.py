@@ -82,3 +82,36 @@ def test_quantization_that_costs_a_requirement_exits_1(tmp_path, capsys):
     assert data["passed"] is False and data["quantized"]["failures"]
     assert "servo-toolkit: export: " in cap.err
     assert main(["export", str(scene), "-o", str(tmp_path / "q31"), "--fixed-point", "q31"]) == 0
+
+
+def test_output_below_a_file_is_refused(tmp_path, capsys):
+    blocker = tmp_path / "plain"
+    blocker.write_text("")
+    assert main(["export", str(EMA), "-o", str(blocker / "sub" / "out")]) == 2
+    assert "cannot write into" in capsys.readouterr().err
+
+
+def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
+    """Written in a temporary sibling and renamed: a failure half-way leaves no folder and no
+    temporary files."""
+    from servo_toolkit.export import writer
+
+    calls = []
+
+    def failing_fsync(fd):
+        calls.append(fd)
+        if len(calls) == 2:
+            raise OSError("disk full")
+
+    monkeypatch.setattr(writer.os, "fsync", failing_fsync)
+    with pytest.raises(OSError, match="disk full"):
+        writer.write_files(tmp_path / "out", {"a.txt": "1", "b.txt": "2"})
+    assert list(tmp_path.iterdir()) == []
+    # into an existing folder: the files already there stay as they were
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "a.txt").write_text("old")
+    calls.clear()
+    with pytest.raises(OSError):
+        writer.write_files(tmp_path / "out", {"a.txt": "1", "b.txt": "2"})
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+    assert (tmp_path / "out" / "a.txt").read_text() == "old"

@@ -38,12 +38,17 @@ from .blocks import Biquad, Blocks
 FORMATS = {"q15": (15, 15, 16), "q31": (31, 29, 0)}
 
 
+#: most fraction bits of a coefficient (the C shifts 64-bit products by at most this)
+MAX_FRACTION_BITS = 62
+
+
 def q_format(values, word: int) -> int:
-    """Fraction bits n so that every ``round(v * 2^n)`` fits in ``word`` bits plus sign."""
+    """Fraction bits n so that every ``round(v * 2^n)`` fits in ``word`` bits plus sign (at
+    most :data:`MAX_FRACTION_BITS`: smaller coefficients lose their low bits)."""
     m = float(np.max(np.abs(values))) if len(values) else 0.0
     if m == 0.0:
         return word
-    n = word - (math.floor(math.log2(m)) + 1)
+    n = min(word - (math.floor(math.log2(m)) + 1), MAX_FRACTION_BITS)
     while round(m * 2.0**n) > 2**word - 1:
         n -= 1
     return n
