@@ -344,12 +344,23 @@ def test_speed_estimator_in_c(ema, tmp_path, kind):
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.max(np.abs(want)))
 
 
-def test_fixed_point_with_estimator_is_refused(ema):
-    from servo_toolkit.errors import SceneError
+@needs_cc
+def test_fixed_point_with_a_speed_estimator(ema, tmp_path):
+    """The estimator stays in double beside the integer motion controller: its estimate,
+    rounded to speed counts, feeds the motion step."""
     scene, d = ema
     est_scene = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors, speed_estimator="difference"))
-    with pytest.raises(SceneError, match="fixed_point"):
-        export(d, est_scene, fixed_point="q15")
+    res = export(d, est_scene, tmp_path, fixed_point="q15")
+    c = CController(tmp_path, fixed=True, estimator=True)
+    ts = d.controller.sample_time
+    quantum = 2 * math.pi / scene.sensors.motor_encoder_counts
+    c.init(0.0)
+    z = quantum * np.round(np.cumsum(np.full(50, 80.0 * ts)) / quantum)
+    w = np.array([c.estimate(zk) for zk in z])
+    np.testing.assert_allclose(w, np.diff(np.r_[0.0, z]) / ts, rtol=1e-12, atol=1e-9)
+    q = res.quantized
+    counts = int(round(w[-1] / q.lsb["omega"]))
+    assert c.motion(0, 0, counts) == pytest.approx(-w[-1] * res.blocks.speed.b[0] / q.lsb["current"], abs=2)
 
 
 def test_result_dataclass(ema):

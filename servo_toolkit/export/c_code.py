@@ -34,6 +34,9 @@ def _units_comment(blocks, quantized) -> str:
              f"+-{blocks.current.voltage_limit:g} V"]
     if blocks.estimator.kind != "ideal":
         lines.append("  motor_angle        motor encoder angle (counts * 2 pi / counts per rev), rad")
+        if fixed:
+            lines.append("servo_speed_estimate returns rad/s (double): divide by SERVO_OMEGA_LSB_RAD_S and round")
+            lines.append("to get the omega_m counts of servo_motion_step.")
     lines += ["Call servo_motion_step every SERVO_MOTION_SAMPLE_TIME_S and servo_current_step every",
               "SERVO_CURRENT_SAMPLE_TIME_S (SERVO_CURRENT_STEPS_PER_MOTION times per motion sample)."]
     return "\n".join(" * " + line for line in lines)

@@ -21,6 +21,9 @@ i_ref difference between the fixed-point code and the same quantized coefficient
 arithmetic is at most :meth:`Quantized.error_bound` (l1 norms of the impulse responses over
 the horizon; the speed PI integrates, so the bound grows with the horizon). The coefficient
 quantization itself is judged by the margins of the quantized controller.
+
+The current PI and a speed estimator stay in ``double`` (the estimate is rounded to motor
+speed counts before the motion step, which the bound's input rounding covers).
 """
 
 from __future__ import annotations
@@ -175,10 +178,6 @@ def quantize(blocks: Blocks, motor, fmt: str) -> Quantized:
     """Quantize ``blocks`` to ``fmt`` (``"q15"`` or ``"q31"``)."""
     if fmt not in FORMATS:
         raise SceneError("fixed_point", f"must be one of {tuple(FORMATS)}, got {fmt!r}")
-    if blocks.estimator.kind != "ideal":
-        raise SceneError("fixed_point", f"the fixed-point export covers the measured motor speed only; "
-                         f"the scene's speed estimator {blocks.estimator.kind!r} needs the floating-point "
-                         "export")
     word, sbits, _ = FORMATS[fmt]
     w_fs = _pow2_above(motor.voltage_limit / motor.back_emf_constant) if motor.back_emf_constant > 0 else 2.0**12
     lsb = {"theta": math.pi / 2**sbits, "omega": w_fs / 2**sbits,
