@@ -12,6 +12,7 @@ import ctypes
 import dataclasses
 import json
 import math
+import re
 import shutil
 import subprocess
 
@@ -419,3 +420,21 @@ def test_q_format_fits_the_word_and_uses_it(values, word):
     if max(abs(v) for v in values) > 0 and frac < 62:
         assert max(abs(i) for i in ints) >= 2 ** (word - 1) - 1  # one more fraction bit would not fit
     assert all(abs(i * 2.0**-frac - v) <= 2.0 ** -(frac + 1) for i, v in zip(ints, values))
+
+
+@needs_cc
+@pytest.mark.parametrize("fmt", [None, "q15", "q31"])
+def test_c_calls_no_library(ema, tmp_path, fmt):
+    """No dynamic memory, no libm, no libc: the object file has no undefined symbol."""
+    scene, d = ema
+    est_scene = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors, speed_estimator="kalman"))
+    res = export(d, est_scene, tmp_path, fixed_point=fmt)
+    src = res.files["servo_controller.c"] + res.files["servo_controller.h"]
+    assert set(re.findall(r"#include\s*[<\"]([^>\"]+)", src)) == {"stdint.h", "servo_controller.h"}
+    obj = tmp_path / "servo.o"
+    subprocess.run([CC, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2", "-c", "-o", str(obj),
+                    str(tmp_path / "servo_controller.c")], check=True)
+    nm = shutil.which("nm")
+    if nm:
+        undefined = subprocess.run([nm, "-u", str(obj)], check=True, capture_output=True, text=True).stdout
+        assert undefined.strip() == ""
