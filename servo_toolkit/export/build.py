@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import replace
 
 import control as ct
+import numpy as np
 
 from ..cli.common import to_json  # JSON without NaN/inf (shared with the command line)
 from ..controller import CascadeController
@@ -38,10 +40,6 @@ def evaluate_quantized(scene, design_result, controller):
     when that analysis breaks down on a degenerate loop (e.g. a notch whose zeros became real
     and a closed-loop pole at the origin), the margins and stability from python-control
     directly, every requirement counted as missed, and the reason."""
-    import warnings
-
-    import numpy as np
-
     from ..loop.closed_loop import linear_closed_loop, open_loop
     from ..loop.design import evaluate
     try:
