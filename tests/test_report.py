@@ -90,10 +90,48 @@ def test_stiffness_table_matches_the_drivetrain_and_seed001_rule(html):
     assert float(total[3]) == pytest.approx(chain.total[0] * math.pi / 180, rel=1e-5)
 
 
-def test_pdf_has_title_page_and_one_page_per_figure(report_dir, html):
+def test_pdf_has_title_page_text_pages_and_one_page_per_figure(report_dir, html):
+    from servo_toolkit.report.pdf_text import LINES
     pdf = (report_dir / "report.pdf").read_bytes()
     pages = len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf))
-    assert pages == 1 + html.count('<img class="report-figure"')
+    figures = html.count('<img class="report-figure"')
+    sections = html.count("<section")
+    assert 1 + sections + figures <= pages <= 1 + sections * 3 + figures  # text pages hold up to LINES lines each
+    assert LINES > 20
+
+
+def _pdftotext(path, *args):
+    if shutil.which("pdftotext") is None:
+        pytest.skip("pdftotext not found (Debian package poppler-utils; .ci/run installs it)")
+    return subprocess.run(["pdftotext", *args, str(path), "-"], capture_output=True, text=True, timeout=60).stdout
+
+
+def _cells(html):
+    """Text of every table cell of the HTML report."""
+    from servo_toolkit.report.pdf_text import blocks
+    return [cell for kind, value in blocks(html) if kind == "table" for row in value for cell in row if cell]
+
+
+def test_pdf_alone_carries_every_number_of_the_html_tables(report_dir, html):
+    """A reader of the PDF gets every table of the HTML as text: each number of every cell is
+    found in pdftotext's output (wrapped cells may split across lines, numbers do not)."""
+    text = " ".join(_pdftotext(report_dir / "report.pdf").split())
+    cells = _cells(html)
+    assert len(cells) > 150
+    numbers = {n for cell in cells for n in re.findall(r"-?\d+(?:\.\d+)?(?:e[+-]?\d+)?", cell)}
+    missing = sorted(n for n in numbers if n not in text)
+    assert not missing, f"numbers of the HTML tables missing from the PDF text: {missing[:20]}"
+    for title in ("Margins along the stroke", "Nichols", "Designed controller"):
+        assert title in text
+    assert "closed loop stable over the stroke (fraction of points)" in text  # wrapped, not clipped
+
+
+def test_pdf_pages_render(report_dir, tmp_path):
+    if shutil.which("pdftoppm") is None:
+        pytest.skip("pdftoppm not found (Debian package poppler-utils; .ci/run installs it)")
+    subprocess.run(["pdftoppm", "-r", "30", "-png", "-f", "1", "-l", "3", str(report_dir / "report.pdf"),
+                    str(tmp_path / "page")], check=True, timeout=120)
+    assert len(list(tmp_path.glob("page*.png"))) == 3
 
 
 def _browser():
@@ -111,7 +149,9 @@ window.addEventListener('load', () => {
     images: imgs.length,
     loaded: imgs.filter(i => i.complete && i.naturalWidth > 0 && i.naturalHeight > 0).length,
     requirements_rows: document.querySelectorAll('#requirements-table tbody tr').length,
-    sections: document.querySelectorAll('section').length}));
+    sections: document.querySelectorAll('section').length,
+    tables: Object.fromEntries(Array.from(document.querySelectorAll('table[id]')).map(
+      t => [t.id, t.querySelectorAll('tbody tr').length]))}));
 });
 </script>"""
 
@@ -150,6 +190,9 @@ def test_report_renders_in_chromium(browser, html, tmp_path):
     assert result["loaded"] == result["images"], "some figures did not load"
     assert result["requirements_rows"] >= 1
     assert result["sections"] == 1 + len(SECTIONS)
+    for table_id, rows in (("stroke-table", 4), ("closed-loop-table", 9), ("controller-table", 10),
+                           ("electrics-table", 2)):
+        assert result["tables"].get(table_id, 0) >= rows, table_id
     shot = tmp_path / "report.png"
     subprocess.run([browser, *CHROME_FLAGS, f"--user-data-dir={tmp_path / 'shot-profile'}",
                     "--window-size=1200,3000", f"--screenshot={shot}", (tmp_path / "report-probe.html").as_uri()], capture_output=True, timeout=60)

@@ -13,7 +13,10 @@ from ..errors import SceneError
 from . import sections_drivetrain as drv
 from . import sections_export as export_section
 from . import sections_loop as loop
+from . import sections_closed as closed
 from . import sections_limits as limits
+from . import sections_robust as robust
+from . import sections_stroke as stroke
 from . import sections_studies as studies
 from . import sections_time as timing
 from .context import Context
@@ -32,6 +35,9 @@ SECTIONS = (
     ("controller", "Designed controller", loop.controller),
     ("export", "Exported controller coefficients", export_section.exported_coefficients),
     ("loop", "Loop Bode and Nyquist with margins", loop.loop_margins),
+    ("stroke", "Margins along the stroke", stroke.margins_along_stroke),
+    ("closed_loop", "Closed loop: sensitivity, Nichols, disturbance rejection, step", closed.closed_loop),
+    ("robustness", "Robustness over the parameter variants", robust.robustness),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import textwrap
 
+import matplotlib
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
+from .pdf_text import section_lines, table_lines, text_pages
+
 A4 = (8.27, 11.69)
-_COLOURS = {"pass": "#dafbe1", "fail": "#ffebe9", "unavailable": "#fff8c5", "n/a": "#eaeef2", "info": "#ddf4ff"}
 
 
 def _title_page(report) -> Figure:
@@ -18,15 +20,13 @@ def _title_page(report) -> Figure:
     fig.text(0.08, 0.87, "Requirements", fontsize=13, weight="bold", va="top")
     rows = [[r[0], r[1], r[2] + (f" ({r[3]})" if r[3] else ""), r[4]] for r in report.requirements] \
         or [["(nothing to check for this scene)", "", "", "n/a"]]
-    ax = fig.add_axes((0.08, 0.55, 0.84, 0.30))
-    ax.axis("off")
-    tab = ax.table(cellText=rows, colLabels=["requirement", "required", "achieved", "status"],
-                   loc="upper center", cellLoc="left", colWidths=[0.36, 0.18, 0.32, 0.14])
-    tab.auto_set_font_size(False)
-    tab.set_fontsize(8)
-    tab.scale(1, 1.3)
-    for i, r in enumerate(rows, 1):
-        tab[i, 3].set_facecolor(_COLOURS.get(r[3], "white"))
+    lines = table_lines([["requirement", "required", "achieved", "status"]] + rows, 100)
+    y = 0.85
+    for line in lines[:22]:
+        fig.text(0.08, y, line, fontsize=7.2, family="monospace", va="top")
+        y -= 0.0135
+    if len(lines) > 22:
+        fig.text(0.08, y, "(continued on the requirements page)", fontsize=7.2, family="monospace", va="top")
     fig.text(0.08, 0.52, "Sections", fontsize=13, weight="bold", va="top")
     y = 0.49
     for i, s in enumerate(report.sections, 1):
@@ -42,9 +42,11 @@ def _title_page(report) -> Figure:
 def write_pdf(report, path, tick=None) -> None:
     """Write ``report`` to ``path`` (title page, then one page per figure); ``tick()`` after
     each figure page."""
-    with PdfPages(path) as pdf:
+    with matplotlib.rc_context({"pdf.fonttype": 42}), PdfPages(path) as pdf:
         pdf.savefig(_title_page(report))
         for i, section in enumerate(report.sections, 1):
+            for page in text_pages(section_lines(i, section), f"Servo report: {report.scene_name}"):
+                pdf.savefig(page)
             for k, spec in enumerate(section.figures, 1):
                 fig = spec.figure
                 old = fig.get_suptitle() if hasattr(fig, "get_suptitle") else ""

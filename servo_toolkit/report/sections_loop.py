@@ -59,6 +59,8 @@ def _requirement_rows(ctx):
         short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
         rows.append((label, f"{c.sense} {fmt(c.required)} {c.unit}", f"{fmt(c.achieved)} {c.unit}", short,
                      "pass" if c.passed else "fail"))
+    from .sections_robust import requirement_rows as robust_rows
+    rows += robust_rows(ctx)
     stable = bool(design.margins.closed_loop_stable)
     rows.append(("closed loop stable", "yes", "yes" if stable else "no",
                  "" if stable else f"pole at Re = {fmt(design.margins.max_closed_loop_pole_real)} 1/s",
@@ -141,17 +143,63 @@ def plant_bode(ctx) -> Section:
                    key="plant")
 
 
+#: gain or filter parameter -> (meaning, unit with OUT for the output's unit)
+_PARAMS = {"kp": ("position gain", "1/s"), "kv": ("speed gain", "A*s/OUT"), "wvi": ("speed PI corner", "rad/s"),
+           "kc": ("controller gain", "A/OUT"), "wi": ("integral corner", "rad/s"), "wz": ("lead zero", "rad/s"),
+           "wp": ("lead pole", "rad/s"), "wn": ("filter frequency", "rad/s"),
+           "zeta_zero": ("notch depth: damping of the zeros", "-"), "zeta_pole": ("notch width: damping of the poles", "-"),
+           "zeta": ("low-pass damping", "-")}
+
+
+def _param_row(kind, name, value, out):
+    meaning, unit = _PARAMS.get(name, (name, ""))
+    unit = unit.replace("OUT", out)
+    shown = f"{fmt(value)} {unit}".rstrip()
+    if unit == "rad/s":
+        shown += f" ({fmt(value / (2 * math.pi))} Hz)"
+    return (f"{kind} {name}: {meaning}", shown)
+
+
+def _polys(sys):
+    """Numerator and denominator of a SISO system as text, highest power first."""
+    import control as ct
+    tf = ct.ss2tf(sys)
+    num, den = (np.atleast_1d(np.squeeze(x)) for x in (tf.num[0][0], tf.den[0][0]))
+    scale = den[0] if den.size and den[0] != 0 else 1.0
+    return " ".join(f"{v / scale:.6g}" for v in num), " ".join(f"{v / scale:.6g}" for v in den)
+
+
+def _forms(motion, sample_time):
+    """Rows of the continuous and (Tustin) discrete transfer functions of each channel."""
+    import control as ct
+    rows = []
+    for inp, label in (("theta_ref", "position error -> i_ref"), ("omega_m", "motor speed -> i_ref")):
+        sub = motion["i_ref", inp]
+        if not (sub.nstates or np.any(sub.D)):
+            continue
+        num, den = _polys(sub)
+        rows.append((f"{label}, continuous (s)", f"num [{num}] / den [{den}]"))
+        if sample_time > 0:
+            dnum, dden = _polys(ct.sample_system(sub, sample_time, method="tustin"))
+            rows.append((f"{label}, discrete (z, Tustin, Ts = {fmt(sample_time * 1e3)} ms)",
+                         f"num [{dnum}] / den [{dden}]"))
+    return rows
+
+
 def controller(ctx) -> Section:
-    """The designed controller: structure, gains, filters, sampling."""
+    """The designed controller: structure, every gain and filter parameter with its unit,
+    continuous and discrete forms, sampling."""
     d = ctx.design()
     info = d.to_dict().get("controller", {})
+    out = "m" if ctx.scene.drivetrain.output_unit == "m" else "rad"
     rows = [("structure", info.get("structure") or "-"), ("description", info.get("description", "-"))]
-    rows += [(f"gain {k}", fmt(v)) for k, v in (info.get("gains") or {}).items()]
+    rows += [_param_row("gain", k, v, out) for k, v in (info.get("gains") or {}).items()]
     rows += [("resonance filter", info.get("filter") or "none")]
-    rows += [(f"filter {k}", fmt(v)) for k, v in (info.get("filter_params") or {}).items()]
-    rows += [("current loop kp [V/A]", fmt(info.get("current_kp_v_per_a"))),
-             ("current loop ki [V/(A s)]", fmt(info.get("current_ki_v_per_a_s"))),
-             ("sample time [ms]", fmt((info.get("sample_time_s") or 0.0) * 1e3))]
+    rows += [_param_row("filter", k, v, out) for k, v in (info.get("filter_params") or {}).items()]
+    rows += [("current loop kp", f"{fmt(info.get('current_kp_v_per_a'))} V/A"),
+             ("current loop ki", f"{fmt(info.get('current_ki_v_per_a_s'))} V/(A*s)"),
+             ("sample time", f"{fmt((info.get('sample_time_s') or 0.0) * 1e3)} ms")]
+    rows += _forms(d.controller.motion, info.get("sample_time_s") or 0.0)
     motion = d.controller.motion
     f = np.logspace(math.log10(F_MIN), math.log10(F_MAX), 800)
     fig, (am, ap) = figures.new_figure(2, 1, size=(7.5, 4.6), sharex=True)
@@ -169,7 +217,7 @@ def controller(ctx) -> Section:
     am.set_title("Motion controller (continuous; sampled by Tustin at the sample time)")
     return Section("Designed controller", para(
         "The cascade the simulation runs: an analog current PI inside, the motion controller below "
-        "sampled at the sensor sample time.") + table(("item", "value"), rows),
+        "sampled at the sensor sample time.") + table(("item", "value"), rows, table_id="controller-table"),
         (FigureSpec(fig, "Frequency response of the motion controller."),), key="controller")
 
 

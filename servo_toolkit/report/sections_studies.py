@@ -19,8 +19,9 @@ def sweep_settings(ctx):
 
     Full settings: the scene's sweep study as it stands (see
     :func:`servo_toolkit.studies.sweep.study_points`). Light settings: at most
-    :data:`LIGHT_SWEEP_POINTS` log-spaced frequencies over the study's range plus 8 Hz, and
-    a shorter dwell (3 settling and 2 estimation cycles).
+    :data:`LIGHT_SWEEP_POINTS` log-spaced frequencies over the study's range plus 8 Hz and
+    the frequencies where the designed loop peaks (:func:`peak_frequencies`), and a shorter
+    dwell (3 settling and 2 estimation cycles).
     """
     study_points = api("servo_toolkit.studies.sweep", "study_points")
     name, freqs, amps = study_points(ctx.scene)
@@ -31,10 +32,26 @@ def sweep_settings(ctx):
         lo, hi = freqs.min(), freqs.max()
         if freqs.size > LIGHT_SWEEP_POINTS:
             light = np.geomspace(lo, hi, LIGHT_SWEEP_POINTS)
-            freqs = np.unique(np.concatenate([light, freqs[np.abs(freqs - 8.0) < 1e-9]]))
+            freqs = np.unique(np.concatenate([light, freqs[np.abs(freqs - 8.0) < 1e-9],
+                                              peak_frequencies(ctx.design(), lo, hi)]))
         options["plan"] = plan_cls(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2)
     options["frequencies"] = freqs
     return name, freqs, tuple(amps), options
+
+
+def peak_frequencies(design, lo: float, hi: float) -> np.ndarray:
+    """Frequencies (Hz) in [lo, hi] where the designed closed loop |T| has a local peak (the
+    drivetrain mode shows as one) and where |S| peaks, each with a point a sixth of an
+    octave either side, so that a light grid resolves them."""
+    import control as ct
+    f = np.geomspace(lo, hi, 2000)
+    lw = np.asarray(ct.frequency_response(design.loop, 2 * np.pi * f).complex).reshape(-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t, s = np.abs(lw / (1 + lw)), np.abs(1 / (1 + lw))
+    inner = np.nonzero((t[1:-1] > t[:-2]) & (t[1:-1] >= t[2:]))[0] + 1
+    peaks = [f[k] for k in inner[np.argsort(t[inner])[::-1][:2]]] + [f[int(np.nanargmax(s))]]
+    out = (np.asarray(peaks)[:, None] * 2.0 ** (np.array([-1, 0, 1]) / 6.0)).ravel()
+    return np.unique(np.clip(out, lo, hi))
 
 
 def reduced_sweep(ctx):

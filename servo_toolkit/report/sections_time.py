@@ -33,6 +33,36 @@ def _step_metrics(t, y, final):
     return rise, over, settle
 
 
+def limit_figures(result, motor) -> dict:
+    """Peak |current| and |voltage| of a run and the time spent at each limit (s): the
+    voltage within 0.1 % of the supply, the current within 0.1 % of its limit."""
+    dt = np.diff(result.times, append=result.times[-1])
+    i, v = np.abs(result.motor_current), np.abs(result.motor_voltage)
+    at_v = v >= motor.voltage_limit * (1 - 1e-3) if math.isfinite(motor.voltage_limit) else np.zeros_like(v, bool)
+    at_i = i >= motor.current_limit * (1 - 1e-3) if math.isfinite(motor.current_limit) else np.zeros_like(i, bool)
+    return {"peak_current_A": float(i.max()), "peak_voltage_V": float(v.max()),
+            "time_at_voltage_limit_s": float(np.sum(dt[at_v])), "time_at_current_limit_s": float(np.sum(dt[at_i]))}
+
+
+def _electrics(runs, motor):
+    """Figure of current and voltage against their limits, one column per run."""
+    fig, axes = figures.new_figure(2, len(runs), size=(10.0, 5.0), sharex="col")
+    axes = np.asarray(axes).reshape(2, len(runs))
+    for col, (title, t, r) in enumerate(runs):
+        ai, av = axes[:, col]
+        ai.plot(t * 1e3, r.motor_current, label="current")
+        av.plot(t * 1e3, r.motor_voltage, "C1", label="voltage")
+        for ax, lim, unit in ((ai, motor.current_limit, "A"), (av, motor.voltage_limit, "V")):
+            if math.isfinite(lim):
+                for sign in (1, -1):
+                    ax.axhline(sign * lim, color="C3", ls="--", lw=0.9, label=f"limit +-{lim:g} {unit}" if sign > 0 else None)
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize="x-small")
+        ai.set(ylabel="motor current [A]", title=title)
+        av.set(ylabel="armature voltage [V]", xlabel="time [ms]")
+    return fig
+
+
 def time_responses(ctx) -> Section:
     """Step and 8 Hz sine: linear closed loop (python-control) and, when available, the
     nonlinear simulation with the same controller (limits, friction, backlash)."""
@@ -55,6 +85,7 @@ def time_responses(ctx) -> Section:
              fmt(20 * math.log10(amp / SINE_DEG)), fmt(ph))]
     notes = []
     nonlinear = None
+    electrics, electric_fig = [], None
     try:
         simulate = api("servo_toolkit.sim", "simulate")
         reference = api("servo_toolkit.sim", "Reference")
@@ -76,6 +107,14 @@ def time_responses(ctx) -> Section:
         nonlinear = (ts1[keep], ys1[keep], ts2, ys2, r2)
         notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); peak motor torque "
                      f"in the sine run {fmt(r2.max_abs_motor_torque)} N*m.")
+        motor = ctx.scene.motor
+        for name, r in (("step", r1), (f"{SINE_HZ:g} Hz sine", r2)):
+            lf = limit_figures(r, motor)
+            electrics.append((name, fmt(lf["peak_current_A"]), fmt(motor.current_limit), fmt(lf["peak_voltage_V"]),
+                              fmt(motor.voltage_limit), fmt(lf["time_at_current_limit_s"] * 1e3),
+                              fmt(lf["time_at_voltage_limit_s"] * 1e3)))
+        electric_fig = _electrics(((f"{STEP_DEG:g} deg step", r1.times - t_at, r1),
+                                   (f"{SINE_DEG:g} deg sine at {SINE_HZ:g} Hz", r2.times, r2)), motor)
     except NotAvailable as exc:
         notes.append(f"Nonlinear simulation not available: {exc}")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
@@ -93,7 +132,14 @@ def time_responses(ctx) -> Section:
         ax.legend(fontsize="small")
     head = ("model", "rise 10-90 % [ms]", "overshoot", "settling 2 % [ms]", f"gain at {SINE_HZ:g} Hz [dB]",
             f"phase at {SINE_HZ:g} Hz [deg]")
+    body = table(head, rows)
+    figs = [FigureSpec(fig, "Step response and 8 Hz sine tracking.")]
+    if electrics:
+        body += para("Motor electrics in the nonlinear runs against the drive's limits (time at a limit: within "
+                     "0.1 % of it).") + table(("run", "peak current [A]", "current limit [A]", "peak voltage [V]",
+                                               "voltage limit [V]", "time at current limit [ms]",
+                                               "time at voltage limit [ms]"), electrics, table_id="electrics-table")
+        figs.append(FigureSpec(electric_fig, "Motor current and armature voltage against their limits."))
     return Section("Step response and 8 Hz sine tracking",
                    para(f"Small-signal commands about q0 = {math.degrees(q0):+.1f} deg with the designed controller.",
-                        *notes) + table(head, rows),
-                   (FigureSpec(fig, "Step response and 8 Hz sine tracking."),), key="time")
+                        *notes) + body, tuple(figs), key="time")

@@ -1,0 +1,90 @@
+"""Robustness of the design over the scene's ``[robustness]`` variants, beside the nominal
+design over the same variants."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import figures
+from .section import FigureSpec, NotApplicable, Section, fmt, para, table
+
+#: figure -> (label, unit)
+FIGURES = {"gain_margin_db": ("gain margin", "dB"), "phase_margin_deg": ("phase margin", "deg"),
+           "sensitivity_peak_db": ("sensitivity peak Ms", "dB")}
+_LABELS = {"stable_fraction": "stable variants (fraction)", "gain_margin": "gain margin",
+           "phase_margin": "phase margin", "sensitivity_peak": "sensitivity peak Ms",
+           "bandwidth": "closed-loop bandwidth", "phase_lag_at_bandwidth": "phase lag at the bandwidth"}
+
+
+def robust_results(ctx):
+    """(robust design's RobustnessResult, the nominal design's over the same variants)."""
+    d = ctx.design()
+    if d.robustness is None:
+        raise NotApplicable("the scene sets no [robustness] variations")
+
+    def nominal():
+        from ..loop import design
+        from ..loop.robustness import robustness
+        nom = design(ctx.scene, robust=False, progress=False)
+        return robustness(ctx.scene, nom, spec=ctx.scene.robustness, progress=False)
+    return d.robustness, ctx.result("nominal_robustness", nominal)
+
+
+def requirement_rows(ctx):
+    """Rows (requirement, required, achieved, shortfall, status) of the robust requirements,
+    for the report's requirements table (empty without ``[robustness]``)."""
+    d = ctx.design()
+    r = d.robustness
+    if r is None:
+        return ()
+    rows = []
+    for c in r.requirements:
+        at = ", ".join(f"{k} = {v:.3g}" for k, v in r.worst.get(c.name, {}).items())
+        short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
+        rows.append((f"robust: {_LABELS.get(c.name, c.name)}, worst of {r.count} variants"
+                     + (f" (at {at})" if at else ""), f"{c.sense} {fmt(c.required)} {c.unit}",
+                     f"{fmt(c.achieved)} {c.unit}", short, "pass" if c.passed else "fail"))
+    return tuple(rows)
+
+
+def robustness(ctx) -> Section:
+    """Variant margins as scatter and histogram, worst cases, robust against nominal."""
+    robust, nominal = robust_results(ctx)
+    x = robust.values.get("load_inertia", np.arange(robust.count))
+    xlabel = "load inertia [kg*m^2]" if "load_inertia" in robust.values else "variant"
+    fig, axes = figures.new_figure(2, 3, size=(11.0, 6.0))
+    for col, (key, (label, unit)) in enumerate(FIGURES.items()):
+        ax, hist = axes[0, col], axes[1, col]
+        for res, name, colour in ((nominal, "nominal design", "C1"), (robust, "robust design", "C0")):
+            stable = res.figures["stable"]
+            y = np.where(stable, res.figures[key], np.nan)
+            ax.scatter(x, y, s=4, color=colour, alpha=0.6, label=name)
+            finite = y[np.isfinite(y)]
+            if finite.size:
+                hist.hist(finite, bins=30, color=colour, alpha=0.5, label=name)
+            if np.any(~stable):
+                ax.scatter(x[~stable], np.zeros(int(np.sum(~stable))), marker="x", color="r", s=10)
+        ax.set(xlabel=xlabel, ylabel=f"{label} [{unit}]")
+        hist.set(xlabel=f"{label} [{unit}]", ylabel="variants")
+        for a in (ax, hist):
+            a.grid(True, alpha=0.3)
+        ax.legend(fontsize="x-small", markerscale=3)
+    fig.suptitle(f"Margins over {robust.count} variants (red x: unstable)")
+    rows = []
+    nom = {c.name: c for c in nominal.requirements}
+    for c in robust.requirements:
+        n = nom.get(c.name)
+        at = ", ".join(f"{k} = {v:.3g}" for k, v in robust.worst.get(c.name, {}).items())
+        rows.append((_LABELS.get(c.name, c.name), f"{c.sense} {fmt(c.required)} {c.unit}",
+                     f"{fmt(c.achieved)} {c.unit}", "pass" if c.passed else "FAIL", at,
+                     f"{fmt(n.achieved)} {n.unit} ({'pass' if n.passed else 'FAIL'})" if n is not None else ""))
+    ranges = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in robust.values.items())
+    text = para(f"Variants: {robust.count} ({robust.settings.get('method', '')}), {ranges}; the robust design has "
+                f"{robust.unstable_count} unstable variants, the nominal design {nominal.unstable_count}.",
+                "Worst case over the stable variants against the robustness requirements; the last column is "
+                "the nominal design (designed for the nominal plant alone) over the same variants.")
+    body = table(("requirement", "required", "robust design", "status", "worst variant", "nominal design"), rows,
+                 table_id="robustness-table")
+    return Section("Robustness over the parameter variants", text + body,
+                   (FigureSpec(fig, "Margins of each variant: scatter against the load inertia and histograms."),),
+                   status="pass" if robust.passed else "fail", key="robustness")
