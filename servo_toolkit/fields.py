@@ -4,11 +4,76 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 
 from .errors import SceneError
 from .units import parse_quantity
 
 _MISSING = object()
+
+#: the reads being collected by :func:`recording_reads` in this context (None: not collecting)
+_READS: ContextVar = ContextVar("servo_toolkit_scene_reads", default=None)
+
+
+@dataclass(frozen=True)
+class KeyRead:
+    """One key read by the scene loader, as :func:`recording_reads` collects it.
+
+    Attributes
+    ----------
+    table : str
+        Key path of the table, e.g. ``drivetrain[1]`` or ``studies.step``.
+    kind : str or None
+        The table's ``kind`` (stage, study or mechanism kind), if it has one.
+    key : str
+        The key's name inside the table.
+    reader : str
+        ``"quantity"``, ``"quantity list"``, ``"integer"``, ``"text"``, ``"number"``,
+        ``"value"`` (read as written) or ``"optional"`` (asked whether it is present).
+    unit : str or None
+        SI unit the value is converted to.
+    required : bool
+        The loader has no default for it.
+    default : object
+        The default when absent (None when required).
+    rule : str or None
+        ``"positive"``, ``"nonnegative"``, ``"finite"``, ``"at least N"`` or None.
+    choices : tuple or None
+        Allowed values of a text key.
+    written : object
+        The value as the table writes it (None when absent).
+    """
+
+    table: str
+    kind: str | None
+    key: str
+    reader: str
+    unit: str | None = None
+    required: bool = False
+    default: object = None
+    rule: str | None = None
+    choices: tuple | None = None
+    written: object = None
+
+
+@contextmanager
+def recording_reads():
+    """Collect every key the scene loader reads while the block runs.
+
+    Yields
+    ------
+    list of KeyRead
+        Filled as tables are read; the scene reference of the documentation is generated
+        from it, so it names exactly the keys, units, defaults and rules the loader applies.
+    """
+    reads: list = []
+    token = _READS.set(reads)
+    try:
+        yield reads
+    finally:
+        _READS.reset(token)
 
 
 class Fields:
@@ -29,16 +94,28 @@ class Fields:
         self.path = path
         self._used = {"kind", "name"}
 
+    def _note(self, name: str, reader: str, default=_MISSING, unit=None, rule=None, choices=None) -> None:
+        reads = _READS.get()
+        if reads is not None:
+            kind = self.table.get("kind") if isinstance(self.table.get("kind"), str) else None
+            required = default is _MISSING
+            reads.append(KeyRead(self.path, kind, name, reader, unit, required,
+                                 None if required else default, rule,
+                                 tuple(sorted(choices)) if choices is not None else None,
+                                 self.table.get(name)))
+
     def key(self, name: str) -> str:
         """Full key path of ``name``."""
         return f"{self.path}.{name}" if self.path else name
 
     def has(self, name: str) -> bool:
         """True when the table defines ``name``."""
+        self._note(name, "optional", None)
         return name in self.table
 
     def raw(self, name: str, default=_MISSING):
         """The value as written, or ``default``; missing without default is an error."""
+        self._note(name, "value", default)
         self._used.add(name)
         if name in self.table:
             return self.table[name]
@@ -52,6 +129,7 @@ class Fields:
         ``rule`` is one of ``"positive"``, ``"nonnegative"``, ``"finite"`` (always
         implied unless the default is infinite) or None.
         """
+        self._note(name, "quantity", default, unit, rule)
         value = self.raw(name, default)
         if value is default and default is not _MISSING and not isinstance(default, str):
             return default
@@ -59,6 +137,7 @@ class Fields:
 
     def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None) -> tuple:
         """A list of quantities converted to ``unit``."""
+        self._note(name, "quantity list", default, unit, rule)
         value = self.raw(name, default)
         if value is default and default is not _MISSING:
             return tuple(default)
@@ -69,6 +148,7 @@ class Fields:
 
     def integer(self, name: str, default=_MISSING, *, minimum: int | None = None) -> int:
         """An integer, optionally at least ``minimum``."""
+        self._note(name, "integer", default, rule=None if minimum is None else f"at least {minimum}")
         value = self.raw(name, default)
         if isinstance(value, bool) or not isinstance(value, int):
             raise SceneError(self.key(name), f"expected an integer, got {value!r}")
@@ -78,6 +158,7 @@ class Fields:
 
     def text(self, name: str, default=_MISSING, choices=None) -> str:
         """A string, optionally one of ``choices``."""
+        self._note(name, "text", default, choices=choices)
         value = self.raw(name, default)
         if not isinstance(value, str):
             raise SceneError(self.key(name), f"expected a string, got {value!r}")
@@ -87,6 +168,7 @@ class Fields:
 
     def number(self, name: str, default=_MISSING, *, rule=None) -> float:
         """A plain dimensionless number."""
+        self._note(name, "number", default, rule=rule)
         return self.quantity(name, "dimensionless", default, rule=rule)
 
     def _checked(self, value: float, name: str, rule, key: str | None = None) -> float:

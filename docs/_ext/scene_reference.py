@@ -1,0 +1,190 @@
+"""Generate the scene-file reference from the loader itself.
+
+Every shipped scene is loaded with :func:`servo_toolkit.fields.recording_reads`, which
+collects each key the loader reads: its table, unit, default, rule and choices, and the
+value a shipped scene writes for it. Descriptions come from the numpydoc ``Parameters`` of
+the component each table builds. What the loader does not read cannot appear, and what it
+reads cannot be missing.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+#: reader names, most specific first (a number is read as a dimensionless quantity too)
+_PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
+_ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "studies.*",
+          "mechanism", "stages[]", "drivetrain[].stages[]", "operating")
+
+
+def scene_files(root: Path | None = None) -> list:
+    """The scene files the reference is generated from: every ``scenes/*.toml``."""
+    root = root or Path(__file__).resolve().parents[2]
+    return sorted((root / "scenes").glob("*.toml"))
+
+
+def collect(paths=None) -> list:
+    """Every key the loader reads from ``paths`` (default: the shipped scenes)."""
+    from servo_toolkit.fields import recording_reads
+    from servo_toolkit.scene import load_scene
+    with recording_reads() as reads:
+        for path in paths or scene_files():
+            load_scene(path)
+    return list(reads)
+
+
+def _pattern(table: str) -> str:
+    table = re.sub(r"\[\d+\]", "[]", table)
+    return "studies.*" if table.startswith("studies.") else table
+
+
+def grouped(reads) -> dict:
+    """(table pattern, kind) -> {key: merged description dict}, in reading order."""
+    groups: dict = {}
+    for r in reads:
+        if r.key == "kind" and r.table != "":
+            pass
+        group = groups.setdefault((_pattern(r.table), r.kind), {})
+        d = group.setdefault(r.key, {"readers": set(), "unit": None, "rule": None, "choices": None,
+                                     "default": None, "required": True, "written": None})
+        d["readers"].add(r.reader)
+        d["unit"] = d["unit"] or (r.unit if r.reader != "number" else None)
+        d["rule"] = d["rule"] or r.rule
+        d["choices"] = d["choices"] or r.choices
+        if not r.required and r.default is not None:
+            d["default"] = r.default if d["default"] is None else d["default"]
+        if r.reader == "optional" or not r.required:
+            d["required"] = False
+        if d["written"] is None and r.written is not None:
+            d["written"] = r.written
+    return groups
+
+
+def _component(pattern: str, kind):
+    from servo_toolkit import scene as sc
+    from servo_toolkit.components.compliance import Load
+    from servo_toolkit.components.motor import DCMotor
+    from servo_toolkit.components.roller_screw import RollerScrewOperating, RollerScrewStage
+    table = {"motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
+             "robustness": sc.Robustness, "stages[]": RollerScrewStage,
+             "drivetrain[].stages[]": RollerScrewStage, "operating": RollerScrewOperating}
+    if pattern == "drivetrain[]":
+        return sc.STAGE_KINDS.get(kind)
+    if pattern == "mechanism":
+        return sc.MECHANISM_KINDS.get(kind)
+    return table.get(pattern)
+
+
+def descriptions(cls) -> dict:
+    """name -> one-line description from the class's numpydoc Parameters/Attributes."""
+    from numpydoc.docscrape import NumpyDocString
+    if cls is None or not cls.__doc__:
+        return {}
+    doc = NumpyDocString(cls.__doc__)
+    out = {}
+    for section in ("Parameters", "Attributes"):
+        for p in doc[section]:
+            text = " ".join(" ".join(p.desc).split())
+            for name in p.name.split(","):
+                out.setdefault(name.strip(), text)
+    return out
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float) and math.isinf(value):
+        return "unlimited" if value > 0 else "-inf"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + "}"
+    return repr(value) if isinstance(value, str) else f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _reader(d) -> str:
+    reader = next(r for r in _PRIORITY if r in d["readers"])
+    if reader in ("quantity", "quantity list") and d["unit"]:
+        unit = "dimensionless" if d["unit"] == "dimensionless" else f"`{d['unit']}`"
+        return f"{reader} in {unit}" if reader == "quantity" else f"list of {unit}"
+    return {"value": "as written", "optional": "quantity"}.get(reader, reader)
+
+
+def _title(pattern: str, kind) -> str:
+    names = {"motor": "`[motor]`", "load": "`[load]`", "sensors": "`[sensors]`",
+             "requirements": "`[requirements]`", "robustness": "`[robustness]`",
+             "operating": "`[operating]` (roller-screw scene)", "stages[]": "`[[stages]]` (roller-screw scene)",
+             "drivetrain[].stages[]": "`stages` of a `roller_screw` stage"}
+    if pattern == "drivetrain[]":
+        return f"`[[drivetrain]]` kind = `{kind}`"
+    if pattern == "studies.*":
+        return f"`[studies.NAME]` kind = `{kind}`"
+    if pattern == "mechanism":
+        return f"`[mechanism]` kind = `{kind}`"
+    return names.get(pattern, f"`[{pattern}]`")
+
+
+def scene_markdown(reads=None) -> str:
+    """The scene-file reference as Markdown."""
+    from servo_toolkit import scene as sc
+    groups = grouped(collect() if reads is None else reads)
+    out = ["# Scene-file reference", "",
+           "A scene is a TOML file. A quantity is a bare SI number or a string with units parsed "
+           "by pint (`\"0.5 mH\"`, `\"1696.8 N*m/deg\"`, `\"6 dB\"`); it is converted to the unit "
+           "in the *type* column. Generated from the loader: every key below is one the loader "
+           "reads, with the default it applies and the rule it checks; any other key is an error "
+           "naming it. Examples are values the shipped scenes (`scenes/`) write.", "",
+           "## Top level", "", "| key | meaning |", "| --- | --- |"]
+    top = {"name": "Scene name (a non-empty string; required).",
+           "description": "Free text.",
+           "motor": "The DC motor, `[motor]`.",
+           "drivetrain": "Stages from the motor to the load, `[[drivetrain]]` in order.",
+           "load": "The load at the output, `[load]`.",
+           "sensors": "Encoders, sample time and speed estimator, `[sensors]`.",
+           "requirements": "What the loop must achieve, `[requirements]`.",
+           "studies": "Named studies, `[studies.NAME]` with a `kind`.",
+           "mechanism": "A multi-axis mechanism instead of a drivetrain, `[mechanism]`.",
+           "stages": "Stages of a stand-alone roller-screw scene, `[[stages]]`.",
+           "operating": "Operating point of a stand-alone roller-screw scene, `[operating]`.",
+           "robustness": "Parameter variations the loop must tolerate, `[robustness]`."}
+    for key in sorted(sc._TOP_KEYS):
+        out.append(f"| `{key}` | {_cell(top.get(key, ''))} |")
+    out.append("")
+
+    def order(item):
+        (pattern, kind), _ = item
+        return (_ORDER.index(pattern) if pattern in _ORDER else len(_ORDER), str(kind))
+
+    for (pattern, kind), keys in sorted(groups.items(), key=order):
+        desc = descriptions(_component(pattern, kind))
+        out += [f"## {_title(pattern, kind)}", "",
+                "| key | type | default | rule | example | meaning |", "| --- | --- | --- | --- | --- | --- |"]
+        for key, d in keys.items():
+            default = "required" if d["required"] else (_fmt(d["default"]) or "absent: not used")
+            rule = d["rule"] or ""
+            if d["choices"]:
+                rule = "one of " + ", ".join(f"`{c}`" for c in d["choices"])
+            example = f"`{_fmt(d['written'])}`" if d["written"] is not None else ""
+            out.append(f"| `{key}` | {_reader(d)} | {_cell(default)} | {_cell(rule)} | {_cell(example)} | "
+                       f"{_cell(desc.get(key, ''))} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def _generate(app, config):
+    target = Path(app.srcdir) / "reference" / "scenes.md"
+    text = scene_markdown()
+    if not target.exists() or target.read_text() != text:
+        target.write_text(text)
+
+
+def setup(app):
+    """Sphinx extension entry point."""
+    app.connect("config-inited", _generate)
+    return {"parallel_read_safe": True, "version": "1"}
