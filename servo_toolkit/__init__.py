@@ -1,11 +1,31 @@
-"""servo_toolkit: servo control design for electromechanical actuators."""
+"""servo_toolkit: servo control design for electromechanical actuators.
+
+The top-level names are imported on first use, so ``import servo_toolkit`` (and the command
+line's ``--help``) stays quick: python-control, scipy and numba load only when a name that
+needs them is used.
+"""
+
+from importlib import import_module
 
 from .errors import SceneError, SimulationError
-from .export import export
-from .loop import design
-from .scene import Scene, load_scene
-from .sim import simulate
 
 __version__ = "0.1.0"
 
-__all__ = ["Scene", "SceneError", "SimulationError", "design", "export", "load_scene", "simulate", "__version__"]
+#: public name -> module that defines it (imported on first access)
+_LAZY = {"Scene": ".scene", "load_scene": ".scene", "design": ".loop", "export": ".export",
+         "simulate": ".sim"}
+
+__all__ = ["SceneError", "SimulationError", "__version__", *sorted(_LAZY)]
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'servo_toolkit' has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

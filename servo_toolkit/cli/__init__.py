@@ -14,24 +14,53 @@ import sys
 
 from ..errors import SceneError, SimulationError
 
-#: Command modules; each defines ``NAME``, ``register(subparsers)`` and ``run(args) -> int``.
-COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce",
-            "export")
+#: Commands in help order, each with its one-line help; module ``cmd_NAME`` defines
+#: ``register(subparsers)`` (with the same help) and ``run(args) -> int``.
+COMMANDS = {
+    "stiffness": "series stiffness chain and compliance shares",
+    "report": "HTML and PDF report of a scene (default: built-in EMA)",
+    "kv": "dynamic-load factor Kv (inverse dynamics along prescribed motions)",
+    "design": "loop design and margins",
+    "check": "check loop requirements (exit 0 met, 1 not met, 2 bad input)",
+    "simulate": "time simulation (compiled RK4, paper scheme or stiff reference)",
+    "accuracy": "error against run time: RK4 step ladder vs the stiff reference",
+    "sweep": "nonlinear closed-loop sine-dwell sweep against the linear loop",
+    "reduce": "what the scene's model leaves out for a study, why, and the measured cost",
+    "export": "controller.json and C99 sources of the designed controller",
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every command registered."""
+def build_parser(only=None) -> argparse.ArgumentParser:
+    """The argument parser.
+
+    Parameters
+    ----------
+    only : str, optional
+        Register this command in full and the others by name and help alone, so that a
+        command (or ``--help``) does not import the modules of every other command.
+        Default: every command in full.
+    """
     parser = argparse.ArgumentParser(prog="servo-toolkit",
                                      description="Servo control design for electromechanical actuators.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in COMMANDS:
-        importlib.import_module(f".cmd_{name}", __name__).register(sub)
+    for name, help_text in COMMANDS.items():
+        if only is None or name == only:
+            importlib.import_module(f".cmd_{name}", __name__).register(sub)
+        else:
+            sub.add_parser(name, help=help_text)
     return parser
+
+
+def _command(argv) -> str:
+    """The command named on the command line ("" when none is: ``--help`` or an error)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    first = next((a for a in args if not a.startswith("-")), "")
+    return first if first in COMMANDS else ""
 
 
 def main(argv=None) -> int:
     """Entry point; returns the exit code."""
-    parser = build_parser()
+    parser = build_parser(only=_command(argv))
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)

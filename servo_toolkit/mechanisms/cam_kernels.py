@@ -14,6 +14,10 @@ import math
 import numpy as np
 from numba import njit
 
+from ..jit_cache import install as _install_cache
+
+_install_cache()  # before the kernels below are decorated
+
 _Q = math.pi / 4
 
 

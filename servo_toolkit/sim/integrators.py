@@ -10,9 +10,9 @@ state s) is frozen, the velocities and electrical states take one RK4 step with 
 and the spring moment frozen, positions follow by summation (p += T p'), and the play
 operator (seed eqs 6-8, c = half the play) updates s. It is first order in T.
 
-numba's on-disk cache of :func:`integrate` is keyed on this file only, yet the loop compiles
-in :func:`kernel.rhs` and everything it calls (layout constants, the cam kernels): after
-editing those files, touch this one (or clear ``__pycache__``) so the loop is recompiled.
+The loop compiles in :func:`kernel.rhs` and everything it calls (layout constants, the cam
+kernels); the compiled-code cache is keyed on a hash of all those sources
+(:mod:`servo_toolkit.jit_cache`), so editing any of them recompiles the loop.
 """
 
 from __future__ import annotations

@@ -34,7 +34,11 @@ import math
 
 import numba as nb
 
-from ..mechanisms.cam_kernels import shaft_acceleration
+from ..jit_cache import install as _install_cache
+
+_install_cache()  # noqa: E402 - before any kernel below is decorated
+
+from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
 
 from .layout import (EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
