@@ -15,7 +15,8 @@ import sys
 from ..errors import SceneError, SimulationError
 
 #: Command modules; each defines ``NAME``, ``register(subparsers)`` and ``run(args) -> int``.
-COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce")
+COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce",
+            "montecarlo")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from .kernel import controller_sample, jit, rhs, rhs_phys
+from .kernel import controller_sample, inline, jit, rhs, rhs_phys
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
                      NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
                      STROKE_MODE)
@@ -58,6 +58,45 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     return _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux)
 
 
+@inline
+def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
+               k1, k2, k3, k4):
+    """Stages 2-4 and the update of one classical RK4 step from the first stage's derivatives
+    (a0..a5 of the physical states, ``k1`` of a continuous controller's states).
+
+    Returns the advanced ``(p, pd, q, qd, cur, xi)`` (the play state s is held); a
+    continuous controller's states ``x[7:]`` are advanced in place. Shared by the single
+    run (:func:`_rk4`) and the batched variants (:mod:`.batch`): one step, one physics.
+    """
+    nx = x.size
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + half * k1[j]
+    b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
+        t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
+        cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + half * k2[j]
+    c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
+        t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
+        cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + dt * k3[j]
+    d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
+        t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
+        cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    return (p + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0), pd + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
+            q + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2), qd + sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3),
+            cur + sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4), xi + sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5))
+
+
 @jit
 def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
@@ -75,8 +114,6 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     work = np.empty(max(nx, 1))
     n_rec = 0
     max_tau = 0.0
-    half = 0.5 * dt
-    sixth = dt / 6.0
     err_mode = P[STROKE_MODE] == 0.0
     rigid = P[RIGID] > 0.0
     cont = int(P[CMODE]) == CONTINUOUS
@@ -126,33 +163,8 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
             break
         if step == n_steps:
             break
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + half * k1[j]
-        b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
-            t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
-            cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + half * k2[j]
-        c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
-            t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
-            cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + dt * k3[j]
-        d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
-            t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
-            cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
-        p += sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
-        pd += sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
-        q += sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
-        qd += sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
-        cur += sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4)
-        xi += sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        p, pd, q, qd, cur, xi = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
+                                           P, T, iref, cont, x, xs, k1, k2, k3, k4)
     x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
     if status != OK:
         return status, step, n_rec, max_tau, iref
