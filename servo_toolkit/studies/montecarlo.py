@@ -88,14 +88,15 @@ def _chunk(case):
 
 
 def _reason(status, step, dt, stable, lam_dt):
-    if status == lo.NONFINITE:
-        return f"non-finite state at t = {step * dt:.6g} s"
-    if status == lo.STROKE_END:
-        return f"stroke end reached at t = {step * dt:.6g} s"
+    """Why a variant failed ("" if it did not); an unstable step is named first, since it
+    also explains a non-finite state or a run off the stroke."""
+    stop = ("" if status == lo.OK else
+            f"non-finite state at t = {step * dt:.6g} s" if status == lo.NONFINITE else
+            f"stroke end reached at t = {step * dt:.6g} s")
     if not stable:
         return (f"step {dt:.4g} s outside the RK4 stability region at this variant's parameters "
-                f"(|lambda dt| up to {lam_dt:.3g})")
-    return ""
+                f"(|lambda dt| up to {lam_dt:.3g})" + (f"; {stop}" if stop else ""))
+    return stop
 
 
 def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
