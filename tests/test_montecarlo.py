@@ -152,3 +152,35 @@ def test_cli_bad_input_exits_2_with_one_line(args, key, capsys):
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"servo-toolkit: error: {key}:") and captured.out == ""
+
+
+def test_check_rows_hold_the_worst_variant_to_the_scene_limits(ema):
+    from servo_toolkit.scene import Robustness
+    from servo_toolkit.studies.montecarlo_check import check_cases, montecarlo_checks
+    scene, controller, _ = ema
+    spec = Robustness(load_inertia=(0.5, 1.5), stiffness=None, samples=4, max_tracking_error=math.radians(10.0),
+                      tracking_error_dimension="angle", max_peak_current=1.0)
+    checks, result = montecarlo_checks(scene, spec, controller)
+    by = {c.name: c for c in checks}
+    assert by["tracking_error"].passed and by["tracking_error"].unit == "deg"
+    assert by["tracking_error"].achieved == pytest.approx(result.error_display.max(), rel=1e-12)
+    assert not by["peak_current"].passed and by["peak_current"].achieved == pytest.approx(result.peak_current.max())
+    names = [c[0] for c in check_cases(checks, result)]
+    assert names == ["robust_tracking_error", "robust_peak_current"]
+    assert montecarlo_checks(scene, Robustness(), controller) == ([], None)  # nothing asked, nothing run
+
+
+def test_check_command_adds_the_rows_and_fails_on_them(tmp_path, capsys):
+    text = (SCENES / "ema_robust.toml").read_text().replace(
+        "samples = 1000", 'samples = 6\nmax_tracking_error = "0.001 deg"\nmax_peak_current = "500 A"')
+    path = tmp_path / "ema_mc.toml"
+    path.write_text(text)
+    assert main(["check", str(path), "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)["scenes"][0]
+    rows = d["montecarlo"]["requirements"]
+    assert not rows["tracking_error"]["passed"] and rows["peak_current"]["passed"]
+    assert d["montecarlo"]["samples"] == 6
+    bad = text.replace('max_tracking_error = "0.001 deg"', 'max_tracking_error = "0.1 mm"')
+    path.write_text(bad)
+    assert main(["check", str(path)]) == 2
+    assert "robustness.max_tracking_error" in capsys.readouterr().err
