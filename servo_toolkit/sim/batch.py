@@ -14,14 +14,12 @@ stops that variant only.
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 
 from . import layout as lo
-from .integrators import rk4_stages
-from .kernel import FASTMATH, controller_sample, jit, reference, rhs, rhs_phys
+from .integrators import rk4_stages, sample_hold, step_status
+from .kernel import FASTMATH, jit, reference, rhs, rhs_phys
 
 #: columns of the per-variant figures
 F_STATUS, F_STEP, F_ERR, F_CUR, F_SAT, F_TAU = range(6)
@@ -77,12 +75,7 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     t = 0.0
     for step in range(n_steps + 1):
         t = step * dt
-        if sub > 0:
-            if to_sample == 0:
-                x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
-                iref = controller_sample(t, x, P, T, work)
-                to_sample = sub
-            to_sample -= 1
+        iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
         a0, a1, a2, a3, a4, a5, i_, v_, r_, tau_ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T,
                                                             iref, x, k1)
         err = abs(q - reference(t, P))
@@ -100,16 +93,8 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
         if defl > max_defl:
             max_defl = defl
             _snap(snap, S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, iref)
-        acc = p + pd + q + qd + cur + xi + s + err
-        for j in range(lo.NX_PHYS, nx):
-            acc += x[j]
-        if not math.isfinite(acc) or not math.isfinite(tau):
-            status = lo.NONFINITE
-            break
-        if err_mode and ((q if not rigid else p) > P[lo.STROKE_HI] or (q if not rigid else p) < P[lo.STROKE_LO]):
-            status = lo.STROKE_END
-            break
-        if step == n_steps:
+        status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid)
+        if status != lo.OK or step == n_steps:
             break
         p, pd, q, qd, cur, xi = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
                                            P, T, iref, cont, x, xs, k1, k2, k3, k4)

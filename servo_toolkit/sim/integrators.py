@@ -59,6 +59,35 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
 
 
 @inline
+def sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work):
+    """The zero-order hold of the sampled controller: every ``sub`` steps (none when 0) the
+    physical state is written to x[0:7] and the controller sampled. Returns the held i_ref
+    and the steps left to the next sample."""
+    if sub > 0:
+        if to_sample == 0:
+            x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
+            iref = controller_sample(t, x, P, T, work)
+            to_sample = sub
+        to_sample -= 1
+    return iref, to_sample
+
+
+@inline
+def step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid):
+    """OK, NONFINITE (one test: a NaN or inf anywhere makes the sum non-finite) or
+    STROKE_END (``err_mode``: the output left the stroke)."""
+    acc = p + pd + q + qd + cur + xi + s
+    for j in range(NX_PHYS, x.size):
+        acc += x[j]
+    if not math.isfinite(acc) or not math.isfinite(tau):
+        return NONFINITE
+    qo = p if rigid else q
+    if err_mode and (qo > P[STROKE_HI] or qo < P[STROKE_LO]):
+        return STROKE_END
+    return OK
+
+
+@inline
 def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
                k1, k2, k3, k4):
     """Stages 2-4 and the update of one classical RK4 step from the first stage's derivatives
@@ -123,12 +152,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     status = OK
     for step in range(n_steps + 1):
         t = t0 + step * dt
-        if sub > 0:
-            if to_sample == 0:
-                x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
-                iref = controller_sample(t, x, P, T, work)
-                to_sample = sub
-            to_sample -= 1
+        iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
         a0, a1, a2, a3, a4, a5, i_, v_, r_, tau_ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T,
                                                             iref, x, k1)
         tau = abs(tau_)
@@ -152,16 +176,8 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
             out_aux[n_rec, AUX_TAU] = tau_
             n_rec += 1
         to_record -= 1
-        acc = p + pd + q + qd + cur + xi + s
-        for j in range(NX_PHYS, nx):
-            acc += x[j]
-        if not math.isfinite(acc) or not math.isfinite(tau):
-            status = NONFINITE
-            break
-        if err_mode and ((q if not rigid else p) > P[STROKE_HI] or (q if not rigid else p) < P[STROKE_LO]):
-            status = STROKE_END
-            break
-        if step == n_steps:
+        status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid)
+        if status != OK or step == n_steps:
             break
         p, pd, q, qd, cur, xi = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
                                            P, T, iref, cont, x, xs, k1, k2, k3, k4)
