@@ -56,6 +56,12 @@ def test_degenerate_ranges_equal_the_single_simulate_run(ema):
     # the single loop on the batched variant's own rows ends in the same state
     np.testing.assert_allclose(r.trace(1).states[-1], final, rtol=1e-9, atol=1e-12)
     assert err > 1e-4  # the comparison is not between two zeros
+    text = repr(r)
+    assert text.startswith("MonteCarloResult(ema_reference: 3 variants") and "\n" not in text
+    assert "<table>" in r._repr_html_() and "worst tracking error" in r.table()
+    import matplotlib
+    matplotlib.use("Agg")
+    assert len(r.plot()) == 2
 
 
 def test_a_heavier_load_equals_simulate_of_the_scene_with_that_inertia(ema):
