@@ -116,12 +116,13 @@ def run_variants(X, P, T, tix, dt, n_steps, sub, figs, snaps):
         variant_run(X[v], P[v], T[tix[v]], dt, n_steps, sub, figs[v], snaps[v])
 
 
-@nb.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
+@jit
 def jacobians(X, times, irefs, P, T, tix, vix, out):
     """d(rhs)/dx by central differences (steps as :func:`stability.jacobian`) at the states
-    ``X[m]`` of variants ``vix[m]``, into ``out[m]``."""
+    ``X[m]`` of variants ``vix[m]``, into ``out[m]`` (serial: a few hundred right-hand sides
+    per variant against tens of thousands in its run)."""
     n = X.shape[1]
-    for m in nb.prange(X.shape[0]):
+    for m in range(X.shape[0]):
         v = vix[m]
         f1 = np.empty(n)
         f2 = np.empty(n)
