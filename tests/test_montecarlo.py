@@ -93,6 +93,11 @@ def test_rigid_chain_variants_carry_their_own_tables(ema):
     assert len(T) == 3 and list(tix) == [1, 2]
     exact = build_model(with_load_inertia(scene, 3.0), controller, rigid)
     np.testing.assert_allclose(T[2], exact.T, rtol=1e-12)
+    # the fallback path (build_model per variant) gives the same rows
+    from dataclasses import replace
+    P_slow, T_slow, tix_slow = replace(b, fast=False).rows(P0, values, lambda m: fill(m, REF))
+    np.testing.assert_allclose(P_slow, P, rtol=1e-12)
+    np.testing.assert_allclose(T_slow[tix_slow], T[tix], rtol=1e-12)
     X0 = np.array([initial_state(b.model, p) for p in P])
     dt = controller.sample_time
     n = round(DURATION / dt)
@@ -190,3 +195,16 @@ def test_check_command_adds_the_rows_and_fails_on_them(tmp_path, capsys):
     path.write_text(bad)
     assert main(["check", str(path)]) == 2
     assert "robustness.max_tracking_error" in capsys.readouterr().err
+
+
+def test_defaults_are_the_simulate_command(ema):
+    """Without a command, a duration or a model choice, montecarlo runs what `servo-toolkit
+    simulate SCENE` runs: the same sine, the same reduced model, the same step."""
+    from servo_toolkit.studies.time_run import simulate_study
+    scene, _, _ = ema
+    study = simulate_study(scene)
+    r = montecarlo(scene, {"load_inertia": (1.0, 1.0)}, samples=1, progress=False)
+    assert r.dt_s == study.dt_s and r.steps_per_variant == study.steps and r.duration_s == study.t_final
+    np.testing.assert_allclose(r.trace(0).states[-1], study.states[-1], rtol=1e-9, atol=1e-12)
+    recorded = np.max(np.abs(study.output_angle - study.reference_angle))  # every third step
+    assert recorded <= r.tracking_error[0] <= recorded * (1 + 1e-3)
