@@ -16,7 +16,7 @@ from ..errors import SceneError, SimulationError
 
 #: Command modules; each defines ``NAME``, ``register(subparsers)`` and ``run(args) -> int``.
 COMMANDS = ("stiffness", "report", "kv", "design", "check", "simulate", "accuracy", "sweep", "reduce",
-            "export")
+            "export", "montecarlo")
 
 
 def build_parser() -> argparse.ArgumentParser:
