@@ -128,6 +128,14 @@ class Robustness:
         Worst case (rad).
     min_bandwidth : float or None
         Worst-case closed-loop bandwidth (Hz); not checked when ``None``.
+    max_tracking_error : float or None
+        Worst |output - command| over the nonlinear time runs of the variants
+        (``servo-toolkit montecarlo``; rad, or m for an output travel); not checked when
+        ``None``.
+    tracking_error_dimension : str or None
+        ``"angle"`` or ``"length"`` as the scene gave it (None for a bare SI number).
+    max_peak_current : float or None
+        Worst peak motor current over those runs (A); not checked when ``None``.
     """
 
     load_inertia: tuple | None = (0.0, 4.0)
@@ -140,6 +148,9 @@ class Robustness:
     min_phase_margin: float | None = None
     max_sensitivity_peak: float | None = None
     min_bandwidth: float | None = None
+    max_tracking_error: float | None = None
+    tracking_error_dimension: str | None = None
+    max_peak_current: float | None = None
 
     @property
     def ranges(self) -> dict:
@@ -151,7 +162,8 @@ class Robustness:
     def from_table(cls, f: Fields) -> "Robustness":
         """Build from a ``[robustness]`` table."""
         known = {"load_inertia", "stiffness", "samples", "method", "seed", "min_stable_fraction",
-                 "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth"}
+                 "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth",
+                 "max_tracking_error", "max_peak_current"}
         unknown = sorted(set(f.table) - known)
         require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
 
@@ -178,12 +190,32 @@ class Robustness:
                 min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
                 min_phase_margin=opt("min_phase_margin", "rad"),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
-                min_bandwidth=opt("min_bandwidth", "Hz"))
+                min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
+                **_tracking_error(f))
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
                 f.key("min_phase_margin"), "must be below 180 deg")
         return r
+
+
+def _tracking_error(f: Fields) -> dict:
+    """``max_tracking_error`` of a ``[robustness]`` table: an angle, a length (an output
+    travel) or a bare SI number, positive."""
+    if not f.has("max_tracking_error"):
+        return {}
+    if not isinstance(f.raw("max_tracking_error"), str):
+        return {"max_tracking_error": f.quantity("max_tracking_error", "rad", rule="positive")}
+    for unit, dimension in (("rad", "angle"), ("m", "length")):
+        try:
+            value = f.quantity("max_tracking_error", unit, rule="positive")
+        except SceneError as exc:
+            if "positive" in str(exc) or "finite" in str(exc):
+                raise
+            continue
+        return {"max_tracking_error": value, "tracking_error_dimension": dimension}
+    raise SceneError(f.key("max_tracking_error"), "expected an angle (e.g. '0.5 deg') or, for an output "
+                     "travel, a length (e.g. '0.2 mm')")
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ COMMANDS = {
     "sweep": "nonlinear closed-loop sine-dwell sweep against the linear loop",
     "reduce": "what the scene's model leaves out for a study, why, and the measured cost",
     "export": "controller.json and C99 sources of the designed controller",
+    "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
 }
 
 

@@ -56,6 +56,16 @@ def _cases(name, result, robust):
     return cases
 
 
+def _montecarlo_cases(scene, spec, controller):
+    """Rows of the [robustness] table's nonlinear time-run requirements (none: nothing runs)."""
+    from ..studies.montecarlo_check import check_cases, montecarlo_checks
+    checks, mc = montecarlo_checks(scene, spec, controller)
+    if mc is None:
+        return [], None
+    return check_cases(checks, mc), {"requirements": {c.name: c.to_dict() for c in checks}, "worst": mc.worst(),
+                                     "samples": mc.count, "failed_variants": int(mc.failed.sum())}
+
+
 def robustness_spec(scene, varies: dict, samples):
     """The scene's ``[robustness]`` with the command line's ranges and sample count, or None
     when neither asks for a robustness study."""
@@ -129,12 +139,16 @@ def _check_scene(path, scene, args, varies):
     if robust is None and spec is not None:
         robust = robustness(scene, result, spec=spec, progress=False)
     cases = _cases(scene.name, result, robust)
+    mc_cases, mc_json = _montecarlo_cases(scene, spec, result.controller)
+    cases += mc_cases
     ok = all(c[1] for c in cases)
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
     if robust is not None:
         d["robustness"] = robust.to_dict()
+    if mc_json is not None:
+        d["montecarlo"] = mc_json
     if not args.json:
         print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
         print(requirements_table(result.requirements))
@@ -143,6 +157,8 @@ def _check_scene(path, scene, args, varies):
               f"{'ok' if stable else 'FAIL'}")
         if robust is not None:
             print(robust.table())
+        for name, passed, message in mc_cases:
+            print(f"  {name:<24}{'ok' if passed else 'FAIL'}  {message}")
         for n in result.notes:
             print(f"  note: {n}")
     return scene.name, cases, d

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from .kernel import controller_sample, jit, rhs, rhs_phys
+from .kernel import controller_sample, inline, jit, rhs, rhs_phys
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
                      NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
                      STROKE_MODE)
@@ -58,6 +58,74 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     return _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux)
 
 
+@inline
+def sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work):
+    """The zero-order hold of the sampled controller: every ``sub`` steps (none when 0) the
+    physical state is written to x[0:7] and the controller sampled. Returns the held i_ref
+    and the steps left to the next sample."""
+    if sub > 0:
+        if to_sample == 0:
+            x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
+            iref = controller_sample(t, x, P, T, work)
+            to_sample = sub
+        to_sample -= 1
+    return iref, to_sample
+
+
+@inline
+def step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid):
+    """OK, NONFINITE (one test: a NaN or inf anywhere makes the sum non-finite) or
+    STROKE_END (``err_mode``: the output left the stroke)."""
+    acc = p + pd + q + qd + cur + xi + s
+    for j in range(NX_PHYS, x.size):
+        acc += x[j]
+    if not math.isfinite(acc) or not math.isfinite(tau):
+        return NONFINITE
+    qo = p if rigid else q
+    if err_mode and (qo > P[STROKE_HI] or qo < P[STROKE_LO]):
+        return STROKE_END
+    return OK
+
+
+@inline
+def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
+               k1, k2, k3, k4):
+    """Stages 2-4 and the update of one classical RK4 step from the first stage's derivatives
+    (a0..a5 of the physical states, ``k1`` of a continuous controller's states).
+
+    Returns the advanced ``(p, pd, q, qd, cur, xi)`` (the play state s is held); a
+    continuous controller's states ``x[7:]`` are advanced in place. Shared by the single
+    run (:func:`_rk4`) and the batched variants (:mod:`.batch`): one step, one physics.
+    """
+    nx = x.size
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + half * k1[j]
+    b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
+        t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
+        cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + half * k2[j]
+    c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
+        t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
+        cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            xs[j] = x[j] + dt * k3[j]
+    d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
+        t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
+        cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
+    if cont:
+        for j in range(NX_PHYS, nx):
+            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    return (p + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0), pd + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
+            q + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2), qd + sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3),
+            cur + sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4), xi + sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5))
+
+
 @jit
 def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
@@ -75,8 +143,6 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     work = np.empty(max(nx, 1))
     n_rec = 0
     max_tau = 0.0
-    half = 0.5 * dt
-    sixth = dt / 6.0
     err_mode = P[STROKE_MODE] == 0.0
     rigid = P[RIGID] > 0.0
     cont = int(P[CMODE]) == CONTINUOUS
@@ -86,12 +152,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     status = OK
     for step in range(n_steps + 1):
         t = t0 + step * dt
-        if sub > 0:
-            if to_sample == 0:
-                x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
-                iref = controller_sample(t, x, P, T, work)
-                to_sample = sub
-            to_sample -= 1
+        iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
         a0, a1, a2, a3, a4, a5, i_, v_, r_, tau_ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T,
                                                             iref, x, k1)
         tau = abs(tau_)
@@ -115,44 +176,11 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
             out_aux[n_rec, AUX_TAU] = tau_
             n_rec += 1
         to_record -= 1
-        acc = p + pd + q + qd + cur + xi + s
-        for j in range(NX_PHYS, nx):
-            acc += x[j]
-        if not math.isfinite(acc) or not math.isfinite(tau):
-            status = NONFINITE
+        status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid)
+        if status != OK or step == n_steps:
             break
-        if err_mode and ((q if not rigid else p) > P[STROKE_HI] or (q if not rigid else p) < P[STROKE_LO]):
-            status = STROKE_END
-            break
-        if step == n_steps:
-            break
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + half * k1[j]
-        b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
-            t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
-            cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + half * k2[j]
-        c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
-            t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
-            cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + dt * k3[j]
-        d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
-            t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
-            cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
-        p += sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
-        pd += sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
-        q += sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
-        qd += sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
-        cur += sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4)
-        xi += sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5)
-        if cont:
-            for j in range(NX_PHYS, nx):
-                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        p, pd, q, qd, cur, xi = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
+                                           P, T, iref, cont, x, xs, k1, k2, k3, k4)
     x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
     if status != OK:
         return status, step, n_rec, max_tau, iref

@@ -285,28 +285,16 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     P[lo.INV_H] = 1.0 / P[lo.TAB_H]
     P[lo.PERIODIC] = 1.0 if periodic else 0.0
     P[lo.RIGID] = 1.0 if rigid else 0.0
-    P[lo.JL] = jl
-    P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
-    P[lo.KSCALE] = options.stiffness_scale
     P[[lo.HINGE_M, lo.HINGE_K, lo.HINGE_D]] = (load.hinge_moment, load.hinge_stiffness, load.damping)
     lo_s, hi_s = drive.stroke
     P[lo.STROKE_LO], P[lo.STROKE_HI] = lo_s, hi_s
     P[lo.STROKE_MODE] = (lo.STROKE_NONE if periodic else
                          lo.STROKE_STOP if options.stroke_end == "stop" else lo.STROKE_ERROR)
-    j0_tot = float(np.interp(q0, q, j_tot))
-    if rigid:
-        k_stop = j0_tot * (2 * math.pi * 100.0) ** 2
-        j_stop = j0_tot
-    else:
-        k0 = float(np.interp(q0, q, k_tot)) * options.stiffness_scale
-        jd0 = j0_tot - jl
-        wn = math.sqrt(k0 * (1 / jd0 + 1 / jl))
-        P[lo.BETA] = 2 * options.damping_ratio / wn
-        if options.backlash:
-            play = float(drive.backlash([q0])[0]) if options.play is None else options.play
-            P[lo.HALF_PLAY] = 0.5 * play
-        k_stop, j_stop = 10 * k0, jl
-    P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * j_stop)
+    play = 0.0
+    if not rigid and options.backlash:
+        play = float(drive.backlash([q0])[0]) if options.play is None else options.play
+    drivetrain_slots(P, rigid=rigid, j0_tot=float(np.interp(q0, q, j_tot)), jl=jl,
+                     k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play)
 
     P = _with_cam(P, drive, rigid, notes)
     names = list(lo.STATE_NAMES)
@@ -357,6 +345,47 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info)
     return _with_table_error(model, drive, q)
+
+
+def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options: ModelOptions,
+                     play: float) -> None:
+    """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
+
+    Load-side inertia ``JL`` (and its reciprocal), stiffness factor ``KSCALE``, structural
+    damping ``BETA = 2 zeta / omega_n`` of the drivetrain mode at q0, half the lost motion,
+    and the elastic stroke-end stop (10x the drivetrain stiffness; 100 Hz on a rigid chain).
+    :func:`build_model` and the batched variants (:mod:`servo_toolkit.sim.batch`) both fill
+    them here.
+
+    Parameters
+    ----------
+    P : numpy.ndarray
+        Parameters, written in place.
+    rigid : bool
+    j0_tot : float
+        Total inertia at the output at q0 (kg*m^2).
+    jl : float
+        Load-side inertia (0 for a rigid chain).
+    k0 : float
+        Series stiffness at q0 before ``options.stiffness_scale`` (ignored when rigid).
+    options : ModelOptions
+    play : float
+        Total lost motion at the output (rad; ignored when rigid).
+    """
+    P[lo.JL] = jl
+    P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
+    P[lo.KSCALE] = options.stiffness_scale
+    if rigid:
+        k_stop = j0_tot * (2 * math.pi * 100.0) ** 2
+        j_stop = j0_tot
+    else:
+        k0 = k0 * options.stiffness_scale
+        jd0 = j0_tot - jl
+        wn = math.sqrt(k0 * (1 / jd0 + 1 / jl))
+        P[lo.BETA] = 2 * options.damping_ratio / wn
+        P[lo.HALF_PLAY] = 0.5 * play
+        k_stop, j_stop = 10 * k0, jl
+    P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * j_stop)
 
 
 def _with_cam(P, drive, rigid, notes):

@@ -38,9 +38,6 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         Its ``notes`` say which model ran and, for the reduced one, what it left out and
         the a-priori bound on what that costs.
     """
-    from ..plant import DEFAULT_STRUCTURAL_DAMPING
-    from .reduce_estimates import plan_reduction
-
     reference, duration, voltage, study_method, study_dt = run_spec(scene, study)
     method = method or study_method or "auto"
     if dt is None and method in ("rk4", "paper"):
@@ -48,18 +45,33 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage)
     controller, source = controller_for(scene)
-    options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
-    notes = [f"controller from {source}"]
-    if full:
-        notes.append("full model (every modelled effect kept)")
-    else:
-        plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
-        options = plan.options
-        left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
-        amp = abs(reference.amplitude)
-        size = f"{amp * 1e3:.3g} mm" if scene.drivetrain.output_is_linear else f"{math.degrees(amp):.3g} deg"
-        notes.append(f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
-                     f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for the reasoning, --full for the full model)")
+    options, notes = sine_run_options(scene, controller, reference, full)
+    notes.insert(0, f"controller from {source}")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
                       options=options)
     return replace(result, notes=tuple(notes) + tuple(result.notes))
+
+
+def sine_run_options(scene, controller, reference, full: bool = False):
+    """Model options of a closed-loop sine run: the reduced model for its frequency and
+    amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one.
+
+    Returns
+    -------
+    options : ModelOptions
+    notes : list of str
+        Which model, and for the reduced one what it left out and the a-priori bound.
+    """
+    from ..plant import DEFAULT_STRUCTURAL_DAMPING
+    from .reduce_estimates import plan_reduction
+
+    options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
+    if full:
+        return options, ["full model (every modelled effect kept)"]
+    plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
+    left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
+    amp = abs(reference.amplitude)
+    size = f"{amp * 1e3:.3g} mm" if scene.drivetrain.output_is_linear else f"{math.degrees(amp):.3g} deg"
+    return plan.options, [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
+                          f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
+                          "the reasoning, --full for the full model)"]

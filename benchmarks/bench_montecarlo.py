@@ -1,0 +1,85 @@
+"""Nonlinear Monte Carlo timing against its two targets.
+
+Run: python3 benchmarks/bench_montecarlo.py [N [N_ONE_CORE]]   (default 10000 and 1000 variants)
+
+On the reference EMA (scenes/ema_reference.toml), its designed controller and simulate's
+default command (8 Hz, 2 deg sine for 1 s, reduced model), prints:
+
+- the integration time of one single run (``servo_toolkit.sim.run``, compilation excluded,
+  best of ``REPEATS``) and the batched kernel's integration time per variant on one core
+  (``N_ONE_CORE`` variants of load inertia 0..4 kg*m^2 and stiffness +-30 %, numba limited
+  to one thread, best of ``REPEATS``): target per variant <= 1/3 of the single run;
+- N variants on every core: the integration time and the end-to-end time of
+  ``montecarlo()`` (variant rows, initial states, step checks; the design excluded):
+  target < 10 s for 10,000 variants.
+
+Every figure is wall time on this machine as it is: the load average is printed with them
+(other jobs on a shared machine slow every figure).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+
+from servo_toolkit.loop.robustness import sample_variants  # noqa: E402
+from servo_toolkit.scene import load_scene  # noqa: E402
+from servo_toolkit.sim import controller_for, run  # noqa: E402
+from servo_toolkit.sim.batch import integrate_variants  # noqa: E402
+from servo_toolkit.sim.reference import fill, initial_state  # noqa: E402
+from servo_toolkit.sim.studies import run_spec  # noqa: E402
+from servo_toolkit.sim.variants import VariantBuilder  # noqa: E402
+from servo_toolkit.studies.montecarlo import montecarlo  # noqa: E402
+from servo_toolkit.studies.time_run import sine_run_options  # noqa: E402
+
+REPEATS = 3
+RANGES = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
+
+
+def main(n: int = 10_000, n_one: int = 1000) -> None:
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "ema_reference.toml")
+    controller, _ = controller_for(scene)
+    reference, duration, *_ = run_spec(scene, None)
+    options, _ = sine_run_options(scene, controller, reference)
+    builder = VariantBuilder.create(scene, controller, options)
+    single = [run(builder.model, reference, duration, "auto") for _ in range(REPEATS + 1)]
+    dt, steps = single[0].dt_s, single[0].steps
+    t_single = min(r.wall_s for r in single[1:])
+    cores = numba.config.NUMBA_NUM_THREADS
+    print(f"reference EMA, {duration:g} s of the {reference.describe()}, dt {dt:.3g} s, {steps} steps; "
+          f"{cores} cores; load average {os.getloadavg()[0]:.2f} (a shared machine: other jobs slow every figure)")
+    print(f"single run (sim.run, integration only, best of {REPEATS}): {t_single * 1e3:.2f} ms")
+
+    values = sample_variants(RANGES, n_one, False, 0)
+    P0 = fill(builder.model, reference)
+    P, T, tix = builder.rows(P0, values, None)
+    X0 = np.array([initial_state(builder.model, p) for p in P])
+    sub = int(round(builder.model.sample_time / dt))
+    numba.set_num_threads(1)
+    walls = [integrate_variants(P, T, tix, X0, dt, steps, sub)[3] for _ in range(REPEATS)]
+    numba.set_num_threads(cores)
+    per = min(walls) / n_one
+    print(f"batched, one core, {n_one} variants: {per * 1e3:.2f} ms per variant = "
+          f"{per / t_single:.2f} x the single run (target <= 0.33): {'met' if per <= t_single / 3 else 'NOT met'}")
+
+    start = time.perf_counter()
+    result = montecarlo(scene, RANGES, samples=n, controller=controller, progress=False)
+    total = time.perf_counter() - start
+    print(f"montecarlo(), {n} variants on {cores} cores: integration {result.wall_s:.2f} s, end to end {total:.2f} s "
+          f"(target < 10 s for 10000: {'met' if total < 10 * n / 10_000 else 'NOT met'}); load average "
+          f"{os.getloadavg()[0]:.2f}")
+    print(f"  {result.summary()}")
+    if not math.isfinite(result.wall_s):
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main(*(int(a) for a in sys.argv[1:3]))

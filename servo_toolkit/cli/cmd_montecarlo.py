@@ -1,0 +1,70 @@
+"""``servo-toolkit montecarlo``: nonlinear closed-loop variants of a scene, batched.
+
+The variations are those of ``check --vary`` and the scene's ``[robustness]``; the command
+is ``simulate``'s (8 Hz, 2 deg sine for 1 s) on the same reduced (or ``--full``) model.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import SceneError
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("montecarlo", help="nonlinear closed-loop variants (load inertia, stiffness), batched")
+    add_scene(p)
+    p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
+                   help="vary load_inertia (kg*m^2) or stiffness (factor), e.g. load_inertia=0:4 "
+                        "(repeatable; default: the scene's [robustness] ranges, else load_inertia=0:4 "
+                        "stiffness=0.7:1.3)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="variants (default: the scene's [robustness] samples, else 1000)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the Monte Carlo draws")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="seconds (default: simulate's, 1 s)")
+    p.add_argument("--full", action="store_true", help="run the full model (default: simulate's reduced model)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="worker processes for chunks of variants (default: this process, every core)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def _check_args(args):
+    from ..loop.robustness import parse_vary
+    varies = dict(parse_vary(text) for text in args.vary)
+    if args.samples is not None and args.samples < 1:
+        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+    if args.seed is not None and args.seed < 0:
+        raise SceneError("seed", f"must not be negative (got {args.seed})")
+    if args.duration is not None and not args.duration > 0:
+        raise SceneError("duration", f"must be positive (got {args.duration:g} s)")
+    if args.workers is not None and args.workers < 1:
+        raise SceneError("workers", f"must be at least 1 (got {args.workers})")
+    return varies
+
+
+def run(args) -> int:
+    """Run the command."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..studies.montecarlo import CHUNK_SIZE, montecarlo
+    varies = _check_args(args)  # every option is checked before the scene is read
+    scene = load_scene(args.scene)
+    variants = None
+    if varies:
+        base = dict(scene.robustness.ranges) if scene.robustness is not None else {}
+        variants = {**base, **varies}
+    progress = not args.json and sys.stderr.isatty()
+    kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress)
+    if args.workers and args.workers > 1:
+        n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
+        with ProcessPoolExecutor(args.workers) as pool:
+            result = montecarlo(scene, variants, executor=pool, chunk_size=min(CHUNK_SIZE, -(-n // args.workers)),
+                                **kwargs)
+    else:
+        result = montecarlo(scene, variants, **kwargs)
+    emit(args, result, f"Monte Carlo of {scene.name}\n" + result.table())
+    return 0

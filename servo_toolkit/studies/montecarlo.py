@@ -1,0 +1,224 @@
+"""Nonlinear Monte Carlo: the closed-loop time run of many parameter variants at once.
+
+The time-domain counterpart of :func:`servo_toolkit.loop.robustness.robustness`: the same
+variation names, ranges and sampling (``check --vary``, a scene's ``[robustness]``), the
+same command as ``servo-toolkit simulate`` (the 8 Hz, 2 deg sine for 1 s; 1 mm for an
+output travel) and the same reduced or full model. Every variant runs the designed
+controller on the nonlinear model (saturation, friction, backlash, sampling, quantization)
+through the batched kernel (:mod:`servo_toolkit.sim.batch`), and is step-checked at its
+own parameters (the RK4 stability region at its start, peak current, largest drivetrain
+deflection and end). Chunks of variants go to an optional executor (a process pool, a dask
+``Client.get_executor()``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import SceneError
+from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
+from ..parallel import chunks, run_cases
+from ..sim import controller_for
+from ..sim import layout as lo
+from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, integrate_variants, jacobians
+from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
+from ..sim.reference import fill, initial_state
+from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification
+from ..sim.studies import run_spec
+from ..sim.variants import VariantBuilder
+from .montecarlo_result import MonteCarloResult
+from .time_run import sine_run_options
+
+#: variants per chunk (each chunk runs in parallel across the cores of its worker)
+CHUNK_SIZE = 2000
+
+
+def _step_check(model, P, T, tix, X0, snaps, dt):
+    """Largest |lambda dt| per variant over its start (and its contact variant) and its
+    snapshots, and whether dt lies in RK4's stability region there."""
+    nv, nx = X0.shape
+    states, times, irefs, owner = [], [], [], []
+    for v in range(nv):
+        x0 = X0[v]
+        for x, t, ir in ((x0, 0.0, x0[4]), (contact_variant(model, P[v], x0), 0.0, x0[4])):
+            states.append(x), times.append(t), irefs.append(ir), owner.append(v)
+        for k in range(NSNAP):
+            s = snaps[v, k]
+            states.append(s[:nx]), times.append(s[nx]), irefs.append(s[nx + 1]), owner.append(v)
+    X, owner = np.array(states), np.array(owner, dtype=np.int64)
+    ok_rows = np.all(np.isfinite(X), axis=1)
+    X, owner = X[ok_rows], owner[ok_rows]
+    J = np.empty((X.shape[0], nx, nx))
+    jacobians(X, np.array(times)[ok_rows], np.array(irefs)[ok_rows], P, T, tix, owner, J)
+    good = np.all(np.isfinite(J), axis=(1, 2))
+    lam = np.full((X.shape[0], nx), np.nan + 0j)
+    lam[good] = np.linalg.eigvals(J[good])
+    z = lam * dt
+    mag = np.abs(z)
+    decaying = z.real < -1e-9 * mag
+    inside = np.where(decaying, np.abs(rk4_amplification(z)) <= 1 + 1e-12, mag <= IMAG_LIMIT)
+    inside |= ~np.isfinite(z) | (mag == 0)
+    worst = np.zeros(nv)
+    stable = np.ones(nv, dtype=bool)
+    np.maximum.at(worst, owner, np.nan_to_num(np.max(np.where(np.isfinite(mag), mag, 0.0), axis=1)))
+    np.logical_and.at(stable, owner, np.all(inside, axis=1))
+    return worst, stable
+
+
+def _chunk(case):
+    """Run one chunk of variants (module level: picklable for process pools and dask)."""
+    model, P, dt, n_steps, sub = case["model"], case["P"], case["dt"], case["n_steps"], case["sub"]
+    T = case.get("T")
+    if T is None:
+        deltas, d_table = case["deltas"], case["d_table"]
+        if d_table is None or not np.any(deltas):
+            T, tix = model.T[None], np.zeros(len(P), dtype=np.int64)
+        else:
+            T = model.T[None] + deltas[:, None, None] * d_table[None]
+            tix = np.arange(len(P))
+    else:
+        tix = np.arange(len(P))
+    models = [model] * len(P) if case.get("T") is None else [replace(model, T=t) for t in T]
+    X0 = np.array([initial_state(m, p) for m, p in zip(models, P)])
+    _, figs, snaps, wall = integrate_variants(P, T, tix, X0, dt, n_steps, sub)
+    lam_dt, stable = _step_check(model, P, T, tix, X0, snaps, dt)
+    return {"figs": figs, "lam_dt": lam_dt, "stable": stable, "wall": wall}
+
+
+def _reason(status, step, dt, stable, lam_dt):
+    """Why a variant failed ("" if it did not); an unstable step is named first, since it
+    also explains a non-finite state or a run off the stroke."""
+    stop = ("" if status == lo.OK else
+            f"non-finite state at t = {step * dt:.6g} s" if status == lo.NONFINITE else
+            f"stroke end reached at t = {step * dt:.6g} s")
+    if not stable:
+        return (f"step {dt:.4g} s outside the RK4 stability region at this variant's parameters "
+                f"(|lambda dt| up to {lam_dt:.3g})" + (f"; {stop}" if stop else ""))
+    return stop
+
+
+def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
+               grid: bool | None = None, duration: float | None = None, full: bool = False,
+               controller=None, reference=None, dt: float | None = None, executor=None,
+               chunk_size: int = CHUNK_SIZE, progress: bool = True) -> MonteCarloResult:
+    """Closed-loop time runs of parameter variants of ``scene``, batched.
+
+    Parameters
+    ----------
+    scene : Scene
+    variants : dict, optional
+        name -> (lo, hi) range or array of values (``load_inertia`` in kg*m^2 replacing the
+        load's, ``stiffness`` a factor on the series stiffness). Default: the scene's
+        ``[robustness]`` ranges, else load inertia 0..4 kg*m^2 and stiffness 0.7..1.3.
+    samples, seed, grid : optional
+        Sampling of ranges as :func:`~servo_toolkit.loop.robustness.sample_variants`
+        (default: the scene's ``[robustness]``, else 1000 Monte Carlo draws, seed 0).
+    duration : float, optional
+        Seconds (default: ``simulate``'s, 1 s).
+    full : bool
+        Run the full model (default: the reduced model ``simulate`` runs for the command).
+    controller : CascadeController, optional
+        Default: the scene's design (:func:`servo_toolkit.sim.controller_for`), the same
+        controller on every variant.
+    reference : Reference, optional
+        Default: ``simulate``'s command (8 Hz, 2 deg sine; 1 mm for an output travel).
+    dt : float, optional
+        Fixed step (s); default the one ``simulate`` chooses for the nominal model. Each
+        variant is checked against the RK4 stability region at its own parameters.
+    executor : concurrent.futures.Executor, optional
+        Runs chunks of ``chunk_size`` variants.
+    chunk_size : int
+    progress : bool
+
+    Returns
+    -------
+    MonteCarloResult
+
+    Raises
+    ------
+    SceneError
+        Unknown variation, bad range, a variant without load-side inertia, a duration or
+        step that is not positive.
+    """
+    spec = scene.robustness
+    if variants is None:
+        variants = spec.ranges if spec is not None else dict(DEFAULT_VARIATIONS)
+    samples = samples if samples is not None else (spec.samples if spec is not None else 1000)
+    seed = seed if seed is not None else (spec.seed if spec is not None else 0)
+    grid = grid if grid is not None else (spec is not None and spec.method == "grid")
+    if samples < 1:
+        raise SceneError("samples", f"must be at least 1 (got {samples})")
+    values = sample_variants(variants, samples, grid, seed)
+    ref, run_duration, _, _, _ = run_spec(scene, None)
+    reference = reference or ref
+    duration = run_duration if duration is None else float(duration)
+    if not duration > 0:
+        raise SceneError("duration", f"must be positive (got {duration:g} s)")
+    source = "given"
+    if controller is None:
+        controller, source = controller_for(scene)
+    options, notes = sine_run_options(scene, controller, reference, full)
+    notes.insert(0, f"controller from {source}, the same on every variant")
+    builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
+    if builder.fast and not builder.self_check(values):
+        builder = replace(builder, fast=False)
+    if not builder.fast:
+        notes.append("variants built one by one with build_model (their parameters move beyond the drivetrain slots)")
+    model = builder.model
+    P0 = fill(model, reference)
+    x0 = initial_state(model, P0)
+    probe = _stability_probe(model, P0, x0)
+    if dt is None:
+        cap = model.sample_time if model.sample_time > 0 else duration / 200
+        dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration)
+    elif not dt > 0:
+        raise SceneError("dt", f"must be positive (got {dt:g} s)")
+    else:
+        dt = _snap(dt, model, duration)
+    n_steps = max(1, int(round(duration / dt)))
+    if n_steps > MAX_STEPS:
+        raise SceneError("duration", f"{n_steps} RK4 steps of {dt:.3g} s exceed {MAX_STEPS}")
+    sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
+    cases = _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size)
+    parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="montecarlo")
+    figs = np.concatenate([p["figs"] for p in parts])
+    lam_dt = np.concatenate([p["lam_dt"] for p in parts])
+    stable = np.concatenate([p["stable"] for p in parts])
+    status = figs[:, F_STATUS].astype(int)
+    failed = (status != lo.OK) | ~stable
+    linear = bool(scene.drivetrain.output_is_linear)
+    reasons = tuple(_reason(s, st, dt, ok, ld) for s, st, ok, ld in
+                    zip(status, figs[:, F_STEP], stable, lam_dt))
+    return MonteCarloResult(
+        scene_name=scene.name, values=values, tracking_error=figs[:, F_ERR], peak_current=figs[:, F_CUR],
+        saturated=figs[:, F_SAT] > 0, failed=failed, reasons=reasons, abs_lambda_dt=lam_dt,
+        wall_s=float(sum(p["wall"] for p in parts)), dt_s=float(dt), steps_per_variant=n_steps,
+        duration_s=duration, linear_output=linear,
+        settings={"samples": int(samples), "seed": int(seed), "method": "grid" if grid else "monte_carlo",
+                  "model": "full" if full else "reduced", "reference": reference.to_dict(),
+                  "controller": model.controller},
+        notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference))
+
+
+def _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size):
+    """Chunks of variant rows (picklable dicts)."""
+    n = next(iter(values.values())).size
+    common = {"model": builder.model, "dt": dt, "n_steps": n_steps, "sub": sub}
+    out = []
+    for idx in chunks(np.arange(n), max(1, int(chunk_size))):
+        part = {k: v[idx] for k, v in values.items()}
+        if builder.fast:
+            P = np.empty((idx.size, P0.size))
+            deltas = np.zeros(idx.size)
+            for r, i in enumerate(idx):
+                P[r], dT = builder.row(P0, part["load_inertia"][r] if "load_inertia" in part else None,
+                                       part["stiffness"][r] if "stiffness" in part else None)
+                if "load_inertia" in part:
+                    deltas[r] = part["load_inertia"][r] - builder.scene.load.inertia
+            out.append(dict(common, P=P, deltas=deltas, d_table=builder.d_table))
+        else:
+            P, T, _ = builder.rows(P0, part, lambda m: fill(m, reference))
+            out.append(dict(common, P=P, T=T))
+    return out

@@ -1,0 +1,83 @@
+"""Requirement rows of the nonlinear Monte Carlo for ``servo-toolkit check``.
+
+A scene's ``[robustness]`` may bound the worst tracking error (``max_tracking_error``, an
+angle, or a length for an output travel) and the worst peak motor current
+(``max_peak_current``) over the nonlinear closed-loop time runs of its variants
+(:func:`~.montecarlo.montecarlo`, the checked design's controller). They become the rows
+``robust_tracking_error`` and ``robust_peak_current``. A variant whose run failed (a
+non-finite state, the stroke end, or a step outside its stability region) makes both rows
+fail: its figures cannot be vouched for.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import SceneError
+from ..loop.requirements import Requirement, check
+
+
+def montecarlo_requirements(scene, spec) -> list[Requirement]:
+    """The Monte Carlo requirements ``spec`` (a :class:`~servo_toolkit.scene.Robustness`)
+    sets, in display units (deg or mm, A); empty when it sets none.
+
+    Raises
+    ------
+    SceneError
+        ``robustness.max_tracking_error`` given as an angle for an output travel, or as a
+        length for an output angle.
+    """
+    if spec is None:
+        return []
+    out = []
+    if spec.max_tracking_error is not None:
+        linear = scene.drivetrain.output_is_linear
+        dim = spec.tracking_error_dimension
+        if dim is not None and dim != ("length" if linear else "angle"):
+            raise SceneError("robustness.max_tracking_error",
+                             f"the output is {'a travel: give a length' if linear else 'an angle: give an angle'}, "
+                             f"got {'an angle' if dim == 'angle' else 'a length'}")
+        value = spec.max_tracking_error * 1e3 if linear else math.degrees(spec.max_tracking_error)
+        out.append(Requirement("tracking_error", "<=", value, "mm" if linear else "deg", "robustness"))
+    if spec.max_peak_current is not None:
+        out.append(Requirement("peak_current", "<=", spec.max_peak_current, "A", "robustness"))
+    return out
+
+
+def montecarlo_checks(scene, spec, controller, *, progress: bool = False):
+    """Run the variants of ``spec`` with ``controller`` and check its Monte Carlo
+    requirements.
+
+    Returns
+    -------
+    checks : list of Check
+        Empty (and nothing run) when ``spec`` sets no Monte Carlo requirement.
+    result : MonteCarloResult or None
+    """
+    from .montecarlo import montecarlo
+    requirements = montecarlo_requirements(scene, spec)
+    if not requirements:
+        return [], None
+    result = montecarlo(scene, spec.ranges, samples=spec.samples, seed=spec.seed, grid=spec.method == "grid",
+                        controller=controller, progress=progress)
+    ok = ~result.failed
+    worst = {"tracking_error": result.error_display, "peak_current": result.peak_current}
+    achieved = {k: (float(np.max(v[ok])) if ok.all() else math.inf) for k, v in worst.items()}
+    return check(requirements, achieved), result
+
+
+def check_cases(checks, result) -> list[tuple]:
+    """(test name, passed, message) per Monte Carlo check, for ``check``'s table and JUnit."""
+    cases = []
+    for c in checks:
+        i = result.worst_index(c.name)
+        at = "" if i is None else "; at " + ", ".join(f"{k}={v[i]:.4g}" for k, v in result.values.items())
+        failed = int(np.sum(result.failed))
+        why = f"{failed} of {result.count} variants failed ({result.reasons[int(np.argmax(result.failed))]})" \
+            if failed else f"achieved {c.achieved:.4g} {c.unit}"
+        cases.append((f"robust_{c.name}", c.passed,
+                      f"worst case over {result.count} nonlinear time runs: required {c.sense} {c.required:g} "
+                      f"{c.unit}, {why}" + ("" if c.passed else f", short by {c.shortfall:.3g} {c.unit}") + at))
+    return cases

@@ -1,0 +1,208 @@
+"""The result of a nonlinear Monte Carlo run (:func:`servo_toolkit.studies.montecarlo.montecarlo`)."""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Figures of every variant's closed-loop time run.
+
+    Attributes
+    ----------
+    scene_name : str
+    values : dict of numpy.ndarray
+        Varied parameters per variant (``load_inertia`` kg*m^2, ``stiffness`` factor).
+    tracking_error : numpy.ndarray
+        Largest |output - command| over the run (rad; m for an output travel).
+    peak_current : numpy.ndarray
+        Largest |motor current| (A).
+    saturated : numpy.ndarray of bool
+        The current reference or the armature voltage reached its limit.
+    failed : numpy.ndarray of bool
+        Non-finite state, stroke end, or a step outside the RK4 stability region at the
+        variant's own parameters (``reasons`` says which); its figures are not trusted.
+    reasons : tuple of str
+        Why each variant failed ("" when it did not).
+    abs_lambda_dt : numpy.ndarray
+        Largest |lambda dt| found by the variant's step check.
+    wall_s : float
+        Integration time (compilation, model building and step checks excluded), summed
+        over chunks.
+    dt_s : float
+    steps_per_variant : int
+    duration_s : float
+    linear_output : bool
+        The output is a travel (figures in mm) rather than an angle (deg).
+    settings : dict
+    notes : tuple of str
+    """
+
+    scene_name: str
+    values: dict
+    tracking_error: np.ndarray
+    peak_current: np.ndarray
+    saturated: np.ndarray
+    failed: np.ndarray
+    reasons: tuple
+    abs_lambda_dt: np.ndarray
+    wall_s: float
+    dt_s: float
+    steps_per_variant: int
+    duration_s: float
+    linear_output: bool = False
+    settings: dict = field(default_factory=dict)
+    notes: tuple = ()
+    runner: tuple = field(default=(), repr=False, compare=False)
+
+    @property
+    def count(self) -> int:
+        """Number of variants."""
+        return int(self.tracking_error.size)
+
+    @property
+    def error_unit(self) -> str:
+        """``"mm"`` for an output travel, else ``"deg"``."""
+        return "mm" if self.linear_output else "deg"
+
+    @property
+    def error_display(self) -> np.ndarray:
+        """Tracking errors in :attr:`error_unit`."""
+        return self.tracking_error * 1e3 if self.linear_output else np.degrees(self.tracking_error)
+
+    def worst_index(self, figure: str = "tracking_error") -> int | None:
+        """Index of the variant with the largest ``figure`` (``"tracking_error"`` or
+        ``"peak_current"``) among those that did not fail; None if every variant failed."""
+        vals = getattr(self, figure)
+        if np.all(self.failed):
+            return None
+        return int(np.argmax(np.where(self.failed, -np.inf, vals)))
+
+    def worst_indices(self, n: int = 3, figure: str = "tracking_error") -> np.ndarray:
+        """Indices of the ``n`` worst variants (largest ``figure``, failed ones left out)."""
+        vals = np.where(self.failed, -np.inf, getattr(self, figure))
+        order = np.argsort(vals)[::-1]
+        return order[:min(n, int(np.sum(~self.failed)))]
+
+    def variant(self, i: int) -> dict:
+        """Parameters and figures of variant ``i`` (the JSON entry)."""
+        key = f"max_abs_tracking_error_{self.error_unit}"
+        return {**{k: float(v[i]) for k, v in self.values.items()}, key: float(self.error_display[i]),
+                "peak_current_A": float(self.peak_current[i]), "saturated": bool(self.saturated[i]),
+                "failed": bool(self.failed[i]), **({"reason": self.reasons[i]} if self.failed[i] else {})}
+
+    def worst(self) -> dict:
+        """The worst variant per figure: its index and entry."""
+        out = {}
+        for figure in ("tracking_error", "peak_current"):
+            i = self.worst_index(figure)
+            out[figure] = None if i is None else {"index": i, **self.variant(i)}
+        return out
+
+    def trace(self, i: int):
+        """Variant ``i`` run again by :func:`servo_toolkit.sim.run` with every step recorded
+        (a :class:`~servo_toolkit.sim.SimulationResult`: traces to plot, and the single
+        run's loop as a check of the batched figures).
+
+        Raises
+        ------
+        SimulationError
+            For a variant that failed.
+        """
+        from dataclasses import replace
+
+        from ..sim import run
+        builder, P0, reference = self.runner
+        load = self.values["load_inertia"][i] if "load_inertia" in self.values else None
+        stiff = self.values["stiffness"][i] if "stiffness" in self.values else None
+        if builder.fast:
+            P, dT = builder.row(P0, load, stiff)
+            model = replace(builder.model, P=P, T=builder.model.T if dT is None else builder.model.T + dT)
+        else:
+            model = builder.exact(load, stiff)
+        return run(model, reference, self.duration_s, "rk4", self.dt_s, output_dt=self.dt_s)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: settings, every variant and the worst ones."""
+        return {"scene": self.scene_name, "samples": self.count, "wall_s": float(self.wall_s),
+                "steps_per_variant": int(self.steps_per_variant), "dt_s": self.dt_s,
+                "duration_s": self.duration_s, "failed_variants": int(np.sum(self.failed)),
+                "saturated_variants": int(np.sum(self.saturated)), **self.settings,
+                "ranges": {k: [float(v.min()), float(v.max())] for k, v in self.values.items()},
+                "variants": [self.variant(i) for i in range(self.count)], "worst": self.worst(),
+                "notes": list(self.notes)}
+
+    def summary(self) -> str:
+        """One line."""
+        i = self.worst_index()
+        worst = "no variant ran" if i is None else (
+            f"worst tracking error {self.error_display[i]:.4g} {self.error_unit}, peak current "
+            f"{np.max(np.where(self.failed, -np.inf, self.peak_current)):.4g} A")
+        return (f"{self.scene_name}: {self.count} variants x {self.steps_per_variant} steps, {worst}, "
+                f"{int(np.sum(self.saturated))} saturated, {int(np.sum(self.failed))} failed, "
+                f"integration {self.wall_s:.3g} s")
+
+    def __repr__(self) -> str:
+        return f"MonteCarloResult({self.summary()})"
+
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>" for k, v in (
+            ("variants", self.count), ("steps per variant", self.steps_per_variant),
+            ("ranges", ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())),
+            ("worst tracking error", self._worst_text("tracking_error")),
+            ("worst peak current", self._worst_text("peak_current")),
+            ("saturated / failed", f"{int(np.sum(self.saturated))} / {int(np.sum(self.failed))}"),
+            ("integration", f"{self.wall_s:.3g} s")))
+        return f"<b>Monte Carlo of {html.escape(self.scene_name)}</b><table>{rows}</table>"
+
+    def _worst_text(self, figure) -> str:
+        i = self.worst_index(figure)
+        if i is None:
+            return "every variant failed"
+        at = ", ".join(f"{k}={v[i]:.4g}" for k, v in self.values.items())
+        value = (f"{self.error_display[i]:.4g} {self.error_unit}" if figure == "tracking_error"
+                 else f"{self.peak_current[i]:.4g} A")
+        return f"{value} at {at}"
+
+    def table(self) -> str:
+        """Text summary."""
+        rng = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())
+        lines = [f"  {self.count} variants ({rng}), {self.steps_per_variant} steps of {self.dt_s:.4g} s each, "
+                 f"integration {self.wall_s:.3g} s",
+                 f"  worst tracking error {self._worst_text('tracking_error')}",
+                 f"  worst peak current   {self._worst_text('peak_current')}",
+                 f"  {int(np.sum(self.saturated))} variants reached a current or voltage limit, "
+                 f"{int(np.sum(self.failed))} failed"]
+        for i in np.flatnonzero(self.failed)[:5]:
+            lines.append(f"    variant {i}: {self.reasons[i]}")
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+    def plot(self, axes=None):
+        """Tracking error and peak current against load inertia (coloured by stiffness
+        factor); failed variants marked with x."""
+        import matplotlib.pyplot as plt
+        if axes is None:
+            _, axes = plt.subplots(1, 2, figsize=(11, 4))
+        x = self.values.get("load_inertia", np.arange(self.count))
+        c = self.values.get("stiffness")
+        ok = ~self.failed
+        for ax, y, label in ((axes[0], self.error_display, f"max |tracking error| ({self.error_unit})"),
+                             (axes[1], self.peak_current, "peak |current| (A)")):
+            sc = ax.scatter(x[ok], y[ok], c=None if c is None else c[ok], s=6, cmap="viridis")
+            if np.any(self.failed):
+                ax.scatter(x[self.failed], np.zeros(int(np.sum(self.failed))), marker="x", color="r", label="failed")
+                ax.legend()
+            ax.set_xlabel("load inertia (kg*m^2)" if "load_inertia" in self.values else "variant")
+            ax.set_ylabel(label)
+        if c is not None:
+            plt.colorbar(sc, ax=axes[1], label="stiffness factor")
+        axes[0].set_title(f"{self.scene_name}: {self.count} variants")
+        return axes
+
+
