@@ -6,7 +6,7 @@ import sys
 import time
 
 from ..scene import load_scene
-from .common import add_scene
+from .common import add_scene, prepare_kernels
 
 
 def register(sub) -> None:
@@ -26,16 +26,23 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    """Run the command; exit 0 once the report is written (2 on a bad scene)."""
+    """Run the command; exit 0 once the complete report is written, 1 when a section the
+    scene needs is unavailable (the report is still written and says why), 2 on a bad scene."""
     from ..report import build_report, write_report
     start = time.perf_counter()
     scene = load_scene(args.scene)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
+    prepare_kernels(scene, paper=True)  # the accuracy section runs both fixed-step schemes
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit)
     paths = write_report(report, args.output, progress=True)
     report.close()
+    missing = [s for s in report.sections if s.status == "unavailable"]
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):
             print(f"servo-toolkit: {s.title}: {s.status}: {s.reason}", file=sys.stderr)
     print(f"wrote {paths['html']} and {paths['pdf']} ({time.perf_counter() - start:.1f} s)")
+    if missing:
+        print(f"servo-toolkit: the report is incomplete: {len(missing)} section(s) unavailable: "
+              + ", ".join(s.title for s in missing), file=sys.stderr)
+        return 1
     return 0

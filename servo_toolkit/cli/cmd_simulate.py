@@ -6,7 +6,7 @@ import sys
 
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -44,6 +44,7 @@ def run(args) -> int:
     check_trace_path(args.output)  # a bad -o name fails before the run, exit 2
     result = _mechanism_dispatch(scene, args)
     if result is None:
+        prepare_kernels(scene, paper=args.method == "paper")
         result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full)
         text = f"Simulation of {scene.name}\n" + result.table()
     else:

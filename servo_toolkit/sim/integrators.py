@@ -36,7 +36,6 @@ def _finite(x):
     return math.isfinite(acc)
 
 
-@jit
 def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux):
     """Advance ``x`` in place by ``n_steps`` fixed steps.
 
@@ -52,10 +51,17 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
         Peak |motor torque| over every step (N*m).
     iref : float
         The held current reference at the end (A).
+
+    Notes
+    -----
+    The choice between the loops is made here, in Python, so that a run compiles only the
+    loop it uses.
     """
     if paper:
-        return _paper(x, P, T, t0, dt, n_steps, sub, iref, True, rec_every, out_t, out_x, out_aux)
-    return _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux)
+        return _paper(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), True, int(rec_every),
+                      out_t, out_x, out_aux)
+    return _rk4(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), int(rec_every),
+                out_t, out_x, out_aux)
 
 
 @inline
@@ -98,32 +104,33 @@ def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, ir
     run (:func:`_rk4`) and the batched variants (:mod:`.batch`): one step, one physics.
     """
     nx = x.size
-    half = 0.5 * dt
     sixth = dt / 6.0
-    if cont:
-        for j in range(NX_PHYS, nx):
-            xs[j] = x[j] + half * k1[j]
-    b0, b1, b2, b3, b4, b5, _, _, _, _ = rhs_phys(
-        t + half, p + half * a0, pd + half * a1, q + half * a2, qd + half * a3,
-        cur + half * a4, xi + half * a5, s, P, T, iref, xs, k2)
-    if cont:
-        for j in range(NX_PHYS, nx):
-            xs[j] = x[j] + half * k2[j]
-    c0, c1, c2, c3, c4, c5, _, _, _, _ = rhs_phys(
-        t + half, p + half * b0, pd + half * b1, q + half * b2, qd + half * b3,
-        cur + half * b4, xi + half * b5, s, P, T, iref, xs, k3)
-    if cont:
-        for j in range(NX_PHYS, nx):
-            xs[j] = x[j] + dt * k3[j]
-    d0, d1, d2, d3, d4, d5, _, _, _, _ = rhs_phys(
-        t + dt, p + dt * c0, pd + dt * c1, q + dt * c2, qd + dt * c3,
-        cur + dt * c4, xi + dt * c5, s, P, T, iref, xs, k4)
+    # stages 2-4 in one loop over a single inlined copy of the right-hand side (four copies
+    # compile four times as long for the same code): stage k evaluates at t + c_k dt from
+    # the previous stage's slopes, and its slopes enter the update with weight w_k
+    s0, s1, s2, s3, s4, s5 = a0, a1, a2, a3, a4, a5
+    u0, u1, u2, u3, u4, u5 = a0, a1, a2, a3, a4, a5
+    for stage in range(3):
+        c = dt if stage == 2 else 0.5 * dt
+        w = 1.0 if stage == 2 else 2.0
+        kin = k1 if stage == 0 else (k2 if stage == 1 else k3)
+        kout = k2 if stage == 0 else (k3 if stage == 1 else k4)
+        if cont:
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + c * kin[j]
+        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys(
+            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3,
+            cur + c * s4, xi + c * s5, s, P, T, iref, xs, kout)
+        u0 += w * s0
+        u1 += w * s1
+        u2 += w * s2
+        u3 += w * s3
+        u4 += w * s4
+        u5 += w * s5
     if cont:
         for j in range(NX_PHYS, nx):
             x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-    return (p + sixth * (a0 + 2.0 * b0 + 2.0 * c0 + d0), pd + sixth * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
-            q + sixth * (a2 + 2.0 * b2 + 2.0 * c2 + d2), qd + sixth * (a3 + 2.0 * b3 + 2.0 * c3 + d3),
-            cur + sixth * (a4 + 2.0 * b4 + 2.0 * c4 + d4), xi + sixth * (a5 + 2.0 * b5 + 2.0 * c5 + d5))
+    return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
 
 
 @jit
@@ -233,27 +240,17 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
             return STROKE_END, step, n_rec, max_tau, iref
         if step == n_steps:
             break
-        if paper:
-            k1[0] = 0.0
-            k1[2] = 0.0
-            k1[6] = 0.0
-        for j in range(nx):
-            xs[j] = x[j] + half * k1[j]
-        rhs(t + half, xs, P, T, iref, k2, aux2)
-        if paper:
-            k2[0] = 0.0
-            k2[2] = 0.0
-            k2[6] = 0.0
-        for j in range(nx):
-            xs[j] = x[j] + half * k2[j]
-        rhs(t + half, xs, P, T, iref, k3, aux2)
-        if paper:
-            k3[0] = 0.0
-            k3[2] = 0.0
-            k3[6] = 0.0
-        for j in range(nx):
-            xs[j] = x[j] + dt * k3[j]
-        rhs(t + dt, xs, P, T, iref, k4, aux2)
+        for stage in range(3):  # one inlined right-hand side for stages 2-4 (see rk4_stages)
+            c = dt if stage == 2 else half
+            kin = k1 if stage == 0 else (k2 if stage == 1 else k3)
+            kout = k2 if stage == 0 else (k3 if stage == 1 else k4)
+            if paper:  # frozen configuration: no position slope enters the later stages
+                kin[0] = 0.0
+                kin[2] = 0.0
+                kin[6] = 0.0
+            for j in range(nx):
+                xs[j] = x[j] + c * kin[j]
+            rhs(t + c, xs, P, T, iref, kout, aux2)
         p_old = x[0]
         for j in range(nx):
             x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
