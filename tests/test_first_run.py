@@ -1,0 +1,95 @@
+"""A fresh install: light imports, a complete first report on an empty compiled-code cache,
+and a cache that follows the kernel sources and works for a read-only installation."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from servo_toolkit import cli, jit_cache
+
+from .conftest import ROOT
+
+HEAVY = ("control", "scipy", "numba", "matplotlib", "pint")
+
+
+def _run(code, env=None, timeout=120):
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout,
+                          cwd=ROOT, env={**os.environ, **(env or {})})
+
+
+def test_import_and_help_load_no_numerical_library():
+    code = ("import sys, contextlib, io\n"
+            "import servo_toolkit\n"
+            "from servo_toolkit.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    try:\n        main(['--help'])\n    except SystemExit:\n        pass\n"
+            f"print([m for m in {HEAVY!r} if m in sys.modules])")
+    proc = _run(code)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
+
+
+def test_lazy_names_resolve():
+    import servo_toolkit as st
+    assert callable(st.design) and callable(st.load_scene) and callable(st.simulate) and callable(st.export)
+    with pytest.raises(AttributeError):
+        st.no_such_name  # noqa: B018
+
+
+def test_command_table_matches_each_command_module():
+    """The help shown for every command without importing it is the module's own."""
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    helps = {a.dest: a.help for a in sub._choices_actions}
+    assert helps == cli.COMMANDS
+
+
+def test_cache_path_follows_the_kernel_sources(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    path = jit_cache.cache_dir()
+    assert path.is_relative_to(tmp_path / "servo_toolkit" / "numba")
+    assert path.name.endswith(jit_cache.sources_hash())
+    # a copy of the package with one kernel file edited hashes differently
+    code = ("import pathlib, shutil, sys, tempfile\n"
+            "src = pathlib.Path(sys.argv[1]); dst = pathlib.Path(tempfile.mkdtemp()) / 'servo_toolkit'\n"
+            "shutil.copytree(src, dst, ignore=shutil.ignore_patterns('__pycache__'))\n"
+            "k = dst / 'sim' / 'kernel.py'; k.write_text(k.read_text() + '\\n# edited\\n')\n"
+            "sys.path.insert(0, str(dst.parent)); import servo_toolkit.jit_cache as j; print(j.sources_hash())")
+    proc = subprocess.run([sys.executable, "-c", code, str(ROOT / "servo_toolkit")], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() != jit_cache.sources_hash()
+
+
+def test_kernels_cache_outside_a_read_only_package(tmp_path):
+    """Compiled code goes to the per-user folder, never beside the package's sources."""
+    env = {"XDG_CACHE_HOME": str(tmp_path), "NUMBA_CACHE_DIR": ""}
+    code = ("import os; os.environ.pop('NUMBA_CACHE_DIR', None)\n"
+            "from servo_toolkit.mechanisms import cam_kernels\n"
+            "cam_kernels.law(0.5, 1.0)\n"
+            "from servo_toolkit.jit_cache import cache_dir; print(cache_dir())")
+    proc = _run(code, env)
+    assert proc.returncode == 0, proc.stderr
+    cached = list((tmp_path / "servo_toolkit").rglob("cam_kernels.law-*.nbi"))
+    assert cached, "no index file in the per-user cache folder"
+
+
+@pytest.mark.slow
+def test_first_report_on_an_empty_cache_is_complete(tmp_path):
+    """The README's first command on a fresh install: a fresh compiled-code cache, every
+    section present (compilation is never charged to a section's time limit), exit 0."""
+    out = tmp_path / "report"
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba-cache"), "MPLBACKEND": "Agg"}
+    code = ("import sys\nfrom servo_toolkit.cli import main\n"
+            f"sys.exit(main(['report', '-o', {str(out)!r}]))")
+    proc = _run(code, env, timeout=900)
+    assert "compiling the simulation kernels" in proc.stderr
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    html = (out / "index.html").read_text()
+    assert "stopped after" not in html
+    assert 'class="unavailable-box"' not in html and 'class="badge unavailable"' not in html
