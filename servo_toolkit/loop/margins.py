@@ -51,6 +51,21 @@ class Margins:
         Every closed-loop pole in the open left half plane.
     max_closed_loop_pole_real : float
         Largest real part of the closed-loop poles (1/s).
+    open_loop_rhp_poles : int
+        Open-loop poles in the open right half plane (P of the Nyquist criterion).
+    integrators : int
+        Open-loop poles at the origin.
+    nyquist_rhp_closed_loop_poles : int
+        Closed-loop right-half-plane poles by the Nyquist criterion, Z = P + N (N clockwise
+        encirclements of -1 by L along the imaginary axis, indented right of the axis poles);
+        cross-checked against the closed-loop poles.
+    lower_gain_margin_db, upper_gain_margin_db : float
+        The smallest factor (dB) by which the gain may fall (a negative figure; ``-inf`` when
+        no reduction destabilizes the loop) and rise (``inf`` when none) before the closed loop
+        changes stability, over every crossing including w = 0 and w -> inf.
+    notes : tuple of str
+        Why a figure is left out (disk margin and Ms of an unstable closed loop are NaN, JSON
+        null), and any disagreement of the Nyquist count with the poles.
     """
 
     gain_margins_db: tuple
@@ -70,10 +85,19 @@ class Margins:
     phase_at_freq_deg: float
     closed_loop_stable: bool
     max_closed_loop_pole_real: float
+    open_loop_rhp_poles: int = 0
+    integrators: int = 0
+    nyquist_rhp_closed_loop_poles: int = 0
+    lower_gain_margin_db: float = -math.inf
+    upper_gain_margin_db: float = math.inf
+    notes: tuple = ()
 
     def to_dict(self) -> dict:
         """JSON-ready, units in the key names."""
         d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        for k in ("disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "sensitivity_peak_db"):
+            if isinstance(d[k], float) and math.isnan(d[k]):
+                d[k] = None  # not defined for an unstable closed loop; notes say so
         d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == 8.0 else None
         if d["phase_at_8hz_deg"] is None:
             d["phase_at_freq_deg"] = self.phase_at_freq_deg
@@ -130,8 +154,80 @@ def delay_margins(phase_margins_deg, gain_crossover, closed_loop_stable: bool) -
         return np.where(wgc > 0, turn / np.where(wgc > 0, wgc, 1.0), np.where(turn > 0, np.inf, 0.0))
 
 
+#: relative size below which an open-loop pole counts as at the origin (an integrator)
+ORIGIN_TOL = 1e-9
+
+
+def _scale(poles, zeros) -> float:
+    mags = np.abs(np.concatenate([np.atleast_1d(poles), np.atleast_1d(zeros)]))
+    mags = mags[np.isfinite(mags) & (mags > 0)]
+    return float(mags.max()) if mags.size else 1.0
+
+
+def _evaluate(loop, s):
+    """L at complex frequencies ``s`` (SISO)."""
+    with np.errstate(all="ignore"):
+        return np.asarray(loop(np.asarray(s, complex)), complex).reshape(-1)
+
+
+def nyquist_count(loop, rhp_poles: int) -> int:
+    """Closed-loop right-half-plane poles of ``1 + L`` by the Nyquist criterion.
+
+    The Nyquist contour runs up the line Re s = sigma, a hair right of the imaginary axis
+    (so that integrators and undamped open-loop poles lie outside it, the usual indentation),
+    and closes through the right half plane, where ``1 + L`` tends to ``1 + L(inf)``. The
+    winding of ``1 + L`` along it is accumulated on a grid refined until no step turns the
+    phase by more than 45 deg; Z = P - winding (the contour is clockwise).
+    """
+    poles, zeros = ct.poles(loop), ct.zeros(loop)
+    scale = _scale(poles, zeros)
+    sigma = 1e-7 * scale
+    w_pos = np.unique(np.concatenate([np.geomspace(1e-7 * scale, 1e4 * scale, 4000),
+                                      np.abs(np.imag(np.concatenate([poles, zeros])))]))
+    w = np.concatenate([-w_pos[::-1], [0.0], w_pos])
+    for _ in range(12):
+        f = 1.0 + _evaluate(loop, sigma + 1j * w)
+        step = np.abs(np.angle(f[1:] / f[:-1]))
+        bad = np.nonzero(~(step < np.pi / 4))[0]
+        if not bad.size:
+            break
+        w = np.sort(np.concatenate([w, 0.5 * (w[bad] + w[bad + 1])]))
+    f = 1.0 + _evaluate(loop, sigma + 1j * w)
+    winding = np.sum(np.angle(f[1:] / f[:-1])) / (2 * np.pi)
+    return int(rhp_poles - round(winding))
+
+
+def gain_crossings(loop, integrators: int):
+    """Every gain margin (factor) and where (rad/s): python-control's phase crossings
+    (including w = 0 when L(0) is finite, real and negative, as for an open-loop-unstable
+    plant), and w -> inf when L(inf) is real and negative. A crossing at w = 0 of a loop
+    with integrators is L's asymptote, not a margin, and is left out."""
+    gm, _, _, wpc, _, _ = ct.stability_margins(loop, returnall=True)
+    gm, wpc = np.atleast_1d(np.asarray(gm, float)), np.atleast_1d(np.asarray(wpc, float))
+    keep = np.isfinite(gm) & (gm > 0) & ((wpc > 0) | (integrators == 0))
+    gm, wpc = list(gm[keep]), list(wpc[keep])
+    if integrators == 0 and not any(x == 0 for x in wpc):
+        l0 = _evaluate(loop, [0.0])[0]
+        if np.isfinite(l0) and l0.real < 0 and abs(l0.imag) <= 1e-9 * abs(l0):
+            gm.append(-1.0 / l0.real)
+            wpc.append(0.0)
+    d = np.asarray(ct.ss(loop).D, float).reshape(-1)
+    if d.size == 1 and d[0] < 0:
+        gm.append(-1.0 / d[0])
+        wpc.append(math.inf)
+    order = np.argsort(wpc)
+    return np.asarray(gm, float)[order], np.asarray(wpc, float)[order]
+
+
 def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margins:
-    """Margins of the SISO open loop ``loop`` and its SISO closed loop ``closed_loop``.
+    """Margins of the SISO open loop ``loop`` and its SISO closed loop ``closed_loop``,
+    on the Nyquist criterion (MATLAB ``allmargin`` semantics).
+
+    Every gain margin is reported, crossings at w = 0 and w -> inf included, lower (a
+    negative figure in dB: the gain may fall that much) and upper; stability is that of
+    the closed-loop poles, cross-checked with the Nyquist count of the open loop's
+    encirclements of -1 (a disagreement is noted). Disk margin and Ms describe a stable
+    closed loop only; for an unstable one they are NaN and the notes say why.
 
     Parameters
     ----------
@@ -147,26 +243,49 @@ def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margin
     if not (math.isfinite(phase_hz) and phase_hz > 0):
         raise ValueError(f"phase_hz must be a positive frequency (got {phase_hz!r})")
     omega = frequency_grid(extra=[phase_hz]) if omega is None else np.asarray(omega, float)
-    gm, pm, _, wpc, wgc, _ = ct.stability_margins(loop, returnall=True)
-    gm, pm, wpc, wgc = (np.atleast_1d(np.asarray(x, float)) for x in (gm, pm, wpc, wgc))
-    keep = np.isfinite(gm) & (gm > 0) & (wpc > 1e-3)  # crossings at w ~ 0 are integrators, not margins
-    gm_db = 20 * np.log10(gm[keep])
-    wpc = wpc[keep]
+    ol_poles = ct.poles(loop)
+    scale = _scale(ol_poles, ct.zeros(loop))
+    at_origin = np.abs(ol_poles) <= ORIGIN_TOL * scale
+    integrators = int(np.sum(at_origin))
+    rhp = int(np.sum((ol_poles.real > ORIGIN_TOL * scale) & ~at_origin))
+    gm, wpc = gain_crossings(loop, integrators)
+    gm_db = 20 * np.log10(gm)
+    _, pm, _, _, wgc, _ = ct.stability_margins(loop, returnall=True)
+    pm, wgc = np.atleast_1d(np.asarray(pm, float)), np.atleast_1d(np.asarray(wgc, float))
     keep = np.isfinite(pm)
     pm, wgc = pm[keep], wgc[keep]
-    dmarg, dgm, dpm = ct.disk_margins(loop, omega)
-    resp = ct.frequency_response(loop, omega)
-    lw = np.asarray(resp.complex).reshape(-1)
-    ms = float(20 * np.log10(np.max(np.abs(1 / (1 + lw)))))
     poles = ct.poles(closed_loop)
     stable = bool(np.all(poles.real < 0))
+    notes = []
+    z = nyquist_count(loop, rhp)
+    if (z == 0) != stable:
+        notes.append(f"the Nyquist count ({z} closed-loop right-half-plane poles from P = {rhp} and the "
+                     f"encirclements of -1) disagrees with the closed-loop poles (largest real part "
+                     f"{float(np.max(poles.real)):.4g} 1/s); the poles decide")
+    if stable:
+        lw = np.asarray(ct.frequency_response(loop, omega).complex).reshape(-1)
+        with np.errstate(divide="ignore"):
+            ms = float(20 * np.log10(np.max(np.abs(1 / (1 + lw)))))
+        try:
+            dmarg, dgm, dpm = (float(x) for x in ct.disk_margins(loop, omega))
+        except (ValueError, np.linalg.LinAlgError) as exc:  # 1 + L(inf) = 0: no proper sensitivity
+            dmarg = dgm = dpm = math.nan
+            notes.append(f"python-control could not compute the disk margin ({exc})")
+    else:
+        dmarg = dgm = dpm = ms = math.nan
+        notes.append("disk margin and sensitivity peak Ms are not defined for an unstable closed loop")
     dm = delay_margins(pm, wgc, stable)
-    bw = ct.bandwidth(closed_loop) if stable else math.nan
+    try:
+        bw = ct.bandwidth(closed_loop) if stable else math.nan
+    except Exception:  # noqa: BLE001 - python-control raises on degenerate loops
+        bw = math.nan
+        notes.append("python-control could not compute the closed-loop bandwidth")
     bw = float(bw) / (2 * np.pi) if np.isfinite(bw) else math.inf if stable else math.nan
     w_ph = omega[omega <= 2 * np.pi * phase_hz * (1 + 1e-12)]
     t = np.asarray(ct.frequency_response(closed_loop, w_ph).complex).reshape(-1)
     phase = float(np.degrees(np.unwrap(np.angle(t)))[-1])
     order = np.argsort(np.abs(gm_db)) if gm_db.size else []
+    lower, upper = gm_db[gm_db < 0], gm_db[gm_db > 0]
     return Margins(
         gain_margins_db=tuple(float(x) for x in gm_db), phase_crossover_hz=tuple(float(x) for x in wpc / (2 * np.pi)),
         phase_margins_deg=tuple(float(x) for x in pm), gain_crossover_hz=tuple(float(x) for x in wgc / (2 * np.pi)),
@@ -174,6 +293,9 @@ def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margin
         gain_margin_db=float(gm_db[order[0]]) if gm_db.size else math.inf,
         phase_margin_deg=float(pm.min()) if pm.size else math.inf,
         delay_margin_s=float(dm.min()) if dm.size else (math.inf if stable else 0.0),
-        disk_margin=float(dmarg), disk_gain_margin_db=float(dgm), disk_phase_margin_deg=float(dpm),
+        disk_margin=dmarg, disk_gain_margin_db=dgm, disk_phase_margin_deg=dpm,
         sensitivity_peak_db=ms, bandwidth_hz=bw, phase_at_hz=float(phase_hz), phase_at_freq_deg=phase,
-        closed_loop_stable=stable, max_closed_loop_pole_real=float(np.max(poles.real)) if poles.size else -math.inf)
+        closed_loop_stable=stable, max_closed_loop_pole_real=float(np.max(poles.real)) if poles.size else -math.inf,
+        open_loop_rhp_poles=rhp, integrators=integrators, nyquist_rhp_closed_loop_poles=z,
+        lower_gain_margin_db=float(lower.max()) if lower.size else -math.inf,
+        upper_gain_margin_db=float(upper.min()) if upper.size else math.inf, notes=tuple(notes))

@@ -25,6 +25,18 @@ def _interp_crossings(w, f, value):
     return mask, v
 
 
+def low_end_margin(L) -> np.ndarray:
+    """|gain margin| (dB) of a crossing at w -> 0: where the loop at the grid's first
+    frequency is finite and within 6 deg of the negative real axis, as for an
+    open-loop-unstable plant with L(0) < 0 (the figure is |L| there, which tends to L(0) as
+    the grid starts lower); ``inf`` elsewhere. With integrators L there is huge, so the
+    figure is large and never the smallest."""
+    l0 = np.asarray(L, complex)[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        real_negative = np.isfinite(l0) & (l0.real < 0) & (np.abs(l0.imag) <= 0.105 * np.abs(l0.real))
+        return np.where(real_negative, np.abs(20 * np.log10(np.abs(l0))), np.inf)
+
+
 def grid_figures(w, L, phase_freq: float | None = None, response=None):
     """Minimum gain margin (dB), minimum phase margin (deg), sensitivity peak (dB),
     closed-loop -3 dB bandwidth (Hz) and closed-loop phase (deg) at ``phase_freq`` (Hz).
@@ -59,7 +71,7 @@ def grid_figures(w, L, phase_freq: float | None = None, response=None):
     # gain margins: crossings of the negative real axis
     mask, mag_at = _interp_crossings(w, np.imag(L), mag_db)
     neg = (np.real(L[..., :-1]) < 0) | (np.real(L[..., 1:]) < 0)
-    gm = np.where(mask & neg, np.abs(mag_at), np.inf).min(axis=-1)
+    gm = np.minimum(np.where(mask & neg, np.abs(mag_at), np.inf).min(axis=-1), low_end_margin(L))
     # phase margins: |L| = 1
     ph = np.degrees(np.unwrap(np.angle(L), axis=-1))
     mask, ph_at = _interp_crossings(w, mag_db, ph)
@@ -235,9 +247,8 @@ def sensitivity_peak(w, L, response, within_db: float = 6.0):
                 return np.log(np.abs(1 + response(r, np.exp(xx))))
             res = elementwise.find_minimum(fun, (x[k - 1], x[k], x[k + 1]), args=(rows,),
                                            tolerances=MIN_TOLERANCES)
-            if not np.all(res.success):
-                raise FloatingPointError(f"{int(np.sum(~res.success))} sensitivity peaks did not converge")
-            np.minimum.at(best, rows, res.f_x)
+            ok = res.success  # a flat |1 + L| (an all-pass loop) has no peak to converge on:
+            np.minimum.at(best, rows[ok], res.f_x[ok])  # its grid value is the peak
     return -20 * best / np.log(10)
 
 
@@ -277,6 +288,7 @@ def refined_figures(w, L, response, phase_freq: float | None = None) -> dict:
            "sensitivity_peak_db": sensitivity_peak(w, L, response),
            "bandwidth_hz": bandwidth(w, L, response)}
     out = {key: v.reshape(shape) for key, v in out.items()}
+    out["gain_margin_db"] = np.minimum(out["gain_margin_db"], low_end_margin(L))
     if phase_freq is not None:
         out["phase_at_freq_deg"] = _phase_at(w, L, phase_freq)
     return out
