@@ -59,22 +59,75 @@ def _command(argv) -> str:
     return first if first in COMMANDS else ""
 
 
+class _VerdictSafeStdout:
+    """stdout for a command: a reader that goes away (a closed pipe, ``| head``) never stops
+    the command nor changes its exit code, and any other failure to write (a full disk) is
+    remembered, so that the command ends with exit 2 and one line instead of a traceback."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self.closed_by_reader = False
+        self.error = None
+
+    def write(self, text):
+        if self.closed_by_reader or self.error is not None:
+            return len(text)
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self.closed_by_reader = True
+        except OSError as exc:
+            self.error = exc
+        return len(text)
+
+    def flush(self):
+        if self.closed_by_reader or self.error is not None:
+            return
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self.closed_by_reader = True
+        except OSError as exc:
+            self.error = exc
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def main(argv=None) -> int:
-    """Entry point; returns the exit code."""
+    """Entry point; returns the exit code (0 done, 1 a requirement not met, 2 bad input,
+    130 interrupted). No state of stdout changes it: a closed pipe is ignored."""
     parser = build_parser(only=_command(argv))
     args = parser.parse_args(argv)
+    out = _VerdictSafeStdout(sys.stdout)
+    saved, sys.stdout = sys.stdout, out
     try:
-        return int(args.run(args) or 0)
+        code = int(args.run(args) or 0)
+        out.flush()
     except SceneError as exc:
         print(f"servo-toolkit: error: {exc}", file=sys.stderr)
-        return 2
+        code = 2
     except SimulationError as exc:
         print(f"servo-toolkit: simulation error: {exc}", file=sys.stderr)
+        code = 2
+    except KeyboardInterrupt:
+        print("servo-toolkit: interrupted", file=sys.stderr)
+        code = 130
+    finally:
+        sys.stdout = saved
+    if out.error is not None:
+        print(f"servo-toolkit: error: cannot write the output to stdout: {out.error.strerror or out.error}",
+              file=sys.stderr)
         return 2
-    except BrokenPipeError:  # pragma: no cover
-        return 0
+    return code
 
 
 def entry() -> None:
     """Console-script wrapper."""
-    sys.exit(main())
+    code = main()
+    try:
+        sys.stdout.flush()
+    except OSError:  # the reader went away: nothing left to say, and the verdict stands
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    sys.exit(code)

@@ -10,6 +10,7 @@ designed robustly (``--nominal`` checks the nominal design over the same variant
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import xml.etree.ElementTree as ET
@@ -106,16 +107,41 @@ def write_junit(path, entries) -> None:
                 ET.SubElement(case, "system-out").text = message
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
-    try:
-        ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+    import tempfile
+    target = Path(path)
+    try:  # a temporary file beside the target, renamed over it: never a half-written report
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
+        with os.fdopen(fd, "wb") as fh:
+            ET.ElementTree(root).write(fh, encoding="utf-8", xml_declaration=True)
+        os.replace(tmp, target)
     except OSError as exc:
+        with contextlib.suppress(OSError, UnboundLocalError):
+            os.unlink(tmp)
         raise SceneError("junit", f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
 
 
-def check_writable(path) -> None:
-    """SceneError (key ``junit``) unless a file can be written at ``path``: its folder must
-    exist and ``path`` must not be a folder. Checked before any design runs."""
+def _is_junit(path: Path) -> bool:
+    """True when ``path`` holds a JUnit XML report (an earlier ``--junit`` output)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    return b"<testsuites" in head or (head.lstrip().startswith(b"<?xml") and b"<testsuite" in head)
+
+
+def check_writable(path, inputs=()) -> None:
+    """SceneError (key ``junit``) unless a JUnit file may be written at ``path``: its folder
+    must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
+    existing file that is not a JUnit report (nothing a user has is overwritten). Checked
+    before any design runs."""
     p = Path(path)
+    for scene in inputs:
+        with contextlib.suppress(OSError):
+            if p.exists() and Path(scene).exists() and p.resolve() == Path(scene).resolve():
+                raise SceneError("junit", f"refusing to write the JUnit report over the input scene {str(path)!r}")
+    if p.is_file() and not _is_junit(p):
+        raise SceneError("junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
     parent = p.parent if str(p.parent) else Path(".")
     if p.is_dir():
         raise SceneError("junit", f"cannot write {str(path)!r}: it is a directory")
@@ -180,7 +206,7 @@ def run(args) -> int:
     if args.samples is not None and args.samples < 1:
         raise SceneError("samples", f"must be at least 1 (got {args.samples})")
     if args.junit:
-        check_writable(args.junit)
+        check_writable(args.junit, args.scenes)
     scenes = []
     for path in args.scenes:  # every file is read before any design runs
         try:

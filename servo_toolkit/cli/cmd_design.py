@@ -46,7 +46,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    """Run the command; 0 whatever the requirements (``check`` gates on them)."""
+    """Run the command; exit 0 when every requirement is met and the closed loop is stable,
+    1 otherwise (as ``check``), 2 on bad input."""
     for text in args.require:  # a bad value: exit 2 before the scene is read
         parse_override(text)
     scene = load_scene(args.scene)
@@ -55,4 +56,4 @@ def run(args) -> int:
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file
         raise (exc if exc.source else exc.with_source(str(args.scene))) from None
     emit(args, result, result.table())
-    return 0
+    return 0 if result.passed and result.margins.closed_loop_stable else 1
