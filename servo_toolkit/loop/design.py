@@ -33,8 +33,11 @@ from .structures import FILTERS, STRUCTURES, Motion
 
 SPEED_RATIOS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 """Speed-loop crossover as multiples of the required bandwidth (cascade search)."""
-TARGET_FALLBACK = (1.0, 1 / 3, 1 / 10)
-"""When no stable design reaches the required bandwidth, aim lower by these factors."""
+TARGET_FALLBACK = tuple(3.0 ** -k for k in range(12))
+"""When no stable design reaches the required bandwidth, aim lower by these factors (down to
+a bandwidth of :data:`LOWEST_TARGET_HZ`): the best stable design is returned with the unmet
+requirements failing, never an unstable controller while a stable one exists."""
+LOWEST_TARGET_HZ = 0.05
 GAIN_SCAN = np.logspace(-0.8, 0.5, 27)
 """Position gain (cascade) or crossover (other structures) as multiples of the bandwidth."""
 
@@ -277,6 +280,8 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
 def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, current_gains, stroke_params):
     """The search with its fallbacks: (Motion, CascadeController, notes)."""
     for target in TARGET_FALLBACK:
+        if target < 1 and f_req * target < LOWEST_TARGET_HZ:
+            break
         chosen = _search(scene, p, reqs, structure, filters, f_req, f_req * target, phase_hz,
                          sample_time, current_gains, stroke_params)
         if chosen is not None:
@@ -285,7 +290,9 @@ def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, curr
                               f"aiming at {f_req * target:.3g} Hz is shown"],)
     chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
                      current_gains, stroke_params, stable_only=False)
-    return chosen + ([f"no stable {structure} design was found in the search; the best-ranked one is shown"],)
+    return chosen + ([f"no stable {structure} design was found in the search (aiming as low as "
+                      f"{max(LOWEST_TARGET_HZ, f_req * TARGET_FALLBACK[-1]):.3g} Hz); the best-ranked one is shown "
+                      "and its closed loop is UNSTABLE"],)
 
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",

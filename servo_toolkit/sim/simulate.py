@@ -10,6 +10,10 @@ from .model import ModelOptions, build_model
 from .reference import Reference
 
 
+#: the source of a designed controller whose linear closed loop is unstable
+UNSTABLE_SOURCE = "loop.design: closed loop UNSTABLE"
+
+
 def controller_for(scene):
     """The designed controller (``servo_toolkit.loop.design``) when available, else the
     conservative fallback cascade.
@@ -18,7 +22,9 @@ def controller_for(scene):
     -------
     controller : CascadeController
     source : str
-        ``"loop.design"`` or ``"fallback"``.
+        ``"loop.design"``, ``"loop.design: closed loop UNSTABLE"`` (the design found no
+        stable controller: the run shows what that controller does, and says so) or
+        ``"fallback"``.
     """
     try:
         loop = importlib.import_module("servo_toolkit.loop")
@@ -27,7 +33,10 @@ def controller_for(scene):
     design = getattr(loop, "design", None)
     if design is None:
         return default_controller(scene), "fallback"
-    return design(scene).controller, "loop.design"
+    result = design(scene)
+    if not result.margins.closed_loop_stable:
+        return result.controller, UNSTABLE_SOURCE
+    return result.controller, "loop.design"
 
 
 def simulate(scene, controller=None, *, reference: Reference | None = None, duration: float = 1.0,
