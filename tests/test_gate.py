@@ -95,3 +95,51 @@ def test_junit_refuses_an_existing_file_that_is_not_junit_and_replaces_an_earlie
     assert main(["check", ema, "--junit", str(report)]) == 0  # an earlier report is replaced
     assert sorted(p.name for p in tmp_path.iterdir()) == ["margins.xml", "notes.txt"]  # no temporary left
     capsys.readouterr()
+
+
+@pytest.fixture(scope="module")
+def weak_supply(tmp_path_factory) -> Path:
+    """The reference EMA on a 3 V supply: every linear margin intact, the voltage pinned."""
+    text = (SCENES / "ema_reference.toml").read_text()
+    lines = [('voltage_limit = "3 V"' if ln.startswith("voltage_limit") else ln) for ln in text.splitlines()]
+    path = tmp_path_factory.mktemp("supply") / "weak.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_weak_supply_fails_the_large_signal_rows(weak_supply, tmp_path, capsys):
+    import json
+    junit = tmp_path / "gate.xml"
+    assert main(["check", str(weak_supply), "--json", "--junit", str(junit)]) == 1
+    scene = json.loads(capsys.readouterr().out)["scenes"][0]
+    reqs = scene["requirements"]
+    assert reqs["gain_margin"]["passed"] and reqs["phase_margin"]["passed"]  # linear: nothing to see
+    assert not reqs["large_signal_gain"]["passed"]
+    ls = scene["large_signal"]
+    assert ls["time_at_voltage_limit_s"] > 0.5 * ls["duration_s"]
+    assert ls["peak_voltage_V"] == pytest.approx(3.0, rel=1e-3)
+    assert 'name="large_signal_gain"' in junit.read_text()
+    # the linear check alone passes it: the rows are what catch the saturation
+    assert main(["check", str(weak_supply), "--linear-only"]) == 0
+    capsys.readouterr()
+
+
+def test_large_signal_agrees_with_the_linear_loop_on_the_reference(capsys):
+    """Independent of the gate's tolerance: at 2 deg the reference EMA stays linear, so the
+    nonlinear fundamental is within a few tenths of a dB and a degree of the linear loop."""
+    import servo_toolkit as st
+    from servo_toolkit.loop.large_signal import large_signal
+    scene = st.load_scene()
+    ls = large_signal(scene, st.design(scene, progress=False))
+    assert ls.time_at_voltage_limit_s == 0 and ls.time_at_current_limit_s == 0
+    assert ls.gain_error_db < 0.5 and ls.phase_error_deg < 2.0
+
+
+def test_impossible_bandwidth_gives_the_best_stable_design(capsys):
+    import json
+    assert main(["design", str(SCENES / "ema_reference.toml"), "--require", "bandwidth=1kHz", "--json",
+                 "--linear-only"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    assert d["closed_loop_stable"] is True
+    assert not d["requirements"]["bandwidth"]["passed"]
+    assert any("no stable" in n for n in d["notes"])

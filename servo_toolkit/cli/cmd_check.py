@@ -20,7 +20,7 @@ from ..errors import SceneError
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene import load_scene
-from .cmd_design import add_design_options, design_from_args
+from .cmd_design import add_design_options, add_large_signal_option, design_from_args, gate_result
 from .common import add_json, to_json
 
 
@@ -29,6 +29,7 @@ def register(sub) -> None:
     p = sub.add_parser("check", help="check loop requirements (exit 0 met, 1 not met, 2 bad input)")
     p.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
     add_design_options(p)
+    add_large_signal_option(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="robustness: vary load_inertia (kg*m^2) or stiffness (factor), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
@@ -160,7 +161,7 @@ def _check_scene(path, scene, args, varies):
     """Design and check one scene: (suite name, cases, JSON dict)."""
     from ..loop.robustness import robustness
     spec = robustness_spec(scene, varies, args.samples)
-    result = design_from_args(scene, args, spec)
+    result, ls = gate_result(scene, args, design_from_args(scene, args, spec))
     robust = result.robustness
     if robust is None and spec is not None:
         robust = robustness(scene, result, spec=spec, progress=False)
@@ -171,6 +172,8 @@ def _check_scene(path, scene, args, varies):
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
+    if ls is not None:
+        d["large_signal"] = ls.to_dict()
     if robust is not None:
         d["robustness"] = robust.to_dict()
     if mc_json is not None:

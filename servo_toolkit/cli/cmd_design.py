@@ -25,6 +25,21 @@ def add_design_options(p) -> None:
                       help="nominal design even when the scene has [robustness]")
 
 
+def add_large_signal_option(p) -> None:
+    """``--linear-only`` (``design`` and ``check``)."""
+    p.add_argument("--linear-only", action="store_true",
+                   help="skip the large-signal rows (the nonlinear closed loop on the requirement sine against "
+                        "the linear loop, with the time at the voltage and current limits)")
+
+
+def gate_result(scene, args, result):
+    """``result`` with the large-signal rows unless ``--linear-only``: (result, LargeSignal or None)."""
+    if getattr(args, "linear_only", False):
+        return result, None
+    from ..loop.large_signal import with_large_signal
+    return with_large_signal(scene, result)
+
+
 def design_from_args(scene, args, spec=None):
     """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
     scene's ``[robustness]`` for a robust design (``check --vary``)."""
@@ -41,6 +56,7 @@ def register(sub) -> None:
     p = sub.add_parser("design", help="loop design and margins")
     add_scene(p)
     add_design_options(p)
+    add_large_signal_option(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -55,5 +71,9 @@ def run(args) -> int:
         result = design_from_args(scene, args)
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file
         raise (exc if exc.source else exc.with_source(str(args.scene))) from None
-    emit(args, result, result.table())
+    result, ls = gate_result(scene, args, result)
+    data = result.to_dict()
+    if ls is not None:
+        data["large_signal"] = ls.to_dict()
+    emit(args, data, result.table())
     return 0 if result.passed and result.margins.closed_loop_stable else 1
