@@ -241,7 +241,7 @@ def speed_estimate(x, P, T, wm_true):
     return x[e + 1]
 
 
-@inline
+@jit  # called once per sample, not per step: compiled once, shared by every loop and Python
 def controller_sample(t, x, P, T, work):
     """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:].
 
