@@ -18,7 +18,6 @@ from .components.platform import CrossedArchPlatform
 from .components.roller_screw import RollerScrew, RollerScrewOperating, RollerScrewStage
 from .errors import SceneError
 from .fields import Fields, require
-from .units import parse_si
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -321,6 +320,18 @@ def _stage(table, i: int):
     return _built(f.path, lambda: cls.from_table(f))
 
 
+def _output_is_travel(raw_stages) -> bool:
+    """True when the chain's output coordinate is a travel (it ends in a screw); a chain
+    ending in a cam keeps the cam angle as its coordinate."""
+    if raw_stages and raw_stages[-1].get("kind") == "cam":
+        return False
+    have = "rotary"
+    for table in raw_stages:
+        give = STAGE_IO.get(table.get("kind"), (None, None))[1]
+        have = give or have
+    return have == "travel"
+
+
 def check_stage_order(raw_stages) -> None:
     """Each stage's input must be what the previous stage delivers (the motor: a rotary
     shaft): a screw turns a shaft into travel, a linkage travel into an angle."""
@@ -335,10 +346,9 @@ def check_stage_order(raw_stages) -> None:
             have, prev = give, f"drivetrain[{i}] ({kind})"
 
 
-def _study(name: str, table) -> Study:
-    f = Fields(table, f"studies.{name}")
-    kind = f.text("kind", choices=set(STUDY_KINDS))
-    params = {k: parse_si(v, f"studies.{name}.{k}") for k, v in table.items() if k != "kind"}
+def _study(name: str, table, output_unit: str = "rad") -> Study:
+    from .study_schema import study_params
+    kind, params = study_params(name, table, output_unit)
     return Study(name=name, kind=kind, params=MappingProxyType(params))
 
 
@@ -389,9 +399,10 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                   if "robustness" in data else None)
         require(bool(stages or mechanism or roller), "drivetrain",
                 "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
+        unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
         scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
                       stages=stages, load=load, sensors=sensors, requirements=req,
-                      studies=MappingProxyType({k: _study(k, v) for k, v in studies.items()}),
+                      studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
                       source=source)
         if stages:
