@@ -6,7 +6,7 @@ import math
 import sys
 
 from ..scene import load_scene
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, bounded, emit
 
 
 def register(sub) -> None:
@@ -16,7 +16,7 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study (plus 8 Hz), or a kv or simulate (sine) study "
                    "(default: the scene's first sweep)")
-    p.add_argument("--frequency", type=float, action="append", metavar="HZ",
+    p.add_argument("--frequency", type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"), action="append", metavar="HZ",
                    help="frequency in Hz, repeatable: replaces a sweep study's frequencies (and its 8 Hz)")
     p.add_argument("--tolerance", type=float, default=None, metavar="X",
                    help="a-priori bound on the relative response difference (default 0.02 = 0.17 dB / 1.15 deg)")

@@ -6,7 +6,7 @@ import sys
 import time
 
 from ..scene import load_scene
-from .common import add_scene, prepare_kernels
+from .common import add_scene, bounded, prepare_kernels
 
 
 def register(sub) -> None:
@@ -19,7 +19,7 @@ def register(sub) -> None:
                    help="run the expensive studies as the scene defines them: every sweep frequency with the "
                         "default dwell, the measured reduction on that sweep, longer accuracy runs and finer Kv "
                         "sampling (several minutes; default: light settings, under a minute)")
-    p.add_argument("--section-time-limit", type=float, default=None, metavar="S",
+    p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
     p.set_defaults(run=run)
