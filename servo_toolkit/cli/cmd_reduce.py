@@ -7,6 +7,7 @@ import sys
 
 from ..scene import load_scene
 from .common import add_json, add_scene, bounded, emit
+from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:
@@ -39,6 +40,8 @@ def run(args) -> int:
         sys.stderr.write("error: --frequency must be positive and finite\n")
         return 2
     scene = load_scene(args.scene)
+    if args.plot:  # checked before any work
+        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     if args.estimate_only:
         _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency)
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
@@ -51,6 +54,6 @@ def run(args) -> int:
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")
-        res.plot().figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(res.plot().figure, args.plot)
     emit(args, res, res.table())
     return 0

@@ -7,6 +7,7 @@ import time
 
 from ..scene import load_scene
 from .common import add_scene, bounded, prepare_kernels
+from .outputs import atomic_folder, check_report_folder
 
 
 def register(sub) -> None:
@@ -27,15 +28,21 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run the command; exit 0 once the complete report is written, 1 when a section the
-    scene needs is unavailable (the report is still written and says why), 2 on a bad scene."""
+    scene needs is unavailable (the report is still written and says why), 2 on a bad scene
+    or an output folder that cannot take a report (checked before any work: it must be new,
+    empty or an earlier report). The report is written into a temporary folder and renamed
+    into place."""
     from ..report import build_report, write_report
     start = time.perf_counter()
     scene = load_scene(args.scene)
+    out_dir = check_report_folder(args.output)  # before any work
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
     prepare_kernels(scene, paper=True)  # the accuracy section runs both fixed-step schemes
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit)
-    paths = write_report(report, args.output, progress=True)
+    with atomic_folder(out_dir) as tmp:  # never a mixed or half-written report
+        write_report(report, tmp, progress=True)
     report.close()
+    paths = {"html": out_dir / "index.html", "pdf": out_dir / "report.pdf"}
     missing = [s for s in report.sections if s.status == "unavailable"]
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):

@@ -11,6 +11,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
 from .common import add_json, add_scene, bounded, emit
+from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:
@@ -50,7 +51,7 @@ def _run_mechanism(scene, study, args) -> int:
         import matplotlib
         matplotlib.use("Agg")
         ax = np.ravel(res.plot())[0]
-        ax.figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(ax.figure, args.plot)
     emit(args, res, res.table() if hasattr(res, "table") else str(res))
     return 0
 
@@ -59,6 +60,8 @@ def run(args) -> int:
     """Run the command."""
     from ..studies.sweep import sweep
     scene = load_scene(args.scene)
+    if args.plot:  # checked before any work
+        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     if args.study:
         dispatch.require(scene, args.study)
         study = scene.studies.get(args.study, args.study)
@@ -81,6 +84,6 @@ def run(args) -> int:
         import matplotlib
         matplotlib.use("Agg")
         ax = res.plot()
-        ax[0].figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(ax[0].figure, args.plot)
     emit(args, res, res.table())
     return 0
