@@ -10,7 +10,7 @@ from ..fields import Fields, require
 
 #: largest value of each motor constant the models are conditioned for (SI): far beyond any
 #: electric motor (a 1 MW machine has Kt of a few hundred N*m/A)
-PLAUSIBLE_MAX = {"resistance": 1e6, "inductance": 10.0, "torque_constant": 1e4, "back_emf_constant": 1e4,
+PLAUSIBLE_MAX = {"resistance": 1e15, "inductance": 10.0, "torque_constant": 1e4, "back_emf_constant": 1e4,
                  "rotor_inertia": 1e4, "viscous_friction": 1e6, "coulomb_friction": 1e6}
 
 
