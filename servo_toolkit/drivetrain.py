@@ -22,6 +22,21 @@ from .reflection import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, ne
                          reflect_elements, stage_units)
 
 
+#: |N| (motor rad per output rad or per output m) the models are conditioned for: beyond it the
+#: linear plant's matrices and the simulation's stiffness span more than double precision holds
+RATIO_RANGE = (1e-4, 1e8)
+#: the keys that set a stage's ratio, for error messages
+_RATIO_KEYS = {"GearTrain": "ratio/teeth", "BallScrew": "lead", "RollerScrew": "stages[].lead",
+               "RockerLinkage": "arm_length, rod_length", "Cam": "profile_constant"}
+
+
+def ratio_keys(drivetrain) -> str:
+    """``drivetrain[i].key`` of every key that sets a ratio of the chain."""
+    out = [f"drivetrain[{i}].{_RATIO_KEYS[type(s).__name__]}" for i, s in enumerate(drivetrain.stages)
+           if type(s).__name__ in _RATIO_KEYS]
+    return ", ".join(out) or "ratios"
+
+
 @dataclass(frozen=True)
 class Kinematics:
     """Every coordinate of the chain as a function of q (arrays over q)."""
@@ -320,11 +335,23 @@ class Drivetrain:
 
     def check(self) -> None:
         """Validate along the stroke: finite ratio and positive-definite inertia."""
-        q = np.linspace(*self.stroke, 181)
-        n, _ = self.ratio(q)
+        lo, hi = self.stroke
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise SceneError("drivetrain", f"the stroke must be finite (got {lo:g} .. {hi:g})")
+        q = np.linspace(lo, hi, 181)
+        with np.errstate(all="ignore"):
+            n, _ = self.ratio(q)
+            j, _ = self.inertia(q)
         if not np.all(np.isfinite(n)) or np.any(n == 0):
             raise SceneError("drivetrain", "the ratio is zero or not finite somewhere in the stroke")
-        j, _ = self.inertia(q)
+        size = np.abs(n)
+        if size.min() < RATIO_RANGE[0] or size.max() > RATIO_RANGE[1]:
+            raise SceneError("drivetrain", f"the ratio from the motor to the output, {size.min():.3g} .. {size.max():.3g} "
+                             f"motor rad per output {self.output_unit}, lies outside the {RATIO_RANGE[0]:g} .. "
+                             f"{RATIO_RANGE[1]:g} a drivetrain model is conditioned for: check the stages' "
+                             f"{ratio_keys(self)}")
+        if not np.all(np.isfinite(j)):
+            raise SceneError("drivetrain", "the reflected inertia is not finite somewhere in the stroke")
         if np.any(j <= 0):
             i = int(np.argmin(j))
             raise SceneError("drivetrain", f"reflected inertia is not positive at q = "

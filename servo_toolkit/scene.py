@@ -18,7 +18,6 @@ from .components.platform import CrossedArchPlatform
 from .components.roller_screw import RollerScrew, RollerScrewOperating, RollerScrewStage
 from .errors import SceneError
 from .fields import Fields, require
-from .units import parse_si
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -64,6 +63,11 @@ class Sensors:
                 sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"),
                 speed_estimator=f.text("speed_estimator", "ideal", choices=SPEED_ESTIMATORS))
         f.check_unknown()
+        require(s.output_encoder_bits <= 64, f.key("output_encoder_bits"),
+                f"must be at most 64 (got {s.output_encoder_bits}): counts per turn are 2**bits")
+        require(s.motor_encoder_counts <= 2**40, f.key("motor_encoder_counts"),
+                f"must be at most 2**40 (got {s.motor_encoder_counts})")
+        require(s.sample_time <= 1.0, f.key("sample_time"), f"must be at most 1 s (got {s.sample_time:g} s)")
         if s.speed_estimator != "ideal" and (s.motor_encoder_counts == 0 or s.sample_time == 0):
             raise SceneError(f.key("speed_estimator"), f"{s.speed_estimator!r} estimates the speed "
                              "from motor encoder counts: it needs motor_encoder_counts > 0 and "
@@ -291,18 +295,60 @@ class Scene:
         return Drivetrain.from_scene(self)
 
 
+#: stage kind -> (input, output): ``rotary`` (a shaft angle) or ``travel`` (a linear
+#: position); a compliance passes on what it receives. The motor delivers a rotary input.
+STAGE_IO = {"gear": ("rotary", "rotary"), "ball_screw": ("rotary", "travel"), "roller_screw": ("rotary", "travel"),
+            "rocker_linkage": ("travel", "rotary"), "cam": ("rotary", "travel"), "compliance": (None, None)}
+
+
+def _built(path: str, build):
+    """``build()``; a Python error from a value the table's checks let through becomes a
+    SceneError naming the table (any such error is a missing rule)."""
+    try:
+        return build()
+    except SceneError:
+        raise
+    except (TypeError, ValueError, ArithmeticError, IndexError, KeyError, AttributeError) as exc:
+        raise SceneError(path, f"invalid value ({type(exc).__name__}: {exc})") from None
+
+
 def _stage(table, i: int):
     f = Fields(table, f"drivetrain[{i}]")
     kind = f.text("kind")
     cls = STAGE_KINDS.get(kind)
     require(cls is not None, f.key("kind"), f"unknown stage kind {kind!r}; known: {sorted(STAGE_KINDS)}")
-    return cls.from_table(f)
+    return _built(f.path, lambda: cls.from_table(f))
 
 
-def _study(name: str, table) -> Study:
-    f = Fields(table, f"studies.{name}")
-    kind = f.text("kind", choices=set(STUDY_KINDS))
-    params = {k: parse_si(v, f"studies.{name}.{k}") for k, v in table.items() if k != "kind"}
+def _output_is_travel(raw_stages) -> bool:
+    """True when the chain's output coordinate is a travel (it ends in a screw); a chain
+    ending in a cam keeps the cam angle as its coordinate."""
+    if raw_stages and raw_stages[-1].get("kind") == "cam":
+        return False
+    have = "rotary"
+    for table in raw_stages:
+        give = STAGE_IO.get(table.get("kind"), (None, None))[1]
+        have = give or have
+    return have == "travel"
+
+
+def check_stage_order(raw_stages) -> None:
+    """Each stage's input must be what the previous stage delivers (the motor: a rotary
+    shaft): a screw turns a shaft into travel, a linkage travel into an angle."""
+    have, prev = "rotary", "the motor"
+    for i, table in enumerate(raw_stages):
+        kind = table.get("kind")
+        need, give = STAGE_IO.get(kind, (None, None))
+        require(need is None or need == have, f"drivetrain[{i}].kind",
+                f"a {kind} stage takes a {need} input, but {prev} delivers {have} "
+                f"({'a screw or cam turns a shaft into travel, a linkage travel into an angle'})")
+        if give is not None:
+            have, prev = give, f"drivetrain[{i}] ({kind})"
+
+
+def _study(name: str, table, output_unit: str = "rad") -> Study:
+    from .study_schema import study_params
+    kind, params = study_params(name, table, output_unit)
     return Study(name=name, kind=kind, params=MappingProxyType(params))
 
 
@@ -318,11 +364,13 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
         unknown = sorted(set(data) - _TOP_KEYS)
         require(not unknown, unknown[0] if unknown else "", f"unknown top-level key; known: {sorted(_TOP_KEYS)}")
         name = data.get("name")
-        require(isinstance(name, str) and name.strip(), "name", "missing key (required): a non-empty string")
+        require("name" in data, "name", "missing key (required): a non-empty string")
+        require(isinstance(name, str) and name.strip(), "name", f"expected a non-empty string, got {name!r}")
         motor = DCMotor.from_table(Fields(data["motor"], "motor")) if "motor" in data else None
         raw_stages = data.get("drivetrain", [])
         require(isinstance(raw_stages, list), "drivetrain", "must be an array of tables [[drivetrain]]")
         stages = tuple(_stage(t, i) for i, t in enumerate(raw_stages))
+        check_stage_order(raw_stages)
         forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
         require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
                 f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
@@ -351,13 +399,14 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                   if "robustness" in data else None)
         require(bool(stages or mechanism or roller), "drivetrain",
                 "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
+        unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
         scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
                       stages=stages, load=load, sensors=sensors, requirements=req,
-                      studies=MappingProxyType({k: _study(k, v) for k, v in studies.items()}),
+                      studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
                       source=source)
         if stages:
-            scene.drivetrain.check()
+            _built("drivetrain", scene.drivetrain.check)
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
@@ -393,15 +442,64 @@ def load_scene(path=None) -> Scene:
     0.2
     """
     path = default_scene_path() if path is None else Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError("(file)", f"cannot read scene: {exc.strerror}", str(path)) from None
+    text = _read_text(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError("(file)", f"not valid TOML: {exc}", str(path)) from None
+    except RecursionError:
+        raise SceneError("(file)", "not a scene: tables or arrays nested too deeply", str(path)) from None
+    except ValueError as exc:  # e.g. an integer of thousands of digits
+        raise SceneError("(file)", f"not valid TOML: {exc}", str(path)) from None
+    depth = _depth(data)
+    if depth > MAX_DEPTH:
+        raise SceneError("(file)", f"not a scene: nested {depth} levels deep (a scene needs at most {MAX_DEPTH})",
+                         str(path))
     return scene_from_dict(data, str(path))
+
+
+#: largest scene file read (bytes): a scene is a few kilobytes of text
+MAX_SCENE_BYTES = 4 * 1024 * 1024
+#: deepest nesting of tables and arrays in a scene
+MAX_DEPTH = 12
+
+
+def _read_text(path: Path) -> str:
+    """The scene file's text: a regular file of UTF-8 text, at most :data:`MAX_SCENE_BYTES`."""
+    import os
+    import stat
+    try:
+        info = os.stat(path)
+        if stat.S_ISDIR(info.st_mode):
+            raise SceneError("(file)", "cannot read scene: it is a directory", str(path))
+        if not stat.S_ISREG(info.st_mode):
+            raise SceneError("(file)", "cannot read scene: not a regular file (a device, pipe or socket)", str(path))
+        if info.st_size > MAX_SCENE_BYTES:
+            raise SceneError("(file)", f"cannot read scene: {info.st_size} bytes, more than a scene file's "
+                             f"{MAX_SCENE_BYTES} at most", str(path))
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise SceneError("(file)", f"cannot read scene: {exc.strerror or exc}", str(path)) from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError("(file)", f"not a text scene: the bytes at offset {exc.start} are not UTF-8 (save the "
+                         "file as UTF-8)", str(path)) from None
+
+
+def _depth(obj, level: int = 0) -> int:
+    """Nesting depth of tables and arrays (iterative: no recursion limit)."""
+    deepest, stack = level, [(obj, level)]
+    while stack:
+        item, d = stack.pop()
+        deepest = max(deepest, d)
+        if d > MAX_DEPTH:
+            break
+        if isinstance(item, dict):
+            stack.extend((v, d + 1) for v in item.values())
+        elif isinstance(item, list):
+            stack.extend((v, d + 1) for v in item)
+    return deepest
 
 
 def replace_params(scene: Scene, **changes) -> Scene:

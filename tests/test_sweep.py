@@ -93,7 +93,9 @@ def test_cli_sweep_json(capsys, scenes_dir):
     out = json.loads(capsys.readouterr().out)
     assert [p["frequency_hz"] for p in out["points"]] == [8.0]
     assert {"gain_db", "phase_deg", "linear_gain_db", "linear_phase_deg"} <= set(out["points"][0])
-    assert main(["sweep", str(scenes_dir / "ema_reference.toml"), "--amplitude", "-1"]) == 2
+    with pytest.raises(SystemExit) as stop:  # the option's value is refused before any work
+        main(["sweep", str(scenes_dir / "ema_reference.toml"), "--amplitude", "-1"])
+    assert stop.value.code == 2
     capsys.readouterr()
 
 

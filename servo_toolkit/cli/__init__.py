@@ -31,6 +31,13 @@ COMMANDS = {
 }
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """Command-line errors as one stderr line naming the option and the rule, exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"servo-toolkit: error: {message}\n")
+
+
 def build_parser(only=None) -> argparse.ArgumentParser:
     """The argument parser.
 
@@ -41,9 +48,9 @@ def build_parser(only=None) -> argparse.ArgumentParser:
         command (or ``--help``) does not import the modules of every other command.
         Default: every command in full.
     """
-    parser = argparse.ArgumentParser(prog="servo-toolkit",
-                                     description="Servo control design for electromechanical actuators.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser = _OneLineParser(prog="servo-toolkit",
+                            description="Servo control design for electromechanical actuators.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_OneLineParser)
     for name, help_text in COMMANDS.items():
         if only is None or name == only:
             importlib.import_module(f".cmd_{name}", __name__).register(sub)

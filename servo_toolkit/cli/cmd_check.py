@@ -21,7 +21,7 @@ from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args, gate_result
-from .common import add_json, to_json
+from .common import add_json, bounded, to_json
 
 
 def register(sub) -> None:
@@ -34,7 +34,7 @@ def register(sub) -> None:
                    help="robustness: vary load_inertia (kg*m^2) or stiffness (factor), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
                         "scene's [robustness])")
-    p.add_argument("--samples", type=int, default=None,
+    p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
     add_json(p)

@@ -6,7 +6,8 @@ import math
 import sys
 
 from ..scene import load_scene
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, bounded, emit
+from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:
@@ -16,7 +17,7 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study (plus 8 Hz), or a kv or simulate (sine) study "
                    "(default: the scene's first sweep)")
-    p.add_argument("--frequency", type=float, action="append", metavar="HZ",
+    p.add_argument("--frequency", type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"), action="append", metavar="HZ",
                    help="frequency in Hz, repeatable: replaces a sweep study's frequencies (and its 8 Hz)")
     p.add_argument("--tolerance", type=float, default=None, metavar="X",
                    help="a-priori bound on the relative response difference (default 0.02 = 0.17 dB / 1.15 deg)")
@@ -39,6 +40,8 @@ def run(args) -> int:
         sys.stderr.write("error: --frequency must be positive and finite\n")
         return 2
     scene = load_scene(args.scene)
+    if args.plot:  # checked before any work
+        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     if args.estimate_only:
         _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency)
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
@@ -51,6 +54,6 @@ def run(args) -> int:
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")
-        res.plot().figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(res.plot().figure, args.plot)
     emit(args, res, res.table())
     return 0

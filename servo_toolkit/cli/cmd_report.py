@@ -6,7 +6,8 @@ import sys
 import time
 
 from ..scene import load_scene
-from .common import add_scene, prepare_kernels
+from .common import add_scene, bounded, prepare_kernels
+from .outputs import atomic_folder, check_report_folder
 
 
 def register(sub) -> None:
@@ -19,7 +20,7 @@ def register(sub) -> None:
                    help="run the expensive studies as the scene defines them: every sweep frequency with the "
                         "default dwell, the measured reduction on that sweep, longer accuracy runs and finer Kv "
                         "sampling (several minutes; default: light settings, under a minute)")
-    p.add_argument("--section-time-limit", type=float, default=None, metavar="S",
+    p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
     p.set_defaults(run=run)
@@ -27,15 +28,21 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run the command; exit 0 once the complete report is written, 1 when a section the
-    scene needs is unavailable (the report is still written and says why), 2 on a bad scene."""
+    scene needs is unavailable (the report is still written and says why), 2 on a bad scene
+    or an output folder that cannot take a report (checked before any work: it must be new,
+    empty or an earlier report). The report is written into a temporary folder and renamed
+    into place."""
     from ..report import build_report, write_report
     start = time.perf_counter()
     scene = load_scene(args.scene)
+    out_dir = check_report_folder(args.output)  # before any work
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
     prepare_kernels(scene, paper=True)  # the accuracy section runs both fixed-step schemes
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit)
-    paths = write_report(report, args.output, progress=True)
+    with atomic_folder(out_dir) as tmp:  # never a mixed or half-written report
+        write_report(report, tmp, progress=True)
     report.close()
+    paths = {"html": out_dir / "index.html", "pdf": out_dir / "report.pdf"}
     missing = [s for s in report.sections if s.status == "unavailable"]
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):

@@ -6,7 +6,7 @@ import sys
 
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, emit, prepare_kernels
+from .common import add_json, add_scene, bounded, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -15,7 +15,8 @@ def register(sub) -> None:
     add_scene(p)
     p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine, 1 s)")
     p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
-    p.add_argument("--dt", type=float, metavar="S", help="fixed step (s)")
+    p.add_argument("--dt", type=bounded(float, 1e-9, 1.0, what="a step in seconds"), metavar="S",
+                   help="fixed step (s), 1e-9 to 1")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "

@@ -17,7 +17,7 @@ def register(sub) -> None:
     p = sub.add_parser("stiffness", help="series stiffness chain and compliance shares")
     add_scene(p)
     p.add_argument("--angle", type=float, action="append", metavar="DEG",
-                   help="output angle in deg, rotary outputs (repeatable; default -30 0 10 30)")
+                   help="output angle in deg, rotary outputs (repeatable; default -30 0 10 30 when they lie in the stroke, else its ends and middle)")
     p.add_argument("--position", type=float, action="append", metavar="MM",
                    help="output travel in mm, linear outputs (repeatable; default mid-stroke)")
     add_json(p)

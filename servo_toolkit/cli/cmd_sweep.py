@@ -10,7 +10,8 @@ import numpy as np
 from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, bounded, emit
+from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:
@@ -20,12 +21,13 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study, plus 8 Hz (default: the scene's first), or a "
                    "seed-mechanism study (run as simulate runs it)")
-    p.add_argument("--frequency", type=float, action="append", metavar="HZ",
+    p.add_argument("--frequency", type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"), action="append", metavar="HZ",
                    help="drive frequency in Hz, repeatable (replaces the study's)")
-    p.add_argument("--amplitude", type=float, action="append", metavar="DEG",
+    p.add_argument("--amplitude", type=bounded(float, 0.0, 180.0, low_open=True, what="an amplitude in deg"), action="append", metavar="DEG",
                    help="command amplitude in deg, repeatable: one curve each (replaces the study's)")
     p.add_argument("--full", action="store_true", help="run the full model (default: the reduced model)")
-    p.add_argument("--workers", type=int, default=0, metavar="N", help="run the dwells in N processes")
+    p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
+                   help="run the dwells in N processes (at least 1; default: in this process)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
     add_json(p)
     p.set_defaults(run=run)
@@ -49,7 +51,7 @@ def _run_mechanism(scene, study, args) -> int:
         import matplotlib
         matplotlib.use("Agg")
         ax = np.ravel(res.plot())[0]
-        ax.figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(ax.figure, args.plot)
     emit(args, res, res.table() if hasattr(res, "table") else str(res))
     return 0
 
@@ -58,6 +60,8 @@ def run(args) -> int:
     """Run the command."""
     from ..studies.sweep import sweep
     scene = load_scene(args.scene)
+    if args.plot:  # checked before any work
+        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     if args.study:
         dispatch.require(scene, args.study)
         study = scene.studies.get(args.study, args.study)
@@ -80,6 +84,6 @@ def run(args) -> int:
         import matplotlib
         matplotlib.use("Agg")
         ax = res.plot()
-        ax[0].figure.savefig(args.plot, bbox_inches="tight")
+        save_figure(ax[0].figure, args.plot)
     emit(args, res, res.table())
     return 0

@@ -63,3 +63,25 @@ def prepare_kernels(scene, paper: bool = False) -> None:
         print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
               f"cached in {cache_dir()})", file=sys.stderr, flush=True)
     compile_kernels(paper)
+
+
+def bounded(kind=float, low=None, high=None, *, low_open: bool = False, what: str = "a number"):
+    """An argparse ``type``: a finite number of ``kind`` within [low, high] (``low_open``:
+    above low), else an error naming the rule (argparse names the option; exit 2)."""
+    import argparse
+    import math
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if isinstance(value, float) and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be finite (got {text})")
+        if low is not None and (value <= low if low_open else value < low):
+            raise argparse.ArgumentTypeError(f"must be {'above' if low_open else 'at least'} {low:g} (got {text})")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"must be at most {high:g} (got {text})")
+        return value
+    parse.__name__ = what
+    return parse

@@ -63,7 +63,10 @@ class GearTrain(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "GearTrain":
         """Build from a ``[[drivetrain]]`` table of kind ``gear``."""
-        teeth = tuple(f.raw("teeth", ()))
+        raw = f.raw("teeth", ())
+        require(isinstance(raw, (list, tuple)), f.key("teeth"),
+                f"expected a list of tooth counts along the train, e.g. [24, 40], got {raw!r}")
+        teeth = tuple(raw)
         for i, z in enumerate(teeth):
             require(isinstance(z, int) and not isinstance(z, bool) and z > 0,
                     f"{f.key('teeth')}[{i}]", f"tooth count must be a positive integer (got {z!r})")

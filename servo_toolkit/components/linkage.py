@@ -100,7 +100,9 @@ class RockerLinkage(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "RockerLinkage":
         """Build from a ``[[drivetrain]]`` table of kind ``rocker_linkage``."""
-        stroke = f.quantity_list("stroke", "rad", (-math.pi / 6, math.pi / 6))
+        stroke = f.quantity_list("stroke", "rad", (-math.pi / 6, math.pi / 6), rule="finite")
+        require(all(abs(x) < math.pi for x in stroke), f.key("stroke"),
+                "each end must lie within (-180, 180) deg of the arm's reference position")
         require(len(stroke) == 2 and stroke[0] < stroke[1], f.key("stroke"),
                 "must be [min, max] with min < max")
         stage = cls(

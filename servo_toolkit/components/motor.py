@@ -8,6 +8,12 @@ from dataclasses import dataclass
 from ..fields import Fields, require
 
 
+#: largest value of each motor constant the models are conditioned for (SI): far beyond any
+#: electric motor (a 1 MW machine has Kt of a few hundred N*m/A)
+PLAUSIBLE_MAX = {"resistance": 1e15, "inductance": 10.0, "torque_constant": 1e4, "back_emf_constant": 1e4,
+                 "rotor_inertia": 1e4, "viscous_friction": 1e6, "coulomb_friction": 1e6}
+
+
 @dataclass(frozen=True)
 class DCMotor:
     """Armature-controlled DC motor, SI units.
@@ -66,6 +72,11 @@ class DCMotor:
             voltage_limit=f.quantity("voltage_limit", "V", math.inf),
             current_limit=f.quantity("current_limit", "A", math.inf),
         )
+        for key, top in PLAUSIBLE_MAX.items():  # beyond these the plant's matrices lose their digits
+            value = getattr(motor, key)
+            require(value <= top, f.key(key), f"must be at most {top:g} (got {value:g}): outside the range "
+                    "of electric motors the models are conditioned for")
+        require(motor.resistance >= 1e-6, f.key("resistance"), f"must be at least 1e-06 ohm (got {motor.resistance:g})")
         require(motor.voltage_limit > 0, f.key("voltage_limit"), "must be positive")
         require(motor.current_limit > 0, f.key("current_limit"), "must be positive")
         f.check_unknown()

@@ -308,7 +308,7 @@ class RollerScrew(Stage):
         require(efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         travel = None
         if f.raw("stroke", None) is not None:
-            travel = tuple(f.quantity_list("stroke", "m"))
+            travel = tuple(f.quantity_list("stroke", "m", rule="finite"))
             require(len(travel) == 2 and travel[0] < travel[1], f.key("stroke"),
                     "must be [lowest, highest] nut travel with lowest < highest")
         f.check_unknown()

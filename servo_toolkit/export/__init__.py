@@ -12,3 +12,15 @@ from .result import ExportResult
 
 __all__ = ["Biquad", "Blocks", "ExportResult", "Quantized", "blocks_of", "export", "quantize",
            "quantized_controller", "tustin_to_continuous"]
+
+
+class _ExportModule(type(__import__("sys"))):
+    """``servo_toolkit.export`` is both this package and the :func:`export` function: the
+    package is imported on first use (``import servo_toolkit`` stays light), and calling it
+    calls the function, whichever of the two the name is bound to."""
+
+    def __call__(self, *args, **kwargs):
+        return export(*args, **kwargs)
+
+
+__import__("sys").modules[__name__].__class__ = _ExportModule

@@ -36,7 +36,15 @@ def _snap(dt, model, duration, output_dt=None):
     return span / n
 
 
+#: most fixed steps one run may take (about a minute of the compiled loop): a step or a
+#: duration that asks for more is refused instead of running for hours
+MAX_STEPS = 300_000_000
+
+
 def _grid(model, duration, dt, output_dt):
+    if not duration / dt <= MAX_STEPS:
+        raise SimulationError(f"{duration:g} s at a step of {dt:g} s is {duration / dt:.3g} steps, more than the "
+                              f"{MAX_STEPS:.0e} one run may take: give a larger --dt or a shorter duration")
     n_steps = max(1, int(round(duration / dt)))
     if output_dt is None:
         rec = max(1, math.ceil(n_steps / MAX_RECORDS))

@@ -199,4 +199,6 @@ def check_trace_path(path, key: str = "--output"):
         raise SceneError(key, f"trace file {path.name!r} must end in .csv or .npz")
     if not path.parent.is_dir():
         raise SceneError(key, f"folder {str(path.parent)!r} of the trace file does not exist")
+    if path.is_dir():
+        raise SceneError(key, f"cannot write {str(path)!r}: it is a folder")
     return path

@@ -17,6 +17,18 @@ from ..errors import SceneError
 from ..reflection import NeglectCriterion
 
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
+
+
+def default_angles_deg(drivetrain) -> tuple:
+    """The default output angles (deg): :data:`DEFAULT_ANGLES_DEG` when they lie in the
+    stroke (the reference EMA's), else the stroke's ends and middle (a cam: its turn's
+    quarters)."""
+    lo, hi = (math.degrees(x) for x in drivetrain.stroke)
+    if drivetrain.ends_in_cam:
+        return (0.0, 90.0, 180.0, 270.0)
+    if lo - 1e-9 <= min(DEFAULT_ANGLES_DEG) and max(DEFAULT_ANGLES_DEG) <= hi + 1e-9:
+        return DEFAULT_ANGLES_DEG
+    return (lo, 0.5 * (lo + hi), hi)
 DEG = math.pi / 180
 
 
@@ -233,7 +245,7 @@ def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, n
             raise SceneError("position", "the output of this drivetrain is an angle: give angles "
                              "in deg (--angle DEG)")
         key, unit, scale = "angle", "deg", DEG
-        values = DEFAULT_ANGLES_DEG if angles_deg is None else angles_deg
+        values = (default_angles_deg(dt) if angles_deg is None else angles_deg)
     values = np.atleast_1d(np.asarray(values, dtype=float))
     if values.size == 0:
         raise SceneError(key, "give at least one value")
