@@ -75,6 +75,7 @@ def _python_examples():
 
 @pytest.mark.parametrize("code", list(_python_examples()))
 def test_python_examples_run(code, tmp_path, monkeypatch):
+    (tmp_path / "scenes").symlink_to(ROOT / "scenes")  # examples name the shipped scenes
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
     exec(compile(code, "<docs example>", "exec"), {"__name__": "__docs__"})
