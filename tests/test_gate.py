@@ -143,3 +143,15 @@ def test_impossible_bandwidth_gives_the_best_stable_design(capsys):
     assert d["closed_loop_stable"] is True
     assert not d["requirements"]["bandwidth"]["passed"]
     assert any("no stable" in n for n in d["notes"])
+
+
+def test_ctrl_c_is_one_line_and_exit_130():
+    import signal
+    import time
+    proc = _cli(["check", str(SCENES / "ema_reference.toml")], stdout=subprocess.DEVNULL)
+    time.sleep(4.0)  # inside the design or the large-signal run
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    lines = [ln for ln in err.decode().splitlines() if ln.strip()]
+    assert lines[-1] == "servo-toolkit: interrupted" and not any("Traceback" in ln for ln in lines)

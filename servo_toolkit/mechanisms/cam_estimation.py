@@ -38,6 +38,7 @@ from ..estimation import (EstimationComparison, Estimate, KalmanEstimator,
                           compare_estimators, encoder_quantum, kalman_estimate,
                           steady_state_gain)
 from . import cam_kernels as kernels
+from .cam_voltage_result import Trajectory
 
 #: Values of the study key ``speed_estimator``; the first is the seed's.
 ESTIMATORS = ("difference", "kalman")
@@ -89,7 +90,6 @@ def kalman_scheme(drive, voltage: float, duration: float, step: float, scheme: s
         Clearance (the follower travel is then not a function of the cam angle, so the
         encoder cannot give it), a non-finite speed or the cam reversing.
     """
-    from .cam_voltage import Trajectory
     if scheme not in ("seed", "corrected"):
         raise ValueError(f"scheme must be 'seed' or 'corrected' (got {scheme!r})")
     if jerk is None or not jerk > 0:

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
-
-from .default_controller import default_controller
 from .engine import run
 from .model import ModelOptions, build_model
 from .reference import Reference
@@ -15,24 +12,16 @@ UNSTABLE_SOURCE = "loop.design: closed loop UNSTABLE"
 
 
 def controller_for(scene):
-    """The designed controller (``servo_toolkit.loop.design``) when available, else the
-    conservative fallback cascade.
+    """The designed controller (:func:`servo_toolkit.loop.design`).
 
     Returns
     -------
     controller : CascadeController
     source : str
         ``"loop.design"``, ``"loop.design: closed loop UNSTABLE"`` (the design found no
-        stable controller: the run shows what that controller does, and says so) or
-        ``"fallback"``.
+        stable controller: the run shows what that controller does, and says so).
     """
-    try:
-        loop = importlib.import_module("servo_toolkit.loop")
-    except ImportError:
-        return default_controller(scene), "fallback"
-    design = getattr(loop, "design", None)
-    if design is None:
-        return default_controller(scene), "fallback"
+    from ..loop.design import design  # the loop is designed upstream of every simulation
     result = design(scene)
     if not result.margins.closed_loop_stable:
         return result.controller, UNSTABLE_SOURCE
