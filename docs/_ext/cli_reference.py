@@ -7,7 +7,8 @@ usage line, its help and every option, so the page cannot drift from the parser.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from generated import page_generator
 
 
 def _subparsers(parser):
@@ -55,14 +56,7 @@ def cli_markdown() -> str:
     return "\n".join(out)
 
 
-def _generate(app, config):
-    target = Path(app.srcdir) / "reference" / "cli.md"
-    text = cli_markdown()
-    if not target.exists() or target.read_text() != text:
-        target.write_text(text)
-
-
 def setup(app):
     """Sphinx extension entry point."""
-    app.connect("config-inited", _generate)
+    app.connect("config-inited", page_generator("reference/cli.md", cli_markdown))
     return {"parallel_read_safe": True, "version": "1"}

@@ -13,6 +13,8 @@ import math
 import re
 from pathlib import Path
 
+from generated import page_generator
+
 #: reader names, most specific first (a number is read as a dimensionless quantity too)
 _PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
 _ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "studies.*",
@@ -177,14 +179,7 @@ def scene_markdown(reads=None) -> str:
     return "\n".join(out)
 
 
-def _generate(app, config):
-    target = Path(app.srcdir) / "reference" / "scenes.md"
-    text = scene_markdown()
-    if not target.exists() or target.read_text() != text:
-        target.write_text(text)
-
-
 def setup(app):
     """Sphinx extension entry point."""
-    app.connect("config-inited", _generate)
+    app.connect("config-inited", page_generator("reference/scenes.md", scene_markdown))
     return {"parallel_read_safe": True, "version": "1"}
