@@ -38,6 +38,17 @@ def _parse_string(text: str, key: str) -> pint.Quantity:
         raise SceneError(key, f"unknown unit {unit!r} in {text!r} ({exc})") from None
 
 
+def parse_text(text: str, key: str) -> pint.Quantity:
+    """A pint quantity from text such as ``"1 mm"`` (a bare number is dimensionless).
+
+    Raises
+    ------
+    SceneError
+        Not a number, NaN, or an unknown unit (naming ``key``).
+    """
+    return _parse_string(text, key)
+
+
 def parse_quantity(value, unit: str, key: str) -> float:
     """Convert a scene value to a float in ``unit``.
 

@@ -133,7 +133,7 @@ def test_a_device_is_not_read():
 
 EMA = str(SCENES / "ema_reference.toml")
 OPTIONS = [["simulate", EMA, "--dt", "0"], ["simulate", EMA, "--dt", "nan"], ["simulate", EMA, "--dt", "10"],
-           ["simulate", EMA, "--dt", "inf"], ["sweep", EMA, "--workers", "0"], ["sweep", EMA, "--amplitude", "1000"],
+           ["simulate", EMA, "--dt", "inf"], ["sweep", EMA, "--workers", "0"],
            ["report", "--section-time-limit", "-5"], ["check", EMA, "--samples", "100000000"]]
 
 
@@ -142,6 +142,13 @@ def test_bad_option_values_are_one_line_and_exit_2(argv):
     with pytest.raises(SystemExit) as stop:
         run(argv)  # argparse stops with the exit code
     assert stop.value.code == 2
+
+
+@pytest.mark.parametrize("command", ["sweep", "simulate", "montecarlo"])
+def test_an_amplitude_is_read_in_the_output_unit_before_any_work(command):
+    """An amplitude needs the scene (deg for an angle, mm for a travel): read right after it."""
+    code, lines = run([command, EMA, "--amplitude", "1000"])
+    assert code == 2 and len(lines) == 1 and "--amplitude" in lines[0] and "at most 180 deg" in lines[0]
 
 
 def test_output_paths_are_checked_before_any_work(tmp_path):

@@ -455,3 +455,43 @@ def test_study_keys_select_the_estimator():
         with pytest.raises(SceneError, match=f"studies.constant_voltage.{key}"):
             run_study(build(variant(data, **base, **{f"studies__constant_voltage__{key}": bad})),
                       "constant_voltage")
+
+
+def test_clearance_keeps_each_scheme_on_its_own(drive):
+    """With 0.5 mm clearance the corrected scheme reverses the cam at the study step; the
+    seed's scheme still runs through and gives its known speed (5.33 to 5.54 rad/s to two
+    decimals over the last turns), and the study says that speed is ill-conditioned."""
+    d = replace(drive, cam=replace(drive.cam, clearance=0.5e-3))
+    r = constant_voltage(d, 3.5, 3.0, 1e-3)
+    with pytest.raises(SimulationError, match="reversed"):  # found independently
+        discrete_scheme(d, 3.5, 3.0, 1e-3, "corrected")
+    assert set(r.scheme_failures) == {"corrected"} and "reversed" in r.scheme_failures["corrected"]
+    assert r.corrected.t[-1] < 3.0 and r.seed.t[-1] == pytest.approx(3.0)
+    assert 5.325 <= r.mean_speed(r.seed) <= 5.545
+    c = r.conditioning["seed"]
+    assert c["ill_conditioned"] and c["condition_number"] > 1e6
+    # the probe is what it says: the same scheme at a voltage 1e-12 higher moves that much
+    moved = discrete_scheme(d, 3.5 * (1 + 1e-12), 3.0, 1e-3, "seed")
+    assert np.max(np.abs(moved.omega - r.seed.omega)) <= c["max_speed_change_rad_s"]
+    out = r.to_dict()
+    json.dumps(out, allow_nan=False)
+    assert out["scheme_failures"] == r.scheme_failures and out["conditioning"]["seed"]["ill_conditioned"]
+    assert "ILL-CONDITIONED" in r.table() and "corrected scheme stopped" in r.table()
+
+
+def test_small_clearance_is_well_conditioned(drive):
+    d = replace(drive, cam=replace(drive.cam, clearance=0.05e-3))
+    r = constant_voltage(d, 3.5, 3.0, 1e-3)
+    assert not r.scheme_failures
+    assert {k: c["ill_conditioned"] for k, c in r.conditioning.items()} == {"seed": False, "corrected": False}
+    assert "ILL-CONDITIONED" not in r.table()
+
+
+def test_clearance_study_from_the_command_line(tmp_path, capsys):
+    text = (SCENES / "cam_follower.toml").read_text().replace('clearance = "0 mm"', 'clearance = "0.5 mm"')
+    assert 'clearance = "0.5 mm"' in text
+    path = tmp_path / "cam.toml"
+    path.write_text(text)
+    assert cli_main(["simulate", str(path), "--study", "constant_voltage", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert 5.325 <= d["mean_speed_seed_rad_s"] <= 5.545 and "corrected" in d["scheme_failures"]

@@ -114,8 +114,12 @@ def test_cli_text_and_errors(capsys):
     assert main(["kv", EMA]) == 0
     text = capsys.readouterr().out
     assert "kv_stroke" in text and "kv_8hz" in text and "Kv motor" in text
-    assert main(["kv", str(SCENES / "cam_follower.toml")]) == 2
-    assert "no study of kind 'kv'" in capsys.readouterr().err
+    # a scene without a kv study runs seed 000's 8 Hz, 2 deg sine at the design's operating point
+    assert main(["kv", str(SCENES / "cam_follower.toml"), "--json"]) == 0
+    case = json.loads(capsys.readouterr().out)["cases"][0]
+    assert case["amplitude_deg"] == pytest.approx(2.0) and case["frequency_hz"] == 8.0
+    assert main(["kv", EMA, "--study", "kv_8hz", "--amplitude", "1 deg"]) == 2
+    assert "--study" in capsys.readouterr().err
     assert main(["kv", EMA, "--study", "nope"]) == 2
     assert "studies.nope" in capsys.readouterr().err
 

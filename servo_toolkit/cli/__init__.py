@@ -112,7 +112,11 @@ def main(argv=None) -> int:
         code = int(args.run(args) or 0)
         out.flush()
     except SceneError as exc:
-        print(f"servo-toolkit: error: {exc}", file=sys.stderr)
+        hint = None
+        if exc.key == "drivetrain" and "no motor-driven" in exc.rule:
+            from .hints import no_drivetrain_hint
+            hint = no_drivetrain_hint(args.command, getattr(args, "scene", None))
+        print(f"servo-toolkit: error: {exc}" + (f"; {hint}" if hint else ""), file=sys.stderr)
         code = 2
     except SimulationError as exc:
         print(f"servo-toolkit: simulation error: {exc}", file=sys.stderr)

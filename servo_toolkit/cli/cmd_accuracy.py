@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..scene import load_scene
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
 
 #: accuracy runs are short: the reference restarts at every controller sample
 ACCURACY_DURATION = 0.1
@@ -13,7 +13,9 @@ def register(sub) -> None:
     """Register the command."""
     p = sub.add_parser("accuracy", help="error against run time: RK4 step ladder vs the stiff reference")
     add_scene(p)
-    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine)")
+    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine; 1 mm for "
+                   "an output travel)")
+    add_sine_options(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -26,7 +28,8 @@ def run(args) -> int:
     from ..sim.studies import run_spec
 
     scene = load_scene(args.scene)
-    reference, duration, voltage, _, _ = run_spec(scene, args.study)
+    reference, duration, voltage, _, _ = run_spec(scene, args.study, amplitude=amplitudes_si(scene, args.amplitude),
+                                                  frequency=args.frequency)
     if voltage is not None:
         model = build_model(scene, None)
         reference = Reference.voltage(voltage)

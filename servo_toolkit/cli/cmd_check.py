@@ -226,7 +226,11 @@ def run(args) -> int:
         except SceneError as exc:
             exc = _tagged(exc, path)
             if exc is not scene:
-                print(f"servo-toolkit: error: {exc}", file=sys.stderr)
+                hint = None
+                if exc.key == "drivetrain" and "no motor-driven" in exc.rule:
+                    from .hints import no_drivetrain_hint
+                    hint = no_drivetrain_hint("check", path)
+                print(f"servo-toolkit: error: {exc}" + (f"; {hint}" if hint else ""), file=sys.stderr)
             errors += 1
             entries.append((str(path) if isinstance(scene, SceneError) else scene.name, exc))
             out.append({"source": str(path), "passed": False, "error": str(exc), "key": exc.key,

@@ -11,7 +11,8 @@ from .cmd_design import add_design_options, design_from_args
 from .common import add_json, add_scene, emit
 
 #: library keys that are command-line options here
-OPTION_KEYS = {"current_sample_time": "--current-sample-time", "fixed_point": "--fixed-point"}
+OPTION_KEYS = {"current_sample_time": "--current-sample-time", "fixed_point": "--fixed-point",
+               "sample_time": "--sample-time"}
 
 
 def register(sub) -> None:
@@ -22,6 +23,9 @@ def register(sub) -> None:
                    help="output folder (created; controller.json, servo_controller.h/.c replaced atomically)")
     p.add_argument("--fixed-point", choices=("q15", "q31"), default=None,
                    help="quantize the motion controller and recompute the margins with it")
+    p.add_argument("--sample-time", metavar="S", default=None,
+                   help="motion-loop sample time, e.g. 0.2ms: replaces the scene's sensors.sample_time and "
+                        "designs the loop at it (a scene with a continuous controller needs one)")
     p.add_argument("--current-sample-time", metavar="S", default=None,
                    help="current-loop sample time, e.g. 25us (default: an integer fraction of the motion "
                         "sample time with w_i Ts <= 0.2)")
@@ -40,8 +44,14 @@ def run(args) -> int:
         parse_override(text)
     ts_i = None if args.current_sample_time is None else parse_quantity(args.current_sample_time, "s",
                                                                         "--current-sample-time")
+    ts = None if args.sample_time is None else parse_quantity(args.sample_time, "s", "--sample-time")
+    if ts is not None and not 1e-7 <= ts <= 1.0:
+        raise SceneError("--sample-time", f"must lie in [0.1 us, 1 s] (got {args.sample_time!r})")
     check_directory(args.output, inputs=[args.scene])  # before any work
     scene = load_scene(args.scene)
+    if ts is not None:
+        from dataclasses import replace
+        scene = replace(scene, sensors=replace(scene.sensors, sample_time=ts))
     try:
         result = design_from_args(scene, args)
         result = export(result, scene, args.output, fixed_point=args.fixed_point, current_sample_time=ts_i,

@@ -6,9 +6,10 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from ..studies.kv import kv_study
+from ..studies.kv import default_kv_study, kv_study
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
+from .hints import default_mechanism_study, has_motor_drivetrain, what_to_run
 
 
 def register(sub) -> None:
@@ -17,6 +18,8 @@ def register(sub) -> None:
     add_scene(p)
     p.add_argument("--study", metavar="NAME",
                    help="run only this study, or a seed-mechanism study (default: every study of kind kv)")
+    add_sine_options(p, what="the Kv study's sine motion (replaces the scene's kv studies; default without "
+                             "one: 8 Hz, 2 deg, or 1 mm for an output travel)")
     p.add_argument("--losses", choices=("directional", "none"), default="directional",
                    help="stage-loss model (default: directional efficiency)")
     add_json(p)
@@ -34,18 +37,30 @@ def _run_one(scene, study, args):
 def run(args) -> int:
     """Run the command."""
     scene = load_scene(args.scene)
-    if args.study:
+    sine = args.amplitude is not None or args.frequency is not None
+    if args.study and sine:
+        raise SceneError("--study", "give a study or --amplitude/--frequency (a sine of its own), not both")
+    if not args.study and not has_motor_drivetrain(scene):
+        name = default_mechanism_study(scene)
+        if name is None:
+            raise SceneError("drivetrain", f"this scene has no motor-driven drivetrain; {what_to_run(scene, args.scene)}")
+        print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain; running its study {name!r}",
+              file=sys.stderr)
+        studies = [scene.studies.get(name, name)]
+    elif args.study:
         dispatch.require(scene, args.study)
         studies = [scene.studies.get(args.study, args.study)]
     else:
-        studies = scene.studies_of_kind("kv")
+        studies = [] if sine else scene.studies_of_kind("kv")
         if not studies:
-            raise SceneError("studies", f"the scene has no study of kind 'kv' (studies: {dispatch.available(scene)})")
+            studies = [default_kv_study(scene, amplitudes_si(scene, args.amplitude), args.frequency)]
     results = [_run_one(scene, s, args) for s in studies]
     names = [getattr(s, "name", s) for s in studies]
     dicts = [r.to_dict() if hasattr(r, "to_dict") else dict(r) for r in results]
     cases = [dict(c, study=n) for n, d in zip(names, dicts) for c in d.get("cases", [])]
     payload = {"scene": scene.name, "studies": dicts, "cases": cases}
     text = "\n\n".join(r.table() if hasattr(r, "table") else str(r) for r in results)
-    emit(args, payload, f"Kv dynamic-load studies of {scene.name}\n{text}")
+    kv = all(getattr(st, "kind", None) == "kv" for st in studies)
+    title = f"Kv dynamic-load studies of {scene.name}" if kv else f"Studies of {scene.name}: {', '.join(names)}"
+    emit(args, payload, f"{title}\n{text}")
     return 0

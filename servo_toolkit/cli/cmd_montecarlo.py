@@ -10,7 +10,7 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
 
 
 def register(sub) -> None:
@@ -25,6 +25,7 @@ def register(sub) -> None:
                    help="variants (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--seed", type=int, default=None, help="seed of the Monte Carlo draws")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="seconds (default: simulate's, 1 s)")
+    add_sine_options(p)
     p.add_argument("--full", action="store_true", help="run the full model (default: simulate's reduced model)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process, every core)")
@@ -53,12 +54,18 @@ def run(args) -> int:
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
     varies = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
+    reference = None
+    if args.amplitude is not None or args.frequency is not None:
+        from ..sim.studies import run_spec
+        reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
+                             frequency=args.frequency)[0]
     variants = None
     if varies:
         base = dict(scene.robustness.ranges) if scene.robustness is not None else {}
         variants = {**base, **varies}
     progress = not args.json and sys.stderr.isatty()
-    kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress)
+    kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress,
+                  reference=reference)
     if args.workers and args.workers > 1:
         n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
         with ProcessPoolExecutor(args.workers) as pool:

@@ -6,7 +6,7 @@ import math
 import sys
 
 from ..scene import load_scene
-from .common import add_json, add_scene, bounded, emit
+from .common import add_json, add_scene, amplitudes_si, bounded, emit
 from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
@@ -19,6 +19,9 @@ def register(sub) -> None:
                    "(default: the scene's first sweep)")
     p.add_argument("--frequency", type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"), action="append", metavar="HZ",
                    help="frequency in Hz, repeatable: replaces a sweep study's frequencies (and its 8 Hz)")
+    p.add_argument("--amplitude", action="append", metavar="AMP",
+                   help="command amplitude with units, repeatable: replaces the study's (e.g. '2 deg', or "
+                        "'1 mm' for an output travel; a bare number is in deg or mm)")
     p.add_argument("--tolerance", type=float, default=None, metavar="X",
                    help="a-priori bound on the relative response difference (default 0.02 = 0.17 dB / 1.15 deg)")
     p.add_argument("--estimate-only", action="store_true",
@@ -42,14 +45,16 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+    amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
     if args.estimate_only:
-        _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency)
+        _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}\n{'':34s}   {e.quantity}" for e in plan.effects]
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
+                 amplitudes=amps,
                  progress=not args.json and sys.stderr.isatty())
     if args.plot:
         import matplotlib

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import sys
 
+from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, bounded, emit, prepare_kernels
+from .hints import default_mechanism_study
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
 
 
 def register(sub) -> None:
     """Register the command."""
     p = sub.add_parser("simulate", help="time simulation (compiled RK4, paper scheme or stiff reference)")
     add_scene(p)
-    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine, 1 s)")
+    p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine, 1 s; "
+                   "1 mm for an output travel)")
+    add_sine_options(p)
     p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
     p.add_argument("--dt", type=bounded(float, 1e-9, 1.0, what="a step in seconds"), metavar="S",
                    help="fixed step (s), 1e-9 to 1")
@@ -26,13 +30,23 @@ def register(sub) -> None:
 
 
 def _mechanism_dispatch(scene, args):
-    """The mechanism studies' own runner when it handles this study, else None."""
-    if not args.study:
+    """The mechanism studies' own runner when it handles this study (by default, a scene
+    without a motor-driven drivetrain runs its first mechanism study), else None."""
+    name = args.study or default_mechanism_study(scene)
+    if not name:
         return None
-    dispatch.require(scene, args.study)
-    study = scene.studies.get(args.study, args.study)
+    if not args.study:
+        print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain; running its study "
+              f"{name!r} (--study NAME for another)", file=sys.stderr)
+    dispatch.require(scene, name)
+    study = scene.studies.get(name, name)
     if not dispatch.handled(scene, study):
         return None
+    given = [opt for opt, value in (("--amplitude", args.amplitude), ("--frequency", args.frequency),
+                                    ("--full", args.full)) if value]
+    if given:
+        raise SceneError(f"studies.{getattr(study, 'name', study)}", f"is a seed-mechanism study; "
+                         f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to closed-loop sine runs only")
     return dispatch.run_mechanism(scene, study, method=args.method, dt=args.dt)
 
 
@@ -43,10 +57,12 @@ def run(args) -> int:
 
     scene = load_scene(args.scene)
     check_trace_path(args.output)  # a bad -o name fails before the run, exit 2
+    amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
         prepare_kernels(scene, paper=args.method == "paper")
-        result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full)
+        result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full,
+                                amplitude=amplitude, frequency=args.frequency)
         text = f"Simulation of {scene.name}\n" + result.table()
     else:
         text = result.table() if hasattr(result, "table") else str(result.to_dict())

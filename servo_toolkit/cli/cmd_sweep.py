@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import sys
 
 import numpy as np
@@ -10,7 +9,8 @@ import numpy as np
 from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, bounded, emit
+from .hints import default_mechanism_study
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
 from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
@@ -21,10 +21,7 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study, plus 8 Hz (default: the scene's first), or a "
                    "seed-mechanism study (run as simulate runs it)")
-    p.add_argument("--frequency", type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"), action="append", metavar="HZ",
-                   help="drive frequency in Hz, repeatable (replaces the study's)")
-    p.add_argument("--amplitude", type=bounded(float, 0.0, 180.0, low_open=True, what="an amplitude in deg"), action="append", metavar="DEG",
-                   help="command amplitude in deg, repeatable: one curve each (replaces the study's)")
+    add_sine_options(p, repeat=True, what="the dwell (replaces the study's)")
     p.add_argument("--full", action="store_true", help="run the full model (default: the reduced model)")
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
                    help="run the dwells in N processes (at least 1; default: in this process)")
@@ -62,16 +59,16 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
-    if args.study:
-        dispatch.require(scene, args.study)
-        study = scene.studies.get(args.study, args.study)
+    name = args.study or default_mechanism_study(scene)
+    if name:
+        if not args.study:
+            print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain (no loop to sweep); "
+                  f"running its study {name!r} as simulate does", file=sys.stderr)
+        dispatch.require(scene, name)
+        study = scene.studies.get(name, name)
         if dispatch.handled(scene, study):
             return _run_mechanism(scene, study, args)
-    amps = [math.radians(a) for a in args.amplitude] if args.amplitude else None
-    for name, values in (("--frequency", args.frequency), ("--amplitude", args.amplitude)):
-        if values and (min(values) <= 0 or not all(math.isfinite(v) for v in values)):
-            sys.stderr.write(f"error: {name} must be positive and finite\n")
-            return 2
+    amps = amplitudes_si(scene, args.amplitude)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     if args.workers > 1:

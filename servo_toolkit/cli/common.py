@@ -85,3 +85,27 @@ def bounded(kind=float, low=None, high=None, *, low_open: bool = False, what: st
         return value
     parse.__name__ = what
     return parse
+
+
+def add_sine_options(parser, *, repeat: bool = False, what: str = "the sine command") -> None:
+    """Add ``--amplitude`` (with units, in the output's unit) and ``--frequency`` (Hz)."""
+    kw = dict(action="append") if repeat else {}
+    parser.add_argument("--amplitude", metavar="AMP", **kw,
+                        help=f"amplitude of {what} with units, e.g. '2 deg' or '1 mm' for an output travel "
+                             "(a bare number is in deg, or mm for a travel; default 2 deg / 1 mm)"
+                             + (", repeatable: one curve each" if repeat else ""))
+    parser.add_argument("--frequency", metavar="HZ", **kw,
+                        type=bounded(float, 0.0, 1e5, low_open=True, what="a frequency in Hz"),
+                        help=f"frequency of {what} in Hz (default 8 Hz)" + (", repeatable" if repeat else ""))
+
+
+def amplitudes_si(scene, texts, option: str = "--amplitude"):
+    """``--amplitude`` values (one text or a list) in SI after the scene's output unit;
+    None when not given. Raises SceneError naming the option and the rule."""
+    from ..output_units import output_unit
+    if texts is None:
+        return None
+    unit = output_unit(scene)
+    if isinstance(texts, str):
+        return unit.parse(texts, option)
+    return [unit.parse(t, option) for t in texts]

@@ -257,7 +257,9 @@ def blocks_of(design_result, scene, current_sample_time: float | None = None) ->
     ctrl, motion = design_result.controller, design_result.motion
     ts = ctrl.sample_time
     if ts <= 0:
-        raise SceneError("sensors.sample_time", "export needs a sampled controller: sample_time must be > 0")
+        raise SceneError("sensors.sample_time", "export needs a sampled controller: sample_time must be > 0 "
+                         "(this design is continuous; set sensors.sample_time in the scene, or pass "
+                         "`export --sample-time 0.2ms` to design the loop sampled and export it)")
     if motion is None:
         raise SceneError("design", "export needs a designed motion controller (design(scene)); this "
                          "result carries only a state space")

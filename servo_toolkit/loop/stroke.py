@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import SceneError
+from ..operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
 from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
@@ -39,11 +40,6 @@ from .robustness import _controller_blocks, _controller_response
 STROKE_POINTS = 25
 """Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
 the end that repeats the start is dropped), plus q0 and the inertia extremes."""
-INERTIA_SPREAD_LIMIT = 1.5
-"""Largest max/min ratio of the motor-side reflected inertia along the stroke for which the
-loop is designed at mid-stroke; above it, at the largest inertia."""
-SCAN_POINTS = 721
-"""Operating points scanned for the inertia extremes (0.5 deg over a cam's turn)."""
 
 #: margin requirement -> its figure over the stroke; the figure of an unstable loop
 _MARGIN_FIGURES = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
@@ -53,61 +49,6 @@ _FIGURES = ("gain_margin_db", "phase_margin_deg", "sensitivity_peak_db", "bandwi
 #: figure -> worst is its minimum or its maximum (over the stable points)
 _WORST = {"gain_margin_db": "min", "phase_margin_deg": "min", "sensitivity_peak_db": "max",
           "bandwidth_hz": "min", "max_pole_real": "max"}
-
-
-def show_q(q: float, unit: str = "rad", digits: int = 4) -> str:
-    """An operating point for text: degrees for an angle (``unit`` ``"rad"``), mm for a
-    travel (``"m"``)."""
-    return f"{q * 1e3:.{digits}g} mm" if unit == "m" else f"{math.degrees(q):.{digits}g} deg"
-
-
-def _scan(drivetrain, points: int = SCAN_POINTS):
-    q = np.linspace(*drivetrain.stroke, points)
-    return q, drivetrain.motor_inertia(q)
-
-
-def _plateau_middle(q, j) -> float:
-    """The middle of the first run of grid points at the largest value of ``j`` (a cam's
-    constant-velocity segment is a plateau of inertia, not a point)."""
-    top = np.flatnonzero(j >= j.max() * (1 - 1e-9))
-    run = top[: 1 + int(np.argmax(np.diff(top) > 1))] if np.any(np.diff(top) > 1) else top
-    return float(q[run[len(run) // 2]])
-
-
-def operating_point(scene, q0=None) -> tuple[float, str | None]:
-    """The design's operating point and, when it is not mid-stroke by default, why.
-
-    Rule: an explicit ``q0`` wins. Otherwise, when the motor-side reflected inertia
-    J(q) / N(q)^2 varies along the stroke by more than :data:`INERTIA_SPREAD_LIMIT` (max /
-    min over :data:`SCAN_POINTS` points), the loop is designed where it is largest (the
-    middle of the first plateau of that largest value); else at mid-stroke.
-
-    Parameters
-    ----------
-    scene : Scene
-    q0 : float, optional
-        Operating point (rad).
-
-    Returns
-    -------
-    q0 : float
-        Operating point (rad).
-    note : str or None
-        The reason, for the result's notes (None for an explicit q0 or mid-stroke).
-    """
-    dt = scene.drivetrain
-    if q0 is not None:
-        return float(q0), None
-    q, j = _scan(dt)
-    spread = float(j.max() / j.min())
-    if spread <= INERTIA_SPREAD_LIMIT:
-        return float(dt.mid_stroke), None
-    at = _plateau_middle(q, j)
-    u = dt.output_unit
-    return at, (f"operating point q0 = {show_q(at, u)}, where the motor-side reflected inertia is "
-                f"largest ({j.max():.4g} kg*m^2, {spread:.3g}x its smallest, {j.min():.4g} kg*m^2 at "
-                f"{show_q(q[int(np.argmin(j))], u)}; rule: largest inertia when it varies by more "
-                f"than {INERTIA_SPREAD_LIMIT:g}x, else mid-stroke); the loop is designed and checked over the stroke")
 
 
 def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarray:

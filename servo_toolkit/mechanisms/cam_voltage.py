@@ -183,18 +183,13 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
     encoder_counts = encoder_counts or DEFAULT_ENCODER_COUNTS
     window = 0.1 * duration if window is None else min(window, duration)
     clearance = drive.cam.clearance
-    seed = discrete_scheme(drive, voltage, duration, step, "seed")
-    corr = discrete_scheme(drive, voltage, duration, step, "corrected")
     if clearance > 0:
         if speed_estimator == "kalman":
             raise SimulationError("the Kalman option estimates the follower motion from the cam angle; with "
                                   "clearance the travel is not a function of the angle (use differences)")
-        why = (f"the cam has clearance c = {clearance:.4g} m; its continuous limit is an impact, which the "
-               "rigid accurate model does not describe, so only the discrete schemes (eqs 6-8) ran")
-        empty = {k: np.array([]) for k in ("seed", "corrected", "seed_vs_limit")}
-        return CamVoltageResult(voltage, None, seed, corr, None, np.array([]), empty, dict(empty), window,
-                                steady_speed_without_follower(drive, voltage), method or "both",
-                                skipped=why, clearance=clearance)
+        return _with_clearance(drive, voltage, duration, step, window, method)
+    seed = discrete_scheme(drive, voltage, duration, step, "seed")
+    corr = discrete_scheme(drive, voltage, duration, step, "corrected")
     steps = 4 * step / 2.0 ** np.arange(refinements + 1)
     times = np.arange(int(round(duration / steps[-1])) + 1) * steps[-1]
     times = times[times <= duration]
@@ -233,6 +228,66 @@ def constant_voltage(drive: CamDrive, voltage: float, duration: float, step: flo
                             {k: np.array(v) for k, v in angles.items()}, window,
                             steady_speed_without_follower(drive, voltage), method or "both",
                             estimation, speed_estimator, kalman, failures or None, tuple(ladder_failures))
+
+
+#: relative changes of the voltage that probe a scheme's conditioning
+CONDITION_PROBES = (1e-12, -1e-12)
+#: a scheme is ill-conditioned when its relative condition number (relative change of the
+#: speed trace over the relative change of the voltage) exceeds this: a voltage known to
+#: nine digits then leaves the speed uncertain in its third
+ILL_CONDITIONED = 1e6
+
+
+def _with_clearance(drive: CamDrive, voltage: float, duration: float, step: float, window: float,
+                    method: str | None) -> CamVoltageResult:
+    """Both discrete schemes with the clearance hysteresis of eqs 6-8, each kept on its own: a
+    scheme that stops (the cam reverses) gives its trajectory up to the stop and the reason,
+    the other its whole run. Each scheme that ran through is probed for its conditioning
+    (:func:`_conditioning`): with a large clearance the impacts make the seed's scheme
+    chaotic, and its speed is then not determined by the inputs."""
+    runs, failures, conditioning = {}, {}, {}
+    for name in SCHEMES:
+        runs[name], failures[name] = _scheme_until_stop(drive, voltage, duration, step, name)
+        if failures[name] is None:
+            conditioning[name] = _conditioning(drive, voltage, duration, step, name, runs[name])
+    why = (f"the cam has clearance c = {drive.cam.clearance:.4g} m; its continuous limit is an impact, which the "
+           "rigid accurate model does not describe, so only the discrete schemes (eqs 6-8) ran")
+    empty = {k: np.array([]) for k in ("seed", "corrected", "seed_vs_limit")}
+    return CamVoltageResult(voltage, None, runs["seed"], runs["corrected"], None, np.array([]), empty, dict(empty),
+                            window, steady_speed_without_follower(drive, voltage), method or "both",
+                            skipped=why, clearance=drive.cam.clearance,
+                            scheme_failures={k: v for k, v in failures.items() if v},
+                            conditioning=conditioning)
+
+
+def _scheme_until_stop(drive, voltage, duration, step, name):
+    """``(trajectory, None)`` of a whole run, or ``(trajectory up to the stop, reason)``."""
+    try:
+        return discrete_scheme(drive, voltage, duration, step, name), None
+    except SimulationError as exc:
+        n = int(round(duration / step))
+        theta, omega, _ = kernels.discrete(kernels.pack(drive), float(voltage), n, float(step), name == "corrected")
+        k = max(1, int(np.flatnonzero(omega)[-1]) if np.any(omega) else 1)
+        t = np.arange(k + 1) * step
+        return (Trajectory(f"discrete ({name}, stopped)", t, theta[:k + 1], omega[:k + 1],
+                           (voltage - drive.back_emf_constant * omega[:k + 1]) / drive.resistance), str(exc))
+
+
+def _conditioning(drive, voltage, duration, step, name, run) -> dict:
+    """The relative condition number of a scheme's speed trace with respect to the voltage,
+    probed by the relative changes :data:`CONDITION_PROBES`: max |w' - w| / max |w| over
+    |du / u| (a smooth, well-posed run gives a number of order one)."""
+    scale = max(float(np.max(np.abs(run.omega))), 1e-300)
+    change, rel = 0.0, abs(CONDITION_PROBES[0])
+    for d in CONDITION_PROBES:
+        try:
+            probe = discrete_scheme(drive, voltage * (1 + d), duration, step, name)
+            change = max(change, float(np.max(np.abs(probe.omega - run.omega))))
+        except SimulationError:
+            change = math.inf
+    number = change / scale / rel
+    return {"relative_voltage_change": rel, "max_speed_change_rad_s": change, "condition_number": number,
+            "ill_conditioned": bool(number > ILL_CONDITIONED)}
 
 
 def _at(traj: Trajectory, t) -> Trajectory:

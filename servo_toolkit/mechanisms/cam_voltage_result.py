@@ -76,6 +76,15 @@ class CamVoltageResult:
         an impact that the rigid accurate model does not describe.
     clearance : float
         Half the cam/roller play c of the runs (m).
+    scheme_failures : dict of str to str, optional
+        With clearance: a scheme that stopped at the study step (the cam reversed), with
+        the reason; its trajectory then ends at the stop, and the other scheme's result
+        stands on its own.
+    conditioning : dict of str to dict, optional
+        With clearance, per scheme that ran through: how much relative voltage changes of
+        +-1e-12 move its speed trace (``max_speed_change_rad_s``), the relative condition
+        number (that change over max |w|, over 1e-12) and ``ill_conditioned`` (above 1e6:
+        the impacts in the clearance make the speed irreproducible).
     """
 
     voltage: float
@@ -96,6 +105,8 @@ class CamVoltageResult:
     ladder_failures: tuple = ()
     skipped: str | None = None
     clearance: float = 0.0
+    scheme_failures: dict | None = None
+    conditioning: dict | None = None
 
     @property
     def difference(self) -> np.ndarray | None:
@@ -124,7 +135,7 @@ class CamVoltageResult:
         out = {
             "study": "constant_voltage", "voltage_V": self.voltage, "method": self.method,
             "step_s": float(self.seed.t[1] - self.seed.t[0]),
-            "t_s": self.seed.t.tolist(),
+            "t_s": max((r.t for r in runs.values()), key=len).tolist(),
             **{f"omega_{k}_rad_s": r.omega.tolist() for k, r in runs.items()},
             **{f"mean_speed_{k}_rad_s": self.mean_speed(r) for k, r in runs.items()},
         }
@@ -136,6 +147,9 @@ class CamVoltageResult:
             "no_follower_speed_rad_s": self.no_follower_speed,
             "clearance_m": self.clearance,
             "accurate_comparison": "skipped: " + self.skipped if self.skipped else "run",
+            "scheme_failures": dict(self.scheme_failures or {}),
+            **({"conditioning": {k: {n: _finite(x) if isinstance(x, float) else x for n, x in c.items()}
+                                 for k, c in self.conditioning.items()}} if self.conditioning else {}),
             "convergence_window_s": self.window,
             "convergence": [{"step_s": float(h),
                              **{f"startup_max_abs_error_{k}_rad_s": _finite(e[i]) for k, e in self.errors.items()},
@@ -163,9 +177,18 @@ class CamVoltageResult:
         lines = [f"cam drive at {self.voltage:g} V for {t_end:g} s "
                  f"(follower removed: {self.no_follower_speed:.2f} rad/s)"]
         if self.reference is None:
-            lines += [f"mean speed over the last turn [rad/s]: seed scheme {self.mean_speed(self.seed):.4f}, "
-                      f"corrected scheme {self.mean_speed(self.corrected):.4f}",
-                      f"accurate comparison skipped: {self.skipped}"]
+            failed = self.scheme_failures or {}
+            speeds = [f"{name} scheme {self.mean_speed(run):.4f}" + (" (until it stopped)" if name in failed else "")
+                      for name, run in (("seed", self.seed), ("corrected", self.corrected))]
+            lines.append("mean speed over the last turn [rad/s]: " + ", ".join(speeds))
+            lines += [f"{name} scheme stopped: {why}" for name, why in failed.items()]
+            for name, c in (self.conditioning or {}).items():
+                lines.append(f"{name} scheme conditioning: a relative voltage change of {c['relative_voltage_change']:.0e} "
+                             f"moves the speed by up to {c['max_speed_change_rad_s']:.3g} rad/s (condition number "
+                             f"{c['condition_number']:.3g})" + (": ILL-CONDITIONED, the impacts in the clearance make "
+                                                                "this speed irreproducible" if c["ill_conditioned"]
+                                                                else ""))
+            lines.append(f"accurate comparison skipped: {self.skipped}")
             return "\n".join(lines)
         d = self.difference
         last = self.reference.t >= self.reference.t[-1] - 1

@@ -280,4 +280,5 @@ def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, s
                             motor_torque=aux[:, lo.AUX_TAU], max_abs_motor_torque=float(max_tau),
                             wall_s=wall, method=method, dt_s=dt, steps=steps, requested=requested,
                             choice=choice, stability=stab, reference=reference.to_dict(),
-                            controller=model.controller, notes=tuple(notes))
+                            controller=model.controller, notes=tuple(notes),
+                            output_unit=getattr(model, "output_unit", "rad"))

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..errors import SceneError
+from ..operating_point import operating_point
 from ..controller import MOTION_INPUTS
 from . import estimator, layout as lo
 from .kernel import hermite
@@ -154,6 +155,8 @@ class Model:
         The motor speed the speed loop used: ``"ideal"``, ``"difference"`` or ``"kalman"``.
     estimator : dict
         The estimator's data (quantum, jerk, gain, state names); empty for ``"ideal"``.
+    output_unit : {"rad", "m"}
+        Unit of the output coordinate q (an angle, or a travel for a chain ending in a screw).
     """
 
     name: str
@@ -173,6 +176,7 @@ class Model:
     notes: tuple = ()
     speed_estimator: str = "ideal"
     estimator: dict = field(default_factory=dict)
+    output_unit: str = "rad"
 
     def parameters(self) -> np.ndarray:
         """A writable copy of ``P`` (fill the reference slots, then run)."""
@@ -241,7 +245,9 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     motor, load = scene.motor, scene.load
     notes = []
     q, periodic = _grid(drive, options.table_points)
-    q0 = drive.mid_stroke
+    q0, why = operating_point(scene)  # where the design puts it: runs start where the loop was designed
+    if why:
+        notes.append(f"starts at the design's {why.split(',')[0]} (largest motor-side inertia)")
     j_tot, dj_tot = drive.inertia(q)
     n_tab, dn_tab = drive.ratio(q)
     m_tab = drive.kinematics(q).motor.value - drive.kinematics([q0]).motor.value[0]
@@ -343,7 +349,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     model = Model(name=scene.name, options=options, P=P, T=table, nx=len(names),
                   state_names=tuple(names), sample_time=ts, closed_loop=closed, q0=q0,
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
-                  controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info)
+                  controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info,
+                  output_unit=drive.output_unit)
     return _with_table_error(model, drive, q)
 
 

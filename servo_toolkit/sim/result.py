@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
+from ..output_units import OutputUnit
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,9 @@ class SimulationResult:
         The command signal.
     controller : str
     notes : tuple of str
+    output_unit : {"rad", "m"}
+        Unit of the output coordinate (an angle, or a travel for a chain ending in a
+        screw); tracking errors and plots are shown in deg or mm after it.
     """
 
     times: np.ndarray
@@ -70,6 +74,12 @@ class SimulationResult:
     reference: dict = field(default_factory=dict)
     controller: str = ""
     notes: tuple = ()
+    output_unit: str = "rad"
+
+    @property
+    def unit(self) -> OutputUnit:
+        """The output coordinate's units (deg or mm shown)."""
+        return OutputUnit(self.output_unit)
 
     def trace(self, name: str) -> np.ndarray:
         """One state trace by name."""
@@ -77,7 +87,7 @@ class SimulationResult:
 
     @property
     def output_angle(self) -> np.ndarray:
-        """Load-side output angle q (rad)."""
+        """Load-side output coordinate q (rad, or m for an output travel)."""
         return self.trace("output_angle_rad")
 
     @property
@@ -108,7 +118,7 @@ class SimulationResult:
             "max_abs_motor_torque_Nm": float(self.max_abs_motor_torque),
             "max_abs_current_A": float(np.max(np.abs(self.motor_current))),
             "max_abs_voltage_V": float(np.max(np.abs(self.motor_voltage))),
-            "max_abs_tracking_error_deg": float(np.degrees(np.max(np.abs(err)))),
+            self.unit.key("max_abs_tracking_error"): float(self.unit.show(np.max(np.abs(err)))),
             "wall_s": float(self.wall_s),
             "method": self.method,
             "requested_method": self.requested,
@@ -130,7 +140,8 @@ class SimulationResult:
                  f"  choice: {self.choice}",
                  f"  controller: {self.controller}",
                  f"  t_final {d['t_final_s']:.4g} s, peak motor torque {d['max_abs_motor_torque_Nm']:.4g} N*m, "
-                 f"peak current {d['max_abs_current_A']:.4g} A, peak |error| {d['max_abs_tracking_error_deg']:.4g} deg"]
+                 f"peak current {d['max_abs_current_A']:.4g} A, peak |error| "
+                 f"{d[self.unit.key('max_abs_tracking_error')]:.4g} {self.unit.shown}"]
         if self.stability:
             lam = self.stability.get("max_abs_lambda", math.nan)
             lines.append(f"  fastest eigenvalue |lambda| = {lam:.4g} 1/s, RK4 step limit "
@@ -151,14 +162,15 @@ class SimulationResult:
         return path
 
     def plot(self, axes=None):
-        """Output angle vs reference, current, voltage (three stacked axes)."""
+        """Output vs reference (deg or mm), current, voltage (three stacked axes)."""
         import matplotlib.pyplot as plt
         if axes is None:
             _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
         a0, a1, a2 = axes
-        a0.plot(self.times, np.degrees(self.reference_angle), "k--", lw=1, label="reference")
-        a0.plot(self.times, np.degrees(self.output_angle), label=f"output ({self.method})")
-        a0.set_ylabel("angle (deg)")
+        u = self.unit
+        a0.plot(self.times, u.show(self.reference_angle), "k--", lw=1, label="reference")
+        a0.plot(self.times, u.show(self.output_angle), label=f"output ({self.method})")
+        a0.set_ylabel(f"{'travel' if u.linear else 'angle'} ({u.shown})")
         a0.legend(loc="best")
         a1.plot(self.times, self.current_reference, "k--", lw=1, label="i_ref")
         a1.plot(self.times, self.motor_current, label="i")

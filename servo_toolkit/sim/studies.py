@@ -13,13 +13,28 @@ DEFAULT_SINE = (math.radians(2.0), 8.0, 1.0)
 DEFAULT_LINEAR_AMPLITUDE = 1e-3
 
 
-def run_spec(scene, study_name=None):
+def run_spec(scene, study_name=None, *, amplitude=None, frequency=None):
     """``(reference, duration, voltage, method, dt)`` for a study name or the default.
 
     Open-loop studies (a ``voltage`` parameter) give ``reference=None`` and the voltage.
     The default is :data:`DEFAULT_SINE`, with :data:`DEFAULT_LINEAR_AMPLITUDE` for an
-    output travel.
+    output travel. ``amplitude`` (SI: rad or m) and ``frequency`` (Hz) replace the sine's.
     """
+    spec = _spec(scene, study_name)
+    if amplitude is None and frequency is None:
+        return spec
+    reference, duration, voltage, method, dt = spec
+    if reference is None:
+        raise SceneError(f"studies.{study_name}", "is an open-loop voltage run: --amplitude and --frequency "
+                         "apply to a sine command only")
+    amp = reference.amplitude if amplitude is None else float(amplitude)
+    freq = reference.frequency if frequency is None else float(frequency)
+    if study_name is not None and frequency is not None:
+        duration = max(duration, 3.0 / freq)
+    return Reference.sine(amp, freq), duration, voltage, method, dt
+
+
+def _spec(scene, study_name):
     if study_name is None:
         amp, freq, dur = DEFAULT_SINE
         if scene.drivetrain.output_is_linear:

@@ -58,8 +58,13 @@ def _moved(a, b) -> set:
         return {-1}
     a2, b2 = np.atleast_2d(a.T).T, np.atleast_2d(b.T).T  # rows: slots, or table rows
     a2, b2 = a2.reshape(a2.shape[0], -1), b2.reshape(b2.shape[0], -1)
-    scale = np.maximum(np.max(np.abs(a2), axis=1), np.max(np.abs(b2), axis=1))
-    diff = np.max(np.abs(a2 - b2), axis=1) > 1e-13 * scale
+    same = (a2 == b2) | (np.isnan(a2) & np.isnan(b2))  # equal infinities (an unbounded slot) too
+    with np.errstate(invalid="ignore"):
+        gap = np.where(same, 0.0, np.abs(a2 - b2))
+        finite = np.isfinite(a2) & np.isfinite(b2)
+        scale = np.maximum(np.max(np.abs(np.where(finite, a2, 0.0)), axis=1),
+                           np.max(np.abs(np.where(finite, b2, 0.0)), axis=1))
+    diff = np.max(gap, axis=1) > 1e-13 * scale
     diff |= np.isnan(a2).any(axis=1) != np.isnan(b2).any(axis=1)
     return set(np.flatnonzero(diff).tolist())
 

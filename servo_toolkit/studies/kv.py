@@ -37,6 +37,7 @@ from ..drivetrain import Drivetrain
 from ..errors import SceneError
 from ..parallel import run_cases
 from .inverse_dynamics import inverse_dynamics
+from ..output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
 
 
@@ -70,9 +71,11 @@ class KvCase:
     kv_screw: float | None
     kv_rod: float | None
 
-    def to_dict(self) -> dict:
-        """JSON-ready dictionary (issue-5 keys first)."""
-        return {"load_inertia_kg_m2": self.load_inertia, "amplitude_deg": math.degrees(self.amplitude),
+    def to_dict(self, unit: OutputUnit = OutputUnit()) -> dict:
+        """JSON-ready dictionary (the amplitude in deg, or mm and the load mass in kg for an
+        output travel)."""
+        load_key = "load_mass_kg" if unit.linear else "load_inertia_kg_m2"
+        return {load_key: self.load_inertia, unit.key("amplitude"): float(unit.show(self.amplitude)),
                 "peak_motor_torque_Nm": self.peak_motor_torque, "peak_screw_thrust_N": self.peak_screw_thrust,
                 "kv_motor": self.kv_motor, "kv_screw": self.kv_screw, "frequency_hz": self.frequency,
                 "peak_rod_force_N": self.peak_rod_force, "kv_rod": self.kv_rod}
@@ -108,6 +111,12 @@ class KvResult:
     cases: tuple
     notes: tuple = field(default=())
     compliance_effect: float = 0.0
+    output_unit: str = "rad"
+
+    @property
+    def unit(self) -> OutputUnit:
+        """The output coordinate's units (deg or mm shown)."""
+        return OutputUnit(self.output_unit)
 
     @property
     def amplitudes(self) -> list:
@@ -124,20 +133,21 @@ class KvResult:
         """JSON-ready dictionary with the ``cases`` list."""
         return {"scene": self.scene, "study": self.study, "motion": self.motion,
                 "amplitude_at": self.amplitude_at, "losses": self.losses,
-                "cases": [c.to_dict() for c in self.cases], "notes": list(self.notes),
+                "cases": [c.to_dict(self.unit) for c in self.cases], "notes": list(self.notes),
                 "compliance_effect_relative": self.compliance_effect}
 
     def table(self) -> str:
         """Plain-text table in the spirit of seed 000's tables 2-4."""
         head = (f"{'amplitude':>10s} {'J_load':>8s} {'motor torque':>13s} {'Kv motor':>9s} "
                 f"{'screw thrust':>13s} {'Kv screw':>9s} {'rod force':>11s}")
-        units = f"{'[deg]':>10s} {'[kg*m^2]':>8s} {'[N*m]':>13s} {'':>9s} {'[N]':>13s} {'':>9s} {'[N]':>11s}"
+        u = self.unit
+        units = f"{'[' + u.shown + ']':>10s} {'[kg]' if u.linear else '[kg*m^2]':>8s} {'[N*m]':>13s} {'':>9s} {'[N]':>13s} {'':>9s} {'[N]':>11s}"
         lines = [f"{self.study}: {self.motion} ({self.amplitude_at} amplitude, losses: {self.losses})",
                  head, units, "-" * len(head)]
         def num(x, fmt):
             return f"{'-':>{len(format(0.0, fmt))}s}" if x is None else format(x, fmt)
         for c in self.cases:
-            lines.append(f"{math.degrees(c.amplitude):>10.4g} {c.load_inertia:>8.3g} "
+            lines.append(f"{u.show(c.amplitude):>10.4g} {c.load_inertia:>8.3g} "
                          f"{c.peak_motor_torque:>13.4f} {c.kv_motor:>9.3f} "
                          f"{num(c.peak_screw_thrust, '>13.1f')} {num(c.kv_screw, '>9.3f')} "
                          f"{num(c.peak_rod_force, '>11.1f')}")
@@ -152,12 +162,12 @@ class KvResult:
         for a in self.amplitudes:
             cs = [c for c in self.cases if c.amplitude == a]
             j = [c.load_inertia for c in cs]
-            tag = f"{math.degrees(a):.3g} deg"
+            tag = self.unit.text(a, 3)
             line, = ax.plot(j, [c.kv_motor for c in cs], "o-", label=f"motor torque, {tag}")
             if cs[0].kv_screw is not None:
                 ax.plot(j, [c.kv_screw for c in cs], "s--", color=line.get_color(),
                         label=f"screw thrust, {tag}")
-        ax.set_xlabel("external load inertia [kg*m^2]")
+        ax.set_xlabel("external load mass [kg]" if self.unit.linear else "external load inertia [kg*m^2]")
         ax.set_ylabel("Kv")
         ax.set_title(f"{self.study}: dynamic-load factor")
         ax.grid(True, alpha=0.3)
@@ -332,9 +342,34 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
         notes.append("the zero-inertia reference case was added to the study's inertias")
     if at == "motor":
         notes.append("amplitudes were given at the motor gear and divided by N(offset)")
-    return KvResult(scene.name, study.name, motions[0].describe() if len(motions) == 1 else
-                    f"sine {', '.join(f'{math.degrees(m.amplitude):.4g}' for m in motions)} deg, "
-                    f"{motions[0].frequency:.4g} Hz", at, losses, tuple(cases), tuple(notes), effect)
+    unit = output_unit(scene)
+    return KvResult(scene.name, study.name, motions[0].describe(unit) if len(motions) == 1 else
+                    f"sine {', '.join(unit.text(m.amplitude) for m in motions)}, "
+                    f"{motions[0].frequency:.4g} Hz", at, losses, tuple(cases), tuple(notes), effect,
+                    output_unit=unit.si)
+
+
+def default_kv_study(scene, amplitude: float | None = None, frequency: float | None = None):
+    """The Kv study a scene without one gets: seed 000's 8 Hz sine of 2 deg (1 mm for an
+    output travel) about the design's operating point
+    (:func:`servo_toolkit.operating_point.operating_point`), at zero and the scene's load
+    inertia.
+
+    Parameters
+    ----------
+    amplitude : float, optional
+        Output amplitude (rad, or m for an output travel).
+    frequency : float, optional
+        Hz.
+    """
+    from types import MappingProxyType
+
+    from ..operating_point import operating_point
+    from ..scene import Study
+    amp = output_unit(scene).default_amplitude if amplitude is None else float(amplitude)
+    params = {"trajectory": "sine", "amplitude": amp, "frequency": 8.0 if frequency is None else float(frequency),
+              "offset": operating_point(scene)[0]}
+    return Study("default", "kv", MappingProxyType(params))
 
 
 def kv_studies(scene, **options) -> list[KvResult]:
@@ -342,4 +377,4 @@ def kv_studies(scene, **options) -> list[KvResult]:
     return [kv_study(scene, s, **options) for s in scene.studies_of_kind("kv")]
 
 
-__all__ = ["KvCase", "KvResult", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]
+__all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]

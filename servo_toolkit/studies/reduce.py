@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import SceneError, SimulationError
+from ..output_units import OutputUnit, output_unit
 from ..parallel import run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING
 from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, lossless, plan_reduction
@@ -47,6 +48,7 @@ class ReductionResult:
         Effects, estimates, the reduced options and the tolerance (the a-priori bound).
     frequencies_hz : numpy.ndarray
     amplitudes_rad : numpy.ndarray
+        Command amplitudes in SI (rad, or m for an output travel; see ``output_unit``).
     difference : numpy.ndarray
         (n_a, n_f) measured relative difference full/reduced (NaN: a run failed in both).
     saturated : numpy.ndarray
@@ -55,6 +57,8 @@ class ReductionResult:
     full_wall_s, reduced_wall_s : float
         Wall time of the study on each model.
     notes : tuple of str
+    output_unit : {"rad", "m"}
+        Unit of the output coordinate; amplitudes are shown in deg or mm after it.
     """
 
     scene: str
@@ -70,6 +74,7 @@ class ReductionResult:
     full_wall_s: float
     reduced_wall_s: float
     notes: tuple = field(default_factory=tuple)
+    output_unit: str = "rad"
 
     @property
     def bound(self) -> float:
@@ -114,13 +119,14 @@ class ReductionResult:
 
         def deg(e):
             return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else e
+        u = OutputUnit(self.output_unit)
         return {"scene": self.scene, "study": self.study, "measure": self.measure,
                 **self.plan.to_dict(),
                 "bound_relative": self.bound, "measured_relative": self.measured,
                 "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
                 "measured_saturated_relative": self.measured_saturated,
                 "within_bound": self.within_bound, "bound_applies": self.bound_applies,
-                "points": [{"frequency_hz": float(f), "amplitude_deg": math.degrees(float(a)),
+                "points": [{"frequency_hz": float(f), u.key("amplitude"): float(u.show(a)),
                             "difference_relative": float(self.difference[i, k]),
                             "saturated": bool(self.saturated[i, k])}
                            for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
@@ -133,7 +139,7 @@ class ReductionResult:
         p = self.plan
         lines = [f"Reduction of {self.scene} for study {self.study or '(default sweep)'}: "
                  f"{self.frequencies_hz.size} frequencies {self.frequencies_hz[0]:.3g}..{self.frequencies_hz[-1]:.3g} Hz, "
-                 f"amplitudes {', '.join(f'{math.degrees(a):.3g}' for a in self.amplitudes_rad)} deg",
+                 f"amplitudes {', '.join(OutputUnit(self.output_unit).text(a, 3) for a in self.amplitudes_rad)}",
                  f"{'effect':34s} {'estimate':>9} {'[dB]':>7} {'[deg]':>6}  decision",
                  "-" * 96]
         for e in p.effects:
@@ -168,7 +174,7 @@ class ReductionResult:
             _, ax = plt.subplots(figsize=(7, 3.5))
         for i, a in enumerate(self.amplitudes_rad):
             d = np.where(np.isnan(self.difference[i]), np.nan, np.maximum(self.difference[i], 1e-12))
-            line, = ax.loglog(self.frequencies_hz, d, "o-", ms=4, label=f"measured, {math.degrees(a):.3g} deg")
+            line, = ax.loglog(self.frequencies_hz, d, "o-", ms=4, label=f"measured, {OutputUnit(self.output_unit).text(a, 3)}")
             sat = self.saturated[i]
             if sat.any():
                 ax.loglog(self.frequencies_hz[sat], d[sat], "o", mfc="none", ms=8, color=line.get_color(),
@@ -239,7 +245,7 @@ def _trace_difference(full, red, t_settle):
 
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
-           executor=None, progress: bool = True, frequencies=None) -> ReductionResult:
+           executor=None, progress: bool = True, frequencies=None, amplitudes=None) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -258,6 +264,8 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     progress : bool
     frequencies : sequence of float, optional
         Hz, replacing a sweep study's frequencies (8 Hz is then not added).
+    amplitudes : sequence of float, optional
+        Command amplitudes (rad, or m for an output travel), replacing the study's.
 
     Returns
     -------
@@ -284,6 +292,10 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     else:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
                          "simulate studies")
+    if amplitudes is not None:
+        amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
+        if not amps or not all(math.isfinite(a) and a > 0 for a in amps):
+            raise ValueError("amplitudes must be non-empty, positive and finite")
     stop = "stop" if measure == "trace" else "error"
     full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop)
     rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
@@ -322,16 +334,17 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "
                      f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode); "
                      "a point counts as saturated when a limit was reached in that window")
-        early = [math.degrees(a) for a, r_f, r_r in zip(amps, runs["full"], runs["reduced"])
+        early = [output_unit(scene).text(a, 3) for a, r_f, r_r in zip(amps, runs["full"], runs["reduced"])
                  if r_f.get("startup_saturated") or r_r.get("startup_saturated")]
         if early:
             notes.append(f"the start-up transient (the sine command starts with its full slope) reached a limit "
-                         f"before the compared window at {', '.join(f'{a:.3g}' for a in early)} deg; it has "
+                         f"before the compared window at {', '.join(early)}; it has "
                          "decayed by then")
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
-                           full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes))
+                           full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes),
+                           output_unit=output_unit(scene).si)
 
 
 def _sweep_points(scene, study, frequencies):
@@ -345,7 +358,7 @@ def _sweep_points(scene, study, frequencies):
 
 
 def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None,
-                    frequencies=None):
+                    frequencies=None, amplitudes=None):
     """Only the a-priori part: ``(ModelOptions, ReductionPlan)`` for a study (no runs).
 
     A time simulation can adopt the reduction with
@@ -360,6 +373,8 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
         _, freqs, amps = _sweep_points(scene, study, frequencies)
     else:
         freqs, amps = time_points(study)
+    if amplitudes is not None:
+        amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
     rplan = plan_reduction(scene, controller, freqs, amps,
                            base=ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING), tolerance=tolerance)
     return replace(rplan.options), rplan

@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
+from ..output_units import OutputUnit, output_unit
 from ..plant import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
                      plant_parameters, sample_delay, spring_damping)
 
@@ -98,7 +99,9 @@ class ReductionPlan:
         Sum of the estimates of the effects left out (<= tolerance / 2).
     frequencies_hz : numpy.ndarray
     amplitudes_rad : tuple
+        Command amplitudes in SI (rad, or m for an output travel; see ``output_unit``).
     notes : tuple of str
+    output_unit : {"rad", "m"}
     """
 
     effects: tuple
@@ -108,6 +111,7 @@ class ReductionPlan:
     frequencies_hz: np.ndarray
     amplitudes_rad: tuple
     notes: tuple = ()
+    output_unit: str = "rad"
 
     @property
     def omitted(self) -> tuple:
@@ -121,7 +125,9 @@ class ReductionPlan:
                 "tolerance_relative": self.tolerance, "tolerance_dB": _db(self.tolerance),
                 "tolerance_deg": _deg(self.tolerance), "predicted_relative": self.predicted,
                 "frequencies_hz": self.frequencies_hz.tolist(),
-                "amplitudes_deg": [math.degrees(a) for a in self.amplitudes_rad], "notes": list(self.notes)}
+                OutputUnit(self.output_unit).key("amplitudes"):
+                    [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
+                "notes": list(self.notes)}
 
 
 def _db(e):
@@ -305,7 +311,8 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         effects.append(Effect("small inertias", None, ", ".join(f"{lab} {s:.1e}" for lab, s in small) +
                               " of J", e, reason="kept: they add no state (J(q) is one table), nothing to gain"))
 
-    return _choose(effects, rigid_effect, base, tolerance, limited.any(), chain, freqs, amps, notes)
+    plan = _choose(effects, rigid_effect, base, tolerance, limited.any(), chain, freqs, amps, notes)
+    return replace(plan, output_unit=output_unit(scene).si)
 
 
 def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes):

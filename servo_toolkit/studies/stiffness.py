@@ -162,6 +162,9 @@ class StiffnessResult:
             ratio_label, inertia_label = "ratio N [rad/rad]", "reflected inertia [kg*m^2]"
         head = f"{'stage [' + unit + ']':28s}" + "".join(cols)
         lines = [head, "-" * len(head)]
+        if not self.names:
+            lines.append("no compliant stage: the chain is rigid (give a stage a stiffness, or add a "
+                         "compliance stage, to see series stiffness and shares)")
         for n, k, s, neg in zip(self.names, self.stage_stiffness, self.shares, self.negligible):
             row = f"{n[:28]:28s}" + "".join(f"{ki * scale:>14.6g} {si:>7.2%}" for ki, si in zip(k, s))
             lines.append(row + ("   (negligible)" if neg else ""))

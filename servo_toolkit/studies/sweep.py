@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SimulationError
+from ..output_units import OutputUnit
 from ..parallel import run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING
 from .sine_dwell import DwellPlan, dwell_estimate
@@ -91,7 +92,8 @@ class SweepResult:
     frequencies_hz : numpy.ndarray
         (n_f,)
     amplitudes_rad : numpy.ndarray
-        (n_a,) command amplitudes.
+        (n_a,) command amplitudes in SI: rad, or m for an output travel (see
+        ``output_unit``).
     response : numpy.ndarray
         (n_a, n_f) complex output/command fundamental ratio (NaN where a run failed).
     linear_response : numpy.ndarray
@@ -119,6 +121,8 @@ class SweepResult:
     controller : str
     method : str
     wall_s : float
+    output_unit : {"rad", "m"}
+        Unit of the output coordinate; amplitudes are shown in deg or mm after it.
     """
 
     scene: str
@@ -143,6 +147,12 @@ class SweepResult:
     method: str = "rk4"
     wall_s: float = 0.0
     notes: tuple = field(default_factory=tuple)
+    output_unit: str = "rad"
+
+    @property
+    def unit(self) -> OutputUnit:
+        """The output coordinate's units (deg or mm shown)."""
+        return OutputUnit(self.output_unit)
 
     @property
     def failed(self) -> np.ndarray:
@@ -189,7 +199,9 @@ class SweepResult:
 
     def to_dict(self) -> dict:
         """JSON-ready: ``points`` [{frequency_hz, gain_db, phase_deg, linear_gain_db,
-        linear_phase_deg, ...}] (+ ``amplitude_deg`` when several amplitudes ran)."""
+        linear_phase_deg, ...}] (+ ``amplitude_deg``, or ``amplitude_mm`` for an output
+        travel, when several amplitudes ran)."""
+        u = self.unit
         several = self.amplitudes_rad.size > 1
         g, p, lg, lp = self.gain_db, self.phase_deg, self.linear_gain_db, self.linear_phase_deg
         points = []
@@ -198,7 +210,7 @@ class SweepResult:
                 pt = {"frequency_hz": float(f), "gain_db": float(g[a, k]), "phase_deg": float(p[a, k]),
                       "linear_gain_db": float(lg[k]), "linear_phase_deg": float(lp[k])}
                 if several:
-                    pt["amplitude_deg"] = math.degrees(float(amp))
+                    pt[u.key("amplitude")] = float(u.show(amp))
                 pt.update({"settling_change": float(self.settling_change[a, k]),
                            "saturated": bool(self.saturated[a, k]),
                            "failed": bool(self.failed[a, k]),
@@ -207,7 +219,7 @@ class SweepResult:
                            "error": self.errors[a * self.frequencies_hz.size + k]})
                 points.append(pt)
         return {"scene": self.scene, "study": self.study,
-                "amplitudes_deg": np.degrees(self.amplitudes_rad).tolist(),
+                u.key("amplitudes"): u.show(self.amplitudes_rad).tolist(),
                 "points": points, "deviation_from_linear": self.deviation(),
                 "model": {"reduced": self.reduced, "left_out": list(self.left_out),
                           "options": self.options, "controller": self.controller, "method": self.method},
@@ -222,7 +234,7 @@ class SweepResult:
         lines += [f"note: {n}" for n in self.notes]
         g, p, lg, lp = self.gain_db, self.phase_deg, self.linear_gain_db, self.linear_phase_deg
         for a, amp in enumerate(self.amplitudes_rad):
-            lines.append(f"\namplitude {math.degrees(amp):.4g} deg")
+            lines.append(f"\namplitude {self.unit.text(amp)}")
             lines.append(f"{'f [Hz]':>9} {'gain [dB]':>10} {'phase [deg]':>12} {'linear dB':>10} "
                          f"{'linear deg':>11} {'dG [dB]':>8} {'dP [deg]':>9}  flags")
             for k, f in enumerate(self.frequencies_hz):
@@ -235,7 +247,7 @@ class SweepResult:
                              f"{g[a, k] - lg[k]:8.3f} {p[a, k] - lp[k]:9.2f}  {flags}".rstrip())
         dev = self.deviation()
         lines.append("\nlargest difference from the linear loop: " + ", ".join(
-            f"{math.degrees(a):.3g} deg: {dg:.3f} dB / {dp:.2f} deg" for a, dg, dp in
+            f"{self.unit.text(a, 3)}: {dg:.3f} dB / {dp:.2f} deg" for a, dg, dp in
             zip(self.amplitudes_rad, dev["max_gain_difference_dB"], dev["max_phase_difference_deg"])))
         return "\n".join(lines)
 
@@ -254,7 +266,7 @@ class SweepResult:
         for a, amp in enumerate(self.amplitudes_rad):
             sat = self.saturated[a]
             line, = ag.semilogx(self.frequencies_hz[~sat], g[a, ~sat], "o", ms=5,
-                                label=f"sine dwell {math.degrees(amp):.3g} deg")
+                                label=f"sine dwell {self.unit.text(amp, 3)}")
             col = line.get_color()
             ap.semilogx(self.frequencies_hz[~sat], p[a, ~sat], "o", ms=5, color=col)
             if sat.any():
@@ -302,7 +314,8 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     frequencies : sequence of float, optional
         Hz, replacing the study's.
     amplitudes : sequence of float, optional
-        Command amplitudes (rad), replacing the study's; one curve each.
+        Command amplitudes (rad, or m for an output travel), replacing the study's; one
+        curve each.
     controller : CascadeController, optional
         Default: the designed loop (:func:`servo_toolkit.sim.controller_for`).
     options : ModelOptions, optional
@@ -375,7 +388,8 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
                        peak_current_A=col("peak_current_A"), peak_voltage_V=col("peak_voltage_V"),
                        errors=tuple(o["error"] for o in out), reduced=reduced, left_out=left_out,
                        options=opts, plan=plan, decay_rate=decay, controller=model.controller,
-                       method=method, wall_s=time.perf_counter() - start, notes=tuple(notes))
+                       method=method, wall_s=time.perf_counter() - start, notes=tuple(notes),
+                       output_unit=scene.drivetrain.output_unit)
 
 
 __all__ = ["DEFAULT_AMPLITUDE", "DEFAULT_FREQUENCY_HZ", "SweepResult", "linear_response", "study_points", "sweep"]

@@ -7,10 +7,12 @@ import math
 import numpy as np
 
 from ..errors import SceneError
+from ..output_units import output_unit
 
 #: the seed's key frequency, always in the default sweep
 DEFAULT_FREQUENCY_HZ = 8.0
-#: command amplitude when the scene has no sweep study (seed 000's 8 Hz case)
+#: command amplitude when the scene has no sweep study (seed 000's 8 Hz case); an output
+#: travel takes 1 mm (:attr:`servo_toolkit.output_units.OutputUnit.default_amplitude`)
 DEFAULT_AMPLITUDE = math.radians(2.0)
 
 
@@ -18,7 +20,7 @@ def study_points(scene, study=None):
     """``(name, frequencies_hz, amplitudes_rad)`` of a sweep study.
 
     ``study=None`` takes the scene's first ``frequency_sweep`` study; without one, 8 Hz at
-    2 deg. The seed's 8 Hz is always added to a study's frequencies (callers that give
+    2 deg (1 mm for an output travel). The seed's 8 Hz is always added to a study's frequencies (callers that give
     frequencies explicitly replace the whole list). A study gives ``amplitude`` or
     ``amplitudes``, and ``frequencies`` as a list or a table ``{start, stop, points,
     spacing = "log" | "linear"}`` (or ``frequency``).
@@ -33,7 +35,7 @@ def study_points(scene, study=None):
     if study is None:
         found = scene.studies_of_kind("frequency_sweep")
         if not found:
-            return None, (DEFAULT_FREQUENCY_HZ,), (DEFAULT_AMPLITUDE,)
+            return None, (DEFAULT_FREQUENCY_HZ,), (output_unit(scene).default_amplitude,)
         study = found[0]
     elif isinstance(study, str):
         study = scene.study(study)

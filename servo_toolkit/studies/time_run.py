@@ -9,15 +9,15 @@ explicit ``ModelOptions`` run as given.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
+from ..output_units import output_unit
 from ..sim import ModelOptions, controller_for, simulate
 from ..sim.studies import run_spec
 
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
-                   full: bool = False):
+                   full: bool = False, amplitude: float | None = None, frequency: float | None = None):
     """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
 
     Parameters
@@ -31,6 +31,9 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         Fixed step (s); default the study's ``sample_time`` for the fixed-step methods.
     full : bool
         Run the full model; by default a closed-loop sine runs the reduced model.
+    amplitude, frequency : float, optional
+        Replace the sine command's amplitude (rad, or m for an output travel) and
+        frequency (Hz).
 
     Returns
     -------
@@ -38,7 +41,7 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         Its ``notes`` say which model ran and, for the reduced one, what it left out and
         the a-priori bound on what that costs.
     """
-    reference, duration, voltage, study_method, study_dt = run_spec(scene, study)
+    reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude, frequency=frequency)
     method = method or study_method or "auto"
     if dt is None and method in ("rk4", "paper"):
         dt = study_dt
@@ -71,7 +74,7 @@ def sine_run_options(scene, controller, reference, full: bool = False):
     plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
-    size = f"{amp * 1e3:.3g} mm" if scene.drivetrain.output_is_linear else f"{math.degrees(amp):.3g} deg"
+    size = output_unit(scene).text(amp, 3)
     return plan.options, [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
                           f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
                           "the reasoning, --full for the full model)"]

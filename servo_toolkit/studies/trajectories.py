@@ -69,7 +69,11 @@ class SineMotion:
         n = int(round(samples_per_period * periods))
         return np.linspace(0.0, periods * self.period, n + 1)
 
-    def describe(self) -> str:
-        """One-line description in degrees and Hz."""
-        return (f"sine {math.degrees(self.amplitude):.4g} deg about {math.degrees(self.offset):.4g} deg, "
+    def describe(self, unit=None) -> str:
+        """One-line description in the output's unit (an
+        :class:`~servo_toolkit.output_units.OutputUnit`; default degrees) and Hz."""
+        if unit is None:
+            from ..output_units import OutputUnit
+            unit = OutputUnit()
+        return (f"sine {unit.text(self.amplitude)} about {unit.text(self.offset)}, "
                 f"{self.frequency:.4g} Hz (period {self.period:.4g} s)")
