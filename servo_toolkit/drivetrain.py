@@ -196,6 +196,15 @@ class Drivetrain:
         """Product of the stages' efficiencies."""
         return float(np.prod([getattr(s, "efficiency", 1.0) for s in self.stages]))
 
+    @property
+    def backdrive_efficiency(self) -> float:
+        """Product of the stages' back-drive efficiencies (the load driving the motor); zero
+        or less: the chain is self-locking."""
+        effs = [getattr(s, "backdrive_efficiency", getattr(s, "efficiency", 1.0)) for s in self.stages]
+        if any(e <= 0 for e in effs):
+            return 0.0
+        return float(np.prod(effs))
+
     def kinematics(self, q) -> Kinematics:
         """Compose every stage's coordinates into jets in q."""
         q = np.atleast_1d(np.asarray(q, dtype=float))

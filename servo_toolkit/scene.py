@@ -239,7 +239,7 @@ class Study:
         return f"studies.{self.name}.{name}"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Scene:
     """A validated actuator description. Everything is SI.
 
@@ -293,6 +293,14 @@ class Scene:
         """The reflected drivetrain (motor, stages, load); see :mod:`servo_toolkit.drivetrain`."""
         from .drivetrain import Drivetrain
         return Drivetrain.from_scene(self)
+
+    def __repr__(self) -> str:
+        from .scene_display import scene_line
+        return f"<Scene {scene_line(self)}>"
+
+    def _repr_html_(self) -> str:
+        from .scene_display import scene_card
+        return scene_card(self)
 
 
 #: stage kind -> (input, output): ``rotary`` (a shaft angle) or ``travel`` (a linear

@@ -247,7 +247,9 @@ def _sine_fit(t, y, f):
 def test_closed_loop_with_quantized_controller_tracks_8hz(ema, fmt):
     scene, d = ema
     res = export(d, scene, fixed_point=fmt)
-    amp = 0.01
+    # the seed's 2 deg: well above the friction band the lossy chain holds under the hinge
+    # moment, where small differences of the controller would decide where the output sticks
+    amp = math.radians(2.0)
     runs = []
     for ctrl in (d.controller, quantized_controller(d, res.quantized)):
         cols = simulate(scene, ctrl, reference=Reference.sine(amp, 8.0), duration=0.5).columns()

@@ -125,14 +125,23 @@ def test_a_weak_supply_fails_the_large_signal_rows(weak_supply, tmp_path, capsys
 
 
 def test_large_signal_agrees_with_the_linear_loop_on_the_reference(capsys):
-    """Independent of the gate's tolerance: at 2 deg the reference EMA stays linear, so the
-    nonlinear fundamental is within a few tenths of a dB and a degree of the linear loop."""
+    """Independent of the gate's tolerance: at 2 deg a lossless reference EMA stays linear, so
+    the nonlinear fundamental is within a few tenths of a dB and a degree of the linear loop.
+    With its drivetrain losses (a load-proportional friction under the 700 N*m hinge moment,
+    which the linear loop does not have) it departs further, still within the gate's rows."""
+    from dataclasses import replace
+
     import servo_toolkit as st
-    from servo_toolkit.loop.large_signal import large_signal
+    from servo_toolkit.loop.large_signal import GAIN_TOLERANCE_DB, PHASE_TOLERANCE_DEG, large_signal
     scene = st.load_scene()
-    ls = large_signal(scene, st.design(scene, progress=False))
+    stages = tuple(replace(s, efficiency=1.0) if hasattr(s, "efficiency") else s for s in scene.stages)
+    lossless = replace(scene, stages=stages)
+    ls = large_signal(lossless, st.design(lossless, progress=False))
     assert ls.time_at_voltage_limit_s == 0 and ls.time_at_current_limit_s == 0
     assert ls.gain_error_db < 0.5 and ls.phase_error_deg < 2.0
+    lossy = large_signal(scene, st.design(scene, progress=False))
+    assert lossy.gain_error_db < GAIN_TOLERANCE_DB and lossy.phase_error_deg < PHASE_TOLERANCE_DEG
+    assert lossy.phase_error_deg > ls.phase_error_deg
 
 
 def test_impossible_bandwidth_gives_the_best_stable_design(capsys):

@@ -170,8 +170,8 @@ def _sim_round_trip(scene, h, inductance, losses="none", f=8.0, amp=math.radians
     that makes the motor produce the inverse-dynamics torque, integrate with classical RK4
     at step h, and return max |q_sim - q_prescribed| / amplitude.
 
-    u = R i + L di/dt + Ke w_m with i = T_em / Kt. The simulation model is lossless (no stage
-    efficiencies) and smooths Coulomb friction as Tc tanh(w_m / w_s); the electromagnetic
+    u = R i + L di/dt + Ke w_m with i = T_em / Kt. The simulation model runs lossless
+    (``efficiency=False``: no drivetrain loss) and smooths Coulomb friction as Tc tanh(w_m / w_s); the electromagnetic
     torque it needs is the inverse dynamics' torque with its friction part (b w + Tc sign w)
     replaced by the model's (b w + Tc tanh(w / w_s)). The voltage is evaluated exactly at
     the RK4 stage times (t, t + h/2, t + h), so the only error left is the integrator's."""
@@ -180,7 +180,7 @@ def _sim_round_trip(scene, h, inductance, losses="none", f=8.0, amp=math.radians
     from servo_toolkit.sim.ivp import make_fun
     from servo_toolkit.sim.reference import fill
 
-    model = build_model(scene, None, ModelOptions(compliance=False, inductance=inductance))
+    model = build_model(scene, None, ModelOptions(compliance=False, inductance=inductance, efficiency=False))
     assert model.rigid and not model.closed_loop
     P = fill(model, Reference.voltage(0.0))
     motor, drive = scene.motor, scene.drivetrain

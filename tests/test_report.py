@@ -197,3 +197,25 @@ def test_report_renders_in_chromium(browser, html, tmp_path):
     subprocess.run([browser, *CHROME_FLAGS, f"--user-data-dir={tmp_path / 'shot-profile'}",
                     "--window-size=1200,3000", f"--screenshot={shot}", (tmp_path / "report-probe.html").as_uri()], capture_output=True, timeout=60)
     assert shot.read_bytes().startswith(b"\x89PNG"), "no screenshot"
+
+
+def _section_tables(html, key):
+    """The tables of a report section: lists of {header: cell} rows."""
+    body = re.search(rf'<section id="{key}" data-status="[^"]+">(.*?)</section>', html, re.S).group(1)
+    tables = []
+    for block in re.findall(r"<table[^>]*>(.*?)</table>", body, re.S):
+        heads = [h.strip() for h in re.findall(r"<th>(.*?)</th>", block, re.S)]
+        rows = [re.findall(r"<td>(.*?)</td>", r, re.S) for r in re.findall(r"<tr>(.*?)</tr>", block, re.S)]
+        tables.append([dict(zip(heads, r)) for r in rows if r])
+    return tables
+
+
+def test_the_linear_8hz_figures_of_the_report_agree(html):
+    """One linear loop everywhere: the time section's linear closed loop (forced response of
+    the design) and the sweep's linear loop give the same 8 Hz gain, as printed."""
+    time_rows = [r for t in _section_tables(html, "time") for r in t]
+    linear = next(r for r in time_rows if r.get("model") == "linear closed loop")
+    g_time = float(linear["gain at 8 Hz [dB]"])
+    sweep_rows = [r for t in _section_tables(html, "sweep") for r in t if "linear gain [dB]" in r]
+    at8 = [float(r["linear gain [dB]"]) for r in sweep_rows if float(r["frequency [Hz]"]) == 8.0]
+    assert at8 and all(g == pytest.approx(g_time, abs=0.01) for g in at8), (g_time, at8)

@@ -4,7 +4,9 @@ tolerance or raises a clear SimulationError; none returns NaN.
 Every case runs on two paths: the continuous motion controller with the fallback cascade
 (the reference is a single ``solve_ivp`` call), and the default path, the sampled controller
 with the designed cascade (``loop.design``; the reference restarts at every sample). The
-reference is LSODA at rtol = atol = 1e-10; the integrator under test is ``auto``.
+reference is LSODA at rtol = atol = 1e-10; the integrator under test is ``auto``. The chain
+is lossless here (``efficiency=False``): the drivetrain's losses and their accuracy are
+checked in test_sim_efficiency.py.
 """
 
 from __future__ import annotations
@@ -32,10 +34,11 @@ def path(request):
 
 def _model(scene, path, **opts):
     if path == "continuous-fallback":
-        return build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous", **opts))
+        return build_model(scene, default_controller(scene),
+                           ModelOptions(controller_mode="continuous", efficiency=False, **opts))
     controller, source = controller_for(scene)
     assert source == "loop.design"
-    return build_model(scene, controller, ModelOptions(controller_mode="sampled", **opts))
+    return build_model(scene, controller, ModelOptions(controller_mode="sampled", efficiency=False, **opts))
 
 
 def _compare(scene, ref, duration, tol, path="continuous-fallback", **opts):

@@ -17,6 +17,9 @@ def add_design_options(p) -> None:
                    help="controller structure (default cascade: current -> speed -> position)")
     p.add_argument("--filter", dest="resonance_filter", default="auto",
                    choices=("auto", "none", "notch", "lowpass"), help="drivetrain resonance filter")
+    p.add_argument("--design", metavar="FILE",
+                   help="evaluate the controller saved in FILE (a tuned design, written by the Jupyter tuner's "
+                        "save() or servo_toolkit.loop.tuning.save_design) instead of designing one")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--robust", dest="robust", action="store_const", const=True, default=None,
                       help="robust design over the scene's [robustness] ranges (default ranges when it has "
@@ -44,6 +47,9 @@ def design_from_args(scene, args, spec=None):
     """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
     scene's ``[robustness]`` for a robust design (``check --vary``)."""
     require = dict(parse_override(text) for text in args.require)
+    if getattr(args, "design", None):
+        from ..loop.tuning import load_design
+        return load_design(scene, args.design, require=require or None)
     robust = args.robust
     if spec is not None and (robust is True or (robust is None and scene.robustness is not None)):
         robust = spec

@@ -20,6 +20,9 @@ def register(sub) -> None:
                    help="run the expensive studies as the scene defines them: every sweep frequency with the "
                         "default dwell, the measured reduction on that sweep, longer accuracy runs and finer Kv "
                         "sampling (several minutes; default: light settings, under a minute)")
+    p.add_argument("--design", metavar="FILE",
+                   help="use the controller saved in FILE (a tuned design, servo_toolkit.loop.tuning.save_design) "
+                        "instead of designing one")
     p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
@@ -36,9 +39,13 @@ def run(args) -> int:
     start = time.perf_counter()
     scene = load_scene(args.scene)
     out_dir = check_report_folder(args.output)  # before any work
+    given = None
+    if args.design:
+        from ..loop.tuning import load_design
+        given = load_design(scene, args.design)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
     prepare_kernels(scene, paper=True)  # the accuracy section runs both fixed-step schemes
-    report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit)
+    report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
     with atomic_folder(out_dir) as tmp:  # never a mixed or half-written report
         write_report(report, tmp, progress=True)
     report.close()

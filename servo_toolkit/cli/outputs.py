@@ -105,3 +105,18 @@ def save_figure(fig, path) -> Path:
             os.unlink(tmp)
         raise
     return target
+
+
+def atomic_write_text(path, text: str) -> Path:
+    """Write ``text`` to a temporary name beside ``path``, then rename it over ``path``."""
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent or ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return target

@@ -39,6 +39,14 @@ class BallScrew(Stage):
     backlash: float = 0.0
 
     @property
+    def backdrive_efficiency(self) -> float:
+        """Back-drive efficiency of a screw, ``2 - 1/eta``: the screw catalogues' relation
+        for the same thread friction driven the other way (with lead angle l and friction
+        angle r, eta = tan(l)/tan(l + r) and the back-drive tan(l - r)/tan(l), which it
+        matches to second order in r); zero or less means self-locking."""
+        return 2.0 - 1.0 / self.efficiency
+
+    @property
     def ratio(self) -> float:
         """Screw rad per m of nut travel."""
         return 2 * math.pi / self.lead

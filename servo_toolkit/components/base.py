@@ -67,6 +67,13 @@ class Stage:
 
     direction = "backward"
 
+    @property
+    def backdrive_efficiency(self) -> float:
+        """Efficiency when the load drives the motor through this stage: the forward
+        efficiency for a stage whose losses are mesh or joint friction proportional to the
+        transmitted load (gears, linkages); screws override it."""
+        return float(getattr(self, "efficiency", 1.0))
+
     def map(self, z) -> Jet:  # pragma: no cover - abstract
         """The other coordinate (input for backward, output for forward stages)."""
         raise NotImplementedError

@@ -9,10 +9,11 @@ import control as ct
 import numpy as np
 
 from .margins import Margins
+from ..display import RichDisplay
 
 
-@dataclass(frozen=True)
-class DesignResult:
+@dataclass(frozen=True, repr=False)
+class DesignResult(RichDisplay):
     """A designed (or evaluated) loop.
 
     Attributes
@@ -151,6 +152,14 @@ class DesignResult:
         axes[0].legend()
         axes[0].set_title(f"{self.scene_name}: {'requirements met' if self.passed else 'requirements NOT met'}")
         return axes
+
+    def _repr_line(self) -> str:
+        from ..result_cards import design_line
+        return design_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import design_card
+        return design_card(self)
 
 
 def requirements_table(checks) -> str:

@@ -24,6 +24,7 @@ from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
 from .response import loop_response, plant_responses, state_space_response
+from ..display import RichDisplay
 
 PARAMETERS = {"load_inertia": "kg*m^2 at the output, replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
@@ -128,8 +129,8 @@ def batched_plant_matrices(p, J2, K, c):
     return A, B, np.repeat(C0[None], n, axis=0), np.repeat(D0[None], n, axis=0)
 
 
-@dataclass(frozen=True)
-class RobustnessResult:
+@dataclass(frozen=True, repr=False)
+class RobustnessResult(RichDisplay):
     """Loop figures over parameter variants and the worst case against the requirements.
 
     Attributes
@@ -216,7 +217,7 @@ class RobustnessResult:
         y = np.where(self.figures["stable"], self.figures[figure], np.nan)
         sc = ax.scatter(x, y, c=c, s=6, cmap="viridis")
         if c is not None:
-            plt.colorbar(sc, ax=ax, label="stiffness factor")
+            ax.figure.colorbar(sc, ax=ax, label="stiffness factor")
         ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
                    label="unstable")
         ax.set_xlabel("load inertia (kg*m^2)")
@@ -226,6 +227,16 @@ class RobustnessResult:
 
 
 #: robust requirement -> (figure, worst is min or max)
+
+    def _repr_line(self) -> str:
+        from ..result_cards import robustness_line
+        return robustness_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import robustness_card
+        return robustness_card(self)
+
+
 _WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_margin_deg", "min"),
           "sensitivity_peak": ("sensitivity_peak_db", "max"), "bandwidth": ("bandwidth_hz", "min"),
           "phase_lag_at_bandwidth": ("phase_lag_deg", "max")}

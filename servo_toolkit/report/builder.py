@@ -47,7 +47,7 @@ SECTIONS = (
 REQUIREMENTS = ("requirements", "Requirements", loop.requirements)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Report:
     """A built report.
 
@@ -74,6 +74,22 @@ class Report:
                 "sections": [s.to_dict() for s in self.sections],
                 "requirements": [dict(zip(("requirement", "required", "achieved", "shortfall", "status"), r))
                                  for r in self.requirements]}
+
+    def __repr__(self) -> str:
+        counts = {}
+        for sec in self.sections:
+            counts[sec.status] = counts.get(sec.status, 0) + 1
+        failed = sum(1 for r in self.requirements if str(r[-1]).lower() not in ("pass", "ok", "met"))
+        return (f"<Report {self.scene_name}: {len(self.sections)} sections ("
+                + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + f"), {failed} requirement(s) not met>")
+
+    def _repr_html_(self) -> str:
+        from ..display import card, table
+        rows = [(s.title, s.status, s.reason) for s in self.sections]
+        reqs = [tuple(str(v) for v in r) for r in self.requirements]
+        return card(f"Report of {self.scene_name}", parts=[
+            table(("requirement", "required", "achieved", "shortfall", "status"), reqs),
+            table(("section", "status", "why"), rows)], notes=[self.subtitle])
 
     def close(self) -> None:
         """Release the figures' memory."""
@@ -104,7 +120,7 @@ def run_section(key: str, title: str, builder, ctx: Context, time_limit: float |
 
 
 def build_report(scene, light: bool = True, executor=None, progress: bool = True,
-                 section_time_limit="auto") -> Report:
+                 section_time_limit="auto", design=None) -> Report:
     """Build every section of the report of ``scene``.
 
     Parameters
@@ -122,6 +138,9 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         section, outside every limit.
         ``"auto"``: :data:`LIGHT_SECTION_TIME_LIMIT` with light settings, no limit with full
         ones; None: no limit. Applies in the main thread only (see :mod:`.time_limit`).
+    design : DesignResult, optional
+        The loop to report (e.g. a tuned one, :func:`servo_toolkit.tuned_design`) instead of
+        the automatic design.
 
     Returns
     -------
@@ -130,6 +149,8 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     if section_time_limit == "auto":
         section_time_limit = LIGHT_SECTION_TIME_LIMIT if light else None
     ctx = Context(scene, light=light, executor=executor)
+    if design is not None:
+        ctx.use_design(design)
     if ctx.has_drivetrain():  # compilation is never charged to a section's time limit
         from ..sim.warmup import compile_kernels
         compile_kernels(paper=True)  # the accuracy section runs both fixed-step schemes

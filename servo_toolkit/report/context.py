@@ -68,8 +68,12 @@ class Context:
             raise NotApplicable(f"{what} needs a motor-driven drivetrain; this scene describes {kind}, "
                                 "which the toolkit analyses with its own studies instead")
 
+    def use_design(self, result) -> None:
+        """Report ``result`` (a DesignResult, e.g. a tuned one) instead of designing."""
+        self._cache["design"] = (True, result)
+
     def design(self):
-        """The designed loop (``servo_toolkit.loop.design``)."""
+        """The designed loop (``servo_toolkit.loop.design``, or the one given)."""
         self.require_drivetrain("loop design")
         return self.result("design", lambda: api("servo_toolkit.loop", "design")(self.scene))
 

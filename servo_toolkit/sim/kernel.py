@@ -40,7 +40,7 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
 
-from .layout import (EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
+from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
                      KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
@@ -305,6 +305,14 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
             dxi = 0.0
     tau = P[KT] * cur
     tau_shaft = tau - P[BM] * wm - P[TC] * tanh(wm * P[WS])
+    # drivetrain losses (LossyGear-like): the torque the motor drives into the chain, n tau_shaft,
+    # loses c |n tau_shaft| against the motion; c = 1 - eta driving, 1/eta_b - 1 back-driven,
+    # blended by the smooth signs of torque and speed (c >= 0: the loss never supplies power)
+    nts = n * tau_shaft
+    if P[ETA_MEAN] > 0.0:
+        sg_t = tanh(nts * P[INV_TAU_S])
+        sg_w = tanh(abs(n) * pd * P[WS])
+        nts -= (P[ETA_MEAN] + P[ETA_HALF] * sg_t * sg_w) * nts * sg_t * sg_w
     # --- load side: hinge moment and stroke-end stop
     if P[RIGID] > 0.0:
         ql, qld = p, pd
@@ -321,10 +329,10 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
             # M_g = (sigma f - G_x) ds/dq (seed 002 eq 3; its m a part is in J and J')
             oc = int(P[CAM])
-            pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, n * tau_shaft + m_load, jd,
+            pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, nts + m_load, jd,
                                         0.5 * djd * pd * pd, n * P[WS])
         else:
-            pdd = (n * tau_shaft - 0.5 * djd * pd * pd + m_load) / jd
+            pdd = (nts - 0.5 * djd * pd * pd + m_load) / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     # --- compliance with backlash
     k, dk = interp(T, T_K, kc, tc, hc, ih)
@@ -351,7 +359,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
         else:
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
-    pdd = (n * tau_shaft - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
+    pdd = (nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
     return pd, pdd, qd, (f + m_load) * P[INV_JL], di, dxi, cur, v, iref, tau
 
 

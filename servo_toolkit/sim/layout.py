@@ -49,7 +49,11 @@ KAW = 51
 # index in P of a chain-ending cam's parameters (mechanisms.cam_kernels.pack_cam; 0 = none):
 # its follower weight and guide friction load the cam shaft (seed 002 eq 3)
 CAM = 52
-NP_HEADER = 53
+# drivetrain efficiency (LossyGear-like loss on the motor torque reflected to the output):
+# mean and half difference of the loss coefficients 1 - eta (driving) and 1/eta_b - 1
+# (back-driven), and 1 / the torque scale of the smooth sign of the transmitted torque
+ETA_MEAN, ETA_HALF, INV_TAU_S = 53, 54, 55
+NP_HEADER = 56
 #: length of the packed cam parameters
 NCAM = 14
 

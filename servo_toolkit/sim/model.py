@@ -17,9 +17,21 @@ Simplifications (documented, switchable where a reduction study needs it):
   stroke is a few per cent and is not tabulated);
 - Coulomb friction is smoothed, ``Tc tanh(omega_m / w_s)`` (no stick state), so that the
   right-hand side is continuous for RK4;
-- stage efficiencies are not modelled (lossless transmission); losses are the motor's
-  viscous and Coulomb friction, the structural damping of the compliance and the load's
-  damping;
+- the stages' efficiencies are lumped into one loss on the motor's shaft torque reflected to
+  the output, n tau_shaft, as Modelica's ``LossyGear`` models a gear: driving (torque and
+  speed of the same sign) the chain receives eta n tau_shaft, back-driven n tau_shaft / eta_b
+  (eta the product of the stages' efficiencies, eta_b of their back-drive efficiencies:
+  screws ``2 - 1/eta``, gears and linkages eta; a self-locking chain is modelled with
+  eta_b = :data:`MIN_BACKDRIVE`). The loss c |n tau_shaft| (c = 1 - eta driving, 1/eta_b - 1
+  back-driven) acts against the motion with smooth signs of the torque (scale
+  :data:`LOSS_TORQUE_SCALE` of the peak motor torque at the output) and of the speed (the
+  friction speed), so RK4 keeps its order and the loss power is never negative. The linear
+  design plant (:mod:`servo_toolkit.plant`) uses the driving-mode eta on the motor torque: it
+  is the small-signal model wherever the motor drives the load (the tests compare the
+  model's Jacobian with it); a motion that reverses the power flow (a free sine, where
+  torque and speed are in quadrature) sees eta on half the cycle and 1/eta_b on the other,
+  and the sweep measures what that changes. The other losses are the motor's viscous and
+  Coulomb friction, the structural damping of the compliance and the load's damping;
 - the drivetrain's structural damping is stiffness-proportional, ``beta K`` with
   ``beta = 2 zeta / omega_n`` at q0 (``zeta = options.damping_ratio``).
 """
@@ -81,6 +93,8 @@ class ModelOptions:
         on the motor-encoder angle. The estimators quantize the motor encoder
         (``motor_encoder_counts``) when ``quantization`` is on. Continuous mode always uses
         the true speed.
+    efficiency : bool
+        The drivetrain's efficiency loss (False: lossless transmission).
     estimator_jerk : float or None
         Jerk level (motor rad/s^3) setting the Kalman filter's process noise. None: the jerk
         of the motor reaching its peak acceleration ``Kt I_max / J_m(q0)`` within one
@@ -103,6 +117,7 @@ class ModelOptions:
     play: float | None = None
     speed_estimator: str | None = None
     estimator_jerk: float | None = None
+    efficiency: bool = True
 
     def __post_init__(self):
         if self.speed_estimator is not None and self.speed_estimator not in lo.ESTIMATORS:
@@ -286,6 +301,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if motor.inductance > 0 and not options.inductance:
         notes.append("armature inductance left out (ideal current loop)")
     P[lo.WS] = 1.0 / options.friction_speed  # stored as its reciprocal
+    loss_slots(P, drive, motor, q0, options, notes)
     P[lo.VLIM], P[lo.ILIM] = motor.voltage_limit, motor.current_limit
     P[lo.TAB_LO], P[lo.TAB_H], P[lo.TAB_N] = q[0], q[1] - q[0], q.size
     P[lo.INV_H] = 1.0 / P[lo.TAB_H]
@@ -352,6 +368,34 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info,
                   output_unit=drive.output_unit)
     return _with_table_error(model, drive, q)
+
+
+#: smallest back-drive efficiency modelled (a self-locking chain's is 0 or less)
+MIN_BACKDRIVE = 0.1
+#: torque scale of the smooth sign of the transmitted torque, relative to the peak motor
+#: torque at the output (Kt I_max N(q0))
+LOSS_TORQUE_SCALE = 1e-3
+
+
+def loss_slots(P, drive, motor, q0: float, options: ModelOptions, notes: list) -> None:
+    """Fill the drivetrain-loss slots (``ETA_MEAN``, ``ETA_HALF``, ``INV_TAU_S``): the loss
+    coefficients 1 - eta (driving) and 1/eta_b - 1 (back-driven) as mean and half difference,
+    and the reciprocal torque scale; all zero for a lossless chain or ``efficiency=False``."""
+    eta, eta_b = drive.efficiency, drive.backdrive_efficiency
+    if not options.efficiency or (eta >= 1.0 and eta_b >= 1.0):
+        if eta < 1.0:
+            notes.append(f"drivetrain efficiency {eta:.3g} left out (lossless transmission)")
+        return
+    if eta_b < MIN_BACKDRIVE:
+        notes.append(f"the chain is self-locking (back-drive efficiency {eta_b:.3g}); modelled with "
+                     f"back-drive efficiency {MIN_BACKDRIVE:g}")
+        eta_b = MIN_BACKDRIVE
+    c_drive, c_back = 1.0 - eta, 1.0 / eta_b - 1.0
+    P[lo.ETA_MEAN], P[lo.ETA_HALF] = 0.5 * (c_drive + c_back), 0.5 * (c_drive - c_back)
+    n0 = abs(float(drive.ratio([q0])[0][0]))
+    P[lo.INV_TAU_S] = 1.0 / (LOSS_TORQUE_SCALE * motor.torque_constant * motor.current_limit * n0)
+    notes.append(f"drivetrain efficiency {eta:.3g} driving, {eta_b:.3g} back-driven (LossyGear-like loss "
+                 "on the reflected motor torque)")
 
 
 def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options: ModelOptions,

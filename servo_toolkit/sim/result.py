@@ -10,10 +10,11 @@ import numpy as np
 
 from ..errors import SceneError
 from ..output_units import OutputUnit
+from ..display import RichDisplay
 
 
-@dataclass(frozen=True)
-class SimulationResult:
+@dataclass(frozen=True, repr=False)
+class SimulationResult(RichDisplay):
     """Recorded traces of one run.
 
     Attributes
@@ -180,6 +181,14 @@ class SimulationResult:
         a2.set_ylabel("voltage (V)")
         a2.set_xlabel("time (s)")
         return axes
+
+    def _repr_line(self) -> str:
+        from ..result_cards import simulation_line
+        return simulation_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import simulation_card
+        return simulation_card(self)
 
 
 TRACE_SUFFIXES = (".csv", ".npz")

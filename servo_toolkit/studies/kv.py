@@ -39,6 +39,7 @@ from ..parallel import run_cases
 from .inverse_dynamics import inverse_dynamics
 from ..output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
+from ..display import RichDisplay
 
 
 @dataclass(frozen=True)
@@ -81,8 +82,8 @@ class KvCase:
                 "peak_rod_force_N": self.peak_rod_force, "kv_rod": self.kv_rod}
 
 
-@dataclass(frozen=True)
-class KvResult:
+@dataclass(frozen=True, repr=False)
+class KvResult(RichDisplay):
     """A Kv study: cases over amplitudes and external inertias.
 
     Attributes
@@ -173,6 +174,14 @@ class KvResult:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
         return ax
+
+    def _repr_line(self) -> str:
+        from ..result_cards import kv_line
+        return kv_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import kv_card
+        return kv_card(self)
 
 
 @dataclass(frozen=True)

@@ -27,15 +27,16 @@ from ..errors import SceneError, SimulationError
 from ..output_units import OutputUnit, output_unit
 from ..parallel import run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING
-from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, lossless, plan_reduction
+from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, plan_reduction
 from .sine_dwell import DwellPlan
 from .sweep import linear_response, study_points, sweep
+from ..display import RichDisplay
 
 TIME_KINDS = ("kv", "simulate")
 
 
-@dataclass(frozen=True)
-class ReductionResult:
+@dataclass(frozen=True, repr=False)
+class ReductionResult(RichDisplay):
     """What a study's reduced model leaves out, and how much that changes the study.
 
     Attributes
@@ -190,6 +191,14 @@ class ReductionResult:
         ax.legend(fontsize="small")
         return ax
 
+    def _repr_line(self) -> str:
+        from ..result_cards import reduction_line
+        return reduction_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import reduction_card
+        return reduction_card(self)
+
 
 def _db(e):
     return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
@@ -317,7 +326,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
                          f"{next(e for e in s_full.errors if e)}); not compared")
     else:
         notes.append("time runs with an elastic stroke-end stop on both models")
-        _, decay = linear_response(lossless(scene), controller, freqs, full.damping_ratio)
+        _, decay = linear_response(scene, controller, freqs, full.damping_ratio)
         f = float(freqs[0])
         settle, est = dwell.cycles(f, decay)
         limits = (scene.motor.current_limit, scene.motor.voltage_limit)

@@ -3,8 +3,7 @@
 Every estimate is a relative error of the closed-loop response theta/theta_ref,
 ``e = max_f |T_without(j w) / T(j w) - 1|`` over the study's frequencies (e bounds the gain
 error by 20 log10(1 + e) dB and the phase error by asin(e)). Linear effects are estimated
-with the linear closed loop of :mod:`servo_toolkit.plant` (lossless, as the simulation
-model) assembled twice, with and without the effect; nonlinear ones from their physics:
+with the design's linear closed loop of :mod:`servo_toolkit.plant` assembled twice, with and without the effect; nonlinear ones from their physics:
 
 - armature inductance: loop without inductance (ideal current loop);
 - a stage's compliance (candidates: compliance share below 1e-3 over the motion, the seed
@@ -38,6 +37,7 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
+from ..operating_point import operating_point
 from ..output_units import OutputUnit, output_unit
 from ..plant import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
                      plant_parameters, sample_delay, spring_damping)
@@ -165,15 +165,6 @@ def loop_response(p, controller, motor, w, inductance: bool = True):
     return out
 
 
-def lossless(scene):
-    """The scene with every stage's efficiency set to 1: the transmission the simulation
-    model uses (it models losses as motor friction and structural damping only), so that
-    linear and simulated loops describe the same physics."""
-    stages = tuple(replace(s, efficiency=1.0) if "efficiency" in getattr(s, "__dataclass_fields__", {}) else s
-                   for s in scene.stages)
-    return replace(scene, stages=stages)
-
-
 def _rel(t_var, t_ref):
     return float(np.max(np.abs(t_var / t_ref - 1.0)))
 
@@ -214,9 +205,9 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     amps = tuple(float(a) for a in amplitudes)
     w = 2 * np.pi * freqs
     drive, motor = scene.drivetrain, scene.motor
-    q0 = drive.mid_stroke
+    q0 = operating_point(scene)[0]  # where the simulation starts
     zeta = base.damping_ratio
-    p = plant_parameters(lossless(scene), q0, structural_damping=zeta)
+    p = plant_parameters(scene, q0, structural_damping=zeta)
     ref = loop_response(p, controller, motor, w)
     t_full = ref["theta"]
     a_min, a_max = min(amps), max(amps)

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..reflection import NeglectCriterion
+from ..display import RichDisplay
 
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
@@ -37,8 +38,8 @@ def _nulls(values) -> list:
     return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=float)]
 
 
-@dataclass(frozen=True)
-class StiffnessResult:
+@dataclass(frozen=True, repr=False)
+class StiffnessResult(RichDisplay):
     """Stiffness chain at a set of output coordinates.
 
     Attributes
@@ -212,6 +213,14 @@ class StiffnessResult:
         ax.set_title("Series compliance at the output")
         ax.legend(fontsize="small")
         return ax
+
+    def _repr_line(self) -> str:
+        from ..result_cards import stiffness_line
+        return stiffness_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import stiffness_card
+        return stiffness_card(self)
 
 
 def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, np.ndarray]:

@@ -3,11 +3,13 @@
 At each frequency (and each amplitude) the compiled closed-loop model is driven by a sine
 position command ``a sin(2 pi f t)`` about mid-stroke; after the settling time the output
 angle's fundamental is estimated by correlation (:mod:`.sine_dwell`). The ratio to ``a`` is
-the describing-function response of the loop, compared on one Bode plot with
-:func:`servo_toolkit.loop.linear_closed_loop` evaluated with the simulation model's physics:
-the same structural damping and a lossless transmission (the simulation model has no stage
-efficiencies; the design's linear loop scales the motor torque by the drivetrain
-efficiency, and the sweep notes the largest difference between the two).
+the describing-function response of the loop, compared on one Bode plot with the design's
+linear loop, :func:`servo_toolkit.loop.linear_closed_loop` with the same structural damping.
+The linear loop scales the motor torque by the driving-mode drivetrain efficiency; the
+nonlinear model's LossyGear-like loss (:mod:`servo_toolkit.sim.model`) passes eta where the
+motor drives the load and 1/eta_b where the load drives the motor, so a free sine, whose
+power flow reverses every quarter period, departs from the linear loop by what that
+reversal changes (noted when the chain has losses).
 Amplitude dependence (backlash, voltage and current limits) shows as one curve per
 amplitude; points where a limit was reached are flagged.
 
@@ -32,6 +34,7 @@ from ..parallel import run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING
 from .sine_dwell import DwellPlan, dwell_estimate
 from .sweep_points import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY_HZ, study_points
+from ..display import RichDisplay
 
 def _dwell_case(case):
     """One sine dwell (module level so that executors can pickle it)."""
@@ -81,8 +84,8 @@ def _wrap_near(phase, ref):
     return ref + (phase - ref + np.pi) % (2 * np.pi) - np.pi
 
 
-@dataclass(frozen=True)
-class SweepResult:
+@dataclass(frozen=True, repr=False)
+class SweepResult(RichDisplay):
     """Sine-dwell frequency response of the nonlinear loop and the linear loop.
 
     Attributes
@@ -282,14 +285,24 @@ class SweepResult:
         ag.legend(fontsize="small")
         return axes
 
+    def _repr_line(self) -> str:
+        from ..result_cards import sweep_line
+        return sweep_line(self)
+
+    def _repr_card(self) -> str:
+        from ..result_cards import sweep_card
+        return sweep_card(self)
+
 
 def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAULT_STRUCTURAL_DAMPING):
-    """theta/theta_ref of :func:`servo_toolkit.loop.linear_closed_loop` at the frequencies
-    (complex array) and the slowest decay rate of its poles (1/s)."""
+    """theta/theta_ref of :func:`servo_toolkit.loop.linear_closed_loop` at the design's
+    operating point (where the simulation starts) at the frequencies (complex array) and the
+    slowest decay rate of its poles (1/s)."""
     import control as ct
 
     from ..loop import linear_closed_loop
-    cl = linear_closed_loop(scene, controller, structural_damping=structural_damping)
+    from ..operating_point import operating_point
+    cl = linear_closed_loop(scene, controller, q0=operating_point(scene)[0], structural_damping=structural_damping)
     sub = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
     w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
     resp = np.asarray(ct.frequency_response(sub, w).complex).reshape(-1)
@@ -335,7 +348,7 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     SweepResult
     """
     from ..sim import ModelOptions, build_model, controller_for
-    from .reduce_estimates import lossless, plan_reduction
+    from .reduce_estimates import plan_reduction
 
     start = time.perf_counter()
     name, freqs, amps = study_points(scene, study)
@@ -361,17 +374,14 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
             notes.append("reduced model (use full=True / --full for the full model)")
     model = build_model(scene, controller, options)
     notes += list(model.notes)
-    same = lossless(scene)
-    lin, decay = linear_response(same, controller, freqs_arr, options.damping_ratio)
+    lin, decay = linear_response(scene, controller, freqs_arr, options.damping_ratio)
     grid = np.unique(np.concatenate([np.geomspace(freqs_arr[0] / 1.5, freqs_arr[-1] * 1.5, 300), freqs_arr]))
-    lin_grid, _ = linear_response(same, controller, grid, options.damping_ratio)
+    lin_grid, _ = linear_response(scene, controller, grid, options.damping_ratio)
     eta = scene.drivetrain.efficiency
-    if eta < 1:
-        design_lin, _ = linear_response(scene, controller, grid, options.damping_ratio)
-        dg = np.max(np.abs(20 * np.log10(np.abs(design_lin / lin_grid))))
-        dp = np.degrees(np.max(np.abs(np.angle(design_lin / lin_grid))))
-        notes.append(f"linear loop lossless like the simulation model; with the drivetrain efficiency "
-                     f"{eta:.3g} (the design's loop) it differs by up to {dg:.2f} dB / {dp:.2f} deg")
+    if eta < 1 and options.efficiency:
+        notes.append(f"linear loop: the design's, with the driving-mode efficiency {eta:.3g} on the motor "
+                     f"torque; the nonlinear model passes it while the motor drives the load and "
+                     f"1/{scene.drivetrain.backdrive_efficiency:.3g} while the load drives the motor")
     limits = (scene.motor.current_limit, scene.motor.voltage_limit)
     cases = [(model, a, f, plan, decay, method, limits) for a in amps for f in freqs_arr]
     out = run_cases(_dwell_case, cases, executor=executor, progress=progress, description="sine dwell")

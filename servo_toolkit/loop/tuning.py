@@ -1,0 +1,217 @@
+"""Hand tuning of a designed loop: control values -> a DesignResult, and a design's file.
+
+:func:`tuned_design` is a pure function from the tuner's control values
+(:class:`LoopTuning`: bandwidth target, the cascade's gains, the resonance filter and the
+operating point) to a :class:`~.result.DesignResult` evaluated exactly as
+:func:`~.design.design` evaluates its own result (margins on the Nyquist criterion, the
+requirement rows, the check along the stroke). The interactive tuner
+(:func:`servo_toolkit.tune`) calls it on every change; tests call it without a browser.
+
+A design's controller is written to a small JSON file (:func:`save_design`) that
+``check``, ``export`` and ``report`` take with ``--design FILE`` (:func:`load_design`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..controller import CascadeController
+from ..errors import SceneError
+from .design import design, evaluate
+from .structures import FILTERS, Motion
+
+#: version of the design file
+DESIGN_FILE_VERSION = 1
+#: notch defaults when the tuner switches a notch on: pole damping (width) and depth
+DEFAULT_NOTCH_WIDTH = 0.5
+DEFAULT_NOTCH_DEPTH_DB = -20.0
+
+
+@dataclass(frozen=True)
+class LoopTuning:
+    """The tuner's control values; None keeps the base design's value.
+
+    Attributes
+    ----------
+    bandwidth_hz : float or None
+        Bandwidth target of the automatic design the tuning starts from (Hz).
+    kp : float or None
+        Position gain (1/s).
+    kv : float or None
+        Speed gain (A per output rad/s).
+    wvi : float or None
+        Speed-PI integral corner (rad/s).
+    resonance_filter : {None, "none", "notch", "lowpass"}
+    filter_hz : float or None
+        Notch or low-pass frequency (Hz).
+    depth_db : float or None
+        Notch depth at its frequency (dB, negative): 20 log10(zeta_zero / zeta_pole).
+    width : float or None
+        Notch pole damping ratio (its width), or the low-pass damping ratio.
+    q0 : float or None
+        Operating point where the loop is evaluated (rad, or m for an output travel); the
+        controller is the same (a loop runs unchanged along the stroke).
+    """
+
+    bandwidth_hz: float | None = None
+    kp: float | None = None
+    kv: float | None = None
+    wvi: float | None = None
+    resonance_filter: str | None = None
+    filter_hz: float | None = None
+    depth_db: float | None = None
+    width: float | None = None
+    q0: float | None = None
+
+    def check(self) -> None:
+        """Raise SceneError(``tuning.<name>``, rule) for a value out of range."""
+        for name in ("bandwidth_hz", "kp", "kv", "wvi", "filter_hz", "width"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise SceneError(f"tuning.{name}", f"must be positive and finite (got {v!r})")
+        if self.depth_db is not None and not (math.isfinite(self.depth_db) and self.depth_db < 0):
+            raise SceneError("tuning.depth_db", f"a notch depth is negative dB (got {self.depth_db!r})")
+        if self.resonance_filter is not None and self.resonance_filter not in FILTERS:
+            raise SceneError("tuning.resonance_filter", f"must be one of {FILTERS} (got {self.resonance_filter!r})")
+
+
+def base_design(scene, bandwidth_hz: float | None = None):
+    """The automatic design the tuning starts from (a bandwidth target replaces the scene's)."""
+    require = {"bandwidth": float(bandwidth_hz)} if bandwidth_hz is not None else None
+    return design(scene, require=require, progress=False)
+
+
+def tuning_of(result) -> LoopTuning:
+    """The control values of a design (what the tuner shows first)."""
+    m = result.motion
+    if m is None or m.structure != "cascade":
+        raise SceneError("design", "the tuner tunes a cascade design (position P, speed PI)")
+    g, fp = m.gains, m.filter_params
+    values = dict(kp=float(g["kp"]), kv=float(g["kv"]), wvi=float(g["wvi"]), resonance_filter=m.filter,
+                  q0=float(result.q0))
+    if m.filter == "notch":
+        values.update(filter_hz=float(fp["wn"]) / (2 * math.pi), width=float(fp["zeta_pole"]),
+                      depth_db=20 * math.log10(fp["zeta_zero"] / fp["zeta_pole"]))
+    elif m.filter == "lowpass":
+        values.update(filter_hz=float(fp["wn"]) / (2 * math.pi), width=float(fp["zeta"]))
+    return LoopTuning(**values)
+
+
+def _filter(tuning: LoopTuning, motion: Motion, base_hz: float):
+    kind = tuning.resonance_filter or motion.filter
+    if kind == "none":
+        return "none", {}
+    old = motion.filter_params if motion.filter == kind else {}
+    wn = 2 * math.pi * tuning.filter_hz if tuning.filter_hz is not None else old.get("wn", 2 * math.pi * base_hz)
+    if kind == "notch":
+        zp = tuning.width if tuning.width is not None else old.get("zeta_pole", DEFAULT_NOTCH_WIDTH)
+        depth = (tuning.depth_db if tuning.depth_db is not None else
+                 20 * math.log10(old["zeta_zero"] / old["zeta_pole"]) if old else DEFAULT_NOTCH_DEPTH_DB)
+        return "notch", {"wn": wn, "zeta_zero": zp * 10 ** (depth / 20), "zeta_pole": zp}
+    zeta = tuning.width if tuning.width is not None else old.get("zeta", 0.5)
+    return "lowpass", {"wn": wn, "zeta": zeta}
+
+
+def tuned_design(scene, tuning: LoopTuning = LoopTuning(), base=None):
+    """The loop with the tuner's values, evaluated as :func:`~.design.design` evaluates.
+
+    Parameters
+    ----------
+    scene : Scene
+    tuning : LoopTuning
+        Control values; None keeps the base design's.
+    base : DesignResult, optional
+        The design to start from (default :func:`base_design` at ``tuning.bandwidth_hz``).
+
+    Returns
+    -------
+    DesignResult
+        Its notes say what was tuned; ``motion`` holds the tuned gains and filter.
+    """
+    tuning.check()
+    if base is None:
+        base = base_design(scene, tuning.bandwidth_hz)
+    tuning_of(base)  # a cascade design, or a clear error
+    m = base.motion
+    gains = dict(m.gains)
+    changed = []
+    for name in ("kp", "kv", "wvi"):
+        value = getattr(tuning, name)
+        if value is not None:
+            if not math.isclose(value, gains[name], rel_tol=1e-12):
+                changed.append(f"{name} {gains[name]:.4g} -> {value:.4g}")
+            gains[name] = float(value)
+    res_hz = base.parameters.resonance_hz if math.isfinite(base.parameters.resonance_hz) else 50.0
+    kind, params = _filter(tuning, m, res_hz)
+    if kind != m.filter or any(not math.isclose(params[k], m.filter_params.get(k, math.nan)) for k in params):
+        changed.append(f"filter {m.filter} -> {kind}" + (" (" + ", ".join(f"{k}={v:.4g}" for k, v in params.items())
+                                                         + ")" if params else ""))
+    motion = Motion("cascade", gains, kind, params, m.ratio)
+    c = base.controller
+    ctrl = CascadeController(motion.state_space(), c.current_kp, c.current_ki, c.sample_time, motion.describe())
+    q0 = base.q0 if tuning.q0 is None else float(tuning.q0)
+    require = {"bandwidth": float(tuning.bandwidth_hz)} if tuning.bandwidth_hz is not None else None
+    notes = (f"tuned from the automatic design{' at ' + format(tuning.bandwidth_hz, 'g') + ' Hz' if tuning.bandwidth_hz else ''}: "
+             + ("; ".join(changed) if changed else "no change"),)
+    if q0 != base.q0:
+        notes += (f"evaluated at q0 = {math.degrees(q0):.4g} deg (designed at {math.degrees(base.q0):.4g} deg)",)
+    return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
+
+
+# --- design files -------------------------------------------------------------------------
+
+def design_data(result) -> dict:
+    """The controller of a design as JSON-ready data (what :func:`load_design` reads)."""
+    m, c = result.motion, result.controller
+    if m is None:
+        raise SceneError("design", "only a designed motion controller can be saved")
+    return {"servo_toolkit_design": DESIGN_FILE_VERSION, "scene": result.scene_name, "q0_rad": result.q0,
+            "structure": m.structure, "gains": dict(m.gains), "filter": m.filter,
+            "filter_params": dict(m.filter_params), "ratio": m.ratio,
+            "current_kp_v_per_a": c.current_kp, "current_ki_v_per_a_s": c.current_ki,
+            "sample_time_s": c.sample_time}
+
+
+def save_design(result, path, inputs=()) -> Path:
+    """Write the design's controller to ``path`` (JSON, atomically; never over an input)."""
+    from ..cli.outputs import atomic_write_text, check_file
+    path = check_file(path, "--design", (".json",), inputs=inputs)
+    atomic_write_text(path, json.dumps(design_data(result), indent=2) + "\n")
+    return path
+
+
+def load_design(scene, path, require=None):
+    """The design saved in ``path``, evaluated on ``scene`` (margins, requirements, stroke).
+
+    Raises
+    ------
+    SceneError
+        ``--design``: not a readable design file, a missing or bad field.
+    """
+    key = "--design"
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SceneError(key, f"cannot read the design file {str(path)!r}: {exc}") from None
+    if not isinstance(data, dict) or data.get("servo_toolkit_design") != DESIGN_FILE_VERSION:
+        raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
+    try:
+        motion = Motion(str(data["structure"]), {k: float(v) for k, v in data["gains"].items()},
+                        str(data["filter"]), {k: float(v) for k, v in data["filter_params"].items()},
+                        float(data["ratio"]))
+        motion.pieces()
+        values = [float(data[k]) for k in ("current_kp_v_per_a", "current_ki_v_per_a_s", "sample_time_s", "q0_rad")]
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise SceneError(key, f"{str(path)!r}: missing or bad field ({type(exc).__name__}: {exc})") from None
+    if not all(math.isfinite(v) for v in values + list(motion.gains.values()) + list(motion.filter_params.values())):
+        raise SceneError(key, f"{str(path)!r}: every number must be finite")
+    kp_i, ki_i, ts, q0 = values
+    ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe())
+    notes = (f"controller from {Path(path).name} (designed for {data.get('scene', '?')})",)
+    return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
+
+
+__all__ = ["LoopTuning", "base_design", "design_data", "load_design", "save_design", "tuned_design", "tuning_of"]
