@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import html
 import io
-import math
 
 #: style of the cards (scoped by the class name, so a notebook's own styles are untouched)
 STYLE = ("<style>.st-card{font-family:sans-serif;font-size:13px;border:1px solid #ccd;"
@@ -30,16 +29,10 @@ def esc(value) -> str:
 
 
 def num(x, digits: int = 4) -> str:
-    """A number for a card: ``digits`` significant digits; inf and NaN in words."""
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return str(x)
-    if math.isnan(x):
-        return "n/a"
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return f"{x:.{digits}g}"
+    """A number for a card: ``digits`` significant digits; inf and NaN in words (the
+    report's formatter, :func:`servo_toolkit.report.section.fmt`)."""
+    from .report.section import fmt
+    return fmt(x, digits)
 
 
 def badge(passed: bool, text: str | None = None) -> str:

@@ -92,31 +92,31 @@ def atomic_folder(path):
         raise
 
 
-def save_figure(fig, path) -> Path:
-    """``fig.savefig`` to a temporary name beside ``path``, then renamed over it."""
+@contextlib.contextmanager
+def atomic_file(path):
+    """Yield a temporary name beside ``path``; on success it is renamed over ``path``, on any
+    failure (Ctrl-C included) removed: ``path`` holds the old content or the new, never half."""
     target = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent or ".")
     os.close(fd)
     try:
-        fig.savefig(tmp, bbox_inches="tight")
+        yield tmp
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    return target
+
+
+def save_figure(fig, path) -> Path:
+    """``fig.savefig`` to a temporary name beside ``path``, then renamed over it."""
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, bbox_inches="tight")
+    return Path(path)
 
 
 def atomic_write_text(path, text: str) -> Path:
     """Write ``text`` to a temporary name beside ``path``, then rename it over ``path``."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    return target
+    with atomic_file(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+    return Path(path)

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..fields import Fields, require
-from .base import Element, Jet, Lash, Spring, Stage
+from .base import Element, Jet, Lash, Spring, Stage, screw_backdrive_efficiency
 
 
 @dataclass(frozen=True)
@@ -40,11 +40,8 @@ class BallScrew(Stage):
 
     @property
     def backdrive_efficiency(self) -> float:
-        """Back-drive efficiency of a screw, ``2 - 1/eta``: the screw catalogues' relation
-        for the same thread friction driven the other way (with lead angle l and friction
-        angle r, eta = tan(l)/tan(l + r) and the back-drive tan(l - r)/tan(l), which it
-        matches to second order in r); zero or less means self-locking."""
-        return 2.0 - 1.0 / self.efficiency
+        """Back-drive efficiency (:func:`~.base.screw_backdrive_efficiency`)."""
+        return screw_backdrive_efficiency(self.efficiency)
 
     @property
     def ratio(self) -> float:

@@ -62,6 +62,14 @@ class Lash:
     u: Jet
 
 
+def screw_backdrive_efficiency(eta: float) -> float:
+    """Back-drive efficiency of a screw of forward efficiency ``eta``: ``2 - 1/eta``, the screw
+    catalogues' relation for the same thread friction driven the other way (with lead angle l
+    and friction angle r, eta = tan(l)/tan(l + r) and the back-drive tan(l - r)/tan(l), which
+    it matches to second order in r); zero or less means self-locking."""
+    return 2.0 - 1.0 / eta
+
+
 class Stage:
     """Mixin with defaults; concrete stages are frozen dataclasses."""
 
