@@ -13,7 +13,7 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it (imported on first access)
 _LAZY = {"Scene": ".scene", "load_scene": ".scene", "design": ".loop", "export": ".export",
-         "simulate": ".sim"}
+         "simulate": ".sim", "fit": ".identify"}
 
 __all__ = ["SceneError", "SimulationError", "__version__", *sorted(_LAZY)]
 

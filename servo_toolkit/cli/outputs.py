@@ -105,3 +105,21 @@ def save_figure(fig, path) -> Path:
             os.unlink(tmp)
         raise
     return target
+
+
+def write_text(path, text: str, check=None) -> Path:
+    """Write ``text`` to a temporary file beside ``path``, call ``check(tmp_path)`` on it when
+    given (it raises to refuse the file), then rename it over ``path``."""
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent or ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        if check is not None:
+            check(tmp)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return target
