@@ -90,6 +90,8 @@ def test_current_driven_plant_cannot_see_the_resistance(plant_fit, scene):
     assert set(data["parameters"][0]) == {"key", "value", "unit", "ci95", "initial"}
     assert data["parameters"][0]["unit"] == "kg*m^2" and data["parameters"][1]["unit"] == "N*m/rad"
     assert data["correlation"]["matrix"][j][j] is None
+    assert data["parameters"][j]["ci95"] == [0.0, None]
+    json.dumps(data, allow_nan=False)
 
 
 def test_intervals_scale_with_the_noise(scene, truth):

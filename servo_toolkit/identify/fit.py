@@ -132,6 +132,9 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
         kind = response or "plant"
         if kind not in RESPONSES:
             raise SceneError("--response", f"must be one of {', '.join(RESPONSES)} (got {kind!r})")
+    if scene.motor is None or not scene.stages:
+        raise SceneError("drivetrain", "fitting needs a motor-driven [[drivetrain]] (a linear plant to compare "
+                         "with the measurement)", scene.source)
     template = SceneTemplate(scene, list(params))
     npar = len(template.parameters)
     if data.points < npar + 2:

@@ -30,7 +30,8 @@ class FitResult:
     initial, values : numpy.ndarray
         Initial and fitted values (SI).
     ci95 : numpy.ndarray
-        (n, 2) 95 % intervals (SI); ``[0, inf]`` for a parameter without influence.
+        (n, 2) 95 % intervals (SI); ``[0, inf]`` for a parameter without influence
+        (``[0, null]`` in JSON).
     correlation : numpy.ndarray
         (n, n) correlation of the estimates (NaN for a parameter without influence).
     residual_db_rms, residual_phase_deg_rms : float or None
@@ -78,7 +79,7 @@ class FitResult:
         ``residual_db_rms``, ``correlation``, ``warnings``."""
         corr = [[None if not math.isfinite(c) else float(c) for c in row] for row in self.correlation]
         return {"scene": self.scene, "response": self.response,
-                "parameters": [{"key": k, "value": float(v), "unit": u, "ci95": [float(lo), float(hi)],
+                "parameters": [{"key": k, "value": float(v), "unit": u, "ci95": [float(lo), float(hi) if math.isfinite(hi) else None],
                                 "initial": float(i)}
                                for k, v, u, (lo, hi), i in zip(self.keys, self.values, self.units, self.ci95,
                                                                self.initial)],
