@@ -272,3 +272,27 @@ def test_fit_is_exposed_at_top_level():
     assert servo_toolkit.fit is fit
     with pytest.raises(SceneError, match="at least one"):
         fit(load_scene(EMA), FrequencyData.from_complex(F, np.ones(F.size)), "plant", [])
+
+
+def test_result_shows_itself(plant_fit):
+    import matplotlib
+    matplotlib.use("Agg")
+    r = plant_fit
+    text = repr(r)
+    assert "\n" not in text and "load.inertia=" in text and "dB RMS" in text
+    assert "<table>" in r._repr_html_() and "motor.resistance" in r._repr_html_()
+    assert "not identified" in r.table() and "warning: motor.resistance" in r.table()
+    gain_ax, phase_ax = r.plot()
+    assert [line.get_label() for line in gain_ax.get_lines()] == ["measured", "initial", "fitted"]
+
+
+def test_a_refused_value_during_the_fit_steps_back(scene):
+    """A rig with 40 % more torque per ampere than the scene asks for a gear efficiency of
+    1.36, which the scene refuses (efficiencies lie in (0, 1]): the fit stays on valid
+    scenes, ends at the boundary and the residual keeps the gain it cannot explain."""
+    data = FrequencyData.from_complex(F, 1.4 * plant_response(scene, F))
+    r = fit(scene, data, "plant", ["drivetrain[0].efficiency"])
+    assert 0.95 < r.value("drivetrain[0].efficiency") <= 1
+    assert r.residual_db_rms > 20 * np.log10(1.4 * 0.97) - 0.05
+    assert any("limit the scene accepts" in w for w in r.warnings)
+    assert r.to_dict()["parameters"][0]["ci95"] == [0.0, None]

@@ -92,6 +92,20 @@ def _intervals(jac, resid, x, keys, dof):
     return half, corr, singular
 
 
+def _at_scene_limit(template, values) -> np.ndarray:
+    """Per parameter: a small step up or down gives a scene the loader refuses."""
+    out = np.zeros(len(values), bool)
+    for j in range(len(values)):
+        for factor in (1 + 1e-5, 1 - 1e-5):
+            trial = np.array(values, float)
+            trial[j] *= factor
+            try:
+                template.scene(trial)
+            except SceneError:
+                out[j] = True
+    return out
+
+
 def fit(scene, data, response: str | None = None, params=(), *, controller=None) -> FitResult:
     """Fit scene parameters to a measured response.
 
@@ -151,23 +165,34 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
         model = frequency_model(template.base, kind, controller)
         residuals_of = _frequency_residuals(model, data)
 
-    def residuals(z):
-        return residuals_of(template.scene(x0 * np.exp(z)))
+    r0 = residuals_of(template.base)
+    penalty = np.full(r0.size, 1e3 * max(1.0, float(np.sqrt(np.mean(r0 ** 2)))))
 
-    r0 = residuals(np.zeros(npar))
+    def residuals(z):
+        try:
+            scene_z = template.scene(x0 * np.exp(z))
+        except SceneError:  # a value the scene refuses (e.g. an efficiency above 1): step back
+            return penalty
+        return residuals_of(scene_z)
+
     bound = math.log(MAX_FACTOR)
     sol = optimize.least_squares(residuals, np.zeros(npar), bounds=(-bound, bound), diff_step=1e-6,
                                  x_scale=1.0, method="trf", ftol=1e-10, xtol=1e-10, gtol=1e-10)
     m = sol.fun.size
     dof = max(m - npar, 1)
-    half, corr, singular = _intervals(sol.jac, sol.fun, sol.x, template.parameters, dof)
+    at_limit = _at_scene_limit(template, x0 * np.exp(sol.x))
+    jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
+    half, corr, singular = _intervals(jac, sol.fun, sol.x, template.parameters, dof)
     values = x0 * np.exp(sol.x)
     ci = np.column_stack([values * np.exp(-half), values * np.exp(half)])
     ci[singular] = [0.0, math.inf]
     keys = [p.key for p in template.parameters]
     warnings = []
     for j, key in enumerate(keys):
-        if singular[j]:
+        if at_limit[j]:
+            warnings.append(f"{key}: ended at the limit the scene accepts for it; the data ask for a value "
+                            "beyond it (another parameter or the model is off)")
+        elif singular[j]:
             warnings.append(f"{key}: the data cannot identify it (no independent influence on the response); "
                             "kept near its initial value")
         elif math.sinh(half[j]) > MAX_RELATIVE_INTERVAL:
@@ -180,7 +205,10 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
             if abs(corr[a, b]) > MAX_CORRELATION:
                 warnings.append(f"{keys[a]} and {keys[b]}: correlation {corr[a, b]:+.3f}; the data identify "
                                 "only a combination of them")
-    fitted_scene = template.scene(values)
+    try:
+        fitted_scene = template.scene(values)
+    except SceneError as exc:
+        raise SceneError(exc.key, f"the fit ended on a value the scene refuses ({exc.rule})") from None
     if kind == "time":
         initial_model = time_response(template.base, data.time_s, data.voltage_V)
         fitted_model = time_response(fitted_scene, data.time_s, data.voltage_V)
