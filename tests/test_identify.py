@@ -230,6 +230,10 @@ GOOD = "frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n8,22,-95\n
     (GOOD.replace("16,16,-100\n", "16,16\n"), "row 6", "expected 3 values"),
     ("frequency_hz,gain_db,phase_deg,coherence\n1,40,-90,1.5\n2,34,-91,1\n4,28,-92,1\n", "row 2", "coherence"),
     ("frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n", "(data)", "need at least 4"),
+    ("time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,1,0,0,0\n0.001,1,0,0,0\n0.003,1,0,0,0\n",
+     "row 4", "equally spaced"),
+    ("frequency_hz,gain_db,phase_deg\n", "row 2", "no data rows"),
+    ("frequency_hz,gain_db,phase_deg\n1,40,-90\n2,x,-91\n", "row 3", "must be numbers"),
 ])
 def test_bad_data_is_refused_with_one_line(tmp_path, capsys, text, where, rule):
     path = tmp_path / "rig.csv"
@@ -296,3 +300,15 @@ def test_a_refused_value_during_the_fit_steps_back(scene):
     assert r.residual_db_rms > 20 * np.log10(1.4 * 0.97) - 0.05
     assert any("limit the scene accepts" in w for w in r.warnings)
     assert r.to_dict()["parameters"][0]["ci95"] == [0.0, None]
+
+
+@pytest.mark.parametrize("path", sorted(SCENES.glob("*.toml")), ids=lambda p: p.stem)
+def test_every_shipped_scene_fits_or_says_why(path, tmp_path, capsys):
+    data = tmp_path / "rig.csv"
+    data.write_text(GOOD)
+    code = main(["fit", str(path), str(data), "--param", "motor.rotor_inertia", "--json"])
+    out, err = capsys.readouterr()
+    if code == 0:
+        assert json.loads(out)["parameters"][0]["key"] == "motor.rotor_inertia"
+    else:
+        assert code == 2 and err.count("\n") == 1 and "drivetrain" in err, err

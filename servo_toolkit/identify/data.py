@@ -129,11 +129,11 @@ def check_time(data: TimeData) -> None:
     bad = np.flatnonzero(step <= 0)
     if bad.size:
         raise SceneError(f"row {bad[0] + 3}", "time_s must increase strictly from row to row", src)
-    dt = (t[-1] - t[0]) / (len(t) - 1)
+    dt = step[0]
     bad = np.flatnonzero(np.abs(step - dt) > 1e-6 * dt + 1e-12)
     if bad.size:
-        raise SceneError(f"row {bad[0] + 3}", f"time_s must be equally spaced (step {step[bad[0]]:g} s, "
-                         f"mean {dt:g} s)", src)
+        raise SceneError(f"row {bad[0] + 3}", f"time_s must be equally spaced (step {step[bad[0]]:g} s here, "
+                         f"{dt:g} s from row 2 to row 3)", src)
 
 
 def read_data(path) -> FrequencyData | TimeData:
