@@ -68,8 +68,9 @@ def _time_residuals(data: TimeData):
     return residuals
 
 
-def _intervals(jac, resid, x, keys, dof):
-    """(ci95 in log space half-widths, correlation, flags) from the Jacobian."""
+def _intervals(jac, resid, dof):
+    """Half-widths of the 95 % intervals of the log-parameters, their correlation, and
+    which parameters have no (independent) influence, from the Jacobian at the solution."""
     p = jac.shape[1]
     s2 = float(resid @ resid) / dof
     norms = np.linalg.norm(jac, axis=0)
@@ -182,7 +183,7 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
     dof = max(m - npar, 1)
     at_limit = _at_scene_limit(template, x0 * np.exp(sol.x))
     jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
-    half, corr, singular = _intervals(jac, sol.fun, sol.x, template.parameters, dof)
+    half, corr, singular = _intervals(jac, sol.fun, dof)
     values = x0 * np.exp(sol.x)
     ci = np.column_stack([values * np.exp(-half), values * np.exp(half)])
     ci[singular] = [0.0, math.inf]
