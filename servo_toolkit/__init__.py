@@ -13,7 +13,8 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it (imported on first access)
 _LAZY = {"Scene": ".scene", "load_scene": ".scene", "design": ".loop", "export": ".export",
-         "simulate": ".sim", "tune": ".tuner", "tuned_design": ".loop.tuning", "LoopTuning": ".loop.tuning"}
+         "simulate": ".sim", "tune": ".tuner", "tuned_design": ".loop.tuning", "LoopTuning": ".loop.tuning",
+         "fit": ".identify"}
 
 __all__ = ["SceneError", "SimulationError", "__version__", *sorted(_LAZY)]
 

@@ -28,6 +28,7 @@ COMMANDS = {
     "reduce": "what the scene's model leaves out for a study, why, and the measured cost",
     "export": "controller.json and C99 sources of the designed controller",
     "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
+    "fit": "fit scene parameters to a measured frequency response or time traces",
 }
 
 

@@ -115,8 +115,11 @@ def save_figure(fig, path) -> Path:
     return Path(path)
 
 
-def atomic_write_text(path, text: str) -> Path:
-    """Write ``text`` to a temporary name beside ``path``, then rename it over ``path``."""
+def write_text(path, text: str, check=None) -> Path:
+    """Write ``text`` to a temporary file beside ``path``, call ``check(tmp_path)`` on it when
+    given (it raises to refuse the file), then rename it over ``path``."""
     with atomic_file(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
+        if check is not None:
+            check(tmp)
     return Path(path)

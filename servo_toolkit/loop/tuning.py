@@ -177,9 +177,9 @@ def design_data(result) -> dict:
 
 def save_design(result, path, inputs=()) -> Path:
     """Write the design's controller to ``path`` (JSON, atomically; never over an input)."""
-    from ..cli.outputs import atomic_write_text, check_file
+    from ..cli.outputs import check_file, write_text
     path = check_file(path, "--design", (".json",), inputs=inputs)
-    atomic_write_text(path, json.dumps(design_data(result), indent=2) + "\n")
+    write_text(path, json.dumps(design_data(result), indent=2) + "\n")
     return path
 
 

@@ -1,0 +1,66 @@
+"""``servo-toolkit fit``: fit scene parameters to a measured response of the rig.
+
+DATA.csv is a frequency response (``frequency_hz,gain_db,phase_deg[,coherence]``; what it
+measured is ``--response``) or time traces of the voltage-driven rig
+(``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``). ``-o`` writes the scene
+file with the fitted values in place, each with a comment giving the old value.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import SceneError
+from ..scene import load_scene
+from .common import add_json, add_scene, emit
+from .outputs import check_file, write_text
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("fit", help="fit scene parameters to a measured frequency response or time traces")
+    add_scene(p)
+    p.add_argument("data", metavar="DATA.csv",
+                   help="measured frequency response (frequency_hz,gain_db,phase_deg[,coherence]) or time traces "
+                        "(time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad)")
+    p.add_argument("--response", choices=("plant", "closed_loop"), default=None,
+                   help="what a frequency response measured: plant = motor current -> motor speed (default), "
+                        "closed_loop = position command -> output position with the scene's designed controller")
+    p.add_argument("--param", action="append", required=True, metavar="KEY",
+                   help="scene key to fit, as error messages name it, e.g. load.inertia, drivetrain[3].stiffness, "
+                        "motor.resistance (repeatable; a positive scalar quantity)")
+    p.add_argument("-o", "--output", metavar="TOML",
+                   help="write the calibrated scene here: the scene file with each fitted value in place and a "
+                        "comment '# fitted: was ...' (never the input file)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def _check_written(keys, values):
+    """A check for :func:`write_text`: the written scene loads and gives the fitted values back."""
+    def check(path):
+        from ..identify.params import SceneTemplate
+        back = SceneTemplate(load_scene(path), keys).initial
+        for key, want, got in zip(keys, values, back):
+            if abs(got - want) > 1e-5 * abs(want):
+                raise SceneError(key, f"the calibrated scene reads back {got:g}, not the fitted {want:g}")
+    return check
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..identify import calibrated_text, fit, read_data
+    if args.output is not None:
+        check_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data))
+    scene = load_scene(args.scene)
+    data = read_data(args.data)
+    result = fit(scene, data, args.response, args.param)
+    if args.output is not None:
+        text = calibrated_text(Path(scene.source).read_text(encoding="utf-8"), result)
+        ok = [(k, v) for k, v, (_, hi) in zip(result.keys, result.values, result.ci95) if hi != float("inf")]
+        write_text(args.output, text, _check_written([k for k, _ in ok], [v for _, v in ok]))
+    out = result.to_dict()
+    if args.output is not None:
+        out["output"] = str(args.output)
+    emit(args, out, result.table() + (f"\ncalibrated scene written to {args.output}" if args.output else ""))
+    return 0

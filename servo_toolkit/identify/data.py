@@ -1,0 +1,191 @@
+"""Measured data for identification: a frequency response or time traces, read from CSV.
+
+Two kinds of CSV are read, told apart by their header:
+
+``frequency_hz,gain_db,phase_deg[,coherence]``
+    A measured frequency response; frequencies positive and strictly increasing, coherence
+    (optional) in [0, 1].
+``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``
+    Time traces of a rig driven by a voltage; times equally spaced and increasing.
+
+Every error names the file and the row (or the header) and the rule.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+
+FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
+TIME_HEADER = ("time_s", "voltage_V", "current_A", "motor_angle_rad", "output_angle_rad")
+
+
+@dataclass(frozen=True)
+class FrequencyData:
+    """A measured frequency response.
+
+    Attributes
+    ----------
+    frequency_hz, gain_db, phase_deg, coherence : numpy.ndarray
+        One value per point; coherence is 1 where the file gives none.
+    source : str or None
+        The file it was read from.
+    """
+
+    frequency_hz: np.ndarray
+    gain_db: np.ndarray
+    phase_deg: np.ndarray
+    coherence: np.ndarray
+    source: str | None = None
+
+    kind = "frequency"
+
+    @property
+    def points(self) -> int:
+        """Number of frequencies."""
+        return len(self.frequency_hz)
+
+    @property
+    def complex(self) -> np.ndarray:
+        """The response as complex numbers."""
+        return 10 ** (self.gain_db / 20) * np.exp(1j * np.radians(self.phase_deg))
+
+    @classmethod
+    def from_complex(cls, frequency_hz, response, coherence=None, source=None) -> "FrequencyData":
+        """From complex values (e.g. a model's response)."""
+        f = np.asarray(frequency_hz, float)
+        h = np.asarray(response, complex)
+        coh = np.ones_like(f) if coherence is None else np.asarray(coherence, float)
+        data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h))), coh, source)
+        check_frequency(data)
+        return data
+
+
+@dataclass(frozen=True)
+class TimeData:
+    """Measured time traces of a voltage-driven rig (angles relative to the start).
+
+    Attributes
+    ----------
+    time_s, voltage_V, current_A, motor_angle_rad, output_angle_rad : numpy.ndarray
+    source : str or None
+    """
+
+    time_s: np.ndarray
+    voltage_V: np.ndarray
+    current_A: np.ndarray
+    motor_angle_rad: np.ndarray
+    output_angle_rad: np.ndarray
+    source: str | None = None
+
+    kind = "time"
+
+    @property
+    def points(self) -> int:
+        """Number of samples."""
+        return len(self.time_s)
+
+
+def check_frequency(data: FrequencyData) -> None:
+    """Raise SceneError (row numbers count the header as row 1) unless the frequencies are
+    positive and strictly increasing, the values finite and the coherence in [0, 1]."""
+    src = data.source
+    for name in ("frequency_hz", "gain_db", "phase_deg", "coherence"):
+        values = getattr(data, name)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise SceneError(f"row {bad[0] + 2}", f"{name} must be a finite number", src)
+    f = data.frequency_hz
+    bad = np.flatnonzero(f <= 0)
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 2}", f"frequency_hz must be positive (got {f[bad[0]]:g})", src)
+    bad = np.flatnonzero(np.diff(f) <= 0)
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 3}", f"frequency_hz must increase strictly from row to row "
+                         f"({f[bad[0] + 1]:g} after {f[bad[0]]:g})", src)
+    c = data.coherence
+    bad = np.flatnonzero((c < 0) | (c > 1))
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 2}", f"coherence must lie in [0, 1] (got {c[bad[0]]:g})", src)
+
+
+def check_time(data: TimeData) -> None:
+    """Raise SceneError unless the values are finite and the times increase equally spaced."""
+    src = data.source
+    for name in TIME_HEADER:
+        values = getattr(data, name)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise SceneError(f"row {bad[0] + 2}", f"{name} must be a finite number", src)
+    t = data.time_s
+    if len(t) < 2:
+        raise SceneError("time_s", "needs at least two samples", src)
+    step = np.diff(t)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 3}", "time_s must increase strictly from row to row", src)
+    dt = step[0]
+    bad = np.flatnonzero(np.abs(step - dt) > 1e-6 * dt + 1e-12)
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 3}", f"time_s must be equally spaced (step {step[bad[0]]:g} s here, "
+                         f"{dt:g} s from row 2 to row 3)", src)
+
+
+def read_data(path) -> FrequencyData | TimeData:
+    """Read a measured frequency response or time traces from CSV (kind from the header).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    FrequencyData or TimeData
+
+    Raises
+    ------
+    SceneError
+        Naming the file and the header or row, and the rule.
+    """
+    p = Path(path)
+    src = str(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError("(file)", f"cannot read data: {getattr(exc, 'strerror', None) or exc}", src) from None
+    rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+    if not rows:
+        raise SceneError("header", f"empty file; expected the header {','.join(FREQUENCY_HEADER)}[,coherence] "
+                         f"or {','.join(TIME_HEADER)}", src)
+    header = tuple(c.strip() for c in rows[0])
+    if header in (FREQUENCY_HEADER, FREQUENCY_HEADER + ("coherence",)):
+        kind = "frequency"
+    elif header == TIME_HEADER:
+        kind = "time"
+    else:
+        raise SceneError("header", f"expected {','.join(FREQUENCY_HEADER)}[,coherence] or "
+                         f"{','.join(TIME_HEADER)}, got {','.join(header)!r}", src)
+    values = []
+    for n, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise SceneError(f"row {n}", f"expected {len(header)} values, got {len(row)}", src)
+        try:
+            values.append([float(c) for c in row])
+        except ValueError:
+            raise SceneError(f"row {n}", f"values must be numbers (got {','.join(row)!r})", src) from None
+    if not values:
+        raise SceneError("row 2", "no data rows after the header", src)
+    cols = np.array(values, float).T
+    if kind == "frequency":
+        coh = cols[3] if len(header) == 4 else np.ones(cols.shape[1])
+        data = FrequencyData(cols[0], cols[1], cols[2], coh, src)
+        check_frequency(data)
+    else:
+        data = TimeData(*cols, source=src)
+        check_time(data)
+    return data
