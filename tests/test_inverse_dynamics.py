@@ -117,6 +117,31 @@ def test_single_gear_closed_form_with_directional_efficiency():
     assert r.screw_thrust is None and r.rod_force is None
 
 
+def test_a_back_driven_screw_loses_with_its_back_drive_efficiency():
+    """Gear (eta_g both ways) then ball screw (eta forward, 2 - 1/eta back-driven) moving a
+    mass along a sine: the motor torque is the load's force through each stage with the
+    efficiency of the direction the power flows in, as the simulation's loss model has it."""
+    from servo_toolkit.components.ball_screw import BallScrew
+    motor = DCMotor(resistance=1.0, inductance=0.0, torque_constant=0.1, back_emf_constant=0.1,
+                    rotor_inertia=0.0, viscous_friction=0.0, coulomb_friction=0.0)
+    eta_g, eta_s, lead, mass, force = 0.95, 0.9, 0.005, 20.0, 300.0
+    gear = GearTrain("gear", ratio=3.0, efficiency=eta_g)
+    screw = BallScrew("screw", lead=lead, efficiency=eta_s)
+    dt = Drivetrain(motor, (gear, screw), Load(inertia=mass, hinge_moment=force))
+    motion = SineMotion(0.01, 5.0)
+    t = motion.times(400)
+    q, qd, qdd = motion(t)
+    r = inverse_dynamics(dt, motion, t)
+    eta_b = 2.0 - 1.0 / eta_s
+    assert screw.backdrive_efficiency == pytest.approx(eta_b)
+    nut = mass * qdd + force                          # N on the nut
+    screw_torque = np.where(nut * qd >= 0, nut / eta_s, nut * eta_b) * lead / (2 * np.pi)
+    motor_torque = np.where(screw_torque * qd >= 0, screw_torque / eta_g, screw_torque * eta_g) / 3.0
+    back = nut * qd < 0
+    assert back.any() and (~back).any()
+    np.testing.assert_allclose(r.motor_torque, motor_torque, rtol=1e-10, atol=1e-12)
+
+
 def test_losses_never_lower_the_motor_power(ema):
     dt = with_load_inertia(ema.drivetrain, 2.0)
     motion = SineMotion(math.radians(30), 1 / 0.6)

@@ -18,8 +18,10 @@ Loads and losses (the documented model)
   force (a stage's elements are counted on the loss side of that stage). With P = raw * qd
   the power flowing through stage k:
   motoring (P >= 0, power flows motor -> load): G_k = raw / eta_k;
-  back-driving (P < 0, the load drives the motor): G_k = raw * eta_k.
-  The same eta_k is used in both directions (the scenes give one efficiency per stage).
+  back-driving (P < 0, the load drives the motor): G_k = raw * eta_b,k, with the stage's
+  back-drive efficiency (``Stage.backdrive_efficiency``: eta_k for gears and linkages,
+  2 - 1/eta_k for screws), the same pair of efficiencies the nonlinear simulation uses. A
+  self-locking screw (eta_b <= 0) makes the motor pull the load along even when it back-drives.
   ``losses="none"`` sets every eta_k = 1.
 * The motor rotor is before every loss: T_m = (G_0 + I_rotor) / N + b w_m + Tc sign(w_m)
   with the motor's viscous and Coulomb friction, w_m = N qd.
@@ -204,8 +206,11 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     required[n] = inertial[n] + external
     for k in reversed(range(n)):
         raw = required[k + 1] + (inertial[k] - inertial[k + 1])
-        eta = 1.0 if losses == "none" else float(getattr(stages[k], "efficiency", 1.0))
-        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta)
+        if losses == "none":
+            eta = eta_b = 1.0
+        else:
+            eta, eta_b = float(getattr(stages[k], "efficiency", 1.0)), stages[k].backdrive_efficiency
+        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta_b)
     ratio, _ = drivetrain.ratio(q)
     if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
         raise SimulationError("the drivetrain ratio is zero or not finite along the motion")
