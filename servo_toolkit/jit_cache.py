@@ -6,10 +6,11 @@ package folder is not writable falls back to a per-user folder keyed on nothing 
 and the integration loops inline functions of other files (the right-hand side, the layout
 constants, the cam kernels), so editing those leaves a stale compiled loop.
 
-:func:`install` adds a cache locator, consulted right after a user's own
-``NUMBA_CACHE_DIR`` (which always wins), for the toolkit's files only: it puts their compiled
-code under :func:`cache_dir`, a per-user folder named after the Python and numba versions and
-a hash of every kernel source file, so any edit of a kernel starts a fresh cache. Other
+:func:`install` adds a cache locator, consulted before numba's own, for the toolkit's files
+only: it puts their compiled code under :func:`cache_dir`, a folder named after the Python
+and numba versions and a hash of every kernel source file, so any edit of a kernel starts a
+fresh cache. The folder lies in the per-user cache, or in the user's ``NUMBA_CACHE_DIR`` when
+that is set (the user chooses where, the hash still decides which code is current). Other
 packages' numba functions are not affected.
 """
 
@@ -48,17 +49,17 @@ def user_cache_root() -> Path:
 
 
 def cache_dir() -> Path:
-    """Folder of the toolkit's compiled kernels: ``NUMBA_CACHE_DIR`` when the user sets it,
-    else ``<user cache>/servo_toolkit/numba/py<X.Y>-numba<version>-<sources hash>``."""
+    """Folder of the toolkit's compiled kernels:
+    ``<root>/servo_toolkit/numba/py<X.Y>-numba<version>-<sources hash>``, the root being
+    ``NUMBA_CACHE_DIR`` when the user sets it, else the user's cache folder."""
     import numba
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return Path(os.environ["NUMBA_CACHE_DIR"])
     tag = f"py{sys.version_info[0]}.{sys.version_info[1]}-numba{numba.__version__}-{sources_hash()}"
-    return user_cache_root() / "servo_toolkit" / "numba" / tag
+    root = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else user_cache_root()
+    return root / "servo_toolkit" / "numba" / tag
 
 
 def _locator_class():
-    from numba.core import caching, config
+    from numba.core import caching
 
     class ToolkitCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
         """The toolkit's kernels: cached under :func:`cache_dir`."""
@@ -73,8 +74,8 @@ def _locator_class():
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            if config.CACHE_DIR or not py_file:
-                return None  # the user's NUMBA_CACHE_DIR is numba's own locator
+            if not py_file:
+                return None
             try:
                 Path(py_file).resolve().relative_to(PACKAGE)
             except ValueError:
@@ -92,5 +93,4 @@ def install() -> None:
     classes = caching.CacheImpl._locator_classes
     if any(getattr(c, "__name__", "") == "ToolkitCacheLocator" for c in classes):
         return
-    at = next((k + 1 for k, c in enumerate(classes) if c is caching.UserProvidedCacheLocator), 0)
-    classes.insert(at, _locator_class())
+    classes.insert(0, _locator_class())

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -64,6 +65,21 @@ def test_cache_path_follows_the_kernel_sources(tmp_path, monkeypatch):
                           text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() != jit_cache.sources_hash()
+
+
+def test_a_users_numba_cache_dir_is_still_keyed_on_the_kernel_sources(tmp_path):
+    """NUMBA_CACHE_DIR chooses where the compiled kernels go; the sources hash still decides
+    which compiled code is current, so an edited kernel never loads stale machine code."""
+    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
+    code = ("from servo_toolkit.mechanisms import cam_kernels\n"
+            "cam_kernels.law(0.5, 1.0)\n"
+            "from servo_toolkit.jit_cache import cache_dir, sources_hash; print(cache_dir()); print(sources_hash())")
+    proc = _run(code, env)
+    assert proc.returncode == 0, proc.stderr
+    folder, digest = proc.stdout.split()
+    assert folder.startswith(str(tmp_path / "servo_toolkit" / "numba")) and folder.endswith(digest)
+    cached = list(Path(folder).rglob("cam_kernels.law-*.nbi"))
+    assert cached, "no index file in the hash-keyed folder under NUMBA_CACHE_DIR"
 
 
 def test_kernels_cache_outside_a_read_only_package(tmp_path):
