@@ -363,5 +363,7 @@ class Drivetrain:
             raise SceneError("drivetrain", "the reflected inertia is not finite somewhere in the stroke")
         if np.any(j <= 0):
             i = int(np.argmin(j))
-            raise SceneError("drivetrain", f"reflected inertia is not positive at q = "
-                             f"{math.degrees(q[i]):.2f} deg ({j[i]:.4g} kg*m^2): mass matrix indefinite")
+            linear = self.output_unit == "m"
+            at = f"{q[i] * 1e3:.2f} mm" if linear else f"{math.degrees(q[i]):.2f} deg"
+            raise SceneError("drivetrain", f"reflected inertia is not positive at q = {at} "
+                             f"({j[i]:.4g} {'kg' if linear else 'kg*m^2'}): mass matrix indefinite")

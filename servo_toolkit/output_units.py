@@ -58,6 +58,21 @@ class OutputUnit:
         """An SI value (or array) in the shown unit."""
         return value * self.factor
 
+    @property
+    def inertia(self) -> str:
+        """Unit of an inertia at the output: ``"kg*m^2"`` for an angle, ``"kg"`` (a mass) for a travel."""
+        return "kg" if self.linear else "kg*m^2"
+
+    @property
+    def stiffness(self) -> str:
+        """Unit of a stiffness at the output: ``"N*m/rad"`` or ``"N/m"``."""
+        return "N/m" if self.linear else "N*m/rad"
+
+    @property
+    def moment(self) -> str:
+        """Unit of a load at the output: ``"N*m"`` or ``"N"``."""
+        return "N" if self.linear else "N*m"
+
     def key(self, name: str) -> str:
         """A JSON key carrying the shown unit, e.g. ``key("max_abs_tracking_error")``."""
         return f"{name}_{self.shown}"

@@ -29,7 +29,7 @@ def requirements_table(checks) -> str:
 
 def design_line(d) -> str:
     m = d.margins
-    return (f"{d.scene_name} at q0 = {math.degrees(d.q0):.4g} deg: "
+    return (f"{d.scene_name} at q0 = {d.unit.text(d.q0)}: "
             f"{'requirements met' if d.passed else f'{len(d.failures)} requirement(s) NOT met'}, "
             f"GM {num(m.gain_margin_db, 3)} dB, PM {num(m.phase_margin_deg, 3)} deg, "
             f"bandwidth {num(m.bandwidth_hz, 3)} Hz")
@@ -52,7 +52,7 @@ def design_card(d) -> str:
     if d.robustness is not None:
         parts.append(robustness_summary(d.robustness))
     parts.append(svg(d.plot, size=(7.0, 4.6), rows=2, sharex=True))
-    return card(f"Loop design of {d.scene_name} at q0 = {math.degrees(d.q0):.4g} deg", status=d.passed,
+    return card(f"Loop design of {d.scene_name} at q0 = {d.unit.text(d.q0)}", status=d.passed,
                 parts=parts, notes=d.notes)
 
 

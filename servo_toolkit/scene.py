@@ -18,6 +18,7 @@ from .components.platform import CrossedArchPlatform
 from .components.roller_screw import RollerScrew, RollerScrewOperating, RollerScrewStage
 from .errors import SceneError
 from .fields import Fields, require
+from .reflection import stage_units
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -384,7 +385,8 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                 f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
         if stages:
             require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
-        load = Load.from_table(Fields(data["load"], "load")) if "load" in data else Load()
+        linear = bool(stages) and not forward and stage_units(stages)[0][-1] == "m"
+        load = Load.from_table(Fields(data["load"], "load"), linear) if "load" in data else Load()
         sensors = Sensors.from_table(Fields(data["sensors"], "sensors")) if "sensors" in data else Sensors()
         req = (Requirements.from_table(Fields(data["requirements"], "requirements"))
                if "requirements" in data else Requirements())

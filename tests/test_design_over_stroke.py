@@ -158,6 +158,32 @@ def test_linear_output_points_are_in_mm():
     assert "mm" in r.stroke.summary() and "deg" not in r.stroke.summary().split("kg")[0]
 
 
+def test_a_travel_output_design_speaks_mm_kg_and_n_per_m(tmp_path):
+    """A chain ending in a screw with a 20 kg, 500 N load (the [load] keys of a travel take
+    a mass and forces): the load's mass adds to the plant's output-side mass, and q0, the
+    masses and the stiffness are in mm, kg and N/m in the table and the JSON."""
+    base = st.load_scene(LINEAR)
+    scene_file = tmp_path / "linear.toml"
+    scene_file.write_text(LINEAR.read_text() + '\n[load]\ninertia = "20 kg"\nhinge_moment = "500 N"\n'
+                          'hinge_stiffness = "2 N/mm"\n')
+    scene = st.load_scene(scene_file)
+    assert scene.load.inertia == 20.0 and scene.load.hinge_moment == 500.0
+    assert scene.load.hinge_stiffness == pytest.approx(2000.0)
+    r = st.design(scene, over_stroke=False)
+    j_base = st.design(base, over_stroke=False).parameters
+    assert r.parameters.J1 + r.parameters.J2 == pytest.approx(j_base.J1 + j_base.J2 + 20.0, rel=1e-9)
+    head = r.table().splitlines()[:2]
+    assert head[0].endswith("at q0 = 0 mm") and " kg," in head[1] and "N/m" in head[1]
+    assert "deg" not in head[0] and "kg*m^2" not in head[1]
+    d = r.to_dict()
+    assert d["q0_mm"] == 0.0 and "q0_deg" not in d
+    assert d["plant"]["load_side_inertia_kg"] == r.parameters.J2 and "stiffness_n_per_m" in d["plant"]
+    with pytest.raises(st.SceneError, match="load.inertia"):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(LINEAR.read_text() + '\n[load]\ninertia = "2 kg*m^2"\n')
+        st.load_scene(bad)
+
+
 def test_design_stays_fast(ema):
     t = time.perf_counter()
     st.design(ema)

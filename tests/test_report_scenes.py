@@ -154,3 +154,22 @@ def test_roller_screw_stroke_key():
         RollerScrew.from_table(Fields(table, "drivetrain[1]"))
     del table["stroke"]
     assert RollerScrew.from_table(Fields(table, "drivetrain[1]")).stroke is None
+
+
+def test_a_travel_output_is_reported_in_mm_and_kg():
+    """A chain ending in a screw: the time responses command 0.5 mm / 1 mm (not 1 deg / 2 deg
+    read as metres) and every figure of the plant and the time sections is per mm or kg."""
+    from servo_toolkit.report.sections_loop import plant_bode
+    from servo_toolkit.report.sections_time import time_responses
+    ctx = Context(load_scene(SCENES / "linear_roller_screw_actuator.toml"), light=True)
+    time = run_section("time", "time", time_responses, ctx)
+    assert time.status != "unavailable", time.reason
+    assert "q0 = 0 mm" in time.html and " deg" not in time.html.replace("[deg]", "")
+    rows = re.findall(r"<tr><td>(linear closed loop|nonlinear simulation)</td><td>([^<]+)</td><td>([^<]+)</td>"
+                      r"<td>[^<]+</td><td>([^<]+)</td>", time.html)
+    assert [r[0] for r in rows] == ["linear closed loop", "nonlinear simulation"]
+    for _, rise_ms, overshoot, gain_db in rows:
+        # a 0.5 mm step and a 1 mm sine of a 17 Hz loop: a rise of tens of ms, the 8 Hz gain near 0 dB
+        assert 1.0 < float(rise_ms) < 100.0 and abs(float(gain_db)) < 3.0
+    plant = run_section("plant", "plant", plant_bode, ctx)
+    assert "<td>kg</td>" in plant.html and "kg*m^2" not in plant.html and "N/mm" in plant.html

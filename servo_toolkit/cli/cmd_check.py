@@ -31,7 +31,7 @@ def register(sub) -> None:
     add_design_options(p)
     add_large_signal_option(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
-                   help="robustness: vary load_inertia (kg*m^2) or stiffness (factor), e.g. "
+                   help="robustness: vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
                         "scene's [robustness])")
     p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,

@@ -18,7 +18,7 @@ def register(sub) -> None:
     p = sub.add_parser("montecarlo", help="nonlinear closed-loop variants (load inertia, stiffness), batched")
     add_scene(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
-                   help="vary load_inertia (kg*m^2) or stiffness (factor), e.g. load_inertia=0:4 "
+                   help="vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. load_inertia=0:4 "
                         "(repeatable; default: the scene's [robustness] ranges, else load_inertia=0:4 "
                         "stiffness=0.7:1.3)")
     p.add_argument("--samples", type=int, default=None,

@@ -49,13 +49,13 @@ class Load:
     Parameters
     ----------
     inertia : float
-        kg*m^2 (kg for a linear output).
+        kg*m^2 (for an output travel, a chain ending in a screw: the load's mass, kg).
     hinge_moment : float
-        Constant moment opposing positive motion (N*m).
+        Constant moment opposing positive motion (N*m; a force, N, for an output travel).
     hinge_stiffness : float
-        Spring moment per output angle (N*m/rad).
+        Spring moment per output angle (N*m/rad; N/m for an output travel).
     damping : float
-        N*m*s/rad.
+        N*m*s/rad (N*s/m for an output travel).
     """
 
     inertia: float = 0.0
@@ -64,12 +64,14 @@ class Load:
     damping: float = 0.0
 
     @classmethod
-    def from_table(cls, f: Fields) -> "Load":
-        """Build from a ``[load]`` table."""
-        load = cls(inertia=f.quantity("inertia", "kg*m^2", 0.0, rule="nonnegative"),
-                   hinge_moment=f.quantity("hinge_moment", "N*m", 0.0, rule="finite"),
-                   hinge_stiffness=f.quantity("hinge_stiffness", "N*m/rad", 0.0, rule="finite"),
-                   damping=f.quantity("damping", "N*m*s/rad", 0.0, rule="nonnegative"))
+    def from_table(cls, f: Fields, linear: bool = False) -> "Load":
+        """Build from a ``[load]`` table; ``linear``: the output is a travel, so the values are a
+        mass, a force, N/m and N*s/m."""
+        units = ("kg", "N", "N/m", "N*s/m") if linear else ("kg*m^2", "N*m", "N*m/rad", "N*m*s/rad")
+        load = cls(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative"),
+                   hinge_moment=f.quantity("hinge_moment", units[1], 0.0, rule="finite"),
+                   hinge_stiffness=f.quantity("hinge_stiffness", units[2], 0.0, rule="finite"),
+                   damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"))
         require(math.isfinite(load.inertia), f.key("inertia"), "must be finite")
         f.check_unknown()
         return load

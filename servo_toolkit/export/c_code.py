@@ -25,7 +25,7 @@ def _units_comment(blocks, quantized) -> str:
     fixed = quantized is not None
     lines = ["Signals (engineering units):",
              "  theta_ref, theta   output angle command and measurement, rad"
-             + (f" (fixed point: counts of SERVO_THETA_LSB_RAD)" if fixed else ""),
+             + (" (fixed point: counts of SERVO_THETA_LSB_RAD)" if fixed else ""),
              "  omega_m            motor speed, rad/s" + (" (counts of SERVO_OMEGA_LSB_RAD_S)" if fixed else ""),
              "  i_ref              current command, A" + (" (counts of SERVO_CURRENT_LSB_A)" if fixed else "")
              + f", clamped at +-{blocks.current_limit:g} A",
@@ -63,7 +63,7 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "") -> s
                  f"#define SERVO_CURRENT_LSB_A {_f(quantized.lsb['current'])}",
                  f"#define SERVO_SIGNAL_MAX {2**quantized.signal_bits - 1}L"]
     est = blocks.estimator.kind
-    proto = [f"void servo_init(servo_state_t *st, double motor_angle_rad);",
+    proto = ["void servo_init(servo_state_t *st, double motor_angle_rad);",
              f"{sig} servo_motion_step(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m);",
              "double servo_current_step(servo_state_t *st, double i_ref, double i, double omega_m);"]
     if est != "ideal":

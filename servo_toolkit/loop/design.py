@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..controller import CascadeController
+from ..output_units import output_unit
 from ..plant import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, plant, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
@@ -338,7 +339,8 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
                         loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
-                        motion=motion, notes=tuple(notes), closed_loop_full=cl, stroke=stroke)
+                        motion=motion, notes=tuple(notes), closed_loop_full=cl, stroke=stroke,
+                        output_unit=scene.drivetrain.output_unit)
 
 
 def robust_spec(scene, robust):
@@ -361,7 +363,8 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
     """Robust design (cascade search), or a nominal design evaluated over the variants."""
     from .robust_design import confirm_worst_case, robust_search
     from .robustness import robustness
-    rng = ", ".join(f"{k} {lo:g}..{hi:g}" + (" kg*m^2" if k == "load_inertia" else "")
+    inertia = output_unit(scene).inertia
+    rng = ", ".join(f"{k} {lo:g}..{hi:g}" + (f" {inertia}" if k == "load_inertia" else "")
                     for k, (lo, hi) in spec.ranges.items())
     header = f"robust design over {rng} ({spec.samples} {spec.method.replace('_', ' ')} variants at q0)"
     if structure != "cascade" or resonance_filter != "auto":

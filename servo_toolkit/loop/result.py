@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import control as ct
@@ -10,6 +9,7 @@ import numpy as np
 
 from .margins import Margins
 from ..display import RichDisplay
+from ..output_units import OutputUnit
 
 
 @dataclass(frozen=True, repr=False)
@@ -51,6 +51,9 @@ class DesignResult(RichDisplay):
     stroke : StrokeCheck or None
         The same controller on the plant linearized along the stroke
         (:mod:`servo_toolkit.loop.stroke`).
+    output_unit : {"rad", "m"}
+        The output coordinate's SI unit: q0, the plant's inertias and stiffness are per rad
+        of an output angle or per m of an output travel (shown in deg or mm).
     """
 
     scene_name: str
@@ -67,6 +70,12 @@ class DesignResult(RichDisplay):
     closed_loop_full: ct.StateSpace | None = None
     robustness: object = None
     stroke: object = None
+    output_unit: str = "rad"
+
+    @property
+    def unit(self) -> OutputUnit:
+        """The output's units (:class:`~servo_toolkit.output_units.OutputUnit`)."""
+        return OutputUnit(self.output_unit)
 
     @property
     def passed(self) -> bool:
@@ -93,11 +102,13 @@ class DesignResult(RichDisplay):
         reqs["closed_loop_stable"] = {"required": True, "achieved": self.margins.closed_loop_stable,
                                       "passed": self.margins.closed_loop_stable, "unit": "",
                                       "sense": "==", "source": "always", "shortfall": 0.0}
-        return {"scene": self.scene_name, "q0_deg": math.degrees(self.q0), **top,
+        u = self.unit
+        inertia, stiffness = ("kg", "n_per_m") if u.linear else ("kg_m2", "n_m_per_rad")
+        return {"scene": self.scene_name, u.key("q0"): float(u.show(self.q0)), **top,
                 "requirements_met": self.passed, "requirements": reqs, "margins": m,
                 "plant": {"model": "rigid" if p.rigid else "two_mass",
-                          "motor_side_inertia_kg_m2": p.J1, "load_side_inertia_kg_m2": p.J2,
-                          "stiffness_n_m_per_rad": p.K, "ratio": p.N, "efficiency": p.eta,
+                          f"motor_side_inertia_{inertia}": p.J1, f"load_side_inertia_{inertia}": p.J2,
+                          f"stiffness_{stiffness}": p.K, "ratio": p.N, "efficiency": p.eta,
                           "resonance_hz": p.resonance_hz, "antiresonance_hz": p.antiresonance_hz},
                 "controller": {"description": self.controller.description,
                                "current_kp_v_per_a": self.controller.current_kp,
@@ -115,9 +126,10 @@ class DesignResult(RichDisplay):
         """Requirements and margins as text."""
         m = self.margins
         p = self.parameters
-        lines = [f"Loop design of {self.scene_name} at q0 = {math.degrees(self.q0):.2f} deg",
-                 f"  plant: {'rigid' if p.rigid else 'two-mass'}, J1 = {p.J1:.4g}, J2 = {p.J2:.4g} kg*m^2, "
-                 f"K = {p.K:.4g} N*m/rad, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
+        u = self.unit
+        lines = [f"Loop design of {self.scene_name} at q0 = {u.text(self.q0)}",
+                 f"  plant: {'rigid' if p.rigid else 'two-mass'}, J1 = {p.J1:.4g}, J2 = {p.J2:.4g} {u.inertia}, "
+                 f"K = {p.K:.4g} {u.stiffness}, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
                  f"{p.antiresonance_hz:.3g} Hz",
                  f"  controller: {self.controller.description}",
                  f"  closed loop stable: {'yes' if m.closed_loop_stable else 'NO'}; bandwidth "

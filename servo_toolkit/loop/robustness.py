@@ -26,7 +26,7 @@ from .requirements import check
 from .response import loop_response, plant_responses, state_space_response
 from ..display import RichDisplay
 
-PARAMETERS = {"load_inertia": "kg*m^2 at the output, replaces the scene's load inertia",
+PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
 DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
+from ..output_units import OutputUnit
 from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
@@ -230,10 +231,11 @@ class StrokeCheck:
         """JSON-ready: per point lists and the worst cases."""
         def floats(a):
             return [float(x) for x in np.asarray(a, float)]
-        return {"q0_deg": math.degrees(self.q0), "points": int(self.q.size),
-                "q_deg": floats(np.degrees(self.q)), "ratio": floats(self.ratio),
+        u = OutputUnit(self.output_unit)
+        return {u.key("q0"): float(u.show(self.q0)), "points": int(self.q.size),
+                u.key("q"): floats(u.show(self.q)), "ratio": floats(self.ratio),
                 "motor_side_inertia_kg_m2": floats(self.motor_inertia),
-                "output_inertia_kg_m2": floats(self.inertia),
+                f"output_inertia_{'kg' if u.linear else 'kg_m2'}": floats(self.inertia),
                 "stable": [bool(x) for x in self.stable], "max_pole_real": floats(self.max_pole_real),
                 **{k: floats(getattr(self, k)) for k in _FIGURES},
                 "output_unit": self.output_unit, "all_stable": self.all_stable, "worst": self.worst()}

@@ -157,7 +157,7 @@ def tuned_design(scene, tuning: LoopTuning = LoopTuning(), base=None):
     notes = (f"tuned from the automatic design{' at ' + format(tuning.bandwidth_hz, 'g') + ' Hz' if tuning.bandwidth_hz else ''}: "
              + ("; ".join(changed) if changed else "no change"),)
     if q0 != base.q0:
-        notes += (f"evaluated at q0 = {math.degrees(q0):.4g} deg (designed at {math.degrees(base.q0):.4g} deg)",)
+        notes += (f"evaluated at q0 = {base.unit.text(q0)} (designed at {base.unit.text(base.q0)})",)
     return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import figures
 from .section import FigureSpec, Section, esc, fmt, para, table
-from .units_table import rows as unit_rows
+from .units_table import LINEAR_LOAD, rows as unit_rows
 
 DEG = 180.0 / math.pi
 TABLE_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
@@ -20,8 +20,8 @@ def _q_label(dt) -> str:
     return "cam angle" if dt.ends_in_cam else "output angle"
 
 
-def _param_table(obj) -> str:
-    return table(("parameter", "value", "unit"), unit_rows(obj), cls="params")
+def _param_table(obj, units=None) -> str:
+    return table(("parameter", "value", "unit"), unit_rows(obj, units), cls="params")
 
 
 def scene_summary(ctx) -> Section:
@@ -35,7 +35,8 @@ def scene_summary(ctx) -> Section:
         parts.append(f"<h3>Stage {i + 1}: {esc(stage.name)} ({esc(type(stage).__name__)})</h3>"
                      + _param_table(stage))
     if scene.stages:
-        parts.append("<h3>Load</h3>" + _param_table(scene.load))
+        linear = scene.drivetrain.output_is_linear
+        parts.append("<h3>Load</h3>" + _param_table(scene.load, LINEAR_LOAD if linear else None))
     if scene.mechanism is not None:
         parts.append(f"<h3>Mechanism ({esc(type(scene.mechanism).__name__)})</h3>" + _param_table(scene.mechanism))
     for i, stage in enumerate(scene.roller_screw):

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from ..output_units import OutputUnit, output_unit
 from .context import api
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
@@ -28,7 +29,7 @@ def _design_assumptions(ctx) -> list[str]:
         d = None
     q0 = d.q0 if d is not None else dt.mid_stroke
     out.append(f"The loop is designed and its margins computed on a linear model at one operating point, "
-               f"q0 = {math.degrees(q0):+.1f} deg. Along the stroke the ratio N varies by a factor "
+               f"q0 = {output_unit(dt).text(q0)}. Along the stroke the ratio N varies by a factor "
                f"{n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}; use "
                "`servo-toolkit check --vary` for the worst case over variations.")
     chain = dt.stiffness(q)
@@ -58,9 +59,10 @@ def _design_assumptions(ctx) -> list[str]:
                    "above compare it with the nonlinear simulation, which includes them.")
     lash = dt.backlash(np.array([q0]))[0]
     if lash > 0:
-        half = math.degrees(lash) / 2
-        out.append(f"Total lost motion at the output: {math.degrees(lash) * 60:.3g} arcmin; half of it, "
-                   f"{half:.3g} deg, is {half / 2:.2%} of a 2 deg sine's amplitude.")
+        u = output_unit(dt)
+        total = f"{u.text(lash, 3)}" if u.linear else f"{math.degrees(lash) * 60:.3g} arcmin"
+        out.append(f"Total lost motion at the output: {total}; half of it, {u.text(lash / 2, 3)}, is "
+                   f"{lash / 2 / u.default_amplitude:.2%} of a {u.text(u.default_amplitude)} sine's amplitude.")
     return out
 
 
@@ -123,7 +125,7 @@ def _reduction(ctx):
     verdict = res.verdict  # "within", "NOT within" or "not applicable" (no point within the limits)
     text = [f"Each modelled effect judged against the sweep study {res.study or '(default: 8 Hz)'} "
             f"({freqs.size} frequencies {fmt(freqs[0], 3)} to {fmt(freqs[-1], 3)} Hz, amplitudes "
-            f"{', '.join(fmt(math.degrees(a), 3) for a in res.amplitudes_rad)} deg): the a-priori estimate is "
+            f"{', '.join(OutputUnit(res.output_unit).text(a, 3) for a in res.amplitudes_rad)}): the a-priori estimate is "
             "the largest relative change of the closed-loop response theta/theta_ref if the effect is left out.",
             f"The reduced model leaves out: {left}. Sum of the estimates of what is left out "
             f"{fmt(plan.predicted, 3)}; a-priori bound (tolerance) {fmt(bound, 3)} = {fmt(_db(bound), 3)} dB / "

@@ -120,17 +120,19 @@ def plant_bode(ctx) -> Section:
     _bode(am, ap, f, _response(rigid["theta", "u"], f), "rigid drivetrain", ls="--", color="0.5")
     _mark((am, ap), p.resonance_hz, f"resonance {p.resonance_hz:.3g} Hz")
     _mark((am, ap), p.antiresonance_hz, f"anti-resonance {p.antiresonance_hz:.3g} Hz", "C2", side="left")
-    am.set_ylabel("|theta / u| [dB rad/V]")
+    u = d.unit
+    am.set_ylabel(f"|q / u| [dB {u.si}/V]")
     ap.set_ylabel("phase [deg]")
     ap.set_xlabel("frequency [Hz]")
     am.legend(fontsize="small", loc="upper right")
     for ax in (am, ap):
         ax.grid(True, which="both", alpha=0.3)
-    am.set_title(f"Plant at q0 = {math.degrees(p.q0):+.1f} deg: armature voltage to output angle")
-    rows = [("operating point q0", fmt(math.degrees(p.q0)), "deg"),
-            ("motor-side inertia J1 (at the output)", fmt(p.J1), "kg*m^2"),
-            ("load-side inertia J2", fmt(p.J2), "kg*m^2"),
-            ("series stiffness K", fmt(p.K * math.pi / 180), "N*m/deg"),
+    what = "output travel" if u.linear else "output angle"
+    am.set_title(f"Plant at q0 = {u.text(p.q0)}: armature voltage to {what}")
+    rows = [("operating point q0", fmt(u.show(p.q0)), u.shown),
+            ("motor-side inertia J1 (at the output)", fmt(p.J1), u.inertia),
+            ("load-side inertia J2", fmt(p.J2), u.inertia),
+            ("series stiffness K", fmt(p.K / u.show(1.0)), f"{u.moment}/{u.shown}"),
             ("ratio N", fmt(p.N), "-"), ("efficiency", fmt(p.eta), "-"),
             ("resonance sqrt(K (1/J1 + 1/J2)) / 2 pi", fmt(p.resonance_hz), "Hz"),
             ("anti-resonance sqrt(K / J2) / 2 pi", fmt(p.antiresonance_hz), "Hz"),
@@ -139,7 +141,7 @@ def plant_bode(ctx) -> Section:
                 "joined by the series stiffness of the chain (two-mass model) or rigidly coupled. The "
                 "resonance is where the loop will meet the drivetrain.")
     return Section("Plant Bode with the drivetrain resonance", text + table(("quantity", "value", "unit"), rows),
-                   (FigureSpec(fig, "Plant from armature voltage to output angle, with the rigid model for comparison."),),
+                   (FigureSpec(fig, f"Plant from armature voltage to {what}, with the rigid model for comparison."),),
                    key="plant")
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from . import figures
 from .context import api
-from .section import FigureSpec, NotApplicable, NotAvailable, Section, esc, fmt, para, table
+from .section import FigureSpec, NotApplicable, Section, esc, fmt, para, table
 
 
 LIGHT_SWEEP_POINTS = 8
@@ -70,7 +70,8 @@ def sweep(ctx) -> Section:
     res = reduced_sweep(ctx)
     fig, axes = figures.new_figure(2, 1, size=(7.5, 5.4), sharex=True)
     res.plot(axes=axes)
-    head = ("amplitude [deg]", "frequency [Hz]", "gain [dB]", "phase [deg]", "linear gain [dB]",
+    u = res.unit
+    head = (f"amplitude [{u.shown}]", "frequency [Hz]", "gain [dB]", "phase [deg]", "linear gain [dB]",
             "linear phase [deg]", "flags")
     rows = []
     g, p, lg, lp = res.gain_db, res.phase_deg, res.linear_gain_db, res.linear_phase_deg
@@ -78,7 +79,7 @@ def sweep(ctx) -> Section:
         for k, f in enumerate(res.frequencies_hz):
             err = res.errors[a * res.frequencies_hz.size + k]
             flags = ("saturated " if res.saturated[a, k] else "") + (f"failed: {err}" if err else "")
-            rows.append((fmt(math.degrees(amp)), fmt(f), fmt(g[a, k]), fmt(p[a, k]), fmt(lg[k]), fmt(lp[k]),
+            rows.append((fmt(u.show(amp)), fmt(f), fmt(g[a, k]), fmt(p[a, k]), fmt(lg[k]), fmt(lp[k]),
                          flags.strip()))
     dg = np.abs(g - lg[None, :])
     dp = np.abs(p - lp[None, :])
@@ -93,11 +94,11 @@ def sweep(ctx) -> Section:
             f"fundamental by correlation), compared with the linear closed loop. Study: {res.study or 'default'}; "
             f"{settings}.",
             "Largest difference from the linear loop where no limit was reached: " + ", ".join(
-                f"{math.degrees(amp):.3g} deg amplitude: {worst(a, lin)}" for a, amp in enumerate(res.amplitudes_rad))
+                f"{u.text(amp, 3)} amplitude: {worst(a, lin)}" for a, amp in enumerate(res.amplitudes_rad))
             + "."]
     if res.saturated.any():
         text.append("At the points flagged saturated the current or voltage limit was reached and the loop is no "
-                    "longer linear: " + ", ".join(f"{math.degrees(amp):.3g} deg amplitude: {worst(a, ~lin)}"
+                    "longer linear: " + ", ".join(f"{u.text(amp, 3)} amplitude: {worst(a, ~lin)}"
                                                  for a, amp in enumerate(res.amplitudes_rad)) + ".")
     if res.reduced:
         names = [item.split(": ", 1)[0] for item in res.left_out]
@@ -121,10 +122,12 @@ def kv_tables(ctx) -> Section:
                   "peak of the same motion at zero external inertia (seed 000), from inverse dynamics with "
                   "the reflected mass matrix and Jacobians (equivalent-element method).")]
     figs = []
-    head = ("amplitude [deg]", "frequency [Hz]", "load inertia [kg*m^2]", "peak motor torque [N*m]", "Kv motor",
-            "peak screw thrust [N]", "Kv screw", "peak rod force [N]", "Kv rod")
     for res in results:
-        rows = [(fmt(math.degrees(c.amplitude)), fmt(c.frequency), fmt(c.load_inertia), fmt(c.peak_motor_torque),
+        u = res.unit
+        head = (f"amplitude [{u.shown}]", "frequency [Hz]", f"load {'mass' if u.linear else 'inertia'} [{u.inertia}]",
+                "peak motor torque [N*m]", "Kv motor", "peak screw thrust [N]", "Kv screw", "peak rod force [N]",
+                "Kv rod")
+        rows = [(fmt(u.show(c.amplitude)), fmt(c.frequency), fmt(c.load_inertia), fmt(c.peak_motor_torque),
                  fmt(c.kv_motor, 3), fmt(c.peak_screw_thrust), fmt(c.kv_screw, 3), fmt(c.peak_rod_force),
                  fmt(c.kv_rod, 3)) for c in res.cases]
         parts.append(f"<h3>{esc(res.study)}: {esc(res.motion)}</h3>")

@@ -7,12 +7,14 @@ import math
 import numpy as np
 
 from . import figures
+from ..output_units import output_unit
 from .context import api
 from .section import FigureSpec, NotAvailable, Section, fmt, para, table
 
-STEP_DEG = 1.0
-SINE_DEG = 2.0
 SINE_HZ = 8.0
+#: the step is this fraction of the sine's amplitude (the output's default command amplitude:
+#: 2 deg for an angle, 1 mm for a travel)
+STEP_FRACTION = 0.5
 
 
 def _fit_sine(t, y, f):
@@ -70,19 +72,25 @@ def time_responses(ctx) -> Section:
     d = ctx.design()
     cl = d.closed_loop
     q0 = d.q0
+    u = output_unit(ctx.scene)
+    sine_amp = u.show(u.default_amplitude)      # in the shown unit (deg or mm)
+    step_amp = STEP_FRACTION * sine_amp
+    what = "output travel" if u.linear else "output angle"
+    step_title = f"{step_amp:g} {u.shown} step"
+    sine_title = f"{sine_amp:g} {u.shown} sine at {SINE_HZ:g} Hz"
     t_step = np.linspace(0.0, 0.25 if ctx.light else 0.5, 1001)
     _, y_step = ct.step_response(cl, t_step)
-    y_step = np.asarray(y_step).reshape(-1) * STEP_DEG
+    y_step = np.asarray(y_step).reshape(-1) * step_amp
     n_cycles = 6 if ctx.light else 12
     t_sine = np.linspace(0.0, n_cycles / SINE_HZ, 200 * n_cycles + 1)
-    ref = SINE_DEG * np.sin(2 * np.pi * SINE_HZ * t_sine)
+    ref = sine_amp * np.sin(2 * np.pi * SINE_HZ * t_sine)
     _, y_sine = ct.forced_response(cl, t_sine, ref)
     y_sine = np.asarray(y_sine).reshape(-1)
     last = t_sine >= (n_cycles - 2) / SINE_HZ
     amp, ph = _fit_sine(t_sine[last], y_sine[last], SINE_HZ)
-    rise, over, settle = _step_metrics(t_step, y_step, STEP_DEG)
+    rise, over, settle = _step_metrics(t_step, y_step, step_amp)
     rows = [("linear closed loop", fmt(rise * 1e3), f"{over:.1%}", fmt(settle * 1e3),
-             fmt(20 * math.log10(amp / SINE_DEG)), fmt(ph))]
+             fmt(20 * math.log10(amp / sine_amp)), fmt(ph))]
     notes = []
     nonlinear = None
     electrics, electric_fig = [], None
@@ -90,20 +98,20 @@ def time_responses(ctx) -> Section:
         simulate = api("servo_toolkit.sim", "simulate")
         reference = api("servo_toolkit.sim", "Reference")
         t_at = 0.01
-        r1 = simulate(ctx.scene, d.controller, reference=reference.step(math.radians(STEP_DEG), at=t_at),
+        r1 = simulate(ctx.scene, d.controller, reference=reference.step(step_amp / u.factor, at=t_at),
                       duration=t_step[-1] + t_at, method="rk4")
-        r2 = simulate(ctx.scene, d.controller, reference=reference.sine(math.radians(SINE_DEG), SINE_HZ),
+        r2 = simulate(ctx.scene, d.controller, reference=reference.sine(sine_amp / u.factor, SINE_HZ),
                       duration=t_sine[-1], method="rk4")
         ts1 = r1.times - t_at
-        ys1 = np.degrees(r1.output_angle - q0)
+        ys1 = u.show(r1.output_angle - q0)
         ys1 -= ys1[ts1 < 0][-1] if np.any(ts1 < 0) else 0.0
         keep = ts1 >= 0
-        ts2, ys2 = r2.times, np.degrees(r2.output_angle - q0)
+        ts2, ys2 = r2.times, u.show(r2.output_angle - q0)
         last2 = ts2 >= (n_cycles - 2) / SINE_HZ
         amp2, ph2 = _fit_sine(ts2[last2], ys2[last2], SINE_HZ)
-        rise2, over2, settle2 = _step_metrics(ts1[keep], ys1[keep], STEP_DEG)
+        rise2, over2, settle2 = _step_metrics(ts1[keep], ys1[keep], step_amp)
         rows.append(("nonlinear simulation", fmt(rise2 * 1e3), f"{over2:.1%}", fmt(settle2 * 1e3),
-                     fmt(20 * math.log10(amp2 / SINE_DEG)), fmt(ph2)))
+                     fmt(20 * math.log10(amp2 / sine_amp)), fmt(ph2)))
         nonlinear = (ts1[keep], ys1[keep], ts2, ys2, r2)
         notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); peak motor torque "
                      f"in the sine run {fmt(r2.max_abs_motor_torque)} N*m.")
@@ -113,20 +121,19 @@ def time_responses(ctx) -> Section:
             electrics.append((name, fmt(lf["peak_current_A"]), fmt(motor.current_limit), fmt(lf["peak_voltage_V"]),
                               fmt(motor.voltage_limit), fmt(lf["time_at_current_limit_s"] * 1e3),
                               fmt(lf["time_at_voltage_limit_s"] * 1e3)))
-        electric_fig = _electrics(((f"{STEP_DEG:g} deg step", r1.times - t_at, r1),
-                                   (f"{SINE_DEG:g} deg sine at {SINE_HZ:g} Hz", r2.times, r2)), motor)
+        electric_fig = _electrics(((step_title, r1.times - t_at, r1), (sine_title, r2.times, r2)), motor)
     except NotAvailable as exc:
         notes.append(f"Nonlinear simulation not available: {exc}")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
     a1.plot(t_step * 1e3, y_step, label="linear")
-    a1.axhline(STEP_DEG, color="0.6", lw=0.8)
+    a1.axhline(step_amp, color="0.6", lw=0.8)
     a2.plot(t_sine * 1e3, ref, color="0.6", lw=0.8, label="command")
     a2.plot(t_sine * 1e3, y_sine, label="linear")
     if nonlinear is not None:
         a1.plot(nonlinear[0] * 1e3, nonlinear[1], "--", label="nonlinear")
         a2.plot(nonlinear[2] * 1e3, nonlinear[3], "--", label="nonlinear")
-    a1.set(xlabel="time [ms]", ylabel="output angle change [deg]", title=f"{STEP_DEG:g} deg step")
-    a2.set(xlabel="time [ms]", ylabel="output angle change [deg]", title=f"{SINE_DEG:g} deg sine at {SINE_HZ:g} Hz")
+    a1.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=step_title)
+    a2.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=sine_title)
     for ax in (a1, a2):
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
@@ -141,5 +148,5 @@ def time_responses(ctx) -> Section:
                                                "time at voltage limit [ms]"), electrics, table_id="electrics-table")
         figs.append(FigureSpec(electric_fig, "Motor current and armature voltage against their limits."))
     return Section("Step response and 8 Hz sine tracking",
-                   para(f"Small-signal commands about q0 = {math.degrees(q0):+.1f} deg with the designed controller.",
+                   para(f"Small-signal commands about q0 = {u.text(q0)} with the designed controller.",
                         *notes) + body, tuple(figs), key="time")

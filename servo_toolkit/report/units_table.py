@@ -37,7 +37,8 @@ UNITS = {
     "ratio_x": ("-", 1.0), "ratio_y": ("-", 1.0), "platform_inertia": ("kg*m^2", 1.0),
 }
 #: (class name, field) overrides where one name means different quantities
-OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6)}
+OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6),
+             ("RollerScrew", "stroke_range"): ("mm", 1e3)}
 _SKIP = {"name", "direction"}
 
 
@@ -62,10 +63,16 @@ def _text(value) -> str:
     return fmt(value, 5)
 
 
-def rows(obj) -> list[tuple[str, str, str]]:
+#: the load of an output travel (a chain ending in a screw): a mass and forces
+LINEAR_LOAD = {"inertia": ("kg", 1.0), "hinge_moment": ("N", 1.0), "hinge_stiffness": ("N/mm", 1e-3),
+               "damping": ("N*s/m", 1.0)}
+
+
+def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
     """(field, value, unit) rows of a frozen dataclass, values in display units.
 
-    Fields without a known unit are shown in SI with the unit ``SI``.
+    Fields without a known unit are shown in SI with the unit ``SI``; ``units`` (field ->
+    (unit, factor from SI)) takes precedence, e.g. :data:`LINEAR_LOAD`.
     """
     out = []
     cls = type(obj).__name__
@@ -75,7 +82,7 @@ def rows(obj) -> list[tuple[str, str, str]]:
         value = getattr(obj, f.name)
         if value is None:
             continue
-        unit, factor = OVERRIDES.get((cls, f.name), UNITS.get(f.name, ("SI", 1.0)))
+        unit, factor = (units or {}).get(f.name) or OVERRIDES.get((cls, f.name), UNITS.get(f.name, ("SI", 1.0)))
         if isinstance(value, str):
             unit = ""
         out.append((f.name, _text(_scaled(value, factor)), unit))

@@ -273,7 +273,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if not options.variable_inertia:
         j0 = float(drive.inertia([q0])[0][0])
         j_tot, dj_tot = np.full_like(q, j0), np.zeros_like(q)
-        notes.append(f"constant inertia J(q0) = {j0:.4g} kg*m^2")
+        notes.append(f"constant inertia J(q0) = {j0:.4g} {'kg' if drive.output_unit == 'm' else 'kg*m^2'}")
     k_tot = drive.stiffness(q).total
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
     jl, load_side = _load_split(drive, q)

@@ -121,7 +121,8 @@ class VariantBuilder:
         delta = 0.0 if load_inertia is None else float(load_inertia) - self.scene.load.inertia
         jl = 0.0 if m.rigid else float(m.P[lo.JL]) + delta * self.d_jl
         if not m.rigid and not jl > 0:
-            raise SceneError("vary.load_inertia", f"{load_inertia:g} kg*m^2 leaves no inertia on the load side "
+            unit = "kg" if m.output_unit == "m" else "kg*m^2"
+            raise SceneError("vary.load_inertia", f"{load_inertia:g} {unit} leaves no inertia on the load side "
                                                   "of the compliance")
         P = P0.copy()
         drivetrain_slots(P, rigid=m.rigid, j0_tot=self.j0 + delta * self.d_j0, jl=jl, k0=self.k0,

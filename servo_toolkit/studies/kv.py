@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-import numpy as np
 
 from ..drivetrain import Drivetrain
 from ..errors import SceneError

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import html
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +16,8 @@ class MonteCarloResult:
     ----------
     scene_name : str
     values : dict of numpy.ndarray
-        Varied parameters per variant (``load_inertia`` kg*m^2, ``stiffness`` factor).
+        Varied parameters per variant (``load_inertia`` kg*m^2, or the load's mass in kg for
+        an output travel; ``stiffness`` factor).
     tracking_error : numpy.ndarray
         Largest |output - command| over the run (rad; m for an output travel).
     peak_current : numpy.ndarray
@@ -198,7 +198,8 @@ class MonteCarloResult:
             if np.any(self.failed):
                 ax.scatter(x[self.failed], np.zeros(int(np.sum(self.failed))), marker="x", color="r", label="failed")
                 ax.legend()
-            ax.set_xlabel("load inertia (kg*m^2)" if "load_inertia" in self.values else "variant")
+            ax.set_xlabel(("load mass (kg)" if self.linear_output else "load inertia (kg*m^2)")
+                          if "load_inertia" in self.values else "variant")
             ax.set_ylabel(label)
         if c is not None:
             plt.colorbar(sc, ax=axes[1], label="stiffness factor")

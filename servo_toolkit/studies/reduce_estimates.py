@@ -224,7 +224,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     limited = (i_peak > motor.current_limit) | (v_peak > motor.voltage_limit)
     if limited.any():
         notes.append(f"the linear loop predicts the current or voltage limit from {freqs[limited][0]:.3g} Hz "
-                     f"at {math.degrees(a_max):.3g} deg (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
+                     f"at {output_unit(scene).text(a_max, 3)} (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
                      "linear estimates do not hold there")
 
     # armature inductance
@@ -256,6 +256,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
 
     # backlash
     play = float(drive.backlash([q0])[0])
+    u = output_unit(scene)
     if play > 0 and math.isfinite(p.K):
         jl = _load_side_inertia(drive, q0)
         static = abs(scene.load.hinge_moment + scene.load.hinge_stiffness * q0)
@@ -265,13 +266,13 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         res = f", {play / lsb:.3g} encoder counts" if lsb else ""
         if dynamic < CONTACT_MARGIN * static:
             e = 0.0
-            why = (f"lost motion {math.degrees(play):.3g} deg{res}; force through the compliance "
-                   f"{static:.4g} N*m static, at most {dynamic:.4g} N*m dynamic: contact never opens")
+            why = (f"lost motion {u.text(play, 3)}{res}; force through the compliance "
+                   f"{static:.4g} {u.moment} static, at most {dynamic:.4g} {u.moment} dynamic: contact never opens")
         else:
             a_out = np.abs(t_full) * a_min
             e = float(np.max(play / a_out))
-            why = (f"lost motion {math.degrees(play):.3g} deg{res} vs output amplitude down to "
-                   f"{math.degrees(a_out.min()):.3g} deg (force reverses: {dynamic:.4g} N*m dynamic, "
+            why = (f"lost motion {u.text(play, 3)}{res} vs output amplitude down to "
+                   f"{u.text(a_out.min(), 3)} (force reverses: {dynamic:.4g} {u.moment} dynamic, "
                    f"{static:.4g} static)")
         effects.append(Effect("backlash", "backlash", why, e))
 
@@ -283,7 +284,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         e = max(_rel(loop_response(replace(p, J1=p.J1 + s * dj_eff), controller, motor, w)["theta"], t_full)
                 for s in (1, -1) if p.J1 + s * dj_eff > 0)
         effects.append(Effect("inertia variation", "variable_inertia",
-                              f"J varies by {dj_eff / j0:.2%} over +-{math.degrees(reach):.3g} deg "
+                              f"J varies by {dj_eff / j0:.2%} over +-{u.text(reach, 3)} "
                               f"(incl. the velocity term)", e))
 
     # reported, no switch
@@ -291,7 +292,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     dn = float(np.max(np.abs(np.abs(n) - n0)) / n0)
     e = max(_rel(loop_response(replace(p, N=n0 * (1 + s * dn)), controller, motor, w)["theta"], t_full)
             for s in (1, -1))
-    effects.append(Effect("ratio variation", None, f"N varies by {dn:.3%} over +-{math.degrees(reach):.3g} deg",
+    effects.append(Effect("ratio variation", None, f"N varies by {dn:.3%} over +-{u.text(reach, 3)}",
                           e, reason="kept: the model tabulates N(q) at no cost (no switch)"))
     labels, masses, tt, _ = drive.jacobians([q0])
     shares = masses * tt[:, 0] ** 2 / j0

@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 
-#: the seed's sine command of the tracking plot
-SINE_HZ, SINE_DEG = 8.0, 2.0
+#: the frequency of the tracking plot's sine (its amplitude is the output's default command,
+#: 2 deg or 1 mm)
+SINE_HZ = 8.0
 
 
 def draw(result, axes) -> None:
@@ -36,13 +37,16 @@ def draw(result, axes) -> None:
     y = np.asarray(ct.step_response(result.closed_loop, t).outputs).reshape(-1)
     step.plot(t * 1e3, y)
     step.axhline(1.0, color="0.6", lw=0.8)
-    step.set(xlabel="time [ms]", ylabel="theta / theta_ref", title="step")
+    step.set(xlabel="time [ms]", ylabel="output / command", title="step")
     step.grid(True, alpha=0.3)
     ts = np.linspace(0.0, 4 / SINE_HZ, 800)
-    ref = SINE_DEG * np.sin(2 * np.pi * SINE_HZ * ts)
+    u = result.unit
+    amp = u.show(u.default_amplitude)
+    ref = amp * np.sin(2 * np.pi * SINE_HZ * ts)
     out = np.asarray(ct.forced_response(result.closed_loop, ts, ref).outputs).reshape(-1)
     sine.plot(ts * 1e3, ref, color="0.6", lw=0.8, label="command")
     sine.plot(ts * 1e3, out, label="output")
-    sine.set(xlabel="time [ms]", ylabel="angle [deg]", title=f"{SINE_DEG:g} deg sine at {SINE_HZ:g} Hz")
+    sine.set(xlabel="time [ms]", ylabel=f"{'travel' if u.linear else 'angle'} [{u.shown}]",
+             title=f"{amp:g} {u.shown} sine at {SINE_HZ:g} Hz")
     sine.grid(True, alpha=0.3)
     sine.legend(fontsize="x-small")
