@@ -120,4 +120,4 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
              for a, b in zip(paper_q, paper_q[1:])]
     porder = _order(dts[:-1], diffs) if len(diffs) >= 2 else math.nan
     return AccuracyResult(tuple(runs), order, porder, ref.wall_s, float(abs(amp)), duration,
-                          f"{model.name}: {reference.describe()}, {duration:g} s, controller {model.controller}")
+                          f"{model.name}: {reference.describe(model.output_unit)}, {duration:g} s, controller {model.controller}")

@@ -281,11 +281,12 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
                 xs[j] = x[j] + h * kin[j]
             rhs(t + h, xs, P, T, iref, kout, aux2)
         p_old = x[0]
+        q_old = x[2]
         for j in range(nx):
             x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if paper:
+        if paper:  # positions by summation from the new velocities (the RK4 sum above moved them)
             x[0] = p_old + dt * x[1]
-            x[2] = x[2] + dt * x[3]
+            x[2] = q_old + dt * x[3]
             p = x[0]
             if p > p_old and p > x[6] + c:
                 x[6] = p - c

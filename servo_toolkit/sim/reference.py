@@ -64,16 +64,17 @@ class Reference:
         """Open loop: constant armature voltage (clamped at the voltage limit)."""
         return cls("voltage", volts)
 
-    def describe(self) -> str:
-        """One line in engineering units."""
-        deg = 180 / np.pi
-        off = "q0" if self.offset is None else f"{self.offset * deg:.3g} deg"
+    def describe(self, output_unit: str = "rad") -> str:
+        """One line in engineering units: deg for an output angle, mm for an output travel
+        (``output_unit`` ``"m"``)."""
+        scale, unit = (1e3, "mm") if output_unit == "m" else (180 / np.pi, "deg")
+        off = "q0" if self.offset is None else f"{self.offset * scale:.3g} {unit}"
         if self.kind == "sine":
-            return f"sine {self.amplitude * deg:.3g} deg at {self.frequency:.3g} Hz about {off}"
+            return f"sine {self.amplitude * scale:.3g} {unit} at {self.frequency:.3g} Hz about {off}"
         if self.kind == "step":
-            return f"step {self.amplitude * deg:.3g} deg at t = {self.t0:.3g} s from {off}"
+            return f"step {self.amplitude * scale:.3g} {unit} at t = {self.t0:.3g} s from {off}"
         if self.kind == "ramp":
-            return f"ramp {self.amplitude * deg:.3g} deg/s from {off}"
+            return f"ramp {self.amplitude * scale:.3g} {unit}/s from {off}"
         if self.kind == "voltage":
             return f"open loop, {self.amplitude:.4g} V"
         return f"hold {off}"
