@@ -49,3 +49,14 @@ def test_cli_simulate_and_accuracy_json(capsys, tmp_path):
     assert d["t_final_s"] == 1.0 and d["method"] == "rk4"
     assert out.read_text().startswith("t_s,")
     assert main(["simulate", str(SCENES / "ema_reference.toml"), "--study", "nope"]) == 2
+
+
+def test_the_observed_order_leaves_out_the_reference_plateau():
+    """Errors that stop falling have reached the reference's own accuracy: the fit of the
+    order stops there instead of averaging the plateau into a lower order."""
+    from servo_toolkit.sim.accuracy import _order
+    dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5, 6.25e-6]
+    fourth = [1e-3 * (d / 1e-4) ** 4 for d in dts[:3]]
+    assert abs(_order(dts, fourth + [2e-8, 2e-8]) - 4.0) < 1e-9
+    assert abs(_order(dts[::-1], (fourth + [2e-8, 2e-8])[::-1]) - 4.0) < 1e-9   # any order of the ladder
+    assert abs(_order(dts, [1e-3 * d / 1e-4 for d in dts]) - 1.0) < 1e-9         # no plateau: every point

@@ -73,9 +73,21 @@ class AccuracyResult:
         return ax
 
 
+#: a halved step that shrinks the error by less than this has reached the reference's own
+#: accuracy (a plateau): it and the smaller steps are left out of the order's fit
+PLATEAU_RATIO = 1.2
+
+
 def _order(dts, errors):
+    """Slope of log error against log dt over the steps that ran, above the reference's
+    tolerance floor and before the errors stop falling."""
     dts, errors = np.asarray(dts), np.asarray(errors)
     ok = np.isfinite(errors) & (errors > 1e-11)  # ran, and above the reference's own tolerance floor
+    steps = [k for k in np.argsort(-dts) if ok[k]]
+    for prev, k in zip(steps, steps[1:]):
+        if errors[prev] < PLATEAU_RATIO * errors[k]:
+            ok[dts <= dts[k]] = False
+            break
     if ok.sum() < 2:
         return math.nan
     return float(np.polyfit(np.log(dts[ok]), np.log(errors[ok]), 1)[0])
