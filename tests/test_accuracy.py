@@ -57,6 +57,6 @@ def test_the_observed_order_leaves_out_the_reference_plateau():
     from servo_toolkit.sim.accuracy import _order
     dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5, 6.25e-6]
     fourth = [1e-3 * (d / 1e-4) ** 4 for d in dts[:3]]
-    assert abs(_order(dts, fourth + [2e-8, 2e-8]) - 4.0) < 1e-9
-    assert abs(_order(dts[::-1], (fourth + [2e-8, 2e-8])[::-1]) - 4.0) < 1e-9   # any order of the ladder
+    assert abs(_order(dts, fourth + [3.5e-6, 3.5e-6]) - 4.0) < 1e-9
+    assert abs(_order(dts[::-1], (fourth + [3.5e-6, 3.5e-6])[::-1]) - 4.0) < 1e-9   # any order of the ladder
     assert abs(_order(dts, [1e-3 * d / 1e-4 for d in dts]) - 1.0) < 1e-9         # no plateau: every point
