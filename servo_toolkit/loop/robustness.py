@@ -151,6 +151,8 @@ class RobustnessResult(RichDisplay):
         (for ``stable_fraction``: the variant with the rightmost closed-loop pole).
     settings : dict
         ``method``, ``samples``, ``seed`` of the sampling.
+    output_unit : {"rad", "m"}
+        The output coordinate: ``load_inertia`` is in kg*m^2 for an angle, kg for a travel.
     """
 
     scene_name: str
@@ -159,6 +161,7 @@ class RobustnessResult(RichDisplay):
     requirements: list
     worst: dict
     settings: dict = field(default_factory=dict)
+    output_unit: str = "rad"
 
     @property
     def count(self) -> int:
@@ -220,7 +223,7 @@ class RobustnessResult(RichDisplay):
             ax.figure.colorbar(sc, ax=ax, label="stiffness factor")
         ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
                    label="unstable")
-        ax.set_xlabel("load inertia (kg*m^2)")
+        ax.set_xlabel("load mass (kg)" if self.output_unit == "m" else "load inertia (kg*m^2)")
         ax.set_ylabel(figure)
         ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
         return ax
@@ -314,7 +317,7 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
                            progress=progress, structural_damping=structural_damping, refine=refine)
     checks, worst = worst_cases(values, figs, requirements)
     settings = {"method": "grid" if grid else "monte_carlo", "samples": int(samples), "seed": int(seed)}
-    return RobustnessResult(scene.name, values, figs, checks, worst, settings)
+    return RobustnessResult(scene.name, values, figs, checks, worst, settings, scene.drivetrain.output_unit)
 
 
 def _bandwidth_requirement(design_result) -> float:

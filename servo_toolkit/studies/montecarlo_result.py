@@ -65,6 +65,11 @@ class MonteCarloResult:
         """Number of variants."""
         return int(self.tracking_error.size)
 
+    def ranges_text(self) -> str:
+        """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2``."""
+        unit = {"load_inertia": " kg" if self.linear_output else " kg*m^2"}
+        return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.values.items())
+
     @property
     def error_unit(self) -> str:
         """``"mm"`` for an output travel, else ``"deg"``."""
@@ -153,7 +158,7 @@ class MonteCarloResult:
     def _repr_html_(self) -> str:
         rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>" for k, v in (
             ("variants", self.count), ("steps per variant", self.steps_per_variant),
-            ("ranges", ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())),
+            ("ranges", self.ranges_text()),
             ("worst tracking error", self._worst_text("tracking_error")),
             ("worst peak current", self._worst_text("peak_current")),
             ("saturated / failed", f"{int(np.sum(self.saturated))} / {int(np.sum(self.failed))}"),
@@ -171,7 +176,7 @@ class MonteCarloResult:
 
     def table(self) -> str:
         """Text summary."""
-        rng = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())
+        rng = self.ranges_text()
         lines = [f"  {self.count} variants ({rng}), {self.steps_per_variant} steps of {self.dt_s:.4g} s each, "
                  f"integration {self.wall_s:.3g} s",
                  f"  worst tracking error {self._worst_text('tracking_error')}",
