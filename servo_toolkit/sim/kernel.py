@@ -39,6 +39,7 @@ from ..jit_cache import install as _install_cache
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
+from .vmath import TANH_ONE, tanh  # noqa: E402,F401 - the friction's branch-free tanh
 
 from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
@@ -123,25 +124,6 @@ def clip(v, lim):
     if v < -lim:
         return -lim
     return v
-
-
-#: |a| from which tanh(a) rounds to +-1 in double precision (1 - tanh(22) = 1.6e-19; libm's
-#: own cut-off)
-TANH_ONE = 22.0
-
-
-@inline
-def tanh(a):
-    """math.tanh(a), bit for bit, without the library call where it is +-1 (|a| >= 22).
-
-    The Coulomb friction tanh(omega_m / w_s) mostly sits there (w_s is small), and the call
-    costs a tenth of an RK4 step. NaN passes through math.tanh.
-    """
-    if a >= TANH_ONE:
-        return 1.0
-    if a <= -TANH_ONE:
-        return -1.0
-    return math.tanh(a)
 
 
 @inline
