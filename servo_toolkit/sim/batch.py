@@ -9,7 +9,8 @@ stages (:func:`integrators.rk4_stages`) as a single :func:`servo_toolkit.sim.run
 physics. Instead of traces a variant keeps its figures (largest |tracking error|, peak
 |current|, whether a limit was reached) and the states where its step is checked (peak
 current, largest drivetrain deflection, the end); a non-finite state or the stroke end
-stops that variant only.
+stops that variant only. :mod:`.batch_lanes` runs the same loop for blocks of variants in
+SIMD lanes.
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
         t = step * dt
         iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
         a0, a1, a2, a3, a4, a5, i_, v_, r_, tau_ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T,
-                                                            iref, x, k1)
+                                                            iref, x, k1, False)
         err = abs(q - reference(t, P))
         if err > max_err:
             max_err = err
@@ -140,7 +141,8 @@ def jacobians(X, times, irefs, P, T, tix, vix, out):
 
 
 def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
-    """Run the variants; compilation is done before the clock starts.
+    """Run the variants in SIMD lanes (:func:`.batch_lanes.run_lanes`, which equals
+    :func:`run_variants`); compilation is done before the clock starts.
 
     Parameters
     ----------
@@ -170,6 +172,8 @@ def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
     """
     import time
 
+    from .batch_lanes import run_lanes
+
     P = np.ascontiguousarray(P, dtype=float)
     T = np.ascontiguousarray(T, dtype=float)
     tix = np.ascontiguousarray(tix, dtype=np.int64)
@@ -178,7 +182,7 @@ def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
     figs = np.zeros((nv, NFIG))
     snaps = np.zeros((nv, NSNAP, nx + 2))
     # warm-up: a zero-step call loads (or compiles) the machine code before the clock starts
-    run_variants(X[:1].copy(), P[:1], T, tix[:1], dt, 0, sub, figs[:1].copy(), snaps[:1].copy())
+    run_lanes(X[:1].copy(), P[:1], T, tix[:1], dt, 0, sub, figs[:1].copy(), snaps[:1].copy())
     start = time.perf_counter()
-    run_variants(X, P, T, tix, dt, int(n_steps), int(sub), figs, snaps)
+    run_lanes(X, P, T, tix, dt, int(n_steps), int(sub), figs, snaps)
     return X, figs, snaps, time.perf_counter() - start

@@ -94,6 +94,16 @@ def step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid):
 
 
 @inline
+def rk4_coefficients(stage, dt):
+    """Classical RK4's stage k = 0..3: it evaluates at t + c_k from the state advanced by c_k
+    times the previous stage's slopes, which enter the update with weight w_k (of dt / 6).
+    Returns (c_k, w_k)."""
+    c = 0.0 if stage == 0 else (dt if stage == 3 else 0.5 * dt)
+    w = 2.0 if stage == 1 or stage == 2 else 1.0
+    return c, w
+
+
+@inline
 def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
                k1, k2, k3, k4):
     """Stages 2-4 and the update of one classical RK4 step from the first stage's derivatives
@@ -110,17 +120,16 @@ def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, ir
     # the previous stage's slopes, and its slopes enter the update with weight w_k
     s0, s1, s2, s3, s4, s5 = a0, a1, a2, a3, a4, a5
     u0, u1, u2, u3, u4, u5 = a0, a1, a2, a3, a4, a5
-    for stage in range(3):
-        c = dt if stage == 2 else 0.5 * dt
-        w = 1.0 if stage == 2 else 2.0
-        kin = k1 if stage == 0 else (k2 if stage == 1 else k3)
-        kout = k2 if stage == 0 else (k3 if stage == 1 else k4)
+    for stage in range(1, 4):
+        c, w = rk4_coefficients(stage, dt)
+        kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
+        kout = k2 if stage == 1 else (k3 if stage == 2 else k4)
         if cont:
             for j in range(NX_PHYS, nx):
                 xs[j] = x[j] + c * kin[j]
         s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys(
             t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3,
-            cur + c * s4, xi + c * s5, s, P, T, iref, xs, kout)
+            cur + c * s4, xi + c * s5, s, P, T, iref, xs, kout, False)
         u0 += w * s0
         u1 += w * s1
         u2 += w * s2
@@ -168,8 +177,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
         u0 = u1 = u2 = u3 = u4 = u5 = 0.0
         done = False
         for stage in range(4):
-            c = 0.0 if stage == 0 else (dt if stage == 3 else 0.5 * dt)
-            w = 2.0 if stage == 1 or stage == 2 else 1.0
+            c, w = rk4_coefficients(stage, dt)
             kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
             if cont and stage > 0:
                 kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
@@ -177,7 +185,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
                     xs[j] = x[j] + c * kin[j]
             s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
                 t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                P, T, iref, x if stage == 0 else xs, kout)
+                P, T, iref, x if stage == 0 else xs, kout, False)
             if stage == 0:
                 tau = abs(tau_)
                 if tau > max_tau:

@@ -39,6 +39,7 @@ from ..jit_cache import install as _install_cache
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
+from .vmath import TANH_ONE, tanh  # noqa: E402,F401 - the friction's branch-free tanh
 
 from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
@@ -123,25 +124,6 @@ def clip(v, lim):
     if v < -lim:
         return -lim
     return v
-
-
-#: |a| from which tanh(a) rounds to +-1 in double precision (1 - tanh(22) = 1.6e-19; libm's
-#: own cut-off)
-TANH_ONE = 22.0
-
-
-@inline
-def tanh(a):
-    """math.tanh(a), bit for bit, without the library call where it is +-1 (|a| >= 22).
-
-    The Coulomb friction tanh(omega_m / w_s) mostly sits there (w_s is small), and the call
-    costs a tenth of an RK4 step. NaN passes through math.tanh.
-    """
-    if a >= TANH_ONE:
-        return 1.0
-    if a <= -TANH_ONE:
-        return -1.0
-    return math.tanh(a)
 
 
 @inline
@@ -243,7 +225,15 @@ def speed_estimate(x, P, T, wm_true):
 
 @jit  # called once per sample, not per step: compiled once, shared by every loop and Python
 def controller_sample(t, x, P, T, work):
-    """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:].
+    """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:]
+    (:func:`controller_update` at the reference r(t))."""
+    return controller_update(reference(t, P), x, P, T, work)
+
+
+@inline
+def controller_update(r, x, P, T, work):
+    """The sample of :func:`controller_sample` at a given reference r (the batched variants
+    share r(t)): returns the held i_ref, updates x[NX_PHYS:].
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -252,7 +242,6 @@ def controller_sample(t, x, P, T, work):
     nc = int(P[NC])
     n, _ = hermite(T, T_N, P, x[0])
     wm = speed_estimate(x, P, T, n * x[1])
-    r = reference(t, P)
     th = measured_angle(x[2], P)
     y = _motion(x, P, r, th, wm, work, 0, True)
     for j in range(nc):
@@ -261,13 +250,18 @@ def controller_sample(t, x, P, T, work):
 
 
 @inline
-def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
+def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
 
     Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
     motion controller touches the arrays: it reads its states ``x[NX_PHYS:]`` and writes their
     derivatives into ``dx[NX_PHYS:]`` (nothing else is written). Scalars in and out let the
     fixed-step loop keep the physical state in registers.
+
+    ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
+    across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
+    controller and no cam: their code is left out there, so that loop is branch- and
+    call-free and vectorizes. Every other caller passes False.
     """
     kc, tc = cell(P, p)
     hc = P[TAB_H]
@@ -287,7 +281,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
             di = 0.0
         dxi = 0.0
     else:
-        if mode == CONTINUOUS:
+        if not lanes and mode == CONTINUOUS:
             iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
         else:
             iref = iref_held
@@ -325,7 +319,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if P[RIGID] > 0.0:
-        if P[CAM] > 0.0:
+        if not lanes and P[CAM] > 0.0:
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
             # M_g = (sigma f - G_x) ds/dq (seed 002 eq 3; its m a part is in J and J')
             oc = int(P[CAM])
@@ -369,7 +363,7 @@ def rhs(t, x, P, T, iref_held, dx, aux):
     for j in range(NX_PHYS, x.size):  # sampled controller and estimator states are held
         dx[j] = 0.0
     d0, d1, d2, d3, d4, d5, cur, v, iref, tau = rhs_phys(t, x[0], x[1], x[2], x[3], x[4], x[5],
-                                                         x[6], P, T, iref_held, x, dx)
+                                                         x[6], P, T, iref_held, x, dx, False)
     dx[0] = d0
     dx[1] = d1
     dx[2] = d2

@@ -1,0 +1,252 @@
+"""The batched variants in SIMD lanes: blocks of :data:`W` variants advanced in lockstep.
+
+A block keeps its variants' physical states in structure-of-arrays form (one row per state,
+one column per lane) and evaluates each RK4 stage as one loop across the lanes around the
+inlined right-hand side (:func:`kernel.rhs_phys` with ``lanes=True``), which LLVM
+vectorizes (AVX-512: the whole block in one register per quantity). The physics is the
+single run's: the same right-hand side, the same controller sample
+(:func:`kernel.controller_update`, at the reference r(t) the block shares) and the same RK4
+stage arithmetic (:func:`integrators.rk4_coefficients`). Per variant the block keeps the
+figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
+stroke end) is masked out while its block-mates go on. A block holding a continuous
+controller or a cam falls back to :func:`batch.variant_run` per variant.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
+
+from . import layout as lo
+from .batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK,
+                    _snap, variant_run)
+from .integrators import rk4_coefficients, step_status
+from .kernel import FASTMATH, controller_update, jit, reference, rhs_phys
+
+#: lanes per block: one AVX-512 register of float64 (two AVX2 registers)
+W = 8
+#: parameter slots of the reference r(t), shared by a block when equal in all its variants
+REF_SLOTS = (lo.REF_KIND, lo.REF_A, lo.REF_F, lo.REF_OFF, lo.REF_T0)
+
+
+@jit
+def block_kind(P, v0, nl):
+    """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
+    sampled or open-loop controller and no cam in every variant."""
+    lanes = True
+    shared = True
+    for v in range(v0, v0 + nl):
+        if int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0:
+            lanes = False
+        for j in REF_SLOTS:
+            if P[v, j] != P[v0, j]:
+                shared = False
+    return lanes, shared
+
+
+#: the stage loop is compiled without reference counting: a lane's parameter column and
+#: tables are views, whose counting calls would keep the loop from vectorizing
+_lane_jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
+
+
+@intrinsic
+def _stack_matrix(typingctx, rows, cols):
+    """A (rows, cols) float64 array (literal sizes) on the caller's stack, unmanaged."""
+    if not (isinstance(rows, types.IntegerLiteral) and isinstance(cols, types.IntegerLiteral)):
+        return None
+    n_rows, n_cols = rows.literal_value, cols.literal_value
+    array_type = types.Array(types.float64, 2, "C")
+
+    def codegen(context, builder, signature, args):
+        data = cgutils.alloca_once(builder, context.get_data_type(types.float64), size=n_rows * n_cols)
+        intp = context.get_value_type(types.intp)
+        ary = make_array(array_type)(context, builder)
+        populate_array(ary, data=data, shape=[intp(n_rows), intp(n_cols)], strides=[intp(8 * n_cols), intp(8)],
+                       itemsize=intp(8), meminfo=None)
+        return ary._getvalue()
+    return array_type(rows, cols), codegen
+
+
+@intrinsic
+def _packed(typingctx, arr):
+    """The C-contiguous array ``arr`` with its strides rebuilt from its shape, the last one a
+    constant: LLVM then sees consecutive lanes in consecutive memory (vector loads, not
+    gathers)."""
+    if not (isinstance(arr, types.Array) and arr.layout == "C"):
+        return None
+
+    def codegen(context, builder, signature, args):
+        src = make_array(arr)(context, builder, value=args[0])
+        shape = cgutils.unpack_tuple(builder, src.shape, arr.ndim)
+        intp = context.get_value_type(types.intp)
+        stride = intp(context.get_abi_sizeof(context.get_data_type(arr.dtype)))
+        strides = [stride]
+        for dim in reversed(shape[1:]):
+            strides.insert(0, builder.mul(strides[0], dim))
+        out = make_array(arr)(context, builder)
+        populate_array(out, data=src.data, shape=shape, strides=strides, itemsize=src.itemsize,
+                       meminfo=src.meminfo)
+        return out._getvalue()
+    return arr(arr), codegen
+
+
+@intrinsic
+def _column(typingctx, arr, lane):
+    """Column ``lane`` of a C-contiguous (n, W) float64 array as a 1-D view whose stride is the
+    constant W: a parameter read across the lanes is then one vector load."""
+    if not (isinstance(arr, types.Array) and arr.ndim == 2 and arr.layout == "C" and arr.dtype == types.float64):
+        return None
+    column_type = types.Array(types.float64, 1, "A")
+
+    def codegen(context, builder, signature, args):
+        src = make_array(arr)(context, builder, value=args[0])
+        intp = context.get_value_type(types.intp)
+        out = make_array(column_type)(context, builder)
+        populate_array(out, data=builder.gep(src.data, [args[1]]),
+                       shape=[cgutils.unpack_tuple(builder, src.shape, 2)[0]], strides=[intp(8 * W)],
+                       itemsize=src.itemsize, meminfo=src.meminfo)
+        return out._getvalue()
+    return column_type(arr, types.intp), codegen
+
+
+@_lane_jit
+def _stage(tc, c, w, first, Y, S, U, A, PT, T, TI, IREF, dummy):
+    """One RK4 stage across the lanes: slopes S from the states Y + c S, accumulated into U
+    with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
+
+    The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
+    gathers from, which it could not check at run time) and the results are copied out.
+    """
+    out = _stack_matrix(10, W)
+    Y, S, U, A, PT, T, TI, IREF = (_packed(Y), _packed(S), _packed(U), _packed(A), _packed(PT), _packed(T),
+                                   _packed(TI), _packed(IREF))
+    for l in range(W):
+        s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
+            tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
+            Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
+            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True)
+        out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
+        out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
+    for l in range(W):
+        for k in range(6):
+            S[k, l] = out[k, l]
+            U[k, l] = w * out[k, l] if first else U[k, l] + w * out[k, l]
+        if first:
+            for k in range(4):
+                A[k, l] = out[6 + k, l]
+
+
+@jit
+def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
+    """Variants v0 .. v0 + nl - 1 (nl <= W) in lanes: as :func:`batch.variant_run` for each
+    (same arguments, rows of the batch), with the reference computed once per step when
+    ``shared``."""
+    nx = X.shape[1]
+    n_par = P.shape[1]
+    PT = np.empty((n_par, W))  # parameters, a column per lane (unused lanes repeat the last)
+    TI = np.empty(W, dtype=np.int64)
+    Y = np.empty((lo.NX_PHYS, W))
+    for l in range(W):
+        v = v0 + min(l, nl - 1)
+        TI[l] = tix[v]
+        for j in range(n_par):
+            PT[j, l] = P[v, j]
+        for j in range(lo.NX_PHYS):
+            Y[j, l] = X[v, j]
+    S = np.zeros((6, W))
+    U = np.zeros((6, W))
+    A = np.zeros((4, W))
+    IREF = np.zeros(W)
+    ACT = np.zeros(W)  # 1.0 while the lane runs
+    for l in range(nl):
+        ACT[l] = 1.0
+    fig = np.zeros((W, 6))  # max |err|, max |i|, sat, max |tau|, max |p - q|, status
+    for l in range(W):
+        fig[l, 1] = -1.0
+        fig[l, 4] = -1.0
+    dummy = np.zeros(max(nx, 1))
+    work = np.empty(max(nx, 1))
+    to_sample = 0
+    sixth = dt / 6.0
+    running = nl
+    r = 0.0
+    for step in range(n_steps + 1):
+        t = step * dt
+        if shared:
+            r = reference(t, P[v0])
+        if sub > 0:
+            if to_sample == 0:
+                for l in range(nl):
+                    if ACT[l] > 0.0:
+                        v = v0 + l
+                        x = X[v]
+                        for j in range(lo.NX_PHYS):
+                            x[j] = Y[j, l]
+                        rl = r if shared else reference(t, P[v])
+                        IREF[l] = controller_update(rl, x, P[v], T[tix[v]], work)
+                to_sample = sub
+            to_sample -= 1
+        S[:, :] = 0.0
+        _stage(t, 0.0, 1.0, True, Y, S, U, A, PT, T, TI, IREF, dummy)
+        for l in range(nl):
+            if ACT[l] == 0.0:
+                continue
+            v = v0 + l
+            x = X[v]
+            p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
+            err = abs(q - (r if shared else reference(t, P[v])))
+            if err > fig[l, 0]:
+                fig[l, 0] = err
+            tau = abs(A[3, l])
+            if tau > fig[l, 3]:
+                fig[l, 3] = tau
+            if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
+                fig[l, 2] = 1.0
+            if abs(A[0, l]) > fig[l, 1]:
+                fig[l, 1] = abs(A[0, l])
+                _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
+            defl = abs(p - q)
+            if defl > fig[l, 4]:
+                fig[l, 4] = defl
+                _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+            status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P[v], P[v, lo.STROKE_MODE] == 0.0,
+                                 P[v, lo.RIGID] > 0.0)
+            if status != lo.OK or step == n_steps:
+                ACT[l] = 0.0
+                running -= 1
+                for j in range(lo.NX_PHYS):
+                    x[j] = Y[j, l]
+                _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+                figs[v, F_STATUS] = status
+                figs[v, F_STEP] = step
+                figs[v, F_ERR] = fig[l, 0]
+                figs[v, F_CUR] = fig[l, 1]
+                figs[v, F_SAT] = fig[l, 2]
+                figs[v, F_TAU] = fig[l, 3]
+        if running == 0:
+            break
+        for stage in range(1, 4):
+            c, w = rk4_coefficients(stage, dt)
+            _stage(t + c, c, w, False, Y, S, U, A, PT, T, TI, IREF, dummy)
+        for l in range(W):  # stopped lanes keep the state they stopped in
+            for j in range(6):
+                Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 else Y[j, l]
+
+
+@nb.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
+def run_lanes(X, P, T, tix, dt, n_steps, sub, figs, snaps):
+    """:func:`batch.run_variants` by blocks of :data:`W` variants in lanes (in parallel
+    across blocks); a block that cannot run in lanes runs variant by variant."""
+    nv = X.shape[0]
+    for b in nb.prange((nv + W - 1) // W):
+        v0 = b * W
+        nl = min(W, nv - v0)
+        lanes, shared = block_kind(P, v0, nl)
+        if lanes:
+            block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps)
+        else:
+            for v in range(v0, v0 + nl):
+                variant_run(X[v], P[v], T[tix[v]], dt, n_steps, sub, figs[v], snaps[v])

@@ -1,0 +1,112 @@
+"""The batched variants in SIMD lanes equal the per-variant loop: figures, final states and
+snapshots, with a variant that stops mid-block (non-finite, stroke end) while its
+block-mates go on, a partial last block, variants with their own tables and reference, and
+the per-variant fallback of a continuous controller."""
+
+import math
+
+import numpy as np
+import pytest
+
+from servo_toolkit.scene import load_scene
+from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for
+from servo_toolkit.sim import layout as lo
+from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_END,
+                                     S_PEAK, run_variants)
+from servo_toolkit.sim.batch_lanes import W, run_lanes
+from servo_toolkit.sim.reference import fill, initial_state
+from servo_toolkit.sim.variants import VariantBuilder
+from servo_toolkit.studies.time_run import sine_run_options
+
+from .conftest import SCENES
+
+REF = Reference.sine(math.radians(2.0), 8.0)
+DT = 1e-4
+STEPS = 1500
+
+
+@pytest.fixture(scope="module")
+def ema():
+    scene = load_scene(SCENES / "ema_reference.toml")
+    controller, _ = controller_for(scene)
+    return scene, controller
+
+
+def _both(P, T, tix, X0, sub, steps=STEPS):
+    out = []
+    for fn in (run_variants, run_lanes):
+        X = np.array(X0, dtype=float)
+        figs = np.zeros((len(X), NFIG))
+        snaps = np.zeros((len(X), NSNAP, X.shape[1] + 2))
+        fn(X, np.ascontiguousarray(P), np.ascontiguousarray(T), np.ascontiguousarray(tix, dtype=np.int64), DT,
+           steps, sub, figs, snaps)
+        out.append((X, figs, snaps))
+    return out
+
+
+def _assert_equal(one, lanes):
+    (X1, f1, s1), (X2, f2, s2) = one, lanes
+    np.testing.assert_array_equal(f2[:, F_STATUS], f1[:, F_STATUS])
+    np.testing.assert_array_equal(f2[:, F_STEP], f1[:, F_STEP])
+    np.testing.assert_array_equal(f2[:, F_SAT], f1[:, F_SAT])
+    for col in (F_ERR, F_CUR, F_TAU):
+        np.testing.assert_allclose(f2[:, col], f1[:, col], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(X2, X1, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(s2[:, S_END], s1[:, S_END], rtol=1e-9, atol=1e-12)
+    # the peak-current snapshot holds that peak (a clamped current may reach it at
+    # neighbouring steps that differ in the last bit, so its step is not compared)
+    np.testing.assert_allclose(np.abs(s2[:, S_PEAK, 4]), f1[:, F_CUR], rtol=1e-12)
+
+
+def _rows(scene, controller, n, options=None):
+    options = options or sine_run_options(scene, controller, REF)[0]
+    builder = VariantBuilder.create(scene, controller, options)
+    rng = np.random.default_rng(1)
+    values = {"load_inertia": rng.uniform(0.0, 4.0, n), "stiffness": rng.uniform(0.7, 1.3, n)}
+    P0 = fill(builder.model, REF)
+    P, T, tix = builder.rows(P0, values, None)
+    X0 = np.array([initial_state(builder.model, p) for p in P])
+    sub = int(round(builder.model.sample_time / DT))
+    return P, T, tix, X0, sub
+
+
+def test_lanes_equal_the_per_variant_loop_with_variants_failing_mid_block(ema):
+    scene, controller = ema
+    n = 2 * W + 3  # two full blocks and a partial one
+    P, T, tix, X0, sub = _rows(scene, controller, n)
+    P[2, lo.KT] = np.nan  # non-finite from the first step, in the first block
+    P[W + 3, lo.STROKE_HI] = X0[W + 3, 2] + math.radians(0.5)  # leaves the stroke mid-run
+    P[2 * W + 1, lo.STROKE_LO] = X0[2 * W + 1, 2] - math.radians(0.3)  # in the partial block
+    one, lanes = _both(P, T, tix, X0, sub)
+    status = one[1][:, F_STATUS]
+    assert status[2] == lo.NONFINITE and status[W + 3] == lo.STROKE_END and status[2 * W + 1] == lo.STROKE_END
+    assert 0 < one[1][W + 3, F_STEP] < STEPS and 0 < one[1][2 * W + 1, F_STEP] < STEPS
+    assert np.sum(status == lo.OK) == n - 3
+    _assert_equal(one, lanes)
+    # a block-mate of a stopped variant is the same as when it runs without it
+    alone = _both(P[W + 4:W + 5], T, tix[W + 4:W + 5], X0[W + 4:W + 5], sub)[1]
+    np.testing.assert_array_equal(alone[1][0], lanes[1][W + 4])
+
+
+def test_lanes_with_own_tables_and_references(ema):
+    """A rigid chain's variants carry their own tables; a block whose references differ
+    evaluates each variant's own."""
+    scene, controller = ema
+    rigid = ModelOptions(**{**sine_run_options(scene, controller, REF)[0].__dict__, "compliance": False})
+    P, T, tix, X0, sub = _rows(scene, controller, W + 2, rigid)
+    assert len(T) > 1 and len(set(tix)) > 1
+    P[1, lo.REF_A] *= 0.5
+    _assert_equal(*_both(P, T, tix, X0, sub))
+
+
+def test_a_block_with_a_continuous_controller_runs_variant_by_variant(ema):
+    scene, controller = ema
+    model = build_model(scene, controller, ModelOptions(controller_mode="continuous"))
+    P0 = fill(model, REF)
+    assert P0[lo.CMODE] == lo.CONTINUOUS
+    P = np.array([P0] * 3)
+    P[1, lo.KSCALE] *= 1.2
+    X0 = np.array([initial_state(model, p) for p in P])
+    one, lanes = _both(P, model.T[None], np.zeros(3, dtype=np.int64), X0, 0, steps=300)
+    for a, b in zip(one, lanes):
+        np.testing.assert_array_equal(b, a)
