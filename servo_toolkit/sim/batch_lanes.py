@@ -24,8 +24,13 @@ from . import layout as lo
 from .batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK,
                     _snap, variant_run)
 from .integrators import rk4_coefficients, step_status
-from .kernel import FASTMATH, controller_update, jit, reference, rhs_phys
+from .kernel import FASTMATH, controller_update, reference, rhs_phys
 
+#: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
+#: LLVM applied differently to the same code compiled here and loaded from the cache (the
+#: results then differed in the last bit between processes)
+LANE_MATH = FASTMATH - {"reassoc", "contract"}
+jit = nb.njit(cache=True, fastmath=LANE_MATH, error_model="numpy")
 #: lanes per block: one AVX-512 register of float64 (two AVX2 registers)
 W = 8
 #: parameter slots of the reference r(t), shared by a block when equal in all its variants
@@ -49,7 +54,7 @@ def block_kind(P, v0, nl):
 
 #: the stage loop is compiled without reference counting: a lane's parameter column and
 #: tables are views, whose counting calls would keep the loop from vectorizing
-_lane_jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
+_lane_jit = nb.njit(cache=True, fastmath=LANE_MATH, error_model="numpy", _nrt=False)
 
 
 @intrinsic
@@ -113,9 +118,9 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stage(tc, c, w, first, Y, S, U, A, PT, T, TI, IREF, dummy):
-    """One RK4 stage across the lanes: slopes S from the states Y + c S, accumulated into U
-    with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
+    """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
+    U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
 
     The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
     gathers from, which it could not check at run time) and the results are copied out.
@@ -133,8 +138,8 @@ def _stage(tc, c, w, first, Y, S, U, A, PT, T, TI, IREF, dummy):
     for l in range(W):
         for k in range(6):
             S[k, l] = out[k, l]
-            U[k, l] = w * out[k, l] if first else U[k, l] + w * out[k, l]
-        if first:
+            U[k, l] = w * out[k, l] if stage == 0 else U[k, l] + w * out[k, l]
+        if stage == 0:
             for k in range(4):
                 A[k, l] = out[6 + k, l]
 
@@ -190,7 +195,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 to_sample = sub
             to_sample -= 1
         S[:, :] = 0.0
-        _stage(t, 0.0, 1.0, True, Y, S, U, A, PT, T, TI, IREF, dummy)
+        _stage(t, 0.0, 1.0, 0, Y, S, U, A, PT, T, TI, IREF, dummy)
         for l in range(nl):
             if ACT[l] == 0.0:
                 continue
@@ -230,13 +235,13 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             break
         for stage in range(1, 4):
             c, w = rk4_coefficients(stage, dt)
-            _stage(t + c, c, w, False, Y, S, U, A, PT, T, TI, IREF, dummy)
+            _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy)
         for l in range(W):  # stopped lanes keep the state they stopped in
             for j in range(6):
                 Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 else Y[j, l]
 
 
-@nb.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
+@nb.njit(parallel=True, cache=True, fastmath=LANE_MATH, error_model="numpy")
 def run_lanes(X, P, T, tix, dt, n_steps, sub, figs, snaps):
     """:func:`batch.run_variants` by blocks of :data:`W` variants in lanes (in parallel
     across blocks); a block that cannot run in lanes runs variant by variant."""
