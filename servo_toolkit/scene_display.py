@@ -7,6 +7,7 @@ import math
 
 from .display import card, facts, num, table
 from .errors import SceneError
+from .output_units import OutputUnit
 
 
 def scene_line(scene) -> str:
@@ -49,7 +50,7 @@ def scene_card(scene) -> str:
             parts.append(facts((("stroke", f"{show_q(lo, u)} .. {show_q(hi, u)}"),
                                 ("operating point q0", show_q(q0, u)),
                                 ("ratio N(q0)", f"{num(n)} motor rad per output {u}"),
-                                ("reflected inertia J(q0)", f"{num(j)} {'kg' if u == 'm' else 'kg*m^2'}"),
+                                ("reflected inertia J(q0)", f"{num(j)} {OutputUnit(u).inertia}"),
                                 ("efficiency", f"{num(dt.efficiency, 3)} driving, "
                                                f"{num(dt.backdrive_efficiency, 3)} back-driven"))))
         except SceneError as exc:

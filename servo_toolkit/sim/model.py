@@ -45,6 +45,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..errors import SceneError
+from ..output_units import OutputUnit
 from ..operating_point import operating_point
 from ..controller import MOTION_INPUTS
 from . import estimator, layout as lo
@@ -273,7 +274,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if not options.variable_inertia:
         j0 = float(drive.inertia([q0])[0][0])
         j_tot, dj_tot = np.full_like(q, j0), np.zeros_like(q)
-        notes.append(f"constant inertia J(q0) = {j0:.4g} {'kg' if drive.output_unit == 'm' else 'kg*m^2'}")
+        notes.append(f"constant inertia J(q0) = {j0:.4g} {OutputUnit(drive.output_unit).inertia}")
     k_tot = drive.stiffness(q).total
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
     jl, load_side = _load_split(drive, q)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import SceneError
+from ..output_units import OutputUnit
 from . import layout as lo
 from .model import build_model, drivetrain_slots
 
@@ -121,8 +122,7 @@ class VariantBuilder:
         delta = 0.0 if load_inertia is None else float(load_inertia) - self.scene.load.inertia
         jl = 0.0 if m.rigid else float(m.P[lo.JL]) + delta * self.d_jl
         if not m.rigid and not jl > 0:
-            unit = "kg" if m.output_unit == "m" else "kg*m^2"
-            raise SceneError("vary.load_inertia", f"{load_inertia:g} {unit} leaves no inertia on the load side "
+            raise SceneError("vary.load_inertia", f"{load_inertia:g} {OutputUnit(m.output_unit).inertia} leaves no inertia on the load side "
                                                   "of the compliance")
         P = P0.copy()
         drivetrain_slots(P, rigid=m.rigid, j0_tot=self.j0 + delta * self.d_j0, jl=jl, k0=self.k0,

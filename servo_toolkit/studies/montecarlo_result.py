@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..output_units import OutputUnit
+
 
 @dataclass(frozen=True)
 class MonteCarloResult:
@@ -67,7 +69,7 @@ class MonteCarloResult:
 
     def ranges_text(self) -> str:
         """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2``."""
-        unit = {"load_inertia": " kg" if self.linear_output else " kg*m^2"}
+        unit = {"load_inertia": " " + OutputUnit("m" if self.linear_output else "rad").inertia}
         return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.values.items())
 
     @property

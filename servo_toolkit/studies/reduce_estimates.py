@@ -215,6 +215,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     lo_, hi = drive.stroke
     qs = np.linspace(max(lo_, q0 - reach), min(hi, q0 + reach), 41)
     effects, notes = [], []
+    u = output_unit(scene)
 
     # limits in the linear prediction
     n0 = p.N
@@ -224,7 +225,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     limited = (i_peak > motor.current_limit) | (v_peak > motor.voltage_limit)
     if limited.any():
         notes.append(f"the linear loop predicts the current or voltage limit from {freqs[limited][0]:.3g} Hz "
-                     f"at {output_unit(scene).text(a_max, 3)} (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
+                     f"at {u.text(a_max, 3)} (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
                      "linear estimates do not hold there")
 
     # armature inductance
@@ -256,7 +257,6 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
 
     # backlash
     play = float(drive.backlash([q0])[0])
-    u = output_unit(scene)
     if play > 0 and math.isfinite(p.K):
         jl = _load_side_inertia(drive, q0)
         static = abs(scene.load.hinge_moment + scene.load.hinge_stiffness * q0)
