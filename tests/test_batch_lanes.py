@@ -64,7 +64,7 @@ def _rows(scene, controller, n, options=None):
     rng = np.random.default_rng(1)
     values = {"load_inertia": rng.uniform(0.0, 4.0, n), "stiffness": rng.uniform(0.7, 1.3, n)}
     P0 = fill(builder.model, REF)
-    P, T, tix = builder.rows(P0, values, None)
+    P, T, tix = builder.rows(P0, values, lambda m: fill(m, REF))
     X0 = np.array([initial_state(builder.model, p) for p in P])
     sub = int(round(builder.model.sample_time / DT))
     return P, T, tix, X0, sub
@@ -110,3 +110,70 @@ def test_a_block_with_a_continuous_controller_runs_variant_by_variant(ema):
     one, lanes = _both(P, model.T[None], np.zeros(3, dtype=np.int64), X0, 0, steps=300)
     for a, b in zip(one, lanes):
         np.testing.assert_array_equal(b, a)
+
+
+@pytest.mark.parametrize("estimator", ["difference", "kalman"])
+def test_lanes_with_a_speed_estimator_and_quantized_encoders(ema, estimator):
+    """The sampled controller's measurements (encoder quantization, the speed estimator's own
+    states) run lane by lane, its state-space update across the lanes: the figures and the
+    estimator's states equal the per-variant loop."""
+    scene, controller = ema
+    options = ModelOptions(**{**sine_run_options(scene, controller, REF)[0].__dict__, "speed_estimator": estimator})
+    P, T, tix, X0, sub = _rows(scene, controller, W + 3, options)
+    assert P[0, lo.EST] > 0 and P[0, lo.LSB] > 0 and P[0, lo.LSB_M] > 0
+    assert X0.shape[1] > lo.NX_PHYS + int(P[0, lo.NC])  # estimator states after the controller's
+    _assert_equal(*_both(P, T, tix, X0, sub))
+
+
+def _motion_pair():
+    """Compile kernel._motion and kernel.motion_columns under the same flags (numba's
+    defaults) for the comparison below."""
+    import numba as nb
+
+    from servo_toolkit.sim.kernel import _motion, motion_columns
+
+    @nb.njit
+    def one(x, P, r, th, wm, work):
+        y = _motion(x, P, r, th, wm, work, 0, True)
+        return y
+
+    @nb.njit
+    def cols(X, P, r, th, wm, y, xn):
+        motion_columns(X, P, r, th, wm, y, xn, X.shape[1])
+
+    return one, cols
+
+
+@pytest.mark.parametrize("nc", [0, 1, 3, 5])
+def test_motion_columns_equals_the_single_controller_update_bit_for_bit(nc):
+    """kernel.motion_columns is kernel._motion (the sampled state-space step) with the lanes
+    side by side: for random controllers, states and inputs, every column's output and next
+    state equal _motion's to the last bit."""
+    one, cols = _motion_pair()
+    rng = np.random.default_rng(nc)
+    w, nx = 6, lo.NX_PHYS + nc + 2  # two trailing states (an estimator's) the update ignores
+    oa, ob, oc, od = 60, 60 + nc * nc, 60 + nc * nc + 3 * nc, 60 + nc * nc + 4 * nc
+    P = rng.normal(size=(od + 3, w)) * np.logspace(-3, 3, od + 3)[:, None]
+    P[lo.NC], P[lo.OFF_A], P[lo.OFF_B], P[lo.OFF_C], P[lo.OFF_D] = nc, oa, ob, oc, od
+    X = rng.normal(size=(nx, w)) * 10.0
+    r, th, wm = rng.normal(size=(3, w))
+    y, xn = np.full(w, np.nan), np.full((max(nc, 1), w), np.nan)
+    cols(X, P, r, th, wm, y, xn)
+    for l in range(w):
+        work = np.full(max(nc, 1), np.nan)
+        y1 = one(X[:, l].copy(), P[:, l].copy(), r[l], th[l], wm[l], work)
+        assert y[l] == y1
+        np.testing.assert_array_equal(xn[:nc, l], work[:nc])
+
+
+def test_a_block_of_controllers_of_different_structures_runs_variant_by_variant():
+    from servo_toolkit.sim.batch_lanes import block_kind
+    P = np.zeros((3, 64))
+    P[:, lo.CMODE] = 1.0
+    assert block_kind(P, 0, 3) == (True, True)
+    P[1, lo.NC] = 2.0
+    assert block_kind(P, 0, 3)[0] is False
+    P[1, lo.NC] = 0.0
+    P[2, lo.OFF_C] = 40.0
+    assert block_kind(P, 0, 3)[0] is False
+    assert block_kind(P, 0, 2) == (True, True)

@@ -4,12 +4,15 @@ A block keeps its variants' physical states in structure-of-arrays form (one row
 one column per lane) and evaluates each RK4 stage as one loop across the lanes around the
 inlined right-hand side (:func:`kernel.rhs_phys` with ``lanes=True``), which LLVM
 vectorizes (AVX-512: the whole block in one register per quantity). The physics is the
-single run's: the same right-hand side, the same controller sample
-(:func:`kernel.controller_update`, at the reference r(t) the block shares) and the same RK4
-stage arithmetic (:func:`integrators.rk4_coefficients`). Per variant the block keeps the
+single run's: the same right-hand side, the same controller sample (each lane's
+measurements by :func:`kernel.controller_inputs`, then the state-space update of
+:func:`kernel.controller_update` across the lanes by :func:`kernel.motion_columns`, at the
+reference r(t) the block shares) and the same RK4 stage arithmetic
+(:func:`integrators.rk4_coefficients`). Per variant the block keeps the
 figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
 stroke end) is masked out while its block-mates go on. A block holding a continuous
-controller or a cam falls back to :func:`batch.variant_run` per variant.
+controller, a cam or controllers of different structures falls back to
+:func:`batch.variant_run` per variant.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from . import layout as lo
 from .batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK,
                     _snap, variant_run)
 from .integrators import rk4_coefficients, step_status
-from .kernel import FASTMATH, controller_update, reference, rhs_phys
+from .kernel import FASTMATH, clip, controller_inputs, motion_columns, reference, rhs_phys
 
 #: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
 #: LLVM applied differently to the same code compiled here and loaded from the cache (the
@@ -35,17 +38,23 @@ jit = nb.njit(cache=True, fastmath=LANE_MATH, error_model="numpy")
 W = 8
 #: parameter slots of the reference r(t), shared by a block when equal in all its variants
 REF_SLOTS = (lo.REF_KIND, lo.REF_A, lo.REF_F, lo.REF_OFF, lo.REF_T0)
+#: the controller's structure (state count and coefficient offsets), which the lanes' state-space
+#: update (:func:`kernel.motion_columns`) takes from the block's first variant
+CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)
 
 
 @jit
 def block_kind(P, v0, nl):
     """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
-    sampled or open-loop controller and no cam in every variant."""
+    sampled or open-loop controller of one structure and no cam in every variant."""
     lanes = True
     shared = True
     for v in range(v0, v0 + nl):
         if int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0:
             lanes = False
+        for j in CONTROLLER_SLOTS:
+            if P[v, j] != P[v0, j]:
+                lanes = False
         for j in REF_SLOTS:
             if P[v, j] != P[v0, j]:
                 shared = False
@@ -144,6 +153,34 @@ def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
                 A[k, l] = out[6 + k, l]
 
 
+@_lane_jit
+def _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN):
+    """The sampled controller of every running lane, the single run's
+    (:func:`kernel.controller_update`): each lane's measurements
+    (:func:`kernel.controller_inputs` on its state column ``Y[:, l]`` and parameter column
+    ``PT[:, l]``), then the state-space update across the lanes
+    (:func:`kernel.motion_columns`, vectorized), at the shared reference r or the lane's own
+    r(t). ``XN`` holds at least the controller's state count rows."""
+    Y, PT, TI = _packed(Y), _packed(PT), _packed(TI)
+    R = _stack_matrix(1, W)[0]
+    TH = _stack_matrix(1, W)[0]
+    WM = _stack_matrix(1, W)[0]
+    YC = _stack_matrix(1, W)[0]
+    for l in range(W):
+        R[l], TH[l], WM[l] = 0.0, 0.0, 0.0
+        if ACT[l] > 0.0:
+            pc = _column(PT, l)
+            R[l] = r if shared else reference(t, pc)
+            TH[l], WM[l] = controller_inputs(_column(Y, l), pc, T[TI[l]])
+    motion_columns(Y, PT, R, TH, WM, YC, XN, W)
+    nc = int(PT[lo.NC, 0])
+    for l in range(W):  # stopped lanes keep the state they stopped in
+        if ACT[l] > 0.0:
+            for j in range(nc):
+                Y[lo.NX_PHYS + j, l] = XN[j, l]
+            IREF[l] = clip(YC[l], PT[lo.ILIM, l])
+
+
 @jit
 def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     """Variants v0 .. v0 + nl - 1 (nl <= W) in lanes: as :func:`batch.variant_run` for each
@@ -153,13 +190,13 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     n_par = P.shape[1]
     PT = np.empty((n_par, W))  # parameters, a column per lane (unused lanes repeat the last)
     TI = np.empty(W, dtype=np.int64)
-    Y = np.empty((lo.NX_PHYS, W))
+    Y = np.empty((nx, W))  # states, a column per lane (the controller's after the physical)
     for l in range(W):
         v = v0 + min(l, nl - 1)
         TI[l] = tix[v]
         for j in range(n_par):
             PT[j, l] = P[v, j]
-        for j in range(lo.NX_PHYS):
+        for j in range(nx):
             Y[j, l] = X[v, j]
     S = np.zeros((6, W))
     U = np.zeros((6, W))
@@ -173,7 +210,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
         fig[l, 1] = -1.0
         fig[l, 4] = -1.0
     dummy = np.zeros(max(nx, 1))
-    work = np.empty(max(nx, 1))
+    XN = np.empty((max(nx - lo.NX_PHYS, 1), W))  # the controller's next states
     to_sample = 0
     sixth = dt / 6.0
     running = nl
@@ -184,14 +221,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             r = reference(t, P[v0])
         if sub > 0:
             if to_sample == 0:
-                for l in range(nl):
-                    if ACT[l] > 0.0:
-                        v = v0 + l
-                        x = X[v]
-                        for j in range(lo.NX_PHYS):
-                            x[j] = Y[j, l]
-                        rl = r if shared else reference(t, P[v])
-                        IREF[l] = controller_update(rl, x, P[v], T[tix[v]], work)
+                _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN)
                 to_sample = sub
             to_sample -= 1
         S[:, :] = 0.0
@@ -200,7 +230,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             if ACT[l] == 0.0:
                 continue
             v = v0 + l
-            x = X[v]
+            x = Y[:, l]
             p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
             err = abs(q - (r if shared else reference(t, P[v])))
             if err > fig[l, 0]:
@@ -222,8 +252,8 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             if status != lo.OK or step == n_steps:
                 ACT[l] = 0.0
                 running -= 1
-                for j in range(lo.NX_PHYS):
-                    x[j] = Y[j, l]
+                for j in range(nx):
+                    X[v, j] = Y[j, l]
                 _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
                 figs[v, F_STATUS] = status
                 figs[v, F_STEP] = step

@@ -163,6 +163,31 @@ def _motion(x, P, r, th, wm, dx, base, write_state):
 
 
 @inline
+def motion_columns(X, P, r, th, wm, y, xn, w):
+    """:func:`_motion` (sampled: output and next state) for ``w`` controllers side by side,
+    controller l in column l of ``X`` (states at rows NX_PHYS..) and ``P`` (parameters), its
+    inputs ``r[l]``, ``th[l]``, ``wm[l]``; output into ``y[l]``, next states into
+    ``xn[j, l]``. Every column takes the sums of :func:`_motion` in their order (the same
+    value to the last bit under the same flags); the loops across columns are innermost, so
+    they vectorize. The controller's structure (size and offsets) is column 0's: every
+    column must share it.
+    """
+    nc = int(P[NC, 0])
+    oa, ob, oc, od = int(P[OFF_A, 0]), int(P[OFF_B, 0]), int(P[OFF_C, 0]), int(P[OFF_D, 0])
+    for l in range(w):
+        y[l] = P[od, l] * r[l] + P[od + 1, l] * th[l] + P[od + 2, l] * wm[l]
+    for j in range(nc):
+        for l in range(w):
+            y[l] += P[oc + j, l] * X[NX_PHYS + j, l]
+    for j in range(nc):
+        for l in range(w):
+            xn[j, l] = P[ob + 3 * j, l] * r[l] + P[ob + 3 * j + 1, l] * th[l] + P[ob + 3 * j + 2, l] * wm[l]
+        for k in range(nc):
+            for l in range(w):
+                xn[j, l] += P[oa + j * nc + k, l] * X[NX_PHYS + k, l]
+
+
+@inline
 def measured_angle(q, P):
     """Output encoder: q rounded to the encoder's least significant bit (0 = ideal)."""
     lsb = P[LSB]
@@ -231,18 +256,26 @@ def controller_sample(t, x, P, T, work):
 
 
 @inline
+def controller_inputs(x, P, T):
+    """The motion controller's measurements at the state x: the output angle as the output
+    encoder reads it and the motor speed, true or estimated (:func:`speed_estimate`, whose
+    states in x are updated)."""
+    n, _ = hermite(T, T_N, P, x[0])
+    wm = speed_estimate(x, P, T, n * x[1])
+    return measured_angle(x[2], P), wm
+
+
+@inline
 def controller_update(r, x, P, T, work):
-    """The sample of :func:`controller_sample` at a given reference r (the batched variants
-    share r(t)): returns the held i_ref, updates x[NX_PHYS:].
+    """The sample of :func:`controller_sample` at a given reference r: returns the held i_ref,
+    updates x[NX_PHYS:].
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
-    encoder (:func:`speed_estimate`).
+    encoder (:func:`controller_inputs`).
     """
     nc = int(P[NC])
-    n, _ = hermite(T, T_N, P, x[0])
-    wm = speed_estimate(x, P, T, n * x[1])
-    th = measured_angle(x[2], P)
+    th, wm = controller_inputs(x, P, T)
     y = _motion(x, P, r, th, wm, work, 0, True)
     for j in range(nc):
         x[NX_PHYS + j] = work[j]
