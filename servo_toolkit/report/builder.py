@@ -13,6 +13,7 @@ from ..errors import SceneError
 from . import sections_drivetrain as drv
 from . import sections_export as export_section
 from . import sections_loop as loop
+from . import sections_montecarlo as montecarlo
 from . import sections_closed as closed
 from . import sections_limits as limits
 from . import sections_robust as robust
@@ -38,6 +39,7 @@ SECTIONS = (
     ("stroke", "Margins along the stroke", stroke.margins_along_stroke),
     ("closed_loop", "Closed loop: sensitivity, Nichols, disturbance rejection, step", closed.closed_loop),
     ("robustness", "Robustness over the parameter variants", robust.robustness),
+    ("montecarlo", "Nonlinear Monte Carlo over the parameter variants", montecarlo.montecarlo_section),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
@@ -153,7 +155,8 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         ctx.use_design(design)
     if ctx.has_drivetrain():  # compilation is never charged to a section's time limit
         from ..sim.warmup import compile_kernels
-        compile_kernels(paper=True)  # the accuracy section runs both fixed-step schemes
+        # the accuracy section runs both fixed-step schemes; the Monte Carlo one, the batch
+        compile_kernels(paper=True, batch=scene.robustness is not None)
     built = []
     steps = list(SECTIONS) + [REQUIREMENTS]
     bar = tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False)

@@ -59,8 +59,13 @@ def _requirement_rows(ctx):
         short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
         rows.append((label, f"{c.sense} {fmt(c.required)} {c.unit}", f"{fmt(c.achieved)} {c.unit}", short,
                      "pass" if c.passed else "fail"))
+    from .sections_montecarlo import requirement_rows as montecarlo_rows
     from .sections_robust import requirement_rows as robust_rows
     rows += robust_rows(ctx)
+    try:
+        rows += montecarlo_rows(ctx)
+    except Exception as exc:  # noqa: BLE001 - the Monte Carlo section shows the same failure
+        rows.append(("robust: nonlinear time runs", "", str(exc), "", "unavailable"))
     stable = bool(design.margins.closed_loop_stable)
     rows.append(("closed loop stable", "yes", "yes" if stable else "no",
                  "" if stable else f"pole at Re = {fmt(design.margins.max_closed_loop_pole_real)} 1/s",

@@ -28,15 +28,19 @@ def is_cached(paper: bool = False) -> bool:
     return all(any(root.glob(f"**/integrators.{n}-*.nbi")) for n in names)
 
 
-def compile_kernels(paper: bool = False) -> dict:
+def compile_kernels(paper: bool = False, batch: bool = False) -> dict:
     """Compile or load every kernel a simulation of a drivetrain scene runs: the RK4 loop,
     the right-hand side called from Python (traces, Jacobians, the stiff reference solver),
-    the table interpolation, and with ``paper`` the cam paper's scheme.
+    the table interpolation, with ``paper`` the cam paper's scheme and with ``batch`` the
+    batched variants of the nonlinear Monte Carlo.
 
     Parameters
     ----------
     paper : bool
         Also the paper's frozen-configuration scheme (scenes ending in a cam).
+    batch : bool
+        Also :func:`servo_toolkit.studies.montecarlo.montecarlo`'s kernels (its lanes, the
+        per-variant loop and the step check).
 
     Returns
     -------
@@ -52,8 +56,13 @@ def compile_kernels(paper: bool = False) -> dict:
     cold = not is_cached(paper)
     start = time.perf_counter()
     scene = load_scene()
-    model = build_model(scene, default_controller(scene))
+    controller = default_controller(scene)
+    model = build_model(scene, controller)
     dt = 1e-5
     for method in ("rk4", "paper") if paper else ("rk4",):
         run(model, Reference.sine(1e-3, 8.0), duration=WARM_STEPS * dt, method=method, dt=dt)
+    if batch:
+        from ..studies.montecarlo import montecarlo
+        montecarlo(scene, {"load_inertia": (0.5, 1.5)}, samples=2, duration=WARM_STEPS * dt, dt=dt,
+                   controller=controller, progress=False)
     return {"seconds": time.perf_counter() - start, "compiled": cold}

@@ -156,11 +156,12 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     duration = run_duration if duration is None else float(duration)
     if not duration > 0:
         raise SceneError("duration", f"must be positive (got {duration:g} s)")
-    source = "given"
+    source = "controller given by the caller"
     if controller is None:
         controller, source = controller_for(scene)
+        source = f"controller from {source}"
     options, notes = sine_run_options(scene, controller, reference, full)
-    notes.insert(0, f"controller from {source}, the same on every variant")
+    notes.insert(0, f"{source}, the same on every variant")
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
     if builder.fast and not builder.self_check(values):
         builder = replace(builder, fast=False)

@@ -209,7 +209,7 @@ class MonteCarloResult:
                           if "load_inertia" in self.values else "variant")
             ax.set_ylabel(label)
         if c is not None:
-            plt.colorbar(sc, ax=axes[1], label="stiffness factor")
+            axes[1].figure.colorbar(sc, ax=axes[1], label="stiffness factor")
         axes[0].set_title(f"{self.scene_name}: {self.count} variants")
         return axes
 
