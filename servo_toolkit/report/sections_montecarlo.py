@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..output_units import OutputUnit
 from . import figures
 from .section import FigureSpec, NotApplicable, Section, fmt, para, table
 
@@ -60,7 +59,7 @@ def _traces(result, axes):
         at = ", ".join(f"{k} {v[i]:.3g}" for k, v in result.values.items())
         axes[0].plot(tr.times, tr.unit.show(tr.output_angle - tr.reference_angle), lw=1, label=f"#{i}: {at}")
         axes[1].plot(tr.times, tr.motor_current, lw=1, label=f"#{i}")
-    unit = OutputUnit("m" if result.linear_output else "rad")
+    unit = result.unit
     axes[0].set(xlabel="time [s]", ylabel=f"tracking error [{unit.shown}]",
                 title=f"the {WORST} worst variants (tracking error)")
     axes[1].set(xlabel="time [s]", ylabel="motor current [A]", title="their motor current")
@@ -74,7 +73,7 @@ def montecarlo_section(ctx) -> Section:
     ``[robustness]`` variants: scatter over the spread, the worst variants' traces and a
     table of them, and the Monte Carlo requirements when the scene sets them."""
     result, checks = montecarlo_results(ctx)
-    unit = OutputUnit("m" if result.linear_output else "rad")
+    unit = result.unit
     reference = result.runner[2]
     fig, axes = figures.new_figure(2, 2, size=(11.0, 7.0))
     result.plot(axes[0])

@@ -67,20 +67,25 @@ class MonteCarloResult:
         """Number of variants."""
         return int(self.tracking_error.size)
 
+    @property
+    def unit(self) -> OutputUnit:
+        """Units of the output coordinate (an angle, or a travel)."""
+        return OutputUnit("m" if self.linear_output else "rad")
+
     def ranges_text(self) -> str:
         """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2``."""
-        unit = {"load_inertia": " " + OutputUnit("m" if self.linear_output else "rad").inertia}
+        unit = {"load_inertia": " " + self.unit.inertia}
         return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.values.items())
 
     @property
     def error_unit(self) -> str:
         """``"mm"`` for an output travel, else ``"deg"``."""
-        return "mm" if self.linear_output else "deg"
+        return self.unit.shown
 
     @property
     def error_display(self) -> np.ndarray:
         """Tracking errors in :attr:`error_unit`."""
-        return self.tracking_error * 1e3 if self.linear_output else np.degrees(self.tracking_error)
+        return self.unit.show(self.tracking_error)
 
     def worst_index(self, figure: str = "tracking_error") -> int | None:
         """Index of the variant with the largest ``figure`` (``"tracking_error"`` or
@@ -205,7 +210,7 @@ class MonteCarloResult:
             if np.any(self.failed):
                 ax.scatter(x[self.failed], np.zeros(int(np.sum(self.failed))), marker="x", color="r", label="failed")
                 ax.legend()
-            ax.set_xlabel(("load mass (kg)" if self.linear_output else "load inertia (kg*m^2)")
+            ax.set_xlabel(f"load {'mass' if self.unit.linear else 'inertia'} ({self.unit.inertia})"
                           if "load_inertia" in self.values else "variant")
             ax.set_ylabel(label)
         if c is not None:
