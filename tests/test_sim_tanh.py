@@ -7,7 +7,7 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
-from servo_toolkit.sim.kernel import TANH_ONE, tanh
+from servo_toolkit.sim.vmath import TANH_ONE, tanh
 from servo_toolkit.sim.vmath import TANH_SMALL
 
 

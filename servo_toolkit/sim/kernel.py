@@ -39,15 +39,15 @@ from ..jit_cache import install as _install_cache
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
-from .vmath import TANH_ONE, tanh  # noqa: E402,F401 - the friction's branch-free tanh
+from .vmath import tanh  # noqa: E402 - the friction's branch-free tanh
 
-from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, EST_KALMAN, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
+from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
-                     HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, JL, KE, KII, KPI, KSCALE,
+                     HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE,
                      KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
                      PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
                      REF_STEP, REF_T0, RIGID, STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP,
-                     T_DJ, T_DK, T_DN, T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
+                     T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
                      INV_H, INV_L, INV_JL)
 
 #: half plays at or below this (rad) act as a plain spring-damper (Modelica's bEps = 1e-10 rad
