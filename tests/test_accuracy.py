@@ -60,3 +60,26 @@ def test_the_observed_order_leaves_out_the_reference_plateau():
     assert abs(_order(dts, fourth + [3.5e-6, 3.5e-6]) - 4.0) < 1e-9
     assert abs(_order(dts[::-1], (fourth + [3.5e-6, 3.5e-6])[::-1]) - 4.0) < 1e-9   # any order of the ladder
     assert abs(_order(dts, [1e-3 * d / 1e-4 for d in dts]) - 1.0) < 1e-9         # no plateau: every point
+
+
+def test_self_convergence_measures_the_order_where_the_reference_cannot():
+    """On the cam drive every RK4 error against the stiff reference sits at the reference's
+    own accuracy (no order can be fitted), yet successive halvings of the step still shrink
+    the difference at fourth order."""
+    from servo_toolkit.sim import controller_for
+    scene = load_scene(SCENES / "cam_follower.toml")
+    model = build_model(scene, controller_for(scene)[0])  # as `servo-toolkit accuracy` runs it
+    res = accuracy_study(model, Reference.sine(math.radians(2), 8.0), 0.1, progress=False)
+    errors = [r["error"] for r in res.runs if r["method"] == "rk4"]
+    assert max(errors) < 1.2 * min(errors) and min(errors) > 1e-11  # a plateau above the tolerance floor
+    assert math.isnan(res.order)
+    assert 3.5 < res.self_order < 4.6
+    assert "not measurable against the reference" in res.order_text() and res.to_dict()["self_order"] == res.self_order
+
+
+def test_the_order_floor_leaves_out_rounding():
+    from servo_toolkit.sim.accuracy import ROUNDING_FLOOR, _order
+    dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5]
+    fourth = [1e-10 * (d / 1e-4) ** 4 for d in dts]  # from the third on below the rounding floor
+    assert abs(_order(dts, fourth, ROUNDING_FLOOR) - 4.0) < 1e-9
+    assert math.isnan(_order(dts, fourth))  # the reference floor (1e-11) leaves a single point

@@ -168,10 +168,10 @@ def accuracy(ctx) -> Section:
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize="small")
     text = para(f"{res.description}.",
-                f"Observed order of convergence: RK4 {res.order:.2f} against the reference (4 on a smooth run; "
-                "less when the errors reach the reference's own tolerance or the run has non-smooth events); "
-                f"the cam paper's frozen-configuration scheme {res.paper_order:.2f} from its self-convergence "
-                "between successive halvings of the step. Against the reference the paper scheme's error levels "
+                f"Observed order of convergence: {res.order_text()}. Against the reference, the order is fitted "
+                "over the steps whose errors are above the reference's own accuracy (4 on a smooth run; less when "
+                "the run has non-smooth events); self-convergence compares successive halvings of the step and "
+                "needs no reference. Against the reference the paper scheme's error levels "
                 "off at the difference between its play operator (seed 002, eqs 6-8) and the elasto-backlash "
                 "law of the reference model, not at a step-size error.",
                 "Error is the largest output-angle difference from the reference, relative to the motion "
