@@ -109,3 +109,26 @@ def test_first_report_on_an_empty_cache_is_complete(tmp_path):
     html = (out / "index.html").read_text()
     assert "stopped after" not in html
     assert 'class="unavailable-box"' not in html and 'class="badge unavailable"' not in html
+
+
+def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missing(tmp_path, monkeypatch, capsys):
+    """With the single-run kernels cached but not the batch, ``montecarlo`` and the report of
+    a scene with [robustness] still say on stderr that they compile (about half a minute)."""
+    from servo_toolkit import jit_cache, load_scene
+    from servo_toolkit.cli.common import prepare_kernels
+    from servo_toolkit.sim import warmup
+    (tmp_path / "sim").mkdir()
+    (tmp_path / "sim" / "integrators._rk4-145.py311.nbi").write_bytes(b"")
+    (tmp_path / "sim" / "integrators._paper-200.py311.nbi").write_bytes(b"")
+    monkeypatch.setattr(jit_cache, "cache_dir", lambda: tmp_path)
+    calls = []
+    monkeypatch.setattr(warmup, "compile_kernels", lambda *a: calls.append(a))
+    scene = load_scene()
+    prepare_kernels(scene, paper=True)
+    assert "compiling" not in capsys.readouterr().err
+    prepare_kernels(scene, batch=True)
+    assert "compiling the simulation kernels" in capsys.readouterr().err
+    (tmp_path / "sim" / "batch_lanes.run_lanes-250.py311.nbi").write_bytes(b"")
+    prepare_kernels(scene, paper=True, batch=True)
+    assert "compiling" not in capsys.readouterr().err
+    assert calls == [(True, False), (False, True), (True, True)]

@@ -10,7 +10,7 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
+from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -54,6 +54,7 @@ def run(args) -> int:
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
     varies = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
+    prepare_kernels(scene, batch=True)  # the first run after an install says it compiles
     reference = None
     if args.amplitude is not None or args.frequency is not None:
         from ..sim.studies import run_spec

@@ -44,7 +44,8 @@ def run(args) -> int:
         from ..loop.tuning import load_design
         given = load_design(scene, args.design)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
-    prepare_kernels(scene, paper=True)  # the accuracy section runs both fixed-step schemes
+    # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
+    prepare_kernels(scene, paper=True, batch=scene.robustness is not None)
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
     with atomic_folder(out_dir) as tmp:  # never a mixed or half-written report
         write_report(report, tmp, progress=True)

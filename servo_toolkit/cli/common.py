@@ -52,17 +52,18 @@ def emit(args, result, text: str) -> None:
         sys.stdout.write(text.rstrip() + "\n")
 
 
-def prepare_kernels(scene, paper: bool = False) -> None:
+def prepare_kernels(scene, paper: bool = False, batch: bool = False) -> None:
     """Compile (or load) the simulation kernels before the timed work of a command, saying
-    on stderr what happens when they are not cached yet (the first run after an install)."""
+    on stderr what happens when they are not cached yet (the first run after an install);
+    ``paper`` and ``batch`` add the cam paper's scheme and the Monte Carlo's batch."""
     if not (scene.stages and scene.motor is not None):
         return
     from ..jit_cache import cache_dir
     from ..sim.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
-    if not is_cached(paper):
+    if not is_cached(paper, batch):
         print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
               f"cached in {cache_dir()})", file=sys.stderr, flush=True)
-    compile_kernels(paper)
+    compile_kernels(paper, batch)
 
 
 def bounded(kind=float, low=None, high=None, *, low_open: bool = False, what: str = "a number"):

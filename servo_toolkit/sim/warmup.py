@@ -19,13 +19,14 @@ WARM_STEPS = 4
 TYPICAL_COMPILE_S = 30
 
 
-def is_cached(paper: bool = False) -> bool:
-    """True when the compiled RK4 loop (and the paper scheme's, with ``paper``) is in the
-    on-disk cache, so :func:`compile_kernels` only loads it."""
+def is_cached(paper: bool = False, batch: bool = False) -> bool:
+    """True when the compiled RK4 loop (the paper scheme's too with ``paper``, the batched
+    variants' with ``batch``) is in the on-disk cache, so :func:`compile_kernels` only
+    loads it."""
     from ..jit_cache import cache_dir
     root = cache_dir()
-    names = ("_rk4", "_paper") if paper else ("_rk4",)
-    return all(any(root.glob(f"**/integrators.{n}-*.nbi")) for n in names)
+    names = ["integrators._rk4"] + (["integrators._paper"] if paper else []) + (["batch_lanes.run_lanes"] if batch else [])
+    return all(any(root.glob(f"**/{n}-*.nbi")) for n in names)
 
 
 def compile_kernels(paper: bool = False, batch: bool = False) -> dict:
@@ -53,7 +54,7 @@ def compile_kernels(paper: bool = False, batch: bool = False) -> dict:
     from .engine import run
     from .model import build_model
     from .reference import Reference
-    cold = not is_cached(paper)
+    cold = not is_cached(paper, batch)
     start = time.perf_counter()
     scene = load_scene()
     controller = default_controller(scene)
