@@ -54,12 +54,12 @@ def run(args) -> int:
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
     varies = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
-    prepare_kernels(scene, batch=True)  # the first run after an install says it compiles
     reference = None
     if args.amplitude is not None or args.frequency is not None:
         from ..sim.studies import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
                              frequency=args.frequency)[0]
+    prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
     variants = None
     if varies:
         base = dict(scene.robustness.ranges) if scene.robustness is not None else {}
