@@ -16,6 +16,7 @@ import control as ct
 import numpy as np
 
 from ..errors import SceneError
+from ..output_units import OutputUnit
 from ..parallel import chunks, run_cases
 from ..plant import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, sample_delay, spring_damping
 from .assembly import _abcd, closed_loop_matrix, controller_matrices
@@ -223,7 +224,8 @@ class RobustnessResult(RichDisplay):
             ax.figure.colorbar(sc, ax=ax, label="stiffness factor")
         ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
                    label="unstable")
-        ax.set_xlabel("load mass (kg)" if self.output_unit == "m" else "load inertia (kg*m^2)")
+        unit = OutputUnit(self.output_unit)
+        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} ({unit.inertia})")
         ax.set_ylabel(figure)
         ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
         return ax

@@ -24,12 +24,9 @@ def montecarlo_results(ctx):
     ctx.require_drivetrain("the Monte Carlo time runs")
 
     def compute():
-        from ..studies.montecarlo import montecarlo
-        from ..studies.montecarlo_check import montecarlo_requirements, result_checks
+        from ..studies.montecarlo_check import montecarlo_requirements, result_checks, spec_montecarlo
         requirements = montecarlo_requirements(ctx.scene, spec)
-        result = montecarlo(ctx.scene, spec.ranges, samples=spec.samples, seed=spec.seed,
-                            grid=spec.method == "grid", controller=ctx.design().controller,
-                            executor=ctx.executor, progress=False)
+        result = spec_montecarlo(ctx.scene, spec, ctx.design().controller, executor=ctx.executor)
         return result, (result_checks(requirements, result) if requirements else [])
     return ctx.result("montecarlo", compute)
 

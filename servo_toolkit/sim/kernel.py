@@ -39,7 +39,7 @@ from ..jit_cache import install as _install_cache
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
-from .vmath import tanh  # noqa: E402 - the friction's branch-free tanh
+from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 
 from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
@@ -53,11 +53,7 @@ from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, INV_TS,
 #: half plays at or below this (rad) act as a plain spring-damper (Modelica's bEps = 1e-10 rad
 #: total backlash)
 B_EPS = 0.5e-10
-#: numba fast-math flags that keep NaN/inf semantics (non-finite detection must work)
-FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-#: helpers are inlined at numba-IR level: no call overhead, no array reference counting
-inline = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 
 
 @inline

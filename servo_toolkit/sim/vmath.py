@@ -16,7 +16,14 @@ import math
 import numba as nb
 import numpy as np
 
+from ..jit_cache import install as _install_cache
+
+_install_cache()  # noqa: E402 - before any kernel below is decorated
+
+#: numba fast-math flags that keep NaN/inf semantics (non-finite detection must work); the
+#: whole right-hand side (:mod:`.kernel`) is compiled with them
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+#: helpers are inlined at numba-IR level: no call overhead, no array reference counting
 inline = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 
 #: |a| from which tanh(a) rounds to +-1 in double precision (1 - tanh(22) = 1.6e-19; libm's

@@ -56,13 +56,19 @@ def montecarlo_checks(scene, spec, controller, *, progress: bool = False):
         Empty (and nothing run) when ``spec`` sets no Monte Carlo requirement.
     result : MonteCarloResult or None
     """
-    from .montecarlo import montecarlo
     requirements = montecarlo_requirements(scene, spec)
     if not requirements:
         return [], None
-    result = montecarlo(scene, spec.ranges, samples=spec.samples, seed=spec.seed, grid=spec.method == "grid",
-                        controller=controller, progress=progress)
+    result = spec_montecarlo(scene, spec, controller, progress=progress)
     return result_checks(requirements, result), result
+
+
+def spec_montecarlo(scene, spec, controller, *, executor=None, progress: bool = False):
+    """The nonlinear time runs (:func:`~.montecarlo.montecarlo`) of the variants ``spec`` (a
+    :class:`~servo_toolkit.scene.Robustness`) samples, with ``controller``."""
+    from .montecarlo import montecarlo
+    return montecarlo(scene, spec.ranges, samples=spec.samples, seed=spec.seed, grid=spec.method == "grid",
+                      controller=controller, executor=executor, progress=progress)
 
 
 def result_checks(requirements, result) -> list:
