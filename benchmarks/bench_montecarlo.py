@@ -32,11 +32,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from servo_toolkit.loop.robustness import sample_variants  # noqa: E402
-from servo_toolkit.scene import load_scene  # noqa: E402
+from servo_toolkit.scene.loader import load_scene  # noqa: E402
 from servo_toolkit.sim import controller_for, run  # noqa: E402
-from servo_toolkit.sim.batch import integrate_variants  # noqa: E402
+from servo_toolkit.sim.batch_run import integrate_variants  # noqa: E402
 from servo_toolkit.sim.reference import fill, initial_state  # noqa: E402
-from servo_toolkit.sim.studies import run_spec  # noqa: E402
+from servo_toolkit.studies.time_reference import run_spec  # noqa: E402
 from servo_toolkit.sim.variants import VariantBuilder  # noqa: E402
 from servo_toolkit.studies.montecarlo import montecarlo  # noqa: E402
 from servo_toolkit.studies.time_run import sine_run_options  # noqa: E402

@@ -7,14 +7,13 @@ needs them is used.
 
 from importlib import import_module
 
+from .core.version import __version__
 from .errors import SceneError, SimulationError
-
-__version__ = "0.1.0"
 
 #: public name -> module that defines it (imported on first access)
 _LAZY = {"Scene": ".scene", "load_scene": ".scene", "design": ".loop", "export": ".export",
          "simulate": ".sim", "tune": ".tuner", "tuned_design": ".loop.tuning", "LoopTuning": ".loop.tuning",
-         "fit": ".identify"}
+         "fit": ".identify", "run_study": ".studies.run"}
 
 __all__ = ["SceneError", "SimulationError", "__version__", *sorted(_LAZY)]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from servo_toolkit.scene import scene_from_dict
+from servo_toolkit.scene.loader import scene_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"

@@ -8,7 +8,7 @@ import math
 from servo_toolkit import load_scene
 from servo_toolkit.cli import main
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller
-from servo_toolkit.sim.accuracy import accuracy_study
+from servo_toolkit.studies.accuracy import accuracy_study
 
 from .conftest import SCENES
 
@@ -54,7 +54,7 @@ def test_cli_simulate_and_accuracy_json(capsys, tmp_path):
 def test_the_observed_order_leaves_out_the_reference_plateau():
     """Errors that stop falling have reached the reference's own accuracy: the fit of the
     order stops there instead of averaging the plateau into a lower order."""
-    from servo_toolkit.sim.accuracy import _order
+    from servo_toolkit.studies.accuracy import _order
     dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5, 6.25e-6]
     fourth = [1e-3 * (d / 1e-4) ** 4 for d in dts[:3]]
     assert abs(_order(dts, fourth + [3.5e-6, 3.5e-6]) - 4.0) < 1e-9
@@ -78,7 +78,7 @@ def test_self_convergence_measures_the_order_where_the_reference_cannot():
 
 
 def test_the_order_floor_leaves_out_rounding():
-    from servo_toolkit.sim.accuracy import ROUNDING_FLOOR, _order
+    from servo_toolkit.studies.accuracy import ROUNDING_FLOOR, _order
     dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5]
     fourth = [1e-10 * (d / 1e-4) ** 4 for d in dts]  # from the third on below the rounding floor
     assert abs(_order(dts, fourth, ROUNDING_FLOOR) - 4.0) < 1e-9

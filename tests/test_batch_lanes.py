@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from servo_toolkit.scene import load_scene
+from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_END,

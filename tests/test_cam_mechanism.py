@@ -11,14 +11,16 @@ from scipy.optimize import brentq
 
 from servo_toolkit import SceneError, SimulationError, load_scene
 from servo_toolkit.cli import main as cli_main
-from servo_toolkit.components.cam import modified_constant_velocity
-from servo_toolkit.mechanisms import handles, run_study
-from servo_toolkit.mechanisms import cam_kernels
-from servo_toolkit.mechanisms.cam import CamDrive, clearance_hysteresis, constant_speed
-from servo_toolkit.estimation import kalman_estimate, quantize
-from servo_toolkit.mechanisms.cam_estimation import (compare_on_reference, rms_jerk, steady_state_noise,
+from servo_toolkit.components.cam.geometry import modified_constant_velocity
+from servo_toolkit.studies.mechanisms import handles
+from servo_toolkit.studies.run import run_study
+from servo_toolkit.components.cam import kernels as cam_kernels
+from servo_toolkit.components.cam.drive import CamDrive, clearance_hysteresis
+from servo_toolkit.studies.cam.constant_speed import constant_speed
+from servo_toolkit.loop.encoder_estimators import kalman_estimate, quantize
+from servo_toolkit.studies.cam.estimation import (compare_on_reference, rms_jerk, steady_state_noise,
                                                      true_acceleration)
-from servo_toolkit.mechanisms.cam_voltage import accurate, constant_voltage, discrete_scheme
+from servo_toolkit.studies.cam.voltage import accurate, constant_voltage, discrete_scheme
 
 from .conftest import SCENES, build, variant
 

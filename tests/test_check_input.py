@@ -8,7 +8,7 @@ import pytest
 from servo_toolkit.cli import main
 from servo_toolkit.errors import SceneError
 from servo_toolkit.loop.requirements import parse_override, requirements_of
-from servo_toolkit.scene import load_scene, scene_from_dict
+from servo_toolkit.scene.loader import load_scene, scene_from_dict
 
 from .conftest import SCENES
 

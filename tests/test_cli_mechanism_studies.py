@@ -1,7 +1,7 @@
 """Every seed-mechanism study runs by name through ``simulate``, ``kv`` and ``sweep``.
 
-The three commands dispatch a study that :func:`servo_toolkit.mechanisms.handles` claims to
-:func:`servo_toolkit.mechanisms.run_study`, before looking the name up in the scene file, so
+The three commands dispatch a study that :func:`servo_toolkit.studies.mechanisms.handles` claims to
+:func:`servo_toolkit.studies.mechanisms.run_study`, before looking the name up in the scene file, so
 the built-in roller-screw studies (not in the file) run too. Options that only mean something
 for the sine-dwell sweep are refused with one line and exit 2.
 """
@@ -13,8 +13,8 @@ import json
 import pytest
 
 from servo_toolkit.cli import main
-from servo_toolkit.mechanisms import ROLLER_SCREW_STUDIES
-from servo_toolkit.scene import load_scene
+from servo_toolkit.studies.mechanisms import ROLLER_SCREW_STUDIES
+from servo_toolkit.scene.loader import load_scene
 
 from .conftest import SCENES
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import servo_toolkit as st
-from servo_toolkit.controller import CascadeController
+from servo_toolkit.loop.controller import CascadeController
 from servo_toolkit.loop import evaluate, linear_closed_loop
 from servo_toolkit.loop.assembly import closed_loop_matrix, controller_matrices
 from servo_toolkit.loop.structures import Motion
-from servo_toolkit.plant import current_controller, plant_matrices
+from servo_toolkit.plant.linear import current_controller, plant_matrices
 
 from .conftest import SCENES
 
@@ -121,7 +121,7 @@ def test_robust_false_on_a_scene_with_robustness_is_the_nominal_design(ema_desig
 
 def test_robust_design_of_a_rigid_drive_stays_in_its_search_box():
     # a rigid, delay-free cascade gets better with every gain increase: the search is bounded
-    from servo_toolkit.scene import Robustness
+    from servo_toolkit.scene.loader import Robustness
     cam = st.load_scene(SCENES / "cam_follower.toml")
     r = st.design(cam, robust=Robustness(load_inertia=(0.0, 1e-4), stiffness=None, samples=100), progress=False)
     assert r.parameters.rigid and r.robustness.all_stable and r.passed, r.table()

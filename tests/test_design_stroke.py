@@ -17,7 +17,7 @@ from servo_toolkit.errors import SceneError
 from servo_toolkit.loop import open_loop
 from servo_toolkit.loop.robustness import _controller_blocks
 from servo_toolkit.loop.stroke import INERTIA_SPREAD_LIMIT, StrokeLoops, operating_point, stroke_check
-from servo_toolkit.plant import plant_parameters
+from servo_toolkit.plant.linear import plant_parameters
 
 from .conftest import SCENES
 

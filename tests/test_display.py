@@ -9,7 +9,7 @@ from html.parser import HTMLParser
 import pytest
 
 from servo_toolkit import load_scene
-from servo_toolkit.display import num
+from servo_toolkit.display.cards import num
 from servo_toolkit.loop import design
 from servo_toolkit.loop.robustness import robustness
 from servo_toolkit.report.builder import Report

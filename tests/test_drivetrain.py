@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from servo_toolkit import load_scene
-from servo_toolkit.drivetrain import series
+from servo_toolkit.drivetrain.reflected import series
 from servo_toolkit.studies.stiffness import stiffness_study
 
 from .conftest import SCENES, build, variant

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from servo_toolkit.estimation import (BackwardDifference, KalmanEstimator, backward_difference_estimate,
+from servo_toolkit.loop.encoder_estimators import (BackwardDifference, KalmanEstimator, backward_difference_estimate,
                                       compare_estimators, encoder_quantum, kalman_estimate, quantize,
                                       steady_state_gain)
 

@@ -24,10 +24,10 @@ from hypothesis import strategies as st
 from scipy import integrate, linalg
 
 from servo_toolkit import design, load_scene, simulate
-from servo_toolkit.estimation import steady_state_gain
+from servo_toolkit.loop.encoder_estimators import steady_state_gain
 from servo_toolkit.export import export, quantized_controller, tustin_to_continuous
 from servo_toolkit.export.quantize import q_format
-from servo_toolkit.sim.estimator import default_jerk
+from servo_toolkit.sim.speed_estimator import default_jerk
 from servo_toolkit.sim.reference import Reference
 
 from .conftest import SCENES

@@ -60,7 +60,7 @@ def test_cache_path_follows_the_kernel_sources(tmp_path, monkeypatch):
             "src = pathlib.Path(sys.argv[1]); dst = pathlib.Path(tempfile.mkdtemp()) / 'servo_toolkit'\n"
             "shutil.copytree(src, dst, ignore=shutil.ignore_patterns('__pycache__'))\n"
             "k = dst / 'sim' / 'kernel.py'; k.write_text(k.read_text() + '\\n# edited\\n')\n"
-            "sys.path.insert(0, str(dst.parent)); import servo_toolkit.jit_cache as j; print(j.sources_hash())")
+            "sys.path.insert(0, str(dst.parent)); import servo_toolkit.core.jit_cache as j; print(j.sources_hash())")
     proc = subprocess.run([sys.executable, "-c", code, str(ROOT / "servo_toolkit")], capture_output=True,
                           text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
@@ -71,9 +71,9 @@ def test_a_users_numba_cache_dir_is_still_keyed_on_the_kernel_sources(tmp_path):
     """NUMBA_CACHE_DIR chooses where the compiled kernels go; the sources hash still decides
     which compiled code is current, so an edited kernel never loads stale machine code."""
     env = {"NUMBA_CACHE_DIR": str(tmp_path)}
-    code = ("from servo_toolkit.mechanisms import cam_kernels\n"
+    code = ("from servo_toolkit.components.cam import kernels as cam_kernels\n"
             "cam_kernels.law(0.5, 1.0)\n"
-            "from servo_toolkit.jit_cache import cache_dir, sources_hash; print(cache_dir()); print(sources_hash())")
+            "from servo_toolkit.core.jit_cache import cache_dir, sources_hash; print(cache_dir()); print(sources_hash())")
     proc = _run(code, env)
     assert proc.returncode == 0, proc.stderr
     folder, digest = proc.stdout.split()
@@ -86,9 +86,9 @@ def test_kernels_cache_outside_a_read_only_package(tmp_path):
     """Compiled code goes to the per-user folder, never beside the package's sources."""
     env = {"XDG_CACHE_HOME": str(tmp_path), "NUMBA_CACHE_DIR": ""}
     code = ("import os; os.environ.pop('NUMBA_CACHE_DIR', None)\n"
-            "from servo_toolkit.mechanisms import cam_kernels\n"
+            "from servo_toolkit.components.cam import kernels as cam_kernels\n"
             "cam_kernels.law(0.5, 1.0)\n"
-            "from servo_toolkit.jit_cache import cache_dir; print(cache_dir())")
+            "from servo_toolkit.core.jit_cache import cache_dir; print(cache_dir())")
     proc = _run(code, env)
     assert proc.returncode == 0, proc.stderr
     cached = list((tmp_path / "servo_toolkit").rglob("cam_kernels.law-*.nbi"))
@@ -116,7 +116,7 @@ def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missin
     a scene with [robustness] still say on stderr that they compile (about half a minute)."""
     from servo_toolkit import jit_cache, load_scene
     from servo_toolkit.cli.common import prepare_kernels
-    from servo_toolkit.sim import warmup
+    from servo_toolkit.studies import warmup
     (tmp_path / "sim").mkdir()
     (tmp_path / "sim" / "integrators._rk4-145.py311.nbi").write_bytes(b"")
     (tmp_path / "sim" / "integrators._paper-200.py311.nbi").write_bytes(b"")

@@ -132,7 +132,7 @@ def test_large_signal_agrees_with_the_linear_loop_on_the_reference(capsys):
     from dataclasses import replace
 
     import servo_toolkit as st
-    from servo_toolkit.loop.large_signal import GAIN_TOLERANCE_DB, PHASE_TOLERANCE_DEG, large_signal
+    from servo_toolkit.studies.large_signal import GAIN_TOLERANCE_DB, PHASE_TOLERANCE_DEG, large_signal
     scene = st.load_scene()
     stages = tuple(replace(s, efficiency=1.0) if hasattr(s, "efficiency") else s for s in scene.stages)
     lossless = replace(scene, stages=stages)

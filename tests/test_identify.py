@@ -57,7 +57,7 @@ def plant_fit(scene, plant_data):
 def test_plant_model_is_current_to_motor_speed(scene):
     """Below the drivetrain mode the plant is a rigid inertia: omega_m/i = N^2 eta Kt / (j w J)
     with J the total reflected inertia at the output, plus the motor-side viscous friction."""
-    from servo_toolkit.plant import plant_parameters
+    from servo_toolkit.plant.linear import plant_parameters
     p = plant_parameters(scene)
     f = np.array([0.5, 1.0, 2.0])
     s = 2j * np.pi * f

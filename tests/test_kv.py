@@ -2,15 +2,13 @@
 
 import json
 import math
-import sys
-import types
 
 import numpy as np
 import pytest
 
 from servo_toolkit.cli import main
 from servo_toolkit.errors import SceneError
-from servo_toolkit.scene import load_scene
+from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.studies.kv import kv_studies, kv_study
 
 from .conftest import SCENES, build, variant
@@ -125,10 +123,9 @@ def test_cli_text_and_errors(capsys):
 
 
 def test_cli_dispatches_to_a_mechanism_module(monkeypatch, capsys):
-    fake = types.ModuleType("servo_toolkit.mechanisms")
-    fake.handles = lambda scene, study: study.name == "sweep"
-    fake.run_study = lambda scene, study: {"cases": [{"from": "mechanisms"}]}
-    monkeypatch.setitem(sys.modules, "servo_toolkit.mechanisms", fake)
+    import servo_toolkit.studies.run as run
+    monkeypatch.setattr(run, "handles", lambda scene, study: getattr(study, "name", study) == "sweep")
+    monkeypatch.setattr(run, "run_mechanism", lambda scene, study, **options: {"cases": [{"from": "mechanisms"}]})
     assert main(["kv", EMA, "--study", "sweep", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["cases"] == [{"from": "mechanisms", "study": "sweep"}]
 
@@ -138,7 +135,7 @@ def test_notes_name_the_rigid_model_and_what_the_compliance_would_change(ema, ca
     change of the inertial motor torque that the drivetrain compliance would make. Checked
     against the undamped two-mass equations solved here for a prescribed output sine:
     -w^2 J1 P = T - K (P - Q), -w^2 J2 Q = K (P - Q)."""
-    from servo_toolkit.plant import plant_parameters
+    from servo_toolkit.plant.linear import plant_parameters
     r = kv_study(ema, "kv_8hz", samples_per_period=200, progress=False)
     note = next(n for n in r.notes if n.startswith("model:"))
     for word in ("rigid inverse dynamics", "compliance", "backlash", "inductance", "Hz"):

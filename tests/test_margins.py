@@ -163,7 +163,7 @@ def test_delay_margin_of_a_designed_loop_with_a_resonant_crossing():
     # the reference EMA's lead-lag loop without a resonance filter: stable, with resonant
     # crossings of negative phase margin; a Pade delay confirms the headline delay margin
     from servo_toolkit.loop import design
-    from servo_toolkit.scene import load_scene
+    from servo_toolkit.scene.loader import load_scene
     r = design(load_scene(), structure="lead_lag", resonance_filter="none", progress=False, over_stroke=False)
     m = r.margins
     assert m.closed_loop_stable and min(m.phase_margins_deg) < 0

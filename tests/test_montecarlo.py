@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from servo_toolkit.cli import main
-from servo_toolkit.scene import load_scene
+from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run, simulate
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.batch import F_CUR, F_ERR, F_STATUS, integrate_variants
+from servo_toolkit.sim.batch import F_CUR, F_ERR, F_STATUS
+from servo_toolkit.sim.batch_run import integrate_variants
 from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.variants import VariantBuilder, with_load_inertia
 from servo_toolkit.studies.montecarlo import montecarlo
@@ -166,7 +167,7 @@ def test_cli_bad_input_exits_2_with_one_line(args, key, capsys):
 
 
 def test_check_rows_hold_the_worst_variant_to_the_scene_limits(ema):
-    from servo_toolkit.scene import Robustness
+    from servo_toolkit.scene.loader import Robustness
     from servo_toolkit.studies.montecarlo_check import check_cases, montecarlo_checks
     scene, controller, _ = ema
     spec = Robustness(load_inertia=(0.5, 1.5), stiffness=None, samples=4, max_tracking_error=math.radians(10.0),

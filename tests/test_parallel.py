@@ -10,8 +10,8 @@ import pytest
 
 import servo_toolkit as st
 from servo_toolkit.loop.robustness import robustness
-from servo_toolkit.parallel import chunks, run_cases
-from servo_toolkit.scene import load_scene
+from servo_toolkit.core.parallel import chunks, run_cases
+from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.studies.kv import kv_grid, kv_study
 from servo_toolkit.studies.sine_dwell import DwellPlan
 from servo_toolkit.studies.sweep import sweep

@@ -8,7 +8,7 @@ import pytest
 
 from servo_toolkit import load_scene
 from servo_toolkit.loop.response import plant_responses
-from servo_toolkit.plant import (current_controller, mechanics, plant_parameters, rigid_plant,
+from servo_toolkit.plant.linear import (current_controller, mechanics, plant_parameters, rigid_plant,
                                  sample_delay, two_mass_plant)
 
 from .conftest import SCENES

@@ -8,8 +8,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from servo_toolkit import SceneError, load_scene
-from servo_toolkit.mechanisms.platform import PlatformModel
-from servo_toolkit.mechanisms.platform_plant import PLATFORM_PLANT_UNITS, platform_plant
+from servo_toolkit.components.platform.model import PlatformModel
+from servo_toolkit.plant.platform import PLATFORM_PLANT_UNITS, platform_plant
 
 from .conftest import SCENES
 

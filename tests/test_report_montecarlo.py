@@ -17,7 +17,7 @@ from servo_toolkit.report.context import Context
 from servo_toolkit.report.section import NotApplicable
 from servo_toolkit.report.sections_loop import requirement_rows
 from servo_toolkit.report.sections_montecarlo import WORST, montecarlo_results, montecarlo_section
-from servo_toolkit.scene import scene_from_dict
+from servo_toolkit.scene.loader import scene_from_dict
 
 from .conftest import SCENES
 

@@ -21,7 +21,7 @@ from servo_toolkit.report.sections_loop import controller, requirement_rows
 from servo_toolkit.report.sections_robust import robustness
 from servo_toolkit.report.sections_stroke import binding_point, margins_along_stroke
 from servo_toolkit.report.sections_studies import peak_frequencies
-from servo_toolkit.scene import scene_from_dict
+from servo_toolkit.scene.loader import scene_from_dict
 
 from .conftest import SCENES
 

@@ -63,7 +63,7 @@ import control as ct  # noqa: E402
 
 from servo_toolkit import SceneError  # noqa: E402
 from servo_toolkit.loop import mode_range, robust_requirements  # noqa: E402
-from servo_toolkit.scene import Robustness  # noqa: E402
+from servo_toolkit.scene.loader import Robustness  # noqa: E402
 
 from .conftest import SCENES, build, variant  # noqa: E402
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from servo_toolkit import SceneError, load_scene
-from servo_toolkit.components.platform import CrossedArchPlatform
-from servo_toolkit.scene import default_scene_path
+from servo_toolkit.components.platform.geometry import CrossedArchPlatform
+from servo_toolkit.scene.loader import default_scene_path
 
 from .conftest import SCENE_FILES, SCENES, build, variant
 

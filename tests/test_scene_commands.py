@@ -10,7 +10,7 @@ import pytest
 
 from servo_toolkit import load_scene
 from servo_toolkit.cli import main
-from servo_toolkit.output_units import OutputUnit, output_unit
+from servo_toolkit.core.output_units import OutputUnit, output_unit
 from servo_toolkit.errors import SceneError
 
 from .conftest import SCENE_FILES, SCENES

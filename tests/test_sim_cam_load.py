@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from servo_toolkit.mechanisms.cam import CamDrive
+from servo_toolkit.components.cam.drive import CamDrive
 from servo_toolkit.sim import Reference, build_model, default_controller, run
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.kernel import hermite, rhs

@@ -13,7 +13,7 @@ import pytest
 
 from servo_toolkit import SceneError
 from servo_toolkit.cli import main
-from servo_toolkit.mechanisms.cam import clearance_hysteresis
+from servo_toolkit.components.cam.drive import clearance_hysteresis
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run, simulate
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.kernel import controller_sample

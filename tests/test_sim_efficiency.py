@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from servo_toolkit import load_scene
-from servo_toolkit.plant import plant_parameters
+from servo_toolkit.plant.linear import plant_parameters
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.ivp import make_fun

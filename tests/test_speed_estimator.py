@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from servo_toolkit import SceneError
-from servo_toolkit.estimation import KalmanEstimator, steady_state_covariance
+from servo_toolkit.loop.encoder_estimators import KalmanEstimator, steady_state_covariance
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.estimator import speed_noise_rms
+from servo_toolkit.sim.speed_estimator import speed_noise_rms
 from servo_toolkit.sim.kernel import measured_motor_angle, motor_angle
 
 from .conftest import SCENES, build, variant
@@ -89,7 +89,7 @@ def test_current_reference_noise_follows_the_estimators_speed_noise(loops, contr
              for k in ("difference", "kalman")}
     info = loops["kalman"][0].estimator
     q, ts = info["quantum_rad"], info["sample_time_s"]
-    from servo_toolkit.estimation import steady_state_gain
+    from servo_toolkit.loop.encoder_estimators import steady_state_gain
     f, _, k = steady_state_gain(ts, q, info["jerk_rad_s3"])
     predicted = {"difference": speed_noise_rms("difference", q, ts),
                  "kalman": speed_noise_rms("kalman", q, ts, f, k)}

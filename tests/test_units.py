@@ -5,7 +5,7 @@ import math
 import pytest
 
 from servo_toolkit import SceneError
-from servo_toolkit.units import parse_quantity, parse_si
+from servo_toolkit.core.units import parse_quantity, parse_si
 
 
 @pytest.mark.parametrize("text, unit, expected", [

@@ -1,6 +1,6 @@
 """Generate the scene-file reference from the loader itself.
 
-Every shipped scene is loaded with :func:`servo_toolkit.fields.recording_reads`, which
+Every shipped scene is loaded with :func:`servo_toolkit.core.fields.recording_reads`, which
 collects each key the loader reads: its table, unit, default, rule and choices, and the
 value a shipped scene writes for it. Descriptions come from the numpydoc ``Parameters`` of
 the component each table builds. What the loader does not read cannot appear, and what it
@@ -29,8 +29,8 @@ def scene_files(root: Path | None = None) -> list:
 
 def collect(paths=None) -> list:
     """Every key the loader reads from ``paths`` (default: the shipped scenes)."""
-    from servo_toolkit.fields import recording_reads
-    from servo_toolkit.scene import load_scene
+    from servo_toolkit.core.fields import recording_reads
+    from servo_toolkit.scene.loader import load_scene
     with recording_reads() as reads:
         for path in paths or scene_files():
             load_scene(path)
@@ -68,7 +68,7 @@ def _component(pattern: str, kind):
     from servo_toolkit import scene as sc
     from servo_toolkit.components.compliance import Load
     from servo_toolkit.components.motor import DCMotor
-    from servo_toolkit.components.roller_screw import RollerScrewOperating, RollerScrewStage
+    from servo_toolkit.components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
     table = {"motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
              "robustness": sc.Robustness, "stages[]": RollerScrewStage,
              "drivetrain[].stages[]": RollerScrewStage, "operating": RollerScrewOperating}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
 
 #: accuracy runs are short: the reference restarts at every controller sample
@@ -23,9 +23,9 @@ def register(sub) -> None:
 def run(args) -> int:
     """Run the command."""
     from ..sim import build_model, controller_for
-    from ..sim.accuracy import accuracy_study
+    from ..studies.accuracy import accuracy_study
     from ..sim.reference import Reference
-    from ..sim.studies import run_spec
+    from ..studies.time_reference import run_spec
 
     scene = load_scene(args.scene)
     reference, duration, voltage, _, _ = run_spec(scene, args.study, amplitude=amplitudes_si(scene, args.amplitude),

@@ -19,7 +19,7 @@ from pathlib import Path
 from ..errors import SceneError
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args, gate_result
 from .common import add_json, bounded, to_json
 
@@ -73,7 +73,7 @@ def robustness_spec(scene, varies: dict, samples):
     when neither asks for a robustness study."""
     from dataclasses import replace
 
-    from ..scene import Robustness
+    from ..scene.loader import Robustness
     base = scene.robustness
     if base is None and not varies:
         return None

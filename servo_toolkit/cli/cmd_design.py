@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..errors import SceneError
 from ..loop import design
 from ..loop.requirements import parse_override
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_json, add_scene, emit
 
 
@@ -39,7 +39,7 @@ def gate_result(scene, args, result):
     """``result`` with the large-signal rows unless ``--linear-only``: (result, LargeSignal or None)."""
     if getattr(args, "linear_only", False):
         return result, None
-    from ..loop.large_signal import with_large_signal
+    from ..studies.large_signal import with_large_signal
     return with_large_signal(scene, result)
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
-from ..units import parse_quantity
+from ..scene.loader import load_scene
+from ..core.units import parse_quantity
 from .cmd_design import add_design_options, design_from_args
 from .common import add_json, add_scene, emit
 

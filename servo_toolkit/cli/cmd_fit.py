@@ -11,9 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import SceneError
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_json, add_scene, emit
-from .outputs import check_file, write_text
+from ..core.files import check_file, write_text
 
 
 def register(sub) -> None:

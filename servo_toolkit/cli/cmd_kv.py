@@ -7,9 +7,9 @@ import sys
 from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.kv import default_kv_study, kv_study
-from . import mechanism_dispatch as dispatch
+from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
-from .hints import default_mechanism_study, has_motor_drivetrain, what_to_run
+from .hints import what_to_run
 
 
 def register(sub) -> None:
@@ -26,36 +26,34 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _run_one(scene, study, args):
-    if dispatch.handled(scene, study):
-        return dispatch.run_mechanism(scene, study)
-    if study.kind != "kv":
-        raise SceneError(study.key("kind"), f"is {study.kind!r}; the kv command runs studies of kind 'kv'")
-    return kv_study(scene, study, losses=args.losses, progress=not args.json and sys.stderr.isatty())
-
-
 def run(args) -> int:
     """Run the command."""
     scene = load_scene(args.scene)
     sine = args.amplitude is not None or args.frequency is not None
     if args.study and sine:
         raise SceneError("--study", "give a study or --amplitude/--frequency (a sine of its own), not both")
+    progress = not args.json and sys.stderr.isatty()
     if not args.study and not has_motor_drivetrain(scene):
-        name = default_mechanism_study(scene)
+        name = default_study(scene)
         if name is None:
             raise SceneError("drivetrain", f"this scene has no motor-driven drivetrain; {what_to_run(scene, args.scene)}")
         print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain; running its study {name!r}",
               file=sys.stderr)
-        studies = [scene.studies.get(name, name)]
+        names = [name]
     elif args.study:
-        dispatch.require(scene, args.study)
-        studies = [scene.studies.get(args.study, args.study)]
+        study_of(scene, args.study)
+        names = [args.study]
     else:
-        studies = [] if sine else scene.studies_of_kind("kv")
-        if not studies:
-            studies = [default_kv_study(scene, amplitudes_si(scene, args.amplitude), args.frequency)]
-    results = [_run_one(scene, s, args) for s in studies]
-    names = [getattr(s, "name", s) for s in studies]
+        names = [] if sine else [s.name for s in scene.studies_of_kind("kv")]
+    if names:
+        studies = [study_of(scene, n) for n in names]
+        results = [run_study(scene, n, as_kind="kv", **({} if is_mechanism_study(scene, n) else
+                                                         dict(losses=args.losses, progress=progress)))
+                   for n in names]
+    else:
+        studies = [default_kv_study(scene, amplitudes_si(scene, args.amplitude), args.frequency)]
+        names = [studies[0].name]
+        results = [kv_study(scene, studies[0], losses=args.losses, progress=progress)]
     dicts = [r.to_dict() if hasattr(r, "to_dict") else dict(r) for r in results]
     cases = [dict(c, study=n) for n, d in zip(names, dicts) for c in d.get("cases", [])]
     payload = {"scene": scene.name, "studies": dicts, "cases": cases}

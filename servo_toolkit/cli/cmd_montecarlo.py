@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
 
 
@@ -56,7 +56,7 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     reference = None
     if args.amplitude is not None or args.frequency is not None:
-        from ..sim.studies import run_spec
+        from ..studies.time_reference import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
                              frequency=args.frequency)[0]
     prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 import sys
 
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_json, add_scene, amplitudes_si, bounded, emit
-from .outputs import FIGURE_SUFFIXES, check_file, save_figure
+from ..core.files import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 import time
 
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from .common import add_scene, bounded, prepare_kernels
-from .outputs import atomic_folder, check_report_folder
+from ..core.files import atomic_folder, check_report_folder
 
 
 def register(sub) -> None:

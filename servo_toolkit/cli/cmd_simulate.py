@@ -6,8 +6,7 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from . import mechanism_dispatch as dispatch
-from .hints import default_mechanism_study
+from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
 
 
@@ -32,22 +31,20 @@ def register(sub) -> None:
 def _mechanism_dispatch(scene, args):
     """The mechanism studies' own runner when it handles this study (by default, a scene
     without a motor-driven drivetrain runs its first mechanism study), else None."""
-    name = args.study or default_mechanism_study(scene)
+    name = args.study or default_study(scene)
     if not name:
         return None
     if not args.study:
         print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain; running its study "
               f"{name!r} (--study NAME for another)", file=sys.stderr)
-    dispatch.require(scene, name)
-    study = scene.studies.get(name, name)
-    if not dispatch.handled(scene, study):
+    if not is_mechanism_study(scene, name):
         return None
     given = [opt for opt, value in (("--amplitude", args.amplitude), ("--frequency", args.frequency),
                                     ("--full", args.full)) if value]
     if given:
-        raise SceneError(f"studies.{getattr(study, 'name', study)}", f"is a seed-mechanism study; "
+        raise SceneError(f"studies.{name}", f"is a seed-mechanism study; "
                          f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to closed-loop sine runs only")
-    return dispatch.run_mechanism(scene, study, method=args.method, dt=args.dt)
+    return run_study(scene, name, method=args.method, dt=args.dt)
 
 
 def run(args) -> int:
@@ -61,8 +58,9 @@ def run(args) -> int:
     result = _mechanism_dispatch(scene, args)
     if result is None:
         prepare_kernels(scene, paper=args.method == "paper")
-        result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full,
-                                amplitude=amplitude, frequency=args.frequency)
+        options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency)
+        result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
+                  else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()
     else:
         text = result.table() if hasattr(result, "table") else str(result.to_dict())

@@ -7,7 +7,7 @@ is not finite, outside the drivetrain's stroke, or of the wrong kind exits 2.
 
 from __future__ import annotations
 
-from ..scene import load_scene
+from ..scene.loader import load_scene
 from ..studies.stiffness import stiffness_study
 from .common import add_json, add_scene, emit
 

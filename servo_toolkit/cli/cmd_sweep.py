@@ -8,10 +8,9 @@ import numpy as np
 
 from ..errors import SceneError
 from ..scene import load_scene
-from . import mechanism_dispatch as dispatch
-from .hints import default_mechanism_study
+from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
-from .outputs import FIGURE_SUFFIXES, check_file, save_figure
+from ..core.files import FIGURE_SUFFIXES, check_file, save_figure
 
 
 def register(sub) -> None:
@@ -30,9 +29,8 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _run_mechanism(scene, study, args) -> int:
+def _run_mechanism(scene, name, args) -> int:
     """A seed-mechanism study: its own runner; the sine-dwell options do not apply."""
-    name = getattr(study, "name", study)
     given = [opt for opt, value in (("--frequency", args.frequency), ("--amplitude", args.amplitude),
                                     ("--full", args.full)) if value]
     if given:
@@ -41,9 +39,9 @@ def _run_mechanism(scene, study, args) -> int:
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(args.workers) as pool:
-            res = dispatch.run_mechanism(scene, study, executor=pool)
+            res = run_study(scene, name, executor=pool)
     else:
-        res = dispatch.run_mechanism(scene, study)
+        res = run_study(scene, name)
     if args.plot and hasattr(res, "plot"):
         import matplotlib
         matplotlib.use("Agg")
@@ -53,30 +51,35 @@ def _run_mechanism(scene, study, args) -> int:
     return 0
 
 
+def _sweep(scene, name, **options):
+    """The sweep of study ``name``, or of the scene's first frequency_sweep study (and 8 Hz)."""
+    if name:
+        return run_study(scene, name, as_kind="frequency_sweep", **options)
+    from ..studies.sweep import sweep
+    return sweep(scene, None, **options)
+
+
 def run(args) -> int:
     """Run the command."""
-    from ..studies.sweep import sweep
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
-    name = args.study or default_mechanism_study(scene)
+    name = args.study or default_study(scene)
     if name:
         if not args.study:
             print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain (no loop to sweep); "
                   f"running its study {name!r} as simulate does", file=sys.stderr)
-        dispatch.require(scene, name)
-        study = scene.studies.get(name, name)
-        if dispatch.handled(scene, study):
-            return _run_mechanism(scene, study, args)
+        if is_mechanism_study(scene, name):
+            return _run_mechanism(scene, name, args)
     amps = amplitudes_si(scene, args.amplitude)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(args.workers) as pool:
-            res = sweep(scene, args.study, executor=pool, **kw)
+            res = _sweep(scene, args.study, executor=pool, **kw)
     else:
-        res = sweep(scene, args.study, **kw)
+        res = _sweep(scene, args.study, **kw)
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

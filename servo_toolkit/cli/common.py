@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
-import numpy as np
+from ..core.json_text import to_json
 
 
 def add_scene(parser, optional: bool = False) -> None:
@@ -19,29 +18,6 @@ def add_scene(parser, optional: bool = False) -> None:
 def add_json(parser) -> None:
     """Add ``--json``."""
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-
-
-def _default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
-
-
-def to_json(data) -> str:
-    """JSON text; infinities become null-safe strings via ``allow_nan`` off -> None."""
-    return json.dumps(_finite(data), default=_default, indent=2)
-
-
-def _finite(obj):
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
 
 
 def emit(args, result, text: str) -> None:
@@ -58,8 +34,8 @@ def prepare_kernels(scene, paper: bool = False, batch: bool = False) -> None:
     ``paper`` and ``batch`` add the cam paper's scheme and the Monte Carlo's batch."""
     if not (scene.stages and scene.motor is not None):
         return
-    from ..jit_cache import cache_dir
-    from ..sim.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
+    from ..core.jit_cache import cache_dir
+    from ..studies.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
     if not is_cached(paper, batch):
         print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
               f"cached in {cache_dir()})", file=sys.stderr, flush=True)
@@ -103,7 +79,7 @@ def add_sine_options(parser, *, repeat: bool = False, what: str = "the sine comm
 def amplitudes_si(scene, texts, option: str = "--amplitude"):
     """``--amplitude`` values (one text or a list) in SI after the scene's output unit;
     None when not given. Raises SceneError naming the option and the rule."""
-    from ..output_units import output_unit
+    from ..core.output_units import output_unit
     if texts is None:
         return None
     unit = output_unit(scene)

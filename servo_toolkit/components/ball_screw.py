@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..fields import Fields, require
+from ..core.fields import Fields, require
 from .base import Element, Jet, Lash, Spring, Stage, screw_backdrive_efficiency
 
 

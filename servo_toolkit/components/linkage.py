@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fields import Fields, require
+from ..core.fields import Fields, require
 from .base import Element, Jet, Spring, Stage
 
 

@@ -5,6 +5,9 @@
 (:mod:`.c_code`) and writes the folder atomically (:mod:`.writer`).
 """
 
+import sys
+import types
+
 from .blocks import Biquad, Blocks, blocks_of, tustin_to_continuous
 from .build import export, quantized_controller
 from .quantize import Quantized, quantize
@@ -14,7 +17,7 @@ __all__ = ["Biquad", "Blocks", "ExportResult", "Quantized", "blocks_of", "export
            "quantized_controller", "tustin_to_continuous"]
 
 
-class _ExportModule(type(__import__("sys"))):
+class _ExportModule(types.ModuleType):
     """``servo_toolkit.export`` is both this package and the :func:`export` function: the
     package is imported on first use (``import servo_toolkit`` stays light), and calling it
     calls the function, whichever of the two the name is bound to."""
@@ -23,4 +26,4 @@ class _ExportModule(type(__import__("sys"))):
         return export(*args, **kwargs)
 
 
-__import__("sys").modules[__name__].__class__ = _ExportModule
+sys.modules[__name__].__class__ = _ExportModule

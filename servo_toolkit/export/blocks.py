@@ -243,7 +243,7 @@ def estimator_of(scene, controller) -> Estimator:
     kind = scene.sensors.speed_estimator
     if kind == "ideal":
         return Estimator()
-    from ..sim.estimator import pack
+    from ..sim.speed_estimator import pack
     from ..sim.model import ModelOptions
     _, extra, _, info, _ = pack(scene, controller, ModelOptions(), kind, True, 0, 0)
     if kind == "difference":

@@ -9,8 +9,9 @@ from dataclasses import replace
 import control as ct
 import numpy as np
 
-from ..cli.common import to_json  # JSON without NaN/inf (shared with the command line)
-from ..controller import CascadeController
+from ..core.json_text import to_json
+from ..core.version import __version__
+from ..loop.controller import CascadeController
 from ..errors import SceneError
 from .blocks import blocks_of, tustin_to_continuous
 from .c_code import HEADER_NAME, SOURCE_NAME, header, source
@@ -119,7 +120,6 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         shifts = filter_shifts(blocks, q)
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
                          failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
-    from .. import __version__
     files = {"controller.json": to_json(result.controller_json()) + "\n",
              HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),
              SOURCE_NAME: source(blocks, result.quantized)}

@@ -18,7 +18,7 @@ import control as ct
 import numpy as np
 
 from ..errors import SceneError
-from ..plant import mechanics, plant
+from ..plant.linear import mechanics, plant
 
 RESPONSES = ("plant", "closed_loop")
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import SceneError
-from ..fields import recording_reads
-from ..scene import scene_from_dict
+from ..core.fields import recording_reads
+from ..scene.loader import scene_from_dict
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class SceneTemplate:
         self.parameters = tuple(params)
 
     def _value(self, key, read) -> float:
-        from ..units import parse_quantity
+        from ..core.units import parse_quantity
         table = _table(self.data, read.table)
         if table is not None and read.key in table:
             return parse_quantity(table[read.key], read.unit, key)

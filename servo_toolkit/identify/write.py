@@ -13,7 +13,7 @@ import math
 import re
 
 from ..errors import SceneError
-from ..units import parse_quantity
+from ..core.units import parse_quantity
 
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([A-Za-z0-9_.\-\"' ]+?)\s*\]\]?\s*(#.*)?$")
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")

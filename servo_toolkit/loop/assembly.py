@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..plant import current_controller, sample_delay
+from ..plant.linear import current_controller, sample_delay
 from .closed_loop import DELAY_SAMPLES
 
 

@@ -6,7 +6,7 @@ import warnings
 
 import control as ct
 
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, current_controller, plant, sample_delay
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, current_controller, plant, sample_delay
 
 #: Sampling is modelled as this many sample times of delay (ZOH half sample + computation).
 DELAY_SAMPLES = 1.5

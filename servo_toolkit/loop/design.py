@@ -17,9 +17,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..controller import CascadeController
-from ..output_units import output_unit
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, plant, plant_matrices, plant_parameters
+from .controller import CascadeController
+from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, plant, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
@@ -48,7 +48,7 @@ def _delay_polys(sample_time: float):
     """Numerator and denominator of :func:`plant.sample_delay` (None without a delay)."""
     import control as ct
 
-    from ..plant import sample_delay
+    from ..plant.linear import sample_delay
     d = sample_delay(sample_time, DELAY_SAMPLES)
     if d.nstates == 0:
         return None
@@ -172,7 +172,7 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
 
 def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-           model: str = "auto", require=None, phase_hz: float = 8.0, robust=None,
+           model: str = "auto", require=None, phase_hz: float = REQUIREMENT_SINE_HZ, robust=None,
            progress: bool = True, over_stroke: bool = True) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
 
@@ -209,7 +209,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         ``None``: robust when the scene has ``[robustness]``; ``False``: nominal design;
         ``True``: robust over the scene's ``[robustness]`` or, when it has none, the default
         ranges (load inertia 0..4 kg*m^2, stiffness 0.7..1.3, 1000 Monte Carlo variants);
-        a :class:`~servo_toolkit.scene.Robustness`: robust over it.
+        a :class:`~servo_toolkit.scene.loader.Robustness`: robust over it.
     progress : bool
         Progress bars for the robust search.
     over_stroke : bool
@@ -297,7 +297,7 @@ def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, curr
 
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
-             structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = 8.0, closed=None,
+             structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = REQUIREMENT_SINE_HZ, closed=None,
              require=None, stroke_points: int = STROKE_POINTS) -> DesignResult:
     """Margins and requirement checks of a given controller on a scene (python-control).
 
@@ -344,8 +344,8 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
 
 
 def robust_spec(scene, robust):
-    """The :class:`~servo_toolkit.scene.Robustness` a design must meet, or None (nominal)."""
-    from ..scene import Robustness
+    """The :class:`~servo_toolkit.scene.loader.Robustness` a design must meet, or None (nominal)."""
+    from ..scene.loader import Robustness
     if robust is None:
         return scene.robustness
     if robust is False:

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
+from ..core.output_units import REQUIREMENT_SINE_HZ
+
 
 @dataclass(frozen=True)
 class Margins:
@@ -98,7 +100,7 @@ class Margins:
         for k in ("disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "sensitivity_peak_db"):
             if isinstance(d[k], float) and math.isnan(d[k]):
                 d[k] = None  # not defined for an unstable closed loop; notes say so
-        d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == 8.0 else None
+        d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == REQUIREMENT_SINE_HZ else None
         if d["phase_at_8hz_deg"] is None:
             d["phase_at_freq_deg"] = self.phase_at_freq_deg
         return d
@@ -219,7 +221,7 @@ def gain_crossings(loop, integrators: int):
     return np.asarray(gm, float)[order], np.asarray(wpc, float)[order]
 
 
-def loop_margins(loop, closed_loop, phase_hz: float = 8.0, omega=None) -> Margins:
+def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega=None) -> Margins:
     """Margins of the SISO open loop ``loop`` and its SISO closed loop ``closed_loop``,
     on the Nyquist criterion (MATLAB ``allmargin`` semantics).
 

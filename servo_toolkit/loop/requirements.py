@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..errors import SceneError
-from ..units import parse_quantity
+from ..core.units import parse_quantity
 
 #: name -> (Requirements attribute, sense, unit shown, SI -> shown factor, default in shown units)
 #: sense ">=" means the achieved figure must be at least the requirement.

@@ -1,6 +1,6 @@
 """Closed-form frequency responses of the plant and of the loop, vectorized with numpy.
 
-The state-space blocks of :mod:`servo_toolkit.plant` are the reference; these transfer
+The state-space blocks of :mod:`servo_toolkit.plant.linear` are the reference; these transfer
 functions are derived independently from the same physics (and tested against them), so
 that thousands of parameter variants can be evaluated as array arithmetic:
 

@@ -8,8 +8,10 @@ import control as ct
 import numpy as np
 
 from .margins import Margins
-from ..display import RichDisplay
-from ..output_units import OutputUnit
+from ..display.cards import RichDisplay
+from ..core.output_units import OutputUnit
+from ..display.cards import card, esc_lines, facts, num, svg
+from ..display.cards import requirements_table as requirements_html
 
 
 @dataclass(frozen=True, repr=False)
@@ -25,7 +27,7 @@ class DesignResult(RichDisplay):
         Lumped plant parameters at q0.
     plant : control.StateSpace
         Voltage-driven plant (inputs ``u``, ``tau_ext``; outputs ``theta``, ``omega_m``,
-        ``i``, ``omega``), see :mod:`servo_toolkit.plant`.
+        ``i``, ``omega``), see :mod:`servo_toolkit.plant.linear`.
     controller : CascadeController
         What the simulation engine runs.
     loop : control.StateSpace
@@ -74,7 +76,7 @@ class DesignResult(RichDisplay):
 
     @property
     def unit(self) -> OutputUnit:
-        """The output's units (:class:`~servo_toolkit.output_units.OutputUnit`)."""
+        """The output's units (:class:`~servo_toolkit.core.output_units.OutputUnit`)."""
         return OutputUnit(self.output_unit)
 
     @property
@@ -166,12 +168,10 @@ class DesignResult(RichDisplay):
         return axes
 
     def _repr_line(self) -> str:
-        from ..result_cards import design_line
-        return design_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import design_card
-        return design_card(self)
+        return _card_html(self)
 
 
 def requirements_table(checks) -> str:
@@ -184,3 +184,34 @@ def requirements_table(checks) -> str:
                     f"{c.achieved:>9.3g} {c.unit:<3}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
                     + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))
     return "\n".join(rows)
+
+
+def _card_line(d) -> str:
+    """The one-line repr of a result of this module."""
+    m = d.margins
+    return (f"{d.scene_name} at q0 = {d.unit.text(d.q0)}: "
+            f"{'requirements met' if d.passed else f'{len(d.failures)} requirement(s) NOT met'}, "
+            f"GM {num(m.gain_margin_db, 3)} dB, PM {num(m.phase_margin_deg, 3)} deg, "
+            f"bandwidth {num(m.bandwidth_hz, 3)} Hz")
+
+
+def _card_html(d) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    m = d.margins
+    margins = facts((("closed loop stable", "yes" if m.closed_loop_stable else "NO"),
+                     ("gain margin", f"{num(m.gain_margin_db)} dB"),
+                     ("phase margin", f"{num(m.phase_margin_deg)} deg"),
+                     ("delay margin", f"{num(m.delay_margin_s * 1e3)} ms"),
+                     ("disk margin", num(m.disk_margin)),
+                     ("sensitivity peak Ms", f"{num(m.sensitivity_peak_db)} dB"),
+                     ("bandwidth (-3 dB)", f"{num(m.bandwidth_hz)} Hz"),
+                     (f"phase at {m.phase_at_hz:g} Hz", f"{num(m.phase_at_freq_deg)} deg"),
+                     ("controller", d.controller.description)))
+    parts = [requirements_html(d.requirements), margins]
+    if d.stroke is not None:
+        parts.append(f'<p class="st-note">{"<br>".join(esc_lines(d.stroke.summary()))}</p>')
+    if d.robustness is not None:
+        parts.append(requirements_html(d.robustness.requirements))
+    parts.append(svg(d.plot, size=(7.0, 4.6), rows=2, sharex=True))
+    return card(f"Loop design of {d.scene_name} at q0 = {d.unit.text(d.q0)}", status=d.passed,
+                parts=parts, notes=d.notes)

@@ -46,8 +46,8 @@ import numpy as np
 from scipy.optimize import minimize
 from tqdm.auto import tqdm
 
-from ..controller import CascadeController
-from ..plant import sample_delay, spring_damping
+from .controller import CascadeController
+from ..plant.linear import sample_delay, spring_damping
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES
 from .margins import frequency_grid

@@ -16,16 +16,17 @@ import control as ct
 import numpy as np
 
 from ..errors import SceneError
-from ..output_units import OutputUnit
-from ..parallel import chunks, run_cases
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, sample_delay, spring_damping
+from ..core.output_units import OutputUnit
+from ..core.parallel import chunks, run_cases
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, sample_delay, spring_damping
 from .assembly import _abcd, closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES, open_loop_of
 from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
 from .response import loop_response, plant_responses, state_space_response
-from ..display import RichDisplay
+from ..display.cards import RichDisplay
+from ..display.cards import card, facts, requirements_table, svg
 
 PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
@@ -234,12 +235,10 @@ class RobustnessResult(RichDisplay):
 #: robust requirement -> (figure, worst is min or max)
 
     def _repr_line(self) -> str:
-        from ..result_cards import robustness_line
-        return robustness_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import robustness_card
-        return robustness_card(self)
+        return _card_html(self)
 
 
 _WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_margin_deg", "min"),
@@ -291,7 +290,7 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
         ``samples``, ``grid`` and ``seed`` are then taken from it).
     requirements : list of Requirement, optional
         What the variants must achieve; default :func:`robust_requirements` of ``spec``
-        (or of the default :class:`~servo_toolkit.scene.Robustness`) and the design's
+        (or of the default :class:`~servo_toolkit.scene.loader.Robustness`) and the design's
         nominal requirements.
     executor : concurrent.futures.Executor, optional
         Runs the chunks (e.g. a dask ``Client.get_executor()``).
@@ -306,7 +305,7 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     -------
     RobustnessResult
     """
-    from ..scene import Robustness
+    from ..scene.loader import Robustness
     from .requirements import robust_requirements
     if spec is not None:
         variants = spec.ranges if variants is None else variants
@@ -379,3 +378,19 @@ def reference_margins(scene, design_result, load_inertia: float, stiffness: floa
     g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
     loop = open_loop_of(g, design_result.controller, scene.motor)
     return ct.stability_margins(loop), loop
+
+
+def _card_line(r) -> str:
+    """The one-line repr of a result of this module."""
+    return (f"{r.scene_name}: {r.count} variants, {r.unstable_count} unstable, "
+            f"{'requirements met' if r.passed else 'requirements NOT met'}")
+
+
+def _card_html(r) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    ranges = ", ".join(f"{k} {np.min(v):.3g}..{np.max(v):.3g}" for k, v in r.values.items())
+    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", ranges))),
+             requirements_table(r.requirements)]
+    if hasattr(r, "plot"):
+        parts.append(svg(lambda ax: r.plot(ax), size=(7.0, 3.6)))
+    return card(f"Robustness of {r.scene_name}", status=r.passed, parts=parts)

@@ -28,9 +28,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import SceneError
-from ..operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
-from ..output_units import OutputUnit
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
+from ..drivetrain.operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
+from ..core.output_units import OutputUnit
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
 from .metrics import grid_figures

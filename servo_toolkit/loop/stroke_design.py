@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from ..plant import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
 from .response import plant_responses
 from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, stroke_points
 

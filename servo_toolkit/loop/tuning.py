@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..controller import CascadeController
+from .controller import CascadeController
 from ..errors import SceneError
 from .design import design, evaluate
 from .structures import FILTERS, Motion
@@ -177,7 +177,7 @@ def design_data(result) -> dict:
 
 def save_design(result, path, inputs=()) -> Path:
     """Write the design's controller to ``path`` (JSON, atomically; never over an input)."""
-    from ..cli.outputs import check_file, write_text
+    from ..core.files import check_file, write_text
     path = check_file(path, "--design", (".json",), inputs=inputs)
     write_text(path, json.dumps(design_data(result), indent=2) + "\n")
     return path

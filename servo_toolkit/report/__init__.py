@@ -9,8 +9,8 @@ Examples
 """
 
 from .builder import SECTIONS, Report, build_report, run_section, write_report
-from .context import Context, api
+from .context import Context
 from .section import NotApplicable, NotAvailable, Section
 
-__all__ = ["SECTIONS", "Context", "NotApplicable", "NotAvailable", "Report", "Section", "api",
+__all__ = ["SECTIONS", "Context", "NotApplicable", "NotAvailable", "Report", "Section",
            "build_report", "run_section", "write_report"]

@@ -86,7 +86,7 @@ class Report:
                 + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + f"), {failed} requirement(s) not met>")
 
     def _repr_html_(self) -> str:
-        from ..display import card, table
+        from ..display.cards import card, table
         rows = [(s.title, s.status, s.reason) for s in self.sections]
         reqs = [tuple(str(v) for v in r) for r in self.requirements]
         return card(f"Report of {self.scene_name}", parts=[
@@ -154,7 +154,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     if design is not None:
         ctx.use_design(design)
     if ctx.has_drivetrain():  # compilation is never charged to a section's time limit
-        from ..sim.warmup import compile_kernels
+        from ..studies.warmup import compile_kernels
         # the accuracy section runs both fixed-step schemes; the Monte Carlo one, the batch
         compile_kernels(paper=True, batch=scene.robustness is not None)
     built = []

@@ -2,28 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 
-from .section import NotApplicable, NotAvailable
-
-
-def api(module: str, name: str):
-    """``module.name`` from the toolkit, or :class:`NotAvailable` saying why not.
-
-    Parameters
-    ----------
-    module : str
-        Absolute module path, e.g. ``"servo_toolkit.loop"``.
-    name : str
-        Attribute of that module.
-    """
-    try:
-        return getattr(importlib.import_module(module), name)
-    except ImportError as exc:
-        raise NotAvailable(f"{module}.{name} cannot be imported ({exc})") from None
-    except AttributeError:
-        raise NotAvailable(f"{module} has no {name!r}") from None
+from .section import NotApplicable
 
 
 @dataclass
@@ -75,7 +56,8 @@ class Context:
     def design(self):
         """The designed loop (``servo_toolkit.loop.design``, or the one given)."""
         self.require_drivetrain("loop design")
-        return self.result("design", lambda: api("servo_toolkit.loop", "design")(self.scene))
+        from ..loop import design
+        return self.result("design", lambda: design(self.scene))
 
 
 def describe_kind(scene) -> str:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import html
-import math
 from dataclasses import dataclass, field
+
+from ..display.html import Raw, badge, esc, fmt, para, table
 
 #: Section statuses. ``info`` carries results without a verdict; ``pass``/``fail`` judge the
 #: scene's requirements; ``n/a`` means the section does not apply to this scene; ``unavailable``
@@ -63,56 +63,6 @@ class NotApplicable(NotAvailable):
     """The section does not apply to this scene (e.g. no motor-driven drivetrain)."""
 
 
-def esc(value) -> str:
-    """HTML-escaped text."""
-    return html.escape(str(value), quote=True)
-
-
-def fmt(value, digits: int = 4) -> str:
-    """A number for a table: ``digits`` significant digits, inf/nan spelled out."""
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, (int,)) and not isinstance(value, bool):
-        return str(value)
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    if math.isnan(x):
-        return "n/a"
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return f"{x:.{digits}g}"
-
-
-def table(header, rows, cls: str = "", table_id: str = "") -> str:
-    """An HTML table; cells are escaped unless given as :class:`Raw`."""
-    def cell(v, tag):
-        text = v.text if isinstance(v, Raw) else esc(v)
-        return f"<{tag}>{text}</{tag}>"
-    attrs = (f' class="{esc(cls)}"' if cls else "") + (f' id="{esc(table_id)}"' if table_id else "")
-    head = "".join(cell(h, "th") for h in header)
-    body = "".join("<tr>" + "".join(cell(v, "td") for v in row) + "</tr>" for row in rows)
-    return f"<table{attrs}><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-@dataclass(frozen=True)
-class Raw:
-    """Trusted HTML inside a table cell."""
-
-    text: str
-
-
-def badge(status: str) -> Raw:
-    """A coloured status label."""
-    return Raw(f'<span class="badge {esc(status.replace("/", ""))}">{esc(status)}</span>')
-
-
-def para(*texts: str) -> str:
-    """Paragraphs of escaped text."""
-    return "".join(f"<p>{esc(t)}</p>" for t in texts)
-
-
 @dataclass
 class Notes:
     """Collects short remarks for a section (mutable helper used while building one)."""
@@ -126,3 +76,7 @@ class Notes:
     def html(self) -> str:
         """The remarks as an HTML list."""
         return "<ul>" + "".join(f"<li>{esc(t)}</li>" for t in self.items) + "</ul>" if self.items else ""
+
+
+__all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "badge", "esc",
+           "fmt", "para", "table"]

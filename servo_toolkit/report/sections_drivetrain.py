@@ -14,10 +14,10 @@ DEG = 180.0 / math.pi
 TABLE_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
 
-def _q_label(dt) -> str:
-    if getattr(dt, "output_is_linear", False):
+def _q_label(drive) -> str:
+    if getattr(drive, "output_is_linear", False):
         return "output travel"
-    return "cam angle" if dt.ends_in_cam else "output angle"
+    return "cam angle" if drive.ends_in_cam else "output angle"
 
 
 def _param_table(obj, units=None) -> str:
@@ -54,9 +54,9 @@ def scene_summary(ctx) -> Section:
     return Section("Scene summary", "".join(parts), key="scene")
 
 
-def _output_units(dt):
+def _output_units(drive):
     """(coordinate unit shown, factor SI -> shown, stiffness unit shown, factor) of the output."""
-    if getattr(dt, "output_is_linear", False):
+    if getattr(drive, "output_is_linear", False):
         return "mm", 1e3, "N/mm", 1e-3
     return "deg", DEG, "N*m/deg", 1.0 / DEG
 
@@ -64,18 +64,18 @@ def _output_units(dt):
 def stiffness_chain(ctx) -> Section:
     """Each stage's stiffness at the output, compliance shares, seed 001's neglect criterion."""
     ctx.require_drivetrain("the stiffness chain")
-    dt = ctx.scene.drivetrain
-    qu, qf, ku, kf = _output_units(dt)
-    lo, hi = np.asarray(dt.stroke) * qf
-    points = [a for a in TABLE_ANGLES_DEG if qu == "deg" and lo - 1e-9 <= a <= hi + 1e-9] or [dt.mid_stroke * qf]
+    drive = ctx.scene.drivetrain
+    qu, qf, ku, kf = _output_units(drive)
+    lo, hi = np.asarray(drive.stroke) * qf
+    points = [a for a in TABLE_ANGLES_DEG if qu == "deg" and lo - 1e-9 <= a <= hi + 1e-9] or [drive.mid_stroke * qf]
     q = np.asarray(points) / qf
-    chain = dt.stiffness(q)
+    chain = drive.stiffness(q)
     if not chain.names:
         return Section("Stiffness chain", para(
             "No stage of this drivetrain declares a stiffness: the chain is modelled as rigid, so "
             "there is no drivetrain resonance to report."), key="stiffness")
-    qs = figures.stroke_grid(dt)
-    along = dt.stiffness(qs)
+    qs = figures.stroke_grid(drive)
+    along = drive.stiffness(qs)
     crit = along.criterion()
     header = ["stage"] + [f"{a:+.4g} {qu}: k [{ku}]" for a in points] + [f"{a:+.4g} {qu}: share" for a in points] \
         + ["max share over stroke", "ratio to later stages (min)", "own stiffness / later (max)",
@@ -92,7 +92,7 @@ def stiffness_chain(ctx) -> Section:
     imin = int(np.argmin(along.total))
     imax = int(np.argmax(along.total))
     text = [
-        f"Every stage's stiffness is reflected to the {_q_label(dt)} through the square of its ratio to the "
+        f"Every stage's stiffness is reflected to the {_q_label(drive)} through the square of its ratio to the "
         "output (seed 001, eq 8); compliances in series add.",
         f"Along the stroke the series stiffness runs from {along.total[imin] * kf:.4g} {ku} at "
         f"{qs[imin] * qf:+.4g} {qu} to {along.total[imax] * kf:.4g} {ku} at {qs[imax] * qf:+.4g} {qu}.",
@@ -106,10 +106,10 @@ def stiffness_chain(ctx) -> Section:
     fig1, ax1 = figures.new_figure()
     linear = qu == "mm"
     figures.shares_along_stroke(along, qs, ax1, linear)
-    ax1.set_xlabel(f"{_q_label(dt)} [{qu}]")
+    ax1.set_xlabel(f"{_q_label(drive)} [{qu}]")
     fig2, ax2 = figures.new_figure()
     figures.stiffness_along_stroke(along, qs, ax2, linear)
-    ax2.set_xlabel(f"{_q_label(dt)} [{qu}]")
+    ax2.set_xlabel(f"{_q_label(drive)} [{qu}]")
     return Section("Stiffness chain and compliance shares", para(*text) + table(header, body, table_id="stiffness-table"),
                    (FigureSpec(fig1, "Compliance shares along the stroke."),
                     FigureSpec(fig2, "Stage stiffness at the output and the series total.")), key="stiffness")
@@ -118,13 +118,13 @@ def stiffness_chain(ctx) -> Section:
 def ratio_and_inertia(ctx) -> Section:
     """Kinematic ratio and reflected inertia along the stroke."""
     ctx.require_drivetrain("the ratio and inertia analysis")
-    dt = ctx.scene.drivetrain
-    q = figures.stroke_grid(dt)
-    n, _ = dt.ratio(q)
-    j, _ = dt.inertia(q)
+    drive = ctx.scene.drivetrain
+    q = figures.stroke_grid(drive)
+    n, _ = drive.ratio(q)
+    j, _ = drive.inertia(q)
     jm = j / n**2
-    lash = dt.backlash(np.array([dt.mid_stroke]))[0]
-    qu, qf, _, _ = _output_units(dt)
+    lash = drive.backlash(np.array([drive.mid_stroke]))[0]
+    qu, qf, _, _ = _output_units(drive)
     linear = qu == "mm"
     out, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
     rows = [
@@ -134,21 +134,21 @@ def ratio_and_inertia(ctx) -> Section:
          fmt(j.max() / j.min()), j_unit),
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),
     ]
-    load = dt.load.inertia
-    motor_j = dt.motor.rotor_inertia * n**2
+    load = drive.load.inertia
+    motor_j = drive.motor.rotor_inertia * n**2
     text = [
-        f"Over the stroke ({dt.stroke[0] * qf:+.4g} to {dt.stroke[1] * qf:+.4g} {qu}) the ratio "
+        f"Over the stroke ({drive.stroke[0] * qf:+.4g} to {drive.stroke[1] * qf:+.4g} {qu}) the ratio "
         f"varies by a factor {n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}.",
         f"The motor rotor contributes {motor_j.min() / j.max():.1%} to {motor_j.max() / j.min():.1%} of the inertia "
         f"at the output; the load {'mass' if linear else 'inertia'} is {load:.4g} {j_unit}.",
         (f"Lost motion at mid-stroke, all lashes reflected to the output: {lash * 1e6:.3g} um. " if linear else
          f"Lost motion at mid-stroke, all lashes reflected to the output: {math.degrees(lash) * 60:.3g} arcmin. ")
-        + f"Drivetrain efficiency (product of the stages): {dt.efficiency:.3g}.",
+        + f"Drivetrain efficiency (product of the stages): {drive.efficiency:.3g}.",
     ]
     fig, axes = figures.new_figure(1, 2, size=(9.0, 3.4))
-    figures.ratio_inertia_along_stroke(dt, q, axes)
+    figures.ratio_inertia_along_stroke(drive, q, axes)
     for ax in axes:
-        ax.set_xlabel(f"{_q_label(dt)} [{qu}]")
+        ax.set_xlabel(f"{_q_label(drive)} [{qu}]")
     return Section("Reflected inertia and ratio along the stroke",
                    para(*text) + table(("quantity", "min", "max", "max/min", "unit"), rows),
                    (FigureSpec(fig, "Ratio N(q) with dN/dq, and reflected inertia J(q) at the output and at the motor."),),

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from .context import api
 from .section import NotApplicable, Section, esc, fmt, para, table
 
 #: fixed-point formats shown with their cost
@@ -24,7 +23,8 @@ def _coefficient_rows(blocks):
 def _quantized_row(ctx, d, fmt_name):
     from ..errors import SceneError
     try:
-        res = api("servo_toolkit.export", "export")(d, ctx.scene, fixed_point=fmt_name)
+        from ..export import export
+        res = export(d, ctx.scene, fixed_point=fmt_name)
     except SceneError as exc:  # e.g. a speed estimator the fixed-point code does not cover
         return (fmt_name, "-", "-", "-", "-", "-", exc.rule)
     m = res.quantized_design.margins
@@ -40,7 +40,8 @@ def exported_coefficients(ctx) -> Section:
     if scene.sensors.sample_time <= 0:
         raise NotApplicable("the scene gives no sample time: the controller is continuous, nothing to export")
     d = ctx.design()
-    res = api("servo_toolkit.export", "export")(d, scene)
+    from ..export import export
+    res = export(d, scene)
     rows, extra = _coefficient_rows(res.blocks)
     head = ("section", "b0", "b1", "b2", "a1", "a2", "units")
     d_m = d.margins

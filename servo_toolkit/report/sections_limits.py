@@ -3,13 +3,11 @@ simulation, and (when available) the reduction study's measured differences."""
 
 from __future__ import annotations
 
-import importlib
 import math
 
 import numpy as np
 
-from ..output_units import OutputUnit, output_unit
-from .context import api
+from ..core.output_units import OutputUnit, output_unit
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 
@@ -18,21 +16,21 @@ SEED001_TEST_OVER_MODEL = (434.25 / 637.65, 467.96 / 648.03, 482.42 / 661.06)
 
 
 def _design_assumptions(ctx) -> list[str]:
-    dt = ctx.scene.drivetrain
-    q = np.linspace(*dt.stroke, 121)
-    n, _ = dt.ratio(q)
-    j, _ = dt.inertia(q)
+    drive = ctx.scene.drivetrain
+    q = np.linspace(*drive.stroke, 121)
+    n, _ = drive.ratio(q)
+    j, _ = drive.inertia(q)
     out = []
     try:
         d = ctx.design()
     except NotAvailable:
         d = None
-    q0 = d.q0 if d is not None else dt.mid_stroke
+    q0 = d.q0 if d is not None else drive.mid_stroke
     out.append(f"The loop is designed and its margins computed on a linear model at one operating point, "
-               f"q0 = {output_unit(dt).text(q0)}. Along the stroke the ratio N varies by a factor "
+               f"q0 = {output_unit(drive).text(q0)}. Along the stroke the ratio N varies by a factor "
                f"{n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}; use "
                "`servo-toolkit check --vary` for the worst case over variations.")
-    chain = dt.stiffness(q)
+    chain = drive.stiffness(q)
     if chain.names:
         neg = [nm for nm, flag in zip(chain.names, chain.negligible()) if flag]
         if neg:
@@ -44,9 +42,8 @@ def _design_assumptions(ctx) -> list[str]:
                    f"{1 - math.sqrt(hi):.0%} to {1 - math.sqrt(lo):.0%} lower than the one shown here.")
     if d is not None:
         p = d.parameters
-        plant_mod = importlib.import_module("servo_toolkit.plant")
-        zeta = getattr(plant_mod, "DEFAULT_STRUCTURAL_DAMPING", None)
-        if zeta is not None and not p.rigid:
+        from ..plant import DEFAULT_STRUCTURAL_DAMPING as zeta
+        if not p.rigid:
             out.append(f"The drivetrain mode's damping is not in the scene; the design assumes a damping ratio of "
                        f"{zeta:g}.")
         if p.L > 0:
@@ -57,9 +54,9 @@ def _design_assumptions(ctx) -> list[str]:
         out.append("The linear loop leaves out the voltage and current limits, Coulomb friction, backlash and "
                    "encoder quantization; sampling enters as a delay of 1.5 sample times. The time responses "
                    "above compare it with the nonlinear simulation, which includes them.")
-    lash = dt.backlash(np.array([q0]))[0]
+    lash = drive.backlash(np.array([q0]))[0]
     if lash > 0:
-        u = output_unit(dt)
+        u = output_unit(drive)
         total = f"{u.text(lash, 3)}" if u.linear else f"{math.degrees(lash) * 60:.3g} arcmin"
         out.append(f"Total lost motion at the output: {total}; half of it, {u.text(lash / 2, 3)}, is "
                    f"{lash / 2 / u.default_amplitude:.2%} of a {u.text(u.default_amplitude)} sine's amplitude.")
@@ -68,10 +65,8 @@ def _design_assumptions(ctx) -> list[str]:
 
 def _simulation_simplifications() -> list[str]:
     """The bullet list under 'Simplifications' in the simulation model's documentation."""
-    try:
-        doc = importlib.import_module("servo_toolkit.sim.model").__doc__ or ""
-    except ImportError:
-        return []
+    from ..sim import model
+    doc = model.__doc__ or ""
     if "Simplifications" not in doc:
         return []
     items, current = [], None
@@ -100,7 +95,7 @@ def _measured_reduction(ctx):
     from dataclasses import replace
 
     from . import sections_studies as studies
-    reduce = api("servo_toolkit.studies.reduce", "reduce")
+    from ..studies.reduce import reduce
     name, freqs, _, options = studies.sweep_settings(ctx)
     light = {"frequencies": freqs, "plan": options["plan"]} if ctx.light else {}
     res = reduce(ctx.scene, name, controller=ctx.design().controller, executor=ctx.executor, progress=False,

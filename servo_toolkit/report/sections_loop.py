@@ -7,7 +7,6 @@ import math
 import numpy as np
 
 from . import figures
-from .context import api
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 from .units_table import UNITS
 
@@ -117,7 +116,7 @@ def plant_bode(ctx) -> Section:
     """Plant Bode plot (voltage to output angle) with the drivetrain resonance marked."""
     d = ctx.design()
     p = d.parameters
-    plant_mod = api("servo_toolkit.plant", "rigid_plant")
+    from ..plant.linear import rigid_plant as plant_mod
     f = np.logspace(math.log10(F_MIN), math.log10(F_MAX), 1500)
     fig, (am, ap) = figures.new_figure(2, 1, size=(7.5, 5.2), sharex=True)
     _bode(am, ap, f, _response(d.plant["theta", "u"], f), "plant model used by the design")

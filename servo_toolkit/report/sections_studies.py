@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
+from ..core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ
 from . import figures
-from .context import api
 from .section import FigureSpec, NotApplicable, Section, esc, fmt, para, table
 
 
@@ -23,16 +23,16 @@ def sweep_settings(ctx):
     the frequencies where the designed loop peaks (:func:`peak_frequencies`), and a shorter
     dwell (3 settling and 2 estimation cycles).
     """
-    study_points = api("servo_toolkit.studies.sweep", "study_points")
+    from ..studies.sweep import study_points
     name, freqs, amps = study_points(ctx.scene)
     freqs = np.asarray(freqs, dtype=float)
     options = {}
     if ctx.light:
-        plan_cls = api("servo_toolkit.studies.sine_dwell", "DwellPlan")
+        from ..studies.sine_dwell import DwellPlan as plan_cls
         lo, hi = freqs.min(), freqs.max()
         if freqs.size > LIGHT_SWEEP_POINTS:
             light = np.geomspace(lo, hi, LIGHT_SWEEP_POINTS)
-            freqs = np.unique(np.concatenate([light, freqs[np.abs(freqs - 8.0) < 1e-9],
+            freqs = np.unique(np.concatenate([light, freqs[np.abs(freqs - REQUIREMENT_SINE_HZ) < 1e-9],
                                               peak_frequencies(ctx.design(), lo, hi)]))
         options["plan"] = plan_cls(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2)
     options["frequencies"] = freqs
@@ -57,7 +57,7 @@ def peak_frequencies(design, lo: float, hi: float) -> np.ndarray:
 def reduced_sweep(ctx):
     """The report's sweep (reduced model, as :func:`servo_toolkit.studies.sweep.sweep` runs
     it by default), computed once and shared by the sweep and reduction sections."""
-    run_sweep = api("servo_toolkit.studies.sweep", "sweep")
+    from ..studies.sweep import sweep as run_sweep
     controller = ctx.design().controller
     name, _, _, options = sweep_settings(ctx)
     return ctx.result("sweep", lambda: run_sweep(ctx.scene, name, controller=controller, executor=ctx.executor,
@@ -113,11 +113,12 @@ def sweep(ctx) -> Section:
 def kv_tables(ctx) -> Section:
     """Kv tables of the scene's kv studies (seed 000): inverse dynamics along the motion."""
     ctx.require_drivetrain("the Kv study")
-    kv_studies = api("servo_toolkit.studies.kv", "kv_studies")
-    if not ctx.scene.studies_of_kind("kv"):
+    from ..studies.run import run_study
+    studies = ctx.scene.studies_of_kind("kv")
+    if not studies:
         raise NotApplicable("the scene defines no [studies.NAME] of kind \"kv\"")
-    results = kv_studies(ctx.scene, samples_per_period=400 if ctx.light else 2000,
-                         executor=ctx.executor, progress=False)
+    results = [run_study(ctx.scene, s.name, samples_per_period=400 if ctx.light else 2000,
+                         executor=ctx.executor, progress=False) for s in studies]
     parts = [para("Kv, the dynamic-load factor: the peak load of a motion with the external inertia over the "
                   "peak of the same motion at zero external inertia (seed 000), from inverse dynamics with "
                   "the reflected mass matrix and Jacobians (equivalent-element method).")]
@@ -143,13 +144,13 @@ def accuracy(ctx) -> Section:
     """Solver error against run time: RK4 and the cam paper's scheme at a ladder of steps
     against the tight-tolerance reference, with the observed order of convergence."""
     ctx.require_drivetrain("the solver accuracy study")
-    accuracy_study = api("servo_toolkit.sim.accuracy", "accuracy_study")
-    build_model = api("servo_toolkit.sim", "build_model")
-    reference = api("servo_toolkit.sim", "Reference")
+    from ..studies.accuracy import accuracy_study
+    from ..sim import build_model
+    from ..sim import Reference as reference
     controller = ctx.design().controller
     model = build_model(ctx.scene, controller)
     duration = 0.05 if ctx.light else 0.2
-    res = accuracy_study(model, reference.sine(math.radians(2.0), 8.0), duration, progress=False)
+    res = accuracy_study(model, reference.sine(math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ), duration, progress=False)
     rows = [(r["method"], "adaptive" if r["dt_s"] is None else fmt(r["dt_s"]), fmt(r["wall_s"] * 1e3),
              fmt(r["error"], 3)) for r in res.runs]
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))

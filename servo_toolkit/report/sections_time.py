@@ -7,11 +7,10 @@ import math
 import numpy as np
 
 from . import figures
-from ..output_units import output_unit
-from .context import api
+from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
 from .section import FigureSpec, NotAvailable, Section, fmt, para, table
 
-SINE_HZ = 8.0
+SINE_HZ = REQUIREMENT_SINE_HZ
 #: the step is this fraction of the sine's amplitude (the output's default command amplitude:
 #: 2 deg for an angle, 1 mm for a travel)
 STEP_FRACTION = 0.5
@@ -95,8 +94,8 @@ def time_responses(ctx) -> Section:
     nonlinear = None
     electrics, electric_fig = [], None
     try:
-        simulate = api("servo_toolkit.sim", "simulate")
-        reference = api("servo_toolkit.sim", "Reference")
+        from ..sim import simulate
+        from ..sim import Reference as reference
         t_at = 0.01
         r1 = simulate(ctx.scene, d.controller, reference=reference.step(step_amp / u.factor, at=t_at),
                       duration=t_step[-1] + t_at, method="rk4")

@@ -22,7 +22,7 @@ Methods: ``"rk4"`` (compiled fixed step; refuses steps outside RK4's stability r
 grows along the run, or the implicit solver when RK4 would need more than 2e7 steps).
 """
 
-from .default_controller import default_controller
+from ..loop.default_controller import default_controller
 from .engine import METHODS, run
 from .model import Model, ModelOptions, build_model
 from .reference import Reference, initial_state

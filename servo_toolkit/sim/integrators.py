@@ -12,7 +12,7 @@ operator (seed eqs 6-8, c = half the play) updates s. It is first order in T.
 
 The loop compiles in :func:`kernel.rhs` and everything it calls (layout constants, the cam
 kernels); the compiled-code cache is keyed on a hash of all those sources
-(:mod:`servo_toolkit.jit_cache`), so editing any of them recompiles the loop.
+(:mod:`servo_toolkit.core.jit_cache`), so editing any of them recompiles the loop.
 """
 
 from __future__ import annotations

@@ -34,11 +34,11 @@ import math
 
 import numba as nb
 
-from ..jit_cache import install as _install_cache
+from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from ..mechanisms.cam_kernels import shaft_acceleration  # noqa: E402
+from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 
 from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,

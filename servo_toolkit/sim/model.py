@@ -26,7 +26,7 @@ Simplifications (documented, switchable where a reduction study needs it):
   back-driven) acts against the motion with smooth signs of the torque (scale
   :data:`LOSS_TORQUE_SCALE` of the peak motor torque at the output) and of the speed (the
   friction speed), so RK4 keeps its order and the loss power is never negative. The linear
-  design plant (:mod:`servo_toolkit.plant`) uses the driving-mode eta on the motor torque: it
+  design plant (:mod:`servo_toolkit.plant.linear`) uses the driving-mode eta on the motor torque: it
   is the small-signal model wherever the motor drives the load (the tests compare the
   model's Jacobian with it); a motion that reverses the power flow (a free sine, where
   torque and speed are in quadrature) sees eta on half the cycle and 1/eta_b on the other,
@@ -45,10 +45,10 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..errors import SceneError
-from ..output_units import OutputUnit
-from ..operating_point import operating_point
-from ..controller import MOTION_INPUTS
-from . import estimator, layout as lo
+from ..core.output_units import OutputUnit
+from ..drivetrain.operating_point import operating_point
+from ..loop.controller import MOTION_INPUTS
+from . import speed_estimator as estimator, layout as lo
 from .kernel import hermite
 
 
@@ -90,7 +90,7 @@ class ModelOptions:
         Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
         speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
         difference of the motor-encoder angle over one sample; ``"kalman"``: constant-gain
-        Kalman filter (constant-acceleration model, :func:`servo_toolkit.estimation.steady_state_gain`)
+        Kalman filter (constant-acceleration model, :func:`servo_toolkit.loop.encoder_estimators.steady_state_gain`)
         on the motor-encoder angle. The estimators quantize the motor encoder
         (``motor_encoder_counts``) when ``quantization`` is on. Continuous mode always uses
         the true speed.
@@ -452,7 +452,7 @@ def _with_cam(P, drive, rigid, notes):
         notes.append("cam follower weight and guide friction left out (compliant chain or law "
                      f"{cam.law!r})")
         return P
-    from ..mechanisms.cam_kernels import pack_cam
+    from ..components.cam.kernels import pack_cam
     P[lo.CAM] = P.size
     return np.concatenate([P, pack_cam(cam)])
 

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from ..output_units import OutputUnit
-from ..display import RichDisplay
+from ..core.output_units import OutputUnit
+from ..display.cards import RichDisplay
+from ..display.cards import card, facts, num, svg
 
 
 @dataclass(frozen=True, repr=False)
@@ -183,12 +184,10 @@ class SimulationResult(RichDisplay):
         return axes
 
     def _repr_line(self) -> str:
-        from ..result_cards import simulation_line
-        return simulation_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import simulation_card
-        return simulation_card(self)
+        return _card_html(self)
 
 
 TRACE_SUFFIXES = (".csv", ".npz")
@@ -223,3 +222,25 @@ def check_trace_path(path, key: str = "--output"):
     if path.is_dir():
         raise SceneError(key, f"cannot write {str(path)!r}: it is a folder")
     return path
+
+
+def _card_line(s) -> str:
+    """The one-line repr of a result of this module."""
+    d = s.to_dict()
+    key = s.unit.key("max_abs_tracking_error")
+    return (f"{s.method}, {d['t_final_s']:.4g} s, peak current {d['max_abs_current_A']:.4g} A, "
+            f"peak |error| {d[key]:.4g} {s.unit.shown}")
+
+
+def _card_html(s) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    d = s.to_dict()
+    key = s.unit.key("max_abs_tracking_error")
+    rows = (("method", f"{s.method} (asked {s.requested or 'auto'})"),
+            ("step", "adaptive" if s.dt_s is None else f"{num(s.dt_s)} s"), ("duration", f"{num(d['t_final_s'])} s"),
+            ("peak |tracking error|", f"{num(d[key])} {s.unit.shown}"),
+            ("peak current", f"{num(d['max_abs_current_A'])} A"), ("peak voltage", f"{num(d['max_abs_voltage_V'])} V"),
+            ("peak motor torque", f"{num(d['max_abs_motor_torque_Nm'])} N*m"),
+            ("integration wall time", f"{num(s.wall_s * 1e3)} ms"), ("controller", s.controller))
+    return card("Simulation", parts=[facts(rows), svg(s.plot, size=(7.0, 5.2), rows=3, sharex=True)],
+                notes=(s.choice, *s.notes))

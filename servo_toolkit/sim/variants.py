@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import SceneError
-from ..output_units import OutputUnit
+from ..core.output_units import OutputUnit
 from . import layout as lo
 from .model import build_model, drivetrain_slots
 

@@ -16,7 +16,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..jit_cache import install as _install_cache
+from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..components.ball_screw import BallScrew
 from ..components.linkage import RockerLinkage
-from ..drivetrain import Drivetrain
+from ..drivetrain.reflected import Drivetrain
 from ..errors import SimulationError
 
 LOSS_MODELS = ("directional", "none")

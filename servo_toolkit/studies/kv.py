@@ -32,13 +32,14 @@ import math
 from dataclasses import dataclass, field, replace
 
 
-from ..drivetrain import Drivetrain
+from ..drivetrain.reflected import Drivetrain
 from ..errors import SceneError
-from ..parallel import run_cases
+from ..core.parallel import run_cases
 from .inverse_dynamics import inverse_dynamics
-from ..output_units import OutputUnit, output_unit
+from ..core.output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
-from ..display import RichDisplay
+from ..display.cards import RichDisplay
+from ..display.cards import card, esc, num, svg, table
 
 
 @dataclass(frozen=True)
@@ -175,12 +176,10 @@ class KvResult(RichDisplay):
         return ax
 
     def _repr_line(self) -> str:
-        from ..result_cards import kv_line
-        return kv_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import kv_card
-        return kv_card(self)
+        return _card_html(self)
 
 
 @dataclass(frozen=True)
@@ -270,14 +269,14 @@ def _motions(scene, study):
 def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, float]:
     """What the rigid inverse dynamics leaves out: ``(lowest drivetrain mode (Hz), effect)``.
 
-    With the two-mass split at mid-stroke (:func:`servo_toolkit.plant.plant_parameters`;
+    With the two-mass split at mid-stroke (:func:`servo_toolkit.plant.linear.plant_parameters`;
     motor side J1, load side J2, series stiffness K, mode ``w_n^2 = K (1/J1 + 1/J2)``) and the
     output prescribed as a sine of angular frequency w, the spring carries ``-J2 w^2 q`` and
     the motor side winds it up, ``p = q (1 - J2 w^2 / K)``, so the motor's inertial torque is
     the rigid one times ``1 - (w / w_n)^2``. ``effect`` is the largest ``(f / f_n)^2`` over
     the load inertias (0 for a rigid chain; the mode falls as the load inertia grows).
     """
-    from ..plant import plant_parameters
+    from ..plant.linear import plant_parameters
     base = plant_parameters(scene)
     modes = [base.with_variation(load_inertia_delta=float(j) - scene.load.inertia).resonance_hz
              for j in load_inertias]
@@ -360,7 +359,7 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
 def default_kv_study(scene, amplitude: float | None = None, frequency: float | None = None):
     """The Kv study a scene without one gets: seed 000's 8 Hz sine of 2 deg (1 mm for an
     output travel) about the design's operating point
-    (:func:`servo_toolkit.operating_point.operating_point`), at zero and the scene's load
+    (:func:`servo_toolkit.drivetrain.operating_point.operating_point`), at zero and the scene's load
     inertia.
 
     Parameters
@@ -372,10 +371,11 @@ def default_kv_study(scene, amplitude: float | None = None, frequency: float | N
     """
     from types import MappingProxyType
 
-    from ..operating_point import operating_point
-    from ..scene import Study
+    from ..core.output_units import REQUIREMENT_SINE_HZ
+    from ..drivetrain.operating_point import operating_point
+    from ..scene.loader import Study
     amp = output_unit(scene).default_amplitude if amplitude is None else float(amplitude)
-    params = {"trajectory": "sine", "amplitude": amp, "frequency": 8.0 if frequency is None else float(frequency),
+    params = {"trajectory": "sine", "amplitude": amp, "frequency": REQUIREMENT_SINE_HZ if frequency is None else float(frequency),
               "offset": operating_point(scene)[0]}
     return Study("default", "kv", MappingProxyType(params))
 
@@ -383,6 +383,25 @@ def default_kv_study(scene, amplitude: float | None = None, frequency: float | N
 def kv_studies(scene, **options) -> list[KvResult]:
     """Every study of kind "kv" in the scene, in file order."""
     return [kv_study(scene, s, **options) for s in scene.studies_of_kind("kv")]
+
+
+def _card_line(k) -> str:
+    """The one-line repr of a result of this module."""
+    top = max((c.kv_motor for c in k.cases), default=math.nan)
+    return f"{k.scene}, study {k.study}: {len(k.cases)} cases, largest Kv of the motor torque {num(top, 4)}"
+
+
+def _card_html(k) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    u = k.unit
+    rows = [(u.text(c.amplitude), num(c.load_inertia), num(c.peak_motor_torque), num(c.kv_motor, 4),
+             num(c.peak_screw_thrust) if c.peak_screw_thrust is not None else "-",
+             num(c.kv_screw, 4) if c.kv_screw is not None else "-") for c in k.cases]
+    load = "load mass [kg]" if u.linear else "load inertia [kg*m^2]"
+    parts = [f'<p class="st-note">{esc(k.motion)}</p>',
+             table(("amplitude", load, "motor torque [N*m]", "Kv motor", "screw thrust [N]", "Kv screw"), rows),
+             svg(lambda ax: k.plot(ax), size=(6.0, 3.4))]
+    return card(f"Kv of {k.scene}, study {k.study}", parts=parts, notes=k.notes)
 
 
 __all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]

@@ -19,14 +19,15 @@ import numpy as np
 
 from ..errors import SceneError
 from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
-from ..parallel import chunks, run_cases
+from ..core.parallel import chunks, run_cases
 from ..sim import controller_for
 from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, integrate_variants, jacobians
+from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
+from ..sim.batch_run import integrate_variants
 from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import fill, initial_state
 from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification
-from ..sim.studies import run_spec
+from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from .montecarlo_result import MonteCarloResult
 from .time_run import sine_run_options

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..output_units import OutputUnit
+from ..core.output_units import OutputUnit
 
 
 @dataclass(frozen=True)

@@ -24,13 +24,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import SceneError, SimulationError
-from ..output_units import OutputUnit, output_unit
-from ..parallel import run_cases
-from ..plant import DEFAULT_STRUCTURAL_DAMPING
+from ..core.output_units import OutputUnit, output_unit
+from ..core.parallel import run_cases
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
 from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, plan_reduction
 from .sine_dwell import DwellPlan
 from .sweep import linear_response, study_points, sweep
-from ..display import RichDisplay
+from ..display.cards import RichDisplay
+from ..display.cards import card, facts, num, svg, table
 
 TIME_KINDS = ("kv", "simulate")
 
@@ -192,12 +193,10 @@ class ReductionResult(RichDisplay):
         return ax
 
     def _repr_line(self) -> str:
-        from ..result_cards import reduction_line
-        return reduction_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import reduction_card
-        return reduction_card(self)
+        return _card_html(self)
 
 
 def _db(e):
@@ -387,3 +386,21 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     rplan = plan_reduction(scene, controller, freqs, amps,
                            base=ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING), tolerance=tolerance)
     return replace(rplan.options), rplan
+
+
+def _card_line(r) -> str:
+    """The one-line repr of a result of this module."""
+    left = ", ".join(e.effect for e in r.plan.omitted) or "nothing"
+    return f"{r.scene}: left out {left}; measured {num(r.measured, 3)} vs bound {num(r.bound, 3)} ({r.verdict})"
+
+
+def _card_html(r) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    rows = [(e.effect, num(e.estimate, 3), "left out" if e.omitted else "kept", e.reason) for e in r.plan.effects]
+    parts = [table(("effect", "estimate (relative)", "decision", "why"), rows),
+             facts((("a-priori bound", num(r.bound, 3)), ("measured difference", num(r.measured, 3)),
+                    ("verdict", r.verdict), ("wall time full / reduced",
+                                             f"{num(r.full_wall_s, 3)} s / {num(r.reduced_wall_s, 3)} s"))),
+             svg(lambda ax: r.plot(ax), size=(7.0, 3.4))]
+    return card(f"Reduction of {r.scene}", status=r.within_bound if r.within_bound is not None else None,
+                parts=parts, notes=r.notes)

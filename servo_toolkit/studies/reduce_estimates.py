@@ -3,7 +3,7 @@
 Every estimate is a relative error of the closed-loop response theta/theta_ref,
 ``e = max_f |T_without(j w) / T(j w) - 1|`` over the study's frequencies (e bounds the gain
 error by 20 log10(1 + e) dB and the phase error by asin(e)). Linear effects are estimated
-with the design's linear closed loop of :mod:`servo_toolkit.plant` assembled twice, with and without the effect; nonlinear ones from their physics:
+with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assembled twice, with and without the effect; nonlinear ones from their physics:
 
 - armature inductance: loop without inductance (ideal current loop);
 - a stage's compliance (candidates: compliance share below 1e-3 over the motion, the seed
@@ -37,10 +37,10 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
-from ..operating_point import operating_point
-from ..output_units import OutputUnit, output_unit
-from ..plant import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
-                     plant_parameters, sample_delay, spring_damping)
+from ..drivetrain.operating_point import operating_point
+from ..core.output_units import OutputUnit, output_unit
+from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
+                            plant_parameters, sample_delay, spring_damping)
 
 #: compliance share below which a stage's compliance is negligible (seed 001)
 SHARE_THRESHOLD = 1e-3

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
-from ..reflection import NeglectCriterion
-from ..display import RichDisplay
+from ..drivetrain.elements import NeglectCriterion
+from ..display.cards import RichDisplay
+from ..display.cards import card, esc, num
 
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
@@ -215,12 +216,10 @@ class StiffnessResult(RichDisplay):
         return ax
 
     def _repr_line(self) -> str:
-        from ..result_cards import stiffness_line
-        return stiffness_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import stiffness_card
-        return stiffness_card(self)
+        return _card_html(self)
 
 
 def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, np.ndarray]:
@@ -308,3 +307,13 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
                            chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
                            dt.output_unit, values if linear else None, crit,
                            chain.native_stiffness, chain.native_units, chain.ratio_to_output)
+
+
+def _card_line(s) -> str:
+    """The one-line repr of a result of this module."""
+    return f"{len(s.names)} compliant stage(s) at {len(s.total)} point(s); series total {num(np.min(s.total), 4)} (SI) at its lowest"
+
+
+def _card_html(s) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    return card("Stiffness chain", parts=[f"<pre>{esc(s.table())}</pre>"])

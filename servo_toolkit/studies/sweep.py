@@ -29,12 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SimulationError
-from ..output_units import OutputUnit
-from ..parallel import run_cases
-from ..plant import DEFAULT_STRUCTURAL_DAMPING
+from ..core.output_units import OutputUnit
+from ..core.parallel import run_cases
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
 from .sine_dwell import DwellPlan, dwell_estimate
 from .sweep_points import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY_HZ, study_points
-from ..display import RichDisplay
+from ..display.cards import RichDisplay
+from ..display.cards import card, num, svg, table
 
 def _dwell_case(case):
     """One sine dwell (module level so that executors can pickle it)."""
@@ -286,12 +287,10 @@ class SweepResult(RichDisplay):
         return axes
 
     def _repr_line(self) -> str:
-        from ..result_cards import sweep_line
-        return sweep_line(self)
+        return _card_line(self)
 
     def _repr_card(self) -> str:
-        from ..result_cards import sweep_card
-        return sweep_card(self)
+        return _card_html(self)
 
 
 def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAULT_STRUCTURAL_DAMPING):
@@ -301,7 +300,7 @@ def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAUL
     import control as ct
 
     from ..loop import linear_closed_loop
-    from ..operating_point import operating_point
+    from ..drivetrain.operating_point import operating_point
     cl = linear_closed_loop(scene, controller, q0=operating_point(scene)[0], structural_damping=structural_damping)
     sub = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
     w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
@@ -339,7 +338,7 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     method : str
         Integration method of :func:`servo_toolkit.sim.run`.
     executor : concurrent.futures.Executor, optional
-        Runs the dwells in parallel (see :func:`servo_toolkit.parallel.run_cases`).
+        Runs the dwells in parallel (see :func:`servo_toolkit.core.parallel.run_cases`).
     progress : bool
         tqdm progress bar.
 
@@ -400,6 +399,28 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
                        options=opts, plan=plan, decay_rate=decay, controller=model.controller,
                        method=method, wall_s=time.perf_counter() - start, notes=tuple(notes),
                        output_unit=scene.drivetrain.output_unit)
+
+
+def _card_line(s) -> str:
+    """The one-line repr of a result of this module."""
+    dev = s.deviation()
+    amps = ", ".join(s.unit.text(a, 3) for a in s.amplitudes_rad)
+    worst = max(dev["max_gain_difference_dB"] or [math.nan])
+    return (f"{s.scene}: {s.frequencies_hz.size} frequencies x {s.amplitudes_rad.size} amplitude(s) ({amps}), "
+            f"largest |dG| {num(worst, 3)} dB from the linear loop, {int(s.failed.sum())} failed")
+
+
+def _card_html(s) -> str:
+    """The Jupyter card (HTML) of a result of this module."""
+    dev = s.deviation()
+    rows = [(s.unit.text(a, 3), f"{num(g, 3)} dB", f"{num(p, 3)} deg", int(s.saturated[i].sum()), int(s.failed[i].sum()))
+            for i, (a, g, p) in enumerate(zip(s.amplitudes_rad, dev["max_gain_difference_dB"],
+                                              dev["max_phase_difference_deg"]))]
+    model = ("full model" if not s.reduced else "reduced: left out " + ("; ".join(s.left_out) or "nothing"))
+    parts = [table(("amplitude", "largest |dG|", "largest |dP|", "saturated", "failed"), rows),
+             f'<p class="st-note">{model}</p>', svg(s.plot, size=(7.0, 4.6), rows=2, sharex=True)]
+    return card(f"Sine-dwell sweep of {s.scene}" + (f", study {s.study}" if s.study else ""), parts=parts,
+                notes=s.notes)
 
 
 __all__ = ["DEFAULT_AMPLITUDE", "DEFAULT_FREQUENCY_HZ", "SweepResult", "linear_response", "study_points", "sweep"]

@@ -7,13 +7,13 @@ import math
 import numpy as np
 
 from ..errors import SceneError
-from ..output_units import output_unit
+from ..core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, output_unit
 
 #: the seed's key frequency, always in the default sweep
-DEFAULT_FREQUENCY_HZ = 8.0
+DEFAULT_FREQUENCY_HZ = REQUIREMENT_SINE_HZ
 #: command amplitude when the scene has no sweep study (seed 000's 8 Hz case); an output
-#: travel takes 1 mm (:attr:`servo_toolkit.output_units.OutputUnit.default_amplitude`)
-DEFAULT_AMPLITUDE = math.radians(2.0)
+#: travel takes 1 mm (:attr:`servo_toolkit.core.output_units.OutputUnit.default_amplitude`)
+DEFAULT_AMPLITUDE = math.radians(REQUIREMENT_SINE_DEG)
 
 
 def study_points(scene, study=None):

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ..output_units import output_unit
+from ..core.output_units import output_unit
 from ..sim import ModelOptions, controller_for, simulate
-from ..sim.studies import run_spec
+from .time_reference import run_spec
 
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
@@ -65,7 +65,7 @@ def sine_run_options(scene, controller, reference, full: bool = False):
     notes : list of str
         Which model, and for the reduced one what it left out and the a-priori bound.
     """
-    from ..plant import DEFAULT_STRUCTURAL_DAMPING
+    from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
     from .reduce_estimates import plan_reduction
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)

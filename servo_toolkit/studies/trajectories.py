@@ -71,9 +71,9 @@ class SineMotion:
 
     def describe(self, unit=None) -> str:
         """One-line description in the output's unit (an
-        :class:`~servo_toolkit.output_units.OutputUnit`; default degrees) and Hz."""
+        :class:`~servo_toolkit.core.output_units.OutputUnit`; default degrees) and Hz."""
         if unit is None:
-            from ..output_units import OutputUnit
+            from ..core.output_units import OutputUnit
             unit = OutputUnit()
         return (f"sine {unit.text(self.amplitude)} about {unit.text(self.offset)}, "
                 f"{self.frequency:.4g} Hz (period {self.period:.4g} s)")

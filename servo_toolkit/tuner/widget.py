@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
-from ..display import svg
-from ..output_units import output_unit
+from ..display.cards import svg
+from ..core.output_units import output_unit
 from ..loop.tuning import LoopTuning, base_design, save_design, tuned_design, tuning_of
 from .plots import draw
 
@@ -121,7 +121,7 @@ class Tuner:
 
     def update(self) -> None:
         """Re-evaluate the loop with the controls' values and redraw."""
-        from ..result_cards import requirements_table
+        from ..display.cards import requirements_table
         values = self.values()
         base = self._base_for(values.bandwidth_hz)
         # the gains of a fresh automatic design are its own: keep them unless moved

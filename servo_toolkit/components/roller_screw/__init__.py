@@ -1,0 +1,2 @@
+"""Planetary roller screws of seed 004: :mod:`.stages` (description, validation, ratios,
+efficiency) and :mod:`.model` (carrier dynamics)."""

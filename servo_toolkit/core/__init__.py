@@ -1,0 +1,13 @@
+"""Foundations every layer may use: unit parsing, scene-table fields, the output
+coordinate's units, parallel runs and the compiled-code cache.
+
+Nothing here imports from another part of the toolkit (except :mod:`servo_toolkit.errors`).
+
+========================  ==========================================================
+:mod:`.units`             unit strings -> SI floats (pint), at the scene boundary
+:mod:`.fields`            reading one scene table with key paths in every error
+:mod:`.output_units`      the output coordinate shown in deg or mm
+:mod:`.parallel`          many independent cases: an optional executor, a progress bar
+:mod:`.jit_cache`         where compiled kernels are cached, and when that is stale
+========================  ==========================================================
+"""

@@ -1,0 +1,197 @@
+"""Reading one scene table with key paths in every error."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
+
+from ..errors import SceneError
+from .units import parse_quantity
+
+_MISSING = object()
+
+#: the reads being collected by :func:`recording_reads` in this context (None: not collecting)
+_READS: ContextVar = ContextVar("servo_toolkit_scene_reads", default=None)
+
+
+@dataclass(frozen=True)
+class KeyRead:
+    """One key read by the scene loader, as :func:`recording_reads` collects it.
+
+    Attributes
+    ----------
+    table : str
+        Key path of the table, e.g. ``drivetrain[1]`` or ``studies.step``.
+    kind : str or None
+        The table's ``kind`` (stage, study or mechanism kind), if it has one.
+    key : str
+        The key's name inside the table.
+    reader : str
+        ``"quantity"``, ``"quantity list"``, ``"integer"``, ``"text"``, ``"number"``,
+        ``"value"`` (read as written) or ``"optional"`` (asked whether it is present).
+    unit : str or None
+        SI unit the value is converted to.
+    required : bool
+        The loader has no default for it.
+    default : object
+        The default when absent (None when required).
+    rule : str or None
+        ``"positive"``, ``"nonnegative"``, ``"finite"``, ``"at least N"`` or None.
+    choices : tuple or None
+        Allowed values of a text key.
+    written : object
+        The value as the table writes it (None when absent).
+    """
+
+    table: str
+    kind: str | None
+    key: str
+    reader: str
+    unit: str | None = None
+    required: bool = False
+    default: object = None
+    rule: str | None = None
+    choices: tuple | None = None
+    written: object = None
+
+
+@contextmanager
+def recording_reads():
+    """Collect every key the scene loader reads while the block runs.
+
+    Yields
+    ------
+    list of KeyRead
+        Filled as tables are read; the scene reference of the documentation is generated
+        from it, so it names exactly the keys, units, defaults and rules the loader applies.
+    """
+    reads: list = []
+    token = _READS.set(reads)
+    try:
+        yield reads
+    finally:
+        _READS.reset(token)
+
+
+class Fields:
+    """Typed access to one TOML table; every error names ``path.key`` and the rule.
+
+    Parameters
+    ----------
+    table : Mapping
+        The parsed TOML table.
+    path : str
+        Key path of the table inside the scene, e.g. ``drivetrain[1]``.
+    """
+
+    def __init__(self, table: Mapping, path: str):
+        if not isinstance(table, Mapping):
+            raise SceneError(path, f"expected a table, got {type(table).__name__}")
+        self.table = table
+        self.path = path
+        self._used = {"kind", "name"}
+
+    def _note(self, name: str, reader: str, default=_MISSING, unit=None, rule=None, choices=None) -> None:
+        reads = _READS.get()
+        if reads is not None:
+            kind = self.table.get("kind") if isinstance(self.table.get("kind"), str) else None
+            required = default is _MISSING
+            reads.append(KeyRead(self.path, kind, name, reader, unit, required,
+                                 None if required else default, rule,
+                                 tuple(sorted(choices)) if choices is not None else None,
+                                 self.table.get(name)))
+
+    def key(self, name: str) -> str:
+        """Full key path of ``name``."""
+        return f"{self.path}.{name}" if self.path else name
+
+    def has(self, name: str) -> bool:
+        """True when the table defines ``name``."""
+        self._note(name, "optional", None)
+        return name in self.table
+
+    def raw(self, name: str, default=_MISSING):
+        """The value as written, or ``default``; missing without default is an error."""
+        self._note(name, "value", default)
+        self._used.add(name)
+        if name in self.table:
+            return self.table[name]
+        if default is _MISSING:
+            raise SceneError(self.key(name), "missing key (required)")
+        return default
+
+    def quantity(self, name: str, unit: str, default=_MISSING, *, rule: str | None = None) -> float:
+        """A quantity converted to ``unit``.
+
+        ``rule`` is one of ``"positive"``, ``"nonnegative"``, ``"finite"`` (always
+        implied unless the default is infinite) or None.
+        """
+        self._note(name, "quantity", default, unit, rule)
+        value = self.raw(name, default)
+        if value is default and default is not _MISSING and not isinstance(default, str):
+            return default
+        return self._checked(parse_quantity(value, unit, self.key(name)), name, rule)
+
+    def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None) -> tuple:
+        """A list of quantities converted to ``unit``."""
+        self._note(name, "quantity list", default, unit, rule)
+        value = self.raw(name, default)
+        if value is default and default is not _MISSING:
+            return tuple(default)
+        if not isinstance(value, list):
+            raise SceneError(self.key(name), "expected a list")
+        return tuple(self._checked(parse_quantity(v, unit, f"{self.key(name)}[{i}]"), name, rule,
+                                   f"{self.key(name)}[{i}]") for i, v in enumerate(value))
+
+    def integer(self, name: str, default=_MISSING, *, minimum: int | None = None) -> int:
+        """An integer, optionally at least ``minimum``."""
+        self._note(name, "integer", default, rule=None if minimum is None else f"at least {minimum}")
+        value = self.raw(name, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(self.key(name), f"expected an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise SceneError(self.key(name), f"must be at least {minimum} (got {value})")
+        return value
+
+    def text(self, name: str, default=_MISSING, choices=None) -> str:
+        """A string, optionally one of ``choices``."""
+        self._note(name, "text", default, choices=choices)
+        value = self.raw(name, default)
+        if not isinstance(value, str):
+            raise SceneError(self.key(name), f"expected a string, got {value!r}")
+        if choices is not None and value not in choices:
+            raise SceneError(self.key(name), f"must be one of {sorted(choices)} (got {value!r})")
+        return value
+
+    def number(self, name: str, default=_MISSING, *, rule=None) -> float:
+        """A plain dimensionless number."""
+        self._note(name, "number", default, rule=rule)
+        return self.quantity(name, "dimensionless", default, rule=rule)
+
+    def _checked(self, value: float, name: str, rule, key: str | None = None) -> float:
+        key = key or self.key(name)
+        if math.isnan(value):
+            raise SceneError(key, "value is NaN")
+        if rule == "positive" and not value > 0:
+            raise SceneError(key, f"must be positive (got {value:g})")
+        if rule == "nonnegative" and not value >= 0:
+            raise SceneError(key, f"must not be negative (got {value:g})")
+        if rule in ("positive", "nonnegative", "finite") and math.isinf(value):
+            raise SceneError(key, "must be finite")
+        return value
+
+    def check_unknown(self) -> None:
+        """Reject keys the component does not know (catches typos)."""
+        unknown = sorted(set(self.table) - self._used)
+        if unknown:
+            raise SceneError(self.key(unknown[0]),
+                             f"unknown key; known keys are {sorted(self._used - {'kind'})}")
+
+
+def require(condition: bool, key: str, rule: str) -> None:
+    """Raise :class:`SceneError` for ``key`` with ``rule`` unless ``condition`` holds."""
+    if not condition:
+        raise SceneError(key, rule)

@@ -1,0 +1,31 @@
+"""JSON text of results: numpy scalars and arrays as plain numbers and lists, infinities as
+the strings "inf" and "-inf", NaN as null (JSON has no such numbers)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+
+def _default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def to_json(data) -> str:
+    """JSON text; infinities become null-safe strings via ``allow_nan`` off -> None."""
+    return json.dumps(_finite(data), default=_default, indent=2)
+
+
+def _finite(obj):
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj

@@ -1,0 +1,120 @@
+"""Unit parsing at the scene boundary (pint); SI floats everywhere else."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import pint
+
+from ..errors import SceneError
+
+#: The registry used to parse scene quantities. It is only read after import.
+UREG = pint.UnitRegistry()
+
+_NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+#: a non-finite number written as text ("nan ohm", "-inf N/m"), followed by a unit or the end
+_NONFINITE = re.compile(r"^\s*([-+]?)(nan|inf|infinity)(?=\s|$)", re.IGNORECASE)
+
+
+def looks_like_quantity(text: str) -> bool:
+    """Return True when a string starts with a number (``"3 deg"``, ``"1e-4"``, ``"nan Hz"``)."""
+    return bool(_NUMBER.match(text) or _NONFINITE.match(text))
+
+
+def _parse_string(text: str, key: str) -> pint.Quantity:
+    match = _NUMBER.match(text)
+    nonfinite = None if match else _NONFINITE.match(text)
+    if nonfinite and nonfinite.group(2).lower() == "nan":
+        raise SceneError(key, f"value is NaN (got {text!r}): must be a finite number")
+    match = match or nonfinite
+    if not match:
+        raise SceneError(key, f"expected a number with units, got {text!r}")
+    unit = text[match.end():].strip()
+    try:
+        return UREG.Quantity(float(match.group(0)), unit or "dimensionless")
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError,
+            AttributeError, TypeError, ValueError, SyntaxError) as exc:
+        raise SceneError(key, f"unknown unit {unit!r} in {text!r} ({exc})") from None
+
+
+def parse_text(text: str, key: str) -> pint.Quantity:
+    """A pint quantity from text such as ``"1 mm"`` (a bare number is dimensionless).
+
+    Raises
+    ------
+    SceneError
+        Not a number, NaN, or an unknown unit (naming ``key``).
+    """
+    return _parse_string(text, key)
+
+
+def parse_quantity(value, unit: str, key: str) -> float:
+    """Convert a scene value to a float in ``unit``.
+
+    Parameters
+    ----------
+    value : float, int or str
+        A bare number (taken as already in ``unit``, which is SI) or a string with
+        units such as ``"0.5 mH"``.
+    unit : str
+        Target unit, e.g. ``"N*m/rad"``; ``"dB"`` keeps decibels as a number.
+    key : str
+        Scene key path, for error messages.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    SceneError
+        Unknown unit, wrong dimension, not a number, or NaN.
+    """
+    if isinstance(value, bool):
+        raise SceneError(key, f"expected a quantity in {unit}, got a boolean")
+    if isinstance(value, (int, float)):
+        result = float(value)
+    elif isinstance(value, str):
+        q = _parse_string(value, key)
+        if unit == "dB":
+            if str(q.units) not in ("decibel", "dimensionless"):
+                raise SceneError(key, f"expected a level in dB, got {value!r}")
+            result = float(q.magnitude)
+        else:
+            try:
+                result = float(q.to(unit).magnitude)
+            except pint.errors.DimensionalityError:
+                raise SceneError(
+                    key, f"dimension mismatch: expected a quantity in {unit}, "
+                    f"got {value!r} ({q.dimensionality})") from None
+            except pint.errors.OffsetUnitCalculusError:
+                raise SceneError(key, f"expected a quantity in {unit}, got {value!r}") from None
+    else:
+        raise SceneError(key, f"expected a quantity in {unit}, got {type(value).__name__}")
+    if math.isnan(result):
+        raise SceneError(key, "value is NaN")
+    return result
+
+
+def parse_si(value, key: str):
+    """Parse a value of unknown dimension to SI base units.
+
+    Strings that start with a number become floats in SI base units (angles in rad,
+    frequencies in Hz); other strings stay strings; lists and tables recurse.
+    """
+    if isinstance(value, dict):
+        return {k: parse_si(v, f"{key}.{k}") for k, v in value.items()}
+    if isinstance(value, list):
+        return [parse_si(v, f"{key}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, str) and looks_like_quantity(value):
+        q = _parse_string(value, key)
+        if str(q.units) == "decibel":
+            return float(q.magnitude)
+        result = float(q.to_base_units().magnitude)
+        if math.isnan(result):
+            raise SceneError(key, "value is NaN")
+        return result
+    if isinstance(value, float) and math.isnan(value):
+        raise SceneError(key, "value is NaN")
+    return value

@@ -1,0 +1,275 @@
+"""Linear plant blocks at an operating point: python-control StateSpace with named signals.
+
+Everything mechanical is referred to the output coordinate q (the output shaft angle; the
+cam angle for a cam drive). Sign convention: positive motor current drives q positive;
+``tau_ext`` is an external torque on the output acting along +q (a hinge moment opposing
+positive motion is a negative ``tau_ext``).
+
+Signals and units
+-----------------
+Inputs
+    ``u`` armature voltage (V); ``tau_ext`` external torque at the output (N*m);
+    ``tau_m`` motor torque (N*m at the motor shaft, mechanics block only).
+States
+    ``theta_1`` motor-side angle referred to the output, motor angle / N (rad);
+    ``omega_1`` its rate (rad/s); ``theta`` output (load-side) angle (rad);
+    ``omega`` its rate (rad/s); ``i`` armature current (A), present with inductance.
+Outputs
+    ``theta`` (rad), ``omega_m`` motor speed N*omega_1 (rad/s), ``i`` (A), ``omega`` (rad/s).
+
+The linear torque path uses the drivetrain's forward efficiency: the motor torque reaches
+the output as eta * N * Kt * i; the reflected inertias and viscous friction are ideal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import control as ct
+import numpy as np
+
+from ..errors import SceneError
+
+PLANT_OUTPUTS = ("theta", "omega_m", "i", "omega")
+DEFAULT_STRUCTURAL_DAMPING = 0.02
+"""Damping ratio of the drivetrain mode when the scene gives none (lightly damped steel)."""
+
+
+@dataclass(frozen=True)
+class PlantParameters:
+    """Lumped linear parameters at one operating point, SI, referred to the output.
+
+    Parameters
+    ----------
+    J1, J2 : float
+        Motor-side and load-side inertia (kg*m^2); a rigid plant has ``K = inf`` and
+        carries the whole inertia in ``J1 + J2``.
+    K : float
+        Series stiffness between them (N*m/rad), ``inf`` for a rigid drivetrain.
+    c : float
+        Damping across the spring (N*m*s/rad).
+    b1, b2 : float
+        Viscous friction on the motor side (motor b * N^2) and on the load (N*m*s/rad).
+    kh : float
+        Hinge stiffness at the output (N*m/rad).
+    N : float
+        Ratio, motor rad per output rad at q0.
+    eta : float
+        Forward efficiency of the drivetrain.
+    Kt, Ke, R, L : float
+        Motor torque constant (N*m/A), back-emf constant (V*s/rad), resistance (ohm),
+        inductance (H).
+    q0 : float
+        Operating point (rad).
+    """
+
+    J1: float
+    J2: float
+    K: float
+    c: float
+    b1: float
+    b2: float
+    kh: float
+    N: float
+    eta: float
+    Kt: float
+    Ke: float
+    R: float
+    L: float
+    q0: float = 0.0
+
+    @property
+    def torque_gain(self) -> float:
+        """Output torque per ampere, eta * N * Kt (N*m/A)."""
+        return self.eta * self.N * self.Kt
+
+    @property
+    def rigid(self) -> bool:
+        """True when there is no compliance between motor and load."""
+        return not math.isfinite(self.K)
+
+    @property
+    def resonance_hz(self) -> float:
+        """Undamped drivetrain resonance sqrt(K (1/J1 + 1/J2)) / (2 pi) (Hz)."""
+        if self.rigid or self.J2 <= 0:
+            return math.inf
+        return math.sqrt(self.K * (1 / self.J1 + 1 / self.J2)) / (2 * math.pi)
+
+    @property
+    def antiresonance_hz(self) -> float:
+        """Load-side mode with the motor held, sqrt(K / J2) / (2 pi) (Hz)."""
+        if self.rigid or self.J2 <= 0:
+            return math.inf
+        return math.sqrt(self.K / self.J2) / (2 * math.pi)
+
+    def with_variation(self, load_inertia_delta: float = 0.0, stiffness_factor: float = 1.0,
+                       structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "PlantParameters":
+        """A varied copy: load inertia added to J2, stiffness scaled, damping re-derived."""
+        J2 = self.J2 + load_inertia_delta
+        K = self.K * stiffness_factor
+        return replace(self, J2=J2, K=K, c=spring_damping(self.J1, J2, K, structural_damping))
+
+
+def spring_damping(J1, J2, K, zeta):
+    """Damper across the spring giving the two-mass mode the damping ratio ``zeta``."""
+    J1, J2, K = np.asarray(J1, float), np.asarray(J2, float), np.asarray(K, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        jr = np.where(J2 > 0, J1 * J2 / np.where(J1 + J2 > 0, J1 + J2, 1.0), 0.0)
+        c = np.where(np.isfinite(K), 2 * zeta * np.sqrt(K * jr), 0.0)
+    return c if c.ndim else float(c)
+
+
+def plant_parameters(scene, q0=None, model: str = "auto",
+                     structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> PlantParameters:
+    """Linear parameters of a scene's drivetrain at ``q0``.
+
+    Parameters
+    ----------
+    scene : Scene
+    q0 : float, optional
+        Operating point (rad); default mid-stroke.
+    model : {"auto", "two_mass", "rigid"}
+        ``auto`` is two-mass when the chain has a finite stiffness, else rigid.
+    structural_damping : float
+        Damping ratio of the drivetrain mode (the scene has no damping for it).
+    """
+    dt = scene.drivetrain
+    q0 = dt.mid_stroke if q0 is None else float(q0)
+    split = dt.two_mass_split([q0])
+    n = float(dt.ratio([q0])[0][0])
+    motor, load = scene.motor, scene.load
+    J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])
+    if model not in ("auto", "two_mass", "rigid"):
+        raise SceneError("model", f"unknown plant model {model!r}; use auto, two_mass or rigid")
+    if model == "two_mass" and not math.isfinite(K):
+        raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
+    if model == "rigid" or not math.isfinite(K) or J2 <= 0:
+        J1, J2, K = J1 + J2, 0.0, math.inf
+    return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, structural_damping)),
+                           b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
+                           N=abs(n), eta=dt.efficiency, Kt=motor.torque_constant,
+                           Ke=motor.back_emf_constant, R=motor.resistance, L=motor.inductance, q0=q0)
+
+
+def plant_matrices(p: PlantParameters, inductance: bool = True):
+    """``(A, B, C, D, states)`` of the voltage-driven plant; inputs ``[u, tau_ext]``,
+    outputs ``PLANT_OUTPUTS``. Without inductance the current is algebraic,
+    i = (u - Ke * omega_m) / R."""
+    kt = p.torque_gain
+    ind = inductance and p.L > 0
+    if p.rigid:
+        J = p.J1 + p.J2
+        states = ["theta", "omega"]
+        A = np.array([[0, 1], [-p.kh / J, -(p.b1 + p.b2) / J]], float)
+        B = np.array([[0, 0], [0, 1 / J]], float)
+        C = np.array([[1, 0], [0, p.N], [0, 0], [0, 1]], float)
+        w1 = 1  # index of the motor-side speed
+    else:
+        states = ["theta_1", "omega_1", "theta", "omega"]
+        J1, J2, K, c = p.J1, p.J2, p.K, p.c
+        A = np.array([[0, 1, 0, 0],
+                      [-K / J1, -(c + p.b1) / J1, K / J1, c / J1],
+                      [0, 0, 0, 1],
+                      [K / J2, c / J2, -(K + p.kh) / J2, -(c + p.b2) / J2]], float)
+        B = np.array([[0, 0], [0, 0], [0, 0], [0, 1 / J2]], float)
+        C = np.array([[0, 0, 1, 0], [0, p.N, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]], float)
+        w1 = 1
+    n = A.shape[0]
+    D = np.zeros((4, 2))
+    if ind:
+        A = np.pad(A, ((0, 1), (0, 1)))
+        B = np.pad(B, ((0, 1), (0, 0)))
+        C = np.pad(C, ((0, 0), (0, 1)))
+        A[w1, n] = kt / p.J1 if not p.rigid else kt / (p.J1 + p.J2)
+        A[n, w1] = -p.Ke * p.N / p.L
+        A[n, n] = -p.R / p.L
+        B[n, 0] = 1 / p.L
+        C[2, n] = 1.0
+        states.append("i")
+    else:  # i = (u - Ke N omega_1) / R
+        jm = p.J1 if not p.rigid else p.J1 + p.J2
+        A[w1, w1] -= kt * p.Ke * p.N / (p.R * jm)
+        B[w1, 0] += kt / (p.R * jm)
+        C[2, w1] = -p.Ke * p.N / p.R
+        D[2, 0] = 1 / p.R
+    return A, B, C, D, states
+
+
+def _plant(p: PlantParameters, inductance: bool, name: str) -> ct.StateSpace:
+    A, B, C, D, states = plant_matrices(p, inductance)
+    return ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states,
+                 name=name)
+
+
+def rigid_plant(scene, q0=None, inductance: bool = True) -> ct.StateSpace:
+    """Rigid drivetrain: the whole reflected inertia J(q0) on one shaft.
+
+    Inputs ``u`` (V), ``tau_ext`` (N*m); states ``theta`` (rad), ``omega`` (rad/s) and ``i``
+    (A) with inductance; outputs ``theta``, ``omega_m``, ``i``, ``omega`` (see module doc).
+    """
+    return _plant(plant_parameters(scene, q0, "rigid"), inductance, "rigid_plant")
+
+
+def two_mass_plant(scene, q0=None, inductance: bool = True,
+                   structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+    """Two-mass drivetrain: motor-side and load-side inertia joined by the series stiffness.
+
+    States ``theta_1``, ``omega_1`` (motor side referred to the output), ``theta``, ``omega``
+    (load side), and ``i`` with inductance. Its poles include the resonance
+    sqrt(K (1/J1 + 1/J2)); theta/u has the anti-resonance sqrt(K/J2) of omega_m/u as zeros.
+    """
+    return _plant(plant_parameters(scene, q0, "two_mass", structural_damping), inductance,
+                  "two_mass_plant")
+
+
+def plant(scene, q0=None, inductance: bool = True, model: str = "auto",
+          structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+    """Two-mass plant when the chain is compliant, else rigid (see :func:`two_mass_plant`)."""
+    p = plant_parameters(scene, q0, model, structural_damping)
+    return _plant(p, inductance, "rigid_plant" if p.rigid else "two_mass_plant")
+
+
+def current_loop_gains(motor, bandwidth_hz: float = 1000.0) -> tuple[float, float]:
+    """PI gains (V/A, V/(A*s)) cancelling the armature pole: kp = L*wc, ki = R*wc, so the
+    current loop (back-emf aside) is a first-order lag at ``bandwidth_hz``."""
+    wc = 2 * math.pi * bandwidth_hz
+    return motor.inductance * wc, motor.resistance * wc
+
+
+def current_controller(kp: float, ki: float, motor=None) -> ct.StateSpace:
+    """Analog current PI: inputs ``i_cmd``, ``i`` (A), ``omega_m`` (rad/s); output ``u`` (V);
+    state ``current_integral`` (V). With ``motor`` of zero inductance the loop is ideal:
+    u = R * i_cmd + Ke * omega_m (no state, no ``i`` input), as in :class:`CascadeController`."""
+    if motor is not None and motor.inductance == 0:
+        return ct.ss([], [], [], [[motor.resistance, motor.back_emf_constant]],
+                     inputs=["i_cmd", "omega_m"], outputs=["u"], name="current_loop")
+    return ct.ss([[0.0]], [[ki, -ki, 0.0]], [[1.0]], [[kp, -kp, 0.0]],
+                 inputs=["i_cmd", "i", "omega_m"], outputs=["u"], states=["current_integral"],
+                 name="current_loop")
+
+
+def sample_delay(sample_time: float, samples: float = 1.5, order: int = 2) -> ct.StateSpace:
+    """Sampling as a delay on the current command: ``samples`` * T (half a sample of
+    zero-order hold plus one of computation), Pade order ``order``; input ``i_ref``,
+    output ``i_cmd`` (A). A zero sample time gives a unit gain."""
+    delay = samples * sample_time
+    if delay <= 0:
+        return ct.ss([], [], [], [[1.0]], inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
+    num, den = ct.pade(delay, order)
+    return ct.ss(ct.tf(num, den), inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
+
+
+def mechanics(scene, q0=None, model: str = "auto",
+              structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+    """The mechanical part alone: inputs ``tau_m`` (N*m at the motor shaft) and ``tau_ext``;
+    outputs ``theta``, ``omega_m``, ``omega``. A current-driven plant is this block with
+    tau_m = Kt * i."""
+    p = plant_parameters(scene, q0, model, structural_damping)
+    p = replace(p, Ke=0.0, R=1.0, L=0.0)
+    A, B, C, D, states = plant_matrices(p, inductance=False)
+    B = B.copy()
+    B[:, 0] *= p.R / p.Kt  # u -> tau_m: with Ke = 0, i = u / R and tau_m = Kt i
+    keep = [0, 1, 3]
+    return ct.ss(A, B, C[keep], D[keep] * 0, inputs=["tau_m", "tau_ext"],
+                 outputs=["theta", "omega_m", "omega"], states=states, name="mechanics")

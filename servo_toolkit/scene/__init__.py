@@ -1,0 +1,12 @@
+"""Scene files: TOML with units -> validated, frozen descriptions of an actuator.
+
+Modules: :mod:`.loader` (reading and validating a scene, :class:`Scene`),
+:mod:`.study_schema` (the keys of each ``[studies.NAME]`` kind) and :mod:`.card` (its
+Jupyter display).
+"""
+
+from .loader import (Requirements, Robustness, Scene, Sensors, Study, default_scene_path, load_scene,
+                     replace_params, scene_from_dict)
+
+__all__ = ["Requirements", "Robustness", "Scene", "Sensors", "Study", "default_scene_path", "load_scene",
+           "replace_params", "scene_from_dict"]

@@ -1,0 +1,166 @@
+"""Error against run time: RK4 (and the cam paper's scheme) at a ladder of steps against the
+tight-tolerance reference, with the observed order of convergence."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..errors import SimulationError
+from ..sim.engine import run
+from ..sim.reference import Reference
+
+
+@dataclass(frozen=True)
+class AccuracyResult:
+    """Runs of one model at several steps, and the reference.
+
+    Attributes
+    ----------
+    runs : tuple of dict
+        ``method``, ``dt_s``, ``wall_s``, ``error`` (max |q - q_ref| / motion amplitude).
+    order : float
+        Observed RK4 order against the reference (slope of log error against log dt, over
+        the steps whose errors are above the reference's own accuracy; NaN when fewer than
+        two are).
+    paper_order : float
+        Order of the cam paper's scheme from its self-convergence (differences between
+        successive halvings): against the reference its error levels off at the model
+        difference of the play operator (seed 002 eqs 6-8), which opens the play at every
+        reversal even under preload, where the elasto-backlash law keeps contact.
+    reference_wall_s : float
+    amplitude_rad : float
+    duration_s : float
+    description : str
+    self_order : float
+        Observed RK4 order from its self-convergence (differences between successive
+        halvings), which needs no reference: where the reference's own error is larger than
+        RK4's (a non-smooth run, a cam), it still measures the step's order.
+    """
+
+    runs: tuple
+    order: float
+    paper_order: float
+    reference_wall_s: float
+    amplitude_rad: float
+    duration_s: float
+    description: str = ""
+    self_order: float = math.nan
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"runs": list(self.runs), "order": self.order, "self_order": self.self_order,
+                "paper_order": self.paper_order,
+                "reference_wall_s": self.reference_wall_s, "amplitude_rad": self.amplitude_rad,
+                "duration_s": self.duration_s, "description": self.description}
+
+    def table(self) -> str:
+        """Text table."""
+        lines = [f"{self.description}", f"{'method':10s} {'dt (s)':>10s} {'wall (ms)':>10s} {'error':>10s}"]
+        for r in self.runs:
+            dt = "adaptive" if r["dt_s"] is None else f"{r['dt_s']:.3g}"
+            lines.append(f"{r['method']:10s} {dt:>10s} {r['wall_s'] * 1e3:10.2f} {r['error']:10.3g}")
+        lines.append(f"observed order: {self.order_text()}")
+        return "\n".join(lines)
+
+    def order_text(self) -> str:
+        """The observed orders in one line, saying how each was measured."""
+        if math.isfinite(self.order):
+            rk4 = f"RK4 {self.order:.2f} against the reference"
+        else:
+            errors = [r["error"] for r in self.runs if r["method"] == "rk4" and math.isfinite(r["error"])]
+            rk4 = ("RK4 not measured (no step ran)" if not errors else
+                   f"RK4 not measurable against the reference (its errors stay at {min(errors):.2g}, the "
+                   "reference's own accuracy)")
+        return (f"{rk4}, {self.self_order:.2f} by self-convergence; paper scheme {self.paper_order:.2f} by "
+                "self-convergence")
+
+    def plot(self, ax=None):
+        """Error against wall time, one line per method."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 4))
+        for method, marker in (("rk4", "o-"), ("paper", "s--")):
+            rs = [r for r in self.runs if r["method"] == method]
+            ax.loglog([r["wall_s"] for r in rs], [max(r["error"], 1e-16) for r in rs], marker, label=method)
+        ax.axvline(self.reference_wall_s, color="k", ls=":", label="reference solve")
+        ax.set_xlabel("wall time (s)")
+        ax.set_ylabel("max error / amplitude")
+        ax.legend()
+        return ax
+
+
+#: a halved step that shrinks the error by less than this has reached the reference's own
+#: accuracy (a plateau): it and the smaller steps are left out of the order's fit
+PLATEAU_RATIO = 1.2
+
+
+#: relative errors at or below this are the reference's tolerance (rtol 1e-12), not the step's
+REFERENCE_FLOOR = 1e-11
+#: relative differences between two fixed-step runs at or below this are rounding
+ROUNDING_FLOOR = 1e-12
+
+
+def _order(dts, errors, floor: float = REFERENCE_FLOOR):
+    """Slope of log error against log dt over the steps that ran, above ``floor`` and before
+    the errors stop falling."""
+    dts, errors = np.asarray(dts), np.asarray(errors)
+    ok = np.isfinite(errors) & (errors > floor)  # ran, and above the floor
+    steps = [k for k in np.argsort(-dts) if ok[k]]
+    for prev, k in zip(steps, steps[1:]):
+        if errors[prev] < PLATEAU_RATIO * errors[k]:
+            ok[dts <= dts[k]] = False
+            break
+    if ok.sum() < 2:
+        return math.nan
+    return float(np.polyfit(np.log(dts[ok]), np.log(errors[ok]), 1)[0])
+
+
+def accuracy_study(model, reference: Reference, duration: float, dts=None, progress: bool = True,
+                   rtol: float = 1e-12, atol: float = 1e-12) -> AccuracyResult:
+    """Run the ladder of steps and the reference on one model.
+
+    Parameters
+    ----------
+    model : Model
+    reference : Reference
+    duration : float
+    dts : sequence of float, optional
+        Steps; default the sample time (or 1e-4 s) divided by 1, 2, 4, 8, 16.
+    """
+    base = model.sample_time or 1e-4
+    dts = list(dts) if dts is not None else [base / k for k in (1, 2, 4, 8, 16)]
+    out_dt = max(dts)
+    ref = run(model, reference, duration, "reference", output_dt=out_dt, rtol=rtol, atol=atol)
+    q_ref = ref.output_angle
+    amp = reference.amplitude if reference.kind in ("sine", "step") and reference.amplitude else \
+        max(np.ptp(q_ref) / 2, 1e-12)
+    runs, qs = [], {"rk4": [], "paper": []}
+    for method in ("rk4", "paper"):
+        for dt in tqdm(dts, desc=f"accuracy {method}", disable=not progress, leave=False):
+            try:
+                r = run(model, reference, duration, method, dt, output_dt=out_dt)
+            except SimulationError as exc:  # a step outside the scheme's stability region: a failed rung
+                runs.append({"method": method, "dt_s": dt, "wall_s": math.nan, "error": math.nan, "failed": str(exc)})
+                qs[method].append(None)
+                continue
+            runs.append({"method": method, "dt_s": r.dt_s, "wall_s": r.wall_s,
+                         "error": float(np.max(np.abs(r.output_angle - q_ref)) / abs(amp))})
+            qs[method].append(r.output_angle)
+    runs.append({"method": ref.method, "dt_s": None, "wall_s": ref.wall_s, "error": 0.0})
+    order = _order([r["dt_s"] for r in runs if r["method"] == "rk4"], [r["error"] for r in runs if r["method"] == "rk4"])
+    rk4_self, porder = (_self_order(dts, qs[m], amp) for m in ("rk4", "paper"))
+    return AccuracyResult(tuple(runs), order, porder, ref.wall_s, float(abs(amp)), duration,
+                          f"{model.name}: {reference.describe(model.output_unit)}, {duration:g} s, controller {model.controller}",
+                          rk4_self)
+
+
+def _self_order(dts, qs, amp):
+    """Order from the differences between successive halvings of the step (None: a failed
+    run), above the rounding floor."""
+    diffs = [float(np.max(np.abs(a - b))) / abs(amp) if a is not None and b is not None else math.nan
+             for a, b in zip(qs, qs[1:])]
+    return _order(dts[:-1], diffs, ROUNDING_FLOOR) if len(diffs) >= 2 else math.nan

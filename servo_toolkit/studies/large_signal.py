@@ -1,0 +1,149 @@
+"""Large-signal rows of the gate: the compiled nonlinear closed loop (voltage and current
+limits, friction, backlash, the sampled controller) driven by the scene's requirement sine,
+against the linear loop the margins describe.
+
+A linear check cannot see saturation: a 3 V supply leaves every margin of the reference EMA
+intact while the 2 deg, 8 Hz command pins the voltage and the output lags by tens of
+degrees. The sine runs at the required bandwidth (8 Hz when the scene sets none) with the
+amplitude of the scene's sweep study (2 deg, or 1 mm for an output travel, without one),
+for :data:`CYCLES` cycles; the fundamental of the last :data:`FIT_CYCLES` is compared with
+the linear closed loop at that frequency. Rows: ``large_signal_gain`` (|gain difference|
+at most :data:`GAIN_TOLERANCE_DB`) and ``large_signal_phase`` (|phase difference| at most
+:data:`PHASE_TOLERANCE_DEG`); the time at the voltage and current limits is reported beside
+them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..loop.requirements import Check
+
+GAIN_TOLERANCE_DB = 1.0
+PHASE_TOLERANCE_DEG = 10.0
+CYCLES = 8
+FIT_CYCLES = 3
+
+
+@dataclass(frozen=True)
+class LargeSignal:
+    """The nonlinear closed loop on the requirement sine against the linear loop.
+
+    Attributes
+    ----------
+    frequency_hz, amplitude : float
+        The command (amplitude in the output's SI unit, rad or m).
+    gain_db, phase_deg : float
+        Fundamental of the nonlinear output over the command.
+    linear_gain_db, linear_phase_deg : float
+        The linear closed loop at the same frequency.
+    time_at_voltage_limit_s, time_at_current_limit_s, duration_s : float
+    peak_current_A, peak_voltage_V : float
+    failure : str
+        Why the run stopped (the output reached a stroke end, a state went non-finite):
+        both rows then fail with it.
+    """
+
+    frequency_hz: float
+    amplitude: float
+    gain_db: float
+    phase_deg: float
+    linear_gain_db: float
+    linear_phase_deg: float
+    time_at_voltage_limit_s: float
+    time_at_current_limit_s: float
+    duration_s: float
+    peak_current_A: float
+    peak_voltage_V: float
+    failure: str = ""
+
+    @property
+    def gain_error_db(self) -> float:
+        return abs(self.gain_db - self.linear_gain_db)
+
+    @property
+    def phase_error_deg(self) -> float:
+        d = (self.phase_deg - self.linear_phase_deg + 180.0) % 360.0 - 180.0
+        return abs(d)
+
+    def checks(self) -> list:
+        """The ``large_signal_gain`` and ``large_signal_phase`` rows."""
+        out = []
+        for name, value, tol, unit in (("large_signal_gain", self.gain_error_db, GAIN_TOLERANCE_DB, "dB"),
+                                       ("large_signal_phase", self.phase_error_deg, PHASE_TOLERANCE_DEG, "deg")):
+            ok = bool(np.isfinite(value) and value <= tol)
+            out.append(Check(name, tol, float(value), ok, unit, "<=", "large signal",
+                             0.0 if ok else (float(value - tol) if np.isfinite(value) else math.inf)))
+        return out
+
+    def note(self, linear_output: bool) -> str:
+        """One line: the command, both responses, and the time at the limits."""
+        amp = f"{self.amplitude * 1e3:.3g} mm" if linear_output else f"{math.degrees(self.amplitude):.3g} deg"
+        if self.failure:
+            return (f"large signal: the {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop "
+                    f"failed: {self.failure}")
+        return (f"large signal: {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop: "
+                f"{self.gain_db:+.2f} dB / {self.phase_deg:.1f} deg against the linear {self.linear_gain_db:+.2f} dB / "
+                f"{self.linear_phase_deg:.1f} deg; at the voltage limit {self.time_at_voltage_limit_s * 1e3:.3g} ms and "
+                f"at the current limit {self.time_at_current_limit_s * 1e3:.3g} ms of {self.duration_s * 1e3:.3g} ms; "
+                f"peak {self.peak_current_A:.3g} A, {self.peak_voltage_V:.3g} V")
+
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the key names."""
+        d = dict(self.__dict__)
+        d["gain_error_db"], d["phase_error_deg"] = self.gain_error_db, self.phase_error_deg
+        return d
+
+
+def _fit(t, y, f):
+    w = 2 * np.pi * f
+    a = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
+    (s, c, _), *_ = np.linalg.lstsq(a, y, rcond=None)
+    return math.hypot(s, c), math.degrees(math.atan2(c, s))
+
+
+def large_signal(scene, result) -> LargeSignal:
+    """Run the requirement sine through the nonlinear closed loop of ``result``'s controller."""
+    import control as ct
+
+    from ..errors import SimulationError
+    from ..sim import Reference, simulate
+    from .sweep_points import study_points
+    from ..loop.requirements import requirements_of
+    f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
+    _, _, amps = study_points(scene)
+    from ..core.output_units import output_unit
+    amp = float(amps[0]) if scene.studies_of_kind("frequency_sweep") else output_unit(scene).default_amplitude
+    duration = CYCLES / f
+    lin = complex(np.asarray(ct.frequency_response(result.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
+    lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
+    try:
+        run = simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration, method="rk4")
+    except SimulationError as exc:
+        nan = math.nan
+        return LargeSignal(float(f), amp, nan, nan, lin_db, lin_deg, nan, nan, float(duration), nan, nan,
+                           failure=str(exc))
+    t, y = run.times, run.output_angle - result.q0
+    last = t >= (CYCLES - FIT_CYCLES) / f
+    a, ph = _fit(t[last], y[last], f)
+    motor = scene.motor
+    dt = np.diff(t, append=t[-1])
+    v, i = np.abs(run.motor_voltage), np.abs(run.motor_current)
+    at_v = v >= motor.voltage_limit * (1 - 1e-3) if math.isfinite(motor.voltage_limit) else np.zeros(t.size, bool)
+    at_i = i >= motor.current_limit * (1 - 1e-3) if math.isfinite(motor.current_limit) else np.zeros(t.size, bool)
+    with np.errstate(divide="ignore"):
+        gain = 20 * math.log10(a / amp) if a > 0 else -math.inf
+    return LargeSignal(frequency_hz=float(f), amplitude=amp, gain_db=gain, phase_deg=ph,
+                       linear_gain_db=lin_db, linear_phase_deg=lin_deg,
+                       time_at_voltage_limit_s=float(np.sum(dt[at_v])), time_at_current_limit_s=float(np.sum(dt[at_i])),
+                       duration_s=float(duration), peak_current_A=float(i.max()), peak_voltage_V=float(v.max()))
+
+
+def with_large_signal(scene, result):
+    """``result`` with the large-signal rows and note added (a DesignResult)."""
+    ls = large_signal(scene, result)
+    return replace(result, requirements=list(result.requirements) + ls.checks(),
+                   notes=tuple(result.notes) + (ls.note(scene.drivetrain.output_unit == "m"),)), ls
