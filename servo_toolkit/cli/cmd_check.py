@@ -10,13 +10,12 @@ designed robustly (``--nominal`` checks the nominal design over the same variant
 
 from __future__ import annotations
 
-import contextlib
-import os
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from ..errors import SceneError
+from ..files import atomic_file, check_output_file
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene import load_scene
@@ -108,17 +107,8 @@ def write_junit(path, entries) -> None:
                 ET.SubElement(case, "system-out").text = message
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
-    import tempfile
-    target = Path(path)
-    try:  # a temporary file beside the target, renamed over it: never a half-written report
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
-        with os.fdopen(fd, "wb") as fh:
-            ET.ElementTree(root).write(fh, encoding="utf-8", xml_declaration=True)
-        os.replace(tmp, target)
-    except OSError as exc:
-        with contextlib.suppress(OSError, UnboundLocalError):
-            os.unlink(tmp)
-        raise SceneError("junit", f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+    with atomic_file(path, "junit") as tmp:  # never a half-written report
+        ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
 
 
 def _is_junit(path: Path) -> bool:
@@ -136,20 +126,9 @@ def check_writable(path, inputs=()) -> None:
     must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
     existing file that is not a JUnit report (nothing a user has is overwritten). Checked
     before any design runs."""
-    p = Path(path)
-    for scene in inputs:
-        with contextlib.suppress(OSError):
-            if p.exists() and Path(scene).exists() and p.resolve() == Path(scene).resolve():
-                raise SceneError("junit", f"refusing to write the JUnit report over the input scene {str(path)!r}")
+    p = check_output_file(path, "junit", inputs=inputs)
     if p.is_file() and not _is_junit(p):
         raise SceneError("junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
-    parent = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise SceneError("junit", f"cannot write {str(path)!r}: it is a directory")
-    if not parent.is_dir():
-        raise SceneError("junit", f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
-    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise SceneError("junit", f"cannot write {str(path)!r}: permission denied")
 
 
 def _tagged(exc: SceneError, path) -> SceneError:

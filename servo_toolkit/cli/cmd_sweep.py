@@ -11,7 +11,7 @@ from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
 from .hints import default_mechanism_study
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
-from .outputs import FIGURE_SUFFIXES, check_file, save_figure
+from ..files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
 def register(sub) -> None:
@@ -58,7 +58,7 @@ def run(args) -> int:
     from ..studies.sweep import sweep
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     name = args.study or default_mechanism_study(scene)
     if name:
         if not args.study:

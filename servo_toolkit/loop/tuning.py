@@ -177,10 +177,14 @@ def design_data(result) -> dict:
 
 def save_design(result, path, inputs=()) -> Path:
     """Write the design's controller to ``path`` (JSON, atomically; never over an input)."""
-    from ..cli.outputs import check_file, write_text
-    path = check_file(path, "--design", (".json",), inputs=inputs)
-    write_text(path, json.dumps(design_data(result), indent=2) + "\n")
+    from ..files import check_output_file, write_text
+    path = check_output_file(path, "--design", (".json",), inputs=inputs)
+    write_text(path, json.dumps(design_data(result), indent=2) + "\n", "--design")
     return path
+
+
+#: largest design file read (bytes): a design is well under a kilobyte of JSON
+MAX_DESIGN_BYTES = 1024 * 1024
 
 
 def load_design(scene, path, require=None):
@@ -192,10 +196,14 @@ def load_design(scene, path, require=None):
         ``--design``: not a readable design file, a missing or bad field.
     """
     key = "--design"
+    from ..files import read_input_text
+    text = read_input_text(path, key, MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except (json.JSONDecodeError, ValueError) as exc:
         raise SceneError(key, f"cannot read the design file {str(path)!r}: {exc}") from None
+    except RecursionError:
+        raise SceneError(key, f"the design file {str(path)!r} is nested too deeply") from None
     if not isinstance(data, dict) or data.get("servo_toolkit_design") != DESIGN_FILE_VERSION:
         raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
     try:
