@@ -192,17 +192,16 @@ def _temp_name(parent, prefix: str, suffix: str = "") -> str:
 
 
 def _fsync(path, directory: bool = False) -> None:
-    fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+    """Flush a file to disk; a folder (the rename in it) on a best-effort basis."""
     try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_dir(path) -> None:
-    """Best effort: the rename itself reaches the disk (not every file system can)."""
-    with contextlib.suppress(OSError):
-        _fsync(path, directory=True)
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        if not directory:
+            raise
 
 
 @contextlib.contextmanager
@@ -243,7 +242,7 @@ def atomic_file(path, key: str = "--output"):
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise
-    _fsync_dir(parent)
+    _fsync(parent, directory=True)
 
 
 def write_text(path, text: str, key: str = "--output", check=None) -> Path:
@@ -405,7 +404,7 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         for root, _, names in os.walk(tmp):
             for name in names:
                 _fsync(os.path.join(root, name))
-        _fsync_dir(tmp)
+        _fsync(tmp, directory=True)
         with _signals_deferred():
             _publish(tmp, target, key)
     except BaseException as exc:
@@ -413,16 +412,14 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise
-    _fsync_dir(target.parent)
+    _fsync(target.parent, directory=True)
 
 
 # --- inputs ----------------------------------------------------------------------------------
 
 def read_input_bytes(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> bytes:
-    """The bytes of the input file ``path``: a regular file of at most ``limit`` bytes.
-
-    A FIFO, a device or a folder is refused without blocking (opened non-blocking and
-    checked with fstat before any read).
+    """The bytes of the input file ``path``: a regular file of at most ``limit`` bytes (a
+    FIFO, device or folder is refused without blocking: opened non-blocking, fstat checked).
 
     Parameters
     ----------
@@ -431,10 +428,8 @@ def read_input_bytes(path, key: str, limit: int, source: str | None = None, what
         The option (or scene key) named in the error.
     limit : int
         Largest size read (bytes).
-    source : str, optional
-        File named in the error (see :class:`SceneError`).
-    what : str, optional
-        What the file is, in the error (default: its path).
+    source, what : str, optional
+        The file the :class:`SceneError` names, and what the file is (default: its path).
 
     Raises
     ------
