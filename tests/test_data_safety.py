@@ -232,7 +232,8 @@ def test_design_file_reads_are_one_line(make, tmp_path, capsys):
         path.write_bytes(b"{\xff\xfe}")
     assert main(["design", str(EMA), "--design", str(path)]) == 2
     line = _one_line(capsys, "--design")
-    assert {"zero": "regular file", "folder": "directory", "nested": "nested too deeply", "binary": "UTF-8"}[make] in line
+    rule = {"zero": "regular file", "folder": "directory", "nested": "nested too deeply", "binary": "UTF-8"}[make]
+    assert rule in line
 
 
 # --- report and export folders ----------------------------------------------------------------

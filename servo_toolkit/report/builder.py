@@ -5,7 +5,6 @@ from __future__ import annotations
 import datetime as _dt
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 from tqdm.auto import tqdm
 
@@ -178,12 +177,12 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
 REPORT_FILES = ("index.html", "report.pdf")
 
 
-def check_report_folder(out_dir, key: str = "--output", parents: bool = False):
+def check_report_folder(out_dir, key: str = "--output", parents: bool = False, inputs=()):
     """SceneError (naming ``key``) unless a report may be written as ``out_dir``: absent,
-    empty or an earlier report, in a writable folder (see
+    empty or an earlier report holding none of ``inputs``, in a writable folder (see
     :func:`servo_toolkit.files.check_output_folder`)."""
     from ..files import check_output_folder
-    return check_output_folder(out_dir, key, allowed=REPORT_FILES, parents=parents)
+    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents)
 
 
 def write_report(report: Report, out_dir, progress: bool = False, key: str = "out_dir") -> dict:
