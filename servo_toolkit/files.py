@@ -357,7 +357,7 @@ def _publish(tmp: str, target: Path, key: str) -> None:
             continue
         try:
             os.rename(tmp, target)
-        except OSError:
+        except OSError as exc:
             try:
                 os.rename(trash, target)
             except OSError:
@@ -366,6 +366,8 @@ def _publish(tmp: str, target: Path, key: str) -> None:
                     continue
                 raise SceneError(key, f"could not publish {_q(target)}; the earlier output is kept in "
                                  f"{_q(trash)}") from None
+            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                raise
             continue
         _remove(trash)
         return

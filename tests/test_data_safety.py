@@ -273,6 +273,16 @@ def test_interrupted_report_keeps_the_old_one(tmp_path, capsys, monkeypatch, qui
     capsys.readouterr()
 
 
+def test_report_never_swaps_away_its_input(tmp_path, capsys, quick_report):
+    out = tmp_path / "rep"
+    out.mkdir()
+    scene = out / "index.html"  # a scene that bears a report file's name, inside the folder
+    scene.write_text(EMA.read_text())
+    assert main(["report", str(scene), "-o", str(out)]) == 2
+    assert "input" in _one_line(capsys, "--output")
+    assert scene.read_text() == EMA.read_text()
+
+
 def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypatch):
     """Without renameat2 the swap takes two renames; Ctrl-C between them waits for both."""
     monkeypatch.setattr(files, "_exchange", lambda a, b: "unsupported")
