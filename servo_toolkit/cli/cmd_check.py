@@ -16,7 +16,7 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from ..errors import SceneError
+from ..errors import SceneError, SimulationError
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene import load_scene
@@ -90,15 +90,16 @@ def write_junit(path, entries) -> None:
     """JUnit XML: a testsuite per scene, a testcase per requirement.
 
     ``entries`` holds (suite name, cases) with cases (test name, passed, message), or
-    (suite name, SceneError) for a scene that could not be checked: one testcase ``check``
-    with an ``error`` element (JUnit's "could not run", apart from a failed requirement).
+    (suite name, SceneError or SimulationError) for a scene that could not be checked: one
+    testcase ``check`` with an ``error`` element (JUnit's "could not run", apart from a
+    failed requirement).
     """
     root = ET.Element("testsuites", name="servo-toolkit check")
     for name, cases in entries:
-        if isinstance(cases, SceneError):
+        if isinstance(cases, (SceneError, SimulationError)):
             suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="1")
             case = ET.SubElement(suite, "testcase", classname=name, name="check")
-            ET.SubElement(case, "error", message=str(cases), type="SceneError").text = str(cases)
+            ET.SubElement(case, "error", message=str(cases), type=type(cases).__name__).text = str(cases)
             continue
         suite = ET.SubElement(root, "testsuite", name=name, tests=str(len(cases)),
                               failures=str(sum(not ok for _, ok, _ in cases)), errors="0")
@@ -198,8 +199,9 @@ def run(args) -> int:
 
     Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
     ``--junit`` path) stop before any design. A scene that cannot be checked (it does not
-    load, or has no motor-driven drivetrain) is reported on one stderr line naming its file
-    and becomes an ``error`` testcase of the JUnit file; the other scenes are still checked
+    load, or has no motor-driven drivetrain, or its own nonlinear run, large-signal or Monte
+    Carlo, cannot be carried out) is reported on one stderr line naming its file and becomes
+    an ``error`` testcase of the JUnit file; the other scenes are still checked
     and written, and the exit code is 2.
     """
     from ..loop.robustness import parse_vary
@@ -223,6 +225,13 @@ def run(args) -> int:
             if isinstance(scene, SceneError):
                 raise scene
             name, cases, d = _check_scene(path, scene, args, varies)
+        except SimulationError as exc:  # its own nonlinear run could not run: no verdict, exit 2
+            print(f"servo-toolkit: simulation error: {path}: {exc}", file=sys.stderr)
+            errors += 1
+            entries.append((scene.name, exc))
+            out.append({"source": str(path), "passed": False, "error": str(exc), "key": "simulation",
+                        "rule": str(exc)})
+            continue
         except SceneError as exc:
             exc = _tagged(exc, path)
             if exc is not scene:
@@ -249,5 +258,6 @@ def run(args) -> int:
             print("some requirements NOT met" if not all_ok else "all requirements met" if not errors
                   else "every scene checked meets its requirements")
         if errors:
-            print(f"{errors} of {len(args.scenes)} scene(s) could not be checked (bad input)")
+            print(f"{errors} of {len(args.scenes)} scene(s) could not be checked "
+                  f"(bad input or a run outside its validity domain)")
     return 2 if errors else 0 if all_ok else 1

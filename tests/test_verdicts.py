@@ -1,0 +1,69 @@
+"""No verdict is wrong: a figure that could not be produced is an error (exit 2), never a
+FAIL or PASS row; what a command checks is what it says it checked."""
+
+from __future__ import annotations
+
+import json
+import math
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from servo_toolkit.cli import main
+from servo_toolkit.errors import SceneError, SimulationError
+
+from .conftest import SCENES
+
+EMA = str(SCENES / "ema_reference.toml")
+
+
+# -- 1. check's own nonlinear runs ---------------------------------------------------------
+
+def test_check_whose_large_signal_run_cannot_run_exits_2_with_the_reason(monkeypatch, tmp_path, capsys):
+    import servo_toolkit.sim as sim
+
+    def cannot(*args, **kwargs):
+        raise SimulationError("1 s at a step of 1e-09 s is 1e+09 steps, more than the 3e+08 one run may take")
+    monkeypatch.setattr(sim, "simulate", cannot)
+    junit = tmp_path / "gate.xml"
+    assert main(["check", EMA, "--junit", str(junit)]) == 2
+    out, err = capsys.readouterr()
+    assert "nan" not in out.lower() and "short by inf" not in out
+    line, = err.strip().splitlines()
+    assert "large-signal run" in line and "1e+09 steps" in line
+    root = ET.parse(junit).getroot()
+    assert not root.findall(".//failure") and root.findall(".//error")
+    assert main(["check", EMA, "--json"]) == 2
+    data = json.loads(capsys.readouterr().out)
+    assert data["errors"] == 1 and data["scenes"][0]["key"] == "simulation"
+
+
+def test_a_nan_figure_is_no_verdict():
+    from servo_toolkit.loop.large_signal import LargeSignal
+    from servo_toolkit.loop.requirements import Requirement, check
+    with pytest.raises(SimulationError, match="phase_margin"):
+        check([Requirement("phase_margin", ">=", 45.0, "deg", "scene")], {"phase_margin": math.nan})
+    # infinities with a meaning are still judged: no phase crossover, an unstable loop
+    ok, = check([Requirement("gain_margin", ">=", 6.0, "dB", "scene")], {"gain_margin": math.inf})
+    assert ok.passed
+    ls = LargeSignal(8.0, 0.03, math.nan, math.nan, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+    with pytest.raises(SimulationError, match="large_signal_gain"):
+        ls.checks()
+
+
+def test_monte_carlo_rows_with_a_failed_variant_are_no_verdict():
+    from servo_toolkit.loop.requirements import Requirement
+    from servo_toolkit.studies.montecarlo_check import result_checks
+    result = SimpleNamespace(failed=np.array([False, True]), count=2,
+                             reasons=("", "step 0.0001 s outside the RK4 stability region"),
+                             values={"stiffness": np.array([1.0, 1e-6])},
+                             error_display=np.array([0.1, np.nan]), peak_current=np.array([3.0, np.nan]))
+    reqs = [Requirement("tracking_error", "<=", 0.5, "deg", "robustness")]
+    with pytest.raises(SimulationError, match="1 of 2 variants.*stability region"):
+        result_checks(reqs, result)
+    result.failed = np.array([False, False])
+    result.error_display = np.array([0.1, 0.2])
+    c, = result_checks(reqs, result)
+    assert c.passed and c.achieved == pytest.approx(0.2)
