@@ -67,3 +67,17 @@ def test_monte_carlo_rows_with_a_failed_variant_are_no_verdict():
     result.error_display = np.array([0.1, 0.2])
     c, = result_checks(reqs, result)
     assert c.passed and c.achieved == pytest.approx(0.2)
+
+
+# -- 2. the fixed-point export checks the quantized loop against the requirements ----------
+
+def test_fixed_point_export_of_a_design_that_misses_its_requirements_fails(tmp_path, capsys):
+    code = main(["export", EMA, "-o", str(tmp_path / "pid"), "--fixed-point", "q31", "--structure", "pid",
+                 "--json"])
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert code == 1 and data["passed"] is False
+    assert data["design"]["phase_margin_deg"] < 45
+    failures = data["quantized"]["failures"]
+    assert any(f.startswith("phase_margin:") and "already misses" in f for f in failures)
+    assert "phase_margin:" in err and "within the requirements" not in out + err
