@@ -81,3 +81,36 @@ def test_fixed_point_export_of_a_design_that_misses_its_requirements_fails(tmp_p
     failures = data["quantized"]["failures"]
     assert any(f.startswith("phase_margin:") and "already misses" in f for f in failures)
     assert "phase_margin:" in err and "within the requirements" not in out + err
+
+
+# -- 3. wide ranges: log spacing and the corners -------------------------------------------
+
+def test_a_range_over_24_decades_is_sampled_at_both_ends():
+    from servo_toolkit.loop.robustness import sample_variants
+    v = sample_variants({"stiffness": (1e-12, 1e12)}, 1000, False, 0)["stiffness"]
+    assert v.min() == 1e-12 and v.max() == 1e12
+    assert np.sum(v < 1.0) > 300 and np.sum(v > 1.0) > 300  # log-uniform: half below the middle
+    grid = sample_variants({"stiffness": (1e-3, 1e3)}, 7, True, 0)["stiffness"]
+    assert grid == pytest.approx(np.geomspace(1e-3, 1e3, 7))
+
+
+def test_monte_carlo_samples_always_hold_the_corners():
+    from servo_toolkit.loop.robustness import sample_variants
+    v = sample_variants({"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}, 1000, False, 0)
+    pairs = set(zip(v["load_inertia"][:4], v["stiffness"][:4]))
+    assert pairs == {(0.0, 0.7), (0.0, 1.3), (4.0, 0.7), (4.0, 1.3)}
+    assert v["load_inertia"].size == 1000
+    # narrow ranges keep linear draws (the same draws as before, past the corners)
+    rng = np.random.default_rng(0)
+    assert v["load_inertia"][4:] == pytest.approx(rng.uniform(0.0, 4.0, 1000)[4:])
+    small = sample_variants({"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}, 2, False, 0)
+    assert small["stiffness"].size == 4  # grows to the corners
+
+
+def test_check_vary_over_24_decades_sees_the_soft_end(capsys):
+    assert main(["check", EMA, "--vary", "stiffness=1e-12:1e12", "--samples", "40", "--linear-only",
+                 "--json"]) == 1
+    data = json.loads(capsys.readouterr().out)["scenes"][0]
+    rb = data["robustness"]
+    assert rb["ranges"]["stiffness"] == [1e-12, 1e12]
+    assert rb["worst"]["stable_fraction"]["passed"] is False
