@@ -114,3 +114,30 @@ def test_check_vary_over_24_decades_sees_the_soft_end(capsys):
     rb = data["robustness"]
     assert rb["ranges"]["stiffness"] == [1e-12, 1e12]
     assert rb["worst"]["stable_fraction"]["passed"] is False
+
+
+# -- 4. sine frequencies the run resolves --------------------------------------------------
+
+@pytest.mark.parametrize("args, limit", [
+    (["simulate", EMA, "--frequency", "1e5"], "at most 2500 Hz"),
+    (["simulate", EMA, "--frequency", "0.5"], "at least 1 Hz"),
+    (["sweep", EMA, "--frequency", "1e-6"], "at least 0.000267 Hz"),
+    (["sweep", EMA, "--frequency", "8", "--frequency", "4000"], "at most 2500 Hz"),
+    (["montecarlo", EMA, "--frequency", "6000", "--samples", "2"], "at most 2500 Hz"),
+])
+def test_frequencies_outside_what_the_run_resolves_are_one_line(args, limit, capsys):
+    assert main(args) == 2
+    out, err = capsys.readouterr()
+    line, = err.strip().splitlines()
+    assert line.startswith("servo-toolkit: error: --frequency: must be") and limit in line
+    assert out == ""
+
+
+def test_a_study_frequency_above_the_sample_rate_names_its_key(tmp_path, capsys):
+    text = (SCENES / "ema_reference.toml").read_text()
+    path = tmp_path / "fast.toml"
+    path.write_text(text + '\n[studies.fast]\nkind = "simulate"\namplitude = "2 deg"\nfrequency = "6 kHz"\n'
+                    'duration = "0.01 s"\n')
+    assert main(["simulate", str(path), "--study", "fast"]) == 2
+    err = capsys.readouterr().err
+    assert "studies.fast.frequency: must be at most 2500 Hz" in err and len(err.strip().splitlines()) == 1

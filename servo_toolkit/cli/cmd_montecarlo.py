@@ -58,7 +58,7 @@ def run(args) -> int:
     if args.amplitude is not None or args.frequency is not None:
         from ..sim.studies import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
-                             frequency=args.frequency)[0]
+                             frequency=args.frequency, duration=args.duration)[0]
     prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
     variants = None
     if varies:

@@ -60,6 +60,8 @@ def run(args) -> int:
     amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
+        from ..sim.studies import run_spec
+        run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)  # a bad frequency: one line, no work
         prepare_kernels(scene, paper=args.method == "paper")
         result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full,
                                 amplitude=amplitude, frequency=args.frequency)
