@@ -141,3 +141,22 @@ def test_a_study_frequency_above_the_sample_rate_names_its_key(tmp_path, capsys)
     assert main(["simulate", str(path), "--study", "fast"]) == 2
     err = capsys.readouterr().err
     assert "studies.fast.frequency: must be at most 2500 Hz" in err and len(err.strip().splitlines()) == 1
+
+
+# -- 5. simulate --dt is honoured or refused -----------------------------------------------
+
+def test_simulate_dt_without_a_method_runs_rk4_at_that_step(capsys):
+    assert main(["simulate", EMA, "--dt", "5e-6", "--json"]) == 0
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert data["requested_method"] == "rk4" and data["method"] == "rk4"
+    assert data["dt_s"] == pytest.approx(5e-6)
+    assert "ran method rk4 at step 5e-06 s" in err
+
+
+@pytest.mark.parametrize("method", ["auto", "reference"])
+def test_simulate_dt_with_a_method_that_ignores_it_is_refused(method, capsys):
+    assert main(["simulate", EMA, "--dt", "1e-5", "--method", method]) == 2
+    out, err = capsys.readouterr()
+    line, = err.strip().splitlines()
+    assert line.startswith("servo-toolkit: error: --dt: applies to the fixed-step methods") and out == ""
