@@ -160,3 +160,50 @@ def test_simulate_dt_with_a_method_that_ignores_it_is_refused(method, capsys):
     out, err = capsys.readouterr()
     line, = err.strip().splitlines()
     assert line.startswith("servo-toolkit: error: --dt: applies to the fixed-step methods") and out == ""
+
+
+# -- 6. the contents of a design file ------------------------------------------------------
+
+def _design_file(tmp_path, **edits):
+    data = {"servo_toolkit_design": 1, "scene": "ema_reference", "q0_rad": 0.0, "structure": "cascade",
+            "gains": {"kp": 60.0, "kv": 40.0, "wvi": 30.0}, "filter": "none", "filter_params": {},
+            "ratio": 150.0, "current_kp_v_per_a": 2.0, "current_ki_v_per_a_s": 800.0, "sample_time_s": 1e-4}
+    for key, value in edits.items():
+        table, _, name = key.partition("__")
+        if name:
+            data[table][name] = value
+        else:
+            data[table] = value
+    path = tmp_path / "d.json"
+    path.write_text(json.dumps(data) if "raw" not in edits else edits["raw"])
+    return path
+
+
+@pytest.mark.parametrize("edits, expect", [
+    ({"sample_time_s": -1e-4}, "sample_time_s: must lie in [0, 1]"),
+    ({"sample_time_s": 1e-12}, "sample_time_s: must be 0 (a continuous controller) or within"),
+    ({"q0_rad": 100.0}, "q0_rad: the operating point must lie within the scene's stroke"),
+    ({"ratio": 0}, "ratio: must lie in"),
+    ({"ratio": float("nan")}, "ratio: value is NaN"),
+    ({"gains__kp": 1e300}, "gains.kp: must lie in (0, 1e+09]"),
+    ({"gains__kv": 10 ** 400}, "gains.kv: must lie in (0, 1e+09] (got an integer of 401 digits)"),
+    ({"gains__wvi": "fast"}, "gains.wvi: must be a number"),
+    ({"gains__kd": 1.0}, "gains.kd: unknown for cascade"),
+    ({"gains": {"kp": 1.0}}, "gains.kv: missing"),
+    ({"current_kp_v_per_a": float("inf")}, "current_kp_v_per_a: must lie in [0, 1e+09]"),
+    ({"filter": "notch", "filter_params": {"wn": 400.0, "zeta_zero": 0.05, "zeta_pole": -1}},
+     "filter_params.zeta_pole: must lie in (0, 100]"),
+    ({"structure": "fuzzy"}, "structure: must be one of"),
+])
+def test_design_file_contents_are_checked_field_by_field(tmp_path, capsys, edits, expect):
+    path = _design_file(tmp_path, **edits)
+    assert main(["design", EMA, "--design", str(path), "--linear-only"]) == 2
+    out, err = capsys.readouterr()
+    line, = err.strip().splitlines()
+    assert line.startswith("servo-toolkit: error: --design: ") and expect in line, line
+    assert out == ""
+
+
+def test_a_huge_integer_gain_that_fits_is_converted():
+    from servo_toolkit.loop.design_file import number
+    assert number({"kp": 10 ** 6}, "gains.kp", 0.0, 1e9, lo_open=True) == 1e6
