@@ -207,3 +207,25 @@ def test_design_file_contents_are_checked_field_by_field(tmp_path, capsys, edits
 def test_a_huge_integer_gain_that_fits_is_converted():
     from servo_toolkit.loop.design_file import number
     assert number({"kp": 10 ** 6}, "gains.kp", 0.0, 1e9, lo_open=True) == 1e6
+
+
+# -- 8. JUnit XML of a scene whose name holds control characters ---------------------------
+
+def test_junit_of_a_scene_named_with_control_characters_parses(tmp_path, capsys):
+    text = (SCENES / "ema_reference.toml").read_text().replace('name = "ema_reference"',
+                                                               'name = "ema\\u001b[31m\\u0007\\u0000x"', 1)
+    scene = tmp_path / "ctl.toml"
+    scene.write_text(text)
+    junit = tmp_path / "gate.xml"
+    assert main(["check", str(scene), str(tmp_path / "missing.toml"), "--linear-only", "--junit", str(junit)]) == 2
+    capsys.readouterr()
+    root = ET.parse(junit).getroot()  # well-formed XML 1.0
+    suites = root.findall("testsuite")
+    assert suites[0].get("name") == "ema\\x1b[31m\\x07\\x00x"
+    assert all(c.get("classname") == suites[0].get("name") for c in suites[0].findall("testcase"))
+
+
+def test_xml_text_keeps_what_xml_allows():
+    from servo_toolkit.cli.cmd_check import xml_text
+    assert xml_text("tab\tnewline\n\u00e9\U0001f600") == "tab\tnewline\n\u00e9\U0001f600"
+    assert xml_text("\x1b\ufffe") == "\\x1b\\ufffe"

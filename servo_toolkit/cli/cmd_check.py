@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -86,6 +87,25 @@ def robustness_spec(scene, varies: dict, samples):
     return spec
 
 
+#: characters XML 1.0 forbids (C0 controls but tab, newline and carriage return; surrogates;
+#: U+FFFE and U+FFFF)
+_XML_FORBIDDEN = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text: str) -> str:
+    """``text`` with every character XML 1.0 forbids written as a visible escape (``\\x1b``)."""
+    return _XML_FORBIDDEN.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
+                              else f"\\u{ord(m.group()):04x}", text)
+
+
+def _xml_safe(root) -> None:
+    """Every text and attribute value of the tree made valid XML 1.0 (:func:`xml_text`)."""
+    for element in root.iter():
+        element.attrib.update({k: xml_text(v) for k, v in element.attrib.items()})
+        if element.text:
+            element.text = xml_text(element.text)
+
+
 def write_junit(path, entries) -> None:
     """JUnit XML: a testsuite per scene, a testcase per requirement.
 
@@ -109,6 +129,7 @@ def write_junit(path, entries) -> None:
                 ET.SubElement(case, "system-out").text = message
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
+    _xml_safe(root)  # a scene name or message with control characters still parses
     import tempfile
     target = Path(path)
     try:  # a temporary file beside the target, renamed over it: never a half-written report
