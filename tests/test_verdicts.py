@@ -229,3 +229,14 @@ def test_xml_text_keeps_what_xml_allows():
     from servo_toolkit.cli.cmd_check import xml_text
     assert xml_text("tab\tnewline\n\u00e9\U0001f600") == "tab\tnewline\n\u00e9\U0001f600"
     assert xml_text("\x1b\ufffe") == "\\x1b\\ufffe"
+
+
+def test_no_stable_variant_fails_the_robust_rows_on_the_unstable_loops_figures():
+    from servo_toolkit.loop.requirements import Requirement
+    from servo_toolkit.loop.robustness import worst_cases
+    figs = {"stable": np.array([False, False]), "max_pole_real": np.array([1.0, 2.0]),
+            "gain_margin_db": np.array([np.nan, np.nan])}
+    reqs = [Requirement("stable_fraction", ">=", 1.0, "", "robustness"),
+            Requirement("gain_margin", ">=", 6.0, "dB", "nominal")]
+    checks, worst = worst_cases({"stiffness": np.array([1e-6, 1e-5])}, figs, reqs)
+    assert [c.passed for c in checks] == [False, False] and checks[1].achieved == 0.0

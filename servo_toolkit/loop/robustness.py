@@ -237,6 +237,12 @@ _WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_marg
           "phase_lag_at_bandwidth": ("phase_lag_deg", "max")}
 
 
+#: a robust requirement's figure when no variant is stable (those of an unstable loop in
+#: :func:`.design.evaluate`): the row fails, on a figure rather than on NaN
+_UNSTABLE_FIGURE = {"gain_margin": 0.0, "phase_margin": -math.inf, "sensitivity_peak": math.inf, "bandwidth": 0.0,
+                   "phase_lag_at_bandwidth": math.inf}
+
+
 def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
     """Checks of ``requirements`` (robust requirements, display units) against the worst
     variant of each, and the parameter values of that variant."""
@@ -248,8 +254,8 @@ def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
             k = int(np.argmax(figures["max_pole_real"]))
         else:
             key, kind = _WORST[r.name]
-            if not np.any(stable):
-                achieved[r.name] = math.nan
+            if not np.any(stable):  # no stable variant: the unstable loop's figures, as the design's
+                achieved[r.name] = _UNSTABLE_FIGURE[r.name]
                 continue
             vals = figures[key]
             k = int(np.argmin(np.where(stable, vals, np.inf)) if kind == "min"
