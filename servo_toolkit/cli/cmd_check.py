@@ -34,7 +34,8 @@ def register(sub) -> None:
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="robustness: vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
-                        "scene's [robustness])")
+                        "scene's [robustness]; a positive range over a decade is sampled logarithmically, "
+                        "and the corners of the ranges are always among the variants)")
     p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
