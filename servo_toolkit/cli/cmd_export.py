@@ -35,7 +35,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    """Run the command: 0 exported, 1 the quantization costs a requirement the design meets."""
+    """Run the command: 0 exported, 1 (``--fixed-point``) the quantized controller's loop misses
+    a requirement of the scene (each named; also when the design without quantization already
+    misses it)."""
     from ..export import export
     from ..export.writer import check_directory
     from ..loop.requirements import parse_override

@@ -71,12 +71,17 @@ def run(args) -> int:
     amps = amplitudes_si(scene, args.amplitude)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
-    if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
-            res = sweep(scene, args.study, executor=pool, **kw)
-    else:
-        res = sweep(scene, args.study, **kw)
+    try:
+        if args.workers > 1:
+            from concurrent.futures import ProcessPoolExecutor
+            with ProcessPoolExecutor(args.workers) as pool:
+                res = sweep(scene, args.study, executor=pool, **kw)
+        else:
+            res = sweep(scene, args.study, **kw)
+    except SceneError as exc:
+        if exc.key == "frequencies":  # the option, not the scene
+            raise SceneError("--frequency", exc.rule) from None
+        raise
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

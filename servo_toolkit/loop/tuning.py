@@ -193,7 +193,8 @@ def load_design(scene, path, require=None):
     Raises
     ------
     SceneError
-        ``--design``: not a readable design file, a missing or bad field.
+        ``--design``: not a readable design file, a missing or bad field (named by its JSON
+        key, see :func:`.design_file.design_fields`).
     """
     key = "--design"
     from ..files import read_input_text
@@ -206,17 +207,8 @@ def load_design(scene, path, require=None):
         raise SceneError(key, f"the design file {str(path)!r} is nested too deeply") from None
     if not isinstance(data, dict) or data.get("servo_toolkit_design") != DESIGN_FILE_VERSION:
         raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
-    try:
-        motion = Motion(str(data["structure"]), {k: float(v) for k, v in data["gains"].items()},
-                        str(data["filter"]), {k: float(v) for k, v in data["filter_params"].items()},
-                        float(data["ratio"]))
-        motion.pieces()
-        values = [float(data[k]) for k in ("current_kp_v_per_a", "current_ki_v_per_a_s", "sample_time_s", "q0_rad")]
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise SceneError(key, f"{str(path)!r}: missing or bad field ({type(exc).__name__}: {exc})") from None
-    if not all(math.isfinite(v) for v in values + list(motion.gains.values()) + list(motion.filter_params.values())):
-        raise SceneError(key, f"{str(path)!r}: every number must be finite")
-    kp_i, ki_i, ts, q0 = values
+    from .design_file import design_fields
+    motion, kp_i, ki_i, ts, q0 = design_fields(data, scene)  # every field checked: one line naming it
     ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe())
     notes = (f"controller from {Path(path).name} (designed for {data.get('scene', '?')})",)
     return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
