@@ -94,6 +94,8 @@ def test_output_below_a_file_is_refused(tmp_path, capsys):
 def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     """Written in a temporary sibling and renamed: a failure half-way leaves no folder and no
     temporary files."""
+    from servo_toolkit.core import files
+    from servo_toolkit.errors import SceneError
     from servo_toolkit.export import writer
 
     calls = []
@@ -103,15 +105,15 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
         if len(calls) == 2:
             raise OSError("disk full")
 
-    monkeypatch.setattr(writer.os, "fsync", failing_fsync)
-    with pytest.raises(OSError, match="disk full"):
+    monkeypatch.setattr(files.os, "fsync", failing_fsync)
+    with pytest.raises(SceneError, match="disk full"):
         writer.write_files(tmp_path / "out", {"a.txt": "1", "b.txt": "2"})
     assert list(tmp_path.iterdir()) == []
     # into an existing folder: the files already there stay as they were
     (tmp_path / "out").mkdir()
     (tmp_path / "out" / "a.txt").write_text("old")
     calls.clear()
-    with pytest.raises(OSError):
+    with pytest.raises(SceneError, match="disk full"):
         writer.write_files(tmp_path / "out", {"a.txt": "1", "b.txt": "2"})
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
     assert (tmp_path / "out" / "a.txt").read_text() == "old"

@@ -113,3 +113,49 @@ def test_representative_values_in_si(scenes):
     assert cam.motor.torque_constant == pytest.approx(0.015 * 9.80665)
     assert plat.mechanism.platform_inertia[1, 1] == pytest.approx(12600.333e-6)
     assert scenes["roller_screw_two_stage"].roller_screw[1].screw_spline_radius == pytest.approx(12.25e-3)
+
+
+# -- unit slips: an angle where a number is expected, Kt and Ke in disagreement --------------
+
+def _edited(**edits):
+    from .conftest import build, variant
+    data = tomllib.loads((SCENES / "ema_reference.toml").read_text())
+    return build(variant(data, **edits))
+
+
+@pytest.mark.parametrize("edits, key", [
+    ({"drivetrain__0__teeth": None, "drivetrain__0__inertia": "1e-5 kg*m^2", "drivetrain__0__ratio": "3 deg"},
+     "drivetrain[0].ratio"),
+    ({"drivetrain__0__teeth": None, "drivetrain__0__inertia": "1e-5 kg*m^2", "drivetrain__0__ratio": "1 rad"},
+     "drivetrain[0].ratio"),
+    ({"drivetrain__0__efficiency": "1 rad"}, "drivetrain[0].efficiency"),
+    ({"drivetrain__1__efficiency": "0.9 turn"}, "drivetrain[1].efficiency"),
+])
+def test_an_angle_is_no_dimensionless_number(edits, key):
+    from servo_toolkit.errors import SceneError
+    with pytest.raises(SceneError, match="expected a dimensionless number, got an angle") as info:
+        _edited(**edits)
+    assert info.value.key == key
+
+
+def test_a_percentage_is_still_a_number():
+    assert _edited(drivetrain__0__efficiency="97 %").stages[0].efficiency == pytest.approx(0.97)
+
+
+@pytest.mark.parametrize("kt, ke, slip", [
+    ("2 N*m/A", "0.002 V*s/rad", "milli prefix"),
+    ("0.2 N*m/A", "20.94 V*s/rad", "V/krpm"),
+    ("0.2 N*m/A", "0.02094 V*s/rad", "V/rpm"),
+    ("0.2 N*m/A", "0.3 V*s/rad", ""),
+])
+def test_kt_and_ke_of_a_dc_motor_must_agree(kt, ke, slip):
+    from servo_toolkit.errors import SceneError
+    with pytest.raises(SceneError, match="must equal torque_constant within 10%") as info:
+        _edited(motor__torque_constant=kt, motor__back_emf_constant=ke)
+    assert info.value.key == "motor.back_emf_constant" and slip in info.value.rule
+
+
+def test_shipped_motors_keep_loading_with_their_datasheet_kt_and_ke():
+    cam = load_scene(SCENES / "cam_follower.toml")  # 0.1471 N*m/A against 0.146 V*s/rad
+    assert cam.motor.back_emf_constant == pytest.approx(0.146)
+    assert _edited(motor__back_emf_constant="0.19 V*s/rad").motor.back_emf_constant == pytest.approx(0.19)

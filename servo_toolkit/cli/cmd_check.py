@@ -10,13 +10,13 @@ designed robustly (``--nominal`` checks the nominal design over the same variant
 
 from __future__ import annotations
 
-import contextlib
-import os
+import re
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from ..errors import SceneError
+from ..errors import SceneError, SimulationError
+from ..core.files import atomic_file, check_output_file
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
@@ -33,7 +33,8 @@ def register(sub) -> None:
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="robustness: vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
-                        "scene's [robustness])")
+                        "scene's [robustness]; a positive range over a decade is sampled logarithmically, "
+                        "and the corners of the ranges are always among the variants)")
     p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
@@ -86,19 +87,39 @@ def robustness_spec(scene, varies: dict, samples):
     return spec
 
 
+#: characters XML 1.0 forbids (C0 controls but tab, newline and carriage return; surrogates;
+#: U+FFFE and U+FFFF)
+_XML_FORBIDDEN = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text: str) -> str:
+    """``text`` with every character XML 1.0 forbids written as a visible escape (``\\x1b``)."""
+    return _XML_FORBIDDEN.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
+                              else f"\\u{ord(m.group()):04x}", text)
+
+
+def _xml_safe(root) -> None:
+    """Every text and attribute value of the tree made valid XML 1.0 (:func:`xml_text`)."""
+    for element in root.iter():
+        element.attrib.update({k: xml_text(v) for k, v in element.attrib.items()})
+        if element.text:
+            element.text = xml_text(element.text)
+
+
 def write_junit(path, entries) -> None:
     """JUnit XML: a testsuite per scene, a testcase per requirement.
 
     ``entries`` holds (suite name, cases) with cases (test name, passed, message), or
-    (suite name, SceneError) for a scene that could not be checked: one testcase ``check``
-    with an ``error`` element (JUnit's "could not run", apart from a failed requirement).
+    (suite name, SceneError or SimulationError) for a scene that could not be checked: one
+    testcase ``check`` with an ``error`` element (JUnit's "could not run", apart from a
+    failed requirement).
     """
     root = ET.Element("testsuites", name="servo-toolkit check")
     for name, cases in entries:
-        if isinstance(cases, SceneError):
+        if isinstance(cases, (SceneError, SimulationError)):
             suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="1")
             case = ET.SubElement(suite, "testcase", classname=name, name="check")
-            ET.SubElement(case, "error", message=str(cases), type="SceneError").text = str(cases)
+            ET.SubElement(case, "error", message=str(cases), type=type(cases).__name__).text = str(cases)
             continue
         suite = ET.SubElement(root, "testsuite", name=name, tests=str(len(cases)),
                               failures=str(sum(not ok for _, ok, _ in cases)), errors="0")
@@ -108,17 +129,9 @@ def write_junit(path, entries) -> None:
                 ET.SubElement(case, "system-out").text = message
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
-    import tempfile
-    target = Path(path)
-    try:  # a temporary file beside the target, renamed over it: never a half-written report
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
-        with os.fdopen(fd, "wb") as fh:
-            ET.ElementTree(root).write(fh, encoding="utf-8", xml_declaration=True)
-        os.replace(tmp, target)
-    except OSError as exc:
-        with contextlib.suppress(OSError, UnboundLocalError):
-            os.unlink(tmp)
-        raise SceneError("junit", f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+    _xml_safe(root)  # a scene name or message with control characters still parses
+    with atomic_file(path, "junit") as tmp:  # never a half-written report
+        ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
 
 
 def _is_junit(path: Path) -> bool:
@@ -136,20 +149,9 @@ def check_writable(path, inputs=()) -> None:
     must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
     existing file that is not a JUnit report (nothing a user has is overwritten). Checked
     before any design runs."""
-    p = Path(path)
-    for scene in inputs:
-        with contextlib.suppress(OSError):
-            if p.exists() and Path(scene).exists() and p.resolve() == Path(scene).resolve():
-                raise SceneError("junit", f"refusing to write the JUnit report over the input scene {str(path)!r}")
+    p = check_output_file(path, "junit", inputs=inputs)
     if p.is_file() and not _is_junit(p):
         raise SceneError("junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
-    parent = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise SceneError("junit", f"cannot write {str(path)!r}: it is a directory")
-    if not parent.is_dir():
-        raise SceneError("junit", f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
-    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise SceneError("junit", f"cannot write {str(path)!r}: permission denied")
 
 
 def _tagged(exc: SceneError, path) -> SceneError:
@@ -198,8 +200,9 @@ def run(args) -> int:
 
     Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
     ``--junit`` path) stop before any design. A scene that cannot be checked (it does not
-    load, or has no motor-driven drivetrain) is reported on one stderr line naming its file
-    and becomes an ``error`` testcase of the JUnit file; the other scenes are still checked
+    load, or has no motor-driven drivetrain, or its own nonlinear run, large-signal or Monte
+    Carlo, cannot be carried out) is reported on one stderr line naming its file and becomes
+    an ``error`` testcase of the JUnit file; the other scenes are still checked
     and written, and the exit code is 2.
     """
     from ..loop.robustness import parse_vary
@@ -223,6 +226,13 @@ def run(args) -> int:
             if isinstance(scene, SceneError):
                 raise scene
             name, cases, d = _check_scene(path, scene, args, varies)
+        except SimulationError as exc:  # its own nonlinear run could not run: no verdict, exit 2
+            print(f"servo-toolkit: simulation error: {path}: {exc}", file=sys.stderr)
+            errors += 1
+            entries.append((scene.name, exc))
+            out.append({"source": str(path), "passed": False, "error": str(exc), "key": "simulation",
+                        "rule": str(exc)})
+            continue
         except SceneError as exc:
             exc = _tagged(exc, path)
             if exc is not scene:
@@ -249,5 +259,6 @@ def run(args) -> int:
             print("some requirements NOT met" if not all_ok else "all requirements met" if not errors
                   else "every scene checked meets its requirements")
         if errors:
-            print(f"{errors} of {len(args.scenes)} scene(s) could not be checked (bad input)")
+            print(f"{errors} of {len(args.scenes)} scene(s) could not be checked "
+                  f"(bad input or a run outside its validity domain)")
     return 2 if errors else 0 if all_ok else 1

@@ -75,8 +75,8 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     try:
         result = design_from_args(scene, args)
-    except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file
-        raise (exc if exc.source else exc.with_source(str(args.scene))) from None
+    except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)
+        raise (exc if exc.source or exc.key.startswith("--") else exc.with_source(str(args.scene))) from None
     result, ls = gate_result(scene, args, result)
     data = result.to_dict()
     if ls is not None:

@@ -11,9 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import SceneError
-from ..scene.loader import load_scene
+from ..scene import load_scene, read_scene_text
 from .common import add_json, add_scene, emit
-from ..core.files import check_file, write_text
+from ..core.files import check_output_file, write_text
 
 
 def register(sub) -> None:
@@ -51,14 +51,14 @@ def run(args) -> int:
     """Run the command."""
     from ..identify import calibrated_text, fit, read_data
     if args.output is not None:
-        check_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data))
+        check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data))
     scene = load_scene(args.scene)
     data = read_data(args.data)
     result = fit(scene, data, args.response, args.param)
     if args.output is not None:
-        text = calibrated_text(Path(scene.source).read_text(encoding="utf-8"), result)
+        text = calibrated_text(read_scene_text(Path(scene.source)), result)
         ok = [(k, v) for k, v, (_, hi) in zip(result.keys, result.values, result.ci95) if hi != float("inf")]
-        write_text(args.output, text, _check_written([k for k, _ in ok], [v for _, v in ok]))
+        write_text(args.output, text, "-o", _check_written([k for k, _ in ok], [v for _, v in ok]))
     out = result.to_dict()
     if args.output is not None:
         out["output"] = str(args.output)

@@ -20,7 +20,8 @@ def register(sub) -> None:
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. load_inertia=0:4 "
                         "(repeatable; default: the scene's [robustness] ranges, else load_inertia=0:4 "
-                        "stiffness=0.7:1.3)")
+                        "stiffness=0.7:1.3; a positive range over a decade is sampled logarithmically, and the "
+                        "corners of the ranges are always among the variants)")
     p.add_argument("--samples", type=int, default=None,
                    help="variants (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--seed", type=int, default=None, help="seed of the Monte Carlo draws")
@@ -58,7 +59,7 @@ def run(args) -> int:
     if args.amplitude is not None or args.frequency is not None:
         from ..studies.time_reference import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
-                             frequency=args.frequency)[0]
+                             frequency=args.frequency, duration=args.duration)[0]
     prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
     variants = None
     if varies:

@@ -7,7 +7,7 @@ import sys
 
 from ..scene.loader import load_scene
 from .common import add_json, add_scene, amplitudes_si, bounded, emit
-from ..core.files import FIGURE_SUFFIXES, check_file, save_figure
+from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
 def register(sub) -> None:
@@ -44,7 +44,7 @@ def run(args) -> int:
         return 2
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
     if args.estimate_only:
         _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)

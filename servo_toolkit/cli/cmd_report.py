@@ -7,7 +7,6 @@ import time
 
 from ..scene.loader import load_scene
 from .common import add_scene, bounded, prepare_kernels
-from ..core.files import atomic_folder, check_report_folder
 
 
 def register(sub) -> None:
@@ -36,9 +35,10 @@ def run(args) -> int:
     empty or an earlier report). The report is written into a temporary folder and renamed
     into place."""
     from ..report import build_report, write_report
+    from ..report.builder import check_report_folder
     start = time.perf_counter()
     scene = load_scene(args.scene)
-    out_dir = check_report_folder(args.output)  # before any work
+    out_dir = check_report_folder(args.output, "--output", inputs=[args.scene, args.design])  # before any work
     given = None
     if args.design:
         from ..loop.tuning import load_design
@@ -47,8 +47,7 @@ def run(args) -> int:
     # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
     prepare_kernels(scene, paper=True, batch=scene.robustness is not None)
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
-    with atomic_folder(out_dir) as tmp:  # never a mixed or half-written report
-        write_report(report, tmp, progress=True)
+    write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()
     paths = {"html": out_dir / "index.html", "pdf": out_dir / "report.pdf"}
     missing = [s for s in report.sections if s.status == "unavailable"]

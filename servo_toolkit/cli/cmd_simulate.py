@@ -19,7 +19,8 @@ def register(sub) -> None:
     add_sine_options(p)
     p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
     p.add_argument("--dt", type=bounded(float, 1e-9, 1.0, what="a step in seconds"), metavar="S",
-                   help="fixed step (s), 1e-9 to 1")
+                   help="fixed step (s), 1e-9 to 1, of the fixed-step methods (rk4, paper); without --method it "
+                        "runs rk4 at that step; refused with --method auto or reference")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
@@ -53,22 +54,32 @@ def run(args) -> int:
     from ..studies.time_run import simulate_study
 
     scene = load_scene(args.scene)
-    check_trace_path(args.output)  # a bad -o name fails before the run, exit 2
+    check_trace_path(args.output, inputs=[args.scene])  # a bad -o fails before the run, exit 2
     amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
-        prepare_kernels(scene, paper=args.method == "paper")
+        from ..studies.time_reference import run_spec
+        from ..studies.time_run import resolve_method
+        # a bad frequency or a --dt the method would ignore: one line, before any work
+        _, _, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
+        method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
+        prepare_kernels(scene, paper=method == "paper")
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()
+        if args.dt is not None:
+            step = "adaptive" if result.dt_s is None else f"{result.dt_s:.4g} s"
+            print(f"servo-toolkit: note: ran method {result.method} at step {step} (--dt {args.dt:g} s"
+                  f"{', no --method: fixed-step RK4' if args.method is None and study_method is None else ''})",
+                  file=sys.stderr)
     else:
         text = result.table() if hasattr(result, "table") else str(result.to_dict())
     if args.output:
         if not hasattr(result, "save"):
             print("servo-toolkit: this study writes no traces", file=sys.stderr)
             return 2
-        path = result.save(args.output)
+        path = result.save(args.output, inputs=[args.scene])
         print(f"traces written to {path}", file=sys.stderr)
     if "UNSTABLE" in str(getattr(result, "controller", "")):
         print("servo-toolkit: warning: no stable controller was found for this scene; the run shows the "

@@ -10,7 +10,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
-from ..core.files import FIGURE_SUFFIXES, check_file, save_figure
+from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
 def register(sub) -> None:
@@ -63,7 +63,7 @@ def run(args) -> int:
     """Run the command."""
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     name = args.study or default_study(scene)
     if name:
         if not args.study:
@@ -74,12 +74,17 @@ def run(args) -> int:
     amps = amplitudes_si(scene, args.amplitude)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
-    if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
-            res = _sweep(scene, args.study, executor=pool, **kw)
-    else:
-        res = _sweep(scene, args.study, **kw)
+    try:
+        if args.workers > 1:
+            from concurrent.futures import ProcessPoolExecutor
+            with ProcessPoolExecutor(args.workers) as pool:
+                res = _sweep(scene, args.study, executor=pool, **kw)
+        else:
+            res = _sweep(scene, args.study, **kw)
+    except SceneError as exc:
+        if exc.key == "frequencies":  # the option, not the scene
+            raise SceneError("--frequency", exc.rule) from None
+        raise
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

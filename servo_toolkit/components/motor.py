@@ -8,6 +8,32 @@ from dataclasses import dataclass
 from ..core.fields import Fields, require
 
 
+#: Kt (N*m/A) and Ke (V*s/rad) of a DC motor are one constant in SI (the power balance
+#: Kt i w = Ke w i); datasheet values may differ by a few percent (losses, rounding; the cam
+#: follower's motor gives 0.1471 and 0.146), by more than this relative amount they are a
+#: unit slip
+KT_KE_TOLERANCE = 0.10
+#: (factor, likely slip) of the usual unit slips between Kt and Ke
+_SLIPS = ((1000.0, "a milli prefix dropped or added (mV*s/rad, mN*m/A)"),
+          (1000 * 2 * math.pi / 60, "Ke per 1000 rpm (V/krpm) given as V*s/rad"),
+          (60 / (2 * math.pi), "Ke per rpm (V/rpm) given as V*s/rad, or rpm taken for rad/s"),
+          (2 * math.pi, "per revolution taken for per radian"),
+          (9.80665, "kgf*m/A taken for N*m/A"))
+
+
+def kt_ke_rule(kt: float, ke: float) -> str:
+    """The rule broken by a Kt/Ke pair more than :data:`KT_KE_TOLERANCE` apart, with the
+    likely slip; "" when they agree."""
+    if abs(kt - ke) <= KT_KE_TOLERANCE * max(kt, ke):
+        return ""
+    ratio = kt / ke
+    big = max(ratio, 1 / ratio)
+    guess = next((f": likely {what}" for factor, what in _SLIPS if abs(big / factor - 1) <= KT_KE_TOLERANCE), "")
+    return (f"must equal torque_constant within {KT_KE_TOLERANCE:.0%}: a DC motor's Kt in N*m/A and Ke in "
+            f"V*s/rad are the same constant in SI (got Kt = {kt:g} N*m/A, Ke = {ke:g} V*s/rad, Ke "
+            f"{'smaller' if ratio > 1 else 'larger'} by a factor of {big:.4g}{guess})")
+
+
 #: largest value of each motor constant the models are conditioned for (SI): far beyond any
 #: electric motor (a 1 MW machine has Kt of a few hundred N*m/A)
 PLAUSIBLE_MAX = {"resistance": 1e15, "inductance": 10.0, "torque_constant": 1e4, "back_emf_constant": 1e4,
@@ -76,6 +102,8 @@ class DCMotor:
             value = getattr(motor, key)
             require(value <= top, f.key(key), f"must be at most {top:g} (got {value:g}): outside the range "
                     "of electric motors the models are conditioned for")
+        rule = kt_ke_rule(motor.torque_constant, motor.back_emf_constant)
+        require(not rule, f.key("back_emf_constant"), rule)
         require(motor.resistance >= 1e-6, f.key("resistance"), f"must be at least 1e-06 ohm (got {motor.resistance:g})")
         require(motor.voltage_limit > 0, f.key("voltage_limit"), "must be positive")
         require(motor.current_limit > 0, f.key("current_limit"), "must be positive")

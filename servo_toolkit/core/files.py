@@ -1,125 +1,487 @@
-"""Output paths checked before any work, and files and folders written atomically: nothing a
-user has is overwritten by something else or left half-written (a failure, Ctrl-C or two
-concurrent runs leave either the old output or the new one)."""
+"""Every file the toolkit reads from or writes for a user goes through here.
+
+Outputs are checked before any work and written atomically: a temporary file (or folder)
+beside the target, flushed to disk, then renamed into place, so a failure, a full disk,
+Ctrl-C or two concurrent runs leave the old output or the new one, never half of one, and no
+temporary behind. The rules of an output path:
+
+- it is absent or a regular file (a folder output: absent, empty, or an earlier output of the
+  same command); a device, FIFO, socket or folder is refused;
+- an output path that is a symbolic link is refused, whatever it points to: the toolkit never
+  writes through a link, nor replaces one;
+- it is never one of the command's inputs (compared after resolving links, and by device
+  and inode, so hard links count);
+- a read-only file is refused, and its folder must exist and take a new file (probed);
+- a new file's or folder's mode follows the umask (a replaced file keeps its mode).
+
+Inputs are read from regular files only (a FIFO, a device or a folder is refused without
+blocking) and at most a stated number of bytes.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import errno
 import os
+import secrets
 import shutil
-import tempfile
+import signal
+import stat
+import threading
 from pathlib import Path
 
 from ..errors import SceneError
 
 #: figure formats matplotlib writes without extra packages
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf", ".eps", ".ps", ".jpg", ".jpeg", ".tif", ".tiff", ".webp")
-#: a folder holding these (and nothing else) is an earlier report
-REPORT_FILES = {"index.html", "report.pdf"}
 
 
-def _probe(folder: Path, key: str, path) -> None:
-    """Create and remove a temporary folder in ``folder``: the only sure test that the output
-    can be written there (permissions, a read-only or pseudo file system, a full disk)."""
+def _q(path) -> str:
+    return repr(str(path))
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:g} MiB" if n >= 2**20 else f"{n / 2**10:g} KiB"
+
+
+def _same_file(a, b) -> bool:
+    """True when ``a`` and ``b`` name one file (after links; same device and inode)."""
+    with contextlib.suppress(OSError, ValueError):
+        if Path(a).resolve() == Path(b).resolve():
+            return True
+        sa, sb = os.stat(a), os.stat(b)
+        return (sa.st_dev, sa.st_ino) == (sb.st_dev, sb.st_ino)
+    return False
+
+
+def _lstat(path):
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".servo-toolkit-probe.", dir=folder))
+        return os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
     except OSError as exc:
-        raise SceneError(key, f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+        return exc
 
 
-def check_file(path, key: str, suffixes=None, inputs=()) -> Path:
-    """A file that may be written at ``path``: its folder exists and is writable, it is not a
-    folder, not one of ``inputs``, and ends in one of ``suffixes`` (when given).
+def _probe(folder, key: str, path) -> None:
+    """Create and remove a file in ``folder``: the only sure test that an output can be
+    written there (permissions, a read-only file system)."""
+    try:
+        name = os.path.join(folder, f".servo-toolkit-probe.{secrets.token_hex(6)}")
+        os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        os.unlink(name)
+    except OSError as exc:
+        raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
+
+
+def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
+    """Check, before any work, that a file may be written at ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+    key : str
+        The option (or argument) named in the error.
+    suffixes : sequence of str, optional
+        The file name must end in one of these (lower case, with the dot).
+    inputs : sequence of path
+        Files the command reads: the output is never one of them.
+
+    Returns
+    -------
+    pathlib.Path
 
     Raises
     ------
     SceneError
-        Naming ``key`` (the option) and the rule.
+        Naming ``key`` and the rule: a wrong suffix, one of the inputs, a symbolic link, a
+        folder, a device, FIFO or socket, a read-only file, a folder that does not exist or
+        does not take a new file.
     """
     p = Path(path)
     if suffixes and p.suffix.lower() not in suffixes:
         raise SceneError(key, f"{p.name!r} must end in one of {', '.join(suffixes)}")
-    if p.is_dir():
-        raise SceneError(key, f"cannot write {str(path)!r}: it is a folder")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise SceneError(key, f"cannot write {str(path)!r}: folder {str(parent)!r} does not exist")
-    if p.exists() and not os.access(p, os.W_OK):
-        raise SceneError(key, f"cannot write {str(path)!r}: permission denied")
-    _probe(parent, key, path)
     for name in inputs:
-        with contextlib.suppress(OSError):
-            if p.exists() and Path(name).exists() and p.resolve() == Path(name).resolve():
-                raise SceneError(key, f"refusing to overwrite the input {str(path)!r}")
-    return p
-
-
-def check_report_folder(path, key: str = "--output") -> Path:
-    """A report folder that may be (re)written: absent, empty, or an earlier report
-    (``index.html``, ``report.pdf``), in a writable folder."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise SceneError(key, f"{str(path)!r} is a file, not a report folder")
-    parent = p.resolve().parent
+        if name is not None and _same_file(p, name):
+            raise SceneError(key, f"refusing to overwrite the input {_q(name)} with {_q(path)}")
+    st = _lstat(p)
+    if isinstance(st, OSError):
+        raise SceneError(key, f"cannot write {_q(path)}: {st.strerror or st}")
+    if st is not None:
+        if stat.S_ISLNK(st.st_mode):
+            raise SceneError(key, f"refusing to write {_q(path)}: it is a symbolic link (to "
+                             f"{os.readlink(p)!r}); give the file itself or remove the link")
+        if stat.S_ISDIR(st.st_mode):
+            raise SceneError(key, f"cannot write {_q(path)}: it is a directory")
+        if not stat.S_ISREG(st.st_mode):
+            raise SceneError(key, f"refusing to write {_q(path)}: it is a device, FIFO or socket, not a regular file")
+        if not st.st_mode & 0o222 or not os.access(p, os.W_OK):
+            raise SceneError(key, f"refusing to overwrite {_q(path)}: it is read-only")
+    parent = p.parent
     if not parent.is_dir():
-        raise SceneError(key, f"cannot write {str(path)!r}: folder {str(parent)!r} does not exist")
+        raise SceneError(key, f"cannot write {_q(path)}: folder {_q(parent)} does not exist")
     _probe(parent, key, path)
-    if p.is_dir():
-        others = sorted(x.name for x in p.iterdir() if x.name not in REPORT_FILES)
-        if others:
-            raise SceneError(key, f"{str(path)!r} holds other files ({', '.join(others[:3])}"
-                             f"{', ...' if len(others) > 3 else ''}); give an empty or new folder, or an earlier report")
     return p
 
 
-@contextlib.contextmanager
-def atomic_folder(path):
-    """Yield a temporary folder beside ``path``; on success it replaces ``path`` (an earlier
-    report is swapped out and removed), on failure it is removed and ``path`` is untouched."""
-    target = Path(path).resolve()
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False) -> Path:
+    """Check, before any work, that a folder output may be (re)written at ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+    key : str
+        The option (or argument) named in the error.
+    allowed : collection of str
+        The files of an earlier output of the command: a folder holding only these (regular
+        files) is replaced whole; any other content is refused.
+    inputs : sequence of path
+        Files the command reads: none may lie in the folder.
+    parents : bool
+        Missing parent folders will be created (else the parent must exist).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    SceneError
+        Naming ``key`` and the rule.
+    """
+    p = Path(path)
+    st = _lstat(p)
+    if isinstance(st, OSError):
+        raise SceneError(key, f"cannot write {_q(path)}: {st.strerror or st}")
+    if st is not None:
+        if stat.S_ISLNK(st.st_mode):
+            raise SceneError(key, f"refusing to write {_q(path)}: it is a symbolic link (to "
+                             f"{os.readlink(p)!r}); give the folder itself or remove the link")
+        if not stat.S_ISDIR(st.st_mode):
+            raise SceneError(key, f"{_q(path)} exists and is not a folder")
+    for name in inputs:
+        if name is None:
+            continue
+        inside = False
+        with contextlib.suppress(OSError, ValueError):
+            inside = p.resolve() in Path(name).resolve().parents
+        if inside or any(_same_file(p / entry, name) for entry in allowed):
+            raise SceneError(key, f"the output would overwrite its input {_q(name)}")
+    if st is not None:
+        entries = os.listdir(p)
+        others = sorted(e for e in entries if e not in allowed or not stat.S_ISREG(os.lstat(p / e).st_mode))
+        if others:
+            raise SceneError(key, f"{_q(path)} holds other files ({', '.join(others[:3])}"
+                             f"{', ...' if len(others) > 3 else ''}); give an empty or new folder, or an "
+                             f"earlier output of this command")
+    parent = p.absolute().parent
+    if parents:
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+        if not parent.is_dir():
+            raise SceneError(key, f"cannot write into {_q(parent)}: it is not a folder")
+    elif not parent.is_dir():
+        raise SceneError(key, f"cannot write {_q(path)}: folder {_q(parent)} does not exist")
+    _probe(parent, key, path)
+    return p
+
+
+def _temp_name(parent, prefix: str, suffix: str = "") -> str:
+    return os.path.join(parent, f"{prefix}{secrets.token_hex(6)}{suffix}")
+
+
+def _fsync(path, directory: bool = False) -> None:
+    """Flush a file to disk; a folder (the rename in it) on a best-effort basis."""
     try:
-        yield tmp
-        old = None
-        if target.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
-            os.rename(target, old / "report")
-        os.rename(tmp, target)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        if not directory:
+            raise
 
 
 @contextlib.contextmanager
-def atomic_file(path):
-    """Yield a temporary name beside ``path``; on success it is renamed over ``path``, on any
-    failure (Ctrl-C included) removed: ``path`` holds the old content or the new, never half."""
+def atomic_file(path, key: str = "--output"):
+    """Yield a temporary path beside ``path`` (same suffix) to write; on success it is
+    flushed to disk and renamed over ``path``. On any failure (a full disk, Ctrl-C, an
+    exception of the writer) the temporary is removed and ``path`` keeps its old content.
+
+    A new file's mode follows the umask; a replaced file keeps its mode.
+
+    Raises
+    ------
+    SceneError
+        ``key``: an OSError while writing (e.g. no space left on the device).
+    """
     target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent or ".")
-    os.close(fd)
+    parent = target.parent
+    while True:
+        tmp = _temp_name(parent, f".{target.name}.", target.suffix)
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
+            break
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
     try:
-        yield tmp
+        with contextlib.suppress(FileNotFoundError):
+            old = os.stat(target)
+            if stat.S_ISREG(old.st_mode):
+                os.chmod(tmp, stat.S_IMODE(old.st_mode))
+        yield Path(tmp)
+        _fsync(tmp)
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise
+    _fsync(parent, directory=True)
 
 
-def save_figure(fig, path) -> Path:
-    """``fig.savefig`` to a temporary name beside ``path``, then renamed over it."""
-    with atomic_file(path) as tmp:
+def write_text(path, text: str, key: str = "--output", check=None) -> Path:
+    """Write ``text`` (UTF-8) atomically to ``path``; ``check(tmp_path)``, when given, sees
+    the written temporary first and raises to refuse it."""
+    with atomic_file(path, key) as tmp:
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        if check is not None:
+            check(tmp)
+    return Path(path)
+
+
+def save_figure(fig, path, key: str = "--plot") -> Path:
+    """``fig.savefig`` atomically to ``path`` (format from its suffix)."""
+    with atomic_file(path, key) as tmp:
         fig.savefig(tmp, bbox_inches="tight")
     return Path(path)
 
 
-def write_text(path, text: str, check=None) -> Path:
-    """Write ``text`` to a temporary file beside ``path``, call ``check(tmp_path)`` on it when
-    given (it raises to refuse the file), then rename it over ``path``."""
-    with atomic_file(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
-        if check is not None:
-            check(tmp)
-    return Path(path)
+# --- folders ---------------------------------------------------------------------------------
+
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+_exchange_state = {}
+
+
+def _renameat2():
+    """libc's renameat2, or None."""
+    if "fn" not in _exchange_state:
+        fn = None
+        with contextlib.suppress(OSError, AttributeError):
+            fn = ctypes.CDLL(None, use_errno=True).renameat2
+            fn.argtypes = (ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint)
+            fn.restype = ctypes.c_int
+        _exchange_state["fn"] = fn
+    return _exchange_state["fn"]
+
+
+def _exchange(a, b) -> str:
+    """Swap the folders ``a`` and ``b`` in one step: "done", "gone" (``b`` vanished) or
+    "unsupported" (no renameat2, or a file system without RENAME_EXCHANGE)."""
+    fn = _renameat2()
+    if fn is None:
+        return "unsupported"
+    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return "done"
+    err = ctypes.get_errno()
+    if err == errno.ENOENT:
+        return "gone"
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
+        return "unsupported"
+    raise OSError(err, os.strerror(err), str(b))
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold Ctrl-C and SIGTERM (main thread) while an output is published, then deliver them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught, saved = [], {}
+
+    def hold(signum, frame):
+        caught.append(signum)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        old = signal.getsignal(sig)
+        if old is not None:
+            saved[sig] = old
+            signal.signal(sig, hold)
+    try:
+        yield
+    finally:
+        for sig, old in saved.items():
+            signal.signal(sig, old)
+        for sig in dict.fromkeys(caught):
+            signal.raise_signal(sig)
+
+
+def _remove(path) -> None:
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+
+
+def _publish(tmp: str, target: Path, key: str) -> None:
+    """Put the folder ``tmp`` at ``target`` in one rename (or one swap with the old output)."""
+    for _ in range(100):  # another writer may be publishing the same folder: retry
+        try:
+            os.rename(tmp, target)  # absent (or an empty folder)
+            return
+        except OSError as exc:
+            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                raise
+        st = _lstat(target)
+        if st is None:
+            continue
+        if isinstance(st, OSError) or not stat.S_ISDIR(st.st_mode) or stat.S_ISLNK(st.st_mode):
+            raise SceneError(key, f"{_q(target)} changed while the output was written; nothing replaced")
+        state = _exchange(tmp, target)
+        if state == "done":
+            _remove(tmp)  # now the old output
+            return
+        if state == "gone":
+            continue
+        trash = _temp_name(target.parent, f".{target.name}.old.")
+        try:
+            os.rename(target, trash)
+        except FileNotFoundError:
+            continue
+        try:
+            os.rename(tmp, target)
+        except OSError as exc:
+            try:
+                os.rename(trash, target)
+            except OSError:
+                if os.path.isdir(target):  # another writer's output is in place
+                    _remove(trash)
+                    continue
+                raise SceneError(key, f"could not publish {_q(target)}; the earlier output is kept in "
+                                 f"{_q(trash)}") from None
+            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                raise
+            continue
+        _remove(trash)
+        return
+    raise SceneError(key, f"could not publish {_q(target)}: other runs keep writing it")
+
+
+@contextlib.contextmanager
+def atomic_folder(path, key: str = "--output", parents: bool = False):
+    """Yield a temporary folder beside ``path`` to fill; on success its files are flushed
+    and it replaces ``path`` in one step (renameat2's exchange where the system has it,
+    else two renames with Ctrl-C held between them), and the old output is removed. On any
+    failure the temporary is removed and ``path`` is untouched. Two concurrent writers
+    never fail on each other: one complete output stays. The new folder's mode follows
+    the umask.
+
+    Raises
+    ------
+    SceneError
+        ``key``: an OSError while writing or publishing.
+    """
+    target = Path(path).absolute()
+    try:
+        if parents:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            tmp = _temp_name(target.parent, f".{target.name}.")
+            try:
+                os.mkdir(tmp, 0o777)
+                break
+            except FileExistsError:
+                continue
+    except OSError as exc:
+        raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
+    try:
+        yield Path(tmp)
+        for root, _, names in os.walk(tmp):
+            for name in names:
+                _fsync(os.path.join(root, name))
+        _fsync(tmp, directory=True)
+        with _signals_deferred():
+            _publish(tmp, target, key)
+    except BaseException as exc:
+        _remove(tmp)
+        if isinstance(exc, OSError):
+            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
+        raise
+    _fsync(target.parent, directory=True)
+
+
+# --- inputs ----------------------------------------------------------------------------------
+
+def read_input_bytes(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> bytes:
+    """The bytes of the input file ``path``: a regular file of at most ``limit`` bytes (a
+    FIFO, device or folder is refused without blocking: opened non-blocking, fstat checked).
+
+    Parameters
+    ----------
+    path : str or path-like
+    key : str
+        The option (or scene key) named in the error.
+    limit : int
+        Largest size read (bytes).
+    source, what : str, optional
+        The file the :class:`SceneError` names, and what the file is (default: its path).
+
+    Raises
+    ------
+    SceneError
+    """
+    what = what or _q(path)
+
+    def refuse(rule):
+        return SceneError(key, f"cannot read {what}: {rule}", source)
+
+    def kind(mode):
+        if stat.S_ISDIR(mode):
+            raise refuse("it is a directory")
+        if not stat.S_ISREG(mode):
+            raise refuse("not a regular file (a device, FIFO or socket)")
+    try:
+        kind(os.stat(path).st_mode)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
+    except OSError as exc:
+        raise refuse(exc.strerror or str(exc)) from None
+    try:
+        st = os.fstat(fd)
+        kind(st.st_mode)
+        if st.st_size > limit:
+            raise refuse(f"{st.st_size} bytes, more than the {_mib(limit)} read at most")
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+        if size > limit:
+            raise refuse(f"more than the {_mib(limit)} read at most")
+        return b"".join(chunks)
+    except OSError as exc:
+        raise refuse(exc.strerror or str(exc)) from None
+    finally:
+        os.close(fd)
+
+
+def read_input_text(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> str:
+    """:func:`read_input_bytes` decoded as UTF-8 (bad bytes: one SceneError naming the offset)."""
+    raw = read_input_bytes(path, key, limit, source, what)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(key, f"cannot read {what or _q(path)}: the bytes at offset {exc.start} are not UTF-8 "
+                         "text (save the file as UTF-8)", source) from None
+
+
+__all__ = ["FIGURE_SUFFIXES", "atomic_file", "atomic_folder", "check_output_file", "check_output_folder",
+           "read_input_bytes", "read_input_text", "save_figure", "write_text"]

@@ -49,6 +49,17 @@ def parse_text(text: str, key: str) -> pint.Quantity:
     return _parse_string(text, key)
 
 
+def _reject_angle(q: pint.Quantity, text: str, key: str) -> None:
+    """SceneError when ``q`` carries an angle (rad, deg, turn, sr...): pint counts the radian
+    as dimensionless, so "3 deg" would pass as the number 0.052 where a ratio or an
+    efficiency is expected."""
+    if q.unitless:
+        return
+    _, root = UREG.get_root_units(q.units)
+    if any(name in ("radian", "steradian") for name in root._units):
+        raise SceneError(key, f"expected a dimensionless number, got an angle {text!r}: give a bare number")
+
+
 def parse_quantity(value, unit: str, key: str) -> float:
     """Convert a scene value to a float in ``unit``.
 
@@ -69,7 +80,8 @@ def parse_quantity(value, unit: str, key: str) -> float:
     Raises
     ------
     SceneError
-        Unknown unit, wrong dimension, not a number, or NaN.
+        Unknown unit, wrong dimension (an angle where a dimensionless number is expected:
+        pint's radian is dimensionless, the scene's is not), not a number, or NaN.
     """
     if isinstance(value, bool):
         raise SceneError(key, f"expected a quantity in {unit}, got a boolean")
@@ -82,6 +94,8 @@ def parse_quantity(value, unit: str, key: str) -> float:
                 raise SceneError(key, f"expected a level in dB, got {value!r}")
             result = float(q.magnitude)
         else:
+            if unit in ("dimensionless", "", "1"):
+                _reject_angle(q, value, key)
             try:
                 result = float(q.to(unit).magnitude)
             except pint.errors.DimensionalityError:

@@ -62,15 +62,27 @@ def evaluate_quantized(scene, design_result, controller):
 
 
 def _failures(design_result, qdesign, reason=None) -> tuple:
-    """Requirements the design meets and the quantized controller misses."""
+    """Every requirement the quantized controller's loop misses (rows named, figures given),
+    each saying whether the un-quantized design already misses it; and the requirements the
+    design itself misses that the quantized loop happens to meet (the export carries a design
+    that fails them)."""
     out = [reason] if reason else []
     if not qdesign.margins.closed_loop_stable:
         out.append("the closed loop with the quantized controller is unstable")
-    met = {c.name for c in design_result.requirements if c.passed}
+    designed = {c.name: c for c in design_result.requirements}
     for c in qdesign.requirements:
-        if c.name in met and not c.passed and not (reason and math.isnan(c.achieved)):
-            out.append(f"quantization costs {c.name}: {c.achieved:.4g} {c.unit} with the quantized controller, "
-                       f"required {c.sense} {c.required:g} {c.unit}")
+        if c.passed or (reason and math.isnan(c.achieved)):
+            continue
+        d = designed.get(c.name)
+        why = ("quantization costs it" if d is None or d.passed else
+               f"the design without quantization already misses it ({d.achieved:.4g} {d.unit})")
+        out.append(f"{c.name}: {c.achieved:.4g} {c.unit} with the quantized controller, required {c.sense} "
+                   f"{c.required:g} {c.unit}: {why}")
+    missed_q = {c.name for c in qdesign.requirements if not c.passed}
+    for d in design_result.requirements:
+        if not d.passed and d.name not in missed_q:
+            out.append(f"{d.name}: the design without quantization misses it ({d.achieved:.4g} {d.unit}, required "
+                       f"{d.sense} {d.required:g} {d.unit})")
     return tuple(out)
 
 
@@ -94,7 +106,9 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         Output folder (checked before work, written atomically); None: nothing is written.
     fixed_point : {None, "q15", "q31"}
         Quantize the motion controller; the margins are recomputed with the quantized
-        coefficients and ``result.failures`` says what the quantization costs.
+        coefficients and checked against the design's requirements: ``result.failures``
+        names every requirement the quantized loop misses (and whether the design without
+        quantization already misses it).
     current_sample_time : float, optional
         Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
     inputs : sequence of path

@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import SceneError
+from ..core.files import read_input_text
 
 FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
+#: largest data file read (bytes)
+MAX_DATA_BYTES = 64 * 1024 * 1024
 TIME_HEADER = ("time_s", "voltage_V", "current_A", "motor_angle_rad", "output_angle_rad")
 
 
@@ -152,13 +154,12 @@ def read_data(path) -> FrequencyData | TimeData:
     SceneError
         Naming the file and the header or row, and the rule.
     """
-    p = Path(path)
     src = str(path)
+    text = read_input_text(path, "(file)", MAX_DATA_BYTES, source=src, what="data")
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError("(file)", f"cannot read data: {getattr(exc, 'strerror', None) or exc}", src) from None
-    rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+        rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+    except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
+        raise SceneError("(file)", f"cannot read data: not a CSV table ({exc})", src) from None
     if not rows:
         raise SceneError("header", f"empty file; expected the header {','.join(FREQUENCY_HEADER)}[,coherence] "
                          f"or {','.join(TIME_HEADER)}", src)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..errors import SceneError
 from ..core.fields import recording_reads
-from ..scene.loader import scene_from_dict
+from ..scene.loader import read_scene_text, scene_from_dict
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ class SceneTemplate:
         if not scene.source:
             raise SceneError("scene", "fitting needs a scene read from a file (load_scene)")
         self.source = scene.source
-        self.text = Path(scene.source).read_text(encoding="utf-8")
+        self.text = read_scene_text(Path(scene.source))
         self.data = tomllib.loads(self.text)
         with recording_reads() as reads:
             base = scene_from_dict(copy.deepcopy(self.data), self.source)

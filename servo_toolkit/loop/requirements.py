@@ -184,10 +184,22 @@ def parse_override(text: str) -> tuple[str, float]:
 
 
 def check(requirements, achieved: dict) -> list[Check]:
-    """Compare each requirement with ``achieved[name]`` (display units)."""
+    """Compare each requirement with ``achieved[name]`` (display units).
+
+    An infinite figure is a limit with a meaning (no phase crossover: an infinite gain
+    margin; the design's figures of an unstable loop) and is judged; NaN is no figure at all.
+
+    Raises
+    ------
+    SimulationError
+        An achieved figure is NaN: no verdict is given on it.
+    """
     checks = []
     for r in requirements:
         a = float(achieved[r.name])
+        if math.isnan(a):
+            from ..errors import SimulationError
+            raise SimulationError(f"{r.name}: the achieved figure is NaN, no verdict can be given on it")
         ok = a >= r.value if r.sense == ">=" else a <= r.value
         ok = bool(ok and math.isfinite(a)) if r.sense == "<=" else bool(ok)
         short = 0.0 if ok else (r.value - a if r.sense == ">=" else a - r.value)

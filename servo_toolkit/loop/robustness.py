@@ -25,6 +25,7 @@ from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
 from .response import loop_response, plant_responses, state_space_response
+from .sampling import sample_variants as _sample
 from ..display.cards import RichDisplay
 from ..display.cards import card, facts, requirements_table, svg
 
@@ -49,21 +50,10 @@ def parse_vary(text: str):
 
 
 def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0) -> dict:
-    """Arrays of parameter values: explicit arrays are kept, (lo, hi) ranges are sampled
-    uniformly (Monte Carlo, seeded) or on a grid of ``samples`` points in total."""
-    variants = dict(DEFAULT_VARIATIONS if variants is None else variants)
-    ranges = {k: v for k, v in variants.items() if isinstance(v, tuple) and len(v) == 2}
-    out = {k: np.asarray(v, float).ravel() for k, v in variants.items() if k not in ranges}
-    if grid and ranges:
-        per = max(2, int(round(samples ** (1 / len(ranges)))))
-        mesh = np.meshgrid(*[np.linspace(lo, hi, per) for lo, hi in ranges.values()], indexing="ij")
-        out.update({k: m.ravel() for k, m in zip(ranges, mesh)})
-    elif ranges:
-        rng = np.random.default_rng(seed)
-        out.update({k: rng.uniform(lo, hi, samples) for k, (lo, hi) in ranges.items()})
-    sizes = {v.size for v in out.values()}
-    if len(sizes) != 1:
-        raise SceneError("vary", f"explicit variant arrays must have one length, got {sorted(sizes)}")
+    """Arrays of parameter values (:func:`.sampling.sample_variants`: log spacing for positive
+    ranges over a decade, the corners always in a Monte Carlo sample); default
+    :data:`DEFAULT_VARIATIONS`."""
+    out = _sample(variants, samples, grid, seed, defaults=DEFAULT_VARIATIONS)
     for k in out:
         if k not in PARAMETERS:
             raise SceneError(f"vary.{k}", f"unknown parameter; known: {sorted(PARAMETERS)}")
@@ -246,6 +236,12 @@ _WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_marg
           "phase_lag_at_bandwidth": ("phase_lag_deg", "max")}
 
 
+#: a robust requirement's figure when no variant is stable (those of an unstable loop in
+#: :func:`.design.evaluate`): the row fails, on a figure rather than on NaN
+_UNSTABLE_FIGURE = {"gain_margin": 0.0, "phase_margin": -math.inf, "sensitivity_peak": math.inf, "bandwidth": 0.0,
+                   "phase_lag_at_bandwidth": math.inf}
+
+
 def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
     """Checks of ``requirements`` (robust requirements, display units) against the worst
     variant of each, and the parameter values of that variant."""
@@ -257,8 +253,8 @@ def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
             k = int(np.argmax(figures["max_pole_real"]))
         else:
             key, kind = _WORST[r.name]
-            if not np.any(stable):
-                achieved[r.name] = math.nan
+            if not np.any(stable):  # no stable variant: the unstable loop's figures, as the design's
+                achieved[r.name] = _UNSTABLE_FIGURE[r.name]
                 continue
             vals = figures[key]
             k = int(np.argmin(np.where(stable, vals, np.inf)) if kind == "min"

@@ -177,10 +177,14 @@ def design_data(result) -> dict:
 
 def save_design(result, path, inputs=()) -> Path:
     """Write the design's controller to ``path`` (JSON, atomically; never over an input)."""
-    from ..core.files import check_file, write_text
-    path = check_file(path, "--design", (".json",), inputs=inputs)
-    write_text(path, json.dumps(design_data(result), indent=2) + "\n")
+    from ..core.files import check_output_file, write_text
+    path = check_output_file(path, "--design", (".json",), inputs=inputs)
+    write_text(path, json.dumps(design_data(result), indent=2) + "\n", "--design")
     return path
+
+
+#: largest design file read (bytes): a design is well under a kilobyte of JSON
+MAX_DESIGN_BYTES = 1024 * 1024
 
 
 def load_design(scene, path, require=None):
@@ -189,26 +193,22 @@ def load_design(scene, path, require=None):
     Raises
     ------
     SceneError
-        ``--design``: not a readable design file, a missing or bad field.
+        ``--design``: not a readable design file, a missing or bad field (named by its JSON
+        key, see :func:`.design_file.design_fields`).
     """
     key = "--design"
+    from ..core.files import read_input_text
+    text = read_input_text(path, key, MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = json.loads(text)
+    except (json.JSONDecodeError, ValueError) as exc:
         raise SceneError(key, f"cannot read the design file {str(path)!r}: {exc}") from None
+    except RecursionError:
+        raise SceneError(key, f"the design file {str(path)!r} is nested too deeply") from None
     if not isinstance(data, dict) or data.get("servo_toolkit_design") != DESIGN_FILE_VERSION:
         raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
-    try:
-        motion = Motion(str(data["structure"]), {k: float(v) for k, v in data["gains"].items()},
-                        str(data["filter"]), {k: float(v) for k, v in data["filter_params"].items()},
-                        float(data["ratio"]))
-        motion.pieces()
-        values = [float(data[k]) for k in ("current_kp_v_per_a", "current_ki_v_per_a_s", "sample_time_s", "q0_rad")]
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise SceneError(key, f"{str(path)!r}: missing or bad field ({type(exc).__name__}: {exc})") from None
-    if not all(math.isfinite(v) for v in values + list(motion.gains.values()) + list(motion.filter_params.values())):
-        raise SceneError(key, f"{str(path)!r}: every number must be finite")
-    kp_i, ki_i, ts, q0 = values
+    from .design_file import design_fields
+    motion, kp_i, ki_i, ts, q0 = design_fields(data, scene)  # every field checked: one line naming it
     ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe())
     notes = (f"controller from {Path(path).name} (designed for {data.get('scene', '?')})",)
     return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)

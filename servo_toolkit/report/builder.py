@@ -5,7 +5,6 @@ from __future__ import annotations
 import datetime as _dt
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 from tqdm.auto import tqdm
 
@@ -174,29 +173,46 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     return Report(scene.name, subtitle, tuple([req_section] + built), rows)
 
 
-def write_report(report: Report, out_dir, progress: bool = False) -> dict:
-    """Write ``index.html`` and ``report.pdf`` into ``out_dir``; returns their paths.
+#: the files of a report folder (a folder holding only these is an earlier report)
+REPORT_FILES = ("index.html", "report.pdf")
+
+
+def check_report_folder(out_dir, key: str = "--output", parents: bool = False, inputs=()):
+    """SceneError (naming ``key``) unless a report may be written as ``out_dir``: absent,
+    empty or an earlier report holding none of ``inputs``, in a writable folder (see
+    :func:`servo_toolkit.core.files.check_output_folder`)."""
+    from ..core.files import check_output_folder
+    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents)
+
+
+def write_report(report: Report, out_dir, progress: bool = False, key: str = "out_dir") -> dict:
+    """Write ``index.html`` and ``report.pdf`` as the folder ``out_dir``; returns their paths.
+
+    The folder is checked first (:func:`check_report_folder`: absent, empty or an earlier
+    report), written in a temporary sibling and swapped in whole: an error or Ctrl-C
+    leaves the earlier report, never a mixed or half-written one.
 
     Parameters
     ----------
     report : Report
     out_dir : str or pathlib.Path
-        Created if missing.
+        Created if missing (with its parents).
     progress : bool
         Show a tqdm progress bar (stderr), one step per rendered figure.
+    key : str
+        Name of the folder in errors (the CLI passes its option).
     """
+    from ..core.files import atomic_folder
     from .html_writer import render_html
     from .pdf_writer import write_pdf
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_report_folder(out_dir, key, parents=True)
     n_fig = sum(len(s.figures) for s in report.sections)
     bar = tqdm(total=2 * n_fig, desc="writing", unit="figure", disable=not progress, file=sys.stderr,
                leave=False)
-    html_path = out / "index.html"
-    bar.set_postfix_str("index.html")
-    html_path.write_text(render_html(report, tick=bar.update), encoding="utf-8")
-    pdf_path = out / "report.pdf"
-    bar.set_postfix_str("report.pdf")
-    write_pdf(report, pdf_path, tick=bar.update)
+    with atomic_folder(out, key, parents=True) as tmp:
+        bar.set_postfix_str("index.html")
+        (tmp / "index.html").write_text(render_html(report, tick=bar.update), encoding="utf-8")
+        bar.set_postfix_str("report.pdf")
+        write_pdf(report, tmp / "report.pdf", tick=bar.update)
     bar.close()
-    return {"html": html_path, "pdf": pdf_path}
+    return {"html": out / "index.html", "pdf": out / "report.pdf"}

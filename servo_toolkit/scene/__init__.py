@@ -6,7 +6,7 @@ Jupyter display).
 """
 
 from .loader import (Requirements, Robustness, Scene, Sensors, Study, default_scene_path, load_scene,
-                     replace_params, scene_from_dict)
+                     read_scene_text, replace_params, scene_from_dict)
 
 __all__ = ["Requirements", "Robustness", "Scene", "Sensors", "Study", "default_scene_path", "load_scene",
-           "replace_params", "scene_from_dict"]
+           "read_scene_text", "replace_params", "scene_from_dict"]

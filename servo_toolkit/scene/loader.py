@@ -452,7 +452,7 @@ def load_scene(path=None) -> Scene:
     0.2
     """
     path = default_scene_path() if path is None else Path(path)
-    text = _read_text(path)
+    text = read_scene_text(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -474,27 +474,16 @@ MAX_SCENE_BYTES = 4 * 1024 * 1024
 MAX_DEPTH = 12
 
 
-def _read_text(path: Path) -> str:
-    """The scene file's text: a regular file of UTF-8 text, at most :data:`MAX_SCENE_BYTES`."""
-    import os
-    import stat
-    try:
-        info = os.stat(path)
-        if stat.S_ISDIR(info.st_mode):
-            raise SceneError("(file)", "cannot read scene: it is a directory", str(path))
-        if not stat.S_ISREG(info.st_mode):
-            raise SceneError("(file)", "cannot read scene: not a regular file (a device, pipe or socket)", str(path))
-        if info.st_size > MAX_SCENE_BYTES:
-            raise SceneError("(file)", f"cannot read scene: {info.st_size} bytes, more than a scene file's "
-                             f"{MAX_SCENE_BYTES} at most", str(path))
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise SceneError("(file)", f"cannot read scene: {exc.strerror or exc}", str(path)) from None
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SceneError("(file)", f"not a text scene: the bytes at offset {exc.start} are not UTF-8 (save the "
-                         "file as UTF-8)", str(path)) from None
+def read_scene_text(path: Path) -> str:
+    """The scene file's text: a regular file of UTF-8 text, at most :data:`MAX_SCENE_BYTES`.
+
+    Raises
+    ------
+    SceneError
+        Key ``(file)``, naming the file: missing, not a regular file, too large, not UTF-8.
+    """
+    from ..core.files import read_input_text
+    return read_input_text(path, "(file)", MAX_SCENE_BYTES, source=str(path), what="scene")
 
 
 def _depth(obj, level: int = 0) -> int:
@@ -518,5 +507,5 @@ def replace_params(scene: Scene, **changes) -> Scene:
     return replace(scene, **changes)
 
 
-__all__ = ["Robustness", "Scene", "Sensors", "Requirements", "Study", "load_scene", "scene_from_dict",
-           "default_scene_path", "replace_params"]
+__all__ = ["Robustness", "Scene", "Sensors", "Requirements", "Study", "load_scene", "read_scene_text",
+           "scene_from_dict", "default_scene_path", "replace_params"]

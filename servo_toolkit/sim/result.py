@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
+from ..core.files import atomic_file, check_output_file
 from ..core.output_units import OutputUnit
 from ..display.cards import RichDisplay
 from ..display.cards import card, facts, num, svg
@@ -152,15 +153,17 @@ class SimulationResult(RichDisplay):
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
-    def save(self, path) -> Path:
-        """Write the traces as CSV (``.csv``) or NumPy archive (``.npz``)."""
-        path = check_trace_path(path)
+    def save(self, path, inputs=(), key: str = "--output") -> Path:
+        """Write the traces as CSV (``.csv``) or NumPy archive (``.npz``), atomically (see
+        :mod:`servo_toolkit.core.files`; never over one of ``inputs``)."""
+        path = check_trace_path(path, key, inputs)
         cols = self.columns()
-        if path.suffix == ".npz":
-            np.savez(path, **cols)
-        elif path.suffix == ".csv":
-            data = np.column_stack(list(cols.values()))
-            np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+        with atomic_file(path, key) as tmp:
+            if path.suffix == ".npz":
+                np.savez(tmp, **cols)
+            else:
+                data = np.column_stack(list(cols.values()))
+                np.savetxt(tmp, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
         return path
 
     def plot(self, axes=None):
@@ -193,7 +196,7 @@ class SimulationResult(RichDisplay):
 TRACE_SUFFIXES = (".csv", ".npz")
 
 
-def check_trace_path(path, key: str = "--output"):
+def check_trace_path(path, key: str = "--output", inputs=()):
     """A trace file name :meth:`SimulationResult.save` can write (checked before a run).
 
     Parameters
@@ -202,6 +205,8 @@ def check_trace_path(path, key: str = "--output"):
         None passes (nothing to write).
     key : str
         Name of the option, for the error.
+    inputs : sequence of path
+        Files the run reads (the scene): the traces never replace one of them.
 
     Returns
     -------
@@ -210,18 +215,15 @@ def check_trace_path(path, key: str = "--output"):
     Raises
     ------
     SceneError
-        Suffix other than ``.csv`` / ``.npz``, or a folder that does not exist.
+        Suffix other than ``.csv`` / ``.npz``, or a path
+        :func:`servo_toolkit.core.files.check_output_file` refuses.
     """
     if path is None:
         return None
     path = Path(path)
     if path.suffix not in TRACE_SUFFIXES:
         raise SceneError(key, f"trace file {path.name!r} must end in .csv or .npz")
-    if not path.parent.is_dir():
-        raise SceneError(key, f"folder {str(path.parent)!r} of the trace file does not exist")
-    if path.is_dir():
-        raise SceneError(key, f"cannot write {str(path)!r}: it is a folder")
-    return path
+    return check_output_file(path, key, inputs=inputs)
 
 
 def _card_line(s) -> str:

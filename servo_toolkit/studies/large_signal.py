@@ -43,8 +43,8 @@ class LargeSignal:
     time_at_voltage_limit_s, time_at_current_limit_s, duration_s : float
     peak_current_A, peak_voltage_V : float
     failure : str
-        Why the run stopped (the output reached a stroke end, a state went non-finite):
-        both rows then fail with it.
+        Kept for the JSON layout; always "" (a run that cannot be carried out raises
+        instead: no verdict on a figure it did not produce).
     """
 
     frequency_hz: float
@@ -74,9 +74,12 @@ class LargeSignal:
         out = []
         for name, value, tol, unit in (("large_signal_gain", self.gain_error_db, GAIN_TOLERANCE_DB, "dB"),
                                        ("large_signal_phase", self.phase_error_deg, PHASE_TOLERANCE_DEG, "deg")):
-            ok = bool(np.isfinite(value) and value <= tol)
+            if math.isnan(value):
+                from ..errors import SimulationError
+                raise SimulationError(f"{name}: the large-signal figure is NaN, no verdict can be given on it")
+            ok = bool(value <= tol)  # an output that never moved: -inf dB, a real (failing) figure
             out.append(Check(name, tol, float(value), ok, unit, "<=", "large signal",
-                             0.0 if ok else (float(value - tol) if np.isfinite(value) else math.inf)))
+                             0.0 if ok else float(value - tol)))
         return out
 
     def note(self, linear_output: bool) -> str:
@@ -106,7 +109,14 @@ def _fit(t, y, f):
 
 
 def large_signal(scene, result) -> LargeSignal:
-    """Run the requirement sine through the nonlinear closed loop of ``result``'s controller."""
+    """Run the requirement sine through the nonlinear closed loop of ``result``'s controller.
+
+    Raises
+    ------
+    SimulationError
+        The run could not be carried out (its step outside the RK4 stability region, a step
+        budget spent, a non-finite state, the stroke end): the rows would have no figure.
+    """
     import control as ct
 
     from ..errors import SimulationError
@@ -116,16 +126,17 @@ def large_signal(scene, result) -> LargeSignal:
     f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
     _, _, amps = study_points(scene)
     from ..core.output_units import output_unit
-    amp = float(amps[0]) if scene.studies_of_kind("frequency_sweep") else output_unit(scene).default_amplitude
+    unit = output_unit(scene)
+    amp = float(amps[0]) if scene.studies_of_kind("frequency_sweep") else unit.default_amplitude
     duration = CYCLES / f
     lin = complex(np.asarray(ct.frequency_response(result.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
     lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
     try:
         run = simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration, method="rk4")
-    except SimulationError as exc:
-        nan = math.nan
-        return LargeSignal(float(f), amp, nan, nan, lin_db, lin_deg, nan, nan, float(duration), nan, nan,
-                           failure=str(exc))
+    except SimulationError as exc:  # no figure to judge: no verdict (exit 2), never a row failed on NaN
+        what = unit.text(amp, 3)
+        raise SimulationError(f"the large-signal run ({what} sine at {f:g} Hz, nonlinear closed loop) could not "
+                              f"be carried out: {exc} (--linear-only skips it)") from None
     t, y = run.times, run.output_angle - result.q0
     last = t >= (CYCLES - FIT_CYCLES) / f
     a, ph = _fit(t[last], y[last], f)
@@ -143,7 +154,12 @@ def large_signal(scene, result) -> LargeSignal:
 
 
 def with_large_signal(scene, result):
-    """``result`` with the large-signal rows and note added (a DesignResult)."""
+    """``result`` with the large-signal rows and note added (a DesignResult); an unstable
+    linear closed loop (already failed by ``closed_loop_stable``) gets a note and no rows:
+    its nonlinear run would diverge, with no figure to judge."""
+    if not result.margins.closed_loop_stable:
+        return replace(result, notes=tuple(result.notes) + (
+            "large signal: not run, the linear closed loop is unstable (closed_loop_stable fails)",)), None
     ls = large_signal(scene, result)
     return replace(result, requirements=list(result.requirements) + ls.checks(),
                    notes=tuple(result.notes) + (ls.note(scene.drivetrain.output_unit == "m"),)), ls

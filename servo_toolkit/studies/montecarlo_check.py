@@ -5,8 +5,9 @@ angle, or a length for an output travel) and the worst peak motor current
 (``max_peak_current``) over the nonlinear closed-loop time runs of its variants
 (:func:`~.montecarlo.montecarlo`, the checked design's controller). They become the rows
 ``robust_tracking_error`` and ``robust_peak_current``. A variant whose run failed (a
-non-finite state, the stroke end, or a step outside its stability region) makes both rows
-fail: its figures cannot be vouched for.
+non-finite state, the stroke end, or a step outside its stability region) has no figure to
+judge: the check raises :class:`~servo_toolkit.errors.SimulationError` naming the variant
+and the reason (exit 2), never a row failed on a non-finite figure.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import math
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import SceneError, SimulationError
 from ..loop.requirements import Requirement, check
 
 
@@ -73,11 +74,23 @@ def spec_montecarlo(scene, spec, controller, *, executor=None, progress: bool = 
 
 def result_checks(requirements, result) -> list:
     """The checks of ``requirements`` (from :func:`montecarlo_requirements`) on the variants
-    of ``result``: the worst figure over the variants, infinite when any variant failed."""
-    ok = ~result.failed
+    of ``result``: the worst figure over the variants.
+
+    Raises
+    ------
+    SimulationError
+        Some variant's run failed (its step outside the RK4 stability region, a non-finite
+        state, the stroke end): there is no figure to judge, so no verdict.
+    """
+    failed = np.flatnonzero(result.failed)
+    if failed.size:
+        i = int(failed[0])
+        at = ", ".join(f"{k}={v[i]:.4g}" for k, v in result.values.items())
+        raise SimulationError(f"the robustness Monte Carlo could not run {failed.size} of {result.count} "
+                              f"variants (first: variant {i}, {at}: {result.reasons[i]}); no verdict on "
+                              f"robust_tracking_error / robust_peak_current")
     worst = {"tracking_error": result.error_display, "peak_current": result.peak_current}
-    achieved = {k: (float(np.max(v[ok])) if ok.all() else math.inf) for k, v in worst.items()}
-    return check(requirements, achieved)
+    return check(requirements, {k: float(np.max(v)) for k, v in worst.items()})
 
 
 def check_cases(checks, result) -> list[tuple]:

@@ -317,6 +317,10 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
           progress: bool = True) -> SweepResult:
     """Sine-dwell frequency response of the scene's closed loop.
 
+    Every frequency must be one a dwell resolves (:func:`.sweep_points.check_sweep_frequencies`:
+    at most a quarter of the controller's sample rate, and a dwell within one run's step
+    budget), else SceneError naming ``frequencies`` (given) or ``studies.NAME.frequencies``.
+
     Parameters
     ----------
     scene : Scene
@@ -359,6 +363,9 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
         raise ValueError("frequencies and amplitudes must be non-empty and positive")
     freqs_arr = np.asarray(sorted(freqs))
     plan = plan or DwellPlan()
+    from .sweep_points import check_sweep_frequencies
+    check_sweep_frequencies(scene, freqs_arr, "frequencies" if frequencies is not None
+                            else f"studies.{name}.frequencies" if name else "frequency", plan)
     notes = []
     if controller is None:
         controller, source = controller_for(scene)

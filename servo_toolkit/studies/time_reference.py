@@ -14,25 +14,86 @@ DEFAULT_SINE = (math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ, DEFAULT
 DEFAULT_LINEAR_AMPLITUDE = REQUIREMENT_SINE_MM * 1e-3
 
 
-def run_spec(scene, study_name=None, *, amplitude=None, frequency=None):
+#: a sine command is tracked meaningfully up to this fraction of the controller's sample
+#: rate (4 samples per period; the Nyquist limit itself, 0.5 / Ts, samples a sine at its zeros)
+NYQUIST_FRACTION = 0.25
+#: fewest whole periods of a sine command a time run must hold
+MIN_PERIODS = 1.0
+
+
+def check_sine_frequency(frequency: float, sample_time: float, duration: float | None, key: str,
+                         min_periods: float = MIN_PERIODS) -> None:
+    """SceneError naming ``key`` unless a sine command at ``frequency`` (Hz) is one the run
+    can resolve.
+
+    Parameters
+    ----------
+    frequency : float
+    sample_time : float
+        The controller's sample time (s); 0 for a continuous controller (no upper limit).
+    duration : float or None
+        The run's length (s); None: no lower limit checked here.
+    key : str
+        The option or scene key named in the error (``--frequency``,
+        ``studies.NAME.frequency``).
+    min_periods : float
+
+    Raises
+    ------
+    SceneError
+        ``frequency`` above :data:`NYQUIST_FRACTION` of the sample rate (at or above its
+        Nyquist limit the sampled controller sees an alias, e.g. the sine at its zeros), or
+        fewer than ``min_periods`` periods in ``duration``.
+    """
+    if sample_time > 0:
+        top = NYQUIST_FRACTION / sample_time
+        if not frequency <= top:
+            raise SceneError(key, f"must be at most {top:g} Hz, a quarter of the controller's {1 / sample_time:g} Hz "
+                                  f"sample rate (its Nyquist limit is {0.5 / sample_time:g} Hz; a sine there is sampled "
+                                  f"at fixed phases, not tracked) (got {frequency:g} Hz)")
+    if duration is not None and not frequency * duration >= min_periods * (1 - 1e-9):
+        raise SceneError(key, f"must be at least {min_periods / duration:g} Hz: the run of {duration:g} s must hold "
+                              f"{min_periods:g} whole period(s) of the command (got {frequency:g} Hz)")
+
+
+def run_spec(scene, study_name=None, *, amplitude=None, frequency=None, duration=None):
     """``(reference, duration, voltage, method, dt)`` for a study name or the default.
 
     Open-loop studies (a ``voltage`` parameter) give ``reference=None`` and the voltage.
     The default is :data:`DEFAULT_SINE`, with :data:`DEFAULT_LINEAR_AMPLITUDE` for an
-    output travel. ``amplitude`` (SI: rad or m) and ``frequency`` (Hz) replace the sine's.
+    output travel. ``amplitude`` (SI: rad or m) and ``frequency`` (Hz) replace the sine's;
+    ``duration`` (s), when given, is the run's length the frequency is checked against.
+
+    Raises
+    ------
+    SceneError
+        The sine's frequency is outside what the run resolves (:func:`check_sine_frequency`):
+        key ``--frequency`` for ``frequency``, else ``studies.NAME.frequency``.
     """
     spec = _spec(scene, study_name)
     if amplitude is None and frequency is None:
+        _check_spec(scene, spec, study_name, duration)
         return spec
-    reference, duration, voltage, method, dt = spec
+    reference, duration_, voltage, method, dt = spec
     if reference is None:
         raise SceneError(f"studies.{study_name}", "is an open-loop voltage run: --amplitude and --frequency "
                          "apply to a sine command only")
     amp = reference.amplitude if amplitude is None else float(amplitude)
     freq = reference.frequency if frequency is None else float(frequency)
     if study_name is not None and frequency is not None:
-        duration = max(duration, 3.0 / freq)
-    return Reference.sine(amp, freq), duration, voltage, method, dt
+        duration_ = max(duration_, 3.0 / freq)
+    spec = Reference.sine(amp, freq), duration_, voltage, method, dt
+    _check_spec(scene, spec, study_name, duration, "--frequency" if frequency is not None else None)
+    return spec
+
+
+def _check_spec(scene, spec, study_name, duration=None, key=None):
+    reference, run_duration = spec[0], spec[1]
+    if reference is None or reference.kind != "sine":
+        return
+    key = key or (f"studies.{study_name}.frequency" if study_name is not None else "frequency")
+    check_sine_frequency(float(reference.frequency), float(scene.sensors.sample_time),
+                         float(run_duration if duration is None else duration), key)
 
 
 def _spec(scene, study_name):

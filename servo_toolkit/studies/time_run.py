@@ -26,9 +26,10 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     study : str, optional
         A ``[studies.NAME]`` with a sine (``simulate`` or ``kv`` kind) or a ``voltage``.
     method : {"rk4", "paper", "reference", "auto"}, optional
-        Default: the study's ``method``, else ``"auto"``.
+        Default: the study's ``method``, else ``"auto"`` (``"rk4"`` when ``dt`` is given).
     dt : float, optional
-        Fixed step (s); default the study's ``sample_time`` for the fixed-step methods.
+        Fixed step (s) of the fixed-step methods; default the study's ``sample_time`` for
+        them. See :func:`resolve_method`.
     full : bool
         Run the full model; by default a closed-loop sine runs the reduced model.
     amplitude, frequency : float, optional
@@ -42,9 +43,7 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         the a-priori bound on what that costs.
     """
     reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude, frequency=frequency)
-    method = method or study_method or "auto"
-    if dt is None and method in ("rk4", "paper"):
-        dt = study_dt
+    method, dt = resolve_method(method, study_method, dt, study_dt)
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage)
     controller, source = controller_for(scene)
@@ -53,6 +52,31 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
                       options=options)
     return replace(result, notes=tuple(notes) + tuple(result.notes))
+
+
+def resolve_method(method, study_method, dt, study_dt, key: str = "dt"):
+    """The method and step a run takes: ``(method, dt)``.
+
+    A step given without a method (neither ``method`` nor the study's) runs fixed-step RK4
+    at that step; the fixed-step methods (``"rk4"``, ``"paper"``) without a step take the
+    study's ``sample_time``.
+
+    Raises
+    ------
+    SceneError
+        Named ``key``: a step given with a method that chooses its own (``"auto"``,
+        ``"reference"``), where it would be ignored.
+    """
+    from ..errors import SceneError
+    if dt is not None and method is None and study_method is None:
+        return "rk4", dt
+    method = method or study_method or "auto"
+    if dt is not None and method not in ("rk4", "paper"):
+        raise SceneError(key, f"applies to the fixed-step methods rk4 and paper; method {method!r} chooses its "
+                              f"own step and would ignore it (got {dt:g} s)")
+    if dt is None and method in ("rk4", "paper"):
+        dt = study_dt
+    return method, dt
 
 
 def sine_run_options(scene, controller, reference, full: bool = False):

@@ -1,0 +1,86 @@
+"""Sampling of parameter ranges for the robustness studies (``check --vary``, a scene's
+``[robustness]``, ``montecarlo --vary``).
+
+A range of positive values spanning more than a decade (``hi / lo > 10``, e.g. a stiffness
+factor ``1e-3:1e3``) is sampled with logarithmic spacing: uniform in ``log(value)`` for the
+Monte Carlo draws, geometric for a grid. Linear sampling of ``1e-12:1e12`` puts every draw
+above ``1e11``, leaving the soft end of the range unseen. Narrower ranges, and ranges that
+include 0 (a load inertia ``0:4``), keep linear spacing. Every Monte Carlo sample holds the
+corners of the box (every combination of the ranges' ends) as its first variants, so its
+ends are always covered; a grid holds them by construction.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from ..errors import SceneError
+
+#: a positive range wider than this ratio (hi / lo) is sampled with logarithmic spacing
+LOG_RATIO = 10.0
+
+
+def is_log_range(lo: float, hi: float) -> bool:
+    """True when ``lo..hi`` is sampled with logarithmic spacing (positive, over a decade)."""
+    return lo > 0 and hi > LOG_RATIO * lo
+
+
+def _spaced(lo: float, hi: float, n: int) -> np.ndarray:
+    return np.geomspace(lo, hi, n) if is_log_range(lo, hi) else np.linspace(lo, hi, n)
+
+
+def _drawn(rng, lo: float, hi: float, n: int) -> np.ndarray:
+    if is_log_range(lo, hi):
+        return np.exp(rng.uniform(np.log(lo), np.log(hi), n))
+    return rng.uniform(lo, hi, n)
+
+
+def corners(ranges: dict) -> dict:
+    """Every combination of the ranges' distinct ends (``2 ** len(ranges)`` variants, fewer
+    when a range is a single value)."""
+    ends = [(lo, hi) if hi != lo else (lo,) for lo, hi in ranges.values()]
+    combos = np.array(list(itertools.product(*ends)), float)
+    return {k: combos[:, j] for j, k in enumerate(ranges)}
+
+
+def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0,
+                    defaults=None) -> dict:
+    """Arrays of parameter values: explicit arrays are kept; (lo, hi) ranges are sampled on a
+    grid of ``samples`` points in total (ends included) or by seeded Monte Carlo draws whose
+    first variants are the corners of the ranges (a sample smaller than the corners grows to
+    them); see the module notes for the spacing.
+
+    Parameters
+    ----------
+    variants : dict, optional
+        name -> (lo, hi) or an array of values; default ``defaults``.
+    samples : int
+    grid : bool
+    seed : int
+    defaults : dict, optional
+        The variations used when ``variants`` is None.
+    """
+    variants = dict((defaults or {}) if variants is None else variants)
+    ranges = {k: v for k, v in variants.items() if isinstance(v, tuple) and len(v) == 2}
+    out = {k: np.asarray(v, float).ravel() for k, v in variants.items() if k not in ranges}
+    if grid and ranges:
+        per = max(2, int(round(samples ** (1 / len(ranges)))))
+        mesh = np.meshgrid(*[_spaced(lo, hi, per) for lo, hi in ranges.values()], indexing="ij")
+        out.update({k: m.ravel() for k, m in zip(ranges, mesh)})
+    elif ranges:
+        rng = np.random.default_rng(seed)
+        drawn = {k: _drawn(rng, lo, hi, samples) for k, (lo, hi) in ranges.items()}
+        ends = corners(ranges)
+        m = next(iter(ends.values())).size
+        if samples < m:
+            drawn = ends
+        else:
+            for k in drawn:
+                drawn[k][:m] = ends[k]
+        out.update(drawn)
+    sizes = {v.size for v in out.values()}
+    if len(sizes) != 1:
+        raise SceneError("vary", f"explicit variant arrays must have one length, got {sorted(sizes)}")
+    return out
