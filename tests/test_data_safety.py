@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from servo_toolkit.core import files
+from servo_toolkit.core import files, folders, inputs
 from servo_toolkit.cli import main
 from servo_toolkit.errors import SceneError
 
@@ -218,8 +218,8 @@ def test_a_data_file_beyond_the_limit_is_refused(tmp_path):
     big = tmp_path / "big.csv"
     big.write_bytes(b"x" * 2000)
     with pytest.raises(SceneError, match="more than"):
-        files.read_input_bytes(big, "(file)", 1000)
-    assert files.read_input_bytes(big, "(file)", 2000) == b"x" * 2000
+        inputs.read_input_bytes(big, "(file)", 1000)
+    assert inputs.read_input_bytes(big, "(file)", 2000) == b"x" * 2000
 
 
 @pytest.mark.parametrize("make", ["zero", "folder", "nested", "binary"])
@@ -298,7 +298,7 @@ def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypat
     out = tmp_path / "rep"
     _earlier_report(out)
     with pytest.raises(KeyboardInterrupt):
-        with files.atomic_folder(out) as tmp:
+        with folders.atomic_folder(out) as tmp:
             (tmp / "index.html").write_text("new html")
             (tmp / "report.pdf").write_text("new pdf")
     assert sent and (out / "index.html").read_text() == "new html"

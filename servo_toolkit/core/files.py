@@ -14,21 +14,15 @@ temporary behind. The rules of an output path:
 - a read-only file is refused, and its folder must exist and take a new file (probed);
 - a new file's or folder's mode follows the umask (a replaced file keeps its mode).
 
-Inputs are read from regular files only (a FIFO, a device or a folder is refused without
-blocking) and at most a stated number of bytes.
+Folders are published by :mod:`.folders`; inputs are read by :mod:`.inputs`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import errno
 import os
 import secrets
-import shutil
-import signal
 import stat
-import threading
 from pathlib import Path
 
 from ..errors import SceneError
@@ -40,9 +34,6 @@ FIGURE_SUFFIXES = (".png", ".svg", ".pdf", ".eps", ".ps", ".jpg", ".jpeg", ".tif
 def _q(path) -> str:
     return repr(str(path))
 
-
-def _mib(n: int) -> str:
-    return f"{n / 2**20:g} MiB" if n >= 2**20 else f"{n / 2**10:g} KiB"
 
 
 def _same_file(a, b) -> bool:
@@ -263,225 +254,4 @@ def save_figure(fig, path, key: str = "--plot") -> Path:
     return Path(path)
 
 
-# --- folders ---------------------------------------------------------------------------------
-
-_RENAME_EXCHANGE = 2
-_AT_FDCWD = -100
-_exchange_state = {}
-
-
-def _renameat2():
-    """libc's renameat2, or None."""
-    if "fn" not in _exchange_state:
-        fn = None
-        with contextlib.suppress(OSError, AttributeError):
-            fn = ctypes.CDLL(None, use_errno=True).renameat2
-            fn.argtypes = (ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint)
-            fn.restype = ctypes.c_int
-        _exchange_state["fn"] = fn
-    return _exchange_state["fn"]
-
-
-def _exchange(a, b) -> str:
-    """Swap the folders ``a`` and ``b`` in one step: "done", "gone" (``b`` vanished) or
-    "unsupported" (no renameat2, or a file system without RENAME_EXCHANGE)."""
-    fn = _renameat2()
-    if fn is None:
-        return "unsupported"
-    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
-        return "done"
-    err = ctypes.get_errno()
-    if err == errno.ENOENT:
-        return "gone"
-    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
-        return "unsupported"
-    raise OSError(err, os.strerror(err), str(b))
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """Hold Ctrl-C and SIGTERM (main thread) while an output is published, then deliver them."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught, saved = [], {}
-
-    def hold(signum, frame):
-        caught.append(signum)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        old = signal.getsignal(sig)
-        if old is not None:
-            saved[sig] = old
-            signal.signal(sig, hold)
-    try:
-        yield
-    finally:
-        for sig, old in saved.items():
-            signal.signal(sig, old)
-        for sig in dict.fromkeys(caught):
-            signal.raise_signal(sig)
-
-
-def _remove(path) -> None:
-    if os.path.isdir(path) and not os.path.islink(path):
-        shutil.rmtree(path, ignore_errors=True)
-    else:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
-
-
-def _publish(tmp: str, target: Path, key: str) -> None:
-    """Put the folder ``tmp`` at ``target`` in one rename (or one swap with the old output)."""
-    for _ in range(100):  # another writer may be publishing the same folder: retry
-        try:
-            os.rename(tmp, target)  # absent (or an empty folder)
-            return
-        except OSError as exc:
-            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
-                raise
-        st = _lstat(target)
-        if st is None:
-            continue
-        if isinstance(st, OSError) or not stat.S_ISDIR(st.st_mode) or stat.S_ISLNK(st.st_mode):
-            raise SceneError(key, f"{_q(target)} changed while the output was written; nothing replaced")
-        state = _exchange(tmp, target)
-        if state == "done":
-            _remove(tmp)  # now the old output
-            return
-        if state == "gone":
-            continue
-        trash = _temp_name(target.parent, f".{target.name}.old.")
-        try:
-            os.rename(target, trash)
-        except FileNotFoundError:
-            continue
-        try:
-            os.rename(tmp, target)
-        except OSError as exc:
-            try:
-                os.rename(trash, target)
-            except OSError:
-                if os.path.isdir(target):  # another writer's output is in place
-                    _remove(trash)
-                    continue
-                raise SceneError(key, f"could not publish {_q(target)}; the earlier output is kept in "
-                                 f"{_q(trash)}") from None
-            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
-                raise
-            continue
-        _remove(trash)
-        return
-    raise SceneError(key, f"could not publish {_q(target)}: other runs keep writing it")
-
-
-@contextlib.contextmanager
-def atomic_folder(path, key: str = "--output", parents: bool = False):
-    """Yield a temporary folder beside ``path`` to fill; on success its files are flushed
-    and it replaces ``path`` in one step (renameat2's exchange where the system has it,
-    else two renames with Ctrl-C held between them), and the old output is removed. On any
-    failure the temporary is removed and ``path`` is untouched. Two concurrent writers
-    never fail on each other: one complete output stays. The new folder's mode follows
-    the umask.
-
-    Raises
-    ------
-    SceneError
-        ``key``: an OSError while writing or publishing.
-    """
-    target = Path(path).absolute()
-    try:
-        if parents:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        while True:
-            tmp = _temp_name(target.parent, f".{target.name}.")
-            try:
-                os.mkdir(tmp, 0o777)
-                break
-            except FileExistsError:
-                continue
-    except OSError as exc:
-        raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
-    try:
-        yield Path(tmp)
-        for root, _, names in os.walk(tmp):
-            for name in names:
-                _fsync(os.path.join(root, name))
-        _fsync(tmp, directory=True)
-        with _signals_deferred():
-            _publish(tmp, target, key)
-    except BaseException as exc:
-        _remove(tmp)
-        if isinstance(exc, OSError):
-            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
-        raise
-    _fsync(target.parent, directory=True)
-
-
-# --- inputs ----------------------------------------------------------------------------------
-
-def read_input_bytes(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> bytes:
-    """The bytes of the input file ``path``: a regular file of at most ``limit`` bytes (a
-    FIFO, device or folder is refused without blocking: opened non-blocking, fstat checked).
-
-    Parameters
-    ----------
-    path : str or path-like
-    key : str
-        The option (or scene key) named in the error.
-    limit : int
-        Largest size read (bytes).
-    source, what : str, optional
-        The file the :class:`SceneError` names, and what the file is (default: its path).
-
-    Raises
-    ------
-    SceneError
-    """
-    what = what or _q(path)
-
-    def refuse(rule):
-        return SceneError(key, f"cannot read {what}: {rule}", source)
-
-    def kind(mode):
-        if stat.S_ISDIR(mode):
-            raise refuse("it is a directory")
-        if not stat.S_ISREG(mode):
-            raise refuse("not a regular file (a device, FIFO or socket)")
-    try:
-        kind(os.stat(path).st_mode)
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
-    except OSError as exc:
-        raise refuse(exc.strerror or str(exc)) from None
-    try:
-        st = os.fstat(fd)
-        kind(st.st_mode)
-        if st.st_size > limit:
-            raise refuse(f"{st.st_size} bytes, more than the {_mib(limit)} read at most")
-        chunks, size = [], 0
-        while size <= limit:
-            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            size += len(chunk)
-        if size > limit:
-            raise refuse(f"more than the {_mib(limit)} read at most")
-        return b"".join(chunks)
-    except OSError as exc:
-        raise refuse(exc.strerror or str(exc)) from None
-    finally:
-        os.close(fd)
-
-
-def read_input_text(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> str:
-    """:func:`read_input_bytes` decoded as UTF-8 (bad bytes: one SceneError naming the offset)."""
-    raw = read_input_bytes(path, key, limit, source, what)
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SceneError(key, f"cannot read {what or _q(path)}: the bytes at offset {exc.start} are not UTF-8 "
-                         "text (save the file as UTF-8)", source) from None
-
-
-__all__ = ["FIGURE_SUFFIXES", "atomic_file", "atomic_folder", "check_output_file", "check_output_folder",
-           "read_input_bytes", "read_input_text", "save_figure", "write_text"]
+__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_output_file", "check_output_folder", "save_figure", "write_text"]

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.files import atomic_folder, check_output_folder
+from ..core.files import check_output_folder
+from ..core.folders import atomic_folder
 
 #: the files an export writes into its folder
 FILES = ("controller.json", "servo_controller.h", "servo_controller.c")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
-from ..core.files import read_input_text
+from ..core.inputs import read_input_text
 
 FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
 #: largest data file read (bytes)

@@ -197,7 +197,7 @@ def load_design(scene, path, require=None):
         key, see :func:`.design_file.design_fields`).
     """
     key = "--design"
-    from ..core.files import read_input_text
+    from ..core.inputs import read_input_text
     text = read_input_text(path, key, MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
     try:
         data = json.loads(text)

@@ -202,7 +202,7 @@ def write_report(report: Report, out_dir, progress: bool = False, key: str = "ou
     key : str
         Name of the folder in errors (the CLI passes its option).
     """
-    from ..core.files import atomic_folder
+    from ..core.folders import atomic_folder
     from .html_writer import render_html
     from .pdf_writer import write_pdf
     out = check_report_folder(out_dir, key, parents=True)

@@ -482,7 +482,7 @@ def read_scene_text(path: Path) -> str:
     SceneError
         Key ``(file)``, naming the file: missing, not a regular file, too large, not UTF-8.
     """
-    from ..core.files import read_input_text
+    from ..core.inputs import read_input_text
     return read_input_text(path, "(file)", MAX_SCENE_BYTES, source=str(path), what="scene")
 
 
