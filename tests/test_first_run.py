@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from servo_toolkit import cli, jit_cache
+from servo_toolkit import cli
+from servo_toolkit.core import jit_cache
 
 from .conftest import ROOT
 
@@ -78,7 +79,7 @@ def test_a_users_numba_cache_dir_is_still_keyed_on_the_kernel_sources(tmp_path):
     assert proc.returncode == 0, proc.stderr
     folder, digest = proc.stdout.split()
     assert folder.startswith(str(tmp_path / "servo_toolkit" / "numba")) and folder.endswith(digest)
-    cached = list(Path(folder).rglob("cam_kernels.law-*.nbi"))
+    cached = list(Path(folder).rglob("kernels.law-*.nbi"))
     assert cached, "no index file in the hash-keyed folder under NUMBA_CACHE_DIR"
 
 
@@ -91,7 +92,7 @@ def test_kernels_cache_outside_a_read_only_package(tmp_path):
             "from servo_toolkit.core.jit_cache import cache_dir; print(cache_dir())")
     proc = _run(code, env)
     assert proc.returncode == 0, proc.stderr
-    cached = list((tmp_path / "servo_toolkit").rglob("cam_kernels.law-*.nbi"))
+    cached = list((tmp_path / "servo_toolkit").rglob("kernels.law-*.nbi"))
     assert cached, "no index file in the per-user cache folder"
 
 
@@ -114,7 +115,8 @@ def test_first_report_on_an_empty_cache_is_complete(tmp_path):
 def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missing(tmp_path, monkeypatch, capsys):
     """With the single-run kernels cached but not the batch, ``montecarlo`` and the report of
     a scene with [robustness] still say on stderr that they compile (about half a minute)."""
-    from servo_toolkit import jit_cache, load_scene
+    from servo_toolkit import load_scene
+    from servo_toolkit.core import jit_cache
     from servo_toolkit.cli.common import prepare_kernels
     from servo_toolkit.studies import warmup
     (tmp_path / "sim").mkdir()

@@ -65,7 +65,7 @@ def grouped(reads) -> dict:
 
 
 def _component(pattern: str, kind):
-    from servo_toolkit import scene as sc
+    from servo_toolkit.scene import loader as sc
     from servo_toolkit.components.compliance import Load
     from servo_toolkit.components.motor import DCMotor
     from servo_toolkit.components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
@@ -134,7 +134,7 @@ def _title(pattern: str, kind) -> str:
 
 def scene_markdown(reads=None) -> str:
     """The scene-file reference as Markdown."""
-    from servo_toolkit import scene as sc
+    from servo_toolkit.scene import loader as sc
     groups = grouped(collect() if reads is None else reads)
     out = ["# Scene-file reference", "",
            "A scene is a TOML file. A quantity is a bare SI number or a string with units parsed "

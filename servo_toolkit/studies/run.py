@@ -1,16 +1,12 @@
 """Run study NAME of a scene: the one place that maps a ``[studies.NAME]`` table (or a
 built-in study of a seed-mechanism scene) to the function that runs it.
 
-===========================  =================================  ================================
-study                        runs                               result
-===========================  =================================  ================================
-kind ``kv``                  :func:`.kv.kv_study`               :class:`.kv.KvResult`
-kind ``frequency_sweep``     :func:`.sweep.sweep`               :class:`.sweep.SweepResult`
-kind ``simulate``            :func:`.time_run.simulate_study`   :class:`~servo_toolkit.sim.result.SimulationResult`
-a seed-mechanism study       :func:`.mechanisms.run_mechanism`  the mechanism's own result
-(cam, platform, roller
-screw; see :mod:`.mechanisms`)
-===========================  =================================  ================================
+- kind ``kv``: :func:`.kv.kv_study`, giving a :class:`.kv.KvResult`;
+- kind ``frequency_sweep``: :func:`.sweep.sweep`, giving a :class:`.sweep.SweepResult`;
+- kind ``simulate``: :func:`.time_run.simulate_study`, giving a
+  :class:`~servo_toolkit.sim.result.SimulationResult`;
+- a seed-mechanism study (cam, platform, roller screw; see :mod:`.mechanisms`):
+  :func:`.mechanisms.run_mechanism`, giving the mechanism's own result.
 
 ``run_study(scene, name, as_kind="simulate")`` runs a sine study of another kind (a ``kv``
 study's sine) as a time simulation, as ``servo-toolkit simulate --study NAME`` does. The
@@ -18,7 +14,7 @@ command line and the report call these functions; a notebook can too::
 
     import servo_toolkit as st
     scene = st.load_scene("scenes/ema_reference.toml")
-    result = st.run_study(scene, "kv_sine")
+    result = st.run_study(scene, "kv_8hz")
 """
 
 from __future__ import annotations
