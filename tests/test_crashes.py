@@ -1,0 +1,87 @@
+"""Real options that used to crash: signals, a closed stdout, process pools, extreme values
+and runs far beyond the work budget. Each is one stderr line and a documented exit code."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from servo_toolkit.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "scenes"
+EMA = str(SCENES / "ema_reference.toml")
+
+
+def _env():
+    return dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.startswith("servo-toolkit:")]
+    assert "Traceback" not in err, err
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# --- signals -------------------------------------------------------------------------------
+
+def test_sigterm_during_report_exits_143_and_keeps_the_earlier_report(tmp_path):
+    out = tmp_path / "rep"
+    out.mkdir()
+    (out / "index.html").write_text("earlier report")
+    proc = subprocess.Popen([sys.executable, "-m", "servo_toolkit", "report",
+                             str(SCENES / "deflection_platform.toml"), "-o", str(out)],
+                            cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 600  # generous: a fresh kernel cache compiles first
+    seen = False
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any(p.name.startswith(".rep.") for p in tmp_path.iterdir()):
+            seen = True
+            break
+        time.sleep(0.02)
+    assert proc.poll() is None, "the report finished before its temporary folder was seen"
+    assert seen
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 143, err
+    assert _one_error_line(err) == "servo-toolkit: terminated"
+    assert [p.name for p in tmp_path.iterdir()] == ["rep"]  # no temporary folder left
+    assert (out / "index.html").read_text() == "earlier report"
+
+
+def test_sigterm_in_process_is_an_interrupt(monkeypatch, capsys):
+    """The handler is installed while a command runs and turns SIGTERM into exit 143."""
+    import servo_toolkit.cli.cmd_stiffness as cmd
+
+    def run(args):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler raises before this returns
+        return 0
+    monkeypatch.setattr(cmd, "run", run)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["stiffness", EMA]) == 143
+    assert capsys.readouterr().err.strip() == "servo-toolkit: terminated"
+    assert signal.getsignal(signal.SIGTERM) is before  # restored
+
+
+# --- closed stdout ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("require, code", [([], 0), (["--require", "bandwidth=500 Hz"], 1)])
+def test_closed_stdout_keeps_the_verdict(require, code):
+    proc = subprocess.run([sys.executable, "-m", "servo_toolkit", "check", EMA, "--linear-only", *require],
+                          cwd=ROOT, env=_env(), stderr=subprocess.PIPE, text=True, timeout=600,
+                          preexec_fn=lambda: os.close(1))
+    assert proc.returncode == code, proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_closed_stdout_in_process(monkeypatch):
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main(["stiffness", EMA]) == 0
