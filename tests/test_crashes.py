@@ -85,3 +85,24 @@ def test_closed_stdout_keeps_the_verdict(require, code):
 def test_closed_stdout_in_process(monkeypatch):
     monkeypatch.setattr(sys, "stdout", None)
     assert main(["stiffness", EMA]) == 0
+
+
+# --- process pools -------------------------------------------------------------------------
+
+def _montecarlo_json(capsys, *extra):
+    import json
+    assert main(["montecarlo", EMA, "--samples", "16", "--duration", "0.05", "--json", *extra]) == 0
+    data = json.loads(capsys.readouterr().out)
+    data.pop("wall_s")
+    return data
+
+
+def test_montecarlo_workers_match_one_process(capsys):
+    """Workers are spawned (a forked child of a process running OpenMP threads aborts)."""
+    assert _montecarlo_json(capsys, "--workers", "2") == _montecarlo_json(capsys)
+
+
+def test_process_pool_spawns():
+    from servo_toolkit.parallel import process_pool
+    with process_pool(1) as pool:
+        assert pool._mp_context.get_start_method() == "spawn"

@@ -49,8 +49,7 @@ def _check_args(args):
 
 def run(args) -> int:
     """Run the command."""
-    from concurrent.futures import ProcessPoolExecutor
-
+    from ..parallel import process_pool
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
     varies = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
@@ -69,7 +68,7 @@ def run(args) -> int:
                   reference=reference)
     if args.workers and args.workers > 1:
         n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
-        with ProcessPoolExecutor(args.workers) as pool:
+        with process_pool(args.workers) as pool:
             result = montecarlo(scene, variants, executor=pool, chunk_size=min(CHUNK_SIZE, -(-n // args.workers)),
                                 **kwargs)
     else:

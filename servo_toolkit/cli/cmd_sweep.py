@@ -39,8 +39,8 @@ def _run_mechanism(scene, study, args) -> int:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
                          f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
     if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
+        from ..parallel import process_pool
+        with process_pool(args.workers) as pool:
             res = dispatch.run_mechanism(scene, study, executor=pool)
     else:
         res = dispatch.run_mechanism(scene, study)
@@ -72,8 +72,8 @@ def run(args) -> int:
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
+        from ..parallel import process_pool
+        with process_pool(args.workers) as pool:
             res = sweep(scene, args.study, executor=pool, **kw)
     else:
         res = sweep(scene, args.study, **kw)
