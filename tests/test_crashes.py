@@ -106,3 +106,49 @@ def test_process_pool_spawns():
     from servo_toolkit.parallel import process_pool
     with process_pool(1) as pool:
         assert pool._mp_context.get_start_method() == "spawn"
+
+
+# --- extreme values that raised tracebacks --------------------------------------------------
+
+def test_bandwidth_requirement_below_the_design_grid_is_one_line(capsys):
+    assert main(["design", EMA, "--require", "bandwidth=1e-300 Hz", "--linear-only"]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: require.bandwidth: must lie in [0.01, 5000] Hz")
+
+
+def test_two_stiffnesses_in_series_fit_and_say_why_not_identified(tmp_path, capsys):
+    """Two stiffnesses in series: only their combination shows in the response. The fit runs
+    (it used to overflow computing the interval) and says which combination the data fix."""
+    import numpy as np
+
+    from servo_toolkit import load_scene
+    from servo_toolkit.identify import FrequencyData
+    from servo_toolkit.identify.model import plant_response
+    from servo_toolkit.identify.params import SceneTemplate
+
+    keys = ["drivetrain[3].stiffness", "drivetrain[2].rod_axial_stiffness"]
+    template = SceneTemplate(load_scene(EMA), keys)
+    truth = template.scene(np.array(template.initial) * np.array([0.8, 1.2]))
+    f = np.logspace(0, np.log10(300), 60)
+    rng = np.random.default_rng(1)
+    h = plant_response(truth, f) * 10 ** (rng.normal(0, 0.2, f.size) / 20) \
+        * np.exp(1j * np.radians(rng.normal(0, 1.0, f.size)))
+    data = FrequencyData.from_complex(f, h)
+    csv = tmp_path / "rig.csv"
+    np.savetxt(csv, np.column_stack([data.frequency_hz, data.gain_db, data.phase_deg]), delimiter=",",
+               header="frequency_hz,gain_db,phase_deg", comments="", fmt="%.9g")
+    assert main(["fit", EMA, str(csv), "--param", keys[0], "--param", keys[1]]) == 0
+    out = capsys.readouterr().out
+    assert "identify only a combination of them" in out
+    assert "not identified" in out
+
+
+def test_exact_fit_has_a_correlation(tmp_path):
+    """Noise-free data (residual 0) still give the parameters' correlation."""
+    import numpy as np
+
+    from servo_toolkit.identify.fit import _intervals
+    jac = np.array([[1.0, 0.0], [0.0, 2.0], [1.0, 1.0]])
+    half, corr, singular = _intervals(jac, np.zeros(3), 1)
+    assert np.all(half == 0) and not singular.any()
+    assert np.all(np.isfinite(corr)) and corr[0, 0] == 1.0
