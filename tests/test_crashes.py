@@ -24,7 +24,8 @@ def _env():
 
 
 def _one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.startswith("servo-toolkit:")]
+    lines = [ln for ln in err.splitlines() if ln.startswith("servo-toolkit:")
+             and not ln.startswith(("servo-toolkit: compiling", "servo-toolkit: note:"))]
     assert "Traceback" not in err, err
     assert len(lines) == 1, err
     return lines[0]
@@ -152,3 +153,93 @@ def test_exact_fit_has_a_correlation(tmp_path):
     half, corr, singular = _intervals(jac, np.zeros(3), 1)
     assert np.all(half == 0) and not singular.any()
     assert np.all(np.isfinite(corr)) and corr[0, 0] == 1.0
+
+
+# --- work budgets ---------------------------------------------------------------------------
+
+def _scene_file(tmp_path, name, old, new, source=EMA):
+    text = Path(source).read_text()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1))
+    return str(path)
+
+
+def test_a_picosecond_sample_time_is_refused_by_the_budget(tmp_path, capsys):
+    scene = _scene_file(tmp_path, "ps.toml", 'sample_time = "0.1 ms"', 'sample_time = "1e-12 s"')
+    assert main(["simulate", scene]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: sensors.sample_time: the run is estimated at")
+    assert "--force" in line and "(got 1e-12 s)" in line
+
+
+def test_forced_picosecond_reference_run_is_one_line_not_7_tib(tmp_path, capsys):
+    scene = _scene_file(tmp_path, "ps.toml", 'sample_time = "0.1 ms"', 'sample_time = "1e-12 s"')
+    assert main(["simulate", scene, "--method", "reference", "--force"]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: simulation error: the reference solver restarts at every controller sample")
+
+
+@pytest.mark.parametrize("args, key", [(["--duration", "inf"], "duration: must be finite"),
+                                       (["--duration", "nan"], "duration: must be positive"),
+                                       (["--samples", "1000000000"], "samples: must be at most 1000000"),
+                                       (["--samples", "1000000"], "samples: the run is estimated at"),
+                                       (["--duration", "1e6"], "duration: the run is estimated at"),
+                                       (["--workers", "100000"], "workers: must be at most 256")])
+def test_montecarlo_extremes_are_one_line(args, key, capsys):
+    assert main(["montecarlo", EMA, *args]) == 2
+    assert _one_error_line(capsys.readouterr().err).startswith(f"servo-toolkit: error: {key}")
+
+
+def test_a_million_robustness_samples_are_refused_before_the_design(tmp_path, capsys):
+    scene = _scene_file(tmp_path, "rob.toml", "samples = 1000\n", "samples = 1000000\n",
+                        source=SCENES / "ema_robust.toml")
+    for command in (["check", scene], ["design", scene], ["report", scene, "-o", str(tmp_path / "rep")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        line = _one_error_line(err)
+        assert "robustness.samples: the run is estimated at" in line and "variants of a robust design" in line
+    assert not (tmp_path / "rep").exists()
+
+
+def test_check_samples_option_is_the_knob_named(capsys):
+    assert main(["check", str(SCENES / "ema_robust.toml"), "--samples", "1000000"]) == 2
+    assert ": --samples: the run is estimated at" in _one_error_line(capsys.readouterr().err)
+
+
+def test_kv_of_a_thousand_stage_chain_is_refused(tmp_path, capsys):
+    gear = ('[[drivetrain]]\nkind = "gear"\nteeth = [30, 30]\ninertia = ["1e-6 kg*m^2", "1e-6 kg*m^2"]\n'
+            'efficiency = 0.999\ntorsional_stiffness = "1.6e6 N*m/rad"\n\n')
+    scene = _scene_file(tmp_path, "chain.toml", "[[drivetrain]]", gear * 1000 + "[[drivetrain]]")
+    assert main(["kv", scene]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: drivetrain: the run is estimated at")
+    assert "1004 stages" in line
+
+
+def test_a_ten_thousand_point_sweep_is_refused(tmp_path, capsys):
+    text = Path(EMA).read_text()
+    scene = tmp_path / "sweep.toml"
+    scene.write_text(text + '\n[studies.dense]\nkind = "frequency_sweep"\namplitude = "1 deg"\n'
+                     'frequencies = { start = "1 Hz", stop = "100 Hz", points = 10000 }\n')
+    assert main(["sweep", str(scene), "--study", "dense"]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: studies.dense.frequencies: the run is estimated at")
+    assert main(["reduce", str(scene), "--study", "dense"]) == 2
+    assert "studies.dense.frequencies: the run is estimated at" in _one_error_line(capsys.readouterr().err)
+
+
+def test_accuracy_at_a_picosecond_sample_time_is_refused(tmp_path, capsys):
+    scene = _scene_file(tmp_path, "ps.toml", 'sample_time = "0.1 ms"', 'sample_time = "1e-12 s"')
+    assert main(["accuracy", scene]) == 2
+    assert "sensors.sample_time: the run is estimated at" in _one_error_line(capsys.readouterr().err)
+
+
+def test_budget_estimates_are_stated_in_one_place():
+    from servo_toolkit import budget
+    assert budget.TIME_BUDGET_S == 600.0
+    with pytest.raises(Exception, match="--force"):
+        budget.check_time(1e9, "knob", "work", 1)
+    budget.check_time(1e9, "knob", "work", 1, force=True)  # forced: no refusal
+    with pytest.raises(Exception, match="more than"):
+        budget.check_memory(1e15, "knob", "array", 1, force=True)  # no option lifts the hard limit

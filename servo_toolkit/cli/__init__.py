@@ -196,6 +196,10 @@ def _main(argv) -> int:
     except SimulationError as exc:
         print(f"servo-toolkit: simulation error: {exc}", file=sys.stderr)
         code = 2
+    except MemoryError:  # an estimate let through (--force) what the machine cannot hold
+        print("servo-toolkit: error: out of memory: the run is larger than this machine can hold; reduce "
+              "it (the work budget refuses such runs without --force)", file=sys.stderr)
+        code = 2
     except Terminated:
         print("servo-toolkit: terminated", file=sys.stderr)
         code = EXIT_TERMINATED

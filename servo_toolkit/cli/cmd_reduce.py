@@ -6,7 +6,7 @@ import math
 import sys
 
 from ..scene import load_scene
-from .common import add_json, add_scene, amplitudes_si, bounded, emit
+from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit
 from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
@@ -27,8 +27,20 @@ def register(sub) -> None:
     p.add_argument("--estimate-only", action="store_true",
                    help="only the a-priori estimates and the choice (no full/reduced runs)")
     p.add_argument("--plot", metavar="FILE", help="save the measured difference per point")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+def _check_budget(scene, args, amps) -> None:
+    """The full and the reduced model's dwells of a sweep study, within the work budget
+    unless ``--force`` (other studies run one short sine)."""
+    from .cmd_sweep import check_sweep_budget
+    study = scene.studies.get(args.study) if args.study else None
+    if study is None or study.kind == "frequency_sweep":
+        if args.study is None and not scene.studies_of_kind("frequency_sweep") and not args.frequency:
+            return
+        check_sweep_budget(scene, args.study, args.frequency, amps, args.force, runs=2)
 
 
 def run(args) -> int:
@@ -53,6 +65,7 @@ def run(args) -> int:
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0
+    _check_budget(scene, args, amps)
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
                  amplitudes=amps,
                  progress=not args.json and sys.stderr.isatty())

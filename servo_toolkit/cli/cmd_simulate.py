@@ -8,7 +8,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
 from .hints import default_mechanism_study
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -22,6 +22,7 @@ def register(sub) -> None:
     p.add_argument("--dt", type=bounded(float, 1e-9, 1.0, what="a step in seconds"), metavar="S",
                    help="fixed step (s), 1e-9 to 1")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
+    add_force(p)
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
                         "left out)")
@@ -50,6 +51,23 @@ def _mechanism_dispatch(scene, args):
     return dispatch.run_mechanism(scene, study, method=args.method, dt=args.dt)
 
 
+def check_budget(scene, args, amplitude) -> None:
+    """Refuse (exit 2, naming the knob) a run estimated beyond the work budget, unless
+    ``--force``: checked before any work."""
+    from ..budget import check_time, time_run_knob, time_run_seconds
+    from ..sim.studies import run_spec
+    _, duration, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude,
+                                                      frequency=args.frequency)
+    method = args.method or study_method
+    dt = args.dt or (study_dt if method in ("rk4", "paper") else None)
+    seconds, what, _ = time_run_seconds(scene, duration, dt, method)
+    knob = time_run_knob(scene, duration, args.dt, f"studies.{args.study}.duration" if args.study else "duration",
+                         "--dt" if args.dt else f"studies.{args.study}.sample_time" if dt else "--dt")
+    got = duration if knob.endswith("duration") else scene.sensors.sample_time if knob == "sensors.sample_time" else dt
+    got = f"{got:g} s"
+    check_time(seconds, knob, what, got, args.force)
+
+
 def run(args) -> int:
     """Run the command."""
     from ..sim.result import check_trace_path
@@ -60,6 +78,7 @@ def run(args) -> int:
     amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
+        check_budget(scene, args, amplitude)
         prepare_kernels(scene, paper=args.method == "paper")
         result = simulate_study(scene, args.study, method=args.method, dt=args.dt, full=args.full,
                                 amplitude=amplitude, frequency=args.frequency)

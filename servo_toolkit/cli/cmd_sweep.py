@@ -10,7 +10,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
 from .hints import default_mechanism_study
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
 from .outputs import FIGURE_SUFFIXES, check_file, save_figure
 
 
@@ -26,6 +26,7 @@ def register(sub) -> None:
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
                    help="run the dwells in N processes (at least 1; default: in this process)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -53,6 +54,19 @@ def _run_mechanism(scene, study, args) -> int:
     return 0
 
 
+def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs: int = 1, option="--frequency"):
+    """Refuse sine dwells estimated beyond the work budget unless ``force`` (before any work);
+    the knob named is ``--frequency`` when given, else the study's ``frequencies``."""
+    from ..budget import check_time, sweep_seconds
+    from ..studies.sweep_points import study_points
+    name, freqs, amps = study_points(scene, study)
+    freqs = frequencies or freqs
+    amps = amplitudes or amps
+    seconds, what = sweep_seconds(scene, freqs, amps, runs)
+    knob = option if frequencies else f"studies.{name}.frequencies" if name else option
+    check_time(seconds, knob, what, f"{len(freqs)} frequencies x {len(amps)} amplitudes", force)
+
+
 def run(args) -> int:
     """Run the command."""
     from ..studies.sweep import sweep
@@ -69,6 +83,7 @@ def run(args) -> int:
         if dispatch.handled(scene, study):
             return _run_mechanism(scene, study, args)
     amps = amplitudes_si(scene, args.amplitude)
+    check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     if args.workers > 1:
