@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import sys
 
+from ..errors import SceneError
 from ..scene import load_scene
 from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit
 from .outputs import FIGURE_SUFFIXES, check_file, save_figure
@@ -49,11 +50,9 @@ def run(args) -> int:
     from ..studies.reduce_estimates import DEFAULT_TOLERANCE
     tol = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
     if not (math.isfinite(tol) and 0 < tol < 1):
-        sys.stderr.write("error: --tolerance must lie in (0, 1) (a relative response difference)\n")
-        return 2
+        raise SceneError("--tolerance", f"must lie in (0, 1), a relative response difference (got {tol:g})")
     if args.frequency and not all(math.isfinite(f) and f > 0 for f in args.frequency):
-        sys.stderr.write("error: --frequency must be positive and finite\n")
-        return 2
+        raise SceneError("--frequency", "must be positive and finite")
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
