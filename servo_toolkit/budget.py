@@ -125,14 +125,6 @@ def time_run_seconds(scene, duration: float, dt: float | None, method: str | Non
 LONG_RUN_S = 10.0
 
 
-def time_run_knob(scene, duration: float, dt, duration_knob: str = "duration", dt_knob: str = "--dt") -> str:
-    """The knob that sets a time run's step count: the duration when it is long, else the
-    step (``dt_knob``) when one is given, else ``sensors.sample_time``."""
-    if duration > LONG_RUN_S or not (dt or scene.sensors.sample_time):
-        return duration_knob
-    return dt_knob if dt else "sensors.sample_time"
-
-
 #: Kv grid: inertial-force evaluations per case (motion x inertia) of the peak search, and
 #: the cost of one per squared stage count (each evaluation composes the chain's Jacobians
 #: stage by stage; 0.07 s at 154 stages)

@@ -243,3 +243,26 @@ def test_budget_estimates_are_stated_in_one_place():
     budget.check_time(1e9, "knob", "work", 1, force=True)  # forced: no refusal
     with pytest.raises(Exception, match="more than"):
         budget.check_memory(1e15, "knob", "array", 1, force=True)  # no option lifts the hard limit
+
+
+def test_a_vanishing_current_sample_time_is_refused(tmp_path, capsys):
+    assert main(["export", EMA, "-o", str(tmp_path / "o"), "--current-sample-time", "1e-300 s"]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: --current-sample-time: must be at least 0.1 us")
+    assert not (tmp_path / "o").exists()
+
+
+def test_reduce_tolerance_is_one_line(capsys):
+    assert main(["reduce", EMA, "--estimate-only", "--tolerance", "1e300"]) == 2
+    assert _one_error_line(capsys.readouterr().err).startswith("servo-toolkit: error: --tolerance: must lie in (0, 1)")
+
+
+def test_a_long_simulate_study_names_its_duration(tmp_path, capsys):
+    text = Path(EMA).read_text()
+    scene = tmp_path / "long.toml"
+    scene.write_text(text + '\n[studies.long]\nkind = "simulate"\namplitude = "1 deg"\nfrequency = "2 Hz"\n'
+                     'duration = "900 s"\nmethod = "reference"\n')
+    assert main(["simulate", str(scene), "--study", "long"]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert line.startswith("servo-toolkit: error: studies.long.duration: the run is estimated at")
+    assert "reference-solver segments" in line and line.endswith("(got 900 s)")

@@ -60,12 +60,12 @@ def _check_args(args):
 
 def _check_budget(scene, args) -> None:
     """Refuse a run estimated beyond the work budget unless ``--force`` (before any work)."""
-    from ..budget import batch_seconds, check_time
+    from ..budget import LONG_RUN_S, batch_seconds, check_time
     from ..sim.studies import run_spec
     samples = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     duration = args.duration if args.duration is not None else run_spec(scene, None)[1]
     seconds, what = batch_seconds(scene, samples, duration)
-    if args.duration is not None and args.duration > 10.0:
+    if args.duration is not None and args.duration > LONG_RUN_S:
         knob, got = "duration", f"{args.duration:g} s"
     else:
         knob, got = ("samples" if args.samples is not None else "robustness.samples"), samples

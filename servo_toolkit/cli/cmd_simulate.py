@@ -54,16 +54,21 @@ def _mechanism_dispatch(scene, args):
 def check_budget(scene, args, amplitude) -> None:
     """Refuse (exit 2, naming the knob) a run estimated beyond the work budget, unless
     ``--force``: checked before any work."""
-    from ..budget import check_time, time_run_knob, time_run_seconds
+    from ..budget import LONG_RUN_S, check_time, time_run_seconds
     from ..sim.studies import run_spec
     _, duration, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude,
                                                       frequency=args.frequency)
     method = args.method or study_method
     dt = args.dt or (study_dt if method in ("rk4", "paper") else None)
     seconds, what, _ = time_run_seconds(scene, duration, dt, method)
-    knob = time_run_knob(scene, duration, args.dt, f"studies.{args.study}.duration" if args.study else "duration",
-                         "--dt" if args.dt else f"studies.{args.study}.sample_time" if dt else "--dt")
-    got = duration if knob.endswith("duration") else scene.sensors.sample_time if knob == "sensors.sample_time" else dt
+    if duration > LONG_RUN_S or not (dt or scene.sensors.sample_time):
+        knob, got = (f"studies.{args.study}.duration" if args.study else "duration"), duration
+    elif args.dt:
+        knob, got = "--dt", args.dt
+    elif dt:
+        knob, got = f"studies.{args.study}.sample_time", dt
+    else:
+        knob, got = "sensors.sample_time", scene.sensors.sample_time
     got = f"{got:g} s"
     check_time(seconds, knob, what, got, args.force)
 
