@@ -8,7 +8,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.kv import default_kv_study, kv_study
 from . import mechanism_dispatch as dispatch
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit
 from .hints import default_mechanism_study, has_motor_drivetrain, what_to_run
 
 
@@ -22,6 +22,7 @@ def register(sub) -> None:
                              "one: 8 Hz, 2 deg, or 1 mm for an output travel)")
     p.add_argument("--losses", choices=("directional", "none"), default="directional",
                    help="stage-loss model (default: directional efficiency)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -32,6 +33,21 @@ def _run_one(scene, study, args):
     if study.kind != "kv":
         raise SceneError(study.key("kind"), f"is {study.kind!r}; the kv command runs studies of kind 'kv'")
     return kv_study(scene, study, losses=args.losses, progress=not args.json and sys.stderr.isatty())
+
+
+def _check_budget(scene, studies, force: bool) -> None:
+    """Refuse Kv grids estimated beyond the work budget unless ``--force`` (before any work);
+    the knob named is the drivetrain, whose length sets the cost of every case."""
+    from ..budget import check_time, kv_seconds
+    from ..studies.kv import _motions
+    cases = 0
+    for study in studies:
+        if getattr(study, "kind", None) == "kv":
+            inertias = study.get("load_inertias", [0.0, scene.load.inertia])
+            cases += len(_motions(scene, study)[0]) * (len(inertias) + 1 if isinstance(inertias, (list, tuple)) else 2)
+    if cases:
+        seconds, what = kv_seconds(len(scene.stages), cases)
+        check_time(seconds, "drivetrain", what, f"{len(scene.stages)} stages", force)
 
 
 def run(args) -> int:
@@ -54,6 +70,7 @@ def run(args) -> int:
         studies = [] if sine else scene.studies_of_kind("kv")
         if not studies:
             studies = [default_kv_study(scene, amplitudes_si(scene, args.amplitude), args.frequency)]
+    _check_budget(scene, studies, args.force)
     results = [_run_one(scene, s, args) for s in studies]
     names = [getattr(s, "name", s) for s in studies]
     dicts = [r.to_dict() if hasattr(r, "to_dict") else dict(r) for r in results]

@@ -10,7 +10,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from . import mechanism_dispatch as dispatch
 from .hints import default_mechanism_study
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
 from ..files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -26,6 +26,7 @@ def register(sub) -> None:
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
                    help="run the dwells in N processes (at least 1; default: in this process)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -39,8 +40,8 @@ def _run_mechanism(scene, study, args) -> int:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
                          f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
     if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
+        from ..parallel import process_pool
+        with process_pool(args.workers) as pool:
             res = dispatch.run_mechanism(scene, study, executor=pool)
     else:
         res = dispatch.run_mechanism(scene, study)
@@ -51,6 +52,19 @@ def _run_mechanism(scene, study, args) -> int:
         save_figure(ax.figure, args.plot)
     emit(args, res, res.table() if hasattr(res, "table") else str(res))
     return 0
+
+
+def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs: int = 1, option="--frequency"):
+    """Refuse sine dwells estimated beyond the work budget unless ``force`` (before any work);
+    the knob named is ``--frequency`` when given, else the study's ``frequencies``."""
+    from ..budget import check_time, sweep_seconds
+    from ..studies.sweep_points import study_points
+    name, freqs, amps = study_points(scene, study)
+    freqs = frequencies or freqs
+    amps = amplitudes or amps
+    seconds, what = sweep_seconds(scene, freqs, amps, runs)
+    knob = option if frequencies else f"studies.{name}.frequencies" if name else option
+    check_time(seconds, knob, what, f"{len(freqs)} frequencies x {len(amps)} amplitudes", force)
 
 
 def run(args) -> int:
@@ -69,12 +83,13 @@ def run(args) -> int:
         if dispatch.handled(scene, study):
             return _run_mechanism(scene, study, args)
     amps = amplitudes_si(scene, args.amplitude)
+    check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     try:
         if args.workers > 1:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(args.workers) as pool:
+            from ..parallel import process_pool
+            with process_pool(args.workers) as pool:
                 res = sweep(scene, args.study, executor=pool, **kw)
         else:
             res = sweep(scene, args.study, **kw)
