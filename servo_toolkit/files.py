@@ -219,16 +219,15 @@ def atomic_file(path, key: str = "--output"):
     """
     target = Path(path)
     parent = target.parent
-    while True:
-        tmp = _temp_name(parent, f".{target.name}.", target.suffix)
-        try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
-            break
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
+    tmp = None
     try:
+        while True:  # named before it exists: a signal right after its creation still removes it
+            tmp = _temp_name(parent, f".{target.name}.", target.suffix)
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
+                break
+            except FileExistsError:
+                continue
         with contextlib.suppress(FileNotFoundError):
             old = os.stat(target)
             if stat.S_ISREG(old.st_mode):
@@ -237,7 +236,7 @@ def atomic_file(path, key: str = "--output"):
         _fsync(tmp)
         os.replace(tmp, target)
     except BaseException as exc:
-        with contextlib.suppress(OSError):
+        with contextlib.suppress(OSError, TypeError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
@@ -389,19 +388,21 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         ``key``: an OSError while writing or publishing.
     """
     target = Path(path).absolute()
+    tmp = None
     try:
-        if parents:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        while True:
-            tmp = _temp_name(target.parent, f".{target.name}.")
-            try:
-                os.mkdir(tmp, 0o777)
-                break
-            except FileExistsError:
-                continue
-    except OSError as exc:
-        raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
-    try:
+        try:
+            if parents:
+                target.parent.mkdir(parents=True, exist_ok=True)
+            while True:
+                tmp = _temp_name(target.parent, f".{target.name}.")  # named before it exists: a signal
+                try:                                                  # after mkdir still removes it
+                    os.mkdir(tmp, 0o777)
+                    break
+                except FileExistsError:
+                    continue
+        except OSError as exc:
+            tmp = None
+            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         yield Path(tmp)
         for root, _, names in os.walk(tmp):
             for name in names:
@@ -410,7 +411,8 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         with _signals_deferred():
             _publish(tmp, target, key)
     except BaseException as exc:
-        _remove(tmp)
+        if tmp is not None:
+            _remove(tmp)
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise

@@ -64,6 +64,9 @@ def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs:
     amps = amplitudes or amps
     seconds, what = sweep_seconds(scene, freqs, amps, runs)
     knob = option if frequencies else f"studies.{name}.frequencies" if name else option
+    from ..studies.sine_dwell import DwellPlan
+    from ..studies.sweep_points import check_sweep_frequencies
+    check_sweep_frequencies(scene, freqs, knob, DwellPlan())  # a frequency no dwell resolves: its own rule first
     check_time(seconds, knob, what, f"{len(freqs)} frequencies x {len(amps)} amplitudes", force)
 
 
