@@ -3,14 +3,23 @@
 Exit codes: 0 success (and every requirement met for ``check``), 1 requirements not met,
 2 bad input (the message names the scene key) or a simulation that left its validity domain
 (:class:`~servo_toolkit.errors.SimulationError`, e.g. a step too large for an explicit
-scheme); either way one line on stderr, no traceback.
+scheme); either way one line on stderr, no traceback. 130 interrupted by Ctrl-C (SIGINT,
+"servo-toolkit: interrupted"), 143 terminated by SIGTERM (128 + 15, the shell's convention,
+"servo-toolkit: terminated"): SIGTERM is turned into :class:`Terminated`, a
+``KeyboardInterrupt`` raised in the main thread, so every atomic writer removes its
+temporary file or folder exactly as on Ctrl-C. A closed stdout (``>&-``) or stderr writes to
+nothing; it never changes the exit code.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
+import signal
 import sys
+import threading
 
 from ..errors import SceneError, SimulationError
 
@@ -67,13 +76,60 @@ def _command(argv) -> str:
     return first if first in COMMANDS else ""
 
 
+#: exit code of a run ended by SIGTERM (128 + 15); Ctrl-C (SIGINT) exits 130
+EXIT_TERMINATED = 128 + signal.SIGTERM
+EXIT_INTERRUPTED = 130
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt (so the cleanup
+    that runs on Ctrl-C runs on SIGTERM too)."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM raises :class:`Terminated` while the command runs (main thread only; the
+    previous handler is restored afterwards)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class _NullStream:
+    """Where the output of a closed stream goes (``>&-``: Python's ``sys.stdout`` is None)."""
+
+    closed = False
+    encoding = "utf-8"
+
+    def write(self, text):
+        return len(text)
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
+
+    def fileno(self):
+        raise OSError("the stream is closed")
+
+
 class _VerdictSafeStdout:
     """stdout for a command: a reader that goes away (a closed pipe, ``| head``) never stops
     the command nor changes its exit code, and any other failure to write (a full disk) is
     remembered, so that the command ends with exit 2 and one line instead of a traceback."""
 
     def __init__(self, stream):
-        self._stream = stream
+        self._stream = _NullStream() if stream is None else stream
         self.closed_by_reader = False
         self.error = None
 
@@ -104,7 +160,25 @@ class _VerdictSafeStdout:
 
 def main(argv=None) -> int:
     """Entry point; returns the exit code (0 done, 1 a requirement not met, 2 bad input,
-    130 interrupted). No state of stdout changes it: a closed pipe is ignored."""
+    130 interrupted, 143 terminated by SIGTERM). No state of stdout changes it: a closed
+    pipe or a closed stdout is ignored."""
+    saved_err = sys.stderr
+    if sys.stderr is None:  # 2>&-: diagnostics go nowhere, the exit code stays
+        sys.stderr = _NullStream()
+    try:
+        with _sigterm_as_interrupt():
+            return _main(argv)
+    except Terminated:  # SIGTERM while parsing or after the command
+        print("servo-toolkit: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except KeyboardInterrupt:
+        print("servo-toolkit: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        sys.stderr = saved_err
+
+
+def _main(argv) -> int:
     parser = build_parser(only=_command(argv))
     args = parser.parse_args(argv)
     out = _VerdictSafeStdout(sys.stdout)
@@ -122,9 +196,16 @@ def main(argv=None) -> int:
     except SimulationError as exc:
         print(f"servo-toolkit: simulation error: {exc}", file=sys.stderr)
         code = 2
+    except MemoryError:  # an estimate let through (--force) what the machine cannot hold
+        print("servo-toolkit: error: out of memory: the run is larger than this machine can hold; reduce "
+              "it (the work budget refuses such runs without --force)", file=sys.stderr)
+        code = 2
+    except Terminated:
+        print("servo-toolkit: terminated", file=sys.stderr)
+        code = EXIT_TERMINATED
     except KeyboardInterrupt:
         print("servo-toolkit: interrupted", file=sys.stderr)
-        code = 130
+        code = EXIT_INTERRUPTED
     finally:
         sys.stdout = saved
     if out.error is not None:
@@ -134,12 +215,24 @@ def main(argv=None) -> int:
     return code
 
 
+def _occupy_closed_fds() -> None:
+    """Open the null device on a closed fd 0, 1 or 2 (``>&-``), so that no file the command
+    opens later takes that number and receives what is written to stdout or stderr."""
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.open(os.devnull, os.O_RDWR)  # the lowest free number: this fd
+
+
 def entry() -> None:
     """Console-script wrapper."""
+    _occupy_closed_fds()
     code = main()
     try:
-        sys.stdout.flush()
+        if sys.stdout is not None:
+            sys.stdout.flush()
     except OSError:  # the reader went away: nothing left to say, and the verdict stands
-        import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     sys.exit(code)

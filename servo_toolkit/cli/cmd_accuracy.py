@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..scene.loader import load_scene
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
+from ..scene import load_scene
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit
 
 #: accuracy runs are short: the reference restarts at every controller sample
 ACCURACY_DURATION = 0.1
@@ -16,8 +16,17 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine; 1 mm for "
                    "an output travel)")
     add_sine_options(p)
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+def _check_budget(scene, duration: float, force: bool) -> None:
+    """The reference solve and the RK4 ladder within the work budget unless ``--force``."""
+    from .budget import check_time, time_run_seconds
+    ref, what, _ = time_run_seconds(scene, duration, None, "reference")
+    rk4, _, _ = time_run_seconds(scene, duration, None, "rk4")
+    check_time(ref + 4 * rk4, "sensors.sample_time", what, f"{scene.sensors.sample_time:g} s", force)
 
 
 def run(args) -> int:
@@ -30,6 +39,7 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     reference, duration, voltage, _, _ = run_spec(scene, args.study, amplitude=amplitudes_si(scene, args.amplitude),
                                                   frequency=args.frequency)
+    _check_budget(scene, min(duration, ACCURACY_DURATION), args.force)
     if voltage is not None:
         model = build_model(scene, None)
         reference = Reference.voltage(voltage)

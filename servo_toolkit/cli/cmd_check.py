@@ -21,7 +21,7 @@ from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args, gate_result
-from .common import add_json, bounded, to_json
+from .common import add_force, add_json, bounded, check_robustness_budget, to_json
 
 
 def register(sub) -> None:
@@ -38,6 +38,7 @@ def register(sub) -> None:
     p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -163,6 +164,9 @@ def _check_scene(path, scene, args, varies):
     """Design and check one scene: (suite name, cases, JSON dict)."""
     from ..loop.robustness import robustness
     spec = robustness_spec(scene, varies, args.samples)
+    if not getattr(args, "design", None):
+        robust = args.robust is True or (args.robust is None and scene.robustness is not None)
+        check_robustness_budget(scene, spec, robust, args.samples, args.force)
     result, ls = gate_result(scene, args, design_from_args(scene, args, spec))
     robust = result.robustness
     if robust is None and spec is not None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 from ..errors import SceneError
 from ..loop import design
 from ..loop.requirements import parse_override
-from ..scene.loader import load_scene
-from .common import add_json, add_scene, emit
+from ..scene import load_scene
+from .common import add_force, add_json, add_scene, check_robustness_budget, emit
 
 
 def add_design_options(p) -> None:
@@ -63,6 +63,7 @@ def register(sub) -> None:
     add_scene(p)
     add_design_options(p)
     add_large_signal_option(p)
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -73,6 +74,10 @@ def run(args) -> int:
     for text in args.require:  # a bad value: exit 2 before the scene is read
         parse_override(text)
     scene = load_scene(args.scene)
+    if not getattr(args, "design", None):
+        from ..loop.design import robust_spec
+        spec = robust_spec(scene, args.robust)
+        check_robustness_budget(scene, spec, spec is not None, None, args.force)
     try:
         result = design_from_args(scene, args)
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)

@@ -49,6 +49,8 @@ def run(args) -> int:
     ts = None if args.sample_time is None else parse_quantity(args.sample_time, "s", "--sample-time")
     if ts is not None and not 1e-7 <= ts <= 1.0:
         raise SceneError("--sample-time", f"must lie in [0.1 us, 1 s] (got {args.sample_time!r})")
+    if ts_i is not None and not ts_i >= 1e-7:  # the upper limit (the motion sample time) is the export's
+        raise SceneError("--current-sample-time", f"must be at least 0.1 us (got {args.current_sample_time!r})")
     check_directory(args.output, inputs=[args.scene, args.design])  # before any work
     scene = load_scene(args.scene)
     if ts is not None:

@@ -8,7 +8,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.kv import default_kv_study, kv_study
 from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit
 from .hints import what_to_run
 
 
@@ -22,8 +22,24 @@ def register(sub) -> None:
                              "one: 8 Hz, 2 deg, or 1 mm for an output travel)")
     p.add_argument("--losses", choices=("directional", "none"), default="directional",
                    help="stage-loss model (default: directional efficiency)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+def _check_budget(scene, studies, force: bool) -> None:
+    """Refuse Kv grids estimated beyond the work budget unless ``--force`` (before any work);
+    the knob named is the drivetrain, whose length sets the cost of every case."""
+    from .budget import check_time, kv_seconds
+    from ..studies.kv import _motions
+    cases = 0
+    for study in studies:
+        if getattr(study, "kind", None) == "kv":
+            inertias = study.get("load_inertias", [0.0, scene.load.inertia])
+            cases += len(_motions(scene, study)[0]) * (len(inertias) + 1 if isinstance(inertias, (list, tuple)) else 2)
+    if cases:
+        seconds, what = kv_seconds(len(scene.stages), cases)
+        check_time(seconds, "drivetrain", what, f"{len(scene.stages)} stages", force)
 
 
 def run(args) -> int:
@@ -47,11 +63,13 @@ def run(args) -> int:
         names = [] if sine else [s.name for s in scene.studies_of_kind("kv")]
     if names:
         studies = [study_of(scene, n) for n in names]
+        _check_budget(scene, studies, args.force)
         results = [run_study(scene, n, as_kind="kv", **({} if is_mechanism_study(scene, n) else
                                                          dict(losses=args.losses, progress=progress)))
                    for n in names]
     else:
         studies = [default_kv_study(scene, amplitudes_si(scene, args.amplitude), args.frequency)]
+        _check_budget(scene, studies, args.force)
         names = [studies[0].name]
         results = [kv_study(scene, studies[0], losses=args.losses, progress=progress)]
     dicts = [r.to_dict() if hasattr(r, "to_dict") else dict(r) for r in results]

@@ -6,11 +6,15 @@ is ``simulate``'s (8 Hz, 2 deg sine for 1 s) on the same reduced (or ``--full``)
 
 from __future__ import annotations
 
+import math
 import sys
 
 from ..errors import SceneError
-from ..scene.loader import load_scene
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
+from ..scene import load_scene
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
+
+#: most variants of one run (as ``check --samples`` and a scene's ``[robustness] samples``)
+MAX_SAMPLES = 1_000_000
 
 
 def register(sub) -> None:
@@ -30,6 +34,7 @@ def register(sub) -> None:
     p.add_argument("--full", action="store_true", help="run the full model (default: simulate's reduced model)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process, every core)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -39,19 +44,38 @@ def _check_args(args):
     varies = dict(parse_vary(text) for text in args.vary)
     if args.samples is not None and args.samples < 1:
         raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+    if args.samples is not None and args.samples > MAX_SAMPLES:
+        raise SceneError("samples", f"must be at most {MAX_SAMPLES} (got {args.samples})")
     if args.seed is not None and args.seed < 0:
         raise SceneError("seed", f"must not be negative (got {args.seed})")
     if args.duration is not None and not args.duration > 0:
         raise SceneError("duration", f"must be positive (got {args.duration:g} s)")
+    if args.duration is not None and not math.isfinite(args.duration):
+        raise SceneError("duration", f"must be finite (got {args.duration:g} s)")
+    if args.workers is not None and args.workers > 256:
+        raise SceneError("workers", f"must be at most 256 (got {args.workers})")
     if args.workers is not None and args.workers < 1:
         raise SceneError("workers", f"must be at least 1 (got {args.workers})")
     return varies
 
 
+def _check_budget(scene, args) -> None:
+    """Refuse a run estimated beyond the work budget unless ``--force`` (before any work)."""
+    from .budget import LONG_RUN_S, batch_seconds, check_time
+    from ..studies.time_reference import run_spec
+    samples = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
+    duration = args.duration if args.duration is not None else run_spec(scene, None)[1]
+    seconds, what = batch_seconds(scene, samples, duration)
+    if args.duration is not None and args.duration > LONG_RUN_S:
+        knob, got = "duration", f"{args.duration:g} s"
+    else:
+        knob, got = ("samples" if args.samples is not None else "robustness.samples"), samples
+    check_time(seconds, knob, what, got, args.force)
+
+
 def run(args) -> int:
     """Run the command."""
-    from concurrent.futures import ProcessPoolExecutor
-
+    from ..core.parallel import process_pool
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
     varies = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
@@ -60,6 +84,7 @@ def run(args) -> int:
         from ..studies.time_reference import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
                              frequency=args.frequency, duration=args.duration)[0]
+    _check_budget(scene, args)
     prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
     variants = None
     if varies:
@@ -70,7 +95,7 @@ def run(args) -> int:
                   reference=reference)
     if args.workers and args.workers > 1:
         n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
-        with ProcessPoolExecutor(args.workers) as pool:
+        with process_pool(args.workers) as pool:
             result = montecarlo(scene, variants, executor=pool, chunk_size=min(CHUNK_SIZE, -(-n // args.workers)),
                                 **kwargs)
     else:

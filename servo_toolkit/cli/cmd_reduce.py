@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 import sys
 
-from ..scene.loader import load_scene
-from .common import add_json, add_scene, amplitudes_si, bounded, emit
+from ..errors import SceneError
+from ..scene import load_scene
+from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -27,8 +28,20 @@ def register(sub) -> None:
     p.add_argument("--estimate-only", action="store_true",
                    help="only the a-priori estimates and the choice (no full/reduced runs)")
     p.add_argument("--plot", metavar="FILE", help="save the measured difference per point")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+def _check_budget(scene, args, amps) -> None:
+    """The full and the reduced model's dwells of a sweep study, within the work budget
+    unless ``--force`` (other studies run one short sine)."""
+    from .cmd_sweep import check_sweep_budget
+    study = scene.studies.get(args.study) if args.study else None
+    if study is None or study.kind == "frequency_sweep":
+        if args.study is None and not scene.studies_of_kind("frequency_sweep") and not args.frequency:
+            return
+        check_sweep_budget(scene, args.study, args.frequency, amps, args.force, runs=2)
 
 
 def run(args) -> int:
@@ -37,11 +50,9 @@ def run(args) -> int:
     from ..studies.reduce_estimates import DEFAULT_TOLERANCE
     tol = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
     if not (math.isfinite(tol) and 0 < tol < 1):
-        sys.stderr.write("error: --tolerance must lie in (0, 1) (a relative response difference)\n")
-        return 2
+        raise SceneError("--tolerance", f"must lie in (0, 1), a relative response difference (got {tol:g})")
     if args.frequency and not all(math.isfinite(f) and f > 0 for f in args.frequency):
-        sys.stderr.write("error: --frequency must be positive and finite\n")
-        return 2
+        raise SceneError("--frequency", "must be positive and finite")
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
@@ -53,6 +64,7 @@ def run(args) -> int:
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0
+    _check_budget(scene, args, amps)
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
                  amplitudes=amps,
                  progress=not args.json and sys.stderr.isatty())

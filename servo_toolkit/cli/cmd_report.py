@@ -5,8 +5,8 @@ from __future__ import annotations
 import sys
 import time
 
-from ..scene.loader import load_scene
-from .common import add_scene, bounded, prepare_kernels
+from ..scene import load_scene
+from .common import add_force, add_scene, bounded, check_robustness_budget, prepare_kernels
 
 
 def register(sub) -> None:
@@ -25,7 +25,23 @@ def register(sub) -> None:
     p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
+    add_force(p)
     p.set_defaults(run=run)
+
+
+def _check_budget(scene, args, designs: bool) -> None:
+    """The report's long sections within the work budget unless ``--force`` (before any
+    work): the robustness study of a scene with ``[robustness]``, the time runs at the
+    scene's sample time and, with ``--full``, the sweep and its reduction."""
+    if not (scene.stages and scene.motor is not None):
+        return
+    from .budget import check_time, time_run_seconds
+    check_robustness_budget(scene, scene.robustness, designs, None, args.force)
+    seconds, what, _ = time_run_seconds(scene, 1.0, None, "rk4")
+    check_time(seconds, "sensors.sample_time", what, f"{scene.sensors.sample_time:g} s", args.force)
+    if args.full and scene.studies_of_kind("frequency_sweep"):
+        from .cmd_sweep import check_sweep_budget
+        check_sweep_budget(scene, None, None, None, args.force, runs=3)
 
 
 def run(args) -> int:
@@ -43,6 +59,7 @@ def run(args) -> int:
     if args.design:
         from ..loop.tuning import load_design
         given = load_design(scene, args.design)
+    _check_budget(scene, args, given is None)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
     # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
     prepare_kernels(scene, paper=True, batch=scene.robustness is not None)

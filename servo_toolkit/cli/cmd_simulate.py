@@ -7,7 +7,7 @@ import sys
 from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -22,6 +22,7 @@ def register(sub) -> None:
                    help="fixed step (s), 1e-9 to 1, of the fixed-step methods (rk4, paper); without --method it "
                         "runs rk4 at that step; refused with --method auto or reference")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
+    add_force(p)
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
                         "left out)")
@@ -48,6 +49,28 @@ def _mechanism_dispatch(scene, args):
     return run_study(scene, name, method=args.method, dt=args.dt)
 
 
+def check_budget(scene, args, amplitude) -> None:
+    """Refuse (exit 2, naming the knob) a run estimated beyond the work budget, unless
+    ``--force``: checked before any work."""
+    from .budget import LONG_RUN_S, check_time, time_run_seconds
+    from ..studies.time_reference import run_spec
+    _, duration, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude,
+                                                      frequency=args.frequency)
+    method = args.method or study_method
+    dt = args.dt or (study_dt if method in ("rk4", "paper") else None)
+    seconds, what, _ = time_run_seconds(scene, duration, dt, method)
+    if duration > LONG_RUN_S or not (dt or scene.sensors.sample_time):
+        knob, got = (f"studies.{args.study}.duration" if args.study else "duration"), duration
+    elif args.dt:
+        knob, got = "--dt", args.dt
+    elif dt:
+        knob, got = f"studies.{args.study}.sample_time", dt
+    else:
+        knob, got = "sensors.sample_time", scene.sensors.sample_time
+    got = f"{got:g} s"
+    check_time(seconds, knob, what, got, args.force)
+
+
 def run(args) -> int:
     """Run the command."""
     from ..sim.result import check_trace_path
@@ -63,6 +86,7 @@ def run(args) -> int:
         # a bad frequency or a --dt the method would ignore: one line, before any work
         _, _, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
         method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
+        check_budget(scene, args, amplitude)
         prepare_kernels(scene, paper=method == "paper")
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study

@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
-from .common import add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -25,6 +25,7 @@ def register(sub) -> None:
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
                    help="run the dwells in N processes (at least 1; default: in this process)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -37,8 +38,8 @@ def _run_mechanism(scene, name, args) -> int:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
                          f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
     if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as pool:
+        from ..core.parallel import process_pool
+        with process_pool(args.workers) as pool:
             res = run_study(scene, name, executor=pool)
     else:
         res = run_study(scene, name)
@@ -59,6 +60,22 @@ def _sweep(scene, name, **options):
     return sweep(scene, None, **options)
 
 
+def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs: int = 1, option="--frequency"):
+    """Refuse sine dwells estimated beyond the work budget unless ``force`` (before any work);
+    the knob named is ``--frequency`` when given, else the study's ``frequencies``."""
+    from .budget import check_time, sweep_seconds
+    from ..studies.sweep_points import study_points
+    name, freqs, amps = study_points(scene, study)
+    freqs = frequencies or freqs
+    amps = amplitudes or amps
+    seconds, what = sweep_seconds(scene, freqs, amps, runs)
+    knob = option if frequencies else f"studies.{name}.frequencies" if name else option
+    from ..studies.sine_dwell import DwellPlan
+    from ..studies.sweep_points import check_sweep_frequencies
+    check_sweep_frequencies(scene, freqs, knob, DwellPlan())  # a frequency no dwell resolves: its own rule first
+    check_time(seconds, knob, what, f"{len(freqs)} frequencies x {len(amps)} amplitudes", force)
+
+
 def run(args) -> int:
     """Run the command."""
     scene = load_scene(args.scene)
@@ -72,12 +89,13 @@ def run(args) -> int:
         if is_mechanism_study(scene, name):
             return _run_mechanism(scene, name, args)
     amps = amplitudes_si(scene, args.amplitude)
+    check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     try:
         if args.workers > 1:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(args.workers) as pool:
+            from ..core.parallel import process_pool
+            with process_pool(args.workers) as pool:
                 res = _sweep(scene, args.study, executor=pool, **kw)
         else:
             res = _sweep(scene, args.study, **kw)

@@ -20,6 +20,27 @@ def add_json(parser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def add_force(parser) -> None:
+    """Add ``--force``: run beyond the work budget (:mod:`servo_toolkit.cli.budget`)."""
+    from .budget import TIME_BUDGET_S
+    parser.add_argument("--force", action="store_true",
+                        help=f"run even when the work is estimated beyond the budget ({TIME_BUDGET_S / 60:.0f} min on "
+                             "2 cores, or 4 GiB for one array); without it such a run is refused before it starts, "
+                             "naming the option or scene key that sets its size")
+
+
+def check_robustness_budget(scene, spec, robust_design: bool, samples_option, force: bool) -> None:
+    """Refuse a ``[robustness]`` study (``spec``, a Robustness or None) estimated beyond the
+    work budget unless ``force``; the knob named is ``--samples`` when the command line set
+    the count, else the scene's ``robustness.samples``."""
+    if spec is None:
+        return
+    from .budget import check_time, robustness_seconds
+    seconds, what = robustness_seconds(scene, spec, robust_design)
+    knob = "--samples" if samples_option is not None else "robustness.samples"
+    check_time(seconds, knob, what, spec.samples, force)
+
+
 def emit(args, result, text: str) -> None:
     """Print JSON (``--json``) or the text table on stdout."""
     if getattr(args, "json", False):

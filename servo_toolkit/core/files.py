@@ -210,16 +210,15 @@ def atomic_file(path, key: str = "--output"):
     """
     target = Path(path)
     parent = target.parent
-    while True:
-        tmp = _temp_name(parent, f".{target.name}.", target.suffix)
-        try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
-            break
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
+    tmp = None
     try:
+        while True:  # named before it exists: a signal right after its creation still removes it
+            tmp = _temp_name(parent, f".{target.name}.", target.suffix)
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
+                break
+            except FileExistsError:
+                continue
         with contextlib.suppress(FileNotFoundError):
             old = os.stat(target)
             if stat.S_ISREG(old.st_mode):
@@ -228,7 +227,7 @@ def atomic_file(path, key: str = "--output"):
         _fsync(tmp)
         os.replace(tmp, target)
     except BaseException as exc:
-        with contextlib.suppress(OSError):
+        with contextlib.suppress(OSError, TypeError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None

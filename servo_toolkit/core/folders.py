@@ -143,19 +143,21 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         ``key``: an OSError while writing or publishing.
     """
     target = Path(path).absolute()
+    tmp = None
     try:
-        if parents:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        while True:
-            tmp = _temp_name(target.parent, f".{target.name}.")
-            try:
-                os.mkdir(tmp, 0o777)
-                break
-            except FileExistsError:
-                continue
-    except OSError as exc:
-        raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
-    try:
+        try:
+            if parents:
+                target.parent.mkdir(parents=True, exist_ok=True)
+            while True:
+                tmp = _temp_name(target.parent, f".{target.name}.")  # named before it exists: a signal
+                try:                                                  # after mkdir still removes it
+                    os.mkdir(tmp, 0o777)
+                    break
+                except FileExistsError:
+                    continue
+        except OSError as exc:
+            tmp = None
+            raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         yield Path(tmp)
         for root, _, names in os.walk(tmp):
             for name in names:
@@ -164,7 +166,8 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
         with _signals_deferred():
             _publish(tmp, target, key)
     except BaseException as exc:
-        _remove(tmp)
+        if tmp is not None:
+            _remove(tmp)
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise

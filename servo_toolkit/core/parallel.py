@@ -24,7 +24,8 @@ def run_cases(function: Callable, cases: Sequence, *, executor=None, progress: b
         dask clusters).
     cases : sequence
     executor : concurrent.futures.Executor, optional
-        E.g. ``ProcessPoolExecutor()`` or a dask ``Client.get_executor()``; None runs here.
+        E.g. :func:`process_pool` (a ``ProcessPoolExecutor`` with spawned workers) or a dask
+        ``Client.get_executor()``; None runs here.
     progress : bool
         Show a tqdm progress bar (stderr in a terminal, a widget in Jupyter); it advances as
         cases finish, in whatever order they finish.
@@ -70,6 +71,28 @@ def run_cases(function: Callable, cases: Sequence, *, executor=None, progress: b
         return [r for chunk in out for r in chunk]
     finally:
         bar.close()
+
+
+def process_pool(workers: int) -> cf.ProcessPoolExecutor:
+    """A process pool of ``workers`` processes started with the ``spawn`` method.
+
+    ``fork`` (Linux's default) copies a process whose OpenMP / BLAS / numba threads are
+    already running, and GNU OpenMP aborts the child ("fork() called from a process already
+    using GNU OpenMP"): the pool breaks. Spawned workers import the toolkit afresh (and load
+    the compiled kernels from their cache), which is safe with every threaded library.
+
+    Parameters
+    ----------
+    workers : int
+        Number of processes (at least 1).
+
+    Returns
+    -------
+    concurrent.futures.ProcessPoolExecutor
+    """
+    import multiprocessing
+
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
 
 
 def chunks(items: Sequence, size: int) -> Iterable[Sequence]:

@@ -86,10 +86,11 @@ def _intervals(jac, resid, dof):
         if sv[-1] <= 1e-10 * sv[0]:
             singular[idx] = True
         else:
-            cov = s2 * np.linalg.inv(jtj)
-            sd = np.sqrt(np.diag(cov))
-            half[idx] = stats.t.ppf(0.975, dof) * sd
-            corr[np.ix_(idx, idx)] = cov / np.outer(sd, sd)
+            inv = np.linalg.inv(jtj)
+            d = np.sqrt(np.abs(np.diag(inv)))
+            half[idx] = stats.t.ppf(0.975, dof) * math.sqrt(s2) * d
+            # the correlation does not depend on s^2 (an exact fit has s^2 = 0)
+            corr[np.ix_(idx, idx)] = np.clip(inv / np.outer(d, d), -1.0, 1.0)
     return half, corr, singular
 
 
@@ -185,7 +186,8 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
     jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
     half, corr, singular = _intervals(jac, sol.fun, dof)
     values = x0 * np.exp(sol.x)
-    ci = np.column_stack([values * np.exp(-half), values * np.exp(half)])
+    with np.errstate(over="ignore"):  # two parameters in series: a half-width of hundreds of nepers
+        ci = np.column_stack([values * np.exp(-half), values * np.exp(half)])
     ci[singular] = [0.0, math.inf]
     keys = [p.key for p in template.parameters]
     warnings = []
@@ -196,7 +198,7 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None)
         elif singular[j]:
             warnings.append(f"{key}: the data cannot identify it (no independent influence on the response); "
                             "kept near its initial value")
-        elif math.sinh(half[j]) > MAX_RELATIVE_INTERVAL:
+        elif half[j] > math.asinh(MAX_RELATIVE_INTERVAL):  # sinh(half) overflows for a wide one
             warnings.append(f"{key}: the data cannot identify it (95 % interval wider than "
                             f"+-{100 * MAX_RELATIVE_INTERVAL:.0f} % of the value)")
         if abs(sol.x[j]) > 0.999 * bound:

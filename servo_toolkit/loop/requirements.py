@@ -87,6 +87,10 @@ RULES = {
     "sensitivity_peak": (0.0, False, None),
 }
 
+#: the bandwidths a loop design can aim at (Hz): the design and its checks evaluate the loop
+#: on a frequency grid from 0.01 Hz to 5 kHz (a 10 kHz controller's Nyquist limit)
+BANDWIDTH_RANGE = (0.01, 5000.0)
+
 
 def validate(name: str, value: float, key: str | None = None) -> float:
     """``value`` (display units) if it is a valid requirement ``name``, else SceneError.
@@ -103,8 +107,8 @@ def validate(name: str, value: float, key: str | None = None) -> float:
     Raises
     ------
     SceneError
-        NaN, infinite, not positive (a gain margin: negative), or a phase margin of 180 deg
-        or more.
+        NaN, infinite, not positive (a gain margin: negative), a phase margin of 180 deg
+        or more, or a bandwidth outside :data:`BANDWIDTH_RANGE`.
     """
     key = key or f"require.{name}"
     unit = SPECS[name][2]
@@ -122,6 +126,9 @@ def validate(name: str, value: float, key: str | None = None) -> float:
     if hi is not None and not value < hi:
         raise SceneError(key, f"must be below {hi:g} {unit}: a {name.replace('_', ' ')} lies in "
                               f"[-180, 180) {unit} (got {value:g} {unit})")
+    if name == "bandwidth" and not BANDWIDTH_RANGE[0] <= value <= BANDWIDTH_RANGE[1]:
+        raise SceneError(key, f"must lie in [{BANDWIDTH_RANGE[0]:g}, {BANDWIDTH_RANGE[1]:g}] Hz, the frequencies "
+                              f"the loop design evaluates (got {value:g} {unit})")
     return float(value)
 
 

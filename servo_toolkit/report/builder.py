@@ -158,11 +158,10 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         compile_kernels(paper=True, batch=scene.robustness is not None)
     built = []
     steps = list(SECTIONS) + [REQUIREMENTS]
-    bar = tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False)
-    for key, title, builder in bar:
-        bar.set_postfix_str(title[:40])
-        built.append(run_section(key, title, builder, ctx, section_time_limit))
-    bar.close()
+    with tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False) as bar:
+        for key, title, builder in bar:
+            bar.set_postfix_str(title[:40])
+            built.append(run_section(key, title, builder, ctx, section_time_limit))
     req_section = built.pop()
     try:
         rows = tuple(loop.requirement_rows(ctx))
@@ -209,10 +208,9 @@ def write_report(report: Report, out_dir, progress: bool = False, key: str = "ou
     n_fig = sum(len(s.figures) for s in report.sections)
     bar = tqdm(total=2 * n_fig, desc="writing", unit="figure", disable=not progress, file=sys.stderr,
                leave=False)
-    with atomic_folder(out, key, parents=True) as tmp:
+    with bar, atomic_folder(out, key, parents=True) as tmp:  # the bar's line is cleared on Ctrl-C too
         bar.set_postfix_str("index.html")
         (tmp / "index.html").write_text(render_html(report, tick=bar.update), encoding="utf-8")
         bar.set_postfix_str("report.pdf")
         write_pdf(report, tmp / "report.pdf", tick=bar.update)
-    bar.close()
     return {"html": out / "index.html", "pdf": out / "report.pdf"}

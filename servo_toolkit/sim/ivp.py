@@ -21,6 +21,9 @@ from .kernel import controller_sample, rhs
 
 #: default budget of right-hand-side evaluations for one reference solve
 MAX_RHS_EVALS = 3_000_000
+#: most controller samples (solver restarts) one reference solve may plan: about an hour and a
+#: half of restarts, and their edge times fit in 400 MB
+MAX_SEGMENTS = 50_000_000
 
 
 class _Budget(Exception):
@@ -100,6 +103,11 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
     ts = model.sample_time if P[lo.CMODE] == lo.SAMPLED else 0.0
     t0, t1 = t_out[0], t_out[-1]
     if ts > 0:
+        if not (t1 - t0) / ts <= MAX_SEGMENTS:
+            raise SimulationError(f"the reference solver restarts at every controller sample: {t1 - t0:g} s at a "
+                                  f"sample time of {ts:g} s is {(t1 - t0) / ts:.3g} restarts, more than the "
+                                  f"{MAX_SEGMENTS:.0e} one run may take: a larger sensors.sample_time or a "
+                                  "shorter duration")
         n_seg = int(np.ceil((t1 - t0) / ts - 1e-9))
         edges = t0 + ts * np.arange(n_seg + 1)
         edges[-1] = t1

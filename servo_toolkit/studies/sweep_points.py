@@ -16,6 +16,10 @@ DEFAULT_FREQUENCY_HZ = REQUIREMENT_SINE_HZ
 DEFAULT_AMPLITUDE = math.radians(REQUIREMENT_SINE_DEG)
 
 
+#: most frequencies a sweep study's ``{start, stop, points}`` table may give
+MAX_POINTS = 100_000
+
+
 def study_points(scene, study=None):
     """``(name, frequencies_hz, amplitudes_rad)`` of a sweep study.
 
@@ -55,6 +59,8 @@ def study_points(scene, study=None):
         except KeyError as exc:
             raise SceneError(study.key("frequencies"), f"missing {exc.args[0]!r} (start, stop, points)") from None
         spacing = spec.get("spacing", "log")
+        if n > MAX_POINTS:
+            raise SceneError(study.key("frequencies"), f"at most {MAX_POINTS} points (got {n})")
         if spacing not in ("log", "linear") or not 0 < lo_ < hi or n < 1:
             raise SceneError(study.key("frequencies"), "needs 0 < start < stop, points >= 1, "
                              "spacing 'log' or 'linear'")
