@@ -60,6 +60,8 @@ def build_parser(only=None) -> argparse.ArgumentParser:
     """
     parser = _OneLineParser(prog="servo-toolkit",
                             description="Servo control design for electromechanical actuators.")
+    from ..core.version import __version__
+    parser.add_argument("--version", action="version", version=f"servo-toolkit {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_OneLineParser)
     for name, help_text in COMMANDS.items():
         if only is None or name == only:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 from collections.abc import Callable, Iterable, Sequence
 
-from tqdm.auto import tqdm
+from .progress import progress_bar
 
 
 def _apply_chunk(function: Callable, chunk: Sequence) -> list:
@@ -49,7 +49,7 @@ def run_cases(function: Callable, cases: Sequence, *, executor=None, progress: b
     cases = list(cases)
     if chunksize < 1:
         raise ValueError(f"chunksize must be >= 1, got {chunksize}")
-    bar = tqdm(total=len(cases), desc=description, disable=not progress or len(cases) < 2, leave=False)
+    bar = progress_bar(total=len(cases), show=bool(progress) and len(cases) >= 2, desc=description, leave=False)
     try:
         if executor is None:
             results = []

@@ -44,7 +44,7 @@ from dataclasses import replace
 import control as ct
 import numpy as np
 from scipy.optimize import minimize
-from tqdm.auto import tqdm
+from ..core.progress import progress_bar
 
 from .controller import CascadeController
 from ..plant.linear import sample_delay, spring_damping
@@ -234,7 +234,7 @@ def _coarse(search: _Search, progress: bool):
     rows = []
     combos = [(f, fp, r, q) for f, fp in search.filters() for r in FV_RATIOS for q in WVI_RATIOS]
     kps = KP_SCAN * 2 * math.pi * search.f_req
-    for filt, fp, r, q in tqdm(combos, desc="robust design: scan", disable=not progress, leave=False):
+    for filt, fp, r, q in progress_bar(combos, show=progress, desc="robust design: scan", leave=False):
         m = search.motion(1.0, r * search.f_req, q, filt, fp)
         sc = search.score(search.loops(m, kps))
         rows += [(float(sc[i]), filt, fp, r * search.f_req, q, float(kps[i])) for i in range(len(kps))]
@@ -320,7 +320,7 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
     search = _Search(scene, p, nominal, robust, current_gains, sample_time, structural_damping)
     search.set_variants(design_grid(spec, scene.load.inertia))
     rows = _coarse(search, progress)
-    bar = tqdm(total=rounds + 1, desc="robust design: refine", disable=not progress, leave=False)
+    bar = progress_bar(total=rounds + 1, show=progress, desc="robust design: refine", leave=False)
     best = None
     for start in _starts(search, rows):
         cand = _refine(search, start)

@@ -6,7 +6,7 @@ import datetime as _dt
 import sys
 from dataclasses import dataclass
 
-from tqdm.auto import tqdm
+from ..core.progress import progress_bar
 
 from ..errors import SceneError
 from . import sections_drivetrain as drv
@@ -158,7 +158,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         compile_kernels(paper=True, batch=scene.robustness is not None)
     built = []
     steps = list(SECTIONS) + [REQUIREMENTS]
-    with tqdm(steps, desc="report", unit="section", disable=not progress, file=sys.stderr, leave=False) as bar:
+    with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:
         for key, title, builder in bar:
             bar.set_postfix_str(title[:40])
             built.append(run_section(key, title, builder, ctx, section_time_limit))
@@ -206,7 +206,7 @@ def write_report(report: Report, out_dir, progress: bool = False, key: str = "ou
     from .pdf_writer import write_pdf
     out = check_report_folder(out_dir, key, parents=True)
     n_fig = sum(len(s.figures) for s in report.sections)
-    bar = tqdm(total=2 * n_fig, desc="writing", unit="figure", disable=not progress, file=sys.stderr,
+    bar = progress_bar(total=2 * n_fig, show=progress, desc="writing", unit="figure", file=sys.stderr,
                leave=False)
     with bar, atomic_folder(out, key, parents=True) as tmp:  # the bar's line is cleared on Ctrl-C too
         bar.set_postfix_str("index.html")

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
-from tqdm.auto import tqdm
+from ..core.progress import progress_bar
 
 from ..errors import SimulationError
 from . import layout as lo
@@ -116,7 +116,7 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
     work = np.empty(max(model.nx, 1))
     show = (len(edges) > 2000) if progress is None else progress
     k_out = 0
-    for k in tqdm(range(len(edges) - 1), disable=not show, desc="reference solve", leave=False):
+    for k in progress_bar(range(len(edges) - 1), show=show, desc="reference solve", leave=False):
         a, b = edges[k], edges[k + 1]
         if ts > 0:
             box[0] = controller_sample(a, x, P, model.T, work)

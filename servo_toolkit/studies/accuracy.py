@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from tqdm.auto import tqdm
+from ..core.progress import progress_bar
 
 from ..errors import SimulationError
 from ..sim.engine import run
@@ -140,7 +140,7 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
         max(np.ptp(q_ref) / 2, 1e-12)
     runs, qs = [], {"rk4": [], "paper": []}
     for method in ("rk4", "paper"):
-        for dt in tqdm(dts, desc=f"accuracy {method}", disable=not progress, leave=False):
+        for dt in progress_bar(dts, show=progress, desc=f"accuracy {method}", leave=False):
             try:
                 r = run(model, reference, duration, method, dt, output_dt=out_dt)
             except SimulationError as exc:  # a step outside the scheme's stability region: a failed rung

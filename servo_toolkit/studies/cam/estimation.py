@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
-from tqdm.auto import tqdm
+from ...core.progress import progress_bar
 
 from ...errors import SceneError, SimulationError
 from ...loop.encoder_estimators import (EstimationComparison, Estimate, KalmanEstimator, compare_estimators,
@@ -109,7 +109,7 @@ def kalman_scheme(drive, voltage: float, duration: float, step: float, scheme: s
     kf = KalmanEstimator(h, q, jerk, position=0.0)
     est_x[0] = kf.step(0)
     load, inertia = mf, jm
-    for k in tqdm(range(n), disable=not progress, desc="cam scheme (Kalman)"):
+    for k in progress_bar(range(n), show=progress, desc="cam scheme (Kalman)"):
         w = omega[k]
         wn = kernels.speed_step(p, u, w, load, inertia, h)
         if not math.isfinite(wn):
