@@ -285,7 +285,7 @@ def test_report_never_swaps_away_its_input(tmp_path, capsys, quick_report):
 
 def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypatch):
     """Without renameat2 the swap takes two renames; Ctrl-C between them waits for both."""
-    monkeypatch.setattr(files, "_exchange", lambda a, b: "unsupported")
+    monkeypatch.setattr(folders, "_exchange", lambda a, b: "unsupported")
     real_rename = os.rename
     sent = []
 
@@ -309,7 +309,7 @@ def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypat
 def test_two_writers_leave_one_complete_set(tmp_path, monkeypatch, exchange):
     from servo_toolkit.export.writer import FILES, write_files
     if not exchange:
-        monkeypatch.setattr(files, "_exchange", lambda a, b: "unsupported")
+        monkeypatch.setattr(folders, "_exchange", lambda a, b: "unsupported")
     out = tmp_path / "ctrl"
     start = threading.Barrier(6)
     errors = []
@@ -350,7 +350,7 @@ def test_a_failure_while_publishing_an_export_keeps_the_old_set(tmp_path, monkey
     from servo_toolkit.export.writer import FILES, write_files
     out = tmp_path / "ctrl"
     write_files(out, {name: "old" for name in FILES})
-    monkeypatch.setattr(files, "_exchange", lambda a, b: "unsupported")
+    monkeypatch.setattr(folders, "_exchange", lambda a, b: "unsupported")
     calls = []
 
     def failing(real):

@@ -2,7 +2,6 @@
 
 import json
 import math
-import time
 import warnings
 import xml.etree.ElementTree as ET
 
@@ -175,10 +174,8 @@ def test_check_reports_the_stroke_row(tmp_path, capsys):
     assert "stable_over_stroke" in names
 
 
-def test_stroke_check_is_fast_and_validates_points(ema, ema_design):
-    t = time.perf_counter()
+def test_stroke_check_validates_points(ema, ema_design):
     s = stroke_check(ema, ema_design.controller, ema_design.q0, points=37)
-    assert time.perf_counter() - t < 1.5  # ~0.1 s: one grid, closed-form responses, small eigvals
     assert s.q.size >= 37
     with pytest.raises(SceneError, match="stroke_points"):
         stroke_check(ema, ema_design.controller, 0.0, points=1)

@@ -159,6 +159,8 @@ def test_ctrl_c_is_one_line_and_exit_130():
     import time
     # 100,000 closed-loop variants run for minutes: the interrupt lands inside the work
     # (between two chunks of compiled runs) however warm the compiled-code cache is
+    warm = _cli(["montecarlo", str(SCENES / "ema_reference.toml"), "--samples", "8"], stdout=subprocess.DEVNULL)
+    warm.communicate(timeout=900)  # the compiled code is loaded (or compiled) before the interrupt
     proc = _cli(["montecarlo", str(SCENES / "ema_reference.toml"), "--samples", "100000"],
                 stdout=subprocess.DEVNULL)
     time.sleep(5.0)
