@@ -136,7 +136,7 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     """
     dt = scene.drivetrain
     q0 = dt.mid_stroke if q0 is None else float(q0)
-    split = dt.two_mass_split([q0])
+    split = dt.chain.two_mass([q0])
     n = float(dt.ratio([q0])[0][0])
     motor, load = scene.motor, scene.load
     J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])

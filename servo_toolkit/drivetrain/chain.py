@@ -1,0 +1,290 @@
+"""One lumped model of the drivetrain: every inertia at its node, every compliance, lash and
+loss at its place.
+
+The chain is built once from a drivetrain, as Simscape Driveline and
+Modelica.Mechanics.Rotational build theirs: inertias joined by spring-dampers and ideal,
+lossy gears. Walking the stages from the motor to the load,
+
+- the motor rotor sits on node 0;
+- a stage's *input members* (``Element.member == "input"``: the first gear of a gear train,
+  a screw, the rod end at the nut) stay on the current node, on the motor side of the stage's
+  compliance and before its loss (a pinion turning with the motor stays on the motor side
+  of its mesh spring);
+- each compliance of the stage (gear mesh, screw/nut axial, rod, housing, coupling) ends the
+  current node: the spring joins it to a new node;
+- the stage's loss follows (its efficiency acts on the torque transmitted through the stage);
+- its *output members* (the gear wheel, the nut, the rocker arm and output shaft) sit on the
+  node after the spring. A gear wheel of a rigid gear followed by a compliant shaft is thus
+  on the motor side of that shaft;
+- the load sits on the last node.
+
+Coordinates: every node's coordinate is referred to the output coordinate q (with the springs
+undeflected every node moves as q). An element of inertia m moving with u(q) adds
+m (du/dq)^2 to its node's inertia; a spring of stiffness k on coordinate u acts between its
+two nodes with k (du/dq)^2 (seed 001, eq 8). Hence the mass matrix M(q) (diagonal) and the
+stiffness matrix K(q) (tridiagonal) of the n-node chain at q. A node without inertia (two
+springs in series) is condensed statically.
+
+Losses: element e lies beyond the losses of the stages before it (and of its own stage when
+it is an output member); Pi_e is the product of their forward efficiencies. With the motor
+driving the load, the torque equation of a rigid chain is
+sum_e J_e (eta / Pi_e) q'' = eta N tau_shaft + M_ext: the loss never acts on the torque that
+accelerates the rotor itself (Modelica's LossyGear).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from .elements import STIFFNESS_UNIT, stage_units
+
+#: scene key of a stage's free play, by stage class (error messages)
+_LASH_KEYS = {"Cam": "clearance"}
+#: node inertias at or below this fraction of the total are condensed statically
+_MASSLESS = 1e-12
+
+
+@dataclass(frozen=True)
+class TwoMassSplit:
+    """Motor-side and load-side inertia (reflected to the output) and the series stiffness
+    between them, arrays over q (kg*m^2, kg*m^2, N*m/rad; kg and N/m for an output travel);
+    ``spring`` names the most compliant spring where the chain is split (empty when the chain
+    is rigid)."""
+
+    motor_side: np.ndarray
+    load_side: np.ndarray
+    stiffness: np.ndarray
+    spring: tuple
+
+
+@dataclass(frozen=True)
+class ChainElement:
+    """An inertial element at its node: ``stage`` -1 for the rotor, ``len(stages)`` for the
+    load; ``loss`` is Pi_e, the product of the forward efficiencies before it."""
+
+    label: str
+    stage: int
+    node: int
+    loss: float
+
+
+@dataclass(frozen=True)
+class ChainSpring:
+    """A compliance between ``nodes`` (i, i + 1): its own stiffness in ``unit``."""
+
+    label: str
+    stage: int
+    stiffness: float
+    unit: str
+    nodes: tuple
+
+
+@dataclass(frozen=True)
+class ChainLash:
+    """A free play at its place: ``spring`` is the index of the compliance it sits in, None for
+    a lash in a rigid stage; ``key`` is its scene key (``drivetrain[i].backlash``)."""
+
+    label: str
+    stage: int
+    lash: float
+    key: str
+    spring: int | None
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The lumped chain of a drivetrain (see the module docstring).
+
+    Attributes
+    ----------
+    drivetrain : Drivetrain
+    elements : tuple of ChainElement
+        In the order of ``drivetrain.kinematics(q).elements``.
+    springs : tuple of ChainSpring
+        Motor side first; spring i joins nodes i and i + 1.
+    lashes : tuple of ChainLash
+    n_nodes : int
+    """
+
+    drivetrain: object
+    elements: tuple
+    springs: tuple
+    lashes: tuple
+    n_nodes: int
+
+    @classmethod
+    def from_drivetrain(cls, drivetrain) -> "Chain":
+        """Place every element, spring, lash and loss of ``drivetrain``."""
+        kin = drivetrain.kinematics([drivetrain.mid_stroke])
+        stages = drivetrain.stages
+        units = stage_units(stages)[1]
+        owner = np.asarray(kin.element_stage)
+        spring_owner = list(kin.spring_stage)
+        node, eff = 0, 1.0
+        placed = {}
+        springs, lashes = [], []
+        for k, stage in enumerate(stages):
+            mine = [i for i in np.flatnonzero(owner == k)]
+            for i in mine:
+                if kin.elements[i].member == "input":
+                    placed[i] = (node, eff)
+            for j in [j for j, s in enumerate(spring_owner) if s == k]:
+                springs.append(ChainSpring(kin.springs[j].label, k, kin.springs[j].stiffness,
+                                           STIFFNESS_UNIT[units[k]], (node, node + 1)))
+                node += 1
+            eff *= float(getattr(stage, "efficiency", 1.0))
+            for i in mine:
+                if i not in placed:
+                    placed[i] = (node, eff)
+            at = len(springs) - 1 if spring_owner.count(k) else None
+            key = f"drivetrain[{k}].{_LASH_KEYS.get(type(stage).__name__, 'backlash')}"
+            lashes += [ChainLash(b.label, k, b.lash, key, at) for b in stage.lashes(np.zeros(1))]
+        elements = []
+        for i, e in enumerate(kin.elements):
+            if owner[i] < 0:
+                where = (0, 1.0)  # the rotor
+            elif owner[i] >= len(stages):
+                where = (node, eff)  # the load
+            else:
+                where = placed[i]
+            elements.append(ChainElement(e.label, int(owner[i]), *where))
+        return cls(drivetrain, tuple(elements), tuple(springs), tuple(lashes), node + 1)
+
+    # --- along the stroke ---------------------------------------------------------------
+
+    @property
+    def rigid(self) -> bool:
+        """True when the chain has no compliance."""
+        return not self.springs
+
+    @property
+    def rigid_lashes(self) -> tuple:
+        """Lashes in stages without a compliance of their own."""
+        return tuple(b for b in self.lashes if b.spring is None)
+
+    def element_inertias(self, q) -> np.ndarray:
+        """Each element's inertia reflected to q, m_e (du_e/dq)^2, shape (n_elements, n_q)."""
+        kin = self.drivetrain.kinematics(q)
+        return np.array([e.inertia * e.u.d1**2 for e in kin.elements])
+
+    def node_inertias(self, q) -> np.ndarray:
+        """Each node's inertia at q, shape (n_nodes, n_q)."""
+        j = self.element_inertias(q)
+        out = np.zeros((self.n_nodes, j.shape[1]))
+        for e, row in zip(self.elements, j):
+            out[e.node] += row
+        return out
+
+    def spring_stiffness(self, q) -> np.ndarray:
+        """Each spring reflected to q, k (du/dq)^2, shape (n_springs, n_q)."""
+        kin = self.drivetrain.kinematics(q)
+        return np.array([s.stiffness * s.u.d1**2 for s in kin.springs]).reshape(len(self.springs), -1)
+
+    def loss_inertia(self, q) -> np.ndarray:
+        """J_w(q) = sum_e J_e (1 - eta / Pi_e) / (1 - eta): the inertia whose torque the
+        losses do not see, as a share of the chain's loss (eta the product of every stage's
+        forward efficiency). Driving, the chain's inertia at q is J - (1 - eta) J_w; with one
+        lossy stage J_w is the inertia before its loss (the rotor and the input members).
+        Zero for a lossless chain."""
+        eta = float(np.prod([getattr(s, "efficiency", 1.0) for s in self.drivetrain.stages]))
+        j = self.element_inertias(q)
+        if eta >= 1.0:
+            return np.zeros(j.shape[1])
+        weight = np.array([(1.0 - eta / e.loss) / (1.0 - eta) for e in self.elements])
+        return weight @ j
+
+    # --- at one operating point -----------------------------------------------------------
+
+    def mass_matrix(self, q: float) -> np.ndarray:
+        """M(q): the node inertias on the diagonal, shape (n_nodes, n_nodes)."""
+        return np.diag(self.node_inertias([q])[:, 0])
+
+    def stiffness_matrix(self, q: float) -> np.ndarray:
+        """K(q): each spring k_s between its nodes, shape (n_nodes, n_nodes)."""
+        K = np.zeros((self.n_nodes, self.n_nodes))
+        for s, k in zip(self.springs, self.spring_stiffness([q])[:, 0]):
+            a, b = s.nodes
+            K[a, a] += k
+            K[b, b] += k
+            K[a, b] -= k
+            K[b, a] -= k
+        return K
+
+    def condensed(self, q: float):
+        """``(M, K, nodes)``: the matrices with every node without inertia condensed
+        statically (K_aa - K_ab K_bb^-1 K_ba); ``nodes`` are the kept node indices."""
+        M, K = self.mass_matrix(q), self.stiffness_matrix(q)
+        m = np.diag(M)
+        keep = np.flatnonzero(np.abs(m) > _MASSLESS * np.sum(np.abs(m)))
+        drop = np.setdiff1d(np.arange(self.n_nodes), keep)
+        if drop.size:
+            K = K[np.ix_(keep, keep)] - K[np.ix_(keep, drop)] @ np.linalg.solve(
+                K[np.ix_(drop, drop)], K[np.ix_(drop, keep)])
+        return M[np.ix_(keep, keep)], K, keep
+
+    def eigenfrequencies(self, q: float) -> np.ndarray:
+        """Undamped modes of the free chain (rad/s, ascending), the rigid-body mode left
+        out: det(K - w^2 M) = 0."""
+        if self.rigid:
+            return np.zeros(0)
+        M, K, _ = self.condensed(q)
+        w2 = np.sort(linalg.eigh(K, M, eigvals_only=True))[1:]
+        return np.sqrt(np.clip(w2, 0.0, None))
+
+    def antiresonances(self, q: float) -> np.ndarray:
+        """Modes with the motor node held (rad/s, ascending): the zeros of the motor speed's
+        response to the motor torque."""
+        if self.rigid:
+            return np.zeros(0)
+        M, K, _ = self.condensed(q)
+        return np.sqrt(np.clip(np.sort(linalg.eigh(K[1:, 1:], M[1:, 1:], eigvals_only=True)), 0.0, None))
+
+    # --- reductions -----------------------------------------------------------------------
+
+    def two_mass(self, q) -> TwoMassSplit:
+        """Two-mass reduction: the chain split at its most compliant spring.
+
+        At each q, the spring with the largest share of the series compliance divides the
+        nodes: those before it are the motor side, those after it the load side (each
+        element on its own node, so a pinion stays with the motor). The series stiffness of
+        every spring (their static condensation) acts between the two inertias. Exact for
+        a chain with one compliance; J_motor_side + J_load_side = J(q).
+        """
+        nodes = self.node_inertias(q)
+        n_q = nodes.shape[1]
+        if self.rigid:
+            return TwoMassSplit(nodes.sum(axis=0), np.zeros(n_q), np.full(n_q, np.inf), ("",) * n_q)
+        k = self.spring_stiffness(q)
+        compliance = 1.0 / k
+        worst = np.argmax(compliance, axis=0)
+        last_motor_node = np.array([self.springs[w].nodes[0] for w in worst])
+        motor = np.arange(self.n_nodes)[:, None] <= last_motor_node[None, :]
+        return TwoMassSplit(np.sum(np.where(motor, nodes, 0.0), axis=0),
+                            np.sum(np.where(motor, 0.0, nodes), axis=0),
+                            1.0 / compliance.sum(axis=0), tuple(self.springs[w].label for w in worst))
+
+    def modal_two_mass(self, q: float) -> tuple[float, float, float]:
+        """``(J1, J2, K)`` of the two-mass model with the chain's total inertia, its lowest
+        resonance w_r and lowest antiresonance w_a: J1 = J w_a^2 / w_r^2, K = w_a^2 J2."""
+        total = float(self.node_inertias([q]).sum())
+        if self.rigid:
+            return total, 0.0, math.inf
+        wr, wa = self.eigenfrequencies(q)[0], self.antiresonances(q)[0]
+        j1 = total * (wa / wr) ** 2
+        return j1, total - j1, wa**2 * (total - j1)
+
+    def describe(self) -> list[str]:
+        """One line per node: its elements, and the spring after it."""
+        lines = []
+        for n in range(self.n_nodes):
+            names = [e.label for e in self.elements if e.node == n] or ["(no inertia)"]
+            lines.append(f"node {n}: " + ", ".join(names))
+            lines += [f"  spring {s.label} ({s.unit})" for s in self.springs if s.nodes[0] == n]
+        return lines
+
+
+__all__ = ["Chain", "ChainElement", "ChainLash", "ChainSpring", "TwoMassSplit"]
