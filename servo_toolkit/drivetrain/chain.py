@@ -10,9 +10,10 @@ lossy gears. Walking the stages from the motor to the load,
   a screw, the rod end at the nut) stay on the current node, on the motor side of the stage's
   compliance and before its loss (a pinion turning with the motor stays on the motor side
   of its mesh spring);
+- the stage's loss acts on the torque its input members pass on (its efficiency on the
+  torque transmitted through the stage, never on the torque accelerating what is before it);
 - each compliance of the stage (gear mesh, screw/nut axial, rod, housing, coupling) ends the
   current node: the spring joins it to a new node;
-- the stage's loss follows (its efficiency acts on the torque transmitted through the stage);
 - its *output members* (the gear wheel, the nut, the rocker arm and output shaft) sit on the
   node after the spring. A gear wheel of a rigid gear followed by a compliant shaft is thus
   on the motor side of that shaft;
@@ -29,7 +30,10 @@ Losses: element e lies beyond the losses of the stages before it (and of its own
 it is an output member); Pi_e is the product of their forward efficiencies. With the motor
 driving the load, the torque equation of a rigid chain is
 sum_e J_e (eta / Pi_e) q'' = eta N tau_shaft + M_ext: the loss never acts on the torque that
-accelerates the rotor itself (Modelica's LossyGear).
+accelerates the rotor itself (Modelica's LossyGear). In general the driving-mode chain is
+the lossless one with each element's inertia weighted by eta / Pi_e and each spring by
+eta / Pi_s (Pi_s the losses before it), the motor torque taken as eta N tau and the output's
+torque as is: multiply each node's equation by eta / Pi to see it.
 """
 
 from __future__ import annotations
@@ -171,18 +175,41 @@ class Chain:
         kin = self.drivetrain.kinematics(q)
         return np.array([e.inertia * e.u.d1**2 for e in kin.elements])
 
-    def node_inertias(self, q) -> np.ndarray:
-        """Each node's inertia at q, shape (n_nodes, n_q)."""
+    @property
+    def efficiency(self) -> float:
+        """eta, the product of every stage's forward efficiency."""
+        return float(np.prod([getattr(s, "efficiency", 1.0) for s in self.drivetrain.stages]))
+
+    def node_inertias(self, q, driving: bool = False) -> np.ndarray:
+        """Each node's inertia at q, shape (n_nodes, n_q).
+
+        ``driving``: each element weighted by eta / Pi_e, the chain the motor drives with the
+        output's torque taken as is and the motor torque as eta N tau (module docstring)."""
         j = self.element_inertias(q)
+        if driving:
+            eta = self.efficiency
+            j = j * np.array([eta / e.loss for e in self.elements])[:, None]
         out = np.zeros((self.n_nodes, j.shape[1]))
         for e, row in zip(self.elements, j):
             out[e.node] += row
         return out
 
-    def spring_stiffness(self, q) -> np.ndarray:
-        """Each spring reflected to q, k (du/dq)^2, shape (n_springs, n_q)."""
+    def spring_stiffness(self, q, driving: bool = False) -> np.ndarray:
+        """Each spring reflected to q, k (du/dq)^2, shape (n_springs, n_q); ``driving``: weighted
+        by eta / Pi of the losses before it (a stage's loss comes before its own spring)."""
         kin = self.drivetrain.kinematics(q)
-        return np.array([s.stiffness * s.u.d1**2 for s in kin.springs]).reshape(len(self.springs), -1)
+        k = np.array([s.stiffness * s.u.d1**2 for s in kin.springs]).reshape(len(self.springs), -1)
+        if driving and self.springs:
+            eta, before = self.efficiency, self.spring_losses()
+            k = k * (eta / before)[:, None]
+        return k
+
+    def spring_losses(self) -> np.ndarray:
+        """Pi of each spring: the product of the forward efficiencies of the losses before it,
+        its own stage's included."""
+        stages = self.drivetrain.stages
+        return np.array([float(np.prod([getattr(st, "efficiency", 1.0) for st in stages[:s.stage + 1]]))
+                         for s in self.springs])
 
     def loss_inertia(self, q) -> np.ndarray:
         """J_w(q) = sum_e J_e (1 - eta / Pi_e) / (1 - eta): the inertia whose torque the
@@ -190,7 +217,7 @@ class Chain:
         forward efficiency). Driving, the chain's inertia at q is J - (1 - eta) J_w; with one
         lossy stage J_w is the inertia before its loss (the rotor and the input members).
         Zero for a lossless chain."""
-        eta = float(np.prod([getattr(s, "efficiency", 1.0) for s in self.drivetrain.stages]))
+        eta = self.efficiency
         j = self.element_inertias(q)
         if eta >= 1.0:
             return np.zeros(j.shape[1])
@@ -199,14 +226,14 @@ class Chain:
 
     # --- at one operating point -----------------------------------------------------------
 
-    def mass_matrix(self, q: float) -> np.ndarray:
+    def mass_matrix(self, q: float, driving: bool = False) -> np.ndarray:
         """M(q): the node inertias on the diagonal, shape (n_nodes, n_nodes)."""
-        return np.diag(self.node_inertias([q])[:, 0])
+        return np.diag(self.node_inertias([q], driving)[:, 0])
 
-    def stiffness_matrix(self, q: float) -> np.ndarray:
+    def stiffness_matrix(self, q: float, driving: bool = False) -> np.ndarray:
         """K(q): each spring k_s between its nodes, shape (n_nodes, n_nodes)."""
         K = np.zeros((self.n_nodes, self.n_nodes))
-        for s, k in zip(self.springs, self.spring_stiffness([q])[:, 0]):
+        for s, k in zip(self.springs, self.spring_stiffness([q], driving)[:, 0]):
             a, b = s.nodes
             K[a, a] += k
             K[b, b] += k
@@ -214,10 +241,10 @@ class Chain:
             K[b, a] -= k
         return K
 
-    def condensed(self, q: float):
+    def condensed(self, q: float, driving: bool = False):
         """``(M, K, nodes)``: the matrices with every node without inertia condensed
         statically (K_aa - K_ab K_bb^-1 K_ba); ``nodes`` are the kept node indices."""
-        M, K = self.mass_matrix(q), self.stiffness_matrix(q)
+        M, K = self.mass_matrix(q, driving), self.stiffness_matrix(q, driving)
         m = np.diag(M)
         keep = np.flatnonzero(np.abs(m) > _MASSLESS * np.sum(np.abs(m)))
         drop = np.setdiff1d(np.arange(self.n_nodes), keep)
@@ -226,26 +253,26 @@ class Chain:
                 K[np.ix_(drop, drop)], K[np.ix_(drop, keep)])
         return M[np.ix_(keep, keep)], K, keep
 
-    def eigenfrequencies(self, q: float) -> np.ndarray:
+    def eigenfrequencies(self, q: float, driving: bool = False) -> np.ndarray:
         """Undamped modes of the free chain (rad/s, ascending), the rigid-body mode left
         out: det(K - w^2 M) = 0."""
         if self.rigid:
             return np.zeros(0)
-        M, K, _ = self.condensed(q)
+        M, K, _ = self.condensed(q, driving)
         w2 = np.sort(linalg.eigh(K, M, eigvals_only=True))[1:]
         return np.sqrt(np.clip(w2, 0.0, None))
 
-    def antiresonances(self, q: float) -> np.ndarray:
+    def antiresonances(self, q: float, driving: bool = False) -> np.ndarray:
         """Modes with the motor node held (rad/s, ascending): the zeros of the motor speed's
         response to the motor torque."""
         if self.rigid:
             return np.zeros(0)
-        M, K, _ = self.condensed(q)
+        M, K, _ = self.condensed(q, driving)
         return np.sqrt(np.clip(np.sort(linalg.eigh(K[1:, 1:], M[1:, 1:], eigvals_only=True)), 0.0, None))
 
     # --- reductions -----------------------------------------------------------------------
 
-    def two_mass(self, q) -> TwoMassSplit:
+    def two_mass(self, q, driving: bool = False) -> TwoMassSplit:
         """Two-mass reduction: the chain split at its most compliant spring.
 
         At each q, the spring with the largest share of the series compliance divides the
@@ -253,17 +280,24 @@ class Chain:
         element on its own node, so a pinion stays with the motor). The series stiffness of
         every spring (their static condensation) acts between the two inertias. Exact for
         a chain with one compliance; J_motor_side + J_load_side = J(q).
+
+        ``driving``: the motor side's elements weighted by eta / Pi_e (the loss never acts on
+        the torque that accelerates the rotor; the motor torque reaches the output as
+        eta N tau): the losses beyond the split are lumped at it, on its motor side, so the
+        load side and the spring stay as they are. Exact when every lossy stage lies before
+        the split (a rigid chain: always).
         """
         nodes = self.node_inertias(q)
         n_q = nodes.shape[1]
+        weighted = self.node_inertias(q, True) if driving else nodes
         if self.rigid:
-            return TwoMassSplit(nodes.sum(axis=0), np.zeros(n_q), np.full(n_q, np.inf), ("",) * n_q)
+            return TwoMassSplit(weighted.sum(axis=0), np.zeros(n_q), np.full(n_q, np.inf), ("",) * n_q)
         k = self.spring_stiffness(q)
         compliance = 1.0 / k
         worst = np.argmax(compliance, axis=0)
         last_motor_node = np.array([self.springs[w].nodes[0] for w in worst])
         motor = np.arange(self.n_nodes)[:, None] <= last_motor_node[None, :]
-        return TwoMassSplit(np.sum(np.where(motor, nodes, 0.0), axis=0),
+        return TwoMassSplit(np.sum(np.where(motor, weighted, 0.0), axis=0),
                             np.sum(np.where(motor, 0.0, nodes), axis=0),
                             1.0 / compliance.sum(axis=0), tuple(self.springs[w].label for w in worst))
 
