@@ -57,12 +57,13 @@ class TwoMassSplit:
     """Motor-side and load-side inertia (reflected to the output) and the series stiffness
     between them, arrays over q (kg*m^2, kg*m^2, N*m/rad; kg and N/m for an output travel);
     ``spring`` names the most compliant spring where the chain is split (empty when the chain
-    is rigid)."""
+    is rigid); ``last_motor_node`` is the chain's last node on the motor side, per q."""
 
     motor_side: np.ndarray
     load_side: np.ndarray
     stiffness: np.ndarray
     spring: tuple
+    last_motor_node: np.ndarray = None
 
 
 @dataclass(frozen=True)
@@ -211,17 +212,20 @@ class Chain:
         return np.array([float(np.prod([getattr(st, "efficiency", 1.0) for st in stages[:s.stage + 1]]))
                          for s in self.springs])
 
-    def loss_inertia(self, q) -> np.ndarray:
+    def loss_inertia(self, q, last_node: int | None = None) -> np.ndarray:
         """J_w(q) = sum_e J_e (1 - eta / Pi_e) / (1 - eta): the inertia whose torque the
         losses do not see, as a share of the chain's loss (eta the product of every stage's
         forward efficiency). Driving, the chain's inertia at q is J - (1 - eta) J_w; with one
         lossy stage J_w is the inertia before its loss (the rotor and the input members).
-        Zero for a lossless chain."""
+        Zero for a lossless chain. ``last_node``: only the elements on the nodes up to it (the
+        motor side of a two-mass split)."""
         eta = self.efficiency
         j = self.element_inertias(q)
         if eta >= 1.0:
             return np.zeros(j.shape[1])
-        weight = np.array([(1.0 - eta / e.loss) / (1.0 - eta) for e in self.elements])
+        last = self.n_nodes if last_node is None else last_node
+        weight = np.array([(1.0 - eta / e.loss) / (1.0 - eta) if e.node <= last else 0.0
+                           for e in self.elements])
         return weight @ j
 
     # --- at one operating point -----------------------------------------------------------
@@ -291,7 +295,8 @@ class Chain:
         n_q = nodes.shape[1]
         weighted = self.node_inertias(q, True) if driving else nodes
         if self.rigid:
-            return TwoMassSplit(weighted.sum(axis=0), np.zeros(n_q), np.full(n_q, np.inf), ("",) * n_q)
+            return TwoMassSplit(weighted.sum(axis=0), np.zeros(n_q), np.full(n_q, np.inf), ("",) * n_q,
+                                np.full(n_q, self.n_nodes - 1))
         k = self.spring_stiffness(q)
         compliance = 1.0 / k
         worst = np.argmax(compliance, axis=0)
@@ -299,7 +304,8 @@ class Chain:
         motor = np.arange(self.n_nodes)[:, None] <= last_motor_node[None, :]
         return TwoMassSplit(np.sum(np.where(motor, weighted, 0.0), axis=0),
                             np.sum(np.where(motor, 0.0, nodes), axis=0),
-                            1.0 / compliance.sum(axis=0), tuple(self.springs[w].label for w in worst))
+                            1.0 / compliance.sum(axis=0), tuple(self.springs[w].label for w in worst),
+                            last_motor_node)
 
     def modal_two_mass(self, q: float) -> tuple[float, float, float]:
         """``(J1, J2, K)`` of the two-mass model with the chain's total inertia, its lowest

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..components.base import Element, Jet, Lash, Spring
 from ..errors import SceneError
-from .chain import Chain, TwoMassSplit  # noqa: F401 - TwoMassSplit re-exported
+from .chain import Chain
 from .elements import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, neglect_criterion, reflect_elements,
                        stage_units)
 
