@@ -106,3 +106,26 @@ def test_a_backlash_beside_a_compliance_is_kept():
                 Compliance("shaft", K)])
     model = build_model(sc, None)
     assert model.P[lo.HALF_PLAY] == pytest.approx(0.5 * math.radians(1))
+
+
+def test_jacobian_at_rest_is_the_linear_plant_on_the_reference_ema():
+    """The shipped EMA (four compliances reduced to its lowest mode), lossless and without
+    Coulomb friction or lash so that the state at rest is smooth: the compiled model at q0 is
+    the design plant."""
+    from dataclasses import replace
+
+    from servo_toolkit import load_scene
+
+    from .conftest import SCENES
+    ema = load_scene(SCENES / "ema_reference.toml")
+    stages = tuple(replace(s, efficiency=1.0) if hasattr(s, "efficiency") else s for s in ema.stages)
+    sc = replace(ema, stages=stages, motor=replace(ema.motor, coulomb_friction=0.0))
+    zeta = 0.05
+    model = build_model(sc, None, ModelOptions(damping_ratio=zeta, backlash=False))
+    P = fill(model, Reference.voltage(0.0))
+    x0 = np.zeros(model.nx)
+    x0[0] = x0[2] = model.q0
+    jac = jacobian(model, P, x0, [1e-7, 1e-5, 1e-7, 1e-5, 1e-4, 1e-3])
+    A, B, _, _, _ = plant_matrices(plant_parameters(sc, model.q0, structural_damping=zeta))
+    np.testing.assert_allclose(jac[:, :5], A, rtol=1e-5, atol=1e-6 * np.max(np.abs(A)))
+    np.testing.assert_allclose(jac[:, 5], B[:, 0], rtol=1e-5, atol=1e-9)

@@ -276,20 +276,15 @@ class Chain:
 
     # --- reductions -----------------------------------------------------------------------
 
-    def two_mass(self, q, driving: bool = False) -> TwoMassSplit:
-        """Two-mass reduction: the chain split at its most compliant spring.
+    def node_split(self, q, driving: bool = False) -> TwoMassSplit:
+        """The chain split at its most compliant spring (the node rule of :meth:`two_mass`).
 
         At each q, the spring with the largest share of the series compliance divides the
         nodes: those before it are the motor side, those after it the load side (each
         element on its own node, so a pinion stays with the motor). The series stiffness of
         every spring (their static condensation) acts between the two inertias. Exact for
-        a chain with one compliance; J_motor_side + J_load_side = J(q).
-
-        ``driving``: the motor side's elements weighted by eta / Pi_e (the loss never acts on
-        the torque that accelerates the rotor; the motor torque reaches the output as
-        eta N tau): the losses beyond the split are lumped at it, on its motor side, so the
-        load side and the spring stay as they are. Exact when every lossy stage lies before
-        the split (a rigid chain: always).
+        a chain with one compliance; J_motor_side + J_load_side = J(q). ``driving``: the
+        motor side's elements weighted by eta / Pi_e (losses beyond the split lumped at it).
         """
         nodes = self.node_inertias(q)
         n_q = nodes.shape[1]
@@ -307,13 +302,35 @@ class Chain:
                             1.0 / compliance.sum(axis=0), tuple(self.springs[w].label for w in worst),
                             last_motor_node)
 
-    def modal_two_mass(self, q: float) -> tuple[float, float, float]:
+    def two_mass(self, q, driving: bool = False) -> TwoMassSplit:
+        """Two-mass reduction with the chain's lowest resonance and antiresonance.
+
+        At each q the two-mass model keeps the chain's total inertia J, its lowest mode w_r
+        and its lowest antiresonance w_a (motor held): J1 = J (w_a / w_r)^2, J2 = J - J1,
+        K = w_a^2 J2 (:meth:`modal_two_mass`). For a chain with one compliance these are its
+        two sides and its spring (the node split, :meth:`node_split`); with several
+        compliances the notch of a design on it sits on the chain's real lowest mode, where
+        the node split's series stiffness misses it when a large inertia sits between
+        comparable springs. ``spring`` and ``last_motor_node`` come from the node split.
+
+        ``driving``: of the driving-mode chain (each element and spring weighted by the
+        losses before it, the motor torque reaching the output as eta N tau): the loss never
+        acts on the torque that accelerates the rotor.
+        """
+        split = self.node_split(q, driving)
+        if self.rigid:
+            return split
+        qs = np.atleast_1d(np.asarray(q, dtype=float))
+        jkk = np.array([self.modal_two_mass(x, driving) for x in qs]).T
+        return TwoMassSplit(jkk[0], jkk[1], jkk[2], split.spring, split.last_motor_node)
+
+    def modal_two_mass(self, q: float, driving: bool = False) -> tuple[float, float, float]:
         """``(J1, J2, K)`` of the two-mass model with the chain's total inertia, its lowest
         resonance w_r and lowest antiresonance w_a: J1 = J w_a^2 / w_r^2, K = w_a^2 J2."""
-        total = float(self.node_inertias([q]).sum())
+        total = float(self.node_inertias([q], driving).sum())
         if self.rigid:
             return total, 0.0, math.inf
-        wr, wa = self.eigenfrequencies(q)[0], self.antiresonances(q)[0]
+        wr, wa = self.eigenfrequencies(q, driving)[0], self.antiresonances(q, driving)[0]
         j1 = total * (wa / wr) ** 2
         return j1, total - j1, wa**2 * (total - j1)
 

@@ -9,13 +9,29 @@ from . import layout as lo
 
 
 def load_split(drive, q0: float):
-    """Load side of the chain's two-mass split at q0: its inertia (held constant along the
-    stroke), the names of its elements and the last motor-side node."""
+    """The chain's two-mass reduction at q0 as the compiled model uses it.
+
+    Returns
+    -------
+    load_inertia : float
+        J2 of :meth:`~servo_toolkit.drivetrain.chain.Chain.two_mass` at q0 (held constant
+        along the stroke).
+    names : tuple of str
+        The elements beyond the node split (the load side's members).
+    last_motor_node : int
+        The node split's last motor-side node (whose elements' J_w the loss spares).
+    stiffness_factor : float
+        The reduction's stiffness over the series stiffness at q0: the stroke table of the
+        series stiffness is scaled by it, so that the model's mode at q0 is the chain's.
+    """
     chain = drive.chain
     split = chain.two_mass([q0])
     last = int(split.last_motor_node[0])
     names = tuple(e.label for e in chain.elements if e.node > last)
-    return float(split.load_side[0]), names, last
+    factor = 1.0
+    if not chain.rigid:
+        factor = float(split.stiffness[0] / chain.node_split([q0]).stiffness[0])
+    return float(split.load_side[0]), names, last, factor
 
 
 #: smallest back-drive efficiency modelled (a self-locking chain's is 0 or less)

@@ -1,11 +1,12 @@
 """Model assembly: a scene and a controller -> an immutable :class:`Model` of flat arrays.
 
-The drivetrain is split as the linear plant splits it, by the chain's two-mass reduction
-(:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0): the nodes before its most
-compliant spring are the motor side (rotor, pinion, ... each member at its node), the rest the
-load side, whose inertia is held at its q0 value. The series stiffness K(q) and the lost motion
-of every stage are lumped between them at the output; a lost motion in a chain without a
-compliance is refused (:class:`SceneError` naming its key), never dropped.
+The drivetrain is reduced as the linear plant reduces it, by the chain's two-mass reduction
+(:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0, the chain's lowest resonance and
+antiresonance): its load-side inertia J2 is held at its q0 value, the motor side is
+J(q) - J2, and the series stiffness K(q) (scaled to the reduction's stiffness at q0) and the
+lost motion of every stage are lumped between them at the output; for one compliance these
+are the nodes on either side of it (rotor, pinion, ... each member at its node). A lost motion
+in a chain without a compliance is refused (:class:`SceneError` naming its key), never dropped.
 
 Position-dependent data are tabulated along the stroke and interpolated with cubic Hermite
 polynomials on exact values and derivatives (J, dJ/dq and N, dN/dq from the drivetrain's
@@ -270,7 +271,12 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         notes.append(f"constant inertia J(q0) = {j0:.4g} {OutputUnit(drive.output_unit).inertia}")
     k_tot = drive.stiffness(q).total
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
-    jl, load_side, last_motor_node = load_split(drive, q0)
+    jl, load_side, last_motor_node, k_factor = load_split(drive, q0)
+    if not rigid:
+        k_tot = k_tot * k_factor
+        if abs(k_factor - 1.0) > 1e-3:
+            notes.append(f"series stiffness scaled by {k_factor:.4g}: the two-mass reduction keeps the "
+                         "chain's lowest mode at q0")
     if not rigid and jl <= 0:
         rigid = True
         notes.append("no inertia on the load side of the compliance: rigid chain")
@@ -283,7 +289,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         j_row, k_row, dk_row, jl = j_tot, np.zeros_like(q), np.zeros_like(q), 0.0
     else:
         moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0)
-        if np.max(np.abs(moving - jl)) > 1e-3 * jl:
+        if np.ptp(moving) > 1e-3 * jl:
             notes.append(f"load-side inertia held at its q0 value {jl:.4g} (it varies by "
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
@@ -441,6 +447,6 @@ def _with_table_error(model: Model, drive, q) -> Model:
     err = {"J": float(np.max(np.abs(interp[0] - exact_j)) / np.max(np.abs(exact_j))),
            "N": float(np.max(np.abs(interp[1] - exact_n)) / np.max(exact_n))}
     if not model.rigid:
-        exact_k = drive.stiffness(mid).total
+        exact_k = drive.stiffness(mid).total * load_split(drive, model.q0)[3]
         err["K"] = float(np.max(np.abs(interp[2] - exact_k)) / np.max(exact_k))
     return replace(model, table_error=err)
