@@ -110,3 +110,22 @@ def test_chain_plant_of_one_compliance_is_the_two_mass_plant():
 def test_chain_model_of_a_rigid_chain_is_the_rigid_plant():
     sc = scene([GearTrain("gear", ratio=N, inertias=(J_PINION,))])
     assert plant(sc, 0.0, model="chain").state_labels == ["theta", "omega"]
+
+
+def test_inverse_dynamics_places_members_and_losses_as_the_plant():
+    """Driving a lossy rigid gear (pinion before its loss, wheel beyond it): the Kv inverse
+    dynamics' motor torque is the plant's, tau = J1 a / (eta N) with J1 = eta (J_r + J_p) + J_w + J_L,
+    i.e. (J_r + J_p) N a + (J_w + J_L) a / (eta N)."""
+    from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+    from servo_toolkit.studies.trajectories import SineMotion
+    eta = 0.8
+    sc = scene([GearTrain("gear", ratio=N, inertias=(J_PINION, J_WHEEL), efficiency=eta)], ke=0.0)
+    motion = SineMotion(0.2, 2.0, phase=-math.pi / 2)   # q rises from its lowest point
+    t = np.array([0.05, 0.08])                         # qd > 0 and qdd > 0: driving
+    q, qd, qdd = motion(t)
+    assert np.all(qd > 0) and np.all(qdd > 0)
+    r = inverse_dynamics(sc.drivetrain, motion, t, friction=False)
+    expected = (J_ROTOR + J_PINION) * N * qdd + (J_WHEEL + J_LOAD) * qdd / (eta * N)
+    np.testing.assert_allclose(r.motor_torque, expected, rtol=1e-12)
+    p = plant_parameters(sc, 0.0, "rigid")
+    np.testing.assert_allclose(r.motor_torque, p.J1 * qdd / (eta * N), rtol=1e-12)
