@@ -96,7 +96,7 @@ def test_a_backlash_in_a_rigid_chain_is_refused_with_its_key():
     sc = scene([GearTrain("gear", ratio=N, inertias=(J_PINION,), backlash=math.radians(5))])
     with pytest.raises(SceneError) as err:
         build_model(sc, None)
-    assert err.value.key == "drivetrain[0].backlash" and "rigid" in err.value.rule
+    assert err.value.key == "drivetrain[0].backlash" and "rigid" in err.value.rule and "5 deg" in err.value.rule
     # left out on purpose, it runs
     assert build_model(sc, None, ModelOptions(backlash=False)).rigid
 

@@ -91,13 +91,20 @@ class ChainSpring:
 @dataclass(frozen=True)
 class ChainLash:
     """A free play at its place: ``spring`` is the index of the compliance it sits in, None for
-    a lash in a rigid stage; ``key`` is its scene key (``drivetrain[i].backlash``)."""
+    a lash in a rigid stage; ``key`` is its scene key (``drivetrain[i].backlash``); ``lash``
+    is the total play in ``unit`` (rad or m)."""
 
     label: str
     stage: int
     lash: float
     key: str
     spring: int | None
+    unit: str = "rad"
+
+    @property
+    def shown(self) -> str:
+        """The total play in degrees or millimetres."""
+        return f"{math.degrees(self.lash):.4g} deg" if self.unit == "rad" else f"{self.lash * 1e3:.4g} mm"
 
 
 @dataclass(frozen=True)
@@ -126,14 +133,14 @@ class Chain:
         """Place every element, spring, lash and loss of ``drivetrain``."""
         kin = drivetrain.kinematics([drivetrain.mid_stroke])
         stages = drivetrain.stages
-        units = stage_units(stages)[1]
+        out_units, units = stage_units(stages)
         owner = np.asarray(kin.element_stage)
         spring_owner = list(kin.spring_stage)
         node, eff = 0, 1.0
         placed = {}
         springs, lashes = [], []
         for k, stage in enumerate(stages):
-            mine = [i for i in np.flatnonzero(owner == k)]
+            mine = list(np.flatnonzero(owner == k))
             for i in mine:
                 if kin.elements[i].member == "input":
                     placed[i] = (node, eff)
@@ -147,7 +154,7 @@ class Chain:
                     placed[i] = (node, eff)
             at = len(springs) - 1 if spring_owner.count(k) else None
             key = f"drivetrain[{k}].{_LASH_KEYS.get(type(stage).__name__, 'backlash')}"
-            lashes += [ChainLash(b.label, k, b.lash, key, at) for b in stage.lashes(np.zeros(1))]
+            lashes += [ChainLash(b.label, k, b.lash, key, at, out_units[k]) for b in stage.lashes(np.zeros(1))]
         elements = []
         for i, e in enumerate(kin.elements):
             if owner[i] < 0:

@@ -74,7 +74,7 @@ def refuse_rigid_lash(lashes, options) -> None:
     if lashes and options.backlash and options.play != 0.0:
         raise SceneError(lashes[0].key, "a free play in a rigid chain cannot be simulated: give the "
                          "chain a compliance (the stage's stiffness or a compliance stage) or set it "
-                         f"to 0 (got {lashes[0].lash:.4g})")
+                         f"to 0 (got a total play of {lashes[0].shown})")
 
 
 __all__ = ["LOSS_TORQUE_SCALE", "MIN_BACKDRIVE", "load_split", "loss_slots", "refuse_rigid_lash"]
