@@ -43,7 +43,7 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 
-from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, JW, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
+from .layout import (ETA_HALF, ETA_MEAN, INV_JD0, INV_TAU_S, JW, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE,
                      KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
@@ -295,12 +295,13 @@ def lossy(P, nts, jd, djd, pd, n, dn, rest):
     if P[ETA_MEAN] <= 0.0:
         return nts, jd, djd
     jw = P[JW] * n * n
-    djw = 2.0 * P[JW] * n * dn
-    t_free = ((jd - jw) * nts - jw * rest - 0.5 * pd * pd * (jd * djw - jw * djd)) / jd
-    sg_t = tanh(t_free * P[INV_TAU_S])
-    sg_w = tanh(abs(n) * pd * P[WS])
-    c = (P[ETA_MEAN] + P[ETA_HALF] * sg_t * sg_w) * sg_t * sg_w
-    return nts - c * nts, jd - c * jw, djd - c * djw
+    # the lossless transmitted torque times jd / J_d(q0) (same sign; the scale of the smooth
+    # sign varies with J_d(p) / J_d(q0), a few per cent along a stroke); its velocity terms,
+    # of the order of the ratio's variation, are left out of the sign
+    t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
+    sg = tanh(t_free * P[INV_TAU_S]) * tanh(abs(n) * pd * P[WS])
+    c = (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
+    return nts - c * nts, jd - c * jw, djd - c * 2.0 * P[JW] * n * dn
 
 
 @inline

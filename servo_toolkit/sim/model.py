@@ -381,7 +381,8 @@ def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, opt
                      play: float) -> None:
     """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
 
-    Load-side inertia ``JL`` (and its reciprocal), stiffness factor ``KSCALE``, structural
+    Load-side inertia ``JL`` (and its reciprocal), the motor side's reciprocal ``INV_JD0``,
+    stiffness factor ``KSCALE``, structural
     damping ``BETA = 2 zeta / omega_n`` of the drivetrain mode at q0, half the lost motion,
     and the elastic stroke-end stop (10x the drivetrain stiffness; 100 Hz on a rigid chain).
     :func:`build_model` and the batched variants (:mod:`servo_toolkit.sim.batch`) both fill
@@ -404,6 +405,7 @@ def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, opt
     """
     P[lo.JL] = jl
     P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
+    P[lo.INV_JD0] = 1.0 / (j0_tot - jl)
     P[lo.KSCALE] = options.stiffness_scale
     if rigid:
         k_stop = j0_tot * (2 * math.pi * 100.0) ** 2
