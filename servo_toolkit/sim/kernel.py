@@ -290,7 +290,8 @@ def lossy(P, nts, jd, djd, pd, n, dn, rest):
     c T; c = 1 - eta driving, 1/eta_b - 1 back-driven (as -c), blended by the smooth signs of
     T and of the speed (c T p' >= 0: the loss never supplies power). Solved for p'': nts and
     J_w scale by (1 - c), the rest of the motor side stays. The sign of T does not depend on
-    c: it is that of the lossless transmitted torque, computed first.
+    c: it is that of the lossless transmitted torque, computed first (without its velocity
+    terms, of the order of the ratio's variation).
     """
     if P[ETA_MEAN] <= 0.0:
         return nts, jd, djd
