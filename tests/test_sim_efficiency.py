@@ -1,5 +1,7 @@
 """The drivetrain's efficiency in the compiled model (LossyGear-like), checked by closed forms,
-the power balance along a run and the linear design plant's small-signal gain."""
+the power balance along a run and the linear design plant's small-signal gain. The loss acts
+on the torque transmitted past the rotor and the members before it (J_w of the chain), never
+on the torque that accelerates them."""
 
 from __future__ import annotations
 
@@ -51,14 +53,25 @@ def _grid(model):
     return P[lo.TAB_LO] + P[lo.TAB_H] * np.arange(int(P[lo.TAB_N]))
 
 
-def _transmitted(scene, model, P, p, pd, i):
-    """Torque the chain receives at the output, from the kernel's acceleration and the
-    drivetrain's own inertia jets (not the kernel's tables): J p'' + J'/2 p'^2 - M_load."""
+def _loss_inertia(scene, p, h=1e-6):
+    """J_w(p) of the chain (what turns before the losses) and its derivative."""
+    chain = scene.drivetrain.chain
+    jw = float(chain.loss_inertia([p])[0])
+    return jw, float(chain.loss_inertia([p + h])[0] - chain.loss_inertia([p - h])[0]) / (2 * h)
+
+
+def _torques(scene, model, P, p, pd, i):
+    """(entering, transmitted): the torque entering the losses, n tau_shaft - J_w p'' - J_w'/2 p'^2,
+    and the torque the chain beyond them receives, (J - J_w) p'' + (J - J_w)'/2 p'^2 - M_load,
+    from the kernel's acceleration and the drivetrain's own jets (not the kernel's tables)."""
     dt = scene.drivetrain
     j, dj = (float(a[0]) for a in dt.inertia([p]))
+    jw, djw = _loss_inertia(scene, p)
     load = scene.load
     m_load = -load.hinge_moment - load.hinge_stiffness * p - load.damping * pd
-    return j * _accel(model, P, p, pd, i) + 0.5 * dj * pd * pd - m_load
+    a = _accel(model, P, p, pd, i)
+    entering = _shaft_torque(scene, p, pd, i) - jw * a - 0.5 * djw * pd * pd
+    return entering, (j - jw) * a + 0.5 * (dj - djw) * pd * pd - m_load
 
 
 def _shaft_torque(scene, p, pd, i, ws=1.0):
@@ -70,18 +83,22 @@ def _shaft_torque(scene, p, pd, i, ws=1.0):
 
 
 def test_driving_and_back_driven_torques_follow_the_efficiencies(ema, rigid):
-    """Closed forms: driving, the chain receives eta n tau_shaft; back-driven n tau_shaft / eta_b
-    (eta_b = product of the back-drive efficiencies: the ball screw's 2 - 1/eta)."""
+    """Closed forms: driving, the chain beyond the losses receives eta times the torque entering
+    them (the shaft torque less what accelerates the rotor and the members before the losses);
+    back-driven that torque / eta_b (eta_b = product of the back-drive efficiencies: the ball
+    screw's 2 - 1/eta)."""
     model, P = rigid
     dt = ema.drivetrain
     eta = dt.efficiency
     screw = next(s for s in ema.stages if type(s).__name__ == "BallScrew")
     eta_b = eta / screw.efficiency * (2 - 1 / screw.efficiency)
     assert dt.backdrive_efficiency == pytest.approx(eta_b, rel=1e-12) and eta_b < eta < 1
-    p, pd = 0.01, 0.5  # motor at hundreds of rad/s: the smooth signs are saturated
-    for i, factor in ((20.0, eta), (-20.0, 1 / eta_b)):
-        shaft = _shaft_torque(ema, p, pd, i)
-        assert _transmitted(ema, model, P, p, pd, i) == pytest.approx(factor * shaft, rel=1e-5)
+    # motor at hundreds of rad/s: the smooth signs are saturated. Back-driven: moving down with
+    # the hinge moment, the motor braking (the rotor's own deceleration cannot drive the chain)
+    p = 0.01
+    for pd, i, factor in ((0.5, 20.0, eta), (-0.5, 20.0, 1 / eta_b)):
+        entering, transmitted = _torques(ema, model, P, p, pd, i)
+        assert transmitted == pytest.approx(factor * entering, rel=1e-5)
 
 
 def test_efficiency_off_or_one_is_the_lossless_model(ema):
@@ -106,10 +123,10 @@ def test_efficiency_off_or_one_is_the_lossless_model(ema):
 @given(p=st.floats(-0.3, 0.3), pd=st.floats(-3.0, 3.0), i=st.floats(-60.0, 60.0))
 def test_the_loss_never_supplies_power(ema, rigid, p, pd, i):
     """At any state, also where the smooth signs blend the two modes, the power the chain
-    receives is at most what the motor's shaft delivers: (n tau_shaft - T) p' >= 0."""
+    beyond the losses receives is at most what enters them: (T_in - T) p' >= 0."""
     model, P = rigid
-    shaft = _shaft_torque(ema, p, pd, i)
-    loss_power = (shaft - _transmitted(ema, model, P, p, pd, i)) * pd
+    shaft, transmitted = _torques(ema, model, P, p, pd, i)
+    loss_power = (shaft - transmitted) * pd
     # tolerance: the kernel's stroke tables against the drivetrain's own jets (about 1e-3 N*m
     # at the output, 1e-5 of the torque)
     tol = (1e-3 + 1e-5 * abs(shaft)) * abs(pd)
@@ -144,23 +161,29 @@ def test_power_balance_along_a_closed_loop_run(ema):
     driving = shaft * pd > 0
     assert driving.mean() > 0.2 and (~driving).mean() > 0.2  # both directions of power flow
     eta, eta_b = dt.efficiency, dt.backdrive_efficiency
-    expected = np.where(driving, (1 - eta) * shaft * pd, (1 / eta_b - 1) * np.abs(shaft * pd))
+    jw = dt.chain.loss_inertia(p)  # the rotor and the members before the losses: J_w n^2 / n0^2
+    entering = shaft - jw * np.gradient(pd, t) - 0.5 * np.gradient(jw, t) * pd
+    expected = np.where(entering * pd > 0, (1 - eta) * entering * pd, (1 / eta_b - 1) * np.abs(entering * pd))
     e_loss = np.sum(0.5 * (expected[1:] + expected[:-1]) * np.diff(t))
     assert np.sum(dissipated) == pytest.approx(e_loss, rel=0.02)
 
 
 def test_small_signal_gain_is_the_linear_plant_s_when_driving(ema, rigid):
-    """The design plant's torque gain eta N Kt (plant_parameters) is the kernel's small-signal
-    d(J p'')/di where the motor drives the load; back-driven it is N Kt / eta_b."""
+    """The design plant's small-signal acceleration per ampere, eta N Kt / J_eff with the
+    driving-mode inertia J_eff = J - (1 - eta) J_w (plant_parameters, rigid), is the kernel's
+    where the motor drives the load; back-driven it is N Kt / eta_b / (J + (1/eta_b - 1) J_w)."""
     model, P = rigid
     q0 = model.q0
-    pp = plant_parameters(ema, q0)
+    pp = plant_parameters(ema, q0, "rigid")
     j = float(ema.drivetrain.inertia([q0])[0][0])
+    jw = _loss_inertia(ema, q0)[0]
+    eta, eta_b = ema.drivetrain.efficiency, ema.drivetrain.backdrive_efficiency
+    assert pp.J1 == pytest.approx(j - (1 - eta) * jw, rel=1e-12) and jw > 0.7 * j
     pd, i, h = 0.5, 20.0, 1e-3
-    gain = j * (_accel(model, P, q0, pd, i + h) - _accel(model, P, q0, pd, i - h)) / (2 * h)
-    assert gain == pytest.approx(pp.torque_gain, rel=1e-6)
-    back = j * (_accel(model, P, q0, pd, -i + h) - _accel(model, P, q0, pd, -i - h)) / (2 * h)
-    assert back == pytest.approx(pp.N * pp.Kt / ema.drivetrain.backdrive_efficiency, rel=1e-6)
+    gain = (_accel(model, P, q0, pd, i + h) - _accel(model, P, q0, pd, i - h)) / (2 * h)
+    assert gain == pytest.approx(pp.torque_gain / pp.J1, rel=1e-6)
+    back = (_accel(model, P, q0, -pd, i + h) - _accel(model, P, q0, -pd, i - h)) / (2 * h)
+    assert back == pytest.approx(pp.N * pp.Kt / eta_b / (j + (1 / eta_b - 1) * jw), rel=1e-6)
 
 
 def test_rk4_keeps_its_order_with_losses(ema):

@@ -52,7 +52,7 @@ class BallScrew(Stage):
         return Jet.linear(z, self.ratio)
 
     def elements(self, z) -> list[Element]:
-        return [Element(f"{self.name}: screw", self.screw_inertia, Jet.linear(z, self.ratio)),
+        return [Element(f"{self.name}: screw", self.screw_inertia, Jet.linear(z, self.ratio), "input"),
                 Element(f"{self.name}: nut", self.nut_mass, Jet.linear(z, 1.0))]
 
     def springs(self, z) -> list[Spring]:

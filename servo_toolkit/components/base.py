@@ -37,11 +37,17 @@ class Jet:
 
 @dataclass(frozen=True)
 class Element:
-    """An inertial element: mass (kg) or inertia (kg*m^2) moving with coordinate ``u``."""
+    """An inertial element: mass (kg) or inertia (kg*m^2) moving with coordinate ``u``.
+
+    ``member`` places it in the lumped chain (:mod:`servo_toolkit.drivetrain.chain`):
+    ``"input"`` for a stage's input member (a pinion, a screw: on the motor side of the
+    stage's compliance and before its loss), ``"output"`` for its output member (beyond both).
+    """
 
     label: str
     inertia: float
     u: Jet
+    member: str = "output"
 
 
 @dataclass(frozen=True)

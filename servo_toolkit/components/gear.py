@@ -49,7 +49,8 @@ class GearTrain(Stage):
         return Jet.linear(z, self.ratio)
 
     def elements(self, z) -> list[Element]:
-        return [Element(f"{self.name}: gear {i + 1}", j, Jet.linear(z, g))
+        # the first gear turns with the input shaft: motor side of the mesh spring
+        return [Element(f"{self.name}: gear {i + 1}", j, Jet.linear(z, g), "input" if i == 0 else "output")
                 for i, (j, g) in enumerate(zip(self.inertias, self._speed_ratios()))]
 
     def springs(self, z) -> list[Spring]:

@@ -85,7 +85,7 @@ class RockerLinkage(Stage):
         m, r, l = self.rod_mass, self.arm_length, self.rod_length
         return [
             Element(f"{self.name}: output shaft", self.output_shaft_inertia, Jet.linear(z, 1.0)),
-            Element(f"{self.name}: rod end at nut", m / 2, self.map(z)),
+            Element(f"{self.name}: rod end at nut", m / 2, self.map(z), "input"),
             Element(f"{self.name}: rod end at arm", m / 2, Jet.linear(z, r)),
             Element(f"{self.name}: rod rotation", -m * l**2 / 6, self.rod_angle(z)),
         ]

@@ -12,12 +12,14 @@ and a spring k on coordinate u reflects to the output as k (du/dq)^2 (seed 001, 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
 from ..components.base import Element, Jet, Lash, Spring
 from ..errors import SceneError
+from .chain import Chain
 from .elements import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, neglect_criterion, reflect_elements,
                        stage_units)
 
@@ -109,18 +111,6 @@ class StiffnessChain:
         lever = self.lever[:, None] if self.lever.size else np.ones((len(self.names), 1))
         return neglect_criterion(self.native_stiffness * lever[:, 0] ** 2,
                                  self.ratio_to_output / lever, min_ratio, within)
-
-
-@dataclass(frozen=True)
-class TwoMassSplit:
-    """Motor-side and load-side inertia (reflected to the output) and the series stiffness
-    between them, arrays over q (kg*m^2, kg*m^2, N*m/rad); ``spring`` names the most
-    compliant spring where the chain is split (empty when the chain is rigid)."""
-
-    motor_side: np.ndarray
-    load_side: np.ndarray
-    stiffness: np.ndarray
-    spring: tuple
 
 
 #: stroke of an output travel (m) when the scene gives none
@@ -238,7 +228,7 @@ class Drivetrain:
 
     @staticmethod
     def _collect(stage, z: Jet, elements, springs, lashes) -> None:
-        elements += [Element(e.label, e.inertia, e.u.compose(z)) for e in stage.elements(z.value)]
+        elements += [replace(e, u=e.u.compose(z)) for e in stage.elements(z.value)]
         springs += [Spring(s.label, s.stiffness, s.u.compose(z)) for s in stage.springs(z.value)]
         lashes += [Lash(b.label, b.lash, b.u.compose(z)) for b in stage.lashes(z.value)]
 
@@ -308,31 +298,12 @@ class Drivetrain:
                               compliance / compliance.sum(axis=0), ratio, native,
                               tuple(STIFFNESS_UNIT[u] for u in units), lever)
 
-    def two_mass_split(self, q) -> TwoMassSplit:
-        """Split the reflected inertia at the most compliant spring (two-mass model).
-
-        The split lies at the stage holding the spring with the largest compliance share at
-        each q: the motor rotor and the elements of the stages before it are motor side,
-        the elements of that stage and the later ones, and the load, are load side. The
-        whole series stiffness acts between the two inertias. Both inertias are reflected
-        to the output; J_motor_side + J_load_side = J(q).
-        """
-        kin = self.kinematics(q)
-        chain = self.stiffness(q)
-        n_q = kin.q.size
-        if not kin.springs:
-            split = np.full(n_q, len(self.stages))
-            label = ("",) * n_q
-        else:
-            worst = np.argmax(chain.shares, axis=0)
-            split = np.asarray(kin.spring_stage)[worst]
-            label = tuple(chain.names[w] for w in worst)
-        owner = np.asarray(kin.element_stage)[:, None]
-        m = np.array([e.inertia for e in kin.elements])[:, None]
-        reflected = m * np.array([e.u.d1 for e in kin.elements])**2
-        motor_side = np.sum(np.where(owner < split[None, :], reflected, 0.0), axis=0)
-        load_side = np.sum(np.where(owner >= split[None, :], reflected, 0.0), axis=0)
-        return TwoMassSplit(motor_side, load_side, chain.total, label)
+    @cached_property
+    def chain(self) -> Chain:
+        """The lumped chain (:class:`~servo_toolkit.drivetrain.chain.Chain`): every inertia
+        at its node, every compliance, lash and loss at its place; its ``two_mass(q)`` is the
+        two-mass reduction the plant and the simulation use."""
+        return Chain.from_drivetrain(self)
 
     def backlash(self, q) -> np.ndarray:
         """Total lost motion seen at q (rad): each lash divided by its ratio to q."""

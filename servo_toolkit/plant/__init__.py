@@ -1,13 +1,16 @@
 """Linear plant blocks: python-control systems with named signals at an operating point.
 
-Modules: :mod:`.linear` (the motor, current loop, drivetrain and load of an actuator) and
+Modules: :mod:`.linear` (the motor, current loop, drivetrain and load of an actuator, the
+rigid and two-mass reductions of the drivetrain's chain), :mod:`.chain_plant` (every node and
+mode of the chain), :mod:`.signals` (shared signal names) and
 :mod:`.platform` (the crossed-arch deflection platform of seed 003 as a MIMO plant).
 """
 
+from .chain_plant import chain_plant
 from .linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, PlantParameters, current_controller,
                      current_loop_gains, mechanics, plant, plant_matrices, plant_parameters, rigid_plant,
                      sample_delay, spring_damping, two_mass_plant)
 
-__all__ = ["DEFAULT_STRUCTURAL_DAMPING", "PLANT_OUTPUTS", "PlantParameters", "current_controller",
+__all__ = ["DEFAULT_STRUCTURAL_DAMPING", "PLANT_OUTPUTS", "PlantParameters", "chain_plant", "current_controller",
            "current_loop_gains", "mechanics", "plant", "plant_matrices", "plant_parameters", "rigid_plant",
            "sample_delay", "spring_damping", "two_mass_plant"]

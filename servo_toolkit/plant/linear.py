@@ -17,8 +17,13 @@ States
 Outputs
     ``theta`` (rad), ``omega_m`` motor speed N*omega_1 (rad/s), ``i`` (A), ``omega`` (rad/s).
 
-The linear torque path uses the drivetrain's forward efficiency: the motor torque reaches
-the output as eta * N * Kt * i; the reflected inertias and viscous friction are ideal.
+The linear plant is the driving-mode linearization of the drivetrain's lumped chain
+(:mod:`servo_toolkit.drivetrain.chain`): the motor torque reaches the output as
+eta * N * Kt * i, and the losses never act on the torque that accelerates the rotor and the
+members before them: each motor-side element's inertia counts with eta / Pi_e (Pi_e the
+efficiency of the losses before it), so a rigid chain accelerates at
+eta N Kt i / (eta J_before + J_after). ``model="chain"`` gives every node and mode
+(:mod:`servo_toolkit.plant.chain_plant`).
 """
 
 from __future__ import annotations
@@ -30,10 +35,8 @@ import control as ct
 import numpy as np
 
 from ..errors import SceneError
+from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
-PLANT_OUTPUTS = ("theta", "omega_m", "i", "omega")
-DEFAULT_STRUCTURAL_DAMPING = 0.02
-"""Damping ratio of the drivetrain mode when the scene gives none (lightly damped steel)."""
 
 
 @dataclass(frozen=True)
@@ -130,13 +133,14 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     q0 : float, optional
         Operating point (rad); default mid-stroke.
     model : {"auto", "two_mass", "rigid"}
-        ``auto`` is two-mass when the chain has a finite stiffness, else rigid.
+        ``auto`` is two-mass when the chain has a finite stiffness, else rigid (both
+        reductions of the drivetrain's chain; :func:`plant` also takes ``"chain"``).
     structural_damping : float
         Damping ratio of the drivetrain mode (the scene has no damping for it).
     """
     dt = scene.drivetrain
     q0 = dt.mid_stroke if q0 is None else float(q0)
-    split = dt.two_mass_split([q0])
+    split = dt.chain.two_mass([q0], driving=True)
     n = float(dt.ratio([q0])[0][0])
     motor, load = scene.motor, scene.load
     J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])
@@ -145,7 +149,7 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     if model == "two_mass" and not math.isfinite(K):
         raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:
-        J1, J2, K = J1 + J2, 0.0, math.inf
+        J1, J2, K = float(dt.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
     return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, structural_damping)),
                            b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
                            N=abs(n), eta=dt.efficiency, Kt=motor.torque_constant,
@@ -225,7 +229,14 @@ def two_mass_plant(scene, q0=None, inductance: bool = True,
 
 def plant(scene, q0=None, inductance: bool = True, model: str = "auto",
           structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
-    """Two-mass plant when the chain is compliant, else rigid (see :func:`two_mass_plant`)."""
+    """Two-mass plant when the chain is compliant, else rigid (see :func:`two_mass_plant`);
+    ``model="chain"``: every node and mode of the chain
+    (:func:`~servo_toolkit.plant.chain_plant.chain_plant`)."""
+    if model == "chain":
+        if not scene.drivetrain.chain.rigid:
+            from .chain_plant import chain_plant
+            return chain_plant(scene, q0, inductance, structural_damping)
+        model = "rigid"
     p = plant_parameters(scene, q0, model, structural_damping)
     return _plant(p, inductance, "rigid_plant" if p.rigid else "two_mass_plant")
 

@@ -3,7 +3,8 @@ like every other table (a typo, a wrong unit or an impossible value is one line 
 key, never a traceback when the study runs).
 
 Amplitudes and offsets are positions of the output: angles for an output angle, lengths for
-an output travel (a chain ending in a screw). Durations are bounded so that no study asks for
+an output travel (a chain ending in a screw); a Kv study's load inertias are kg*m^2 for an
+output angle and masses (kg) for an output travel. Durations are bounded so that no study asks for
 more memory or time than a workstation has.
 """
 
@@ -13,6 +14,7 @@ import math
 
 from ..errors import SceneError
 from ..core.fields import Fields, require
+from ..drivetrain.elements import INERTIA_UNIT
 
 #: longest run a study may ask for (s)
 MAX_DURATION_S = 1000.0
@@ -22,6 +24,7 @@ MAX_POINTS = 10_000
 MAX_FREQUENCY_HZ = 1e5
 METHODS = ("rk4", "paper", "reference", "auto")
 POSITION = "position"  # rad or m, after the scene's output
+INERTIA = "inertia"  # kg*m^2 for an output angle, kg (a mass) for an output travel
 
 _AMP = {"amplitude": (POSITION, "positive"), "amplitudes": ([POSITION], "positive")}
 _SINE = {"frequency": ("Hz", "positive"), "period": ("s", "positive"), **_AMP}
@@ -29,7 +32,7 @@ _RUN = {"duration": ("s", "positive"), "sample_time": ("s", "positive"), "method
 #: kind -> key -> (unit, or [unit] for a list, or a tuple of choices for text; rule)
 SCHEMA = {
     "kv": {**_SINE, "trajectory": (("sine",), None), "amplitude_at": (("output", "motor"), None),
-           "offset": (POSITION, "finite"), "load_inertias": (["kg*m^2"], "nonnegative")},
+           "offset": (POSITION, "finite"), "load_inertias": ([INERTIA], "nonnegative")},
     "frequency_sweep": {**_SINE, "frequencies": ("sweep", None), **_RUN},
     "simulate": {**_SINE, **_RUN, "voltage": ("V", "finite"), "frequencies": ("sweep", None),
                  "speed_estimator": (("true", "difference", "kalman", "ideal"), None),
@@ -90,7 +93,8 @@ def study_params(name: str, table, output_unit: str = "rad") -> tuple:
         if unit == POSITION:
             params[key] = f.quantity(key, output_unit, rule=rule)
         elif isinstance(unit, list):
-            u = output_unit if unit[0] == POSITION else unit[0]
+            u = (output_unit if unit[0] == POSITION else INERTIA_UNIT[output_unit] if unit[0] == INERTIA
+                 else unit[0])
             params[key] = list(f.quantity_list(key, u, rule=rule))
             require(len(params[key]) > 0, f.key(key), "give at least one value")
         elif isinstance(unit, tuple):

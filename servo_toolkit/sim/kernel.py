@@ -12,6 +12,8 @@ Equations (generalized coordinates p, q at the output; N(p) motor rad per output
      = N tau_m + M_hinge - M_g, M_g = (sigma f - G_x) ds/dq the follower's weight and guide
      friction, seed 002 eqs 1 and 3, sigma = sign(ds/dq) tanh(omega_m / w_s))
     tau_m = Kt i - b omega_m - Tc tanh(omega_m / w_s),   omega_m = N(p) p'
+    (with the drivetrain's loss, :func:`lossy`: N tau_m and the inertia before the losses,
+     J_w, scale by 1 - c; the rest of J_d is as it is)
     L i' = v - R i - Ke omega_m                          (or i = (v - Ke omega_m) / R, L = 0)
 
 with the elasto-backlash contact law of Modelica's ``ElastoBacklash`` (:func:`contact`):
@@ -41,7 +43,7 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 
-from .layout import (ETA_HALF, ETA_MEAN, INV_TAU_S, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
+from .layout import (ETA_HALF, ETA_MEAN, INV_JD0, INV_TAU_S, JW, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
                      AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
                      HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE,
                      KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
@@ -279,6 +281,31 @@ def controller_update(r, x, P, T, work):
 
 
 @inline
+def lossy(P, nts, jd, djd, pd, n, dn, rest):
+    """The drivetrain's loss (LossyGear-like) folded into the motor side's equation
+    ``jd p'' = nts - djd p'^2 / 2 + rest``: returns its ``(nts, jd, djd)`` with the loss.
+
+    The loss acts on the torque transmitted past the members before it (rotor, pinion:
+    inertia J_w = JW n^2 at the output), T = nts - J_w p'' - J_w' p'^2 / 2, which loses
+    c T; c = 1 - eta driving, 1/eta_b - 1 back-driven (as -c), blended by the smooth signs of
+    T and of the speed (c T p' >= 0: the loss never supplies power). Solved for p'': nts and
+    J_w scale by (1 - c), the rest of the motor side stays. The sign of T does not depend on
+    c: it is that of the lossless transmitted torque, computed first (without its velocity
+    terms, of the order of the ratio's variation).
+    """
+    if P[ETA_MEAN] <= 0.0:
+        return nts, jd, djd
+    jw = P[JW] * n * n
+    # the lossless transmitted torque times jd / J_d(q0) (same sign; the scale of the smooth
+    # sign varies with J_d(p) / J_d(q0), a few per cent along a stroke); its velocity terms,
+    # of the order of the ratio's variation, are left out of the sign
+    t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
+    sg = tanh(t_free * P[INV_TAU_S]) * tanh(abs(n) * pd * P[WS])
+    c = (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
+    return nts - c * nts, jd - c * jw, djd - c * 2.0 * P[JW] * n * dn
+
+
+@inline
 def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
 
@@ -296,7 +323,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     hc = P[TAB_H]
     ih = P[INV_H]
     jd, djd = interp(T, T_J, kc, tc, hc, ih)
-    n, _ = interp(T, T_N, kc, tc, hc, ih)
+    n, dn = interp(T, T_N, kc, tc, hc, ih)
     wm = n * pd
     mode = int(P[CMODE])
     # --- controller and electrics
@@ -328,14 +355,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             dxi = 0.0
     tau = P[KT] * cur
     tau_shaft = tau - P[BM] * wm - P[TC] * tanh(wm * P[WS])
-    # drivetrain losses (LossyGear-like): the torque the motor drives into the chain, n tau_shaft,
-    # loses c |n tau_shaft| against the motion; c = 1 - eta driving, 1/eta_b - 1 back-driven,
-    # blended by the smooth signs of torque and speed (c >= 0: the loss never supplies power)
     nts = n * tau_shaft
-    if P[ETA_MEAN] > 0.0:
-        sg_t = tanh(nts * P[INV_TAU_S])
-        sg_w = tanh(abs(n) * pd * P[WS])
-        nts -= (P[ETA_MEAN] + P[ETA_HALF] * sg_t * sg_w) * nts * sg_t * sg_w
     # --- load side: hinge moment and stroke-end stop
     if P[RIGID] > 0.0:
         ql, qld = p, pd
@@ -348,6 +368,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if P[RIGID] > 0.0:
+        nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, m_load)
         if not lanes and P[CAM] > 0.0:
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
             # M_g = (sigma f - G_x) ds/dq (seed 002 eq 3; its m a part is in J and J')
@@ -382,6 +403,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         else:
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
+    nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, -f - 0.5 * dk * z * z)
     pdd = (nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
     return pd, pdd, qd, (f + m_load) * P[INV_JL], di, dxi, cur, v, iref, tau
 

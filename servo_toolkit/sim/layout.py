@@ -53,7 +53,13 @@ CAM = 52
 # mean and half difference of the loss coefficients 1 - eta (driving) and 1/eta_b - 1
 # (back-driven), and 1 / the torque scale of the smooth sign of the transmitted torque
 ETA_MEAN, ETA_HALF, INV_TAU_S = 53, 54, 55
-NP_HEADER = 56
+# inertia before the losses at the motor shaft (kg*m^2): the motor side's share of the chain's
+# J_w (drivetrain.chain.Chain.loss_inertia) over N^2; the loss never acts on its torque
+JW = 56
+# 1 / the motor side's inertia at q0 (J(q0) - JL): the scale of the loss's smooth torque sign
+# (:func:`kernel.lossy`), a product where a division would cost the step rate
+INV_JD0 = 57
+NP_HEADER = 58
 #: length of the packed cam parameters
 NCAM = 14
 

@@ -1,9 +1,12 @@
 """Model assembly: a scene and a controller -> an immutable :class:`Model` of flat arrays.
 
-The drivetrain is split at its series compliance into a motor side (everything that moves
-with the motor through N(p): rotor, gears, screw, nut, rod) and a load side (the load and the
-parts that turn with the output coordinate itself, e.g. the output shaft). The series
-stiffness K(q) and the lost motion of every stage are lumped between them at the output.
+The drivetrain is reduced as the linear plant reduces it, by the chain's two-mass reduction
+(:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0, the chain's lowest resonance and
+antiresonance): its load-side inertia J2 is held at its q0 value, the motor side is
+J(q) - J2, and the series stiffness K(q) (scaled to the reduction's stiffness at q0) and the
+lost motion of every stage are lumped between them at the output; for one compliance these
+are the nodes on either side of it (rotor, pinion, ... each member at its node). A lost motion
+in a chain without a compliance is refused (:class:`SceneError` naming its key), never dropped.
 
 Position-dependent data are tabulated along the stroke and interpolated with cubic Hermite
 polynomials on exact values and derivatives (J, dJ/dq and N, dN/dq from the drivetrain's
@@ -17,17 +20,20 @@ Simplifications (documented, switchable where a reduction study needs it):
   stroke is a few per cent and is not tabulated);
 - Coulomb friction is smoothed, ``Tc tanh(omega_m / w_s)`` (no stick state), so that the
   right-hand side is continuous for RK4;
-- the stages' efficiencies are lumped into one loss on the motor's shaft torque reflected to
-  the output, n tau_shaft, as Modelica's ``LossyGear`` models a gear: driving (torque and
-  speed of the same sign) the chain receives eta n tau_shaft, back-driven n tau_shaft / eta_b
+- the stages' efficiencies are lumped into one loss on the torque transmitted past the rotor
+  and the members before the losses (inertia J_w = JW n(p)^2: they turn at a fixed ratio to
+  the motor, as a rotor and its pinion do), as Modelica's
+  ``LossyGear`` models a gear: with T = n tau_shaft - J_w p'' - J_w' p'^2 / 2, driving (T and
+  speed of the same sign) the chain beyond receives eta T, back-driven T / eta_b
   (eta the product of the stages' efficiencies, eta_b of their back-drive efficiencies:
   screws ``2 - 1/eta``, gears and linkages eta; a self-locking chain is modelled with
-  eta_b = :data:`MIN_BACKDRIVE`). The loss c |n tau_shaft| (c = 1 - eta driving, 1/eta_b - 1
+  eta_b = :data:`~.chain_split.MIN_BACKDRIVE`). The loss c |T| (c = 1 - eta driving, 1/eta_b - 1
   back-driven) acts against the motion with smooth signs of the torque (scale
-  :data:`LOSS_TORQUE_SCALE` of the peak motor torque at the output) and of the speed (the
+  :data:`~.chain_split.LOSS_TORQUE_SCALE` of the peak motor torque at the output) and of the speed (the
   friction speed), so RK4 keeps its order and the loss power is never negative. The linear
-  design plant (:mod:`servo_toolkit.plant.linear`) uses the driving-mode eta on the motor torque: it
-  is the small-signal model wherever the motor drives the load (the tests compare the
+  design plant (:mod:`servo_toolkit.plant.linear`) is the driving-mode linearization (eta on the
+  motor torque, the motor side's inertia less (1 - eta) J_w): it is the small-signal model
+  wherever the motor drives the load (the tests compare the
   model's Jacobian with it); a motion that reverses the power flow (a free sine, where
   torque and speed are in quadrature) sees eta on half the cycle and 1/eta_b on the other,
   and the sweep measures what that changes. The other losses are the motor's viscous and
@@ -49,6 +55,7 @@ from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
 from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
+from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .kernel import hermite
 
 
@@ -199,19 +206,6 @@ class Model:
         return self.P.copy()
 
 
-def _load_split(drive, q):
-    """Load-side inertia: the load plus elements turning with the output coordinate itself."""
-    labels, masses, t, t2 = drive.jacobians(q)
-    jl, names = 0.0, []
-    for label, m, ti, t2i in zip(labels, masses, t, t2):
-        if label == "motor rotor":
-            continue
-        if np.allclose(ti, 1.0, atol=1e-12) and np.allclose(t2i, 0.0, atol=1e-12):
-            jl += m
-            names.append(label)
-    return jl, tuple(names)
-
-
 def _grid(drive, n):
     lo_, hi = drive.stroke
     if drive.ends_in_cam:
@@ -277,15 +271,27 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         notes.append(f"constant inertia J(q0) = {j0:.4g} {OutputUnit(drive.output_unit).inertia}")
     k_tot = drive.stiffness(q).total
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
-    jl, load_side = _load_split(drive, q)
+    jl, load_side, last_motor_node, k_factor = load_split(drive, q0)
+    if not rigid:
+        k_tot = k_tot * k_factor
+        if abs(k_factor - 1.0) > 1e-3:
+            notes.append(f"series stiffness scaled by {k_factor:.4g}: the two-mass reduction keeps the "
+                         "chain's lowest mode at q0")
     if not rigid and jl <= 0:
         rigid = True
         notes.append("no inertia on the load side of the compliance: rigid chain")
+        refuse_rigid_lash(drive.chain.lashes, options)
     if rigid and options.compliance and not np.all(np.isfinite(k_tot)):
         notes.append("no compliance in the scene: rigid chain")
+        refuse_rigid_lash(drive.chain.rigid_lashes, options)
     if rigid:
+        last_motor_node = None
         j_row, k_row, dk_row, jl = j_tot, np.zeros_like(q), np.zeros_like(q), 0.0
     else:
+        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0)
+        if np.ptp(moving) > 1e-3 * jl:
+            notes.append(f"load-side inertia held at its q0 value {jl:.4g} (it varies by "
+                         f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
         if np.any(j_row <= 0):
             raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
@@ -302,7 +308,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if motor.inductance > 0 and not options.inductance:
         notes.append("armature inductance left out (ideal current loop)")
     P[lo.WS] = 1.0 / options.friction_speed  # stored as its reciprocal
-    loss_slots(P, drive, motor, q0, options, notes)
+    loss_slots(P, drive, motor, q0, options, notes, last_motor_node)
     P[lo.VLIM], P[lo.ILIM] = motor.voltage_limit, motor.current_limit
     P[lo.TAB_LO], P[lo.TAB_H], P[lo.TAB_N] = q[0], q[1] - q[0], q.size
     P[lo.INV_H] = 1.0 / P[lo.TAB_H]
@@ -371,39 +377,12 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     return _with_table_error(model, drive, q)
 
 
-#: smallest back-drive efficiency modelled (a self-locking chain's is 0 or less)
-MIN_BACKDRIVE = 0.1
-#: torque scale of the smooth sign of the transmitted torque, relative to the peak motor
-#: torque at the output (Kt I_max N(q0))
-LOSS_TORQUE_SCALE = 1e-3
-
-
-def loss_slots(P, drive, motor, q0: float, options: ModelOptions, notes: list) -> None:
-    """Fill the drivetrain-loss slots (``ETA_MEAN``, ``ETA_HALF``, ``INV_TAU_S``): the loss
-    coefficients 1 - eta (driving) and 1/eta_b - 1 (back-driven) as mean and half difference,
-    and the reciprocal torque scale; all zero for a lossless chain or ``efficiency=False``."""
-    eta, eta_b = drive.efficiency, drive.backdrive_efficiency
-    if not options.efficiency or (eta >= 1.0 and eta_b >= 1.0):
-        if eta < 1.0:
-            notes.append(f"drivetrain efficiency {eta:.3g} left out (lossless transmission)")
-        return
-    if eta_b < MIN_BACKDRIVE:
-        notes.append(f"the chain is self-locking (back-drive efficiency {eta_b:.3g}); modelled with "
-                     f"back-drive efficiency {MIN_BACKDRIVE:g}")
-        eta_b = MIN_BACKDRIVE
-    c_drive, c_back = 1.0 - eta, 1.0 / eta_b - 1.0
-    P[lo.ETA_MEAN], P[lo.ETA_HALF] = 0.5 * (c_drive + c_back), 0.5 * (c_drive - c_back)
-    n0 = abs(float(drive.ratio([q0])[0][0]))
-    P[lo.INV_TAU_S] = 1.0 / (LOSS_TORQUE_SCALE * motor.torque_constant * motor.current_limit * n0)
-    notes.append(f"drivetrain efficiency {eta:.3g} driving, {eta_b:.3g} back-driven (LossyGear-like loss "
-                 "on the reflected motor torque)")
-
-
 def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options: ModelOptions,
                      play: float) -> None:
     """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
 
-    Load-side inertia ``JL`` (and its reciprocal), stiffness factor ``KSCALE``, structural
+    Load-side inertia ``JL`` (and its reciprocal), the motor side's reciprocal ``INV_JD0``,
+    stiffness factor ``KSCALE``, structural
     damping ``BETA = 2 zeta / omega_n`` of the drivetrain mode at q0, half the lost motion,
     and the elastic stroke-end stop (10x the drivetrain stiffness; 100 Hz on a rigid chain).
     :func:`build_model` and the batched variants (:mod:`servo_toolkit.sim.batch`) both fill
@@ -426,6 +405,7 @@ def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, opt
     """
     P[lo.JL] = jl
     P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
+    P[lo.INV_JD0] = 1.0 / (j0_tot - jl)
     P[lo.KSCALE] = options.stiffness_scale
     if rigid:
         k_stop = j0_tot * (2 * math.pi * 100.0) ** 2
@@ -469,6 +449,6 @@ def _with_table_error(model: Model, drive, q) -> Model:
     err = {"J": float(np.max(np.abs(interp[0] - exact_j)) / np.max(np.abs(exact_j))),
            "N": float(np.max(np.abs(interp[1] - exact_n)) / np.max(exact_n))}
     if not model.rigid:
-        exact_k = drive.stiffness(mid).total
+        exact_k = drive.stiffness(mid).total * load_split(drive, model.q0)[3]
         err["K"] = float(np.max(np.abs(interp[2] - exact_k)) / np.max(exact_k))
     return replace(model, table_error=err)

@@ -29,7 +29,8 @@ from . import layout as lo
 from .model import build_model, drivetrain_slots
 
 #: slots that :func:`drivetrain_slots` fills
-DRIVETRAIN_SLOTS = frozenset({lo.JL, lo.INV_JL, lo.KSCALE, lo.BETA, lo.HALF_PLAY, lo.KSTOP, lo.DSTOP})
+DRIVETRAIN_SLOTS = frozenset({lo.JL, lo.INV_JL, lo.INV_JD0, lo.KSCALE, lo.BETA, lo.HALF_PLAY, lo.KSTOP,
+                              lo.DSTOP})
 #: relative agreement required between the rows built here and :func:`build_model`
 SELF_CHECK_RTOL = 1e-12
 

@@ -13,15 +13,18 @@ Loads and losses (the documented model)
   hinge moment M_h (a constant moment opposing positive motion, so the drive must supply
   +M_h), hinge stiffness k*y and damping c*y'. Their generalized force is
   (M_h + k y + c y') dy/dq. The load inertia is one of the elements.
-* Stage losses, stage by stage from the load back to the motor. Let G be the generalized
-  force (at q) the stages beyond stage k require, and add stage k's own elements' inertial
-  force (a stage's elements are counted on the loss side of that stage). With P = raw * qd
-  the power flowing through stage k:
+* Stage losses, stage by stage from the load back to the motor, each element at its place in
+  the drivetrain's chain (:mod:`servo_toolkit.drivetrain.chain`). Let G be the generalized
+  force (at q) the stages beyond stage k require; raw = G plus the inertial force of stage
+  k's output members (the gear wheel, the nut: beyond its loss). With P = raw * qd the power
+  flowing through stage k:
   motoring (P >= 0, power flows motor -> load): G_k = raw / eta_k;
   back-driving (P < 0, the load drives the motor): G_k = raw * eta_b,k, with the stage's
   back-drive efficiency (``Stage.backdrive_efficiency``: eta_k for gears and linkages,
   2 - 1/eta_k for screws), the same pair of efficiencies the nonlinear simulation uses. A
   self-locking screw (eta_b <= 0) makes the motor pull the load along even when it back-drives.
+  Stage k's input members (the pinion, the screw) are before its loss: their inertial force is
+  added to G_k as it is.
   ``losses="none"`` sets every eta_k = 1.
 * The motor rotor is before every loss: T_m = (G_0 + I_rotor) / N + b w_m + Tc sign(w_m)
   with the motor's viscous and Coulomb friction, w_m = N qd.
@@ -202,15 +205,22 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     chains = [subchain(drivetrain, k) for k in range(n + 1)]
     inertial = [inertial_force(c, q, qd, qdd) for c in chains]   # inertial[n] = load only
     external = external_force(drivetrain, q, qd)
+    # each element's inertial force, and its place in the chain (drivetrain.chain): a stage's
+    # input members before its loss, its output members beyond it
+    per = drivetrain.reflected_inertias(q)
+    force = per.output * qdd + 0.5 * per.output_dq * qd**2
+    member = np.array([e.member == "input" for e in drivetrain.kinematics(q[:1]).elements])
+    owner = np.asarray(per.stage)
     required = [None] * (n + 1)
     required[n] = inertial[n] + external
     for k in reversed(range(n)):
-        raw = required[k + 1] + (inertial[k] - inertial[k + 1])
+        mine = owner == k
+        raw = required[k + 1] + force[mine & ~member].sum(axis=0)
         if losses == "none":
             eta = eta_b = 1.0
         else:
             eta, eta_b = float(getattr(stages[k], "efficiency", 1.0)), stages[k].backdrive_efficiency
-        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta_b)
+        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta_b) + force[mine & member].sum(axis=0)
     ratio, _ = drivetrain.ratio(q)
     if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
         raise SimulationError("the drivetrain ratio is zero or not finite along the motion")

@@ -287,7 +287,8 @@ class RollerScrew(Stage):
         lam = nut_travel_per_screw_radian(self.stages) * self.ratio  # nut travel per last-nut travel
         out = []
         for k, st in enumerate(self.stages):
-            out.append(Element(f"{self.name}: screw {k + 1}", st.screw_inertia, Jet.linear(z, self.ratio)))
+            out.append(Element(f"{self.name}: screw {k + 1}", st.screw_inertia, Jet.linear(z, self.ratio),
+                               "input"))
             out.append(Element(f"{self.name}: carrier and rollers {k + 1}", carrier_inertia_total(st),
                                Jet.linear(z, self.ratio * carrier_ratio(st))))
             out.append(Element(f"{self.name}: nut and rollers {k + 1}", st.nut_mass + st.rollers * st.roller_mass,
