@@ -30,3 +30,18 @@ class SceneError(ValueError):
 
 class SimulationError(RuntimeError):
     """A simulation left its validity domain (non-finite state, unstable step)."""
+
+
+class StrokeEndReached(SimulationError):
+    """A run carried its output past the end of the stroke (the end stops are not modelled
+    unless asked for): a physical outcome of the run, not a numerical failure.
+
+    Attributes
+    ----------
+    time_s : float
+        When the output left the stroke.
+    """
+
+    def __init__(self, message: str, time_s: float):
+        super().__init__(message)
+        self.time_s = float(time_s)

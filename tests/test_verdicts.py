@@ -240,3 +240,20 @@ def test_no_stable_variant_fails_the_robust_rows_on_the_unstable_loops_figures()
             Requirement("gain_margin", ">=", 6.0, "dB", "nominal")]
     checks, worst = worst_cases({"stiffness": np.array([1e-6, 1e-5])}, figs, reqs)
     assert [c.passed for c in checks] == [False, False] and checks[1].achieved == 0.0
+
+
+def test_a_large_signal_run_into_the_end_stop_is_a_failed_row_not_bad_input():
+    """An actuator that runs into its end stop on the requirement sine fails the gate (exit 1)
+    on a finite row, the seconds it stayed within the stroke; only a run that cannot be
+    carried out numerically is exit 2."""
+    import math
+
+    from servo_toolkit.studies.large_signal import LargeSignal
+    ls = LargeSignal(frequency_hz=8.0, amplitude=0.035, gain_db=math.nan, phase_deg=math.nan, linear_gain_db=0.0,
+                     linear_phase_deg=-70.0, time_at_voltage_limit_s=math.nan, time_at_current_limit_s=math.nan,
+                     duration_s=1.0, peak_current_A=math.nan, peak_voltage_V=math.nan,
+                     failure="stroke end reached at t = 0.7 s", stroke_end_s=0.7)
+    (row,) = ls.checks()
+    assert row.name == "large_signal_within_stroke" and not row.passed
+    assert row.achieved == 0.7 and row.shortfall == pytest.approx(0.3)
+    assert "stroke end reached" in ls.note(False)

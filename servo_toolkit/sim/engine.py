@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import SimulationError, StrokeEndReached
 from . import layout as lo
 from .integrators import integrate
 from .ivp import MAX_RHS_EVALS, solve_reference
@@ -131,10 +131,10 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
             raise SimulationError(f"{scheme} diverged at t = {t_fail:.6g} s with step {dt:.3g} s "
                                   f"(output angle {math.degrees(x[qi]):.4g} deg; {state}); use a "
                                   f"smaller dt or method='auto'")
-        raise SimulationError(f"stroke end reached at t = {t_fail:.6g} s: output angle "
-                              f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
-                              f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
-                              f"for an elastic end stop)")
+        raise StrokeEndReached(f"stroke end reached at t = {t_fail:.6g} s: output angle "
+                               f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
+                               f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
+                               f"for an elastic end stop)", t_fail)
     return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps
 
 

@@ -43,8 +43,12 @@ class LargeSignal:
     time_at_voltage_limit_s, time_at_current_limit_s, duration_s : float
     peak_current_A, peak_voltage_V : float
     failure : str
-        Kept for the JSON layout; always "" (a run that cannot be carried out raises
-        instead: no verdict on a figure it did not produce).
+        "" for a run that went through; else why the run ended early: the output left the
+        stroke (a physical outcome that fails the ``large_signal_within_stroke`` row). A run
+        that cannot be carried out numerically raises instead: no verdict on a figure it did
+        not produce.
+    stroke_end_s : float
+        When the output left the stroke (NaN when it stayed within).
     """
 
     frequency_hz: float
@@ -59,6 +63,7 @@ class LargeSignal:
     peak_current_A: float
     peak_voltage_V: float
     failure: str = ""
+    stroke_end_s: float = math.nan
 
     @property
     def gain_error_db(self) -> float:
@@ -70,7 +75,12 @@ class LargeSignal:
         return abs(d)
 
     def checks(self) -> list:
-        """The ``large_signal_gain`` and ``large_signal_phase`` rows."""
+        """The ``large_signal_gain`` and ``large_signal_phase`` rows, or, for a run whose
+        output left the stroke, the failing ``large_signal_within_stroke`` row (seconds the
+        output stayed within the stroke against the run's duration)."""
+        if self.failure:
+            return [Check("large_signal_within_stroke", self.duration_s, self.stroke_end_s, False, "s", ">=",
+                          "large signal", float(self.duration_s - self.stroke_end_s))]
         out = []
         for name, value, tol, unit in (("large_signal_gain", self.gain_error_db, GAIN_TOLERANCE_DB, "dB"),
                                        ("large_signal_phase", self.phase_error_deg, PHASE_TOLERANCE_DEG, "deg")):
@@ -119,7 +129,7 @@ def large_signal(scene, result) -> LargeSignal:
     """
     import control as ct
 
-    from ..errors import SimulationError
+    from ..errors import SimulationError, StrokeEndReached
     from ..sim import Reference, simulate
     from .sweep_points import study_points
     from ..loop.requirements import requirements_of
@@ -133,6 +143,11 @@ def large_signal(scene, result) -> LargeSignal:
     lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
     try:
         run = simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration, method="rk4")
+    except StrokeEndReached as exc:  # the actuator ran into its end stop: a failed requirement, not bad input
+        return LargeSignal(frequency_hz=float(f), amplitude=amp, gain_db=math.nan, phase_deg=math.nan,
+                           linear_gain_db=lin_db, linear_phase_deg=lin_deg, time_at_voltage_limit_s=math.nan,
+                           time_at_current_limit_s=math.nan, duration_s=float(duration), peak_current_A=math.nan,
+                           peak_voltage_V=math.nan, failure=str(exc), stroke_end_s=exc.time_s)
     except SimulationError as exc:  # no figure to judge: no verdict (exit 2), never a row failed on NaN
         what = unit.text(amp, 3)
         raise SimulationError(f"the large-signal run ({what} sine at {f:g} Hz, nonlinear closed loop) could not "
