@@ -60,7 +60,7 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     work = np.empty(max(nx, 1))
     err_mode = P[lo.STROKE_MODE] == 0.0
     rigid = P[lo.RIGID] > 0.0
-    cont = int(P[lo.CMODE]) == lo.CONTINUOUS
+    cont = int(P[lo.CMODE]) == lo.CONTINUOUS or P[lo.NMID] > 0.0  # states moving in x[7:]
     ilim = P[lo.ILIM]
     vlim = P[lo.VLIM]
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]

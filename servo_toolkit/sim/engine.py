@@ -184,6 +184,9 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if not duration > 0:
         raise ValueError("duration must be positive")
+    if method == "paper" and model.P[lo.NMID] > 0:
+        raise SimulationError("the cam paper's scheme integrates a two-mass or rigid model; this one is the "
+                              "full drivetrain chain: use method 'rk4' or build it with chain='two_mass'")
     P = fill(model, reference)
     x0 = initial_state(model, P, at_rest) if x0 is None else np.asarray(x0, dtype=float).copy()
     notes = list(model.notes)

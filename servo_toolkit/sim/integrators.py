@@ -23,7 +23,7 @@ import numpy as np
 
 from .kernel import controller_sample, inline, jit, rhs, rhs_phys
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
-                     NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
+                     NMID, NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
                      STROKE_MODE)
 
 
@@ -161,7 +161,8 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     max_tau = 0.0
     err_mode = P[STROKE_MODE] == 0.0
     rigid = P[RIGID] > 0.0
-    cont = int(P[CMODE]) == CONTINUOUS
+    # states in x[7:] that move between samples: a continuous controller's, the full chain's nodes
+    cont = int(P[CMODE]) == CONTINUOUS or P[NMID] > 0.0
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
     to_sample = 0
     to_record = 0

@@ -42,63 +42,18 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
+from .tables import cell, hermite, interp  # noqa: E402,F401 - hermite: the tables' interpolation for callers
+from .compliance_kernel import B_EPS, chain_accelerations, contact, lossy  # noqa: E402,F401
 
-from .layout import (ETA_HALF, ETA_MEAN, INV_JD0, INV_TAU_S, JW, EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M,
-                     AUX_I, AUX_IREF, AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP,
-                     HALF_PLAY, HINGE_D, HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE,
-                     KSTOP, KT, KAW, L, CAM, NCAM, LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP,
-                     PAPER, PERIODIC, R, REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE,
-                     REF_STEP, REF_T0, RIGID, STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP,
-                     T_J, T_K, T_N, TAB_H, TAB_LO, TAB_N, TC, V_OPEN, VLIM, WS,
-                     INV_H, INV_L, INV_JL)
+from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX_I, AUX_IREF,
+                     AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
+                     HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE, KSTOP, KT, KAW, L, CAM, NCAM,
+                     LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP, PAPER, PERIODIC, R,
+                     REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
+                     STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
+                     TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, NMID)
 
-#: half plays at or below this (rad) act as a plain spring-damper (Modelica's bEps = 1e-10 rad
-#: total backlash)
-B_EPS = 0.5e-10
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
-
-
-@inline
-def cell(P, q):
-    """Table cell index k and local coordinate t in [0, 1] of q (clamped; periodic wraps)."""
-    s = (q - P[TAB_LO]) * P[INV_H]
-    last = P[TAB_N] - 1.0
-    if P[PERIODIC] > 0.0:
-        s = s - last * math.floor(s / last)
-    if s <= 0.0:
-        return 0, 0.0
-    if s >= last:
-        return int(last) - 1, 1.0
-    k = int(s)
-    return k, s - k
-
-
-@inline
-def interp(T, row, k, t, h, inv_h):
-    """Cubic Hermite value and derivative of table ``row`` (values; ``row + 1`` holds
-    derivatives) in cell k at local coordinate t; h is the grid step."""
-    y0 = T[row, k]
-    y1 = T[row, k + 1]
-    m0 = T[row + 1, k] * h
-    m1 = T[row + 1, k + 1] * h
-    t2 = t * t
-    t3 = t2 * t
-    val = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * m0 + (3 * t2 - 2 * t3) * y1 + (t3 - t2) * m1
-    der = ((6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * m0 + (3 * t2 - 2 * t) * m1) * inv_h
-    return val, der
-
-
-@inline
-def hermite(T, row, P, q):
-    """Cubic Hermite interpolation of table ``row`` at q: value and its exact derivative.
-
-    Outside a non-periodic table the end values are held (derivative 0); periodic tables
-    wrap.
-    """
-    k, t = cell(P, q)
-    if P[PERIODIC] <= 0.0 and (t == 0.0 or t == 1.0) and (q <= P[TAB_LO] or k == P[TAB_N] - 2):
-        return T[row, k + int(t)], 0.0
-    return interp(T, row, k, t, P[TAB_H], P[INV_H])
 
 
 @inline
@@ -122,25 +77,6 @@ def clip(v, lim):
     if v < -lim:
         return -lim
     return v
-
-
-@inline
-def contact(tau_c, tau_d):
-    """Modelica ``ElastoBacklash`` contact moment from the spring part ``tau_c = K z`` (sign =
-    contact side, 0 inside the play) and the damper part ``tau_d = beta K d'``.
-
-    Positive side: 0 if tau_c + tau_d <= 0 (no pulling), else tau_c + min(tau_c, tau_d);
-    negative side mirrored. Continuous in z (|f| <= 2 |tau_c|), no events.
-    """
-    if tau_c > 0.0:
-        if tau_c + tau_d <= 0.0:
-            return 0.0
-        return tau_c + min(tau_c, tau_d)
-    if tau_c < 0.0:
-        if tau_c + tau_d >= 0.0:
-            return 0.0
-        return tau_c + max(tau_c, tau_d)
-    return 0.0
 
 
 @inline
@@ -281,37 +217,13 @@ def controller_update(r, x, P, T, work):
 
 
 @inline
-def lossy(P, nts, jd, djd, pd, n, dn, rest):
-    """The drivetrain's loss (LossyGear-like) folded into the motor side's equation
-    ``jd p'' = nts - djd p'^2 / 2 + rest``: returns its ``(nts, jd, djd)`` with the loss.
-
-    The loss acts on the torque transmitted past the members before it (rotor, pinion:
-    inertia J_w = JW n^2 at the output), T = nts - J_w p'' - J_w' p'^2 / 2, which loses
-    c T; c = 1 - eta driving, 1/eta_b - 1 back-driven (as -c), blended by the smooth signs of
-    T and of the speed (c T p' >= 0: the loss never supplies power). Solved for p'': nts and
-    J_w scale by (1 - c), the rest of the motor side stays. The sign of T does not depend on
-    c: it is that of the lossless transmitted torque, computed first (without its velocity
-    terms, of the order of the ratio's variation).
-    """
-    if P[ETA_MEAN] <= 0.0:
-        return nts, jd, djd
-    jw = P[JW] * n * n
-    # the lossless transmitted torque times jd / J_d(q0) (same sign; the scale of the smooth
-    # sign varies with J_d(p) / J_d(q0), a few per cent along a stroke); its velocity terms,
-    # of the order of the ratio's variation, are left out of the sign
-    t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
-    sg = tanh(t_free * P[INV_TAU_S]) * tanh(abs(n) * pd * P[WS])
-    c = (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
-    return nts - c * nts, jd - c * jw, djd - c * 2.0 * P[JW] * n * dn
-
-
-@inline
 def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
 
     Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
-    motion controller touches the arrays: it reads its states ``x[NX_PHYS:]`` and writes their
-    derivatives into ``dx[NX_PHYS:]`` (nothing else is written). Scalars in and out let the
+    motion controller and the full chain's intermediate nodes touch the arrays: they read
+    their states in ``x[NX_PHYS:]`` and write their derivatives into ``dx[NX_PHYS:]``
+    (nothing else is written). Scalars in and out let the
     fixed-step loop keep the physical state in registers.
 
     ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
@@ -329,7 +241,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     # --- controller and electrics
     if mode == OPEN_LOOP:
         iref = 0.0
-        v = clip(P[V_OPEN], P[VLIM])
+        # a constant voltage, plus a sine (its kernel reference about REF_OFF) for a dwell
+        v = clip(P[V_OPEN] + (reference(t, P) - P[REF_OFF]), P[VLIM])
         if P[L] > 0.0:
             di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
         else:
@@ -378,6 +291,9 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         else:
             pdd = (nts - 0.5 * djd * pd * pd + m_load) / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
+    if not lanes and P[NMID] > 0.0:
+        pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx)
+        return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
     # --- compliance with backlash
     k, dk = interp(T, T_K, kc, tc, hc, ih)
     k *= P[KSCALE]

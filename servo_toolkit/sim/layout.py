@@ -14,6 +14,9 @@ State ``x`` (float64)::
     then     speed-estimator states (sampled mode, updated at the sample instants; their
              derivative is 0): "difference" [last motor-encoder angle, speed estimate],
              "kalman" [angle, speed, acceleration estimates] (rad, rad/s, rad/s^2 of the motor)
+    then     the full chain's intermediate nodes (``NMID`` of them, from ``OFF_NODE``): angle
+             and rate of each, referred to the output like p and q (rad, rad/s; m, m/s for an
+             output travel)
 
 Module-level integer constants are compile-time constants inside numba kernels.
 """
@@ -59,7 +62,15 @@ JW = 56
 # 1 / the motor side's inertia at q0 (J(q0) - JL): the scale of the loss's smooth torque sign
 # (:func:`kernel.lossy`), a product where a division would cost the step rate
 INV_JD0 = 57
-NP_HEADER = 58
+# the full chain (:func:`servo_toolkit.sim.chain_model.chain_slots`): number of intermediate
+# nodes between the motor side (p) and the load (q) (0: two-mass or rigid), index in x of the
+# first intermediate node's angle, and index in P of the segment block: per segment s = 0..NMID
+# (between node s and s + 1), SEG_STRIDE values [half play, loss fraction of its spring
+# (1 - eta / Pi_s) / (1 - eta), inertia of node s + 1, its inertia before the losses J_w]
+NMID, OFF_NODE, OFF_SEG = 58, 59, 60
+SEG_STRIDE = 4
+SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
+NP_HEADER = 61
 #: length of the packed cam parameters
 NCAM = 14
 
@@ -67,6 +78,9 @@ NCAM = 14
 # (rad, 0 at mid-stroke), whose derivative row is N
 T_J, T_DJ, T_N, T_DN, T_K, T_DK, T_M, T_DM = range(8)
 NT_ROWS = 8
+# the full chain's further segments s = 1..NMID: stiffness rows T_KS + 2 (s - 1) (value,
+# derivative), tabulated at the motor-side position p like T_K (segment 0)
+T_KS = 8
 
 # speed estimators (``[sensors] speed_estimator``) and their state counts
 EST_IDEAL, EST_DIFFERENCE, EST_KALMAN = 0, 1, 2

@@ -45,7 +45,7 @@ Simplifications (documented, switchable where a reduction study needs it):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -55,8 +55,9 @@ from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
 from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
+from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
-from .kernel import hermite
+from .model_slots import drivetrain_slots, with_cam, with_full_chain, with_table_error
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,11 @@ class ModelOptions:
     play : float or None
         Total lost motion at the output (rad) replacing the scene's value (None: the scene's
         lost motion at q0).
+    chain : {"auto", "full", "two_mass"}
+        The drivetrain's compliances: every one of them (the full chain, every mode), its
+        two-mass reduction (the lowest mode), or the full chain only where its second mode
+        lies within :data:`~.chain_model.MODE_FACTOR` times the scene's working frequencies
+        (:mod:`servo_toolkit.sim.chain_model`; the model's notes say which and why).
     speed_estimator : {None, "ideal", "difference", "kalman"}
         Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
         speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
@@ -126,8 +132,11 @@ class ModelOptions:
     speed_estimator: str | None = None
     estimator_jerk: float | None = None
     efficiency: bool = True
+    chain: str = "auto"
 
     def __post_init__(self):
+        if self.chain not in CHAIN_CHOICES:
+            raise ValueError(f"chain must be one of {CHAIN_CHOICES}, got {self.chain!r}")
         if self.speed_estimator is not None and self.speed_estimator not in lo.ESTIMATORS:
             raise ValueError(f"speed_estimator must be None or one of {lo.ESTIMATORS}, "
                              f"got {self.speed_estimator!r}")
@@ -272,7 +281,11 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     k_tot = drive.stiffness(q).total
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
     jl, load_side, last_motor_node, k_factor = load_split(drive, q0)
-    if not rigid:
+    full = None
+    if not rigid and resolve_chain(scene, controller, options, q0, notes) == "full":
+        full = chain_model(drive, q, q0, options, j_tot, options.damping_ratio)
+        jl, load_side, last_motor_node, k_factor = full["j_load"], full["load_side"], 0, 1.0
+    if not rigid and full is None:
         k_tot = k_tot * k_factor
         if abs(k_factor - 1.0) > 1e-3:
             notes.append(f"series stiffness scaled by {k_factor:.4g}: the two-mass reduction keeps the "
@@ -288,7 +301,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         last_motor_node = None
         j_row, k_row, dk_row, jl = j_tot, np.zeros_like(q), np.zeros_like(q), 0.0
     else:
-        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0)
+        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0) - (
+            0.0 if full is None else drive.chain.node_inertias([q0])[list(full["nodes"][1:-1]), 0].sum())
         if np.ptp(moving) > 1e-3 * jl:
             notes.append(f"load-side inertia held at its q0 value {jl:.4g} (it varies by "
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
@@ -297,7 +311,10 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
-    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]).astype(float)
+        if full is not None:
+            j_row, (k_row, dk_row) = full["j_row"], full["k_rows"][:2]
+    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
+                      + ([] if full is None else [full["k_rows"][2:]])).astype(float)
 
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
@@ -324,8 +341,10 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         play = float(drive.backlash([q0])[0]) if options.play is None else options.play
     drivetrain_slots(P, rigid=rigid, j0_tot=float(np.interp(q0, q, j_tot)), jl=jl,
                      k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play)
+    if full is not None:
+        P = with_full_chain(P, full, options)
 
-    P = _with_cam(P, drive, rigid, notes)
+    P = with_cam(P, drive, rigid, notes)
     names = list(lo.STATE_NAMES)
     desc, ts, closed = "open loop (constant voltage)", 0.0, controller is not None
     est_kind, est_info = "ideal", {}
@@ -367,6 +386,11 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             notes.append(note)
     else:
         P[lo.CMODE] = lo.OPEN_LOOP
+    if full is not None:
+        P[lo.OFF_NODE] = len(names)
+        names += chain_state_names(full["nodes"])
+        notes.append(f"{len(full['nodes'])} masses, {len(full['nodes']) - 1} compliances (nodes "
+                     f"{', '.join(map(str, full['nodes']))} of the chain)")
     P.setflags(write=False)
     table.setflags(write=False)
     model = Model(name=scene.name, options=options, P=P, T=table, nx=len(names),
@@ -374,81 +398,4 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info,
                   output_unit=drive.output_unit)
-    return _with_table_error(model, drive, q)
-
-
-def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options: ModelOptions,
-                     play: float) -> None:
-    """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
-
-    Load-side inertia ``JL`` (and its reciprocal), the motor side's reciprocal ``INV_JD0``,
-    stiffness factor ``KSCALE``, structural
-    damping ``BETA = 2 zeta / omega_n`` of the drivetrain mode at q0, half the lost motion,
-    and the elastic stroke-end stop (10x the drivetrain stiffness; 100 Hz on a rigid chain).
-    :func:`build_model` and the batched variants (:mod:`servo_toolkit.sim.batch`) both fill
-    them here.
-
-    Parameters
-    ----------
-    P : numpy.ndarray
-        Parameters, written in place.
-    rigid : bool
-    j0_tot : float
-        Total inertia at the output at q0 (kg*m^2).
-    jl : float
-        Load-side inertia (0 for a rigid chain).
-    k0 : float
-        Series stiffness at q0 before ``options.stiffness_scale`` (ignored when rigid).
-    options : ModelOptions
-    play : float
-        Total lost motion at the output (rad; ignored when rigid).
-    """
-    P[lo.JL] = jl
-    P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
-    P[lo.INV_JD0] = 1.0 / (j0_tot - jl)
-    P[lo.KSCALE] = options.stiffness_scale
-    if rigid:
-        k_stop = j0_tot * (2 * math.pi * 100.0) ** 2
-        j_stop = j0_tot
-    else:
-        k0 = k0 * options.stiffness_scale
-        jd0 = j0_tot - jl
-        wn = math.sqrt(k0 * (1 / jd0 + 1 / jl))
-        P[lo.BETA] = 2 * options.damping_ratio / wn
-        P[lo.HALF_PLAY] = 0.5 * play
-        k_stop, j_stop = 10 * k0, jl
-    P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * j_stop)
-
-
-def _with_cam(P, drive, rigid, notes):
-    """Append a chain-ending cam's parameters (its follower weight and guide friction load
-    the shaft inside the kernel)."""
-    if not drive.ends_in_cam:
-        return P
-    cam = drive.stages[-1]
-    if cam.follower_weight == 0 and cam.guide_friction_coefficient == 0:
-        return P
-    if not rigid or cam.law != "modified_constant_velocity":
-        notes.append("cam follower weight and guide friction left out (compliant chain or law "
-                     f"{cam.law!r})")
-        return P
-    from ..components.cam.kernels import pack_cam
-    P[lo.CAM] = P.size
-    return np.concatenate([P, pack_cam(cam)])
-
-
-def _with_table_error(model: Model, drive, q) -> Model:
-    """Measure the Hermite interpolation error at the cell midpoints against the drivetrain."""
-    mid = 0.5 * (q[1:] + q[:-1])
-    exact_j = drive.inertia(mid)[0] - (0.0 if model.rigid else model.P[lo.JL])
-    exact_n = np.abs(drive.ratio(mid)[0])
-    if not model.options.variable_inertia:
-        exact_j = np.full_like(mid, model.T[lo.T_J, 0])
-    interp = np.array([[hermite(model.T, row, model.P, x)[0] for x in mid]
-                       for row in (lo.T_J, lo.T_N, lo.T_K)])
-    err = {"J": float(np.max(np.abs(interp[0] - exact_j)) / np.max(np.abs(exact_j))),
-           "N": float(np.max(np.abs(interp[1] - exact_n)) / np.max(exact_n))}
-    if not model.rigid:
-        exact_k = drive.stiffness(mid).total * load_split(drive, model.q0)[3]
-        err["K"] = float(np.max(np.abs(interp[2] - exact_k)) / np.max(exact_k))
-    return replace(model, table_error=err)
+    return with_table_error(model, drive, q)

@@ -32,6 +32,9 @@ class Reference:
         Starting / centre value (rad); None = the model's mid-stroke q0.
     t0 : float
         Step time, ramp start or sine phase origin (s).
+    swing : float
+        Open loop: amplitude (V) of a sine at ``frequency`` added to the voltage (a sine
+        dwell of the plant).
     """
 
     kind: str = "hold"
@@ -39,6 +42,7 @@ class Reference:
     frequency: float = 0.0
     offset: float | None = None
     t0: float = 0.0
+    swing: float = 0.0
 
     def __post_init__(self):
         if self.kind not in KINDS and self.kind != "voltage":
@@ -60,9 +64,10 @@ class Reference:
         return cls("ramp", rate, 0.0, offset, at)
 
     @classmethod
-    def voltage(cls, volts: float) -> "Reference":
-        """Open loop: constant armature voltage (clamped at the voltage limit)."""
-        return cls("voltage", volts)
+    def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
+        """Open loop: armature voltage ``volts + swing sin(2 pi frequency t)`` (clamped at the
+        voltage limit)."""
+        return cls("voltage", volts, frequency, swing=swing)
 
     def describe(self, output_unit: str = "rad") -> str:
         """One line in engineering units: deg for an output angle, mm for an output travel
@@ -76,13 +81,17 @@ class Reference:
         if self.kind == "ramp":
             return f"ramp {self.amplitude * scale:.3g} {unit}/s from {off}"
         if self.kind == "voltage":
-            return f"open loop, {self.amplitude:.4g} V"
+            sine = f" + {self.swing:.4g} V sine at {self.frequency:.4g} Hz" if self.swing else ""
+            return f"open loop, {self.amplitude:.4g} V{sine}"
         return f"hold {off}"
 
     def to_dict(self) -> dict:
         """JSON-ready description (SI)."""
-        return {"kind": self.kind, "amplitude": self.amplitude, "frequency_Hz": self.frequency,
-                "offset_rad": self.offset, "t0_s": self.t0}
+        out = {"kind": self.kind, "amplitude": self.amplitude, "frequency_Hz": self.frequency,
+               "offset_rad": self.offset, "t0_s": self.t0}
+        if self.swing:
+            out["swing_V"] = self.swing
+        return out
 
 
 def fill(model, ref: Reference) -> np.ndarray:
@@ -93,6 +102,8 @@ def fill(model, ref: Reference) -> np.ndarray:
             raise ValueError("a voltage reference needs an open-loop model (controller=None)")
         P[lo.V_OPEN] = ref.amplitude
         P[lo.REF_OFF] = model.q0 if ref.offset is None else ref.offset
+        if ref.swing:
+            P[lo.REF_KIND], P[lo.REF_A], P[lo.REF_F], P[lo.REF_T0] = lo.REF_SINE, ref.swing, ref.frequency, ref.t0
         return P
     if not model.closed_loop:
         raise ValueError("an open-loop model needs Reference.voltage(V)")
@@ -116,9 +127,13 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
     x[0] = x[2] = x[6] = q
     if at_rest:
         return _estimator_at_rest(model, P, x)
+    nm, o = int(P[lo.NMID]), int(P[lo.OFF_NODE])
+    x[o:o + 2 * nm:2] = q  # the full chain's intermediate nodes
     f = P[lo.HINGE_M] + P[lo.HINGE_K] * q  # moment the drivetrain must supply
     motor_side = f
-    if not model.rigid and f != 0.0:
+    if nm and f != 0.0:
+        motor_side = _chain_equilibrium(model, P, x, q, f)
+    elif not model.rigid and f != 0.0:
         c = P[lo.HALF_PLAY]
         x[0] = q
         for _ in range(3):  # K is evaluated at p: a few fixed-point passes
@@ -143,6 +158,29 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
         rhs_ = np.concatenate([b @ u, [cur - float(d @ u)]])
         x[lo.NX_PHYS:lo.NX_PHYS + nc] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
     return _estimator_at_rest(model, P, x)
+
+
+def _chain_equilibrium(model, P, x, q, f):
+    """The full chain carrying the moment f at rest (no loss at rest): every segment
+    deflected by f / k_s beyond its play, from the load back to the motor side (k at p: a few
+    fixed-point passes). Returns the moment at the motor side, f + sum k_s' z_s^2 / 2."""
+    nm, o, g = int(P[lo.NMID]), int(P[lo.OFF_NODE]), int(P[lo.OFF_SEG])
+    side = 1.0 if f > 0 else -1.0
+    for _ in range(3):
+        pos, pot = q, 0.0
+        for j in range(nm, -1, -1):
+            row = lo.T_K if j == 0 else lo.T_KS + 2 * (j - 1)
+            k, dk = hermite(model.T, row, P, x[0])
+            z = f / (k * P[lo.KSCALE])
+            half = P[lo.HALF_PLAY] if j == 0 else P[g + lo.SEG_STRIDE * j + lo.SEG_PLAY]
+            pos = pos + z + side * half
+            pot += 0.5 * dk * P[lo.KSCALE] * z * z
+            if j == 0:
+                x[0] = pos
+                x[6] = pos - side * half
+            else:
+                x[o + 2 * (j - 1)] = pos
+    return f + pot
 
 
 def _estimator_at_rest(model, P, x):

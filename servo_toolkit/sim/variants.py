@@ -99,8 +99,9 @@ class VariantBuilder:
     def create(cls, scene, controller, options, varied=("load_inertia", "stiffness"), model=None):
         """Build the nominal model and learn how the varied parameters move its rows."""
         m0 = model or build_model(scene, controller, options)
-        fast, d_table, d_jl, d_j0 = True, None, 0.0, 0.0
-        if "load_inertia" in varied:
+        # the full chain's variants are built exactly (its segment block moves with them)
+        fast, d_table, d_jl, d_j0 = m0.P[lo.NMID] == 0.0, None, 0.0, 0.0
+        if "load_inertia" in varied and fast:
             m1 = build_model(with_load_inertia(scene, scene.load.inertia + 1.0), controller, options)
             fast &= m1.rigid == m0.rigid and _moved(m0.P, m1.P) <= DRIVETRAIN_SLOTS
             if fast:

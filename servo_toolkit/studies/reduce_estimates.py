@@ -10,6 +10,9 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
   001 criterion): loop with the series stiffness raised by 1 / (1 - share);
 - the whole drivetrain compliance: rigid loop against the two-mass loop (resonance vs the
   study's highest frequency);
+- the drivetrain chain's modes above the first: the two-mass loop against the full chain's
+  (:func:`servo_toolkit.plant.chain_plant.chain_plant`); left out, the run uses the two-mass
+  reduction;
 - backlash of total lost motion b at the output: zero when the force through the
   compliance never reverses (the static load keeps the contact closed: the dynamic force
   amplitude, from the linear loop, stays below 80 % of the static one); otherwise the
@@ -138,9 +141,10 @@ def _deg(e):
     return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
 
 
-def loop_response(p, controller, motor, w, inductance: bool = True):
+def loop_response(p, controller, motor, w, inductance: bool = True, plant_ss=None):
     """Closed-loop responses theta, i, u, omega per theta_ref (rad) of plant parameters ``p``
-    with ``controller``, assembled as :func:`servo_toolkit.loop.linear_closed_loop` does.
+    (or of the plant block ``plant_ss``, e.g. the full chain's) with ``controller``,
+    assembled as :func:`servo_toolkit.loop.linear_closed_loop` does.
 
     Returns
     -------
@@ -148,8 +152,11 @@ def loop_response(p, controller, motor, w, inductance: bool = True):
         Complex responses at the angular frequencies ``w`` (keys ``theta``, ``i``, ``u``,
         ``omega``) and ``stable`` (bool).
     """
-    a, b, c, d, states = plant_matrices(p, inductance)
-    g = ct.ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
+    if plant_ss is None:
+        a, b, c, d, states = plant_matrices(p, inductance)
+        g = ct.ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
+    else:
+        g = plant_ss
     mot = motor if inductance else replace(motor, inductance=0.0)
     cur = current_controller(controller.current_kp, controller.current_ki, mot)
     from ..loop.closed_loop import DELAY_SAMPLES
@@ -255,6 +262,15 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         rigid_effect = Effect("drivetrain compliance", "compliance",
                               f"resonance {p.resonance_hz:.3g} Hz vs study up to {freqs[-1]:.3g} Hz", e)
 
+    # the chain's modes above the first (the two-mass reduction lumps them)
+    if base.chain != "two_mass" and math.isfinite(p.K) and drive.chain.condensed(q0)[2].size > 2:
+        from ..plant.chain_plant import chain_plant
+        modes = drive.chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi)
+        t_chain = loop_response(p, controller, motor, w, plant_ss=chain_plant(scene, q0, structural_damping=zeta))
+        effects.append(Effect("drivetrain modes above the first", "chain",
+                              f"modes {', '.join(f'{m:.4g}' for m in modes)} Hz vs study up to {freqs[-1]:.3g} Hz "
+                              "(full chain against its two-mass reduction)", _rel(t_full, t_chain["theta"])))
+
     # backlash
     play = float(drive.backlash([q0])[0])
     if play > 0 and math.isfinite(p.K):
@@ -319,7 +335,8 @@ def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes
             chosen.add(rigid_effect.effect)
             used += rigid_effect.estimate + bl
     for e in sorted(by_switch, key=lambda x: x.estimate):
-        if rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale"):
+        if rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale",
+                                                                                         "chain"):
             continue
         if e.switch == "inductance" and limited:
             continue
@@ -333,7 +350,8 @@ def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes
         elif e.effect in chosen:
             out.append(replace(e, omitted=True, reason=f"left out: {e.estimate:.2g} within the budget "
                                                        f"(sum of omissions <= {budget:.2g})"))
-        elif rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale"):
+        elif rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale",
+                                                                                           "chain"):
             out.append(replace(e, omitted=True, reason="left out with the whole compliance"))
         elif e.switch == "inductance" and limited:
             out.append(replace(e, reason="kept: limits reached, where the inductive voltage matters"))
@@ -342,6 +360,10 @@ def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes
                                          f"{max(budget - used, 0):.2g}"))
     omitted = {e.switch for e in out if e.omitted}
     opts = base
+    if "chain" in omitted:
+        opts = replace(opts, chain="two_mass")
+    elif any(e.switch == "chain" for e in out):
+        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
     if "compliance" in omitted:
         opts = replace(opts, compliance=False)
     else:

@@ -94,7 +94,7 @@ def sine_run_options(scene, controller, reference, full: bool = False):
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
     if full:
-        return options, ["full model (every modelled effect kept)"]
+        return replace(options, chain="full"), ["full model (every modelled effect kept, every drivetrain mode)"]
     plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
