@@ -48,6 +48,7 @@ BASE = {
     "export": [EMA, "-o", "{tmp}/export", "--nominal"],
     "montecarlo": [EMA, "--samples", "8", "--duration", "0.02"],
     "fit": None,  # no numeric option
+    "frf": None,  # needs a log file; its --segment bounds are tested in test_identify_frf.py
 }
 #: options whose base argument the case replaces
 REPLACES = {("kv", "--frequency"): ["--study", "kv_8hz"], ("kv", "--amplitude"): ["--study", "kv_8hz"],

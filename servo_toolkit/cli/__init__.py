@@ -38,6 +38,7 @@ COMMANDS = {
     "export": "controller.json and C99 sources of the designed controller",
     "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
     "fit": "fit scene parameters to a measured frequency response or time traces",
+    "frf": "frequency response and coherence from a time log (H1, Welch)",
 }
 
 

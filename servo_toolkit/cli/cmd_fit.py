@@ -4,10 +4,16 @@ DATA.csv is a frequency response (``frequency_hz,gain_db,phase_deg[,coherence]``
 measured is ``--response``) or time traces of the voltage-driven rig
 (``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``). ``-o`` writes the scene
 file with the fitted values in place, each with a comment giving the old value.
+
+The search is global over each parameter's physical range; the verdict compares the
+residual with the data's own noise floor. Exit 0 when the model fits to the noise (or the
+data cannot tell), 1 on a model mismatch (the frequencies or times where it misses are
+named on stderr), 2 on bad input.
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..errors import SceneError
@@ -54,7 +60,7 @@ def run(args) -> int:
         check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data))
     scene = load_scene(args.scene)
     data = read_data(args.data)
-    result = fit(scene, data, args.response, args.param)
+    result = fit(scene, data, args.response, args.param, progress=not args.json and sys.stderr.isatty())
     if args.output is not None:
         text = calibrated_text(read_scene_text(Path(scene.source)), result)
         ok = [(k, v) for k, v, (_, hi) in zip(result.keys, result.values, result.ci95) if hi != float("inf")]
@@ -63,4 +69,7 @@ def run(args) -> int:
     if args.output is not None:
         out["output"] = str(args.output)
     emit(args, out, result.table() + (f"\ncalibrated scene written to {args.output}" if args.output else ""))
+    if result.mismatch:
+        print(f"servo-toolkit: {result.verdict_text()}", file=sys.stderr)
+        return 1
     return 0

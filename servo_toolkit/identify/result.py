@@ -50,6 +50,13 @@ class FitResult:
         The values as the scene file writes them (None: the loader's default).
     evaluations, dof : int
         Model evaluations, degrees of freedom of the residual.
+    verdict : str
+        ``"fits to the noise"``, ``"model mismatch"``, ``"not identifiable"`` or
+        ``"noise floor unknown"`` (see :mod:`servo_toolkit.identify.verdict`).
+    noise_floor : float or None
+        RMS of the weighted residual vector that the data's own noise would leave.
+    misses : tuple of str
+        Where a mismatched model misses the data most (frequency bands or time windows).
     """
 
     scene: str
@@ -73,6 +80,26 @@ class FitResult:
     written: tuple = ()
     evaluations: int = 0
     dof: int = 0
+    verdict: str = "noise floor unknown"
+    noise_floor: float | None = None
+    misses: tuple = ()
+
+    @property
+    def mismatch(self) -> bool:
+        """True when the model misses the data beyond their noise."""
+        return self.verdict == "model mismatch"
+
+    def verdict_text(self) -> str:
+        """The verdict as one sentence."""
+        if self.verdict == "model mismatch":
+            where = f"; it misses most at {', '.join(self.misses)}" if self.misses else ""
+            return (f"model mismatch: residual {self.residual_rms:.3g} against a noise floor of "
+                    f"{self.noise_floor:.3g}{where} (a parameter missing from --param, or the model lacks what "
+                    "the rig does)")
+        if self.verdict == "noise floor unknown":
+            return "noise floor unknown (too few points to estimate it); residual not judged"
+        text = f"{self.verdict}: residual {self.residual_rms:.3g}, noise floor {self.noise_floor:.3g}"
+        return text + ("; see the warnings" if self.verdict == "not identifiable" else "")
 
     def to_dict(self) -> dict:
         """JSON-ready summary: ``parameters`` [{key, value, unit, ci95, initial}],
@@ -86,7 +113,9 @@ class FitResult:
                 "residual_db_rms": self.residual_db_rms, "residual_phase_deg_rms": self.residual_phase_deg_rms,
                 "residual_rms": self.residual_rms, "initial_residual_rms": self.initial_residual_rms,
                 "correlation": {"keys": list(self.keys), "matrix": corr},
-                "warnings": list(self.warnings), "points": int(self.data.points), "dof": self.dof}
+                "warnings": list(self.warnings), "points": int(self.data.points), "dof": self.dof,
+                "verdict": self.verdict, "noise_floor": self.noise_floor, "misses": list(self.misses),
+                "evaluations": self.evaluations}
 
     def value(self, key: str) -> float:
         """The fitted value of ``key`` (SI)."""
@@ -117,13 +146,14 @@ class FitResult:
                 c, a, b = max(pairs)
                 lines.append(f"  largest correlation: {self.keys[a]} / {self.keys[b]} {self.correlation[a, b]:+.3f}")
         lines += [f"  warning: {w}" for w in self.warnings]
+        lines.append(f"  verdict: {self.verdict_text()}")
         return "\n".join(lines)
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{k}={v:.4g} {u}" for k, v, u in zip(self.keys, self.values, self.units))
         res = (f"{self.residual_db_rms:.3g} dB RMS" if self.residual_db_rms is not None
                else f"residual {self.residual_rms:.3g}")
-        return f"<FitResult {self.scene} {self.response}: {parts}; {res}; {len(self.warnings)} warnings>"
+        return f"<FitResult {self.scene} {self.response}: {parts}; {res}; {self.verdict}; {len(self.warnings)} warnings>"
 
     def _repr_html_(self) -> str:
         head = "".join(f"<th>{h}</th>" for h in ("key", "value", "unit", "95 % interval", "initial", "change"))
@@ -132,7 +162,7 @@ class FitResult:
         res = (f"{self.residual_db_rms:.3g} dB RMS gain residual" if self.residual_db_rms is not None
                else f"normalised residual {self.residual_rms:.3g}")
         return (f"<p><b>Fit of {html.escape(self.scene)}</b> to {html.escape(_RESPONSE_LABEL[self.response])}: "
-                f"{res}</p><table><tr>{head}</tr>{body}</table>" + (f"<ul>{warn}</ul>" if warn else ""))
+                f"{res}; <b>{html.escape(self.verdict_text())}</b></p><table><tr>{head}</tr>{body}</table>" + (f"<ul>{warn}</ul>" if warn else ""))
 
     def plot(self, axes=None):
         """Measured vs initial vs fitted: Bode (gain, phase) of a frequency response, or

@@ -1,0 +1,86 @@
+"""``servo-toolkit frf``: frequency response and coherence from a rig's time log.
+
+LOG.csv has a ``time_s`` column (equally spaced) and one column per signal; ``--input`` and
+``--output`` name the excitation and the response (default ``current_A`` and
+``motor_angle_rad``). The H1 estimator with Welch averaging (see
+:mod:`servo_toolkit.identify.frf`) gives the response at every excited frequency with its
+coherence; ``--derivative`` turns an angle's response into the speed's (what ``fit
+--response plant`` compares). ``-o`` writes the CSV that ``fit`` reads.
+"""
+
+from __future__ import annotations
+
+from .common import add_json, bounded, emit
+from ..core.files import check_output_file, write_text
+from ..errors import SceneError
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("frf", help="frequency response and coherence from a time log (H1, Welch)")
+    p.add_argument("log", metavar="LOG.csv", help="time log: time_s,SIGNAL,... (equally spaced times)")
+    p.add_argument("--input", default="current_A", metavar="COLUMN",
+                   help="the excitation's column (default current_A)")
+    p.add_argument("--output", default="motor_angle_rad", metavar="COLUMN",
+                   help="the response's column (default motor_angle_rad)")
+    p.add_argument("--derivative", action="store_true",
+                   help="the response of the output's time derivative (an angle log gives the speed response, "
+                        "as fit --response plant compares)")
+    p.add_argument("--segment", type=bounded(int, 16, 2 ** 24, what="a number of samples"), metavar="N",
+                   help="samples per Welch segment (default: the largest power of two giving 8 segments)")
+    p.add_argument("--band", metavar="LO:HI", help="keep frequencies from LO to HI Hz (default: every excited one)")
+    p.add_argument("-o", "--out", dest="out", metavar="FRF.csv",
+                   help="write frequency_hz,gain_db,phase_deg,coherence here (the CSV fit reads)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def _band(text):
+    if text is None:
+        return None
+    lo, sep, hi = text.partition(":")
+    try:
+        band = (float(lo), float(hi))
+    except ValueError:
+        band = None
+    if not sep or band is None or not 0 <= band[0] < band[1] or band[1] == float("inf"):
+        raise SceneError("--band", f"must be LO:HI in Hz with 0 <= LO < HI (got {text})")
+    return band
+
+
+def _table(data) -> str:
+    lines = [f"Frequency response from {data.source} ({data.points} frequencies, H1 estimator)",
+             "  frequency_hz     gain_db   phase_deg  coherence"]
+    step = max(1, data.points // 40)
+    for k in range(0, data.points, step):
+        lines.append(f"  {data.frequency_hz[k]:12.4g}  {data.gain_db[k]:10.4g}  {data.phase_deg[k]:10.4g}  "
+                     f"{data.coherence[k]:9.3f}")
+    if step > 1:
+        lines.append(f"  (every {step}th frequency; -o writes them all)")
+    low = data.coherence < 0.8
+    if low.any():
+        lines.append(f"  coherence below 0.8 at {int(low.sum())} of {data.points} frequencies")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..identify.frf import estimate_frf, frf_csv, read_log
+    band = _band(args.band)
+    if args.out is not None:
+        check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
+    t, columns = read_log(args.log)
+    for option, name in (("--input", args.input), ("--output", args.output)):
+        if name not in columns:
+            raise SceneError(option, f"no column {name!r} in {args.log}; it has {', '.join(columns)}")
+    data = estimate_frf(t, columns[args.input], columns[args.output], segment=args.segment, band=band,
+                        derivative=args.derivative, source=str(args.log))
+    if args.out is not None:
+        write_text(args.out, frf_csv(data), "-o")
+    out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
+           "points": data.points, "frequency_hz": data.frequency_hz.tolist(), "gain_db": data.gain_db.tolist(),
+           "phase_deg": data.phase_deg.tolist(), "coherence": data.coherence.tolist()}
+    if args.out is not None:
+        out["output_file"] = str(args.out)
+    emit(args, out, _table(data) + (f"\nwritten to {args.out}" if args.out else ""))
+    return 0

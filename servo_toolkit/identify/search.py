@@ -1,0 +1,156 @@
+"""Global least squares over a box of log-parameters: data-derived start, multi-start, refinement.
+
+A local optimizer started at the scene's values ends in whichever valley it starts in; a
+current -> speed response with a mode has many (a resonance matched to the wrong notch, an
+inertia that trades against a stiffness). :func:`global_least_squares` therefore
+
+1. scatters ``starts`` points (scrambled Sobol, reproducible) over the whole box of the
+   parameters' physical range in log space, plus the initial values, and evaluates each
+   once: its residual and, when given, the mismatch of the data's own features (inertia
+   line, antiresonance, resonance; :mod:`.features`);
+2. from the point whose features match best, fits the features alone (a few evaluations):
+   the start derived from the data;
+3. refines locally (trust-region least squares within the box) from that start, the initial
+   values and the best scattered points, and keeps the lowest residual; it stops at the
+   first refinement whose residual reaches the data's noise floor (``enough``).
+
+The box is the bound of the fit: a value outside the physical range is never returned.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+from scipy.stats import qmc
+
+from ..core.progress import progress_bar
+
+#: scattered points of the multi-start per parameter (rounded up to a power of two)
+STARTS_PER_PARAMETER = 16
+#: most scattered points refined locally, besides the data-derived start and the initial values
+REFINED = 2
+#: most residual evaluations of one local refinement, per parameter
+MAX_NFEV_PER_PARAMETER = 50
+#: starts closer than this (in every log-parameter) are refined once
+SAME_START = 0.05
+
+
+@dataclass(frozen=True)
+class Search:
+    """The lowest residual found.
+
+    Attributes
+    ----------
+    z : numpy.ndarray
+        Log-parameters at the optimum.
+    fun, jac : numpy.ndarray
+        Residual vector and its Jacobian there.
+    nfev : int
+        Residual evaluations in all.
+    feature_start : numpy.ndarray or None
+        The start derived from the data's features (None without features).
+    ends : tuple of float
+        Cost (half the sum of squares) at the end of each local refinement, best first.
+    """
+
+    z: np.ndarray
+    fun: np.ndarray
+    jac: np.ndarray
+    nfev: int
+    feature_start: np.ndarray | None
+    ends: tuple
+
+
+def scattered(lower, upper, n: int, seed: int = 0) -> np.ndarray:
+    """``n`` (a power of two) scrambled Sobol points in the box [lower, upper]."""
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    m = max(0, math.ceil(math.log2(max(n, 1))))
+    pts = qmc.Sobol(d=lower.size, scramble=True, seed=seed).random_base2(m)
+    return lower + pts * (upper - lower)
+
+
+def _distinct(points, tol=SAME_START):
+    out = []
+    for p in points:
+        if all(np.max(np.abs(p - q)) > tol for q in out):
+            out.append(p)
+    return out
+
+
+def global_least_squares(residuals, lower, upper, initial, *, probe=None, starts: int | None = None,
+                         seed: int = 0, enough: float = 0.0, progress: bool = False) -> Search:
+    """Minimize ``sum(residuals(z)**2)`` over the box, from many starts.
+
+    Parameters
+    ----------
+    residuals : callable
+        ``z -> residual vector`` (z: log-parameters).
+    lower, upper : array_like
+        The box (log-parameters).
+    initial : array_like
+        A start inside the box (the scene's values).
+    probe : callable, optional
+        ``z -> (residual vector, feature mismatch vector or None)``: one evaluation giving
+        both; default ``residuals`` alone (no feature start).
+    starts : int, optional
+        Scattered points; default :data:`STARTS_PER_PARAMETER` per parameter.
+    seed : int
+        Seed of the scrambled Sobol points (the search is reproducible).
+    enough : float
+        A cost (half the sum of squares) that no other start could improve on in earnest
+        (the noise floor's): the refinement stops at the first start that reaches it.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    Search
+    """
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    npar = lower.size
+    z0 = np.clip(np.asarray(initial, float), lower, upper)
+    probe = probe or (lambda z: (residuals(z), None))
+    n = starts if starts is not None else STARTS_PER_PARAMETER * npar
+    points = [z0, *(scattered(lower, upper, n, seed) if n > 0 else [])]
+    costs, mismatches = [], []
+    nfev = 0
+    bar = progress_bar(total=len(points) + 2 + REFINED, show=progress, desc="fit", unit="start", leave=False)
+    with bar:
+        for z in points:
+            r, m = probe(z)
+            nfev += 1
+            costs.append(0.5 * float(r @ r))
+            mismatches.append(None if m is None else float(m @ m))
+            bar.update()
+        feature_start = None
+        if all(m is not None for m in mismatches):
+            best = points[int(np.argmin(mismatches))]
+
+            def features(z):
+                return probe(z)[1]
+            sol = optimize.least_squares(features, best, bounds=(lower, upper), diff_step=1e-3,
+                                         max_nfev=10 * (npar + 1), method="trf")
+            nfev += sol.nfev + sol.njev * npar
+            feature_start = np.clip(sol.x, lower, upper)
+        bar.update()
+        order = np.argsort(costs)
+        chosen = ([feature_start] if feature_start is not None else []) + [z0] \
+            + [points[i] for i in order[:REFINED + 1]]
+        ends = []
+        best_sol = None
+        for start in _distinct(chosen):
+            sol = optimize.least_squares(residuals, start, bounds=(lower, upper), diff_step=1e-6, x_scale=1.0,
+                                         method="trf", ftol=1e-10, xtol=1e-10, gtol=1e-10,
+                                         max_nfev=MAX_NFEV_PER_PARAMETER * npar)
+            nfev += sol.nfev + sol.njev * npar
+            ends.append(float(sol.cost))
+            if best_sol is None or sol.cost < best_sol.cost:
+                best_sol = sol
+            bar.update()
+            if best_sol.cost <= enough:
+                break
+    return Search(z=best_sol.x, fun=best_sol.fun, jac=best_sol.jac, nfev=int(nfev), feature_start=feature_start,
+                  ends=tuple(sorted(ends)))

@@ -1,0 +1,76 @@
+"""The verdict of a fit: the residual against the noise floor the data show.
+
+The noise floor is estimated from the data alone: measurement noise is rough from point to
+point while a response (or a trace) is smooth, so the third differences of neighbouring
+points are noise (their variance 20 sigma^2 for white noise) plus a small smooth part. The
+largest tenth is left out (a sharp resonance, a phase wrap), the rest gives sigma.
+
+``fits to the noise``
+    The residual is at most :data:`MISMATCH_RATIO` times the floor.
+``model mismatch``
+    It is larger: the model (or the parameters chosen) cannot follow the data; the
+    frequencies or times where it misses most are named. Intervals and identifiability
+    mean nothing then, and are not judged.
+``not identifiable``
+    The fit reaches the noise, yet the Fisher information (the Jacobian at the optimum)
+    leaves a parameter without an independent influence or with an interval wider than
+    its value.
+``noise floor unknown``
+    Too few points to estimate the floor; the fit is reported as it is.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: residual RMS over the noise floor above which the model misses the data
+MISMATCH_RATIO = 2.0
+#: a point (or sample) misses when its residual exceeds this many noise floors
+MISS_FLOORS = 3.0
+#: fewest points from which a noise floor is estimated
+MIN_POINTS = 12
+#: share of the largest third differences left out of the estimate
+TRIM = 0.1
+#: RMS of a unit normal variable over its (1 - TRIM) smallest magnitudes
+_TRIMMED_RMS = 0.7897
+VERDICTS = ("fits to the noise", "model mismatch", "not identifiable", "noise floor unknown")
+
+
+def scatter_sd(values) -> float | None:
+    """Standard deviation of the point-to-point noise of a smooth sequence (None when it
+    has fewer than :data:`MIN_POINTS` values)."""
+    v = np.asarray(values, float)
+    if v.size < MIN_POINTS:
+        return None
+    d3 = np.abs(np.diff(v, 3))
+    keep = np.sort(d3)[: max(1, int(math.ceil((1 - TRIM) * d3.size)))]
+    return float(np.sqrt(np.mean(keep ** 2)) / _TRIMMED_RMS / math.sqrt(20))
+
+
+def bands(x, miss, unit: str, limit: int = 3) -> list[str]:
+    """Contiguous runs of ``miss`` along ``x``, the worst (largest summed miss) first, as
+    text (``"18.2-25.1 Hz"``)."""
+    runs, start = [], None
+    flags = np.asarray(miss) > 0
+    for k, flag in enumerate(np.append(flags, False)):
+        if flag and start is None:
+            start = k
+        elif not flag and start is not None:
+            runs.append((float(np.sum(miss[start:k])), start, k - 1))
+            start = None
+    out = []
+    for _, a, b in sorted(runs, reverse=True)[:limit]:
+        out.append(f"{x[a]:.3g} {unit}" if a == b else f"{x[a]:.3g}-{x[b]:.3g} {unit}")
+    return out
+
+
+def judge(residual_rms: float, floor: float | None, dof: int, size: int, identifiable: bool) -> str:
+    """The verdict (one of :data:`VERDICTS`) of a residual against its noise floor."""
+    if floor is None:
+        return "noise floor unknown"
+    expected = floor * math.sqrt(dof / max(size, 1))
+    if residual_rms > MISMATCH_RATIO * expected + 1e-12:
+        return "model mismatch"
+    return "fits to the noise" if identifiable else "not identifiable"
