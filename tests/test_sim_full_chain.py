@@ -259,3 +259,49 @@ def test_small_signal_dwell_equals_the_linear_plant_at_every_mode(path):
             ratio = got[name] / want
             assert abs(20 * math.log10(abs(ratio))) < 0.1, (f, name, got[name], want)
             assert abs(math.degrees(np.angle(ratio))) < 1.0, (f, name, got[name], want)
+
+
+def test_energy_balance_of_the_full_chain_with_losses():
+    """Along a closed-loop 8 Hz, 2 deg run of the full reference EMA with its losses (both
+    directions of power flow): the power supplied at the motor shaft and by the load equals
+    the rate of the stored energy (every node's kinetic energy, every spring's potential)
+    plus a dissipation that is never negative; beyond the structural damping's own
+    dissipation, the rest (the losses) is never negative and at most the larger loss
+    coefficient times the shaft's power."""
+    from servo_toolkit.sim import controller_for
+    ema = replace(load_scene(SCENES / "ema_reference.toml"), motor=replace(
+        load_scene(SCENES / "ema_reference.toml").motor, coulomb_friction=0.0))
+    model = build_model(ema, controller_for(ema)[0], ModelOptions(chain="full", backlash=False))
+    dt = 1e-5
+    res = run(model, Reference.sine(math.radians(2.0), 8.0), 0.25, "rk4", dt=dt, output_dt=dt)
+    theta, omega = node_order(model)
+    x = res.states
+    p, pd = x[:, 0], x[:, 1]
+    drive, chain = ema.drivetrain, ema.drivetrain.chain
+    segs = segments(chain, model.q0)
+    keep = [a for a, _ in segs] + [segs[-1][1]]
+    held = chain.node_inertias([model.q0])[keep[1:], 0]
+    j0 = drive.inertia(p)[0] - held.sum()
+    kinetic = 0.5 * j0 * pd**2 + 0.5 * np.sum(held[None, :] * x[:, omega[1:]] ** 2, axis=1)
+    k = segment_stiffness(chain, p, segs)  # (n_seg, n_t), at the motor side as the model has it
+    z = x[:, theta[:-1]].T - x[:, theta[1:]].T
+    zd = x[:, omega[:-1]].T - x[:, omega[1:]].T
+    stored = kinetic + 0.5 * np.sum(k * z**2, axis=0)
+    n = drive.ratio(p)[0]
+    m = ema.motor
+    shaft = n * (m.torque_constant * res.motor_current - m.viscous_friction * n * pd)
+    q, qd = x[:, 2], x[:, 3]
+    load = -ema.load.hinge_moment - ema.load.hinge_stiffness * q - ema.load.damping * qd
+    supplied = shaft * pd + load * qd
+    d_supplied = 0.5 * (supplied[1:] + supplied[:-1]) * dt
+    dissipated = d_supplied - np.diff(stored)
+    scale = np.max(np.abs(d_supplied))
+    assert np.min(dissipated) > -1e-3 * scale
+    damping = np.sum(model.P[lo.BETA] * k * zd**2, axis=0)
+    losses = dissipated - 0.5 * (damping[1:] + damping[:-1]) * dt
+    driving = shaft * pd > 0
+    assert driving.mean() > 0.2 and (~driving).mean() > 0.2
+    assert np.sum(losses) > 0.02 * np.sum(np.abs(d_supplied))
+    assert np.min(losses) > -1e-3 * scale
+    c_max = max(1 - drive.efficiency, 1 / drive.backdrive_efficiency - 1)
+    assert np.sum(losses) <= c_max * np.sum(np.abs(shaft * pd) * dt) * 1.02
