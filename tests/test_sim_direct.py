@@ -73,9 +73,10 @@ def test_hold_run_regulates_the_measured_angle_to_the_grid():
     so the output stays within one count of the command but does not settle on it."""
     scene = build(BASE)
     lsb = 2 * math.pi / 2**16
-    # lossless chain: with the drivetrain's losses the hinge moment holds the output in a
-    # friction band wherever it stops (test_sim_efficiency.py)
-    model = build_model(scene, default_controller(scene), ModelOptions(efficiency=False))
+    # lossless chain without Coulomb friction: with the drivetrain's losses the hinge moment
+    # holds the output in a friction band wherever it stops (test_sim_efficiency.py), and
+    # friction that holds stops it within its dead band (test_friction.py)
+    model = build_model(scene, default_controller(scene), ModelOptions(efficiency=False, friction="off"))
     r = (200 + 0.3) * lsb
     res = run(model, Reference(offset=r), 0.2, "rk4")
     q = res.output_angle[len(res.times) // 2:]
@@ -84,7 +85,8 @@ def test_hold_run_regulates_the_measured_angle_to_the_grid():
     # hovers at the switching boundary 200.5 counts, never at the command
     assert np.min(np.abs(q - r)) > 0.05 * lsb
     assert abs(np.mean(q) / lsb - 200.5) < 0.1
-    ideal = run(build_model(scene, default_controller(scene), ModelOptions(quantization=False, efficiency=False)),
+    ideal = run(build_model(scene, default_controller(scene), ModelOptions(quantization=False, efficiency=False,
+                                                                           friction="off")),
                 Reference(offset=r), 0.2, "rk4").output_angle[len(res.times) // 2:]
     assert np.max(np.abs(ideal - r)) < 1e-3 * lsb
 

@@ -56,22 +56,46 @@ class Load:
         Spring moment per output angle (N*m/rad; N/m for an output travel).
     damping : float
         N*m*s/rad (N*s/m for an output travel).
+    coulomb_friction : float
+        Friction moment Tc of the load's bearings or guides while it slides (N*m; N for an
+        output travel).
+    static_friction : float or None
+        Breakaway moment Ts >= Tc (None: Ts = Tc).
+    stribeck_speed : float
+        Output speed over which the friction falls from Ts to Tc (rad/s; m/s); 0: at once.
     """
 
     inertia: float = 0.0
     hinge_moment: float = 0.0
     hinge_stiffness: float = 0.0
     damping: float = 0.0
+    coulomb_friction: float = 0.0
+    static_friction: float | None = None
+    stribeck_speed: float = 0.0
+
+    @property
+    def breakaway(self) -> float:
+        """Ts: the static friction, or the Coulomb friction where none is given."""
+        return self.coulomb_friction if self.static_friction is None else self.static_friction
 
     @classmethod
     def from_table(cls, f: Fields, linear: bool = False) -> "Load":
         """Build from a ``[load]`` table; ``linear``: the output is a travel, so the values are a
         mass, a force, N/m and N*s/m."""
-        units = ("kg", "N", "N/m", "N*s/m") if linear else ("kg*m^2", "N*m", "N*m/rad", "N*m*s/rad")
+        units = (("kg", "N", "N/m", "N*s/m", "m/s") if linear else
+                 ("kg*m^2", "N*m", "N*m/rad", "N*m*s/rad", "rad/s"))
         load = cls(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative"),
                    hinge_moment=f.quantity("hinge_moment", units[1], 0.0, rule="finite"),
                    hinge_stiffness=f.quantity("hinge_stiffness", units[2], 0.0, rule="finite"),
-                   damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"))
+                   damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"),
+                   coulomb_friction=f.quantity("coulomb_friction", units[1], 0.0, rule="nonnegative"),
+                   static_friction=(f.quantity("static_friction", units[1], rule="nonnegative")
+                                    if f.has("static_friction") else None),
+                   stribeck_speed=f.quantity("stribeck_speed", units[4], 0.0, rule="nonnegative"))
         require(math.isfinite(load.inertia), f.key("inertia"), "must be finite")
+        for key in ("coulomb_friction", "stribeck_speed"):
+            require(math.isfinite(getattr(load, key)), f.key(key), "must be finite")
+        require(math.isfinite(load.breakaway) and load.breakaway >= load.coulomb_friction, f.key("static_friction"),
+                f"must be finite and at least the coulomb_friction {load.coulomb_friction:g} (got {load.breakaway:g})")
         f.check_unknown()
         return load

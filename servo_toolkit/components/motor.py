@@ -60,6 +60,12 @@ class DCMotor:
         b (N*m*s/rad) and Tc (N*m).
     voltage_limit, current_limit : float
         Supply voltage (V) and current limit (A); ``inf`` when absent.
+    static_friction : float or None
+        Breakaway torque Ts >= Tc (N*m); None: Ts = Tc (Coulomb friction that holds up to
+        its own level).
+    stribeck_speed : float
+        Speed w_st (rad/s) over which the friction falls from Ts to Tc,
+        Tc + (Ts - Tc) exp(-(w / w_st)^2); 0: at once.
     """
 
     resistance: float
@@ -71,6 +77,13 @@ class DCMotor:
     coulomb_friction: float = 0.0
     voltage_limit: float = math.inf
     current_limit: float = math.inf
+    static_friction: float | None = None
+    stribeck_speed: float = 0.0
+
+    @property
+    def breakaway_torque(self) -> float:
+        """Ts: the static friction, or the Coulomb friction where none is given (N*m)."""
+        return self.coulomb_friction if self.static_friction is None else self.static_friction
 
     @property
     def electrical_time_constant(self) -> float:
@@ -97,6 +110,9 @@ class DCMotor:
             coulomb_friction=f.quantity("coulomb_friction", "N*m", 0.0, rule="nonnegative"),
             voltage_limit=f.quantity("voltage_limit", "V", math.inf),
             current_limit=f.quantity("current_limit", "A", math.inf),
+            static_friction=(f.quantity("static_friction", "N*m", rule="nonnegative")
+                             if f.has("static_friction") else None),
+            stribeck_speed=f.quantity("stribeck_speed", "rad/s", 0.0, rule="nonnegative"),
         )
         for key, top in PLAUSIBLE_MAX.items():  # beyond these the plant's matrices lose their digits
             value = getattr(motor, key)
@@ -105,6 +121,11 @@ class DCMotor:
         rule = kt_ke_rule(motor.torque_constant, motor.back_emf_constant)
         require(not rule, f.key("back_emf_constant"), rule)
         require(motor.resistance >= 1e-6, f.key("resistance"), f"must be at least 1e-06 ohm (got {motor.resistance:g})")
+        require(motor.breakaway_torque >= motor.coulomb_friction, f.key("static_friction"),
+                f"must be at least the coulomb_friction {motor.coulomb_friction:g} N*m (got {motor.breakaway_torque:g})")
+        require(motor.breakaway_torque <= PLAUSIBLE_MAX["coulomb_friction"], f.key("static_friction"),
+                f"must be at most {PLAUSIBLE_MAX['coulomb_friction']:g} N*m (got {motor.breakaway_torque:g})")
+        require(math.isfinite(motor.stribeck_speed), f.key("stribeck_speed"), "must be finite")
         require(motor.voltage_limit > 0, f.key("voltage_limit"), "must be positive")
         require(motor.current_limit > 0, f.key("current_limit"), "must be positive")
         f.check_unknown()

@@ -19,7 +19,7 @@ import numba as nb
 import numpy as np
 
 from . import layout as lo
-from .integrators import rk4_stages, sample_hold, step_status
+from .integrators import reversal, rk4_stages, sample_hold, split_at_reversal, step_status
 from .kernel import FASTMATH, jit, reference, rhs, rhs_phys
 
 #: columns of the per-variant figures
@@ -61,6 +61,7 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     err_mode = P[lo.STROKE_MODE] == 0.0
     rigid = P[lo.RIGID] > 0.0
     cont = int(P[lo.CMODE]) == lo.CONTINUOUS or P[lo.NMID] > 0.0  # states moving in x[7:]
+    stick = P[lo.STICK] > 0.0
     ilim = P[lo.ILIM]
     vlim = P[lo.VLIM]
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
@@ -97,6 +98,19 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
         status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid)
         if status != lo.OK or step == n_steps:
             break
+        if stick:  # a speed reversal of a node carrying friction: the step split there
+            save = x.copy() if cont else x
+            pn, pdn, qn, qdn, cn, xin = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
+                                                   P, T, iref, cont, x, xs, k1, k2, k3, k4)
+            frac, node = reversal(pd, pdn, pd + dt * a1, qd, qdn, qd + dt * a3, P, rigid)
+            if frac < 1.0:
+                if cont:
+                    x[:] = save
+                p, pd, q, qd, cur, xi = split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T,
+                                                          iref, cont, rigid, x, xs, k1, k2, k3, k4)
+            else:
+                p, pd, q, qd, cur, xi = pn, pdn, qn, qdn, cn, xin
+            continue
         p, pd, q, qd, cur, xi = rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5,
                                            P, T, iref, cont, x, xs, k1, k2, k3, k4)
     x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s

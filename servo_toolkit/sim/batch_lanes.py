@@ -46,12 +46,13 @@ CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)
 @jit
 def block_kind(P, v0, nl):
     """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
-    sampled or open-loop controller of one structure, no cam and the two-mass (or rigid)
-    chain in every variant."""
+    sampled or open-loop controller of one structure, no cam, the two-mass (or rigid) chain
+    and no friction that sticks (its speed reversals split a variant's step) in every variant."""
     lanes = True
     shared = True
     for v in range(v0, v0 + nl):
-        if int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0 or P[v, lo.NMID] > 0.0:
+        if (int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0 or P[v, lo.NMID] > 0.0
+                or P[v, lo.STICK] > 0.0):
             lanes = False
         for j in CONTROLLER_SLOTS:
             if P[v, j] != P[v0, j]:

@@ -23,7 +23,7 @@ import numpy as np
 
 from .kernel import controller_sample, inline, jit, rhs, rhs_phys
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
-                     NMID, NONFINITE, NX_PHYS, OK, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
+                     NMID, NONFINITE, NX_PHYS, OK, STICK, TS_M, TS_L, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
                      STROKE_MODE)
 
 
@@ -142,6 +142,63 @@ def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, ir
     return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
 
 
+@jit  # called at a speed reversal only: compiled once, outside the step loop
+def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
+    """One classical RK4 step of length h from the physical state given as scalars (a
+    continuous controller's and the full chain's states x[7:] are advanced in place).
+    Returns the advanced ``(p, pd, q, qd, cur, xi)``."""
+    a0, a1, a2, a3, a4, a5, _, _, _, _ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref, x, k1, False)
+    return rk4_stages(t, h, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
+                      k1, k2, k3, k4)
+
+
+@inline
+def _crossing(v, v_new, v_lin):
+    """Fraction of the step where a speed v reaches 0: from the first stage's slope (its
+    linear prediction v_lin at the step's end), else from the step's result v_new; 1.0 for
+    none. RK4's later stages straddle the friction's jump and may hide a reversal from the
+    result (the stages on the far side push the speed back), so the slope at the step's start
+    decides first."""
+    if v * v_lin < 0.0:
+        return v / (v - v_lin)
+    if v * v_new < 0.0:
+        return v / (v - v_new)
+    return 1.0
+
+
+@inline
+def reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
+    """Where within the step a node carrying friction reverses its speed: the fraction of the
+    step (1.0: no reversal, :func:`_crossing`) and the node (0 the motor side, 1 the load).
+    ``*_new`` are the step's results, ``*_lin`` the speeds its first stage's slopes predict. A
+    speed landing exactly on 0 is no reversal: the next step starts at rest."""
+    frac, node = 1.0, -1
+    if P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0):
+        frac = _crossing(pd, pd_new, pd_lin)
+        node = 0 if frac < 1.0 else -1
+    if not rigid and P[TS_L] > 0.0:
+        f = _crossing(qd, qd_new, qd_lin)
+        if f < frac:
+            frac, node = f, 1
+    return frac, node
+
+
+@inline
+def split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
+                      k1, k2, k3, k4):
+    """The step of a reversal in two: RK4 to the reversal, the node's speed set to 0 there
+    (where the friction decides between stick and slip), RK4 for the rest of the step."""
+    h = frac * dt
+    p, pd, q, qd, cur, xi = rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
+    if node == 0:
+        pd = 0.0
+        if rigid:
+            qd = 0.0
+    else:
+        qd = 0.0
+    return rk4_step(t + h, dt - h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
+
+
 @jit
 def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
@@ -163,11 +220,13 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     rigid = P[RIGID] > 0.0
     # states in x[7:] that move between samples: a continuous controller's, the full chain's nodes
     cont = int(P[CMODE]) == CONTINUOUS or P[NMID] > 0.0
+    stick = P[STICK] > 0.0  # friction that holds: speed reversals are located within the step
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
     to_sample = 0
     to_record = 0
     status = OK
     sixth = dt / 6.0
+    g1 = g3 = 0.0
     for step in range(n_steps + 1):
         t = t0 + step * dt
         iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
@@ -188,6 +247,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
                 t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
                 P, T, iref, x if stage == 0 else xs, kout, False)
             if stage == 0:
+                g1, g3 = s1, s3  # the slopes at the step's start (speed reversals)
                 tau = abs(tau_)
                 if tau > max_tau:
                     max_tau = tau
@@ -221,6 +281,12 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
             u5 += w * s5
         if done:
             break
+        if stick:
+            frac, node = reversal(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3, qd + dt * g3, P, rigid)
+            if frac < 1.0:  # a node carrying friction reverses within the step: split it there
+                p, pd, q, qd, cur, xi = split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T,
+                                                          iref, cont, rigid, x, xs, k1, k2, k3, k4)
+                continue
         if cont:
             for j in range(NX_PHYS, nx):
                 x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
@@ -291,8 +357,15 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
             rhs(t + h, xs, P, T, iref, kout, aux2)
         p_old = x[0]
         q_old = x[2]
+        p_speed = x[1]
         for j in range(nx):
             x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        if P[STICK] > 0.0 and x[1] * p_speed < 0.0 and (P[TS_M] > 0.0 or P[TS_L] > 0.0):
+            # friction that holds, in the fixed-configuration scheme: a speed reversal ends the
+            # step at rest (Karnopp), where the friction decides between stick and slip
+            x[1] = 0.0
+            if qi == 0:
+                x[3] = 0.0
         if paper:  # positions by summation from the new velocities (the RK4 sum above moved them)
             x[0] = p_old + dt * x[1]
             x[2] = q_old + dt * x[3]

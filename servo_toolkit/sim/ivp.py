@@ -70,6 +70,45 @@ def _events(model, P):
     return [hi, low]
 
 
+#: most restarts at friction events (speed reversals, breakaways) within one controller sample
+MAX_FRICTION_RESTARTS = 10_000
+
+
+def friction_nodes(model, P) -> list:
+    """Indices in x of the speeds of the nodes carrying friction that holds."""
+    if P[lo.STICK] <= 0.0:
+        return []
+    nodes = []
+    if P[lo.TS_M] > 0.0 or (model.rigid and P[lo.TS_L] > 0.0):
+        nodes.append(1)
+    if not model.rigid and P[lo.TS_L] > 0.0:
+        nodes.append(3)
+    return nodes
+
+
+def _friction_events(nodes, x, scale):
+    """Terminal events of the nodes carrying friction: a sliding node's speed reaching 0 (the
+    reversal, where the solve restarts at exactly 0 and the friction decides between stick
+    and slip), a resting node's speed leaving a band of ``scale`` (its breakaway, after which
+    its reversal is watched)."""
+    events = []
+    for i in nodes:
+        if x[i] != 0.0:
+            def ev(t, y, i=i):
+                return y[i]
+            ev.direction = -1.0 if x[i] > 0 else 1.0
+            ev.reversal = True
+        else:
+            def ev(t, y, i=i):
+                return abs(y[i]) - scale
+            ev.direction = 1.0
+            ev.reversal = False
+        ev.terminal = True
+        ev.node = i
+        events.append(ev)
+    return events
+
+
 def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10, progress=None,
                     max_rhs_evals=MAX_RHS_EVALS, time_limit_s=None):
     """Integrate to every time in ``t_out`` (starting at ``t_out[0]``).
@@ -98,6 +137,7 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
     deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
     fun = make_fun(model, P, box, max_rhs_evals, deadline)
     events = _events(model, P)
+    nodes = friction_nodes(model, P)
     out = np.full((t_out.size, model.nx), np.nan)
     irefs = np.zeros(t_out.size)
     ts = model.sample_time if P[lo.CMODE] == lo.SAMPLED else 0.0
@@ -125,8 +165,7 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
         want = t_out[k_out:stop]
         t_eval = want if (want.size and want[-1] == b) else np.append(want, b)
         try:
-            sol = solve_ivp(fun, (a, b), x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol,
-                            events=events)
+            sol, x = _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, model.rigid)
         except _Budget as why:
             spent = (f"{fun.count - 1} right-hand-side evaluations" if str(why) == "evaluations"
                      else f"the time limit of {time_limit_s:g} s")
@@ -142,5 +181,55 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
         out[k_out:stop] = sol.y[:, :want.size].T
         irefs[k_out:stop] = box[0]
         k_out = stop
-        x = sol.y[:, -1].copy()
     return out, irefs
+
+
+class _Joined:
+    """The pieces of a segment solved between friction events, as one solve_ivp result."""
+
+    def __init__(self, ts, ys, status, message, t_events):
+        self.t = np.concatenate(ts) if ts else np.zeros(0)
+        self.y = np.concatenate(ys, axis=1) if ys else np.zeros((0, 0))
+        self.status, self.message, self.t_events = status, message, t_events
+
+
+def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigid=False):
+    """One controller sample: ``solve_ivp`` from a to b, restarted at every friction event
+    (:func:`_friction_events`) with the reversing node's speed set to exactly 0. Returns the
+    joined result and the state at b."""
+    if not nodes:
+        sol = solve_ivp(fun, (a, b), x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol, events=events)
+        return sol, sol.y[:, -1].copy()
+    ts, ys = [], []
+    t0, x = a, np.array(x, dtype=float)
+    scale = 1e-9 * max(1.0, float(np.max(np.abs(x[nodes]))))
+    for _ in range(MAX_FRICTION_RESTARTS):
+        ev_f = _friction_events(nodes, x, scale)
+        evs = (events or []) + ev_f
+        te = t_eval[t_eval >= t0]
+        sol = solve_ivp(fun, (t0, b), x, method=solver, t_eval=te, rtol=rtol, atol=atol, events=evs)
+        if sol.status != 1:
+            ts.append(sol.t)
+            ys.append(sol.y)
+            return _Joined(ts, ys, sol.status, sol.message, sol.t_events), sol.y[:, -1].copy()
+        n_stroke = len(events or [])
+        hits = [(ev[0], k) for k, ev in enumerate(sol.t_events) if len(ev)]
+        t_hit, k = min(hits)
+        if k < n_stroke:  # the stroke end
+            return _Joined(ts + [sol.t], ys + [sol.y], 1, sol.message, sol.t_events), x
+        keep = sol.t < t_hit
+        ts.append(sol.t[keep])
+        ys.append(sol.y[:, keep])
+        x = np.array(sol.y_events[k][0], dtype=float)
+        hit = ev_f[k - n_stroke]
+        if hit.reversal:  # restart at rest: the friction decides between stick and slip
+            x[hit.node] = 0.0
+            if hit.node == 1 and rigid:
+                x[3] = 0.0  # a rigid model's output speed is the motor side's
+        t0 = t_hit
+        if t0 >= b:
+            ts.append(np.array([b]))
+            ys.append(x[:, None])
+            return _Joined(ts, ys, 0, "event at the segment's end", sol.t_events), x
+    raise SimulationError(f"the reference solver met more than {MAX_FRICTION_RESTARTS} friction events "
+                          f"(stick and slip) within one controller sample at t = {a:.6g} s")

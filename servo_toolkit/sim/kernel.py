@@ -44,6 +44,7 @@ from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 from .tables import cell, hermite, interp  # noqa: E402,F401 - hermite: the tables' interpolation for callers
 from .compliance_kernel import B_EPS, chain_accelerations, contact, lossy  # noqa: E402,F401
+from .friction_kernel import slip_friction, stuck_or_breaking  # noqa: E402
 
 from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX_I, AUX_IREF,
                      AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
@@ -51,7 +52,8 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP, PAPER, PERIODIC, R,
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
-                     TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, NMID)
+                     TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
+                     TS_L, INV_VS_L, NMID)
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
@@ -267,9 +269,15 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             di = 0.0
             dxi = 0.0
     tau = P[KT] * cur
-    tau_shaft = tau - P[BM] * wm - P[TC] * tanh(wm * P[WS])
+    # friction: exact stick (STICK, not in the vectorized lanes) or the smooth Coulomb model
+    stick = not lanes and P[STICK] > 0.0
+    if stick:
+        fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M])
+    else:
+        fm = P[TC] * tanh(wm * P[WS])
+    tau_shaft = tau - P[BM] * wm - fm
     nts = n * tau_shaft
-    # --- load side: hinge moment and stroke-end stop
+    # --- load side: hinge moment, stroke-end stop, the load's friction while it slides
     if P[RIGID] > 0.0:
         ql, qld = p, pd
     else:
@@ -280,6 +288,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             m_load += min(-P[KSTOP] * (ql - P[STROKE_HI]) - P[DSTOP] * qld, 0.0)
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
+    if stick and qld != 0.0 and P[TS_L] > 0.0:
+        m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L])
     if P[RIGID] > 0.0:
         nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, m_load)
         if not lanes and P[CAM] > 0.0:
@@ -290,9 +300,13 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
                                         0.5 * djd * pd * pd, n * P[WS])
         else:
             pdd = (nts - 0.5 * djd * pd * pd + m_load) / jd
+        if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
+            pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     if not lanes and P[NMID] > 0.0:
         pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx)
+        if stick:
+            pdd, qdd = stick_nodes(pdd, qdd, pd, qd, jd, n, P)
         return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
     # --- compliance with backlash
     k, dk = interp(T, T_K, kc, tc, hc, ih)
@@ -321,7 +335,22 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         f = contact(k * z, P[BETA] * k * dd)
     nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, -f - 0.5 * dk * z * z)
     pdd = (nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
-    return pd, pdd, qd, (f + m_load) * P[INV_JL], di, dxi, cur, v, iref, tau
+    qdd = (f + m_load) * P[INV_JL]
+    if stick:
+        pdd, qdd = stick_nodes(pdd, qdd, pd, qd, jd, n, P)
+    return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
+
+
+@inline
+def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
+    """The motor side and the load of a compliant chain at rest: each sticks while the moment
+    on it (its acceleration without friction times its inertia; no loss at rest) stays within
+    its breakaway level, else breaks away against it."""
+    if pd == 0.0:
+        pdd = stuck_or_breaking(pdd * jd, n * P[TS_M]) / jd
+    if qd == 0.0 and P[TS_L] > 0.0:
+        qdd = stuck_or_breaking(qdd / P[INV_JL], P[TS_L]) * P[INV_JL]
+    return pdd, qdd
 
 
 @inline

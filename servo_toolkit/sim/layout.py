@@ -70,7 +70,13 @@ INV_JD0 = 57
 NMID, OFF_NODE, OFF_SEG = 58, 59, 60
 SEG_STRIDE = 4
 SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
-NP_HEADER = 61
+# friction that holds (:func:`servo_toolkit.sim.friction_kernel.slip_friction`, STICK = 1): the
+# motor's breakaway torque (N*m at the motor shaft; TC is its Coulomb level) and 1 / its
+# Stribeck speed (s/rad; inf: the drop from Ts to Tc at once), the load's Coulomb and breakaway
+# moments (N*m, N) and 1 / its Stribeck speed; STICK = 0: the smooth model Tc tanh(w / w_s) of
+# the motor's Coulomb friction alone
+TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
+NP_HEADER = 67
 #: length of the packed cam parameters
 NCAM = 14
 

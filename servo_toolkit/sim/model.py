@@ -57,7 +57,7 @@ from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
 from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
-from .model_slots import drivetrain_slots, with_cam, with_full_chain, with_table_error
+from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,11 @@ class ModelOptions:
     play : float or None
         Total lost motion at the output (rad) replacing the scene's value (None: the scene's
         lost motion at q0).
+    friction : {"stick", "smooth", "off"}
+        The motor's and the load's Coulomb and static friction: exact stick at zero speed
+        with the Stribeck law while sliding (:mod:`servo_toolkit.sim.friction_kernel`); the
+        motor's Coulomb friction alone as ``Tc tanh(w / friction_speed)`` (no stick: a
+        motor below breakaway creeps); or left out (viscous friction stays).
     chain : {"auto", "full", "two_mass"}
         The drivetrain's compliances: every one of them (the full chain, every mode), its
         two-mass reduction (the lowest mode), or the full chain only where its second mode
@@ -133,8 +138,11 @@ class ModelOptions:
     estimator_jerk: float | None = None
     efficiency: bool = True
     chain: str = "auto"
+    friction: str = "stick"
 
     def __post_init__(self):
+        if self.friction not in FRICTION_CHOICES:
+            raise ValueError(f"friction must be one of {FRICTION_CHOICES}, got {self.friction!r}")
         if self.chain not in CHAIN_CHOICES:
             raise ValueError(f"chain must be one of {CHAIN_CHOICES}, got {self.chain!r}")
         if self.speed_estimator is not None and self.speed_estimator not in lo.ESTIMATORS:
@@ -325,6 +333,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if motor.inductance > 0 and not options.inductance:
         notes.append("armature inductance left out (ideal current loop)")
     P[lo.WS] = 1.0 / options.friction_speed  # stored as its reciprocal
+    friction_slots(P, motor, load, options, notes)
     loss_slots(P, drive, motor, q0, options, notes, last_motor_node)
     P[lo.VLIM], P[lo.ILIM] = motor.voltage_limit, motor.current_limit
     P[lo.TAB_LO], P[lo.TAB_H], P[lo.TAB_N] = q[0], q[1] - q[0], q.size

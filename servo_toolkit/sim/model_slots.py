@@ -15,6 +15,34 @@ from .chain_split import load_split
 from .kernel import hermite
 
 
+FRICTION_CHOICES = ("stick", "smooth", "off")
+
+
+def _inverse_speed(v: float) -> float:
+    return 1.0 / v if v > 0 else math.inf
+
+
+def friction_slots(P, motor, load, options, notes: list) -> None:
+    """The motor's and the load's friction (``ModelOptions.friction``): breakaway and Coulomb
+    levels and Stribeck speeds with exact stick (``STICK``), the smooth Coulomb model of the
+    motor alone, or none."""
+    ts_m, ts_l = motor.breakaway_torque, load.breakaway
+    any_friction = max(motor.coulomb_friction, ts_m, load.coulomb_friction, ts_l) > 0
+    if options.friction == "off" or not any_friction:
+        P[lo.TC] = 0.0
+        if any_friction:
+            notes.append("Coulomb and static friction left out (viscous friction kept)")
+        return
+    if options.friction == "smooth":
+        if ts_m > motor.coulomb_friction or load.coulomb_friction > 0 or ts_l > 0:
+            notes.append("static friction and the load's friction left out: the motor's Coulomb friction is "
+                         f"smoothed, Tc tanh(w / {options.friction_speed:g} rad/s), and never sticks")
+        return
+    P[lo.STICK] = 1.0
+    P[lo.TS_M], P[lo.INV_VS_M] = ts_m, _inverse_speed(motor.stribeck_speed)
+    P[lo.TC_L], P[lo.TS_L], P[lo.INV_VS_L] = load.coulomb_friction, ts_l, _inverse_speed(load.stribeck_speed)
+
+
 def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options,
                      play: float) -> None:
     """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
@@ -111,4 +139,4 @@ def with_table_error(model, drive, q):
     return replace(model, table_error=err)
 
 
-__all__ = ["drivetrain_slots", "with_cam", "with_full_chain", "with_table_error"]
+__all__ = ["FRICTION_CHOICES", "drivetrain_slots", "friction_slots", "with_cam", "with_full_chain", "with_table_error"]

@@ -25,8 +25,22 @@ def rk4_amplification(z):
     return 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
 
 
+def smooth_parameters(P) -> np.ndarray:
+    """P (one row, or rows of variants) without the jump of friction that holds at zero speed
+    (Coulomb and static levels 0): a difference quotient across the jump is no eigenvalue,
+    only the smooth dynamics bound the step. The viscous friction stays."""
+    P = np.asarray(P)
+    if not np.any(P[..., lo.STICK] > 0.0):
+        return P
+    P = P.copy()
+    P[..., [lo.STICK, lo.TC, lo.TS_M, lo.TC_L, lo.TS_L]] = 0.0
+    return P
+
+
 def jacobian(model, P, x, t=0.0, iref=0.0) -> np.ndarray:
-    """d(rhs)/dx at (t, x) by central differences."""
+    """d(rhs)/dx at (t, x) by central differences (of the smooth dynamics:
+    :func:`smooth_parameters`)."""
+    P = smooth_parameters(P)
     n = x.size
     jac = np.empty((n, n))
     f1, f2, aux = np.empty(n), np.empty(n), np.empty(lo.NAUX)

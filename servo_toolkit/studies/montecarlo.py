@@ -26,7 +26,7 @@ from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
 from ..sim.batch_run import integrate_variants
 from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import fill, initial_state
-from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification
+from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from .montecarlo_result import MonteCarloResult
@@ -52,7 +52,7 @@ def _step_check(model, P, T, tix, X0, snaps, dt):
     ok_rows = np.all(np.isfinite(X), axis=1)
     X, owner = X[ok_rows], owner[ok_rows]
     J = np.empty((X.shape[0], nx, nx))
-    jacobians(X, np.array(times)[ok_rows], np.array(irefs)[ok_rows], P, T, tix, owner, J)
+    jacobians(X, np.array(times)[ok_rows], np.array(irefs)[ok_rows], smooth_parameters(P), T, tix, owner, J)
     good = np.all(np.isfinite(J), axis=(1, 2))
     lam = np.full((X.shape[0], nx), np.nan + 0j)
     lam[good] = np.linalg.eigvals(J[good])

@@ -1,0 +1,152 @@
+"""Friction that holds: exact stick below breakaway, breakaway above it, the Stribeck law while
+sliding, the classic stick-slip cycle against its closed form, and friction that never
+supplies power."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from servo_toolkit import load_scene
+from servo_toolkit.components.compliance import Compliance, Load
+from servo_toolkit.components.gear import GearTrain
+from servo_toolkit.components.motor import DCMotor
+from servo_toolkit.scene.loader import Scene
+from servo_toolkit.sim import ModelOptions, Reference, build_model, run
+from servo_toolkit.sim import layout as lo
+from servo_toolkit.sim.friction_kernel import slip_friction, stuck_or_breaking
+
+from .conftest import SCENES
+
+KT, R = 0.2, 0.5
+
+
+def geared(tc=0.02, ts=None, vs=0.0, stages=None, load=None):
+    """A motor with Coulomb (and static) friction driving an inertia through a lossless 10:1
+    gear; no other load."""
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=2e-4,
+                    viscous_friction=1e-4, coulomb_friction=tc, static_friction=ts, stribeck_speed=vs,
+                    voltage_limit=100.0, current_limit=50.0)
+    stages = stages or (GearTrain("gear", ratio=10.0, inertias=(1e-5, 1e-3)),)
+    return Scene("friction test", motor=motor, stages=stages, load=load or Load(inertia=0.05))
+
+
+@pytest.mark.parametrize("chain", ["rigid", "two_mass", "full"])
+def test_a_motor_below_breakaway_stands_still_exactly(chain):
+    """Open loop at 99 % of the breakaway voltage R Ts / Kt (above the Coulomb level): the
+    rotor never moves, to the last bit; at 101 % it breaks away."""
+    ts, tc = 0.05, 0.02
+    stages = {"rigid": None,
+              "two_mass": (GearTrain("gear", ratio=10.0, inertias=(1e-5, 1e-3)), Compliance("shaft", 2e3)),
+              "full": (GearTrain("gear", ratio=10.0, inertias=(1e-5, 1e-3), torsional_stiffness=5e3),
+                       Compliance("shaft", 2e3))}[chain]
+    sc = geared(tc=tc, ts=ts, stages=stages)
+    model = build_model(sc, None, ModelOptions(chain="full" if chain == "full" else "two_mass"))
+    assert model.rigid == (chain == "rigid") and (model.P[lo.NMID] > 0) == (chain == "full")
+    still = run(model, Reference.voltage(0.99 * R * ts / KT), 0.3, method="rk4", dt=1e-5)
+    assert np.all(still.states[:, 1] == 0.0) and np.all(still.states[:, 0] == still.states[0, 0])
+    moving = run(model, Reference.voltage(1.01 * R * ts / KT), 0.3, method="rk4", dt=1e-5)
+    assert moving.motor_speed[-1] > 0.01
+
+
+def test_sliding_speed_is_the_dc_motor_closed_form():
+    """Above breakaway the steady speed of the unloaded motor is w = (Kt V - R Tc) / (Kt Ke + R b)
+    (the Stribeck drop decayed: w >> w_st)."""
+    tc, ts, b = 0.02, 0.05, 1e-4
+    sc = geared(tc=tc, ts=ts, vs=0.5)
+    model = build_model(sc, None)
+    v = 6.0
+    res = run(model, Reference.voltage(v), 0.5, method="rk4", dt=1e-4)  # 50 time constants
+    w = (KT * v - R * tc) / (KT * KT + R * b)
+    assert res.motor_speed[-1] == pytest.approx(w, rel=1e-6)
+
+
+def test_smooth_friction_creeps_where_stick_holds():
+    """The smooth model (no stick) creeps below breakaway: what the stick model fixes."""
+    sc = geared(tc=0.02)
+    volts = 0.9 * R * 0.02 / KT
+    held = run(build_model(sc, None), Reference.voltage(volts), 0.5, method="rk4", dt=1e-5)
+    creep = run(build_model(sc, None, ModelOptions(friction="smooth")), Reference.voltage(volts), 0.5,
+                method="rk4", dt=1e-5)
+    assert held.motor_speed[-1] == 0.0 and creep.motor_speed[-1] > 0.01
+
+
+def stick_slip_closed_form(k, m, v, ts, tc):
+    """Mass m on a spring k whose far end moves at v, friction Ts (static) and Tc (sliding),
+    no damping. Stick: the force rises at k v from 2 Tc - Ts to Ts; slip: the mass swings at
+    w = sqrt(k / m) about the Coulomb level (the force Tc +- k A) until its speed is 0 again.
+    Returns the period, the stick time and the swing's force amplitude k A."""
+    w = math.sqrt(k / m)
+    d = (ts - tc) / k            # displacement of the swing's centre at breakaway
+    # slip: y = x - (v t - Tc / k); y(0) = -d, y'(0) = -v; y = A cos(w t + phi)
+    amp = math.hypot(d, v / w)
+    phi = math.atan2(v / w, -d)  # A cos(phi) = -d, A w sin(phi) = v
+    t_slip = (3 * math.pi - 2 * phi) / w  # y' = -v again (x' = 0) at the mirrored phase
+    t_stick = 2 * (ts - tc) / (k * v)
+    return t_slip + t_stick, t_stick, k * amp
+
+
+def test_stick_slip_of_a_mass_pulled_through_a_spring():
+    """The classic stick-slip: the motor side (a huge inertia) turns at constant speed v and
+    pulls the load through a spring; the load's static and Coulomb friction give a cycle whose
+    period, stick time and force extremes are the closed form's."""
+    k, m, v, ts, tc = 400.0, 0.2, 0.05, 2.0, 1.2
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=5e3,
+                    viscous_friction=0.0, coulomb_friction=0.0, voltage_limit=100.0, current_limit=50.0)
+    sc = Scene("stick-slip", motor=motor, stages=(Compliance("spring", k),),
+               load=Load(inertia=m, coulomb_friction=tc, static_friction=ts))
+    model = build_model(sc, None, ModelOptions(damping_ratio=0.0, backlash=False))
+    assert not model.rigid
+    x0 = np.zeros(model.nx)
+    x0[0] = x0[2] = model.q0
+    x0[1] = v
+    n = abs(float(sc.drivetrain.ratio([model.q0])[0][0]))
+    dt = 2e-5
+    res = run(model, Reference.voltage(KT * n * v), 2.0, method="rk4", dt=dt, x0=x0, output_dt=dt)
+    force = k * (res.states[:, 0] - res.states[:, 2])
+    stuck = res.states[:, 3] == 0.0
+    starts = np.flatnonzero(stuck[:-1] & ~stuck[1:])  # breakaways
+    assert len(starts) >= 4
+    # the rotor slows by a few 1e-4 under the spring's mean pull: each cycle at its own speed
+    for a, b in zip(starts[1:-1], starts[2:]):
+        speed = float(np.mean(res.states[a:b, 1]))
+        period, t_stick, swing = stick_slip_closed_form(k, m, speed, ts, tc)
+        assert res.times[b] - res.times[a] == pytest.approx(period, rel=1e-3)
+    period, t_stick, swing = stick_slip_closed_form(k, m, v, ts, tc)
+    cycle = (res.times > res.times[starts[1]]) & (res.times < res.times[starts[-1]])
+    assert force[cycle].max() == pytest.approx(tc + swing, rel=2e-3)
+    assert force[cycle].min() == pytest.approx(tc - swing, abs=2e-3 * ts)
+    # each stick begins at 2 Tc - Ts and ends at the breakaway level Ts
+    ends = np.flatnonzero(~stuck[:-1] & stuck[1:]) + 1
+    np.testing.assert_allclose(force[ends[1:-1]], 2 * tc - ts, atol=2e-3 * ts)
+    np.testing.assert_allclose(force[starts[1:]], ts, atol=2e-3 * ts)
+    stick_time = stuck[cycle].mean() * period
+    assert stick_time == pytest.approx(t_stick, rel=5e-3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(v=st.floats(-1e3, 1e3).filter(lambda x: x != 0), tc=st.floats(0, 10), extra=st.floats(0, 10),
+       vs=st.floats(1e-6, 1e3), applied=st.floats(-50, 50))
+def test_friction_never_supplies_power(v, tc, extra, vs, applied):
+    """Sliding, the friction opposes the speed and lies between Tc and Ts; at rest it takes at
+    most the applied moment and never turns it around."""
+    ts = tc + extra
+    f = slip_friction.py_func(v, tc, ts, 1.0 / vs)
+    assert f * v >= 0.0
+    assert tc - 1e-12 <= abs(f) <= ts + 1e-12
+    net = stuck_or_breaking.py_func(applied, ts)
+    assert abs(net) <= abs(applied) and net * applied >= 0.0
+
+
+def test_the_reference_ema_holds_its_position_exactly_at_rest():
+    """The shipped EMA, open loop with no voltage and its hinge moment off: nothing moves (the
+    old smooth friction let the rotor creep under any torque)."""
+    ema = load_scene(SCENES / "ema_reference.toml")
+    sc = replace(ema, load=replace(ema.load, hinge_moment=0.0, hinge_stiffness=0.0))
+    model = build_model(sc, None, ModelOptions(inductance=False))
+    res = run(model, Reference.voltage(0.9 * sc.motor.resistance * sc.motor.breakaway_torque
+                                       / sc.motor.torque_constant), 0.2, method="rk4", dt=1e-4)
+    assert np.all(res.motor_speed == 0.0)
