@@ -168,7 +168,8 @@ def test_output_paths_are_checked_before_any_work(tmp_path):
 
 def test_stiffness_defaults_lie_in_a_short_stroke(tmp_path):
     path = tmp_path / "short.toml"
-    path.write_text(dumps(edited(["drivetrain", 2, "stroke"], ["-20 deg", "20 deg"])))
+    short = edited(["drivetrain", 2, "stroke"], ["-20 deg", "20 deg"])  # the kv sine follows the stroke
+    path.write_text(dumps(edited(["studies", "kv_stroke", "amplitude"], "20 deg", short)))
     code, lines = run(["stiffness", str(path)])
     assert code == 0, lines
 

@@ -50,7 +50,6 @@ def test_check_json(capsys):
 def test_bad_input_exits_2(tmp_path, capsys):
     assert main(["check", str(tmp_path / "missing.toml")]) == 2
     assert main(["check", EMA, "--require", "bandwith=8Hz"]) == 2
-    assert main(["check", str(SCENES / "deflection_platform.toml")]) == 2
     err = capsys.readouterr().err
     assert "require.bandwith" in err
 

@@ -99,22 +99,37 @@ def test_design_names_the_scene_without_a_drivetrain(capsys):
     assert len(err) == 1 and PLATFORM in err[0] and "no motor-driven drivetrain" in err[0]
 
 
-def test_multi_scene_check_writes_junit_for_the_scenes_it_could_check(tmp_path, capsys):
+def test_a_scene_without_a_loop_is_skipped_and_the_exit_code_is_the_others(tmp_path, capsys):
     junit = tmp_path / "loop.xml"
-    assert main(["check", CAM, PLATFORM, "--junit", str(junit)]) == 2
+    assert main(["check", CAM, PLATFORM, "--junit", str(junit)]) == 0
     captured = capsys.readouterr()
-    err = captured.err.strip().splitlines()
-    assert len(err) == 1 and PLATFORM in err[0] and "no motor-driven drivetrain" in err[0]
-    assert "cam_follower" in captured.out and "1 of 2 scene(s) could not be checked" in captured.out
-    assert "every scene checked meets its requirements" in captured.out
-    assert "all requirements met" not in captured.out
+    assert captured.err == ""
+    line = next(l for l in captured.out.splitlines() if PLATFORM in l)
+    assert "SKIPPED" in line and "no motor-driven drivetrain" in line and "--study" in line
+    assert "all requirements met" in captured.out and "1 of 2 scene(s) skipped" in captured.out
     suites = ET.parse(junit).getroot().findall("testsuite")
     assert [s.get("name") for s in suites] == ["cam_follower", load_scene(PLATFORM).name]
     assert not suites[0].findall(".//failure") and not suites[0].findall(".//error")
     assert {c.get("name") for c in suites[0].findall("testcase")} >= {"bandwidth", "closed_loop_stable"}
-    error = suites[1].find("testcase/error")
-    assert suites[1].get("errors") == "1" and PLATFORM in error.get("message")
-    assert error.get("type") == "SceneError"
+    skipped = suites[1].find("testcase/skipped")
+    assert suites[1].get("skipped") == "1" and suites[1].get("errors") == "0" and suites[1].get("failures") == "0"
+    assert "no motor-driven drivetrain" in skipped.get("message")
+
+
+def test_only_scenes_without_a_loop_exit_0_skipped(tmp_path, capsys):
+    two_stage = str(SCENES / "roller_screw_two_stage.toml")
+    assert main(["check", PLATFORM, two_stage, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["passed"] is True and data["errors"] == 0 and data["skipped"] == 2
+    assert [d["skipped"] for d in data["scenes"]] == [True, True]
+    assert all("no motor-driven drivetrain" in d["reason"] for d in data["scenes"])
+    assert main(["check", PLATFORM, "--require", "bandwith=8Hz"]) == 2  # the options are still checked
+
+
+def test_a_failing_scene_beside_a_skipped_one_still_exits_1(capsys):
+    assert main(["check", PLATFORM, EMA, "--require", "bandwidth=200Hz"]) == 1
+    out = capsys.readouterr().out
+    assert "SKIPPED" in out and "some requirements NOT met" in out
 
 
 def test_multi_scene_check_json_marks_the_scene_in_error(tmp_path, capsys):

@@ -116,3 +116,15 @@ def test_motor_inertias_are_twice_a_and_b_of_eq14(model):
     # and they enter M(q) as I1 J1'J1 + I2 J2'J2 on top of the platform's own inertia
     assert model.mass_matrix(0.0, 0.0) == pytest.approx(
         np.diag([10688.89e-6 + 2 * a * 6.36**2, 12600.333e-6 + 2 * b * 3.2**2]), rel=1e-12)
+
+
+def test_a_torque_that_is_rounding_prints_as_zero():
+    # unloaded, the alpha motor only balances terms that cancel: its torque is 0, not 1e-23 N*m
+    res = run_study(load_scene(SCENES / "deflection_platform.toml"), "ramp")
+    unloaded = [i for i, m in enumerate(res.load_moments) if not np.any(m)][0]
+    assert np.all(res.torques[unloaded, 0] == 0.0) and not np.any(np.signbit(res.torques[unloaded, 0]))
+    row = res.table().splitlines()[2 + unloaded]
+    assert "e-2" not in row and "-0" not in row.split()[2]
+    assert res.to_dict()["cases"][unloaded]["tau1_range_Nm"] == [0.0, 0.0]
+    # a torque well above rounding stays as computed
+    assert np.max(res.torques[unloaded, 1]) > 1e-7

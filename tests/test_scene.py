@@ -71,7 +71,7 @@ def test_cam_platform_roller_screw_quantities():
     ({"motor__torque_constant": None}, "motor.torque_constant", "missing key"),
     ({"motor__inductance": "0.5 mFoo"}, "motor.inductance", "unknown unit"),
     ({"drivetrain__1__lead": "5 kg"}, "drivetrain[1].lead", "dimension mismatch"),
-    ({"drivetrain__0__efficiency": 1.2}, "drivetrain[0].efficiency", r"\(0, 1\]"),
+    ({"drivetrain__0__efficiency": 1.2}, "drivetrain[0].efficiency", r"\[0.01, 1\]"),
     ({"drivetrain__0__kind": "belt"}, "drivetrain[0].kind", "unknown stage kind"),
     ({"drivetrain__1__leed": "5 mm"}, "drivetrain[1].leed", "unknown key"),
     ({"load__inertia": "-1 kg*m^2"}, "load.inertia", "must not be negative"),

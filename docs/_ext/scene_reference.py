@@ -50,10 +50,11 @@ def grouped(reads) -> dict:
             pass
         group = groups.setdefault((_pattern(r.table), r.kind), {})
         d = group.setdefault(r.key, {"readers": set(), "unit": None, "rule": None, "choices": None,
-                                     "default": None, "required": True, "written": None})
+                                     "default": None, "required": True, "written": None, "bounds": None})
         d["readers"].add(r.reader)
         d["unit"] = d["unit"] or (r.unit if r.reader != "number" else None)
         d["rule"] = d["rule"] or r.rule
+        d["bounds"] = d["bounds"] or getattr(r, "bounds", None)
         d["choices"] = d["choices"] or r.choices
         if not r.required and r.default is not None:
             d["default"] = r.default if d["default"] is None else d["default"]
@@ -170,6 +171,10 @@ def scene_markdown(reads=None) -> str:
         for key, d in keys.items():
             default = "required" if d["required"] else (_fmt(d["default"]) or "absent: not used")
             rule = d["rule"] or ""
+            if d["bounds"] is not None:
+                low, high = d["bounds"]
+                span = f"|x| <= {high:g}" if rule == "finite" else f"{low:g} .. {high:g}"
+                rule = f"{rule}, {span}" if rule else span
             if d["choices"]:
                 rule = "one of " + ", ".join(f"`{c}`" for c in d["choices"])
             example = f"`{_fmt(d['written'])}`" if d["written"] is not None else ""

@@ -13,6 +13,7 @@ from __future__ import annotations
 import re
 import sys
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import SceneError, SimulationError
@@ -113,10 +114,16 @@ def write_junit(path, entries) -> None:
     ``entries`` holds (suite name, cases) with cases (test name, passed, message), or
     (suite name, SceneError or SimulationError) for a scene that could not be checked: one
     testcase ``check`` with an ``error`` element (JUnit's "could not run", apart from a
-    failed requirement).
+    failed requirement), or (suite name, :class:`Skipped`) for a scene without a loop to
+    check: one testcase ``check`` with a ``skipped`` element giving the reason.
     """
     root = ET.Element("testsuites", name="servo-toolkit check")
     for name, cases in entries:
+        if isinstance(cases, Skipped):
+            suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="0", skipped="1")
+            case = ET.SubElement(suite, "testcase", classname=name, name="check")
+            ET.SubElement(case, "skipped", message=cases.reason)
+            continue
         if isinstance(cases, (SceneError, SimulationError)):
             suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="1")
             case = ET.SubElement(suite, "testcase", classname=name, name="check")
@@ -133,6 +140,29 @@ def write_junit(path, entries) -> None:
     _xml_safe(root)  # a scene name or message with control characters still parses
     with atomic_file(path, "junit") as tmp:  # never a half-written report
         ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
+
+
+@dataclass(frozen=True)
+class Skipped:
+    """A scene the gate has nothing to check in: it has no motor-driven loop.
+
+    Attributes
+    ----------
+    reason : str
+        Why, and what to run for the scene instead.
+    """
+
+    reason: str
+
+
+def skip_reason(scene, path) -> str | None:
+    """Why ``check`` skips ``scene`` (no motor-driven drivetrain, so no loop to gate), or
+    None when it has a loop to check."""
+    from ..studies.run import has_motor_drivetrain
+    from .hints import what_to_run
+    if has_motor_drivetrain(scene):
+        return None
+    return f"no motor-driven drivetrain, so no loop to check; to exercise it {what_to_run(scene, path)}"
 
 
 def _is_junit(path: Path) -> bool:
@@ -203,11 +233,13 @@ def run(args) -> int:
     """Run the command.
 
     Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
-    ``--junit`` path) stop before any design. A scene that cannot be checked (it does not
-    load, or has no motor-driven drivetrain, or its own nonlinear run, large-signal or Monte
-    Carlo, cannot be carried out) is reported on one stderr line naming its file and becomes
-    an ``error`` testcase of the JUnit file; the other scenes are still checked
-    and written, and the exit code is 2.
+    ``--junit`` path) stop before any design. A scene without a motor-driven drivetrain has
+    no loop to gate: it is reported as skipped (a ``skipped`` testcase in the JUnit file,
+    ``"skipped": true`` in the JSON) and does not change the exit code. A scene that cannot
+    be checked (it does not load, or its own nonlinear run, large-signal or Monte Carlo,
+    cannot be carried out) is reported on one stderr line naming its file and becomes an
+    ``error`` testcase of the JUnit file; the other scenes are still checked and written,
+    and the exit code is 2.
     """
     from ..loop.robustness import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
@@ -224,8 +256,17 @@ def run(args) -> int:
         except SceneError as exc:
             scenes.append(_tagged(exc, path))
             print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
-    entries, out, all_ok, errors = [], [], True, 0
+    entries, out, all_ok, errors, skipped = [], [], True, 0, 0
     for path, scene in zip(args.scenes, scenes):
+        reason = None if isinstance(scene, SceneError) else skip_reason(scene, path)
+        if reason is not None:
+            skipped += 1
+            entries.append((scene.name, Skipped(reason)))
+            out.append({"source": str(path), "name": scene.name, "skipped": True, "reason": reason,
+                        "passed": None})
+            if not args.json:
+                print(f"{scene.name} ({path}): SKIPPED: {reason}")
+            continue
         try:
             if isinstance(scene, SceneError):
                 raise scene
@@ -240,11 +281,7 @@ def run(args) -> int:
         except SceneError as exc:
             exc = _tagged(exc, path)
             if exc is not scene:
-                hint = None
-                if exc.key == "drivetrain" and "no motor-driven" in exc.rule:
-                    from .hints import no_drivetrain_hint
-                    hint = no_drivetrain_hint("check", path)
-                print(f"servo-toolkit: error: {exc}" + (f"; {hint}" if hint else ""), file=sys.stderr)
+                print(f"servo-toolkit: error: {exc}", file=sys.stderr)
             errors += 1
             entries.append((str(path) if isinstance(scene, SceneError) else scene.name, exc))
             out.append({"source": str(path), "passed": False, "error": str(exc), "key": exc.key,
@@ -257,11 +294,15 @@ def run(args) -> int:
     if args.junit:
         write_junit(args.junit, entries)
     if args.json:
-        sys.stdout.write(to_json({"passed": all_ok and not errors, "errors": errors, "scenes": out}) + "\n")
+        sys.stdout.write(to_json({"passed": all_ok and not errors, "errors": errors, "skipped": skipped,
+                                  "scenes": out}) + "\n")
     else:
-        if len(entries) > errors:
+        checked = len(entries) - errors - skipped
+        if checked:
             print("some requirements NOT met" if not all_ok else "all requirements met" if not errors
                   else "every scene checked meets its requirements")
+        if skipped:
+            print(f"{skipped} of {len(args.scenes)} scene(s) skipped (no motor-driven loop to check)")
         if errors:
             print(f"{errors} of {len(args.scenes)} scene(s) could not be checked "
                   f"(bad input or a run outside its validity domain)")

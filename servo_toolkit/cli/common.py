@@ -99,11 +99,16 @@ def add_sine_options(parser, *, repeat: bool = False, what: str = "the sine comm
 
 def amplitudes_si(scene, texts, option: str = "--amplitude"):
     """``--amplitude`` values (one text or a list) in SI after the scene's output unit;
-    None when not given. Raises SceneError naming the option and the rule."""
+    None when not given. Raises SceneError naming the option and the rule: not an
+    amplitude, or a sine about the operating point that leaves the stroke."""
     from ..core.output_units import output_unit
+    from ..scene.study_stroke import check_amplitude
+    from ..studies.run import has_motor_drivetrain
     if texts is None:
         return None
     unit = output_unit(scene)
-    if isinstance(texts, str):
-        return unit.parse(texts, option)
-    return [unit.parse(t, option) for t in texts]
+    values = [unit.parse(t, option) for t in ([texts] if isinstance(texts, str) else texts)]
+    if has_motor_drivetrain(scene):
+        for a in values:
+            check_amplitude(scene, a, option)
+    return values[0] if isinstance(texts, str) else values

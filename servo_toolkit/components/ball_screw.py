@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..core.fields import Fields, require
-from .base import Element, Jet, Lash, Spring, Stage, screw_backdrive_efficiency
+from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, screw_backdrive_efficiency
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,7 @@ class BallScrew(Stage):
             lead=f.quantity("lead", "m", rule="positive"),
             screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
             nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
-            efficiency=f.number("efficiency", 1.0, rule="positive"),
+            efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
             axial_stiffness=f.quantity("axial_stiffness", "N/m", math.inf),
             backlash=f.quantity("backlash", "m", 0.0, rule="nonnegative"),
         )

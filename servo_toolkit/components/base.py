@@ -15,6 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: efficiencies the loss models are conditioned for: below 1 % a stage's loss torque dwarfs
+#: what it transmits and the lumped chain becomes singular
+EFFICIENCY_RANGE = (0.01, 1.0)
+
 
 @dataclass(frozen=True)
 class Jet:

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..core.fields import Fields, require
-from .base import Element, Jet, Lash, Spring, Stage
+from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class GearTrain(Stage):
             require(len(inertias) <= 2, f.key("inertia"), "with a ratio only, give at most [input, output]")
         stage = cls(
             name=f.text("name", "gear train"), ratio=ratio, teeth=teeth, inertias=inertias,
-            efficiency=f.number("efficiency", 1.0, rule="positive"),
+            efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
             torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
         )

@@ -9,6 +9,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 
 from ..errors import SceneError
+from .ranges import conditioned_range, range_rule
 from .units import parse_quantity
 
 _MISSING = object()
@@ -44,6 +45,9 @@ class KeyRead:
         Allowed values of a text key.
     written : object
         The value as the table writes it (None when absent).
+    bounds : tuple or None
+        ``(low, high)``: the range a finite value must lie in (see
+        :mod:`servo_toolkit.core.ranges`), None when no range applies.
     """
 
     table: str
@@ -56,6 +60,7 @@ class KeyRead:
     rule: str | None = None
     choices: tuple | None = None
     written: object = None
+    bounds: tuple | None = None
 
 
 @contextmanager
@@ -76,6 +81,11 @@ def recording_reads():
         _READS.reset(token)
 
 
+def _range_of(unit, rule, bounds):
+    """The range a key in ``unit`` with ``rule`` is checked against (for the reference)."""
+    return conditioned_range(unit, bounds) if unit is not None else None
+
+
 class Fields:
     """Typed access to one TOML table; every error names ``path.key`` and the rule.
 
@@ -94,7 +104,8 @@ class Fields:
         self.path = path
         self._used = {"kind", "name"}
 
-    def _note(self, name: str, reader: str, default=_MISSING, unit=None, rule=None, choices=None) -> None:
+    def _note(self, name: str, reader: str, default=_MISSING, unit=None, rule=None, choices=None,
+              bounds=None) -> None:
         reads = _READS.get()
         if reads is not None:
             kind = self.table.get("kind") if isinstance(self.table.get("kind"), str) else None
@@ -102,7 +113,7 @@ class Fields:
             reads.append(KeyRead(self.path, kind, name, reader, unit, required,
                                  None if required else default, rule,
                                  tuple(sorted(choices)) if choices is not None else None,
-                                 self.table.get(name)))
+                                 self.table.get(name), bounds))
 
     def key(self, name: str) -> str:
         """Full key path of ``name``."""
@@ -123,28 +134,33 @@ class Fields:
             raise SceneError(self.key(name), "missing key (required)")
         return default
 
-    def quantity(self, name: str, unit: str, default=_MISSING, *, rule: str | None = None) -> float:
+    def quantity(self, name: str, unit: str, default=_MISSING, *, rule: str | None = None,
+                 bounds=None) -> float:
         """A quantity converted to ``unit``.
 
         ``rule`` is one of ``"positive"``, ``"nonnegative"``, ``"finite"`` (always
-        implied unless the default is infinite) or None.
+        implied unless the default is infinite) or None. A finite value must also lie in
+        the range its model is conditioned for: ``bounds`` ``(low, high)``, else the
+        unit's range (:mod:`servo_toolkit.core.ranges`); an infinite one is allowed only
+        where the rule is None (a rigid stage, no limit).
         """
-        self._note(name, "quantity", default, unit, rule)
+        self._note(name, "quantity", default, unit, rule, bounds=_range_of(unit, rule, bounds))
         value = self.raw(name, default)
         if value is default and default is not _MISSING and not isinstance(default, str):
             return default
-        return self._checked(parse_quantity(value, unit, self.key(name)), name, rule)
+        return self._checked(parse_quantity(value, unit, self.key(name)), name, rule, unit=unit, bounds=bounds)
 
-    def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None) -> tuple:
-        """A list of quantities converted to ``unit``."""
-        self._note(name, "quantity list", default, unit, rule)
+    def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None, bounds=None) -> tuple:
+        """A list of quantities converted to ``unit``, each checked as :meth:`quantity` does."""
+        self._note(name, "quantity list", default, unit, rule, bounds=_range_of(unit, rule, bounds))
         value = self.raw(name, default)
         if value is default and default is not _MISSING:
             return tuple(default)
         if not isinstance(value, list):
             raise SceneError(self.key(name), "expected a list")
         return tuple(self._checked(parse_quantity(v, unit, f"{self.key(name)}[{i}]"), name, rule,
-                                   f"{self.key(name)}[{i}]") for i, v in enumerate(value))
+                                   f"{self.key(name)}[{i}]", unit=unit, bounds=bounds)
+                     for i, v in enumerate(value))
 
     def integer(self, name: str, default=_MISSING, *, minimum: int | None = None) -> int:
         """An integer, optionally at least ``minimum``."""
@@ -166,12 +182,13 @@ class Fields:
             raise SceneError(self.key(name), f"must be one of {sorted(choices)} (got {value!r})")
         return value
 
-    def number(self, name: str, default=_MISSING, *, rule=None) -> float:
+    def number(self, name: str, default=_MISSING, *, rule=None, bounds=None) -> float:
         """A plain dimensionless number."""
         self._note(name, "number", default, rule=rule)
-        return self.quantity(name, "dimensionless", default, rule=rule)
+        return self.quantity(name, "dimensionless", default, rule=rule, bounds=bounds)
 
-    def _checked(self, value: float, name: str, rule, key: str | None = None) -> float:
+    def _checked(self, value: float, name: str, rule, key: str | None = None, *, unit=None,
+                 bounds=None) -> float:
         key = key or self.key(name)
         if math.isnan(value):
             raise SceneError(key, "value is NaN")
@@ -181,6 +198,10 @@ class Fields:
             raise SceneError(key, f"must not be negative (got {value:g})")
         if rule in ("positive", "nonnegative", "finite") and math.isinf(value):
             raise SceneError(key, "must be finite")
+        if math.isfinite(value) and unit is not None:
+            broken = range_rule(value, rule if rule is not None or value <= 0 else "positive", unit, bounds)
+            if broken:
+                raise SceneError(key, broken)
         return value
 
     def check_unknown(self) -> None:

@@ -22,6 +22,18 @@ def looks_like_quantity(text: str) -> bool:
     return bool(_NUMBER.match(text) or _NONFINITE.match(text))
 
 
+#: an exponent in a unit ("m^2", "s**-1") and a leading "1/" ("1/s"): the only digits a unit has
+_UNIT_DIGITS = re.compile(r"(\^|\*\*)\s*\(?\s*[-+]?\d+(\.\d+)?\s*\)?|^1\s*/")
+
+
+def _check_unit_text(unit: str, text: str, key: str) -> None:
+    """SceneError unless ``unit`` is a unit, not an expression: a number in it other than
+    an exponent ("0.1 ms / 0", "1 mm / 2 s") would make pint evaluate arithmetic."""
+    if any(ch.isdigit() for ch in _UNIT_DIGITS.sub("", unit)):
+        raise SceneError(key, f"a quantity is a number and a unit, not an expression (got {text!r}): "
+                              "give the value once, e.g. '0.1 ms'")
+
+
 def _parse_string(text: str, key: str) -> pint.Quantity:
     match = _NUMBER.match(text)
     nonfinite = None if match else _NONFINITE.match(text)
@@ -31,10 +43,11 @@ def _parse_string(text: str, key: str) -> pint.Quantity:
     if not match:
         raise SceneError(key, f"expected a number with units, got {text!r}")
     unit = text[match.end():].strip()
+    _check_unit_text(unit, text, key)
     try:
         return UREG.Quantity(float(match.group(0)), unit or "dimensionless")
     except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError,
-            AttributeError, TypeError, ValueError, SyntaxError) as exc:
+            AttributeError, TypeError, ValueError, SyntaxError, ArithmeticError) as exc:
         raise SceneError(key, f"unknown unit {unit!r} in {text!r} ({exc})") from None
 
 

@@ -10,6 +10,7 @@ import control as ct
 import numpy as np
 
 from ..core.output_units import REQUIREMENT_SINE_HZ
+from .crossings import crossings
 
 
 @dataclass(frozen=True)
@@ -199,14 +200,15 @@ def nyquist_count(loop, rhp_poles: int) -> int:
     return int(rhp_poles - round(winding))
 
 
-def gain_crossings(loop, integrators: int):
-    """Every gain margin (factor) and where (rad/s): python-control's phase crossings
-    (including w = 0 when L(0) is finite, real and negative, as for an open-loop-unstable
-    plant), and w -> inf when L(inf) is real and negative. A crossing at w = 0 of a loop
-    with integrators is L's asymptote, not a margin, and is left out."""
-    gm, _, _, wpc, _, _ = ct.stability_margins(loop, returnall=True)
-    gm, wpc = np.atleast_1d(np.asarray(gm, float)), np.atleast_1d(np.asarray(wpc, float))
-    keep = np.isfinite(gm) & (gm > 0) & ((wpc > 0) | (integrators == 0))
+def gain_crossings(loop, integrators: int, found=None):
+    """Every gain margin (factor) and where (rad/s): the loop's own -180 deg crossings
+    (:func:`.crossings.crossings`; never a root of rounded polynomial coefficients),
+    w = 0 when L(0) is finite, real and negative (as for an open-loop-unstable plant), and
+    w -> inf when L(inf) is real and negative. A crossing at w = 0 of a loop with
+    integrators is L's asymptote, not a margin, and is left out. ``found`` is the result of
+    :func:`.crossings.crossings` when the caller has it."""
+    wpc, gm, _, _ = crossings(loop) if found is None else found
+    keep = np.isfinite(gm) & (gm > 0)
     gm, wpc = list(gm[keep]), list(wpc[keep])
     if integrators == 0 and not any(x == 0 for x in wpc):
         l0 = _evaluate(loop, [0.0])[0]
@@ -250,12 +252,10 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
     at_origin = np.abs(ol_poles) <= ORIGIN_TOL * scale
     integrators = int(np.sum(at_origin))
     rhp = int(np.sum((ol_poles.real > ORIGIN_TOL * scale) & ~at_origin))
-    gm, wpc = gain_crossings(loop, integrators)
+    found = crossings(loop)
+    gm, wpc = gain_crossings(loop, integrators, found)
     gm_db = 20 * np.log10(gm)
-    _, pm, _, _, wgc, _ = ct.stability_margins(loop, returnall=True)
-    pm, wgc = np.atleast_1d(np.asarray(pm, float)), np.atleast_1d(np.asarray(wgc, float))
-    keep = np.isfinite(pm)
-    pm, wgc = pm[keep], wgc[keep]
+    _, _, wgc, pm = found
     poles = ct.poles(closed_loop)
     stable = bool(np.all(poles.real < 0))
     notes = []

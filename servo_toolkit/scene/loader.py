@@ -417,6 +417,8 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                       source=source)
         if stages:
             _built("drivetrain", scene.drivetrain.check)
+            from .study_stroke import check_study_amplitudes
+            check_study_amplitudes(scene)
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None

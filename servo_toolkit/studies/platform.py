@@ -86,9 +86,24 @@ class PlatformRampResult:
         return ax
 
 
+#: a torque below this fraction of the largest torque of the study is rounding, printed as 0
+ROUNDING = 1e-12
+
+
+def without_rounding(torques: np.ndarray) -> np.ndarray:
+    """``torques`` with every entry below ``ROUNDING`` times the largest magnitude among
+    them set to exactly 0 (a term that cancels to 1e-23 N*m means 0, not a torque)."""
+    torques = np.asarray(torques, float)
+    scale = float(np.max(np.abs(torques))) if torques.size else 0.0
+    return np.where(np.abs(torques) <= ROUNDING * scale, 0.0, torques)
+
+
 def ramp(model: PlatformModel, rate_alpha: float, rate_beta: float, duration: float, load_moments,
          samples: int = 401) -> PlatformRampResult:
-    """Inverse dynamics along alpha = rate_alpha t, beta = rate_beta t for each load case."""
+    """Inverse dynamics along alpha = rate_alpha t, beta = rate_beta t for each load case.
+
+    Torques that are rounding of terms cancelling (below ``ROUNDING`` times the largest
+    torque of the study) are exactly 0."""
     t = np.linspace(0.0, duration, samples)
     q = np.array([rate_alpha * t, rate_beta * t])
     qd = np.array([np.full_like(t, rate_alpha), np.full_like(t, rate_beta)])
@@ -97,12 +112,9 @@ def ramp(model: PlatformModel, rate_alpha: float, rate_beta: float, duration: fl
     theta_dot = np.einsum("ij...,j...->i...", model.jacobian(q[0], q[1]), qd)
     kinetic = model.kinetic_energy(q[0], q[1], qd[0], qd[1])
     kinetic_power = np.gradient(kinetic, t, edge_order=2)
-    torques, motor_power, load_power = [], [], []
-    for m in loads:
-        tau = model.motor_torques(q, qd, qdd, m[:, None])
-        torques.append(tau)
-        motor_power.append(np.sum(tau * theta_dot, axis=0))
-        load_power.append(m @ qd)
+    torques = without_rounding([model.motor_torques(q, qd, qdd, m[:, None]) for m in loads])
+    motor_power = [np.sum(tau * theta_dot, axis=0) for tau in torques]
+    load_power = [m @ qd for m in loads]
     n = len(loads)
-    return PlatformRampResult(t, q, qd, loads, np.array(torques), np.array(motor_power),
+    return PlatformRampResult(t, q, qd, loads, torques, np.array(motor_power),
                               np.broadcast_to(kinetic_power, (n, t.size)).copy(), np.array(load_power))

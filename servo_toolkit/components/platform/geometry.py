@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.ranges import range_rule
 from ...core.fields import Fields, require
 from ...core.units import parse_quantity
 
@@ -43,6 +44,10 @@ class CrossedArchPlatform:
                 key, "must be a 2x2 matrix [[Ixx, Ixy], [Ixy, Iyy]]")
         matrix = np.array([[parse_quantity(v, "kg*m^2", f"{key}[{i}][{j}]")
                             for j, v in enumerate(row)] for i, row in enumerate(raw)])
+        for (i, j), v in np.ndenumerate(matrix):
+            broken = range_rule(float(v), "nonnegative" if i == j else "finite", "kg*m^2") if np.isfinite(v) \
+                else "must be finite"
+            require(broken is None, f"{key}[{i}][{j}]", broken or "")
         require(abs(matrix[0, 1] - matrix[1, 0]) <= 1e-12 * np.abs(matrix).max(), key,
                 "inertia matrix must be symmetric (Ixy written twice must agree)")
         eig = np.linalg.eigvalsh(matrix)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.fields import Fields, require
-from ..base import Element, Jet, Stage, screw_backdrive_efficiency
+from ..base import EFFICIENCY_RANGE, Element, Jet, Stage, screw_backdrive_efficiency
 
 
 @dataclass(frozen=True)
@@ -310,7 +310,7 @@ class RollerScrew(Stage):
         eta = steady_efficiency(stages, mus["roller_screw_friction"], mus["screw_screw_friction"],
                                 mus["nut_screw_friction"])
         require(eta > 0, f.key("roller_screw_friction"), "the friction coefficients leave no positive efficiency")
-        efficiency = f.number("efficiency", eta, rule="positive")
+        efficiency = f.number("efficiency", eta, rule="positive", bounds=EFFICIENCY_RANGE)
         require(efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         travel = None
         if f.raw("stroke", None) is not None:

@@ -1,0 +1,163 @@
+"""Extreme but finite values: every numeric key of every shipped scene, set to 1e-300 ...
+1e300 of either sign, is refused when the scene loads with one line naming the key and the
+range its model is conditioned for, or runs cleanly through ``check``, ``simulate`` and
+``sweep`` (exit 0 or 1, or one line and exit 2). Unit strings are quantities, never
+arithmetic."""
+
+from __future__ import annotations
+
+import copy
+import re
+import tomllib
+
+import pytest
+
+from servo_toolkit.errors import SceneError
+from servo_toolkit.scene.loader import scene_from_dict
+
+from .conftest import SCENE_FILES, SCENES
+from .test_bad_input import dumps, run
+
+EMA = tomllib.loads((SCENES / "ema_reference.toml").read_text())
+SHIPPED = {p.name: tomllib.loads(p.read_text()) for p in SCENE_FILES}
+EXTREMES = (1e-300, -1e-300, 1e300, -1e300, 1e-30, 1e30)
+_NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def _numeric_leaves(data, path=()):
+    """Key paths of every number and every quantity string (lists included)."""
+    if isinstance(data, dict):
+        for k, v in data.items():
+            if path or k not in ("name", "description"):
+                yield from _numeric_leaves(v, path + (k,))
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            yield from _numeric_leaves(v, path + (i,))
+    elif (isinstance(data, (int, float)) and not isinstance(data, bool)) or \
+            (isinstance(data, str) and _NUMBER.match(data)):
+        yield path
+
+
+def _set(data, path, x):
+    """``data`` with the number at ``path`` replaced by ``x`` (a quantity keeps its unit)."""
+    data = copy.deepcopy(data)
+    target = data
+    for p in path[:-1]:
+        target = target[p]
+    old = target[path[-1]]
+    target[path[-1]] = _NUMBER.sub(repr(x), old, count=1) if isinstance(old, str) else x
+    return data
+
+
+def _key(path) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else p)
+    return out
+
+
+MUTATIONS = [(name, path, x) for name, data in sorted(SHIPPED.items()) for path in _numeric_leaves(data)
+             for x in EXTREMES]
+
+
+def _load(name, path, x):
+    return scene_from_dict(_set(SHIPPED[name], path, x), name)
+
+
+def _accepted():
+    out = []
+    for name, path, x in MUTATIONS:
+        try:
+            _load(name, path, x)
+        except SceneError:
+            continue
+        out.append((name, path, x))
+    return out
+
+
+@pytest.fixture(scope="module")
+def accepted():
+    return _accepted()
+
+
+def test_every_extreme_value_loads_or_names_its_key_and_range():
+    assert len(MUTATIONS) > 1000
+    for name, path, x in MUTATIONS:
+        try:
+            _load(name, path, x)
+        except SceneError as exc:  # any other exception fails the test
+            text = str(exc)
+            assert "\n" not in text, (name, path, x, text)
+            if abs(x) in (1e300, 1e30) and "integer" not in exc.rule:
+                # a huge value names the key it was given at, or the chain it breaks
+                top = _key(path[:2]) if path[0] in ("drivetrain", "stages") else _key(path[:1])
+                assert exc.key.startswith(top), (name, path, x, text)
+
+
+def test_what_loads_is_a_value_that_means_zero_or_nothing_extreme(accepted):
+    # only magnitudes that are zero for the model (1e-300, 1e-30 of a signed or optional key) load
+    assert all(abs(x) < 1 for _, _, x in accepted), [a for a in accepted if abs(a[2]) >= 1]
+
+
+#: at most this many accepted mutations go through the commands (spread over the list)
+RUNS = 6
+
+
+def test_accepted_extremes_run_cleanly_through_the_commands(accepted, tmp_path):
+    pick = accepted[:: max(1, len(accepted) // RUNS)][:RUNS]
+    for i, (name, path, x) in enumerate(pick):
+        scene = tmp_path / f"m{i}.toml"
+        scene.write_text(dumps(_set(SHIPPED[name], path, x)))
+        one_point = ["--frequency", "8"] if "motor" in SHIPPED[name] else []
+        for argv in (["check", str(scene), "--linear-only", "--nominal", "--samples", "8"],
+                     ["simulate", str(scene)], ["sweep", str(scene), *one_point]):
+            code, lines = run(argv)
+            assert code in (0, 1, 2) and not any("Traceback" in ln for ln in lines), (argv, code, lines)
+            if code == 2:
+                assert len([ln for ln in lines if "error" in ln.split(":")[1]]) == 1, (argv, lines)
+
+
+@pytest.mark.parametrize("path, value, key, words", [
+    (("drivetrain", 0, "efficiency"), 1e-300, "drivetrain[0].efficiency", "[0.01, 1]"),
+    (("drivetrain", 1, "nut_mass"), "1e30 kg", "drivetrain[1].nut_mass", "[1e-09, 1e+06] kg"),
+    (("motor", "resistance"), "1e15 ohm", "motor.resistance", "[0.001, 10000] ohm"),
+    (("motor", "resistance"), "1e-6 ohm", "motor.resistance", "[0.001, 10000] ohm"),
+    (("load", "inertia"), "1e30 kg*m^2", "load.inertia", "[1e-12, 1e+06] kg*m^2"),
+    (("drivetrain", 0, "torsional_stiffness"), "1e-30 N*m/rad", "drivetrain[0].torsional_stiffness",
+     "[0.01, 1e+12] N*m/rad"),
+    (("sensors", "sample_time"), "0.1 ms / 0", "sensors.sample_time", "not an expression"),
+])
+def test_the_reported_extremes_are_refused_at_load_time(path, value, key, words):
+    data = copy.deepcopy(EMA)
+    target = data
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = value
+    with pytest.raises(SceneError) as err:
+        scene_from_dict(data, "ema.toml")
+    assert err.value.key == key and words in err.value.rule
+
+
+@pytest.mark.parametrize("command", ["check", "simulate", "sweep"])
+def test_a_unit_expression_is_one_line_in_every_command(tmp_path, command):
+    data = copy.deepcopy(EMA)
+    data["sensors"]["sample_time"] = "0.1 ms / 0"
+    scene = tmp_path / "expr.toml"
+    scene.write_text(dumps(data))
+    code, lines = run([command, str(scene)])
+    assert code == 2 and len(lines) == 1 and "sensors.sample_time" in lines[0] and "expression" in lines[0]
+
+
+@pytest.mark.parametrize("text", ["1 mm / 2 s", "3 ms * 2", "1e-3 s + 1 s"])
+def test_a_quantity_is_a_number_and_a_unit(text):
+    from servo_toolkit.core.units import parse_quantity
+    with pytest.raises(SceneError, match="not an expression"):
+        parse_quantity(text, "m/s" if "mm" in text else "s", "k")
+
+
+@pytest.mark.parametrize("text, unit, si", [("1 kg*m^2", "kg*m^2", 1.0), ("2 rad/s^3", "rad/s^3", 2.0),
+                                            ("1e3 1/s", "1/s", 1e3), ("1 m**2", "m^2", 1.0),
+                                            ("1696.8 N*m/deg", "N*m/rad", 1696.8 * 180 / 3.141592653589793)])
+def test_exponents_and_reciprocals_are_still_units(text, unit, si):
+    from servo_toolkit.core.units import parse_quantity
+    assert parse_quantity(text, unit, "k") == pytest.approx(si, rel=1e-12)
