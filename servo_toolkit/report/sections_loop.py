@@ -327,6 +327,7 @@ def loop_margins(ctx) -> Section:
     return Section("Loop Bode and Nyquist with margins",
                    para("Margins from python-control at every crossing (not only the smallest); the plots span "
                         f"{fmt(F_MIN)} to {fmt(f_hi)} Hz, so every crossing listed is marked on them.")
-                   + table(("figure", "value", "unit"), rows) + table(("crossing", "frequency [Hz]", "margin"), crossings),
+                   + table(("figure", "value", "unit"), rows) + table(("crossing", "frequency [Hz]", "margin"), crossings,
+                                                                 table_id="crossings-table"),
                    (FigureSpec(fig, "Open-loop Bode with every gain and phase margin marked."),
                     FigureSpec(fig2, "Nyquist plot near the critical point.")), key="loop")
