@@ -239,3 +239,27 @@ def test_pdf_tables_are_real_tables_with_the_scene_headings(report_dir):
     for heading in ("Motor", "Stage 1: spur gear", "Stage 4", "Load", "Sensors"):
         assert heading in whole
     assert "bandwidth" in whole and "large_signal_gain" in whole
+
+
+# --- timings -----------------------------------------------------------------------------------
+
+
+def test_accuracy_wall_times_are_the_best_of_repeats(monkeypatch):
+    """Each rung runs ``repeats`` times; its wall time is the smallest, never one noisy run."""
+    from types import SimpleNamespace
+
+    import servo_toolkit.studies.accuracy as acc
+    walls = iter([5.0, 1.0, 3.0] * 20)
+    calls = []
+
+    def fake_run(model, reference, duration, method, dt=None, output_dt=None, **kw):
+        calls.append(method)
+        t = np.linspace(0.0, duration, 11)
+        return SimpleNamespace(dt_s=dt, wall_s=next(walls), output_angle=np.sin(t) * (1 + (dt or 0.0)),
+                               method=method)
+    monkeypatch.setattr(acc, "run", fake_run)
+    model = SimpleNamespace(sample_time=1e-3, name="m", output_unit="rad", controller="c")
+    reference = SimpleNamespace(kind="sine", amplitude=1.0, describe=lambda unit: "sine")
+    res = acc.accuracy_study(model, reference, 0.01, dts=[1e-3, 5e-4], progress=False, repeats=3)
+    assert len(calls) == 3 * (1 + 2 * 2) and res.repeats == 3
+    assert all(r["wall_s"] == 1.0 for r in res.runs) and res.reference_wall_s == 1.0
