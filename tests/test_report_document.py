@@ -182,7 +182,9 @@ def test_no_docstring_markup_where_a_user_reads(html):
 
 def test_plain_text_of_markup():
     from servo_toolkit.report.plain_text import plain
-    assert plain(":data:`~.chain_split.MIN_BACKDRIVE`", "servo_toolkit.sim") == "0.1"
+    from servo_toolkit.sim import chain_split
+    assert plain(":data:`~.chain_split.MIN_BACKDRIVE`", vars(chain_split)) == f"{chain_split.MIN_BACKDRIVE:g}"
+    assert plain(":data:`UNKNOWN`") == "UNKNOWN"
     assert plain("(:mod:`servo_toolkit.plant.linear`)") == "(servo_toolkit.plant.linear)"
     assert plain(":func:`~.sweep.study_points`, ``x``, `y`") == "study_points, x, y"
     assert plain(":func:`the sweep <servo_toolkit.studies.sweep>`") == "the sweep"

@@ -81,7 +81,8 @@ def _simulation_simplifications() -> list[str]:
             if current is None:
                 continue
             current = None
-    texts = [plain(" ".join(i).rstrip(";."), "servo_toolkit.sim") + "." for i in items]
+    from ..sim import chain_split
+    texts = [plain(" ".join(i).rstrip(";."), vars(chain_split)) + "." for i in items]
     return [t[:1].upper() + t[1:] for t in texts]
 
 
