@@ -91,8 +91,11 @@ def test_stiffness_table_matches_the_drivetrain_and_seed001_rule(html):
 
 
 def test_pdf_has_a_title_page_and_every_section_and_figure(report_dir, html):
-    pdf = (report_dir / "report.pdf").read_bytes()
-    pages = len(re.findall(rb"/Type\s*/Page\b(?!s)", pdf))
+    if shutil.which("pdfinfo") is None:
+        pytest.skip("pdfinfo not found (Debian package poppler-utils; .ci/run installs it)")
+    info = subprocess.run(["pdfinfo", str(report_dir / "report.pdf")], capture_output=True, text=True,
+                          timeout=60).stdout
+    pages = int(re.search(r"Pages:\s+(\d+)", info).group(1))
     sections = html.count("<section")
     assert 1 + sections // 2 <= pages  # a title page, then sections (each with its figures) on A4 pages
 
