@@ -53,16 +53,16 @@ def test_worst_variants_and_requirements(bounded):
     assert by_name["tracking_error"].achieved == pytest.approx(worst_err) and not by_name["tracking_error"].passed
     assert by_name["peak_current"].passed and worst_err > 0.5
     assert section.status == "fail"
-    rows = [r for r in requirement_rows(bounded) if "nonlinear time runs" in r[0]]
-    assert [r[4] for r in rows] == ["fail", "pass"]
-    assert rows[0][2] == f"{worst_err:.4g} deg"
+    rows = [r for r in requirement_rows(bounded) if "nonlinear time runs" in r.detail]
+    assert [(r.id, r.status) for r in rows] == [("robust_tracking_error", "fail"), ("robust_peak_current", "pass")]
+    assert rows[0].achieved == f"{worst_err:.4g} deg"
 
 
 def test_without_monte_carlo_bounds_the_section_informs_and_adds_no_row():
     c = _context(samples=8)
     section = montecarlo_section(c)
     assert section.status == "info"
-    assert not [r for r in requirement_rows(c) if "nonlinear time runs" in r[0]]
+    assert not [r for r in requirement_rows(c) if "nonlinear time runs" in r.detail]
 
 
 def test_does_not_apply_without_variations():

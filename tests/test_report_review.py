@@ -113,9 +113,9 @@ def test_robustness_section_and_rows(ema_dict):
     assert section.status == ("pass" if d.robustness.passed else "fail")
     assert "nominal design" in section.html and len(section.figures) == 1
     rows = requirement_rows(c)
-    robust = [r for r in rows if r[0].startswith("robust:")]
+    robust = [r for r in rows if r.id.startswith("robust_")]
     assert len(robust) == len(d.robustness.requirements)
-    assert all(r[4] == ("pass" if ch.passed else "fail") for r, ch in zip(robust, d.robustness.requirements))
+    assert all(r.status == ("pass" if ch.passed else "fail") for r, ch in zip(robust, d.robustness.requirements))
 
 
 def test_robustness_section_does_not_apply_without_variations(ctx):

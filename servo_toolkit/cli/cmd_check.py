@@ -21,7 +21,7 @@ from ..core.files import atomic_file, check_output_file
 from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
-from .cmd_design import add_design_options, add_large_signal_option, design_from_args, gate_result
+from .cmd_design import add_design_options, add_large_signal_option, design_from_args
 from .common import add_force, add_json, bounded, check_robustness_budget, to_json
 
 
@@ -44,31 +44,10 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _cases(name, result, robust):
-    """(test name, passed, message) per requirement, the stability flag, and per robustness
-    requirement (worst variant named)."""
-    cases = [(c.name, c.passed, f"required {c.sense} {c.required:g} {c.unit}, achieved {c.achieved:.4g} {c.unit}"
-              + ("" if c.passed else f", short by {c.shortfall:.3g} {c.unit}")) for c in result.requirements]
-    stable = result.margins.closed_loop_stable
-    cases.append(("closed_loop_stable", stable, "closed loop stable" if stable else "closed loop UNSTABLE"))
-    if robust is not None:
-        for c in robust.requirements:
-            at = ", ".join(f"{k}={v:.4g}" for k, v in robust.worst.get(c.name, {}).items())
-            cases.append((f"robust_{c.name}", c.passed,
-                           f"worst case over {robust.count} variants ({robust.unstable_count} unstable): required "
-                           f"{c.sense} {c.required:g} {c.unit}, achieved {c.achieved:.4g} {c.unit}"
-                           + ("" if c.passed else f", short by {c.shortfall:.3g} {c.unit}") + f"; at {at}"))
-    return cases
-
-
-def _montecarlo_cases(scene, spec, controller):
-    """Rows of the [robustness] table's nonlinear time-run requirements (none: nothing runs)."""
-    from ..studies.montecarlo_check import check_cases, montecarlo_checks
-    checks, mc = montecarlo_checks(scene, spec, controller)
-    if mc is None:
-        return [], None
-    return check_cases(checks, mc), {"requirements": {c.name: c.to_dict() for c in checks}, "worst": mc.worst(),
-                                     "samples": mc.count, "failed_variants": int(mc.failed.sum())}
+def _cases(rows):
+    """(test name, passed, message) per row of the requirement table
+    (:mod:`servo_toolkit.studies.gate`): the JUnit testcases."""
+    return [(r.id, r.passed, r.message()) for r in rows]
 
 
 def robustness_spec(scene, varies: dict, samples):
@@ -192,28 +171,27 @@ def _tagged(exc: SceneError, path) -> SceneError:
 
 def _check_scene(path, scene, args, varies):
     """Design and check one scene: (suite name, cases, JSON dict)."""
-    from ..loop.robustness import robustness
+    from ..studies.gate import gate
     spec = robustness_spec(scene, varies, args.samples)
     if not getattr(args, "design", None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
         check_robustness_budget(scene, spec, robust, args.samples, args.force)
-    result, ls = gate_result(scene, args, design_from_args(scene, args, spec))
-    robust = result.robustness
-    if robust is None and spec is not None:
-        robust = robustness(scene, result, spec=spec, progress=False)
-    cases = _cases(scene.name, result, robust)
-    mc_cases, mc_json = _montecarlo_cases(scene, spec, result.controller)
-    cases += mc_cases
-    ok = all(c[1] for c in cases)
+    g = gate(scene, design_from_args(scene, args, spec), spec, linear_only=getattr(args, "linear_only", False))
+    result, ls, robust = g.result, g.large_signal, g.robustness
+    cases = _cases(g.rows)
+    ok = g.passed
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
+    d["rows"] = [r.to_dict() for r in g.rows]
     if ls is not None:
         d["large_signal"] = ls.to_dict()
     if robust is not None:
         d["robustness"] = robust.to_dict()
-    if mc_json is not None:
-        d["montecarlo"] = mc_json
+    if g.montecarlo is not None:
+        mc = g.montecarlo
+        d["montecarlo"] = {"requirements": {c.name: c.to_dict() for c in g.montecarlo_checks},
+                           "worst": mc.worst(), "samples": mc.count, "failed_variants": int(mc.failed.sum())}
     if not args.json:
         print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
         print(requirements_table(result.requirements))
@@ -222,8 +200,9 @@ def _check_scene(path, scene, args, varies):
               f"{'ok' if stable else 'FAIL'}")
         if robust is not None:
             print(robust.table())
-        for name, passed, message in mc_cases:
-            print(f"  {name:<24}{'ok' if passed else 'FAIL'}  {message}")
+        for r in g.rows:
+            if r.id in ("robust_tracking_error", "robust_peak_current"):
+                print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
         for n in result.notes:
             print(f"  note: {n}")
     return scene.name, cases, d

@@ -25,6 +25,9 @@ def register(sub) -> None:
     p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit 1 when a requirement of the report's requirements table (the rows of "
+                        "servo-toolkit check) is not met; the report is still written")
     add_force(p)
     p.set_defaults(run=run)
 
@@ -46,7 +49,8 @@ def _check_budget(scene, args, designs: bool) -> None:
 
 def run(args) -> int:
     """Run the command; exit 0 once the complete report is written, 1 when a section the
-    scene needs is unavailable (the report is still written and says why), 2 on a bad scene
+    scene needs is unavailable (the report is still written and says why) or, with
+    ``--strict``, when a requirement is not met or not evaluated, 2 on a bad scene
     or an output folder that cannot take a report (checked before any work: it must be new,
     empty or an earlier report). The report is written into a temporary folder and renamed
     into place."""
@@ -64,9 +68,11 @@ def run(args) -> int:
     # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
     prepare_kernels(scene, paper=True, batch=scene.robustness is not None)
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
-    write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
+    paths = write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()
-    paths = {"html": out_dir / "index.html", "pdf": out_dir / "report.pdf"}
+    if paths["pdf_engine"] != "weasyprint":
+        print("servo-toolkit: WeasyPrint (or the system's Pango) is missing: report.pdf is the plain fallback "
+              "(pip install 'servo_toolkit[report]' for the typeset document)", file=sys.stderr)
     missing = [s for s in report.sections if s.status == "unavailable"]
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):
@@ -75,5 +81,9 @@ def run(args) -> int:
     if missing:
         print(f"servo-toolkit: the report is incomplete: {len(missing)} section(s) unavailable: "
               + ", ".join(s.title for s in missing), file=sys.stderr)
+        return 1
+    if args.strict and not report.passed:
+        failed = [r.id for r in report.requirements if not r.passed]
+        print(f"servo-toolkit: {len(failed)} requirement(s) not met: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0

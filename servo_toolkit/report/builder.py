@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import datetime as _dt
 import sys
-from dataclasses import dataclass
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..core.progress import progress_bar
 
@@ -57,13 +59,23 @@ class Report:
     scene_name, subtitle : str
     sections : tuple of Section
         Requirements first, then :data:`SECTIONS` in order.
-    requirements : tuple of (requirement, required, achieved, shortfall, status)
+    requirements : tuple of RequirementRow
+        The rows of ``servo-toolkit check`` (:mod:`servo_toolkit.studies.gate`).
+    meta : dict
+        The document's identity: ``source`` (scene file), ``sha256`` (of its bytes),
+        ``version`` (of the toolkit), ``date``, ``settings``.
     """
 
     scene_name: str
     subtitle: str
     sections: tuple
     requirements: tuple
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        """Every requirement row met (True when there is none)."""
+        return all(r.passed for r in self.requirements)
 
     def section(self, key: str) -> Section:
         """The section with ``key``."""
@@ -71,25 +83,24 @@ class Report:
 
     def to_dict(self) -> dict:
         """JSON-ready summary: section statuses and the requirements table."""
-        return {"scene": self.scene_name,
+        return {"scene": self.scene_name, **self.meta,
                 "sections": [s.to_dict() for s in self.sections],
-                "requirements": [dict(zip(("requirement", "required", "achieved", "shortfall", "status"), r))
-                                 for r in self.requirements]}
+                "requirements": [r.to_dict() for r in self.requirements]}
 
     def __repr__(self) -> str:
         counts = {}
         for sec in self.sections:
             counts[sec.status] = counts.get(sec.status, 0) + 1
-        failed = sum(1 for r in self.requirements if str(r[-1]).lower() not in ("pass", "ok", "met"))
+        failed = sum(1 for r in self.requirements if not r.passed)
         return (f"<Report {self.scene_name}: {len(self.sections)} sections ("
                 + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + f"), {failed} requirement(s) not met>")
 
     def _repr_html_(self) -> str:
         from ..display.cards import card, table
         rows = [(s.title, s.status, s.reason) for s in self.sections]
-        reqs = [tuple(str(v) for v in r) for r in self.requirements]
+        reqs = [r.cells() for r in self.requirements]
         return card(f"Report of {self.scene_name}", parts=[
-            table(("requirement", "required", "achieved", "shortfall", "status"), reqs),
+            table(("ID", "requirement", "required", "achieved", "shortfall", "status"), reqs),
             table(("section", "status", "why"), rows)], notes=[self.subtitle])
 
     def close(self) -> None:
@@ -161,7 +172,9 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:
         for key, title, builder in bar:
             bar.set_postfix_str(title[:40])
-            built.append(run_section(key, title, builder, ctx, section_time_limit))
+            # the requirement table is what the report is signed on: never stopped half-way
+            limit = None if key == REQUIREMENTS[0] else section_time_limit
+            built.append(run_section(key, title, builder, ctx, limit))
     req_section = built.pop()
     try:
         rows = tuple(loop.requirement_rows(ctx))
@@ -169,7 +182,20 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         rows = ()
     stamp = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
     subtitle = f"{scene.description or scene.name}. Generated {stamp} by servo_toolkit."
-    return Report(scene.name, subtitle, tuple([req_section] + built), rows)
+    return Report(scene.name, subtitle, tuple([req_section] + built), rows, scene_identity(scene, stamp, light))
+
+
+def scene_identity(scene, date: str, light: bool = True) -> dict:
+    """The report's identity: scene file, SHA-256 of its bytes (of the built-in scene's
+    package file when it has none), toolkit version, date and settings."""
+    from ..core.version import __version__
+    try:
+        digest = hashlib.sha256(Path(scene.source).read_bytes()).hexdigest()
+    except (OSError, TypeError):
+        digest = "(scene not read from a file)"
+    return {"source": scene.source or "(built in memory)", "sha256": digest,
+            "version": __version__, "date": date,
+            "settings": "light (servo-toolkit report --full runs the studies as defined)" if light else "full"}
 
 
 #: the files of a report folder (a folder holding only these is an earlier report)
@@ -212,5 +238,5 @@ def write_report(report: Report, out_dir, progress: bool = False, key: str = "ou
         bar.set_postfix_str("index.html")
         (tmp / "index.html").write_text(render_html(report, tick=bar.update), encoding="utf-8")
         bar.set_postfix_str("report.pdf")
-        write_pdf(report, tmp / "report.pdf", tick=bar.update)
-    return {"html": out / "index.html", "pdf": out / "report.pdf"}
+        engine = write_pdf(report, tmp / "report.pdf", tick=bar.update)
+    return {"html": out / "index.html", "pdf": out / "report.pdf", "pdf_engine": engine}

@@ -1,4 +1,7 @@
-"""The PDF report: a title page with the requirements table and section statuses, then figures."""
+"""The PDF report: the report template typeset on A4 pages by WeasyPrint (table of contents,
+numbered sections and figures, page numbers, a running header with the scene, its SHA-256, the
+toolkit version and date, vector figures, a sign-off block). Where WeasyPrint or the system's
+Pango is missing, a plainer PDF (matplotlib text pages and figures) is written instead."""
 
 from __future__ import annotations
 
@@ -16,11 +19,13 @@ A4 = (8.27, 11.69)
 def _title_page(report) -> Figure:
     fig = Figure(figsize=A4)
     fig.text(0.08, 0.95, f"Servo report: {report.scene_name}", fontsize=18, weight="bold", va="top")
-    fig.text(0.08, 0.915, textwrap.fill(report.subtitle, 95), fontsize=9, va="top")
+    meta = report.meta
+    fig.text(0.08, 0.915, textwrap.fill(report.subtitle, 95) + f"\nscene file SHA-256 {meta.get('sha256', '')}; "
+             f"servo_toolkit {meta.get('version', '')}, {meta.get('date', '')}", fontsize=8, va="top")
     fig.text(0.08, 0.87, "Requirements", fontsize=13, weight="bold", va="top")
-    rows = [[r[0], r[1], r[2] + (f" ({r[3]})" if r[3] else ""), r[4]] for r in report.requirements] \
-        or [["(nothing to check for this scene)", "", "", "n/a"]]
-    lines = table_lines([["requirement", "required", "achieved", "status"]] + rows, 100)
+    rows = [[r.id, r.requirement, r.required, r.achieved + (f" (short by {r.shortfall})" if r.shortfall else ""),
+             r.status] for r in report.requirements] or [["", "(nothing to check for this scene)", "", "", "n/a"]]
+    lines = table_lines([["ID", "requirement", "required", "achieved", "status"]] + rows, 100)
     y = 0.85
     for line in lines[:22]:
         fig.text(0.08, y, line, fontsize=7.2, family="monospace", va="top")
@@ -39,9 +44,39 @@ def _title_page(report) -> Figure:
     return fig
 
 
-def write_pdf(report, path, tick=None) -> None:
-    """Write ``report`` to ``path`` (title page, then one page per figure); ``tick()`` after
-    each figure page."""
+def paged_engine():
+    """The WeasyPrint module, or None when it (or the Pango library it loads) is missing."""
+    try:
+        import weasyprint
+    except (ImportError, OSError):
+        return None
+    return weasyprint
+
+
+def write_pdf(report, path, tick=None, engine="auto") -> str:
+    """Write ``report`` to ``path``; ``tick()`` after each figure. Returns the engine used:
+    ``"weasyprint"`` (the document from the report template) or ``"matplotlib"`` (the
+    fallback: a title page, text pages and one page per figure).
+
+    Parameters
+    ----------
+    engine : str
+        ``"auto"`` (WeasyPrint when available), ``"weasyprint"`` or ``"matplotlib"``.
+    """
+    weasyprint = paged_engine() if engine in ("auto", "weasyprint") else None
+    if weasyprint is not None:
+        from .document import render
+        html = render(report, "pdf", tick)
+        weasyprint.HTML(string=html, base_url=".").write_pdf(str(path))
+        return "weasyprint"
+    if engine == "weasyprint":
+        raise ImportError("WeasyPrint is not installed or cannot load Pango (pip install 'servo_toolkit[report]')")
+    _write_matplotlib_pdf(report, path, tick)
+    return "matplotlib"
+
+
+def _write_matplotlib_pdf(report, path, tick=None) -> None:
+    """The fallback PDF: title page, then text pages and one page per figure."""
     with matplotlib.rc_context({"pdf.fonttype": 42}), PdfPages(path) as pdf:
         pdf.savefig(_title_page(report))
         for i, section in enumerate(report.sections, 1):

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..display.html import Raw, badge, esc, fmt, para, table
+from ..display.html import Raw, badge, esc, fmt, table
+from ..display.html import para as _para
+from .plain_text import plain
 
 #: Section statuses. ``info`` carries results without a verdict; ``pass``/``fail`` judge the
 #: scene's requirements; ``n/a`` means the section does not apply to this scene; ``unavailable``
@@ -55,6 +57,11 @@ class Section:
                 "figures": len(self.figures)}
 
 
+def para(*texts: str) -> str:
+    """Paragraphs of escaped plain text (docstring markup removed, :func:`.plain_text.plain`)."""
+    return _para(*(plain(t) for t in texts))
+
+
 class NotAvailable(Exception):
     """A section cannot be built: the capability is missing or does not apply."""
 
@@ -75,8 +82,8 @@ class Notes:
 
     def html(self) -> str:
         """The remarks as an HTML list."""
-        return "<ul>" + "".join(f"<li>{esc(t)}</li>" for t in self.items) + "</ul>" if self.items else ""
+        return "<ul>" + "".join(f"<li>{esc(plain(t))}</li>" for t in self.items) + "</ul>" if self.items else ""
 
 
 __all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "badge", "esc",
-           "fmt", "para", "table"]
+           "fmt", "para", "plain", "table"]

@@ -115,6 +115,14 @@ def stiffness_chain(ctx) -> Section:
                     FigureSpec(fig2, "Stage stiffness at the output and the series total.")), key="stiffness")
 
 
+def rotor_share(drive, q) -> np.ndarray:
+    """The motor rotor's share of the inertia at the output at each ``q``: its inertia
+    reflected through the ratio, J_rotor N(q)^2, over the total J(q) at the same point."""
+    n, _ = drive.ratio(q)
+    j, _ = drive.inertia(q)
+    return drive.motor.rotor_inertia * n**2 / j
+
+
 def ratio_and_inertia(ctx) -> Section:
     """Kinematic ratio and reflected inertia along the stroke."""
     ctx.require_drivetrain("the ratio and inertia analysis")
@@ -135,12 +143,13 @@ def ratio_and_inertia(ctx) -> Section:
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),
     ]
     load = drive.load.inertia
-    motor_j = drive.motor.rotor_inertia * n**2
+    share = rotor_share(drive, q)
     text = [
         f"Over the stroke ({drive.stroke[0] * qf:+.4g} to {drive.stroke[1] * qf:+.4g} {qu}) the ratio "
         f"varies by a factor {n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}.",
-        f"The motor rotor contributes {motor_j.min() / j.max():.1%} to {motor_j.max() / j.min():.1%} of the inertia "
-        f"at the output; the load {'mass' if linear else 'inertia'} is {load:.4g} {j_unit}.",
+        f"The motor rotor contributes {share.min():.1%} to {share.max():.1%} of the inertia at the output along "
+        f"the stroke (rotor inertia times N(q)^2 over J(q) at each point); the load "
+        f"{'mass' if linear else 'inertia'} is {fmt(load)} {j_unit}.",
         (f"Lost motion at mid-stroke, all lashes reflected to the output: {lash * 1e6:.3g} um. " if linear else
          f"Lost motion at mid-stroke, all lashes reflected to the output: {math.degrees(lash) * 60:.3g} arcmin. ")
         + f"Drivetrain efficiency (product of the stages): {drive.efficiency:.3g}.",

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..core.output_units import OutputUnit, output_unit
 from . import figures
-from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
+from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, plain, table
 
 #: seed 001 table 1: measured / model stiffness at 100, 200, 300 N*m
 SEED001_TEST_OVER_MODEL = (434.25 / 637.65, 467.96 / 648.03, 482.42 / 661.06)
@@ -29,7 +29,7 @@ def _design_assumptions(ctx) -> list[str]:
     out.append(f"The loop is designed and its margins computed on a linear model at one operating point, "
                f"q0 = {output_unit(drive).text(q0)}. Along the stroke the ratio N varies by a factor "
                f"{n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}; use "
-               "`servo-toolkit check --vary` for the worst case over variations.")
+               "servo-toolkit check --vary for the worst case over variations.")
     chain = drive.stiffness(q)
     if chain.names:
         neg = [nm for nm, flag in zip(chain.names, chain.negligible()) if flag]
@@ -81,7 +81,8 @@ def _simulation_simplifications() -> list[str]:
             if current is None:
                 continue
             current = None
-    texts = [" ".join(i).rstrip(";.").replace("``", "") + "." for i in items]
+    from ..sim import chain_split
+    texts = [plain(" ".join(i).rstrip(";."), vars(chain_split)) + "." for i in items]
     return [t[:1].upper() + t[1:] for t in texts]
 
 
@@ -126,8 +127,9 @@ def _reduction(ctx):
             f"{fmt(plan.predicted, 3)}; a-priori bound (tolerance) {fmt(bound, 3)} = {fmt(_db(bound), 3)} dB / "
             f"{fmt(_deg(bound), 3)} deg.",
             f"Measured full against reduced (sine dwell): largest relative difference {fmt(measured, 3)} = "
-            f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound; run time full "
-            f"{fmt(res.full_wall_s, 3)} s, reduced {fmt(res.reduced_wall_s, 3)} s."]
+            f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound (run times are not "
+            "compared here: one sweep of each model is too noisy a timing; servo-toolkit accuracy times the solvers "
+            "from the best of repeated runs)."]
     if np.any(res.saturated):
         text.append(f"Points where a run reached the current or voltage limit are outside the linear statement; "
                     f"their largest difference is {fmt(res.measured_saturated, 3)}.")
@@ -157,10 +159,10 @@ def _deg(e):
 def leaves_out(ctx) -> Section:
     """What the model leaves out, and why."""
     ctx.require_drivetrain("this section")
-    parts = ["<h3>Linear design model</h3>", "<ul>" + "".join(f"<li>{esc(t)}</li>" for t in _design_assumptions(ctx)) + "</ul>"]
+    parts = ["<h3>Linear design model</h3>", "<ul>" + "".join(f"<li>{esc(plain(t))}</li>" for t in _design_assumptions(ctx)) + "</ul>"]
     sim = _simulation_simplifications()
     if sim:
-        parts += ["<h3>Nonlinear simulation</h3>", "<ul>" + "".join(f"<li>{esc(t)}</li>" for t in sim) + "</ul>"]
+        parts += ["<h3>Nonlinear simulation</h3>", "<ul>" + "".join(f"<li>{esc(plain(t))}</li>" for t in sim) + "</ul>"]
     parts.append("<h3>Reduction study: what the sweep's model leaves out, and what that costs</h3>")
     figs = ()
     try:

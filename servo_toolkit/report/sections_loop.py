@@ -8,68 +8,71 @@ import numpy as np
 
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
-from .units_table import UNITS
+from .plain_text import plain
 
 _REQ_TEXT = {
-    "bandwidth": "closed-loop bandwidth (-3 dB) at least",
-    "max_phase_lag_at_bandwidth": "phase lag at the bandwidth at most",
-    "min_gain_margin": "gain margin at least",
-    "min_phase_margin": "phase margin at least",
-    "max_sensitivity_peak": "sensitivity peak Ms at most",
+    "bandwidth": ("bandwidth", "closed-loop bandwidth (-3 dB)"),
+    "max_phase_lag_at_bandwidth": ("phase_lag_at_bandwidth", "closed-loop phase lag at the required bandwidth"),
+    "min_gain_margin": ("gain_margin", "gain margin"),
+    "min_phase_margin": ("phase_margin", "phase margin"),
+    "max_sensitivity_peak": ("sensitivity_peak", "sensitivity peak Ms"),
 }
-_CHECK_TEXT = {"bandwidth": "closed-loop bandwidth (-3 dB)", "phase_lag_at_bandwidth": "phase lag at the bandwidth",
-               "gain_margin": "gain margin", "phase_margin": "phase margin",
-               "sensitivity_peak": "sensitivity peak Ms",
-               "stable_over_stroke": "closed loop stable over the stroke (fraction of points)",
-               "gain_margin_over_stroke": "gain margin, worst over the stroke",
-               "phase_margin_over_stroke": "phase margin, worst over the stroke",
-               "sensitivity_peak_over_stroke": "sensitivity peak Ms, worst over the stroke"}
 F_MIN, F_MAX = 0.1, 1000.0
 
 
-def _scene_requirements(scene):
-    """(name, required value in display units, unit) for each requirement the scene sets."""
-    out = []
-    for name in _REQ_TEXT:
-        value = getattr(scene.requirements, name, None)
-        if value is not None:
-            unit, factor = UNITS[name]
-            out.append((name, value * factor, unit))
-    return out
-
-
 def requirement_rows(ctx):
-    """Rows (requirement, required, achieved, shortfall, status) of the requirements table."""
-    return ctx.result("requirement_rows", lambda: _requirement_rows(ctx))
+    """The rows (:class:`servo_toolkit.studies.gate.RequirementRow`) of the requirements
+    table: the same rows, IDs and verdicts as ``servo-toolkit check`` (its large-signal,
+    robustness and Monte Carlo rows included)."""
+    return ctx.result("requirement_rows", lambda: _requirement_rows(ctx))[0]
+
+
+def _notes(ctx):
+    """The design's notes (the large-signal one included) behind the requirement rows."""
+    return ctx.result("requirement_rows", lambda: _requirement_rows(ctx))[1]
+
+
+def _montecarlo(ctx):
+    """(checks, MonteCarloResult) of the scene's Monte Carlo requirements, ((), None) when
+    it sets none; the error when its runs failed."""
+    spec = ctx.scene.robustness
+    if spec is None or (spec.max_tracking_error is None and spec.max_peak_current is None):
+        return ((), None), None
+    from .sections_montecarlo import montecarlo_results
+    try:
+        result, checks = montecarlo_results(ctx)
+    except Exception as exc:  # noqa: BLE001 - no verdict: the rows say why
+        return ((), None), exc
+    return (tuple(checks), result), None
 
 
 def _requirement_rows(ctx):
-    wanted = _scene_requirements(ctx.scene)
+    from ..studies.gate import gate, unavailable_rows
     try:
         design = ctx.design()
     except NotAvailable as exc:
+        wanted = [(name, words) for attr, (name, words) in _REQ_TEXT.items()
+                  if getattr(ctx.scene.requirements, attr, None) is not None]
         if not wanted:
-            return ()
-        return tuple((_REQ_TEXT[n], f"{fmt(v)} {u}", "not evaluated", "", "unavailable") for n, v, u in wanted) \
-            + (("(loop design)", "", str(exc), "", "unavailable"),)
-    rows = []
-    for c in design.requirements:
-        label = _CHECK_TEXT.get(c.name, c.name) + ("" if c.source in ("scene", "always") else f" ({c.source})")
-        short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
-        rows.append((label, f"{c.sense} {fmt(c.required)} {c.unit}", f"{fmt(c.achieved)} {c.unit}", short,
-                     "pass" if c.passed else "fail"))
-    from .sections_montecarlo import requirement_rows as montecarlo_rows
-    from .sections_robust import requirement_rows as robust_rows
-    rows += robust_rows(ctx)
+            return (), ()
+        return tuple(unavailable_rows(wanted + [("loop_design", "loop design")], str(exc))), ()
+    mc, mc_error = _montecarlo(ctx)
+    from ..errors import SimulationError
     try:
-        rows += montecarlo_rows(ctx)
-    except Exception as exc:  # noqa: BLE001 - the Monte Carlo section shows the same failure
-        rows.append(("robust: nonlinear time runs", "", str(exc), "", "unavailable"))
-    stable = bool(design.margins.closed_loop_stable)
-    rows.append(("closed loop stable", "yes", "yes" if stable else "no",
-                 "" if stable else f"pole at Re = {fmt(design.margins.max_closed_loop_pole_real)} 1/s",
-                 "pass" if stable else "fail"))
-    return tuple(rows)
+        g = gate(ctx.scene, design, montecarlo=mc)
+        rows = list(g.rows)
+    except SimulationError as exc:  # the large-signal run could not run: no verdict on its rows
+        g = gate(ctx.scene, design, montecarlo=mc, linear_only=True)
+        rows = list(g.rows) + unavailable_rows(
+            [("large_signal_gain", "large signal: |gain difference| from the linear loop"),
+             ("large_signal_phase", "large signal: |phase difference| from the linear loop")], str(exc))
+    if mc_error is not None:
+        spec = ctx.scene.robustness
+        ids = [(i, f"robust: worst {w}") for i, w, v in (
+            ("robust_tracking_error", "tracking error", spec.max_tracking_error),
+            ("robust_peak_current", "peak current", spec.max_peak_current)) if v is not None]
+        rows += unavailable_rows(ids, f"the nonlinear time runs: {mc_error}")
+    return tuple(rows), tuple(g.result.notes)
 
 
 def requirements(ctx) -> Section:
@@ -78,18 +81,22 @@ def requirements(ctx) -> Section:
     if not rows:
         return Section("Requirements", para("The scene sets no [requirements] and has no loop to design."),
                        status="n/a", reason="nothing to check for this scene", key="requirements")
-    statuses = {r[4] for r in rows}
+    statuses = {r.status for r in rows}
     status = "fail" if "fail" in statuses else ("unavailable" if "unavailable" in statuses else "pass")
-    body = table(("requirement", "required", "achieved", "shortfall", "status"),
-                 [(r[0], r[1], r[2], r[3], badge(r[4])) for r in rows], table_id="requirements-table")
-    verdict = {"pass": "Every requirement is met by the designed loop (linear model at the operating point).",
+    body = table(("ID", "requirement", "required", "achieved", "shortfall", "status"),
+                 [(*r.cells()[:5], badge(r.status)) for r in rows], table_id="requirements-table")
+    verdict = {"pass": "Every requirement is met by the designed loop.",
                "fail": "Some requirements are not met; the table says which and by how much.",
                "unavailable": "Some requirements could not be evaluated."}[status]
-    reason = next((r[2] for r in rows if r[0] == "(loop design)"), "")
-    notes = ""
-    if status != "unavailable":
-        notes = "".join(f"<p>Note: {esc(n)}</p>" for n in ctx.design().notes)
-    return Section("Requirements", para(verdict) + body + notes, status=status, reason=reason, key="requirements")
+    intro = ("The rows, their IDs and verdicts are those of servo-toolkit check (and its JUnit testcases): the "
+             "linear loop at the operating point and along the stroke, the nonlinear closed loop on the "
+             "requirement sine (large signal), and, with [robustness], the worst variant.")
+    details = [f"{r.id}: {r.detail}" for r in rows if r.detail]
+    reason = next((r.detail for r in rows if r.id == "loop_design"), "")
+    notes = "".join(f"<p>Note: {esc(plain(n))}</p>" for n in _notes(ctx))
+    return Section("Requirements", para(verdict, intro) + body
+                   + ("<ul>" + "".join(f"<li>{esc(d)}</li>" for d in details) + "</ul>" if details else "") + notes,
+                   status=status, reason=reason, key="requirements")
 
 
 def _response(sys, f):
@@ -227,12 +234,29 @@ def controller(ctx) -> Section:
         (FigureSpec(fig, "Frequency response of the motion controller."),), key="controller")
 
 
+def plotted_range(m) -> float:
+    """Upper frequency (Hz) of the loop plots: :data:`F_MAX`, or past the last crossing."""
+    last = [x for x in list(m.gain_crossover_hz) + list(m.phase_crossover_hz) if math.isfinite(x)]
+    return max([F_MAX] + [1.5 * x for x in last])
+
+
+def phase_at(sys, f_hz: float) -> float:
+    """Phase (deg, in (-360, 0] for a lagging loop) of a SISO system at ``f_hz``."""
+    if not math.isfinite(f_hz):
+        return math.nan
+    r = _response(sys, np.array([f_hz]))[0]
+    ph = math.degrees(np.angle(r))
+    return ph - 360.0 if ph > 0 else ph
+
+
 def loop_margins(ctx) -> Section:
     """Open-loop Bode and Nyquist with every crossing and margin marked."""
     d = ctx.design()
     m = d.margins
-    f = np.logspace(math.log10(F_MIN), math.log10(F_MAX), 2000)
-    f = np.unique(np.concatenate([f, [x for x in m.gain_crossover_hz + m.phase_crossover_hz if F_MIN < x < F_MAX]]))
+    f_hi = plotted_range(m)
+    f_req = next((c.required for c in d.requirements if c.name == "bandwidth"), m.phase_at_hz)
+    f = np.logspace(math.log10(F_MIN), math.log10(f_hi), 2000)
+    f = np.unique(np.concatenate([f, [x for x in m.gain_crossover_hz + m.phase_crossover_hz if F_MIN < x < f_hi]]))
     lw = _response(d.loop, f)
     mag = 20 * np.log10(np.abs(lw))
     ph = np.degrees(np.unwrap(np.angle(lw)))
@@ -246,7 +270,7 @@ def loop_margins(ctx) -> Section:
         ap.plot([fc, fc], [ph[k], ph[k] - pm], "C2", lw=2)
         ap.annotate(f"PM {pm:.1f} deg\n@ {fc:.3g} Hz", (fc, ph[k] - pm), fontsize="small", color="C2")
     for fp, gm in zip(m.phase_crossover_hz, m.gain_margins_db):
-        if F_MIN < fp < F_MAX:
+        if F_MIN < fp < f_hi:
             k = int(np.argmin(np.abs(f - fp)))
             am.plot([fp, fp], [mag[k], mag[k] + gm], "C3", lw=2)
             am.annotate(f"GM {gm:.1f} dB\n@ {fp:.3g} Hz", (fp, mag[k] + gm), fontsize="small", color="C3")
@@ -269,21 +293,21 @@ def loop_margins(ctx) -> Section:
     ax.plot(np.cos(t), np.sin(t), color="0.6", lw=0.8, label="unit circle")
     ms = 10 ** (m.sensitivity_peak_db / 20)
     ax.plot(-1 + np.cos(t) / ms, np.sin(t) / ms, "C1--", lw=1, label=f"1/Ms circle (Ms = {m.sensitivity_peak_db:.2f} dB)")
-    ax.plot([-1], [0], "r+", ms=12, mew=2)
-    for fc in m.gain_crossover_hz:
+    ax.plot([-1], [0], "k+", ms=14, mew=2.2, label="critical point -1")
+    for k, fc in enumerate(m.gain_crossover_hz):
         r = _response(d.loop, np.array([fc]))[0]
-        ax.plot(r.real, r.imag, "C2o")
-    for fp in m.phase_crossover_hz:
+        ax.plot(r.real, r.imag, "C2o", label="gain crossing" if k == 0 else None)
+    for k, fp in enumerate(m.phase_crossover_hz):
         r = _response(d.loop, np.array([fp]))[0]
-        ax.plot(r.real, r.imag, "C3s")
+        ax.plot(r.real, r.imag, "C3s", label="phase crossing" if k == 0 else None)
     ax.set_xlim(-3, 1.5)
     ax.set_ylim(-2.5, 2.0)
     ax.set_aspect("equal")
     ax.grid(True, alpha=0.3)
     ax.set_xlabel("Re L")
     ax.set_ylabel("Im L")
-    ax.legend(fontsize="small", loc="lower right")
-    ax.set_title("Nyquist near -1 (green: gain crossings, red: phase crossings)")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    ax.set_title("Nyquist near -1")
     rows = [("gain margin (smallest)", fmt(m.gain_margin_db), "dB"),
             ("phase margin (smallest)", fmt(m.phase_margin_deg), "deg"),
             ("delay margin (smallest)", fmt(m.delay_margin_s * 1e3), "ms"),
@@ -291,14 +315,19 @@ def loop_margins(ctx) -> Section:
             ("disk gain / phase margin", f"{fmt(m.disk_gain_margin_db)} dB / {fmt(m.disk_phase_margin_deg)} deg", ""),
             ("sensitivity peak Ms", fmt(m.sensitivity_peak_db), "dB"),
             ("closed-loop bandwidth (-3 dB)", fmt(m.bandwidth_hz), "Hz"),
-            (f"closed-loop phase at {fmt(m.phase_at_hz)} Hz", fmt(m.phase_at_freq_deg), "deg"),
+            (f"closed-loop phase at {fmt(f_req)} Hz (the required bandwidth)", fmt(phase_at(d.closed_loop, f_req)),
+             "deg"),
+            (f"closed-loop phase at the achieved bandwidth, {fmt(m.bandwidth_hz)} Hz",
+             fmt(phase_at(d.closed_loop, m.bandwidth_hz)), "deg"),
             ("closed loop stable", "yes" if m.closed_loop_stable else "NO", "")]
     crossings = [("phase crossing", fmt(fp), f"gain margin {fmt(g)} dB") for fp, g in
                  zip(m.phase_crossover_hz, m.gain_margins_db)]
     crossings += [("gain crossing", fmt(fc), f"phase margin {fmt(p)} deg, delay margin {fmt(dm * 1e3)} ms")
                   for fc, p, dm in zip(m.gain_crossover_hz, m.phase_margins_deg, m.delay_margins_s)]
     return Section("Loop Bode and Nyquist with margins",
-                   para("Margins from python-control at every crossing (not only the smallest).")
-                   + table(("figure", "value", "unit"), rows) + table(("crossing", "frequency [Hz]", "margin"), crossings),
+                   para("Margins from python-control at every crossing (not only the smallest); the plots span "
+                        f"{fmt(F_MIN)} to {fmt(f_hi)} Hz, so every crossing listed is marked on them.")
+                   + table(("figure", "value", "unit"), rows) + table(("crossing", "frequency [Hz]", "margin"), crossings,
+                                                                 table_id="crossings-table"),
                    (FigureSpec(fig, "Open-loop Bode with every gain and phase margin marked."),
                     FigureSpec(fig2, "Nyquist plot near the critical point.")), key="loop")

@@ -31,24 +31,6 @@ def montecarlo_results(ctx):
     return ctx.result("montecarlo", compute)
 
 
-def requirement_rows(ctx):
-    """Rows (requirement, required, achieved, shortfall, status) of the scene's Monte Carlo
-    requirements (``max_tracking_error``, ``max_peak_current``) for the requirements table;
-    empty when it sets none."""
-    spec = ctx.scene.robustness
-    if spec is None or (spec.max_tracking_error is None and spec.max_peak_current is None):
-        return ()
-    result, checks = montecarlo_results(ctx)
-    rows = []
-    for c in checks:
-        short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
-        failed = int(np.sum(result.failed))
-        achieved = f"{failed} variants failed" if failed else f"{fmt(c.achieved)} {c.unit}"
-        rows.append((f"robust: {_LABELS[c.name]}, nonlinear time runs of {result.count} variants",
-                     f"{c.sense} {fmt(c.required)} {c.unit}", achieved, short, "pass" if c.passed else "fail"))
-    return tuple(rows)
-
-
 def _traces(result, axes):
     """Tracking error and current of the worst variants over time."""
     for i in result.worst_indices(WORST):

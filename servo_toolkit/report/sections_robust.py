@@ -30,23 +30,6 @@ def robust_results(ctx):
     return d.robustness, ctx.result("nominal_robustness", nominal)
 
 
-def requirement_rows(ctx):
-    """Rows (requirement, required, achieved, shortfall, status) of the robust requirements,
-    for the report's requirements table (empty without ``[robustness]``)."""
-    d = ctx.design()
-    r = d.robustness
-    if r is None:
-        return ()
-    rows = []
-    for c in r.requirements:
-        at = ", ".join(f"{k} = {v:.3g}" for k, v in r.worst.get(c.name, {}).items())
-        short = "" if c.passed else f"short by {fmt(c.shortfall)} {c.unit}"
-        rows.append((f"robust: {_LABELS.get(c.name, c.name)}, worst of {r.count} variants"
-                     + (f" (at {at})" if at else ""), f"{c.sense} {fmt(c.required)} {c.unit}",
-                     f"{fmt(c.achieved)} {c.unit}", short, "pass" if c.passed else "fail"))
-    return tuple(rows)
-
-
 def robustness(ctx) -> Section:
     """Variant margins as scatter and histogram, worst cases, robust against nominal."""
     robust, nominal = robust_results(ctx)

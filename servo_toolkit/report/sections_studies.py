@@ -176,6 +176,6 @@ def accuracy(ctx) -> Section:
                 "off at the difference between its play operator (seed 002, eqs 6-8) and the elasto-backlash "
                 "law of the reference model, not at a step-size error.",
                 "Error is the largest output-angle difference from the reference, relative to the motion "
-                "amplitude; wall times exclude compilation.")
+                f"amplitude; each wall time is the best of {res.repeats} identical runs (compilation excluded).")
     return Section("Solver accuracy", text + table(("method", "dt [s]", "wall [ms]", "error / amplitude"), rows),
                    (FigureSpec(fig, "Error of the fixed-step methods against run time and step."),), key="accuracy")

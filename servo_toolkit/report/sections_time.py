@@ -34,6 +34,23 @@ def _step_metrics(t, y, final):
     return rise, over, settle
 
 
+def step_cells(t, y, final, what: str):
+    """(rise, overshoot, settling) cells of a step and a sentence when the response does
+    not settle: a missing figure is said in words (how far the output got, and when)."""
+    rise, over, settle = _step_metrics(t, y, final)
+    reached = float(y[-1] / final)
+    cells = (fmt(rise * 1e3) if math.isfinite(rise) else f"not reached ({reached:.0%} at the end)",
+             f"{over:.1%}",
+             fmt(settle * 1e3) if math.isfinite(settle) else f"not settled within {fmt(t[-1] * 1e3)} ms")
+    note = ""
+    if not (math.isfinite(rise) and math.isfinite(settle)):
+        note = (f"The {what} step does not settle within the {fmt(t[-1] * 1e3)} ms shown: after "
+                f"{fmt(t[-1] * 1e3)} ms the output is at {reached:.0%} of the step"
+                + ("" if math.isfinite(rise) else ", short of the 90 % a rise time needs")
+                + " (2 % band for the settling time).")
+    return cells, note
+
+
 def limit_figures(result, motor) -> dict:
     """Peak |current| and |voltage| of a run and the time spent at each limit (s): the
     voltage within 0.1 % of the supply, the current within 0.1 % of its limit."""
@@ -87,10 +104,9 @@ def time_responses(ctx) -> Section:
     y_sine = np.asarray(y_sine).reshape(-1)
     last = t_sine >= (n_cycles - 2) / SINE_HZ
     amp, ph = _fit_sine(t_sine[last], y_sine[last], SINE_HZ)
-    rise, over, settle = _step_metrics(t_step, y_step, step_amp)
-    rows = [("linear closed loop", fmt(rise * 1e3), f"{over:.1%}", fmt(settle * 1e3),
-             fmt(20 * math.log10(amp / sine_amp)), fmt(ph))]
-    notes = []
+    cells, note = step_cells(t_step, y_step, step_amp, "linear")
+    rows = [("linear closed loop", *cells, fmt(20 * math.log10(amp / sine_amp)), fmt(ph))]
+    notes = [note] if note else []
     nonlinear = None
     electrics, electric_fig = [], None
     try:
@@ -108,9 +124,10 @@ def time_responses(ctx) -> Section:
         ts2, ys2 = r2.times, u.show(r2.output_angle - q0)
         last2 = ts2 >= (n_cycles - 2) / SINE_HZ
         amp2, ph2 = _fit_sine(ts2[last2], ys2[last2], SINE_HZ)
-        rise2, over2, settle2 = _step_metrics(ts1[keep], ys1[keep], step_amp)
-        rows.append(("nonlinear simulation", fmt(rise2 * 1e3), f"{over2:.1%}", fmt(settle2 * 1e3),
-                     fmt(20 * math.log10(amp2 / sine_amp)), fmt(ph2)))
+        cells2, note2 = step_cells(ts1[keep], ys1[keep], step_amp, "nonlinear")
+        rows.append(("nonlinear simulation", *cells2, fmt(20 * math.log10(amp2 / sine_amp)), fmt(ph2)))
+        if note2:
+            notes.append(note2)
         nonlinear = (ts1[keep], ys1[keep], ts2, ys2, r2)
         notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); peak motor torque "
                      f"in the sine run {fmt(r2.max_abs_motor_torque)} N*m.")

@@ -39,6 +39,9 @@ class AccuracyResult:
         Observed RK4 order from its self-convergence (differences between successive
         halvings), which needs no reference: where the reference's own error is larger than
         RK4's (a non-smooth run, a cam), it still measures the step's order.
+    repeats : int
+        Each wall time is the best (smallest) of this many identical runs, so that one
+        noisy repeat does not order the methods.
     """
 
     runs: tuple
@@ -49,13 +52,14 @@ class AccuracyResult:
     duration_s: float
     description: str = ""
     self_order: float = math.nan
+    repeats: int = 1
 
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"runs": list(self.runs), "order": self.order, "self_order": self.self_order,
                 "paper_order": self.paper_order,
                 "reference_wall_s": self.reference_wall_s, "amplitude_rad": self.amplitude_rad,
-                "duration_s": self.duration_s, "description": self.description}
+                "duration_s": self.duration_s, "description": self.description, "repeats": self.repeats}
 
     def table(self) -> str:
         """Text table."""
@@ -120,7 +124,7 @@ def _order(dts, errors, floor: float = REFERENCE_FLOOR):
 
 
 def accuracy_study(model, reference: Reference, duration: float, dts=None, progress: bool = True,
-                   rtol: float = 1e-12, atol: float = 1e-12) -> AccuracyResult:
+                   rtol: float = 1e-12, atol: float = 1e-12, repeats: int = 3) -> AccuracyResult:
     """Run the ladder of steps and the reference on one model.
 
     Parameters
@@ -130,11 +134,21 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
     duration : float
     dts : sequence of float, optional
         Steps; default the sample time (or 1e-4 s) divided by 1, 2, 4, 8, 16.
+    repeats : int
+        Every run is repeated this many times (the runs are deterministic); its wall time is
+        the best of them.
     """
+    repeats = max(1, int(repeats))
+
+    def timed(*args, **kwargs):
+        first = run(*args, **kwargs)
+        best = min([first.wall_s] + [run(*args, **kwargs).wall_s for _ in range(repeats - 1)])
+        return first, best
+
     base = model.sample_time or 1e-4
     dts = list(dts) if dts is not None else [base / k for k in (1, 2, 4, 8, 16)]
     out_dt = max(dts)
-    ref = run(model, reference, duration, "reference", output_dt=out_dt, rtol=rtol, atol=atol)
+    ref, ref_wall = timed(model, reference, duration, "reference", output_dt=out_dt, rtol=rtol, atol=atol)
     q_ref = ref.output_angle
     amp = reference.amplitude if reference.kind in ("sine", "step") and reference.amplitude else \
         max(np.ptp(q_ref) / 2, 1e-12)
@@ -142,20 +156,20 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
     for method in ("rk4", "paper"):
         for dt in progress_bar(dts, show=progress, desc=f"accuracy {method}", leave=False):
             try:
-                r = run(model, reference, duration, method, dt, output_dt=out_dt)
+                r, wall = timed(model, reference, duration, method, dt, output_dt=out_dt)
             except SimulationError as exc:  # a step outside the scheme's stability region: a failed rung
                 runs.append({"method": method, "dt_s": dt, "wall_s": math.nan, "error": math.nan, "failed": str(exc)})
                 qs[method].append(None)
                 continue
-            runs.append({"method": method, "dt_s": r.dt_s, "wall_s": r.wall_s,
+            runs.append({"method": method, "dt_s": r.dt_s, "wall_s": wall,
                          "error": float(np.max(np.abs(r.output_angle - q_ref)) / abs(amp))})
             qs[method].append(r.output_angle)
-    runs.append({"method": ref.method, "dt_s": None, "wall_s": ref.wall_s, "error": 0.0})
+    runs.append({"method": ref.method, "dt_s": None, "wall_s": ref_wall, "error": 0.0})
     order = _order([r["dt_s"] for r in runs if r["method"] == "rk4"], [r["error"] for r in runs if r["method"] == "rk4"])
     rk4_self, porder = (_self_order(dts, qs[m], amp) for m in ("rk4", "paper"))
-    return AccuracyResult(tuple(runs), order, porder, ref.wall_s, float(abs(amp)), duration,
+    return AccuracyResult(tuple(runs), order, porder, ref_wall, float(abs(amp)), duration,
                           f"{model.name}: {reference.describe(model.output_unit)}, {duration:g} s, controller {model.controller}",
-                          rk4_self)
+                          rk4_self, repeats)
 
 
 def _self_order(dts, qs, amp):

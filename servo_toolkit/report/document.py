@@ -1,0 +1,78 @@
+"""One document source for the report: the Jinja2 template ``templates/report.html.j2``
+renders the HTML page and, with the print stylesheet, the page the PDF is typeset from."""
+
+from __future__ import annotations
+
+import base64
+import io
+from pathlib import Path
+
+TEMPLATES = Path(__file__).resolve().parent / "templates"
+#: figure resolution of the HTML page (PNG); the PDF's figures are vector (SVG)
+DPI = 110
+
+
+def _css_string(value) -> str:
+    """``value`` inside a CSS double-quoted string."""
+    return "".join(c if c.isalnum() or c in " .,:;-_+()/*=[]" else f"\\{ord(c):x} " for c in str(value))
+
+
+def environment():
+    """The Jinja2 environment of the report templates (HTML autoescaped)."""
+    import jinja2
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), autoescape=True,
+                             trim_blocks=False, lstrip_blocks=False, undefined=jinja2.StrictUndefined)
+    env.filters["css_string"] = _css_string
+    return env
+
+
+def figure_src(fig, target: str) -> str:
+    """A figure as a data URI: PNG for the HTML page, SVG (vector) for the PDF."""
+    buf = io.BytesIO()
+    if target == "pdf":
+        fig.savefig(buf, format="svg")
+        return "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    fig.savefig(buf, format="png", dpi=DPI)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _verdict(report) -> dict:
+    rows = report.requirements
+    if not rows:
+        return {"status": "na", "text": "no requirement to check for this scene"}
+    failed = [r for r in rows if r.status == "fail"]
+    missing = [r for r in rows if r.status == "unavailable"]
+    if failed:
+        return {"status": "fail", "text": f"{len(failed)} of {len(rows)} requirements NOT met: "
+                                          + ", ".join(r.id for r in failed)}
+    if missing:
+        return {"status": "na", "text": f"{len(missing)} of {len(rows)} requirements not evaluated: "
+                                        + ", ".join(r.id for r in missing)}
+    return {"status": "pass", "text": f"all {len(rows)} requirements met"}
+
+
+def context(report, target: str, tick=None) -> dict:
+    """The template's variables: identity, verdict, numbered sections and figures."""
+    from markupsafe import Markup
+    sections = []
+    for i, s in enumerate(report.sections, 1):
+        anchor = s.key or f"s{i}"
+        figs = []
+        for k, spec in enumerate(s.figures, 1):
+            figs.append({"number": f"{i}.{k}", "anchor": f"figure-{i}-{k}", "caption": spec.caption,
+                         "src": figure_src(spec.figure, target)})
+            if tick is not None:
+                tick()
+        sections.append({"number": i, "anchor": anchor, "title": s.title, "status": s.status, "reason": s.reason,
+                         "html": Markup(s.html), "figures": figs})
+    return {"target": target, "scene_name": report.scene_name, "subtitle": report.subtitle,
+            "meta": report.meta, "verdict": _verdict(report), "sections": sections}
+
+
+def render(report, target: str = "html", tick=None) -> str:
+    """The report as one HTML document for ``target`` ``"html"`` (a self-contained page) or
+    ``"pdf"`` (A4 pages for a paged-media engine); ``tick()`` after each figure."""
+    return environment().get_template("report.html.j2").render(**context(report, target, tick))
+
+
+__all__ = ["DPI", "TEMPLATES", "context", "environment", "figure_src", "render"]

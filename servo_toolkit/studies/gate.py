@@ -1,0 +1,244 @@
+"""The requirement table of a design: one row per requirement, with a stable ID, shared by
+``servo-toolkit check`` (its table and JUnit testcases) and the report.
+
+The rows come from the checks the design, its large-signal run, its robustness study and
+the Monte Carlo time runs produce (:class:`servo_toolkit.loop.requirements.Check`); the ID
+of a row is the name of its JUnit testcase (``bandwidth``, ``large_signal_gain``,
+``closed_loop_stable``, ``robust_gain_margin``, ``robust_tracking_error``, ...), so a row
+of the report is found by the same name in a CI log.
+
+Examples
+--------
+>>> from servo_toolkit import load_scene
+>>> from servo_toolkit.loop import design
+>>> from servo_toolkit.studies.gate import gate
+>>> scene = load_scene()
+>>> g = gate(scene, design(scene, progress=False))      # doctest: +SKIP
+>>> [(r.id, r.status) for r in g.rows][:2]               # doctest: +SKIP
+[('bandwidth', 'pass'), ('phase_lag_at_bandwidth', 'pass')]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..display.html import fmt
+
+#: check name -> words of the requirement (``{f}``: the frequency the figure is taken at)
+LABELS = {
+    "bandwidth": "closed-loop bandwidth (-3 dB)",
+    "phase_lag_at_bandwidth": "closed-loop phase lag at the required bandwidth, {f}",
+    "gain_margin": "gain margin",
+    "phase_margin": "phase margin",
+    "sensitivity_peak": "sensitivity peak Ms",
+    "stable_over_stroke": "closed loop stable over the stroke (fraction of points)",
+    "gain_margin_over_stroke": "gain margin, worst over the stroke",
+    "phase_margin_over_stroke": "phase margin, worst over the stroke",
+    "sensitivity_peak_over_stroke": "sensitivity peak Ms, worst over the stroke",
+    "large_signal_gain": "large signal: |gain difference| from the linear loop, {f} sine",
+    "large_signal_phase": "large signal: |phase difference| from the linear loop, {f} sine",
+    "large_signal_within_stroke": "large signal: time within the stroke, {f} sine",
+    "closed_loop_stable": "closed loop stable",
+    "stable_fraction": "stable variants (fraction)",
+    "tracking_error": "worst tracking error",
+    "peak_current": "worst peak current",
+}
+#: the row statuses: met, not met, or no verdict (the figure could not be computed)
+STATUSES = ("pass", "fail", "unavailable")
+
+
+@dataclass(frozen=True)
+class RequirementRow:
+    """One requirement against what the design achieves.
+
+    Attributes
+    ----------
+    id : str
+        Stable identifier: the JUnit testcase name of ``check``.
+    requirement : str
+        What is required, in words.
+    required, achieved, shortfall : str
+        Formatted with their unit (``">= 8 Hz"``, ``"7.9 Hz"``, ``"0.104 Hz"``; shortfall ""
+        when met).
+    status : str
+        One of :data:`STATUSES`.
+    detail : str
+        Where the figure comes from (the worst variant, the source of a default), or why
+        there is no verdict.
+    """
+
+    id: str
+    requirement: str
+    required: str
+    achieved: str
+    shortfall: str
+    status: str
+    detail: str = ""
+
+    @property
+    def passed(self) -> bool:
+        """True when the requirement is met."""
+        return self.status == "pass"
+
+    def message(self) -> str:
+        """One line for a JUnit testcase: required, achieved, shortfall and detail."""
+        if self.status == "unavailable":
+            return f"{self.requirement}: not evaluated: {self.detail}"
+        text = f"{self.requirement}: required {self.required}, achieved {self.achieved}"
+        text += "" if self.passed else f", short by {self.shortfall}"
+        return text + (f"; {self.detail}" if self.detail else "")
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"id": self.id, "requirement": self.requirement, "required": self.required,
+                "achieved": self.achieved, "shortfall": self.shortfall, "status": self.status,
+                "detail": self.detail}
+
+    def cells(self) -> tuple:
+        """(id, requirement, required, achieved, shortfall, status) for a table."""
+        return (self.id, self.requirement, self.required, self.achieved, self.shortfall, self.status)
+
+
+def _value(value, unit: str) -> str:
+    return f"{fmt(value)} {unit}".rstrip()
+
+
+def check_row(c, prefix: str = "", label_prefix: str = "", detail: str = "", frequency=None) -> RequirementRow:
+    """The row of one :class:`~servo_toolkit.loop.requirements.Check` (ID ``prefix + name``)."""
+    label = LABELS.get(c.name, c.name.replace("_", " "))
+    label = label.format(f=f"{fmt(frequency)} Hz" if frequency is not None else "the required bandwidth")
+    if c.source in ("default", "override"):
+        detail = "; ".join(x for x in (f"{c.source} value", detail) if x)
+    return RequirementRow(prefix + c.name, label_prefix + label, f"{c.sense} {_value(c.required, c.unit)}",
+                          _value(c.achieved, c.unit), "" if c.passed else _value(c.shortfall, c.unit),
+                          "pass" if c.passed else "fail", detail)
+
+
+def design_rows(result, large_signal_hz=None) -> list[RequirementRow]:
+    """Rows of a DesignResult's checks (the large-signal ones included when present, their
+    sine at ``large_signal_hz``) and of the stability of its closed loop."""
+    f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
+    rows = [check_row(c, frequency=large_signal_hz if c.name.startswith("large_signal") and large_signal_hz
+                      else f_req) for c in result.requirements]
+    m = result.margins
+    stable = bool(m.closed_loop_stable)
+    pole = m.max_closed_loop_pole_real
+    rows.append(RequirementRow("closed_loop_stable", LABELS["closed_loop_stable"], "yes", "yes" if stable else "no",
+                               "" if stable else f"pole at Re = {fmt(pole)} 1/s", "pass" if stable else "fail"))
+    return rows
+
+
+def robust_rows(robust) -> list[RequirementRow]:
+    """Rows of a RobustnessResult's checks (ID ``robust_<name>``, the worst variant named)."""
+    rows = []
+    for c in robust.requirements:
+        at = ", ".join(f"{k} = {v:.4g}" for k, v in robust.worst.get(c.name, {}).items())
+        detail = f"worst case over {robust.count} variants ({robust.unstable_count} unstable)" + (f", at {at}" if at else "")
+        rows.append(check_row(c, "robust_", "robust: ", detail))
+    return rows
+
+
+def montecarlo_rows(checks, result) -> list[RequirementRow]:
+    """Rows of the Monte Carlo checks (ID ``robust_<name>``) over the nonlinear time runs of
+    ``result`` (a MonteCarloResult)."""
+    rows = []
+    for c in checks:
+        i = result.worst_index(c.name)
+        at = "" if i is None else ", at " + ", ".join(f"{k} = {v[i]:.4g}" for k, v in result.values.items())
+        rows.append(check_row(c, "robust_", "robust: ", f"worst case over {result.count} nonlinear time runs{at}"))
+    return rows
+
+
+def unavailable_rows(ids_labels, why: str) -> list[RequirementRow]:
+    """Rows without a verdict: ``(id, requirement)`` pairs and the reason."""
+    return [RequirementRow(i, label, "", "not evaluated", "", "unavailable", why) for i, label in ids_labels]
+
+
+@dataclass(frozen=True)
+class Gate:
+    """What ``check`` judges a design on.
+
+    Attributes
+    ----------
+    result : DesignResult
+        The design, its large-signal checks added (unless linear only).
+    large_signal : LargeSignal or None
+    robustness : RobustnessResult or None
+    montecarlo : MonteCarloResult or None
+    rows : tuple of RequirementRow
+    montecarlo_checks : tuple of Check
+        The Monte Carlo requirements' checks (empty when the scene sets none).
+    """
+
+    result: object
+    large_signal: object
+    robustness: object
+    montecarlo: object
+    rows: tuple
+    montecarlo_checks: tuple = ()
+
+    @property
+    def passed(self) -> bool:
+        """Every row met."""
+        return all(r.passed for r in self.rows)
+
+    def to_dict(self) -> dict:
+        """JSON-ready rows."""
+        return {"passed": self.passed, "rows": [r.to_dict() for r in self.rows]}
+
+    def __repr__(self) -> str:
+        failed = sum(not r.passed for r in self.rows)
+        return f"<Gate of {self.result.scene_name}: {len(self.rows)} requirements, {failed} not met>"
+
+
+def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None) -> Gate:
+    """Judge ``result`` (a DesignResult of ``scene``) as ``servo-toolkit check`` does.
+
+    Parameters
+    ----------
+    scene : Scene
+    result : DesignResult
+    spec : Robustness, optional
+        The variants to check (default: the scene's ``[robustness]``); a robust design
+        carries its own robustness result.
+    linear_only : bool
+        Skip the large-signal run (``check --linear-only``).
+    montecarlo : (checks, MonteCarloResult), optional
+        Monte Carlo checks already computed (the report's); else they are run when ``spec``
+        sets Monte Carlo requirements.
+
+    Returns
+    -------
+    Gate
+
+    Raises
+    ------
+    SimulationError
+        A nonlinear run the rows need could not be carried out (no verdict).
+    """
+    from .large_signal import with_large_signal
+    from .montecarlo_check import montecarlo_checks
+    spec = scene.robustness if spec is None else spec
+    ls = None
+    if not linear_only:
+        result, ls = with_large_signal(scene, result)
+    robust = result.robustness
+    if robust is None and spec is not None:
+        from ..loop.robustness import robustness
+        robust = robustness(scene, result, spec=spec, progress=False)
+    rows = design_rows(result, None if ls is None else ls.frequency_hz)
+    if robust is not None:
+        rows += robust_rows(robust)
+    checks, mc = montecarlo if montecarlo is not None else montecarlo_checks(scene, spec, result.controller)
+    if mc is not None:
+        rows += montecarlo_rows(checks, mc)
+    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks))
+
+
+def failed_count(rows) -> int:
+    """Rows not met (failed or without a verdict)."""
+    return sum(not r.passed for r in rows)
+
+
+__all__ = ["Gate", "LABELS", "RequirementRow", "STATUSES", "check_row", "design_rows", "failed_count", "gate",
+           "montecarlo_rows", "robust_rows", "unavailable_rows"]
