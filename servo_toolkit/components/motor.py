@@ -70,11 +70,11 @@ class DCMotor:
         R*C of each node (s): the winding's with the winding-to-housing resistance, the
         housing's with the housing-to-ambient one.
     max_winding_temperature : float
-        Insulation limit of the winding (degC).
+        Insulation limit of the winding (K; scenes write e.g. ``"155 degC"``).
     ambient_temperature : float
-        degC.
+        K.
     resistance_temperature : float
-        Winding temperature at which ``resistance`` is given (degC).
+        Winding temperature at which ``resistance`` is given (K).
     copper_temperature_coefficient : float
         Rise of the winding resistance per kelvin (1/K; copper 0.00393).
     """
@@ -94,9 +94,9 @@ class DCMotor:
     thermal_resistance_housing: float | None = None
     thermal_time_constant_winding: float | None = None
     thermal_time_constant_housing: float | None = None
-    max_winding_temperature: float = 155.0
-    ambient_temperature: float = 25.0
-    resistance_temperature: float = 25.0
+    max_winding_temperature: float = 428.15
+    ambient_temperature: float = 298.15
+    resistance_temperature: float = 298.15
     copper_temperature_coefficient: float = 0.00393
 
     @property
@@ -155,9 +155,9 @@ _OPTIONAL = {"continuous_torque": ("N*m", "positive"), "peak_torque": ("N*m", "p
 def _sizing_keys(f: Fields) -> dict:
     """The optional sizing values of a ``[motor]`` table (datasheet torques, thermal network)."""
     out = {k: f.quantity(k, unit, rule=rule) for k, (unit, rule) in _OPTIONAL.items() if f.has(k)}
-    out["max_winding_temperature"] = f.quantity("max_winding_temperature", "degC", 155.0, rule="finite")
-    out["ambient_temperature"] = f.quantity("ambient_temperature", "degC", 25.0, rule="finite")
-    out["resistance_temperature"] = f.quantity("resistance_temperature", "degC", 25.0, rule="finite")
+    out["max_winding_temperature"] = f.quantity("max_winding_temperature", "K", 428.15, rule="positive")
+    out["ambient_temperature"] = f.quantity("ambient_temperature", "K", 298.15, rule="positive")
+    out["resistance_temperature"] = f.quantity("resistance_temperature", "K", 298.15, rule="positive")
     out["copper_temperature_coefficient"] = f.quantity("copper_temperature_coefficient", "1/K", 0.00393,
                                                        rule="nonnegative")
     return out
@@ -169,9 +169,8 @@ def _check_thermal(motor: DCMotor, f: Fields) -> None:
     missing = [k for k in _OPTIONAL if k.startswith("thermal_") and getattr(motor, k) is None]
     require(not given or not missing, f.key(missing[0] if missing else ""),
             f"missing key: the two-node thermal network needs all four of its values (got {given})")
-    require(motor.ambient_temperature > -273.15, f.key("ambient_temperature"), "must be above absolute zero")
     require(motor.max_winding_temperature > motor.ambient_temperature, f.key("max_winding_temperature"),
-            f"must be above the ambient temperature ({motor.ambient_temperature:g} degC)")
+            f"must be above the ambient temperature ({motor.ambient_temperature - 273.15:g} degC)")
     require(motor.copper_temperature_coefficient <= 0.1, f.key("copper_temperature_coefficient"),
             f"must be at most 0.1 1/K (got {motor.copper_temperature_coefficient:g}; copper is 0.00393)")
     if motor.continuous_torque is not None and motor.peak_torque is not None:

@@ -76,7 +76,7 @@ def cycle_loads(drivetrain, motion, losses: str = "directional") -> CycleLoads:
 
 def electrical(motor, torque, speed, winding_temperature: float | None = None) -> dict:
     """Current (A), voltage (V), electrical and mechanical power (W) of ``motor`` at the
-    torques and speeds given; the resistance at ``winding_temperature`` (degC; default the
+    torques and speeds given; the resistance at ``winding_temperature`` (K; default the
     temperature the resistance is given at)."""
     r = resistance_at(motor, motor.resistance_temperature if winding_temperature is None else winding_temperature)
     current = np.asarray(torque) / motor.torque_constant
@@ -86,7 +86,7 @@ def electrical(motor, torque, speed, winding_temperature: float | None = None) -
 
 
 def resistance_at(motor, temperature: float) -> float:
-    """Winding resistance at ``temperature`` (degC): R (1 + alpha (T - T_ref))."""
+    """Winding resistance at ``temperature`` (K): R (1 + alpha (T - T_ref))."""
     return motor.resistance * (1 + motor.copper_temperature_coefficient * (temperature - motor.resistance_temperature))
 
 

@@ -10,6 +10,10 @@ import numpy as np
 from ...display.cards import RichDisplay, badge, card, facts, num, svg, table
 
 
+#: 0 degC in K
+KELVIN = 273.15
+
+
 def _fin(x):
     return float(x) if x is not None and math.isfinite(x) else None
 
@@ -91,7 +95,7 @@ class SizingResult(RichDisplay):
                "peak_speed_rad_s": float(np.abs(self.motor_speed).max()),
                "peak_power_W": self.peak_power, "peak_electrical_power_W": self.peak_electrical_power,
                "regenerated_energy_J": self.regenerated_energy, "envelope": self.envelope.to_dict(),
-               "peak_winding_temperature_degC": None if self.thermal is None else _fin(self.thermal.peak_winding),
+               "peak_winding_temperature_degC": None if self.thermal is None else _fin(self.thermal.peak_winding - KELVIN),
                "thermal_runaway": None if self.thermal is None else self.thermal.runaway,
                "lives": [life.to_dict() for life in self.lives],
                "margins": [m.to_dict() for m in self.margins],
@@ -179,8 +183,8 @@ class SizingResult(RichDisplay):
             ax.text(0.5, 0.5, "no thermal network" if th is None else "thermal runaway", ha="center",
                     transform=ax.transAxes)
             return ax
-        ax.plot(th.cycles * self.motion.duration / 60, th.winding_at_cycle_end, label="winding, cycle ends")
-        ax.axhline(th.peak_winding, color="C1", ls="--", lw=1, label="steady periodic peak")
+        ax.plot(th.cycles * self.motion.duration / 60, th.winding_at_cycle_end - KELVIN, label="winding, cycle ends")
+        ax.axhline(th.peak_winding - KELVIN, color="C1", ls="--", lw=1, label="steady periodic peak")
         ax.set_xlabel("time from cold [min]")
         ax.set_ylabel("winding temperature [degC]")
         ax.grid(True, alpha=0.3)

@@ -15,6 +15,8 @@ from .result import SizingResult
 from .sweep import ratio_sweep
 from .thermal import ThermalNetwork, cycle_temperatures
 
+#: 0 degC in K
+KELVIN = 273.15
 #: how the motor's loads are found
 METHODS = ("inverse_dynamics", "closed_loop")
 
@@ -92,7 +94,8 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     if math.isfinite(motor.voltage_limit):
         margins.append(upper("peak voltage", float(np.abs(elec["voltage"]).max()), motor.voltage_limit, "V"))
     if thermal is not None:
-        margins.append(upper("winding temperature", thermal.peak_winding, hot, "degC", motor.ambient_temperature))
+        margins.append(upper("winding temperature", thermal.peak_winding - KELVIN, hot - KELVIN, "degC",
+                             motor.ambient_temperature - KELVIN))
     if duty.required_life is not None:
         margins += [lower(f"L10 {life.part}", life.hours, duty.required_life / 3600, "h") for life in lives]
     sweep_result = None

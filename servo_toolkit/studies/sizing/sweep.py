@@ -49,7 +49,7 @@ class RatioSweep:
     motors : tuple of str
         Motor names (the scene's motor first, then ``[[duty_cycle.motors]]``).
     rms_current, rms_torque, peak_torque, peak_speed, peak_voltage, winding_temperature : numpy.ndarray
-        Shape (motors, factors); A, N*m, N*m, rad/s, V, degC (nan without a thermal
+        Shape (motors, factors); A, N*m, N*m, rad/s, V, K (nan without a thermal
         network, inf for thermal runaway).
     bandwidth : numpy.ndarray
         Bandwidth estimate (Hz) per factor (nan for a rigid chain).
@@ -90,7 +90,7 @@ class RatioSweep:
         return {"factors": self.factors.tolist(), "ratio": self.ratio.tolist(), "motors": list(self.motors),
                 "rms_current_A": arr(self.rms_current), "rms_torque_Nm": arr(self.rms_torque),
                 "peak_torque_Nm": arr(self.peak_torque), "peak_speed_rad_s": arr(self.peak_speed),
-                "peak_voltage_V": arr(self.peak_voltage), "winding_temperature_degC": arr(self.winding_temperature),
+                "peak_voltage_V": arr(self.peak_voltage), "winding_temperature_degC": arr(self.winding_temperature - 273.15),
                 "bandwidth_estimate_Hz": arr(self.bandwidth)[0],
                 "stiffness": self.stiffness if math.isfinite(self.stiffness) else None,
                 "feasible": self.feasible.tolist(),

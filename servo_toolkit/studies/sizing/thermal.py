@@ -32,7 +32,7 @@ MAX_CYCLES = 100_000
 
 @dataclass(frozen=True)
 class ThermalNetwork:
-    """The two-node network of a motor, SI (temperatures in degC).
+    """The two-node network of a motor, SI (temperatures in K).
 
     Parameters
     ----------
@@ -41,9 +41,9 @@ class ThermalNetwork:
     tau_w, tau_h : float
         Time constants (s).
     ambient : float
-        degC.
+        K.
     resistance, resistance_temperature : float
-        Winding resistance (ohm) at that temperature (degC).
+        Winding resistance (ohm) at that temperature (K).
     alpha : float
         Resistance rise per kelvin (1/K).
     """
@@ -52,9 +52,9 @@ class ThermalNetwork:
     r_ha: float
     tau_w: float
     tau_h: float
-    ambient: float = 25.0
+    ambient: float = 298.15
     resistance: float = 1.0
-    resistance_temperature: float = 25.0
+    resistance_temperature: float = 298.15
     alpha: float = 0.0
 
     @classmethod
@@ -116,13 +116,13 @@ class ThermalResult:
     t_cycle : numpy.ndarray
         Times of the steady periodic cycle (s, interval ends).
     winding, housing : numpy.ndarray
-        Their temperatures along that cycle (degC); inf when the network runs away.
+        Their temperatures along that cycle (K); inf when the network runs away.
     cycles : numpy.ndarray
         Cycle numbers of the warm-up trace (from a cold start).
     winding_at_cycle_end : numpy.ndarray
-        Winding temperature at the end of each of those cycles (degC).
+        Winding temperature at the end of each of those cycles (K).
     peak_winding : float
-        Highest winding temperature of the steady periodic cycle (degC; inf: runaway).
+        Highest winding temperature of the steady periodic cycle (K; inf: runaway).
     runaway : bool
         True when no steady state exists.
     """
@@ -164,7 +164,7 @@ def cycle_map(network: ThermalNetwork, i2, h: float) -> tuple[np.ndarray, np.nda
 
 
 def periodic_peak(network: ThermalNetwork, i2, h: float) -> np.ndarray:
-    """Highest winding temperature (degC) of the steady periodic cycle for each row of ``i2``
+    """Highest winding temperature (K) of the steady periodic cycle for each row of ``i2``
     (shape (..., steps)); inf where the network runs away. Vectorized over the rows."""
     phi, gamma, phis, gammas = cycle_map(network, i2, h)
     stable = np.max(np.abs(np.linalg.eigvals(phi)), axis=-1) < 1 - 1e-12
@@ -206,7 +206,7 @@ def cycle_temperatures(network: ThermalNetwork, current, weight, steps: int = TH
 
 
 def step_response(network: ThermalNetwork, power: float, times) -> np.ndarray:
-    """Winding temperature (degC) at ``times`` (s) from the ambient under a constant loss
+    """Winding temperature (K) at ``times`` (s) from the ambient under a constant loss
     ``power`` (W), the resistance's rise left out (it is the loss itself that is given)."""
     flat = ThermalNetwork(network.r_wh, network.r_ha, network.tau_w, network.tau_h, network.ambient, 1.0,
                           network.ambient, 0.0)
