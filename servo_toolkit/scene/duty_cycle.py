@@ -72,7 +72,8 @@ class Segment:
     kind : str
         ``"dwell"``, ``"ramp"``, ``"step"``, ``"sine"`` or ``"points"``.
     duration : float
-        s.
+        Length of the segment (s); a sine's is cycles / frequency, a points file's its last
+        time.
     load : float or None
         External moment (N*m; a force, N, for an output travel) the drive supplies, opposing
         positive motion; None: the scene's ``[load] hinge_moment``.
@@ -82,8 +83,15 @@ class Segment:
         Acceleration (and deceleration) time of a ramp's trapezoidal speed profile (s).
     rise_time : float or None
         Duration of a step's move (s).
-    amplitude, frequency, cycles : float or None
-        A sine segment: amplitude (rad or m), Hz, number of periods.
+    amplitude : float or None
+        A sine segment's amplitude about the segment's start position (rad or m).
+    frequency, period : float or None
+        A sine segment's frequency (Hz), or its period (s; the scene gives one of them).
+    cycles : float or None
+        Periods of a sine segment (default 1).
+    file : str
+        A points segment's CSV file (relative to the scene file): a header naming two
+        columns with units, e.g. ``t [s], position [deg]``, then rows of numbers.
     times, positions : tuple of float
         A points segment: sample times from 0 (s) and positions (rad or m).
     """
