@@ -192,3 +192,22 @@ def test_cli_size_exit_codes(tmp_path):
     assert run.returncode == 1 and "EXCEEDED" in run.stdout
     run = subprocess.run([sys.executable, "-m", "servo_toolkit", "size", "scenes/ema_robust.toml"], **env_cwd)
     assert run.returncode == 2 and run.stderr.startswith("servo-toolkit: error: duty_cycle")
+
+
+def test_inverse_dynamics_and_closed_loop_agree_on_a_slow_cycle():
+    import tomllib
+    data = tomllib.loads((SCENES / "ema_sizing.toml").read_text())
+    data["duty_cycle"] = {"start": "0 deg", "segments": [
+        {"kind": "sine", "amplitude": "10 deg", "frequency": "0.5 Hz", "cycles": 2, "load": "300 N*m"},
+        {"kind": "dwell", "duration": "0.5 s", "load": "-200 N*m"}]}
+    scene = scene_from_dict(data)
+    inverse = size(scene, sweep=False)
+    closed = size(scene, closed_loop=True, sweep=False)
+    assert closed.method == "closed_loop"
+    assert closed.rms_torque == pytest.approx(inverse.rms_torque, rel=0.02)
+    assert closed.rms_current == pytest.approx(inverse.rms_current, rel=0.02)
+    # pointwise after the start from rest and away from the reversals, where the loop's lag of a
+    # few ms shifts the switch of the stage losses between motoring and back-driving
+    moving = (np.abs(inverse.motor_speed) > 0.4 * np.abs(inverse.motor_speed).max()) & (inverse.motion.t > 0.1)
+    scale = float(np.abs(inverse.motor_torque).max())
+    assert np.abs(closed.motor_torque - inverse.motor_torque)[moving].max() < 0.05 * scale

@@ -74,7 +74,7 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     torque, speed = loads.motor_torque, loads.motor_speed
     if closed_loop:
         from .closed_loop import closed_loop_loads
-        torque, speed, motion = closed_loop_loads(scene, motion, progress=progress)
+        torque, speed = closed_loop_loads(scene, motion, loads, progress=progress)
         method = "closed_loop"
     env = Envelope.of(motor)
     net = ThermalNetwork.from_motor(motor)
