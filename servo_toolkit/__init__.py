@@ -13,7 +13,8 @@ from .errors import SceneError, SimulationError
 #: public name -> module that defines it (imported on first access)
 _LAZY = {"Scene": ".scene", "load_scene": ".scene", "design": ".loop", "export": ".export",
          "simulate": ".sim", "tune": ".tuner", "tuned_design": ".loop.tuning", "LoopTuning": ".loop.tuning",
-         "fit": ".identify", "run_study": ".studies.run"}
+         "fit": ".identify", "run_study": ".studies.run",
+         "size": ".studies.sizing"}
 
 __all__ = ["SceneError", "SimulationError", "__version__", *sorted(_LAZY)]
 

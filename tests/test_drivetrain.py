@@ -262,7 +262,7 @@ def ema_drivetrain_negligible(**kw):
 def test_output_units_of_the_scenes():
     units = {p.stem: load_scene(p).drivetrain.output_unit for p in SCENES.glob("*.toml")
              if p.stem not in ("deflection_platform", "roller_screw_two_stage")}
-    assert units == {"ema_reference": "rad", "ema_robust": "rad", "cam_follower": "rad",
+    assert units == {"ema_reference": "rad", "ema_robust": "rad", "ema_sizing": "rad", "cam_follower": "rad",
                      "linear_roller_screw_actuator": "m"}
     lin = load_scene(SCENES / "linear_roller_screw_actuator.toml").drivetrain
     assert lin.output_is_linear

@@ -40,6 +40,8 @@ def expected_si(text: str) -> float:
     if unit.strip() == "dB":
         assert UREG.Unit("dB") == UREG.decibel
         return float(number)
+    if UREG.Unit(unit.strip()).is_compatible_with("K") and unit.strip() not in ("K", "kelvin"):
+        return float(UREG.Quantity(float(number), unit.strip()).to_base_units().magnitude)  # degC: an offset unit
     return float(UREG.Quantity(text).to_base_units().magnitude)
 
 
@@ -68,6 +70,9 @@ def loaded_value(scene, path):
         return mech.inertias[rest[0]] if rest[0] in mech.inertias else getattr(mech, rest[0])
     if head == "studies":
         return _index(scene.studies[rest[0]].params[rest[1]], rest[2:])
+    if head == "duty_cycle" and rest[0] in ("segments", "motors"):
+        item = getattr(scene.duty_cycle, rest[0])[rest[1]]
+        return _index(getattr(item if rest[0] == "segments" else item[1], rest[2]), rest[3:])
     return _index(getattr(getattr(scene, head), rest[0]), rest[1:])
 
 

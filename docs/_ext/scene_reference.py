@@ -18,7 +18,8 @@ from generated import page_generator
 #: reader names, most specific first (a number is read as a dimensionless quantity too)
 _PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
 _ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "studies.*",
-          "mechanism", "stages[]", "drivetrain[].stages[]", "operating")
+          "duty_cycle", "duty_cycle.segments[]", "duty_cycle.motors[]", "mechanism", "stages[]",
+          "drivetrain[].stages[]", "operating")
 
 
 def scene_files(root: Path | None = None) -> list:
@@ -70,7 +71,9 @@ def _component(pattern: str, kind):
     from servo_toolkit.components.compliance import Load
     from servo_toolkit.components.motor import DCMotor
     from servo_toolkit.components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
-    table = {"motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
+    from servo_toolkit.scene.duty_cycle import DutyCycle, Segment
+    table = {"duty_cycle": DutyCycle, "duty_cycle.segments[]": Segment, "duty_cycle.motors[]": DCMotor,
+             "motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
              "robustness": sc.Robustness, "stages[]": RollerScrewStage,
              "drivetrain[].stages[]": RollerScrewStage, "operating": RollerScrewOperating}
     if pattern == "drivetrain[]":
@@ -123,13 +126,17 @@ def _title(pattern: str, kind) -> str:
     names = {"motor": "`[motor]`", "load": "`[load]`", "sensors": "`[sensors]`",
              "requirements": "`[requirements]`", "robustness": "`[robustness]`",
              "operating": "`[operating]` (roller-screw scene)", "stages[]": "`[[stages]]` (roller-screw scene)",
-             "drivetrain[].stages[]": "`stages` of a `roller_screw` stage"}
+             "drivetrain[].stages[]": "`stages` of a `roller_screw` stage", "duty_cycle": "`[duty_cycle]`",
+             "duty_cycle.segments[]": "`[[duty_cycle.segments]]`",
+             "duty_cycle.motors[]": "`[[duty_cycle.motors]]` (motor candidates: the keys of `[motor]`)"}
     if pattern == "drivetrain[]":
         return f"`[[drivetrain]]` kind = `{kind}`"
     if pattern == "studies.*":
         return f"`[studies.NAME]` kind = `{kind}`"
     if pattern == "mechanism":
         return f"`[mechanism]` kind = `{kind}`"
+    if pattern == "duty_cycle.segments[]":
+        return f"`[[duty_cycle.segments]]` kind = `{kind}`"
     return names.get(pattern, f"`[{pattern}]`")
 
 
@@ -155,7 +162,8 @@ def scene_markdown(reads=None) -> str:
            "mechanism": "A multi-axis mechanism instead of a drivetrain, `[mechanism]`.",
            "stages": "Stages of a stand-alone roller-screw scene, `[[stages]]`.",
            "operating": "Operating point of a stand-alone roller-screw scene, `[operating]`.",
-           "robustness": "Parameter variations the loop must tolerate, `[robustness]`."}
+           "robustness": "Parameter variations the loop must tolerate, `[robustness]`.",
+           "duty_cycle": "The motion the actuator repeats in service, for `servo-toolkit size`, `[duty_cycle]`."}
     for key in sorted(sc._TOP_KEYS):
         out.append(f"| `{key}` | {_cell(top.get(key, ''))} |")
     out.append("")

@@ -29,6 +29,7 @@ COMMANDS = {
     "stiffness": "series stiffness chain and compliance shares",
     "report": "HTML and PDF report of a scene (default: built-in EMA)",
     "kv": "dynamic-load factor Kv (inverse dynamics along prescribed motions)",
+    "size": "size motor and screw along the scene's duty cycle: envelope, RMS, thermal, life, ratio sweep",
     "design": "loop design and margins",
     "check": "check loop requirements (exit 0 met, 1 not met, 2 bad input)",
     "simulate": "time simulation (compiled RK4, paper scheme or stiff reference)",

@@ -28,6 +28,14 @@ class BallScrew(Stage):
         N/m; ``inf`` for rigid.
     backlash : float
         Axial lash of the nut (m).
+    dynamic_load_rating : float or None
+        Basic dynamic axial load rating C_a of the screw and nut (N, ISO 3408-5): the load
+        for a life of 10**6 revolutions; None when not given (no screw life computed).
+    bearing_dynamic_load_rating : float or None
+        Basic dynamic axial load rating of the screw's axial support bearing (N, ISO 281);
+        it carries the screw thrust.
+    bearing_kind : str
+        ``"ball"`` (life exponent 3) or ``"roller"`` (10/3) bearing.
     """
 
     name: str
@@ -37,6 +45,9 @@ class BallScrew(Stage):
     efficiency: float = 1.0
     axial_stiffness: float = math.inf
     backlash: float = 0.0
+    dynamic_load_rating: float | None = None
+    bearing_dynamic_load_rating: float | None = None
+    bearing_kind: str = "ball"
 
     @property
     def backdrive_efficiency(self) -> float:
@@ -74,6 +85,11 @@ class BallScrew(Stage):
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
             axial_stiffness=f.quantity("axial_stiffness", "N/m", math.inf),
             backlash=f.quantity("backlash", "m", 0.0, rule="nonnegative"),
+            dynamic_load_rating=(f.quantity("dynamic_load_rating", "N", rule="positive")
+                                 if f.has("dynamic_load_rating") else None),
+            bearing_dynamic_load_rating=(f.quantity("bearing_dynamic_load_rating", "N", rule="positive")
+                                         if f.has("bearing_dynamic_load_rating") else None),
+            bearing_kind=f.text("bearing_kind", "ball", choices=("ball", "roller")),
         )
         require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         require(stage.axial_stiffness > 0, f.key("axial_stiffness"), "must be positive")

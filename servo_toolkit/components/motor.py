@@ -66,6 +66,23 @@ class DCMotor:
     stribeck_speed : float
         Speed w_st (rad/s) over which the friction falls from Ts to Tc,
         Tc + (Ts - Tc) exp(-(w / w_st)^2); 0: at once.
+    continuous_torque, peak_torque : float or None
+        Datasheet continuous (stall) and peak torque (N*m); None when not given (the sizing
+        then takes the peak from the current limit and the continuous from the thermal
+        network).
+    thermal_resistance_winding, thermal_resistance_housing : float or None
+        Two-node thermal network: winding to housing and housing to ambient (K/W).
+    thermal_time_constant_winding, thermal_time_constant_housing : float or None
+        R*C of each node (s): the winding's with the winding-to-housing resistance, the
+        housing's with the housing-to-ambient one.
+    max_winding_temperature : float
+        Insulation limit of the winding (K; scenes write e.g. ``"155 degC"``).
+    ambient_temperature : float
+        K.
+    resistance_temperature : float
+        Winding temperature at which ``resistance`` is given (K).
+    copper_temperature_coefficient : float
+        Rise of the winding resistance per kelvin (1/K; copper 0.00393).
     """
 
     resistance: float
@@ -84,6 +101,22 @@ class DCMotor:
     def breakaway_torque(self) -> float:
         """Ts: the static friction, or the Coulomb friction where none is given (N*m)."""
         return self.coulomb_friction if self.static_friction is None else self.static_friction
+    continuous_torque: float | None = None
+    peak_torque: float | None = None
+    thermal_resistance_winding: float | None = None
+    thermal_resistance_housing: float | None = None
+    thermal_time_constant_winding: float | None = None
+    thermal_time_constant_housing: float | None = None
+    max_winding_temperature: float = 428.15
+    ambient_temperature: float = 298.15
+    resistance_temperature: float = 298.15
+    copper_temperature_coefficient: float = 0.00393
+
+    @property
+    def has_thermal_network(self) -> bool:
+        """True when the scene gives the four values of the two-node thermal network."""
+        return None not in (self.thermal_resistance_winding, self.thermal_resistance_housing,
+                            self.thermal_time_constant_winding, self.thermal_time_constant_housing)
 
     @property
     def electrical_time_constant(self) -> float:
@@ -113,6 +146,7 @@ class DCMotor:
             static_friction=(f.quantity("static_friction", "N*m", rule="nonnegative")
                              if f.has("static_friction") else None),
             stribeck_speed=f.quantity("stribeck_speed", "rad/s", 0.0, rule="nonnegative"),
+            **_sizing_keys(f),
         )
         for key, top in PLAUSIBLE_MAX.items():  # beyond these the plant's matrices lose their digits
             value = getattr(motor, key)
@@ -128,5 +162,38 @@ class DCMotor:
         require(math.isfinite(motor.stribeck_speed), f.key("stribeck_speed"), "must be finite")
         require(motor.voltage_limit > 0, f.key("voltage_limit"), "must be positive")
         require(motor.current_limit > 0, f.key("current_limit"), "must be positive")
+        _check_thermal(motor, f)
         f.check_unknown()
         return motor
+
+
+#: optional sizing keys of ``[motor]``: name -> (unit, rule)
+_OPTIONAL = {"continuous_torque": ("N*m", "positive"), "peak_torque": ("N*m", "positive"),
+             "thermal_resistance_winding": ("K/W", "positive"), "thermal_resistance_housing": ("K/W", "positive"),
+             "thermal_time_constant_winding": ("s", "positive"), "thermal_time_constant_housing": ("s", "positive")}
+
+
+def _sizing_keys(f: Fields) -> dict:
+    """The optional sizing values of a ``[motor]`` table (datasheet torques, thermal network)."""
+    out = {k: f.quantity(k, unit, rule=rule) for k, (unit, rule) in _OPTIONAL.items() if f.has(k)}
+    out["max_winding_temperature"] = f.quantity("max_winding_temperature", "K", 428.15, rule="positive")
+    out["ambient_temperature"] = f.quantity("ambient_temperature", "K", 298.15, rule="positive")
+    out["resistance_temperature"] = f.quantity("resistance_temperature", "K", 298.15, rule="positive")
+    out["copper_temperature_coefficient"] = f.quantity("copper_temperature_coefficient", "1/K", 0.00393,
+                                                       rule="nonnegative")
+    return out
+
+
+def _check_thermal(motor: DCMotor, f: Fields) -> None:
+    """The thermal network is given whole or not at all, and its limits are physical."""
+    given = [k for k in _OPTIONAL if k.startswith("thermal_") and getattr(motor, k) is not None]
+    missing = [k for k in _OPTIONAL if k.startswith("thermal_") and getattr(motor, k) is None]
+    require(not given or not missing, f.key(missing[0] if missing else ""),
+            f"missing key: the two-node thermal network needs all four of its values (got {given})")
+    require(motor.max_winding_temperature > motor.ambient_temperature, f.key("max_winding_temperature"),
+            f"must be above the ambient temperature ({motor.ambient_temperature - 273.15:g} degC)")
+    require(motor.copper_temperature_coefficient <= 0.1, f.key("copper_temperature_coefficient"),
+            f"must be at most 0.1 1/K (got {motor.copper_temperature_coefficient:g}; copper is 0.00393)")
+    if motor.continuous_torque is not None and motor.peak_torque is not None:
+        require(motor.peak_torque >= motor.continuous_torque, f.key("peak_torque"),
+                f"must be at least continuous_torque ({motor.continuous_torque:g} N*m)")

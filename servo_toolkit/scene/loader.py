@@ -27,7 +27,7 @@ STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": Roc
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
-             "studies", "mechanism", "stages", "operating", "robustness"}
+             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle"}
 #: ``[robustness] method`` values
 ROBUSTNESS_METHODS = ("monte_carlo", "grid")
 
@@ -261,6 +261,9 @@ class Scene:
     operating : RollerScrewOperating or None
     robustness : Robustness or None
         ``[robustness]``: variations the loop must tolerate (None: the scene states none).
+    duty_cycle : DutyCycle or None
+        ``[duty_cycle]``: the motion the actuator repeats in service, for the sizing
+        (:mod:`servo_toolkit.scene.duty_cycle`).
     source : str or None
         File the scene was read from.
     """
@@ -277,6 +280,7 @@ class Scene:
     roller_screw: tuple = ()
     operating: RollerScrewOperating | None = None
     robustness: Robustness | None = None
+    duty_cycle: object = None
     source: str | None = None
 
     def study(self, name: str) -> Study:
@@ -414,14 +418,27 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                       stages=stages, load=load, sensors=sensors, requirements=req,
                       studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
-                      source=source)
+                      duty_cycle=_duty_cycle(data, stages, unit, source), source=source)
         if stages:
             _built("drivetrain", scene.drivetrain.check)
             from .study_stroke import check_study_amplitudes
             check_study_amplitudes(scene)
+        if scene.duty_cycle is not None:
+            from .duty_cycle import check_positions
+            dt = scene.drivetrain
+            check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
+
+
+def _duty_cycle(data: dict, stages: tuple, unit: str, source):
+    """The scene's ``[duty_cycle]`` (None when absent); it needs a motor-driven drivetrain."""
+    if "duty_cycle" not in data:
+        return None
+    from .duty_cycle import duty_cycle_from_table
+    require(bool(stages), "duty_cycle", "a duty cycle needs a motor-driven drivetrain ([motor] and [[drivetrain]])")
+    return duty_cycle_from_table(data["duty_cycle"], unit, source)
 
 
 def default_scene_path() -> Path:

@@ -1,0 +1,50 @@
+"""``servo-toolkit size``: the motor and the screw along the scene's ``[duty_cycle]``.
+
+Exit 0 when every margin holds (peak and RMS torque, current, voltage, winding temperature,
+screw and bearing life), 1 when one is exceeded, 2 for bad input (a scene without a duty
+cycle, a bad segment: one line naming the key).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from ..scene.loader import load_scene
+from .common import add_json, add_scene, emit, prepare_kernels
+
+HELP = "size motor and screw along the scene's duty cycle: envelope, RMS, thermal, life, ratio sweep"
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("size", help=HELP)
+    add_scene(p)
+    p.add_argument("--closed-loop", action="store_true",
+                   help="take the motor's torque and speed from the nonlinear closed-loop simulation of the "
+                        "cycle (the designed loop, limits included) instead of the inverse dynamics")
+    p.add_argument("--losses", choices=("directional", "none"), default="directional",
+                   help="stage-loss model of the inverse dynamics (default: efficiency by direction of power flow)")
+    p.add_argument("--no-sweep", action="store_true", help="leave out the ratio sweep")
+    p.add_argument("--plot", metavar="FILE",
+                   help="save the torque-speed, thermal, ratio-sweep and torque plots (.png, .svg or .pdf)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..studies.sizing import size
+    scene = load_scene(args.scene)
+    if args.plot:  # checked before any work
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+    if args.closed_loop:
+        prepare_kernels(scene)
+    result = size(scene, closed_loop=args.closed_loop, losses=args.losses, sweep=not args.no_sweep,
+                  progress=not args.json and sys.stderr.isatty())
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        save_figure(result.plot()[0].figure, args.plot)
+    emit(args, result, result.table())
+    return 0 if result.passed else 1

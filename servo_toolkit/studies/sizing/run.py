@@ -1,0 +1,118 @@
+"""``size(scene)``: the motor and the screw along the scene's duty cycle, against their limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...errors import SceneError
+from .cycle import sample_cycle
+from .envelope import Envelope, lower, upper
+from .life import screw_lives
+from .loads import cycle_loads, electrical
+from .result import SizingResult
+from .sweep import ratio_sweep
+from .thermal import ThermalNetwork, cycle_temperatures
+
+#: 0 degC in K
+KELVIN = 273.15
+#: how the motor's loads are found
+METHODS = ("inverse_dynamics", "closed_loop")
+
+
+def _scene(scene):
+    from ...scene import Scene, load_scene
+    return scene if isinstance(scene, Scene) else load_scene(scene)
+
+
+def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep: bool = True,
+         progress: bool = False) -> SizingResult:
+    """Size the motor and the screw of a scene along its ``[duty_cycle]``.
+
+    Parameters
+    ----------
+    scene : Scene or path-like
+        A scene with a ``[duty_cycle]`` (a path is loaded with :func:`~servo_toolkit.scene.load_scene`).
+    closed_loop : bool
+        Take the motor's torque and speed from the nonlinear closed-loop simulation of the
+        cycle (:mod:`.closed_loop`) instead of the inverse dynamics.
+    losses : {"directional", "none"}
+        Stage-loss model of the inverse dynamics.
+    sweep : bool
+        Also sweep the first stage's ratio (:mod:`.sweep`).
+    progress : bool
+        Progress bar of the closed-loop runs.
+
+    Returns
+    -------
+    SizingResult
+
+    Raises
+    ------
+    SceneError
+        The scene has no duty cycle or no motor-driven drivetrain.
+    SimulationError
+        The inverse dynamics or the simulation leaves its validity domain.
+
+    Examples
+    --------
+    >>> import servo_toolkit as st
+    >>> result = st.size("scenes/ema_reference.toml")    # doctest: +SKIP
+    >>> result.margins[0].name                            # doctest: +SKIP
+    'peak torque'
+    """
+    scene = _scene(scene)
+    duty = scene.duty_cycle
+    if duty is None:
+        raise SceneError("duty_cycle", "missing table: size needs a [duty_cycle] with [[duty_cycle.segments]]")
+    drivetrain = scene.drivetrain
+    motor = drivetrain.motor
+    motion = sample_cycle(duty, drivetrain.mid_stroke, scene.load.hinge_moment)
+    loads = cycle_loads(drivetrain, motion, losses)
+    method = "inverse_dynamics"
+    torque, speed = loads.motor_torque, loads.motor_speed
+    if closed_loop:
+        from .closed_loop import closed_loop_loads
+        torque, speed = closed_loop_loads(scene, motion, loads, progress=progress)
+        method = "closed_loop"
+    env = Envelope.of(motor)
+    net = ThermalNetwork.from_motor(motor)
+    thermal = cycle_temperatures(net, torque / motor.torque_constant, motion.weight) if net else None
+    hot = motor.max_winding_temperature
+    elec = electrical(motor, torque, speed, hot)
+    lives = []
+    if loads.screw_thrust is not None and method == "inverse_dynamics":
+        stage = next(s for s in drivetrain.stages if hasattr(s, "dynamic_load_rating"))
+        lives = screw_lives(stage, loads.screw_thrust, loads.screw_speed, motion.weight, motion.duration)
+    rms_t = motion.rms(torque)
+    margins = [upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m")]
+    if env.continuous_torque is not None:
+        margins.append(upper("RMS torque", rms_t, env.continuous_torque, "N*m"))
+    if math.isfinite(motor.current_limit):
+        margins.append(upper("peak current", float(np.abs(elec["current"]).max()), motor.current_limit, "A"))
+    if math.isfinite(motor.voltage_limit):
+        margins.append(upper("peak voltage", float(np.abs(elec["voltage"]).max()), motor.voltage_limit, "V"))
+    if thermal is not None:
+        margins.append(upper("winding temperature", thermal.peak_winding - KELVIN, hot - KELVIN, "degC",
+                             motor.ambient_temperature - KELVIN))
+    if duty.required_life is not None:
+        margins += [lower(f"L10 {life.part}", life.hours, duty.required_life / 3600, "h") for life in lives]
+    sweep_result = None
+    if sweep:
+        factors = np.geomspace(duty.ratio_range[0], duty.ratio_range[1], duty.ratio_points)
+        sweep_result = ratio_sweep(drivetrain, motion, loads, (("scene motor", motor),) + tuple(duty.motors),
+                                   factors, required_bandwidth=scene.requirements.bandwidth)
+    regen = float(np.sum(np.maximum(-elec["electrical_power"], 0.0) * motion.weight))
+    return SizingResult(
+        scene=scene.name, output_unit=drivetrain.output_unit, method=method, motion=motion,
+        motor_torque=torque, motor_speed=speed, current=elec["current"], voltage=elec["voltage"],
+        electrical_power=elec["electrical_power"], mechanical_power=elec["mechanical_power"],
+        envelope=env, rms_torque=rms_t, rms_current=motion.rms(elec["current"]),
+        peak_power=float(np.abs(elec["mechanical_power"]).max()),
+        peak_electrical_power=float(elec["electrical_power"].max()), regenerated_energy=regen,
+        thermal=thermal, lives=tuple(lives), margins=tuple(margins), sweep=sweep_result,
+        screw_thrust=loads.screw_thrust if method == "inverse_dynamics" else None)
+
+
+__all__ = ["size", "METHODS"]
