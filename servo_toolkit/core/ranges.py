@@ -33,12 +33,16 @@ CONDITIONED = {
     "N": (1e-9, 1e10),
     "V": (1e-3, 1e5),
     "A": (1e-3, 1e5),
-    "s": (1e-13, 1e3),
+    "s": (1e-13, 1e10),  # up to a required bearing life (300 years)
     "Hz": (1e-6, 1e5),
     "rad/s": (1e-9, 1e5),
     "rad/s^3": (1e-6, 1e15),
     "dB": (1e-9, 200.0),
     "dimensionless": (1e-6, 1e6),
+    "K": (1e-3, 1e4),
+    "K/W": (1e-6, 1e6),
+    "1/K": (1e-9, 1.0),
+    "m/s": (1e-9, 1e3),
 }
 
 
