@@ -32,7 +32,7 @@ from .features import feature_mismatch, response_features
 from .params import SceneTemplate
 from .result import FitResult
 from .search import global_least_squares
-from .verdict import MISS_FLOORS, bands, judge, scatter_sd
+from .verdict import MISS_FLOORS, bands, coherence_variance, judge, scatter_sd
 
 #: dB of log-magnitude per degree of phase with the weight of the complex logarithm
 PHASE_DB_PER_DEG = 20 / math.log(10) * math.pi / 180
@@ -62,7 +62,10 @@ def _frequency_parts(data: FrequencyData):
         return np.concatenate([w * gain, w * PHASE_DB_PER_DEG * phase])
     sg = scatter_sd(data.gain_db)
     sp = scatter_sd(np.degrees(np.unwrap(np.radians(data.phase_deg))))
-    floor = None if sg is None else math.sqrt(float(np.mean(w ** 2)) * (sg ** 2 + (PHASE_DB_PER_DEG * sp) ** 2) / 2)
+    # the coherence's own uncertainty (gain and phase alike: one neper is one radian, 20/ln 10 dB)
+    coh = (20 / math.log(10)) ** 2 * float(np.mean(coherence_variance(data.coherence)))
+    floor = None if sg is None else math.sqrt(float(np.mean(w ** 2)) * (sg ** 2 + (PHASE_DB_PER_DEG * sp) ** 2) / 2
+                                              + coh)
     return residuals_of, floor
 
 
