@@ -263,7 +263,7 @@ def test_output_units_of_the_scenes():
     units = {p.stem: load_scene(p).drivetrain.output_unit for p in SCENES.glob("*.toml")
              if p.stem not in ("deflection_platform", "roller_screw_two_stage")}
     assert units == {"ema_reference": "rad", "ema_robust": "rad", "ema_sizing": "rad", "cam_follower": "rad",
-                     "linear_roller_screw_actuator": "m"}
+                     "linear_roller_screw_actuator": "m", "emps": "m"}
     lin = load_scene(SCENES / "linear_roller_screw_actuator.toml").drivetrain
     assert lin.output_is_linear
     # motor rad per m of last-nut travel: gear 2 * screw 2 pi / (10 mm + 10 mm)

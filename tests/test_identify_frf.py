@@ -84,6 +84,8 @@ def test_log_to_frf_to_fit_recovers_the_rig(far_rig, tmp_path, capsys):
     # the Hann window's bias around the resonance stays (a tenth of a dB), below the noise a
     # rig's log would carry
     assert r.residual_db_rms < 0.15 and r.residual_phase_deg_rms < 1.0
+    # ... and the coherence says where: the fit is judged against it, not blamed on the model
+    assert r.verdict == "fits to the noise", r.verdict_text()
     assert main(["frf", str(log)]) == 0
     assert "H1" in capsys.readouterr().out
 
@@ -112,3 +114,22 @@ def test_a_log_without_time_is_refused(tmp_path, capsys):
     log.write_text("t,current_A,motor_angle_rad\n" + "0,1,2\n" * 40)
     assert main(["frf", str(log)]) == 2
     assert "time_s" in capsys.readouterr().err
+
+
+def test_the_coherence_enters_the_noise_floor(far_rig):
+    """The window's bias around the resonance lowers the coherence there; without the
+    coherence the same estimate reads as a model mismatch at the resonance."""
+    from dataclasses import replace
+
+    from servo_toolkit.identify.verdict import coherence_variance
+    scene, rig, truth = far_rig
+    t, u, angle = rig_log(rig)
+    data = estimate_frf(t, u, angle, segment=16384, band=(2, 300), derivative=True)
+    assert data.coherence.min() < 0.9  # around the resonance
+    with_coherence = fit(scene, data, "plant", KEYS, starts=0)
+    blind = fit(scene, replace(data, coherence=np.ones(data.points)), "plant", KEYS, starts=0)
+    assert with_coherence.verdict == "fits to the noise"
+    assert blind.verdict == "model mismatch" and any(lo < 25 for lo in
+                                                     (float(m.split()[0].split("-")[0]) for m in blind.misses))
+    assert with_coherence.noise_floor > 3 * blind.noise_floor
+    np.testing.assert_allclose(coherence_variance([1.0, 0.5, 0.0], averages=8), [0.0, 1 / 32, 1 / 16])

@@ -1,8 +1,10 @@
 """``servo-toolkit fit``: fit scene parameters to a measured response of the rig.
 
 DATA.csv is a frequency response (``frequency_hz,gain_db,phase_deg[,coherence]``; what it
-measured is ``--response``) or time traces of the voltage-driven rig
-(``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``). ``-o`` writes the scene
+measured is ``--response``), time traces of the voltage-driven rig
+(``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``) or of the rig in closed
+loop (``time_s,command_m,output_m,current_A``, ``_rad`` for an output angle), which the
+nonlinear simulation with the scene's designed controller is compared with. ``-o`` writes the scene
 file with the fitted values in place, each with a comment giving the old value.
 
 The search is global over each parameter's physical range; the verdict compares the
@@ -27,14 +29,16 @@ def register(sub) -> None:
     p = sub.add_parser("fit", help="fit scene parameters to a measured frequency response or time traces")
     add_scene(p)
     p.add_argument("data", metavar="DATA.csv",
-                   help="measured frequency response (frequency_hz,gain_db,phase_deg[,coherence]) or time traces "
-                        "(time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad)")
+                   help="measured frequency response (frequency_hz,gain_db,phase_deg[,coherence]), time traces "
+                        "(time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad) or closed-loop traces "
+                        "(time_s,command_m,output_m,current_A; _rad for an output angle)")
     p.add_argument("--response", choices=("plant", "closed_loop"), default=None,
                    help="what a frequency response measured: plant = motor current -> motor speed (default), "
                         "closed_loop = position command -> output position with the scene's designed controller")
     p.add_argument("--param", action="append", required=True, metavar="KEY",
                    help="scene key to fit, as error messages name it, e.g. load.inertia, drivetrain[3].stiffness, "
-                        "motor.resistance (repeatable; a positive scalar quantity)")
+                        "motor.resistance (repeatable; a positive scalar quantity, or a nonzero signed one such as "
+                        "load.hinge_moment)")
     p.add_argument("-o", "--output", metavar="TOML",
                    help="write the calibrated scene here: the scene file with each fitted value in place and a "
                         "comment '# fitted: was ...' (never the input file)")

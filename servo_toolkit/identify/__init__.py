@@ -5,9 +5,9 @@
 :func:`calibrated_text` writes the scene file with the fitted values.
 """
 
-from .data import FrequencyData, TimeData, read_data
+from .data import FrequencyData, LoopData, TimeData, read_data
 from .fit import fit
 from .result import FitResult
 from .write import calibrated_text
 
-__all__ = ["FitResult", "FrequencyData", "TimeData", "calibrated_text", "fit", "read_data"]
+__all__ = ["FitResult", "FrequencyData", "LoopData", "TimeData", "calibrated_text", "fit", "read_data"]

@@ -5,6 +5,11 @@ A rig differs from its scene, but not without limit: a value is searched within 
 large and one half too large are equally far), and within the limits of its kind (an
 efficiency never exceeds 1). The scene's loader refuses anything else it knows to be
 unphysical; the fit steps back from such values.
+
+A parameter the scene accepts with either sign (a constant force such as a hinge moment)
+has no logarithm: it is searched as ``value = initial + |initial| z`` within
+:data:`SIGNED_SPAN` times its magnitude either side. :class:`Coordinates` maps the search's
+coordinates z to values and back, and a half-width in z to an interval.
 """
 
 from __future__ import annotations
@@ -17,6 +22,8 @@ import numpy as np
 RANGE_FACTOR = 100.0
 #: upper limits by key name (SI), where physics sets one
 UPPER = {"efficiency": 1.0}
+#: a signed parameter is searched within this many times its magnitude either side
+SIGNED_SPAN = 10.0
 
 
 def physical_range(parameters) -> tuple[np.ndarray, np.ndarray]:
@@ -31,7 +38,51 @@ def physical_range(parameters) -> tuple[np.ndarray, np.ndarray]:
     -------
     lower, upper : numpy.ndarray
     """
-    lower = np.array([p.initial / RANGE_FACTOR for p in parameters])
-    upper = np.array([min(p.initial * RANGE_FACTOR, UPPER.get(p.name, math.inf)) for p in parameters])
-    upper = np.maximum(upper, np.array([p.initial for p in parameters]))
-    return lower, upper
+    c = Coordinates(parameters)
+    return c.values(c.lower), c.values(c.upper)
+
+
+class Coordinates:
+    """The search's coordinates of the parameters: z = ln(value / initial), or (value -
+    initial) / |initial| for a signed parameter; z = 0 at the initial values.
+
+    Parameters
+    ----------
+    parameters : sequence of Parameter
+
+    Attributes
+    ----------
+    lower, upper : numpy.ndarray
+        The physical range in z.
+    """
+
+    def __init__(self, parameters):
+        self.initial = np.array([p.initial for p in parameters], float)
+        self.signed = np.array([getattr(p, "signed", False) for p in parameters], bool)
+        self.scale = np.abs(self.initial)
+        top = np.array([UPPER.get(p.name, math.inf) for p in parameters])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            log_hi = np.where(self.signed, 0.0, np.log(np.minimum(RANGE_FACTOR * self.initial, top) / self.scale))
+        self.lower = np.where(self.signed, -SIGNED_SPAN, -math.log(RANGE_FACTOR))
+        self.upper = np.where(self.signed, SIGNED_SPAN, np.maximum(log_hi, 0.0))
+
+    def values(self, z) -> np.ndarray:
+        """Values (SI) at coordinates z."""
+        z = np.asarray(z, float)
+        with np.errstate(over="ignore"):
+            return np.where(self.signed, self.initial + self.scale * z, self.initial * np.exp(z))
+
+    def intervals(self, values, half) -> np.ndarray:
+        """(n, 2) intervals of values whose coordinates have these half-widths: ``value *
+        exp(-+half)`` (not symmetric), or ``value -+ |initial| half`` for a signed one."""
+        values, half = np.asarray(values, float), np.asarray(half, float)
+        with np.errstate(over="ignore", invalid="ignore"):
+            lo = np.where(self.signed, values - self.scale * half, values * np.exp(-half))
+            hi = np.where(self.signed, values + self.scale * half, values * np.exp(half))
+        return np.column_stack([lo, hi])
+
+    def relative_half(self, values, half) -> np.ndarray:
+        """Half-width of each interval relative to its value (asinh-free for a log one)."""
+        values = np.asarray(values, float)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return np.where(self.signed, self.scale * half / np.abs(values), np.sinh(np.minimum(half, 700.0)))

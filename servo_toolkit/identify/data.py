@@ -7,6 +7,9 @@ Two kinds of CSV are read, told apart by their header:
     (optional) in [0, 1].
 ``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``
     Time traces of a rig driven by a voltage; times equally spaced and increasing.
+``time_s,command_m,output_m,current_A`` (``_rad`` for an output angle)
+    Time traces of the rig in closed loop: the position command of its loop, the measured
+    output position (an encoder's) and the motor current; times equally spaced.
 
 Every error names the file and the row (or the header) and the rule.
 """
@@ -25,6 +28,8 @@ FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
 #: largest data file read (bytes)
 MAX_DATA_BYTES = 64 * 1024 * 1024
 TIME_HEADER = ("time_s", "voltage_V", "current_A", "motor_angle_rad", "output_angle_rad")
+#: closed-loop traces, by the output's unit
+LOOP_HEADERS = {unit: ("time_s", f"command_{unit}", f"output_{unit}", "current_A") for unit in ("m", "rad")}
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,35 @@ class TimeData:
         return len(self.time_s)
 
 
+@dataclass(frozen=True)
+class LoopData:
+    """Measured time traces of a rig in closed loop.
+
+    Attributes
+    ----------
+    time_s, command, output, current_A : numpy.ndarray
+        Times (s), the loop's position command and the measured output position (m for an
+        output travel, rad for an output angle), the motor current (A).
+    unit : {"m", "rad"}
+        Unit of the command and the output.
+    source : str or None
+    """
+
+    time_s: np.ndarray
+    command: np.ndarray
+    output: np.ndarray
+    current_A: np.ndarray
+    unit: str = "m"
+    source: str | None = None
+
+    kind = "loop"
+
+    @property
+    def points(self) -> int:
+        """Number of samples."""
+        return len(self.time_s)
+
+
 def check_frequency(data: FrequencyData) -> None:
     """Raise SceneError (row numbers count the header as row 1) unless the frequencies are
     positive and strictly increasing, the values finite and the coherence in [0, 1]."""
@@ -116,10 +150,12 @@ def check_frequency(data: FrequencyData) -> None:
         raise SceneError(f"row {bad[0] + 2}", f"coherence must lie in [0, 1] (got {c[bad[0]]:g})", src)
 
 
-def check_time(data: TimeData) -> None:
-    """Raise SceneError unless the values are finite and the times increase equally spaced."""
+def check_time(data) -> None:
+    """Raise SceneError unless the values are finite and the times increase equally spaced
+    (time traces of either kind)."""
     src = data.source
-    for name in TIME_HEADER:
+    names = TIME_HEADER if isinstance(data, TimeData) else ("time_s", "command", "output", "current_A")
+    for name in names:
         values = getattr(data, name)
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
@@ -138,7 +174,7 @@ def check_time(data: TimeData) -> None:
                          f"{dt:g} s from row 2 to row 3)", src)
 
 
-def read_data(path) -> FrequencyData | TimeData:
+def read_data(path) -> FrequencyData | TimeData | LoopData:
     """Read a measured frequency response or time traces from CSV (kind from the header).
 
     Parameters
@@ -147,7 +183,7 @@ def read_data(path) -> FrequencyData | TimeData:
 
     Returns
     -------
-    FrequencyData or TimeData
+    FrequencyData, TimeData or LoopData
 
     Raises
     ------
@@ -160,17 +196,20 @@ def read_data(path) -> FrequencyData | TimeData:
         rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
     except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
         raise SceneError("(file)", f"cannot read data: not a CSV table ({exc})", src) from None
+    expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence], {','.join(TIME_HEADER)} or "
+                f"{','.join(LOOP_HEADERS['m'])} (_rad for an output angle)")
     if not rows:
-        raise SceneError("header", f"empty file; expected the header {','.join(FREQUENCY_HEADER)}[,coherence] "
-                         f"or {','.join(TIME_HEADER)}", src)
+        raise SceneError("header", f"empty file; expected the header {expected}", src)
     header = tuple(c.strip() for c in rows[0])
+    loop_unit = next((u for u, h in LOOP_HEADERS.items() if h == header), None)
     if header in (FREQUENCY_HEADER, FREQUENCY_HEADER + ("coherence",)):
         kind = "frequency"
     elif header == TIME_HEADER:
         kind = "time"
+    elif loop_unit is not None:
+        kind = "loop"
     else:
-        raise SceneError("header", f"expected {','.join(FREQUENCY_HEADER)}[,coherence] or "
-                         f"{','.join(TIME_HEADER)}, got {','.join(header)!r}", src)
+        raise SceneError("header", f"expected {expected}, got {','.join(header)!r}", src)
     values = []
     for n, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
@@ -186,7 +225,10 @@ def read_data(path) -> FrequencyData | TimeData:
         coh = cols[3] if len(header) == 4 else np.ones(cols.shape[1])
         data = FrequencyData(cols[0], cols[1], cols[2], coh, src)
         check_frequency(data)
-    else:
+    elif kind == "time":
         data = TimeData(*cols, source=src)
+        check_time(data)
+    else:
+        data = LoopData(*cols, unit=loop_unit, source=src)
         check_time(data)
     return data

@@ -1,20 +1,19 @@
 """Nonlinear least-squares fit of scene parameters to a measured response.
 
 The parameters are fitted as logarithms of their ratio to the initial value (positive by
-construction, comparable steps whatever the unit). Frequency-response residuals are the gain
-difference in dB and the wrapped phase difference in deg times 20/ln(10) * pi/180 dB/deg
-(about 0.152: one neper of log-magnitude weighs as one radian of phase, the real and
-imaginary parts of the complex logarithm), each weighted by sqrt(coherence). Time-trace
-residuals are the differences of current, motor angle and output angle, each divided by
-the RMS of its measurement.
+construction, comparable steps whatever the unit), or, for one the scene accepts with either
+sign (a constant force), as its change over its initial magnitude (:class:`.bounds.Coordinates`).
+What is compared, and how residuals are weighted, is :mod:`.residuals`: a frequency response
+(gain and phase), time traces of the voltage-driven plant, or closed-loop time traces of the
+nonlinear model (friction, backlash, efficiency, a constant load, the drive's limits).
 
 The search is global over each parameter's physical range (:mod:`.bounds`, :mod:`.search`):
 a start derived from the data's own features, scattered starts, local refinement. The
 verdict compares the residual with the noise floor the data show (:mod:`.verdict`).
 
 The 95 % intervals come from the Jacobian at the solution: cov = s^2 (J^T J)^-1 in the
-log-parameter space with s^2 the residual variance, a Student t quantile for the degrees of
-freedom, mapped back to values (so the intervals are not symmetric).
+search's coordinates with s^2 the residual variance, a Student t quantile for the degrees of
+freedom, mapped back to values (so the intervals of a logarithm are not symmetric).
 """
 
 from __future__ import annotations
@@ -24,18 +23,18 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..errors import SceneError
-from .data import FrequencyData, TimeData, read_data
-from .model import RESPONSES, frequency_model, time_response
-from .bounds import physical_range
-from .features import feature_mismatch, response_features
+from ..errors import SceneError, SimulationError
+from . import residuals as compare
+from .bounds import Coordinates, physical_range
+from .data import FrequencyData, LoopData, TimeData, read_data
+from .model import RESPONSES
 from .params import SceneTemplate
+from .residuals import PHASE_DB_PER_DEG, wrap_deg
 from .result import FitResult
 from .search import global_least_squares
-from .verdict import MISS_FLOORS, bands, judge, scatter_sd
+from .verdict import MISS_FLOORS, bands, judge
 
-#: dB of log-magnitude per degree of phase with the weight of the complex logarithm
-PHASE_DB_PER_DEG = 20 / math.log(10) * math.pi / 180
+__all__ = ["PHASE_DB_PER_DEG", "fit", "wrap_deg"]
 #: fitted values stay within this factor of the initial ones
 MAX_FACTOR = 100.0
 #: relative half-width of the 95 % interval above which a parameter is called unidentified
@@ -46,58 +45,13 @@ STOP_RATIO = 1.2
 MAX_CORRELATION = 0.99
 
 
-def wrap_deg(x):
-    """Angles wrapped to [-180, 180) deg."""
-    return (np.asarray(x) + 180.0) % 360.0 - 180.0
-
-
-def _frequency_parts(data: FrequencyData):
-    """``h -> residual vector`` of a model response against the data, and the noise floor of
-    that vector (None with too few points)."""
-    w = np.sqrt(data.coherence)
-
-    def residuals_of(h):
-        gain = 20 * np.log10(np.abs(h)) - data.gain_db
-        phase = wrap_deg(np.degrees(np.angle(h)) - data.phase_deg)
-        return np.concatenate([w * gain, w * PHASE_DB_PER_DEG * phase])
-    sg = scatter_sd(data.gain_db)
-    sp = scatter_sd(np.degrees(np.unwrap(np.radians(data.phase_deg))))
-    floor = None if sg is None else math.sqrt(float(np.mean(w ** 2)) * (sg ** 2 + (PHASE_DB_PER_DEG * sp) ** 2) / 2)
-    return residuals_of, floor
-
-
-def _time_parts(data: TimeData):
-    """``scene -> residual vector`` of the simulated traces against the measured ones, and
-    the noise floor of that vector."""
-    measured = (data.current_A, data.motor_angle_rad - data.motor_angle_rad[0],
-                data.output_angle_rad - data.output_angle_rad[0])
-    scales = []
-    for name, m in zip(("current_A", "motor_angle_rad", "output_angle_rad"), measured):
-        rms = float(np.sqrt(np.mean((m - m.mean()) ** 2)))
-        if not rms > 0:
-            raise SceneError(name, "is constant in the time traces; nothing to fit it to", data.source)
-        scales.append(rms)
-
-    def residuals(scene):
-        model = time_response(scene, data.time_s, data.voltage_V)
-        return np.concatenate([(y - m) / s for y, m, s in zip(model, measured, scales)])
-    sds = [scatter_sd(m) for m in measured]
-    floor = None if sds[0] is None else math.sqrt(float(np.mean([(sd / s) ** 2 for sd, s in zip(sds, scales)])))
-    return residuals, floor
-
-
-def _misses(kind, data, resid, floor) -> tuple:
+def _misses(comparison, resid, floor) -> tuple:
     """Where the model misses the data most: frequency bands or time windows (text)."""
     if floor is None:
         return ()
-    if kind == "time":
-        per = np.sqrt(np.mean(resid.reshape(3, -1) ** 2, axis=0))
-        x, unit = data.time_s - data.time_s[0], "s"
-    else:
-        per = np.sqrt(np.mean(resid.reshape(2, -1) ** 2, axis=0))
-        x, unit = data.frequency_hz, "Hz"
+    per = np.sqrt(np.mean(resid.reshape(comparison.blocks, -1) ** 2, axis=0))
     miss = np.where(per > MISS_FLOORS * floor, per, 0.0)
-    return tuple(bands(x, miss, unit))
+    return tuple(bands(comparison.axis, miss, comparison.unit))
 
 
 def _intervals(jac, resid, dof):
@@ -148,17 +102,20 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     ----------
     scene : Scene
         Initial scene, loaded from a file (:func:`servo_toolkit.load_scene`).
-    data : FrequencyData, TimeData, str or path-like
+    data : FrequencyData, TimeData, LoopData, str or path-like
         The measurement, or a CSV file of it (see :func:`servo_toolkit.identify.read_data`).
     response : {"plant", "closed_loop"}, optional
         What a frequency response measured: ``plant`` motor current -> motor speed,
         ``closed_loop`` position command -> output position with the scene's designed
-        controller. Default ``plant``. Time traces always fit the voltage-driven plant.
+        controller. Default ``plant``. Time traces say what they measured by their columns
+        (the voltage-driven plant, or the closed loop).
     params : sequence of str
         Scene key paths to fit, e.g. ``["load.inertia", "drivetrain[3].stiffness"]``; each
-        a positive scalar quantity of the scene.
+        a positive scalar quantity of the scene, or a nonzero one it accepts with either
+        sign (``load.hinge_moment``).
     controller : CascadeController, optional
-        Controller of the ``closed_loop`` response; default: designed on ``scene`` once.
+        Controller of a ``closed_loop`` response or of closed-loop traces (the rig's);
+        default: designed on ``scene`` once and held fixed.
     starts : int, optional
         Scattered starts of the multi-start search (default 16 per parameter; 0: the
         data-derived start and the scene's values only).
@@ -175,13 +132,13 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         Bad data, an unknown key, a key that is not a positive scalar, or fewer points than
         parameters + 2.
     """
-    if not isinstance(data, (FrequencyData, TimeData)):
+    if not isinstance(data, (FrequencyData, TimeData, LoopData)):
         data = read_data(data)
-    if isinstance(data, TimeData):
+    if isinstance(data, (TimeData, LoopData)):
         if response not in (None, "plant"):
-            raise SceneError("--response", "time traces fit the voltage-driven plant; "
+            raise SceneError("--response", "time traces say what they measured by their columns; "
                              f"{response!r} needs a frequency response")
-        kind = "time"
+        kind = data.kind
     else:
         kind = response or "plant"
         if kind not in RESPONSES:
@@ -194,65 +151,53 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     if data.points < npar + 2:
         raise SceneError("(data)", f"{data.points} points for {npar} parameters; need at least {npar + 2}",
                          data.source)
-    x0 = np.asarray(template.initial, float)
+    coords = Coordinates(template.parameters)
+    x0 = coords.initial
     lower, upper = physical_range(template.parameters)
-    model = None
-    features = None
+    if kind in ("closed_loop", "loop") and controller is None:
+        from ..loop.design import design
+        controller = design(template.base, progress=False).controller
     if kind == "time":
-        residuals_of, floor = _time_parts(data)
+        comparison = compare.voltage_traces(data)
+    elif kind == "loop":
+        comparison = compare.loop_traces(data, template.base, controller)
     else:
-        if kind == "closed_loop" and controller is None:
-            from ..loop.design import design
-            controller = design(template.base, progress=False).controller
-        model = frequency_model(template.base, kind, controller)
-        compare, floor = _frequency_parts(data)
-
-        def residuals_of(scene_z):
-            return compare(model(scene_z, data.frequency_hz))
-        if kind == "plant":
-            features = response_features(data.frequency_hz, data.complex)
-
-    r0 = residuals_of(template.base)
+        comparison = compare.frequency(data, kind, template.base, controller)
+    floor = comparison.floor
+    initial_model, r0, m0 = comparison.evaluate(template.base)
     penalty = np.full(r0.size, 1e3 * max(1.0, float(np.sqrt(np.mean(r0 ** 2)))))
-
-    def residuals(z):
-        try:
-            scene_z = template.scene(x0 * np.exp(z))
-        except SceneError:  # a value the scene refuses (e.g. an efficiency above 1): step back
-            return penalty
-        return residuals_of(scene_z)
+    no_features = None if m0 is None else np.full(m0.size, 1e3)
 
     def probe(z):
-        """Residuals and, for a current -> speed response, the mismatch of its features."""
-        if features is None:
-            return residuals(z), None
+        """Residuals and the mismatch of the data's features at coordinates z."""
         try:
-            scene_z = template.scene(x0 * np.exp(z))
-        except SceneError:
-            return penalty, np.full(3, 1e3)
-        h = model(scene_z, data.frequency_hz)
-        return compare(h), feature_mismatch(response_features(data.frequency_hz, h), features)
+            return comparison.evaluate(template.scene(coords.values(z)))[1:]
+        except (SceneError, SimulationError):  # a value the scene refuses, a run that fails: step back
+            return penalty, no_features
 
-    zlo, zhi = np.log(lower / x0), np.log(upper / x0)
+    def residuals(z):
+        return probe(z)[0]
+
     # a residual within STOP_RATIO of the noise floor: no other start can do better in earnest
     enough = 0.0 if floor is None else 0.5 * r0.size * (STOP_RATIO * floor) ** 2
-    sol = global_least_squares(residuals, zlo, zhi, np.zeros(npar), probe=probe, starts=starts, enough=enough,
+    sol = global_least_squares(residuals, coords.lower, coords.upper, np.zeros(npar),
+                               probe=probe if m0 is not None else None, starts=starts, enough=enough,
                                progress=progress)
     m = sol.fun.size
     dof = max(m - npar, 1)
     norms = np.linalg.norm(sol.jac, axis=0)
     # a parameter without influence keeps the scene's value (the search moved it for nothing)
     z = np.where(norms > 1e-9 * max(float(norms.max()), 1e-300), sol.z, 0.0)
-    values = x0 * np.exp(z)
+    values = coords.values(z)
     at_limit = _at_scene_limit(template, values)
     jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
     half, corr, singular = _intervals(jac, sol.fun, dof)
-    with np.errstate(over="ignore"):  # two parameters in series: a half-width of hundreds of nepers
-        ci = np.column_stack([values * np.exp(-half), values * np.exp(half)])
+    ci = coords.intervals(values, half)
     ci[singular] = [0.0, math.inf]
+    wide = coords.relative_half(values, half) > MAX_RELATIVE_INTERVAL
     keys = [p.key for p in template.parameters]
     residual_rms = float(np.sqrt(np.mean(sol.fun ** 2)))
-    unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or half[j] > math.asinh(MAX_RELATIVE_INTERVAL))]
+    unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or wide[j])]
     inseparable = [(a, b) for a in range(npar) for b in range(a + 1, npar) if abs(corr[a, b]) > MAX_CORRELATION]
     verdict = judge(residual_rms, floor, dof, m, not unidentified and not inseparable)
     judged = verdict != "model mismatch"  # at a mismatch the intervals mean nothing
@@ -264,10 +209,10 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         elif singular[j] and (judged or not np.any(jac[:, j])):
             warnings.append(f"{key}: the data cannot identify it (no independent influence on the response); "
                             "kept near its initial value")
-        elif judged and half[j] > math.asinh(MAX_RELATIVE_INTERVAL):  # sinh(half) overflows for a wide one
+        elif judged and wide[j]:
             warnings.append(f"{key}: the data cannot identify it (95 % interval wider than "
                             f"+-{100 * MAX_RELATIVE_INTERVAL:.0f} % of the value)")
-        if z[j] <= zlo[j] + 1e-3 or z[j] >= zhi[j] - 1e-3:
+        if z[j] <= coords.lower[j] + 1e-3 or z[j] >= coords.upper[j] - 1e-3:
             warnings.append(f"{key}: ended at the bound of its physical range [{lower[j]:.4g}, {upper[j]:.4g}] "
                             f"{template.parameters[j].unit}")
     if judged:
@@ -276,20 +221,16 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
                             "only a combination of them")
     try:
         fitted_scene = template.scene(values)
+        fitted_model = comparison.evaluate(fitted_scene)[0]
     except SceneError as exc:
         raise SceneError(exc.key, f"the fit ended on a value the scene refuses ({exc.rule})") from None
-    if kind == "time":
-        initial_model = time_response(template.base, data.time_s, data.voltage_V)
-        fitted_model = time_response(fitted_scene, data.time_s, data.voltage_V)
-        residual_db_rms, residual_phase_deg_rms = None, None
-    else:
-        initial_model = model(template.base, data.frequency_hz)
-        fitted_model = model(fitted_scene, data.frequency_hz)
+    residual_db_rms, residual_phase_deg_rms = None, None
+    if isinstance(data, FrequencyData):
         gain = 20 * np.log10(np.abs(fitted_model)) - data.gain_db
         phase = wrap_deg(np.degrees(np.angle(fitted_model)) - data.phase_deg)
         residual_db_rms = float(np.sqrt(np.mean(gain ** 2)))
         residual_phase_deg_rms = float(np.sqrt(np.mean(phase ** 2)))
-    misses = _misses(kind, data, sol.fun, floor) if verdict == "model mismatch" else ()
+    misses = _misses(comparison, sol.fun, floor) if verdict == "model mismatch" else ()
     return FitResult(scene=template.base.name, source=template.source, response=kind, keys=tuple(keys),
                      units=tuple(p.unit for p in template.parameters), initial=x0, values=values, ci95=ci,
                      correlation=corr, residual_db_rms=residual_db_rms,

@@ -37,6 +37,9 @@ class Parameter:
         Value in the scene (SI).
     written : object
         The value as the file writes it (None when the loader's default applies).
+    signed : bool
+        The scene accepts any sign (a constant force or moment): fitted as a value, not as a
+        logarithm.
     """
 
     key: str
@@ -45,6 +48,7 @@ class Parameter:
     unit: str
     initial: float
     written: object = None
+    signed: bool = False
 
 
 def _split(key: str) -> tuple[str, str]:
@@ -75,7 +79,8 @@ class SceneTemplate:
     scene : Scene
         A scene loaded from a file (its ``source``).
     keys : sequence of str
-        Key paths to free; each must be a positive scalar quantity the loader reads.
+        Key paths to free; each must be a positive scalar quantity the loader reads, or a
+        nonzero one that it accepts with either sign (``load.hinge_moment``).
 
     Raises
     ------
@@ -114,9 +119,13 @@ class SceneTemplate:
             table = _table(self.data, read.table)
             written = table.get(read.key) if table is not None else None
             value = self._value(key, read)
-            if not (value > 0 and value < float("inf")):
+            signed = read.rule == "finite"
+            if signed and not (value != 0 and abs(value) < float("inf")):
+                raise SceneError(key, f"must be a nonzero finite scalar to be fitted: its magnitude sets the "
+                                 f"search's scale (is {value:g} {read.unit})")
+            if not signed and not (value > 0 and value < float("inf")):
                 raise SceneError(key, f"must be a positive finite scalar to be fitted (is {value:g} {read.unit})")
-            params.append(Parameter(key, read.table, read.key, read.unit, value, written))
+            params.append(Parameter(key, read.table, read.key, read.unit, value, written, signed))
         self.parameters = tuple(params)
 
     def _value(self, key, read) -> float:

@@ -11,7 +11,8 @@ import numpy as np
 from .data import FrequencyData
 
 _RESPONSE_LABEL = {"plant": "motor current -> motor speed", "closed_loop": "position command -> output position",
-                   "time": "time traces of the voltage-driven plant"}
+                   "time": "time traces of the voltage-driven plant",
+                   "loop": "closed-loop time traces of the nonlinear model"}
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -24,7 +25,7 @@ class FitResult:
         Scene name.
     source : str
         Scene file.
-    response : {"plant", "closed_loop", "time"}
+    response : {"plant", "closed_loop", "time", "loop"}
     keys, units : tuple of str
         Scene key paths and their SI units.
     initial, values : numpy.ndarray
@@ -40,10 +41,10 @@ class FitResult:
         RMS of the weighted residual vector after and before the fit.
     warnings : tuple of str
         Parameters the data cannot identify, or cannot separate.
-    data : FrequencyData or TimeData
+    data : FrequencyData, TimeData or LoopData
     initial_model, fitted_model : numpy.ndarray or tuple
-        Model response (complex) or traces (current, motor angle, output angle) of the
-        initial and the fitted scene.
+        Model response (complex) or traces (current, motor angle, output angle; or output
+        and current of a closed-loop log) of the initial and the fitted scene.
     calibrated : Scene
         The scene with the fitted values.
     written : tuple
@@ -188,19 +189,23 @@ class FitResult:
             for a in axes:
                 a.grid(True, which="both", alpha=0.3)
             return axes
-        if axes is None:
-            _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 7))
         d = self.data
-        measured = (d.current_A, d.motor_angle_rad - d.motor_angle_rad[0],
-                    d.output_angle_rad - d.output_angle_rad[0])
-        for a, m, yi, yf, label in zip(axes, measured, self.initial_model, self.fitted_model,
-                                       ("current (A)", "motor angle (rad)", "output angle (rad)")):
+        if self.response == "loop":
+            measured = (d.output, d.current_A)
+            labels = (f"output ({d.unit})", "current (A)")
+        else:
+            measured = (d.current_A, d.motor_angle_rad - d.motor_angle_rad[0],
+                        d.output_angle_rad - d.output_angle_rad[0])
+            labels = ("current (A)", "motor angle (rad)", "output angle (rad)")
+        if axes is None:
+            _, axes = plt.subplots(len(measured), 1, sharex=True, figsize=(7, 2.4 * len(measured)))
+        for a, m, yi, yf, label in zip(axes, measured, self.initial_model, self.fitted_model, labels):
             a.plot(d.time_s, m, color="k", lw=1, label="measured")
             a.plot(d.time_s, yi, "--", label="initial")
             a.plot(d.time_s, yf, "-", label="fitted")
             a.set_ylabel(label)
             a.grid(True, alpha=0.3)
         axes[0].legend()
-        axes[0].set_title(f"{self.scene}: {_RESPONSE_LABEL['time']}")
+        axes[0].set_title(f"{self.scene}: {_RESPONSE_LABEL[self.response]}")
         axes[-1].set_xlabel("time (s)")
         return axes

@@ -36,6 +36,8 @@ REFINED = 2
 MAX_NFEV_PER_PARAMETER = 50
 #: starts closer than this (in every log-parameter) are refined once
 SAME_START = 0.05
+#: most evaluations of the fit of the features, per parameter and one: a start, not a result
+FEATURE_NFEV_PER_PARAMETER = 5
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,7 @@ def global_least_squares(residuals, lower, upper, initial, *, probe=None, starts
             def features(z):
                 return probe(z)[1]
             sol = optimize.least_squares(features, best, bounds=(lower, upper), diff_step=1e-3,
-                                         max_nfev=10 * (npar + 1), method="trf")
+                                         max_nfev=FEATURE_NFEV_PER_PARAMETER * (npar + 1), method="trf")
             nfev += sol.nfev + sol.njev * npar
             feature_start = np.clip(sol.x, lower, upper)
         bar.update()

@@ -5,6 +5,13 @@ point while a response (or a trace) is smooth, so the third differences of neigh
 points are noise (their variance 20 sigma^2 for white noise) plus a small smooth part. The
 largest tenth is left out (a sharp resonance, a phase wrap), the rest gives sigma.
 
+A frequency response estimated from a time log (``frf``) carries its coherence: where it
+is below 1 the estimate is uncertain even if it looks smooth (random error of the averaged
+spectra, and the window's leakage around a sharp resonance, which lowers the coherence as
+well). Its variance in the complex logarithm (nepers, or radians of phase) is
+``(1 - coh) / (2 n coh)`` for ``n`` averages (Bendat and Piersol): :func:`coherence_variance`,
+added to the point-to-point floor.
+
 ``fits to the noise``
     The residual is at most :data:`MISMATCH_RATIO` times the floor.
 ``model mismatch``
@@ -35,6 +42,8 @@ MIN_POINTS = 12
 TRIM = 0.1
 #: RMS of a unit normal variable over its (1 - TRIM) smallest magnitudes
 _TRIMMED_RMS = 0.7897
+#: averages assumed behind a coherence column (``frf``'s default segment gives at least 8)
+COHERENCE_AVERAGES = 8
 VERDICTS = ("fits to the noise", "model mismatch", "not identifiable", "noise floor unknown")
 
 
@@ -47,6 +56,14 @@ def scatter_sd(values) -> float | None:
     d3 = np.abs(np.diff(v, 3))
     keep = np.sort(d3)[: max(1, int(math.ceil((1 - TRIM) * d3.size)))]
     return float(np.sqrt(np.mean(keep ** 2)) / _TRIMMED_RMS / math.sqrt(20))
+
+
+def coherence_variance(coherence, averages: int = COHERENCE_AVERAGES) -> np.ndarray:
+    """Variance of the log-magnitude (nepers^2) and of the phase (rad^2) of an H1 estimate
+    at each coherence ``coh``, times ``coh`` (the weight of its residual squared): ``(1 - coh)
+    / (2 averages)``, finite at zero coherence."""
+    c = np.clip(np.asarray(coherence, float), 0.0, 1.0)
+    return (1.0 - c) / (2.0 * averages)
 
 
 def bands(x, miss, unit: str, limit: int = 3) -> list[str]:

@@ -1,0 +1,130 @@
+"""What a fit compares: the residual vector of a scene against the data, the features the
+search starts from, and the noise floor of that vector.
+
+Frequency responses
+    Gain difference in dB and wrapped phase difference in deg times
+    :data:`PHASE_DB_PER_DEG` (one neper weighs as one radian), each weighted by
+    sqrt(coherence); features of a current -> speed response (:mod:`.features`).
+Voltage-driven time traces
+    Current, motor angle and output angle, each divided by the RMS of its measurement;
+    features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
+Closed-loop time traces
+    Output position and motor current of the nonlinear closed loop (:mod:`.loop_model`),
+    each divided by its own noise (the scatter of its measurement), so the floor is 1 and
+    the intervals weigh each channel by its noise; features: the inverse-dynamics
+    regression of the current.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..errors import SceneError
+from .data import FrequencyData, LoopData
+from .features import feature_mismatch, response_features
+from .loop_model import LoopRun
+from .model import frequency_model, time_response
+from .trace_features import LoopScales, loop_features, step_features, step_mismatch
+from .verdict import coherence_variance, scatter_sd
+
+#: dB of log-magnitude per degree of phase with the weight of the complex logarithm
+PHASE_DB_PER_DEG = 20 / math.log(10) * math.pi / 180
+
+
+def wrap_deg(x):
+    """Angles wrapped to [-180, 180) deg."""
+    return (np.asarray(x) + 180.0) % 360.0 - 180.0
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A scene against one data set.
+
+    Attributes
+    ----------
+    evaluate : callable
+        ``scene -> (model, residual vector, feature mismatch or None)``; one model run.
+    floor : float or None
+        RMS of the residual vector that the data's own noise leaves (None: too few points).
+    blocks : int
+        Residual blocks (channels) along ``axis``.
+    axis : numpy.ndarray
+        Frequencies (Hz) or times from the start (s) of the points.
+    unit : str
+        ``"Hz"`` or ``"s"``.
+    """
+
+    evaluate: Callable
+    floor: float | None
+    blocks: int
+    axis: np.ndarray
+    unit: str
+
+
+def frequency(data: FrequencyData, kind: str, base, controller=None) -> Comparison:
+    """A frequency response (``kind`` ``plant`` or ``closed_loop``)."""
+    w = np.sqrt(data.coherence)
+    model = frequency_model(base, kind, controller)
+    features = response_features(data.frequency_hz, data.complex) if kind == "plant" else None
+
+    def evaluate(scene):
+        h = model(scene, data.frequency_hz)
+        gain = 20 * np.log10(np.abs(h)) - data.gain_db
+        phase = wrap_deg(np.degrees(np.angle(h)) - data.phase_deg)
+        r = np.concatenate([w * gain, w * PHASE_DB_PER_DEG * phase])
+        m = None if features is None else feature_mismatch(response_features(data.frequency_hz, h), features)
+        return h, r, m
+    sg = scatter_sd(data.gain_db)
+    sp = scatter_sd(np.degrees(np.unwrap(np.radians(data.phase_deg))))
+    # the coherence's own uncertainty (gain and phase alike: one neper is one radian, 20/ln 10 dB)
+    coh = (20 / math.log(10)) ** 2 * float(np.mean(coherence_variance(data.coherence)))
+    floor = None if sg is None else math.sqrt(float(np.mean(w ** 2)) * (sg ** 2 + (PHASE_DB_PER_DEG * sp) ** 2) / 2
+                                              + coh)
+    return Comparison(evaluate, floor, 2, data.frequency_hz, "Hz")
+
+
+def voltage_traces(data) -> Comparison:
+    """Time traces of the voltage-driven linear plant."""
+    measured = (data.current_A, data.motor_angle_rad - data.motor_angle_rad[0],
+                data.output_angle_rad - data.output_angle_rad[0])
+    scales = []
+    for name, m in zip(("current_A", "motor_angle_rad", "output_angle_rad"), measured):
+        rms = float(np.sqrt(np.mean((m - m.mean()) ** 2)))
+        if not rms > 0:
+            raise SceneError(name, "is constant in the time traces; nothing to fit it to", data.source)
+        scales.append(rms)
+    features = step_features(data.time_s, data.voltage_V, measured[1])
+
+    def evaluate(scene):
+        model = time_response(scene, data.time_s, data.voltage_V)
+        r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, scales)])
+        return model, r, step_mismatch(step_features(data.time_s, data.voltage_V, model[1]), features)
+    sds = [scatter_sd(m) for m in measured]
+    floor = None if sds[0] is None else math.sqrt(float(np.mean([(sd / s) ** 2 for sd, s in zip(sds, scales)])))
+    return Comparison(evaluate, floor, 3, data.time_s - data.time_s[0], "s")
+
+
+def loop_traces(data: LoopData, base, controller) -> Comparison:
+    """Closed-loop time traces of the nonlinear model (``controller`` held fixed)."""
+    loop = LoopRun.for_log(base, controller, data)
+    measured = (data.output, data.current_A)
+    noise = []
+    for name, m in zip(("output", "current_A"), measured):
+        rms = float(np.sqrt(np.mean((m - m.mean()) ** 2)))
+        if not rms > 0:
+            raise SceneError(name, "is constant in the time traces; nothing to fit it to", data.source)
+        sd = scatter_sd(m)
+        noise.append(max(sd if sd is not None else rms, 1e-9 * rms))
+    scales = LoopScales(data.time_s, data.output, data.current_A)
+    features = loop_features(data.time_s, data.output, data.current_A)
+
+    def evaluate(scene):
+        model = loop.traces(scene)
+        r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, noise)])
+        return model, r, scales.mismatch(loop_features(data.time_s, *model), features)
+    floor = None if scatter_sd(data.output) is None else 1.0
+    return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s")
