@@ -22,6 +22,7 @@ from servo_toolkit.sim.friction_kernel import slip_friction, stuck_or_breaking
 from .conftest import SCENES
 
 KT, R = 0.2, 0.5
+STICK = ModelOptions(friction="stick")
 
 
 def geared(tc=0.02, ts=None, vs=0.0, stages=None, load=None):
@@ -44,7 +45,7 @@ def test_a_motor_below_breakaway_stands_still_exactly(chain):
               "full": (GearTrain("gear", ratio=10.0, inertias=(1e-5, 1e-3), torsional_stiffness=5e3),
                        Compliance("shaft", 2e3))}[chain]
     sc = geared(tc=tc, ts=ts, stages=stages)
-    model = build_model(sc, None, ModelOptions(chain="full" if chain == "full" else "two_mass"))
+    model = build_model(sc, None, ModelOptions(chain="full" if chain == "full" else "two_mass", friction="stick"))
     assert model.rigid == (chain == "rigid") and (model.P[lo.NMID] > 0) == (chain == "full")
     still = run(model, Reference.voltage(0.99 * R * ts / KT), 0.3, method="rk4", dt=1e-5)
     assert np.all(still.states[:, 1] == 0.0) and np.all(still.states[:, 0] == still.states[0, 0])
@@ -57,7 +58,7 @@ def test_sliding_speed_is_the_dc_motor_closed_form():
     (the Stribeck drop decayed: w >> w_st)."""
     tc, ts, b = 0.02, 0.05, 1e-4
     sc = geared(tc=tc, ts=ts, vs=0.5)
-    model = build_model(sc, None)
+    model = build_model(sc, None, STICK)
     v = 6.0
     res = run(model, Reference.voltage(v), 0.5, method="rk4", dt=1e-4)  # 50 time constants
     w = (KT * v - R * tc) / (KT * KT + R * b)
@@ -68,7 +69,7 @@ def test_smooth_friction_creeps_where_stick_holds():
     """The smooth model (no stick) creeps below breakaway: what the stick model fixes."""
     sc = geared(tc=0.02)
     volts = 0.9 * R * 0.02 / KT
-    held = run(build_model(sc, None), Reference.voltage(volts), 0.5, method="rk4", dt=1e-5)
+    held = run(build_model(sc, None, STICK), Reference.voltage(volts), 0.5, method="rk4", dt=1e-5)
     creep = run(build_model(sc, None, ModelOptions(friction="smooth")), Reference.voltage(volts), 0.5,
                 method="rk4", dt=1e-5)
     assert held.motor_speed[-1] == 0.0 and creep.motor_speed[-1] > 0.01
@@ -98,7 +99,7 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring():
                     viscous_friction=0.0, coulomb_friction=0.0, voltage_limit=100.0, current_limit=50.0)
     sc = Scene("stick-slip", motor=motor, stages=(Compliance("spring", k),),
                load=Load(inertia=m, coulomb_friction=tc, static_friction=ts))
-    model = build_model(sc, None, ModelOptions(damping_ratio=0.0, backlash=False))
+    model = build_model(sc, None, ModelOptions(damping_ratio=0.0, backlash=False, friction="stick"))
     assert not model.rigid
     x0 = np.zeros(model.nx)
     x0[0] = x0[2] = model.q0
@@ -142,11 +143,11 @@ def test_friction_never_supplies_power(v, tc, extra, vs, applied):
 
 
 def test_the_reference_ema_holds_its_position_exactly_at_rest():
-    """The shipped EMA, open loop with no voltage and its hinge moment off: nothing moves (the
-    old smooth friction let the rotor creep under any torque)."""
+    """The shipped EMA, open loop below breakaway and its hinge moment off: nothing moves (the
+    smooth friction lets the rotor creep under any torque)."""
     ema = load_scene(SCENES / "ema_reference.toml")
     sc = replace(ema, load=replace(ema.load, hinge_moment=0.0, hinge_stiffness=0.0))
-    model = build_model(sc, None, ModelOptions(inductance=False))
+    model = build_model(sc, None, ModelOptions(inductance=False, friction="stick"))
     res = run(model, Reference.voltage(0.9 * sc.motor.resistance * sc.motor.breakaway_torque
                                        / sc.motor.torque_constant), 0.2, method="rk4", dt=1e-4)
     assert np.all(res.motor_speed == 0.0)

@@ -94,11 +94,13 @@ class ModelOptions:
     play : float or None
         Total lost motion at the output (rad) replacing the scene's value (None: the scene's
         lost motion at q0).
-    friction : {"stick", "smooth", "off"}
-        The motor's and the load's Coulomb and static friction: exact stick at zero speed
-        with the Stribeck law while sliding (:mod:`servo_toolkit.sim.friction_kernel`); the
-        motor's Coulomb friction alone as ``Tc tanh(w / friction_speed)`` (no stick: a
-        motor below breakaway creeps); or left out (viscous friction stays).
+    friction : {"smooth", "stick", "off"}
+        The motor's and the load's Coulomb and static friction: ``"stick"``, exact stick at
+        zero speed with the Stribeck law while sliding
+        (:mod:`servo_toolkit.sim.friction_kernel`); ``"smooth"`` (the default), the motor's
+        Coulomb friction alone as ``Tc tanh(w / friction_speed)`` (no stick: a motor below
+        breakaway creeps, the load's friction and static levels are left out and the notes
+        say so); ``"off"``, left out (viscous friction stays).
     chain : {"auto", "full", "two_mass"}
         The drivetrain's compliances: every one of them (the full chain, every mode), its
         two-mass reduction (the lowest mode), or the full chain only where its second mode
@@ -138,7 +140,7 @@ class ModelOptions:
     estimator_jerk: float | None = None
     efficiency: bool = True
     chain: str = "auto"
-    friction: str = "stick"
+    friction: str = "smooth"
 
     def __post_init__(self):
         if self.friction not in FRICTION_CHOICES:
