@@ -19,6 +19,7 @@ from servo_toolkit.studies.kv import kv_study
 from servo_toolkit.studies.reduce import reduce
 from servo_toolkit.studies.stiffness import stiffness_study
 from servo_toolkit.studies.sweep import sweep
+from servo_toolkit.studies.gate import RequirementRow
 
 from .conftest import SCENES
 
@@ -69,7 +70,7 @@ def _results(ema, designed):
         "robustness": robustness(ema, designed, {"stiffness": (0.8, 1.2)}, samples=20, progress=False),
         "reduction": reduce(linear, progress=False),
         "report": Report("ema_reference", "test", (Section("Loop", status="pass", key="loop"),),
-                         (("bandwidth", ">= 8 Hz", "18 Hz", "0", "pass"),)),
+                         (RequirementRow("bandwidth", "closed-loop bandwidth", ">= 8 Hz", "18 Hz", "", "pass"),)),
     }
 
 
