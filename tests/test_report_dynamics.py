@@ -76,6 +76,13 @@ def test_stiffness_in_n_m_per_rad_and_inertia_in_kg_m2(ema):
     assert motor_j.min() == pytest.approx(min(j / n**2), rel=0.05)
 
 
+def test_one_label_style():
+    from servo_toolkit.display.units import inertia_unit, label, stiffness_unit
+    assert label("gain", "dB") == "gain [dB]" and label("damping ratio") == "damping ratio"
+    assert (stiffness_unit(), stiffness_unit(True)) == ("N*m/rad", "N/m")
+    assert (inertia_unit(), inertia_unit(True)) == ("kg*m^2", "kg")
+
+
 def test_scene_tables_of_dimensionless_values_have_no_unit():
     from servo_toolkit.components.compliance import Compliance
     from servo_toolkit.report.units_table import rows

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..display.units import label, stiffness_unit
 from . import figures
 from .section import FigureSpec, NotApplicable, Section, fmt, para, table
 
@@ -104,8 +105,8 @@ def dynamic_stiffness_at(scene, design, q, f) -> np.ndarray:
 
 def _show(drivetrain):
     if getattr(drivetrain, "output_is_linear", False):
-        return 1e3, "mm", "N", "N/m"
-    return 180 / math.pi, "deg", "N*m", "N*m/rad"
+        return 1e3, "mm", "N", stiffness_unit(True)
+    return 180 / math.pi, "deg", "N*m", stiffness_unit(False)
 
 
 def disturbance(ctx) -> Section:
@@ -121,7 +122,7 @@ def disturbance(ctx) -> Section:
     ax1.axhline(step.static * af, color="C1", lw=0.9, ls="--", label="static deflection (static gain)")
     ax1.plot(step.peak_time * 1e3, step.deflection[int(np.argmax(np.abs(step.deflection)))] * af, "C3o",
              label=f"peak {fmt(step.peak * af)} {au}")
-    ax1.set(xlabel="time [ms]", ylabel=f"output deflection [{au}]",
+    ax1.set(xlabel=label("time", "ms"), ylabel=label("output deflection", au),
             title=f"Step of {fmt(step.amplitude)} {load_unit} of external load at the output")
     ax1.grid(True, alpha=0.3)
     ax1.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))
@@ -137,7 +138,7 @@ def disturbance(ctx) -> Section:
         kmin = int(np.argmin(k))
         rows.append((f"{fmt(q * af, 4)}" + (" (q0)" if at_q0 else ""), fmt(k[0]), fmt(k[kmin]), fmt(f[kmin]),
                      fmt(k[-1] / (2 * math.pi * f[-1]) ** 2)))
-    ax2.set(xlabel="frequency [Hz]", ylabel=f"dynamic stiffness [{k_unit}]",
+    ax2.set(xlabel=label("frequency", "Hz"), ylabel=label("dynamic stiffness", k_unit),
             title="Dynamic stiffness along the stroke (controller designed at q0)")
     ax2.grid(True, which="both", alpha=0.3)
     ax2.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..display.units import label
 from . import figures
 from .section import FigureSpec, NotApplicable, Section, fmt, para, table
 
@@ -201,12 +202,12 @@ def _bode_figure(pairs):
             ax.grid(True, which="both", alpha=0.3)
         am.axhline(0, color="k", lw=0.7)
         ap.axhline(-180, color="k", lw=0.7)
-        am.set(ylabel="gain [dB]", title=f"{name} loop (Nyquist frequency dotted)")
-        ap.set(ylabel="phase [deg]", xlabel="frequency [Hz]")
+        am.set(ylabel=label("gain", "dB"), title=f"{name} loop (Nyquist frequency dotted)")
+        ap.set(ylabel=label("phase", "deg"), xlabel=label("frequency", "Hz"))
         am.legend(fontsize="x-small", loc="lower left")
-        for label, r in (("continuous", rs), ("sampled", rz)):
+        for kind, r in (("continuous", rs), ("sampled", rz)):
             fc, pm, gm = crossings(f, r)
-            rows.append((f"{name} loop, {label}", fmt(ts * 1e6), fmt(fc), fmt(pm), fmt(gm)))
+            rows.append((f"{name} loop, {kind}", fmt(ts * 1e6), fmt(fc), fmt(pm), fmt(gm)))
     return fig, rows
 
 
