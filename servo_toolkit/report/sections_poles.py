@@ -44,7 +44,7 @@ class PoleTable:
     zeros: np.ndarray
 
     @property
-    def slowest_damping(self) -> float:
+    def smallest_damping(self) -> float:
         """The smallest damping ratio of any pole (nan without poles)."""
         return float(np.min(self.damping)) if self.damping.size else math.nan
 
