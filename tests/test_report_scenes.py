@@ -120,7 +120,7 @@ def test_report_measures_what_the_reduction_costs(tmp_path):
 
 def test_linear_output_sections_use_travel_units():
     """A drivetrain ending in a roller screw has an output travel: the report speaks mm, kg,
-    rad/m and N/mm, over the scene's stroke, not degrees."""
+    rad/m and N/m, over the scene's stroke, not degrees."""
     from servo_toolkit.report.sections_drivetrain import ratio_and_inertia
 
     scene = load_scene(SCENES / "linear_roller_screw_actuator.toml")
@@ -168,4 +168,5 @@ def test_a_travel_output_is_reported_in_mm_and_kg():
         # a 0.5 mm step and a 1 mm sine of a 17 Hz loop: a rise of tens of ms, the 8 Hz gain near 0 dB
         assert 1.0 < float(rise_ms) < 100.0 and abs(float(gain_db)) < 3.0
     plant = run_section("plant", "plant", plant_bode, ctx)
-    assert "<td>kg</td>" in plant.html and "kg*m^2" not in plant.html and "N/mm" in plant.html
+    # one stiffness unit with `design`: N/m for an output travel
+    assert "<td>kg</td>" in plant.html and "kg*m^2" not in plant.html and "<td>N/m</td>" in plant.html

@@ -13,8 +13,18 @@ def esc(value) -> str:
     return html.escape(str(value), quote=True)
 
 
+#: a magnitude in [ENG_LOW, ENG_HIGH) is written plainly; others in engineering notation
+ENG_LOW, ENG_HIGH = 1e-3, 1e4
+
+
 def fmt(value, digits: int = 4) -> str:
-    """A number for a table: ``digits`` significant digits, inf/nan spelled out."""
+    """A number for a table: ``digits`` significant digits, inf/nan spelled out.
+
+    Magnitudes from :data:`ENG_LOW` up to :data:`ENG_HIGH` are written plainly (``0.1403``,
+    ``1697``); smaller and larger ones in engineering notation, a mantissa from 1 to 999
+    and an exponent that is a multiple of 3 (``804.5e3``, ``1.147e6``, ``12.5e-6``), so the
+    numbers of one column read alike. Integers are written whole.
+    """
     if isinstance(value, bool):
         return "yes" if value else "no"
     if isinstance(value, (int,)) and not isinstance(value, bool):
@@ -27,7 +37,29 @@ def fmt(value, digits: int = 4) -> str:
         return "n/a"
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
-    return f"{x:.{digits}g}"
+    digits = max(1, int(digits))
+    rounded = float(f"{x:.{digits}g}")
+    if rounded == 0:
+        return "0"
+    if ENG_LOW <= abs(rounded) < ENG_HIGH:
+        return f"{rounded:.0f}" if abs(rounded) >= 10 ** digits else f"{x:.{digits}g}"
+    return engineering(x, digits)
+
+
+def engineering(x: float, digits: int = 4) -> str:
+    """``x`` in engineering notation with ``digits`` significant digits (``"804.5e3"``)."""
+    rounded = float(f"{x:.{max(1, digits) - 1}e}")
+    if rounded == 0 or not math.isfinite(rounded):
+        return f"{x:.{digits}g}"
+    exp3 = 3 * math.floor(math.log10(abs(rounded)) / 3)
+    mant = rounded / 10.0 ** exp3
+    if abs(mant) >= 1000.0 - 1e-9:  # rounding carried into the next group
+        exp3, mant = exp3 + 3, mant / 1000.0
+    whole = len(str(int(abs(mant))))
+    text = f"{mant:.{max(0, digits - whole)}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return f"{text}e{exp3}"
 
 
 def table(header, rows, cls: str = "", table_id: str = "") -> str:

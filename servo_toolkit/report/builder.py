@@ -16,6 +16,8 @@ from . import sections_export as export_section
 from . import sections_loop as loop
 from . import sections_montecarlo as montecarlo
 from . import sections_closed as closed
+from . import sections_disturbance as disturbance
+from . import sections_poles as poles
 from . import sections_limits as limits
 from . import sections_robust as robust
 from . import sections_stroke as stroke
@@ -39,6 +41,8 @@ SECTIONS = (
     ("loop", "Loop Bode and Nyquist with margins", loop.loop_margins),
     ("stroke", "Margins along the stroke", stroke.margins_along_stroke),
     ("closed_loop", "Closed loop: sensitivity, Nichols, disturbance rejection, step", closed.closed_loop),
+    ("poles", "Closed-loop poles and the sampled loops", poles.poles_and_sampling),
+    ("disturbance", "Disturbance step and dynamic stiffness along the stroke", disturbance.disturbance),
     ("robustness", "Robustness over the parameter variants", robust.robustness),
     ("montecarlo", "Nonlinear Monte Carlo over the parameter variants", montecarlo.montecarlo_section),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import base64
 import io
-import math
 
 import numpy as np
 from matplotlib.figure import Figure
+
+from ..display.units import stiffness_unit
 
 DPI = 110
 
@@ -50,10 +51,10 @@ def shares_along_stroke(chain, q, ax, linear: bool = False) -> None:
 
 
 def stiffness_along_stroke(chain, q, ax, linear: bool = False) -> None:
-    """Each stage's stiffness at the output and the series total (N*m/deg, or N/mm for a
+    """Each stage's stiffness at the output and the series total (N*m/rad, or N/m for a
     linear output; log scale)."""
     x, xlabel = _x(q, linear)
-    scale, unit = (1e-3, "N/mm") if linear else (math.pi / 180, "N*m/deg")
+    scale, unit = 1.0, stiffness_unit(linear)
     for name, k in zip(chain.names, chain.stage_stiffness):
         ax.semilogy(x, k * scale, label=name)
     ax.semilogy(x, chain.total * scale, "k", lw=2.2, label="series total")
@@ -82,8 +83,8 @@ def ratio_inertia_along_stroke(drivetrain, q, axes) -> None:
     ax2.plot(deg, j, label="J(q) at the output")
     ax2.set_ylabel(f"{'mass' if linear else 'J'} at the output [{j_unit}]")
     ax2b = ax2.twinx()
-    ax2b.plot(deg, j / n**2 * 1e4, "C2--", label="J / N^2 at the motor")
-    ax2b.set_ylabel("J at the motor [kg*cm^2]", color="C2")
+    ax2b.plot(deg, j / n**2, "C2--", label="J / N^2 at the motor")
+    ax2b.set_ylabel("J at the motor [kg*m^2]", color="C2")
     ax2.set_title("Reflected inertia along the stroke")
     ax2.grid(True, alpha=0.3)
     for ax in axes:

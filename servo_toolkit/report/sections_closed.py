@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from . import figures
+from ..display.units import stiffness_unit
 from .section import FigureSpec, Section, fmt, para, table
 
 F_MIN, F_MAX = 0.1, 1000.0
@@ -31,8 +32,8 @@ def output_units(scene):
     factor, angle unit) for an output angle or an output travel."""
     linear = scene.drivetrain.output_unit == "m"
     if linear:
-        return "m", "N", 1e-3, "N/mm", 1e3, "mm"
-    return "rad", "N*m", math.pi / 180, "N*m/deg", 180 / math.pi, "deg"
+        return "m", "N", 1.0, stiffness_unit(True), 1e3, "mm"
+    return "rad", "N*m", 1.0, stiffness_unit(False), 180 / math.pi, "deg"
 
 
 def dynamic_stiffness(design, f):

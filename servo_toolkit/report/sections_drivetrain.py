@@ -8,6 +8,7 @@ import numpy as np
 
 from . import figures
 from .section import FigureSpec, Section, esc, fmt, para, table
+from ..display.units import DIMENSIONLESS, stiffness_unit
 from .units_table import LINEAR_LOAD, rows as unit_rows
 
 DEG = 180.0 / math.pi
@@ -57,8 +58,8 @@ def scene_summary(ctx) -> Section:
 def _output_units(drive):
     """(coordinate unit shown, factor SI -> shown, stiffness unit shown, factor) of the output."""
     if getattr(drive, "output_is_linear", False):
-        return "mm", 1e3, "N/mm", 1e-3
-    return "deg", DEG, "N*m/deg", 1.0 / DEG
+        return "mm", 1e3, stiffness_unit(True), 1.0
+    return "deg", DEG, stiffness_unit(False), 1.0
 
 
 def stiffness_chain(ctx) -> Section:
@@ -137,7 +138,7 @@ def ratio_and_inertia(ctx) -> Section:
     out, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
     rows = [
         (f"ratio N (motor rad per output {out})", fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()),
-         "rad/m" if linear else "-"),
+         "rad/m" if linear else DIMENSIONLESS),
         ("mass at the output" if linear else "inertia at the output J", fmt(j.min()), fmt(j.max()),
          fmt(j.max() / j.min()), j_unit),
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ..display.units import DIMENSIONLESS
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 from .plain_text import plain
@@ -143,8 +144,8 @@ def plant_bode(ctx) -> Section:
     rows = [("operating point q0", fmt(u.show(p.q0)), u.shown),
             ("motor-side inertia J1 (at the output)", fmt(p.J1), u.inertia),
             ("load-side inertia J2", fmt(p.J2), u.inertia),
-            ("series stiffness K", fmt(p.K / u.show(1.0)), f"{u.moment}/{u.shown}"),
-            ("ratio N", fmt(p.N), "-"), ("efficiency", fmt(p.eta), "-"),
+            ("series stiffness K", fmt(p.K), u.stiffness),
+            ("ratio N", fmt(p.N), DIMENSIONLESS), ("efficiency", fmt(p.eta), DIMENSIONLESS),
             ("resonance sqrt(K (1/J1 + 1/J2)) / 2 pi", fmt(p.resonance_hz), "Hz"),
             ("anti-resonance sqrt(K / J2) / 2 pi", fmt(p.antiresonance_hz), "Hz"),
             ("electrical time constant L/R", fmt(p.L / p.R * 1e3), "ms")]
@@ -160,8 +161,9 @@ def plant_bode(ctx) -> Section:
 _PARAMS = {"kp": ("position gain", "1/s"), "kv": ("speed gain", "A*s/OUT"), "wvi": ("speed PI corner", "rad/s"),
            "kc": ("controller gain", "A/OUT"), "wi": ("integral corner", "rad/s"), "wz": ("lead zero", "rad/s"),
            "wp": ("lead pole", "rad/s"), "wn": ("filter frequency", "rad/s"),
-           "zeta_zero": ("notch depth: damping of the zeros", "-"), "zeta_pole": ("notch width: damping of the poles", "-"),
-           "zeta": ("low-pass damping", "-")}
+           "zeta_zero": ("notch depth: damping of the zeros", DIMENSIONLESS),
+           "zeta_pole": ("notch width: damping of the poles", DIMENSIONLESS),
+           "zeta": ("low-pass damping", DIMENSIONLESS)}
 
 
 def _param_row(kind, name, value, out):
@@ -311,7 +313,7 @@ def loop_margins(ctx) -> Section:
     rows = [("gain margin (smallest)", fmt(m.gain_margin_db), "dB"),
             ("phase margin (smallest)", fmt(m.phase_margin_deg), "deg"),
             ("delay margin (smallest)", fmt(m.delay_margin_s * 1e3), "ms"),
-            ("disk margin alpha (balanced)", fmt(m.disk_margin), "-"),
+            ("disk margin alpha (balanced)", fmt(m.disk_margin), DIMENSIONLESS),
             ("disk gain / phase margin", f"{fmt(m.disk_gain_margin_db)} dB / {fmt(m.disk_phase_margin_deg)} deg", ""),
             ("sensitivity peak Ms", fmt(m.sensitivity_peak_db), "dB"),
             ("closed-loop bandwidth (-3 dB)", fmt(m.bandwidth_hz), "Hz"),

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from ..display.units import DIMENSIONLESS
+
 DEG = 180.0 / math.pi
 
 #: field name -> (display unit, factor from SI)
@@ -13,28 +15,28 @@ UNITS = {
     "back_emf_constant": ("V*s/rad", 1.0), "rotor_inertia": ("kg*m^2", 1.0),
     "viscous_friction": ("N*m*s/rad", 1.0), "coulomb_friction": ("N*m", 1.0),
     "voltage_limit": ("V", 1.0), "current_limit": ("A", 1.0),
-    "ratio": ("-", 1.0), "teeth": ("-", 1.0), "inertias": ("kg*m^2", 1.0), "efficiency": ("-", 1.0),
+    "ratio": (DIMENSIONLESS, 1.0), "teeth": (DIMENSIONLESS, 1.0), "inertias": ("kg*m^2", 1.0), "efficiency": (DIMENSIONLESS, 1.0),
     "torsional_stiffness": ("N*m/rad", 1.0), "lead": ("mm", 1e3), "screw_inertia": ("kg*m^2", 1.0),
     "nut_mass": ("kg", 1.0), "axial_stiffness": ("N/m", 1.0), "arm_length": ("mm", 1e3),
     "rod_length": ("mm", 1e3), "rod_offset": ("mm", 1e3), "rod_mass": ("kg", 1.0),
     "output_shaft_mass": ("kg", 1.0), "output_shaft_inertia": ("kg*m^2", 1.0),
     "rod_axial_stiffness": ("N/m", 1.0), "stroke_range": ("deg", DEG), "stroke": ("deg", DEG),
-    "stiffness": ("N*m/deg", 1.0 / DEG), "inertia": ("kg*m^2", 1.0), "hinge_moment": ("N*m", 1.0),
+    "stiffness": ("N*m/rad", 1.0), "inertia": ("kg*m^2", 1.0), "hinge_moment": ("N*m", 1.0),
     "hinge_stiffness": ("N*m/rad", 1.0), "damping": ("N*m*s/rad", 1.0),
     "profile_constant": ("mm", 1e3), "follower_mass": ("kg", 1.0), "follower_weight": ("N", 1.0),
-    "guide_friction_coefficient": ("-", 1.0), "gravity_tilt": ("deg", DEG),
+    "guide_friction_coefficient": (DIMENSIONLESS, 1.0), "gravity_tilt": ("deg", DEG),
     "gravity_heading": ("deg", DEG), "clearance": ("mm", 1e3),
     "output_encoder_bits": ("bit", 1.0), "motor_encoder_counts": ("counts/rev", 1.0),
     "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG),
     "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG), "max_sensitivity_peak": ("dB", 1.0),
     "screw_radius": ("mm", 1e3), "roller_radius": ("mm", 1e3), "nut_radius": ("mm", 1e3),
     "screw_spline_radius": ("mm", 1e3), "nut_screw_joint_radius": ("mm", 1e3),
-    "screw_starts": ("-", 1.0), "rollers": ("-", 1.0), "flank_angle": ("deg", DEG),
+    "screw_starts": (DIMENSIONLESS, 1.0), "rollers": (DIMENSIONLESS, 1.0), "flank_angle": ("deg", DEG),
     "ring_gear_pressure_angle": ("deg", DEG), "roller_mass": ("kg", 1.0), "screw_mass": ("kg", 1.0),
     "roller_inertia": ("kg*m^2", 1.0), "carrier_inertia": ("kg*m^2", 1.0),
-    "screw_speed": ("rad/s", 1.0), "load": ("N", 1.0), "roller_screw_friction": ("-", 1.0),
-    "screw_screw_friction": ("-", 1.0), "nut_screw_friction": ("-", 1.0),
-    "ratio_x": ("-", 1.0), "ratio_y": ("-", 1.0), "platform_inertia": ("kg*m^2", 1.0),
+    "screw_speed": ("rad/s", 1.0), "load": ("N", 1.0), "roller_screw_friction": (DIMENSIONLESS, 1.0),
+    "screw_screw_friction": (DIMENSIONLESS, 1.0), "nut_screw_friction": (DIMENSIONLESS, 1.0),
+    "ratio_x": (DIMENSIONLESS, 1.0), "ratio_y": (DIMENSIONLESS, 1.0), "platform_inertia": ("kg*m^2", 1.0),
 }
 #: (class name, field) overrides where one name means different quantities
 OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6),
@@ -64,7 +66,7 @@ def _text(value) -> str:
 
 
 #: the load of an output travel (a chain ending in a screw): a mass and forces
-LINEAR_LOAD = {"inertia": ("kg", 1.0), "hinge_moment": ("N", 1.0), "hinge_stiffness": ("N/mm", 1e-3),
+LINEAR_LOAD = {"inertia": ("kg", 1.0), "hinge_moment": ("N", 1.0), "hinge_stiffness": ("N/m", 1.0),
                "damping": ("N*s/m", 1.0)}
 
 
