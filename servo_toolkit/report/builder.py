@@ -18,6 +18,7 @@ from . import sections_montecarlo as montecarlo
 from . import sections_closed as closed
 from . import sections_limits as limits
 from . import sections_robust as robust
+from . import sections_sizing as sizing
 from . import sections_stroke as stroke
 from . import sections_studies as studies
 from . import sections_time as timing
@@ -44,6 +45,7 @@ SECTIONS = (
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
+    ("sizing", "Sizing along the duty cycle", sizing.sizing),
     ("reduce", "What the model leaves out", limits.leaves_out),
     ("accuracy", "Solver accuracy", studies.accuracy),
 )
