@@ -9,7 +9,8 @@ designed robustly (``--nominal`` checks the nominal design over the same variant
 A scene with a ``[duty_cycle]`` adds the rows of its sizing (inverse dynamics along the
 cycle, as ``servo-toolkit size --no-sweep``): the motor's envelope (``envelope_peak_torque``,
 ``envelope_rms_torque``, ``envelope_peak_current``, ``envelope_peak_voltage``), the winding's
-``thermal_margin`` and, when the cycle sets ``required_life``, the L10 lives (``life_<part>``).
+``thermal_margin``, a roller screw's ``static_load_<screw>`` (peak thrust against its static
+rating) and, when the cycle sets ``required_life``, the L10 lives (``life_<part>``).
 """
 
 from __future__ import annotations
@@ -209,7 +210,7 @@ def _check_scene(path, scene, args, varies):
             print(robust.table())
         for r in g.rows:
             if r.id in ("robust_tracking_error", "robust_peak_current") or r.id in sizing_ids \
-                    or r.id.startswith("life_"):
+                    or r.id.startswith(("life_", "static_load_")):
                 print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
         for n in result.notes:
             print(f"  note: {n}")

@@ -166,15 +166,19 @@ def _sizing_id(name: str) -> tuple:
     """(row ID, words) of a sizing margin's name."""
     if name in SIZING_ROWS:
         return SIZING_ROWS[name]
-    part = name[4:] if name.startswith("L10 ") else name
-    slug = re.sub(r"[^0-9a-z]+", "_", part.lower()).strip("_")
-    return (f"life_{slug}" if name.startswith("L10 ") else f"sizing_{slug}"), f"L10 life: {part}"
+    for head, rid, words in (("L10 ", "life", "L10 life: {}"),
+                             ("static load ", "static_load", "static load rating: peak thrust on {}")):
+        if name.startswith(head):
+            part = name[len(head):]
+            return f"{rid}_{re.sub(r'[^0-9a-z]+', '_', part.lower()).strip('_')}", words.format(part)
+    return "sizing_" + re.sub(r"[^0-9a-z]+", "_", name.lower()).strip("_"), name
 
 
 def sizing_rows(sizing) -> list[RequirementRow]:
     """Rows of a :class:`~servo_toolkit.studies.sizing.SizingResult`'s margins: the motor's
-    envelope (``envelope_*``), the winding's thermal margin (``thermal_margin``) and the
-    L10 lives (``life_<part>``, only when the duty cycle sets ``required_life``)."""
+    envelope (``envelope_*``), the winding's thermal margin (``thermal_margin``), a roller
+    screw's peak thrust against its static rating (``static_load_<screw>``) and the L10 lives
+    (``life_<part>``, only when the duty cycle sets ``required_life``)."""
     rows = []
     how = sizing.method.replace("_", " ")
     for m in sizing.margins:
