@@ -64,3 +64,12 @@ def test_check_fails_a_life_short_of_the_required_and_names_it_in_junit(tmp_path
     cases = {c.get("name"): c for c in ET.parse(junit).getroot().iter("testcase")}
     assert cases["life_ball_screw_screw"].find("failure") is not None
     assert cases["thermal_margin"].find("failure") is None
+
+
+def test_a_motor_without_torque_limits_has_no_envelope_row_and_passes():
+    from servo_toolkit.scene.loader import scene_from_dict
+
+    from .test_sizing import inertia_scene, trapezoid_cycle
+    res = size(scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg")), sweep=False)
+    assert res.margins == () and res.passed
+    assert sizing_rows(res) == []

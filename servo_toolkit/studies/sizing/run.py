@@ -86,7 +86,9 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
         stage = drivetrain.stages[screw_index(drivetrain)]
         lives = screw_lives(stage, loads.screw_thrust, loads.screw_speed, motion.weight, motion.duration)
     rms_t = motion.rms(torque)
-    margins = [upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m")]
+    margins = []   # a limit the scene does not give (no peak torque nor current limit) is no margin
+    if math.isfinite(env.peak_torque):
+        margins.append(upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m"))
     if env.continuous_torque is not None:
         margins.append(upper("RMS torque", rms_t, env.continuous_torque, "N*m"))
     if math.isfinite(motor.current_limit):
