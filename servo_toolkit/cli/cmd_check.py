@@ -6,6 +6,11 @@ robustness requirements, checked on the worst variant: ``robust_stable_fraction`
 ``robust_gain_margin``, ``robust_phase_margin``, ``robust_sensitivity_peak`` (and
 ``robust_bandwidth`` when the table sets ``min_bandwidth``). A scene with ``[robustness]`` is
 designed robustly (``--nominal`` checks the nominal design over the same variants).
+A scene with a ``[duty_cycle]`` adds the rows of its sizing (inverse dynamics along the
+cycle, as ``servo-toolkit size --no-sweep``): the motor's envelope (``envelope_peak_torque``,
+``envelope_rms_torque``, ``envelope_peak_current``, ``envelope_peak_voltage``), the winding's
+``thermal_margin``, a roller screw's ``static_load_<screw>`` (peak thrust against its static
+rating) and, when the cycle sets ``required_life``, the L10 lives (``life_<part>``).
 """
 
 from __future__ import annotations
@@ -171,7 +176,8 @@ def _tagged(exc: SceneError, path) -> SceneError:
 
 def _check_scene(path, scene, args, varies):
     """Design and check one scene: (suite name, cases, JSON dict)."""
-    from ..studies.gate import gate
+    from ..studies.gate import SIZING_ROWS, gate
+    sizing_ids = {rid for rid, _ in SIZING_ROWS.values()}
     spec = robustness_spec(scene, varies, args.samples)
     if not getattr(args, "design", None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
@@ -192,6 +198,8 @@ def _check_scene(path, scene, args, varies):
         mc = g.montecarlo
         d["montecarlo"] = {"requirements": {c.name: c.to_dict() for c in g.montecarlo_checks},
                            "worst": mc.worst(), "samples": mc.count, "failed_variants": int(mc.failed.sum())}
+    if g.sizing is not None:
+        d["sizing"] = g.sizing.to_dict()
     if not args.json:
         print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
         print(requirements_table(result.requirements))
@@ -201,7 +209,8 @@ def _check_scene(path, scene, args, varies):
         if robust is not None:
             print(robust.table())
         for r in g.rows:
-            if r.id in ("robust_tracking_error", "robust_peak_current"):
+            if r.id in ("robust_tracking_error", "robust_peak_current") or r.id in sizing_ids \
+                    or r.id.startswith(("life_", "static_load_")):
                 print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
         for n in result.notes:
             print(f"  note: {n}")

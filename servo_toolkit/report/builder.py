@@ -20,6 +20,7 @@ from . import sections_disturbance as disturbance
 from . import sections_poles as poles
 from . import sections_limits as limits
 from . import sections_robust as robust
+from . import sections_sizing as sizing
 from . import sections_stroke as stroke
 from . import sections_studies as studies
 from . import sections_time as timing
@@ -48,6 +49,7 @@ SECTIONS = (
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
+    ("sizing", "Sizing along the duty cycle", sizing.sizing),
     ("reduce", "What the model leaves out", limits.leaves_out),
     ("accuracy", "Solver accuracy", studies.accuracy),
 )

@@ -59,11 +59,13 @@ def _requirement_rows(ctx):
         return tuple(unavailable_rows(wanted + [("loop_design", "loop design")], str(exc))), ()
     mc, mc_error = _montecarlo(ctx)
     from ..errors import SimulationError
+    from .sections_sizing import sizing_for_gate
+    sized = sizing_for_gate(ctx)   # shared with the sizing section; its error leaves its rows without a verdict
     try:
-        g = gate(ctx.scene, design, montecarlo=mc)
+        g = gate(ctx.scene, design, montecarlo=mc, sizing=sized)
         rows = list(g.rows)
     except SimulationError as exc:  # the large-signal run could not run: no verdict on its rows
-        g = gate(ctx.scene, design, montecarlo=mc, linear_only=True)
+        g = gate(ctx.scene, design, montecarlo=mc, linear_only=True, sizing=sized)
         rows = list(g.rows) + unavailable_rows(
             [("large_signal_gain", "large signal: |gain difference| from the linear loop"),
              ("large_signal_phase", "large signal: |phase difference| from the linear loop")], str(exc))

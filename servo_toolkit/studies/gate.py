@@ -2,7 +2,10 @@
 ``servo-toolkit check`` (its table and JUnit testcases) and the report.
 
 The rows come from the checks the design, its large-signal run, its robustness study and
-the Monte Carlo time runs produce (:class:`servo_toolkit.loop.requirements.Check`); the ID
+the Monte Carlo time runs produce (:class:`servo_toolkit.loop.requirements.Check`), and, for
+a scene with a ``[duty_cycle]``, from the margins of its sizing
+(:func:`servo_toolkit.studies.sizing.size`: the motor's envelope, the winding's thermal
+margin and the L10 lives against ``required_life``); the ID
 of a row is the name of its JUnit testcase (``bandwidth``, ``large_signal_gain``,
 ``closed_loop_stable``, ``robust_gain_margin``, ``robust_tracking_error``, ...), so a row
 of the report is found by the same name in a CI log.
@@ -20,6 +23,8 @@ Examples
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass
 
 from ..display.html import fmt
@@ -42,6 +47,14 @@ LABELS = {
     "stable_fraction": "stable variants (fraction)",
     "tracking_error": "worst tracking error",
     "peak_current": "worst peak current",
+}
+#: sizing margin name -> (row ID, words of the requirement); L10 rows are ``life_<part>``
+SIZING_ROWS = {
+    "peak torque": ("envelope_peak_torque", "motor envelope: peak torque along the duty cycle"),
+    "RMS torque": ("envelope_rms_torque", "motor envelope: RMS torque against the continuous torque"),
+    "peak current": ("envelope_peak_current", "motor envelope: peak current along the duty cycle"),
+    "peak voltage": ("envelope_peak_voltage", "motor envelope: peak voltage (back-EMF, hot winding)"),
+    "winding temperature": ("thermal_margin", "thermal margin: winding temperature, steady periodic peak"),
 }
 #: the row statuses: met, not met, or no verdict (the figure could not be computed)
 STATUSES = ("pass", "fail", "unavailable")
@@ -149,6 +162,39 @@ def montecarlo_rows(checks, result) -> list[RequirementRow]:
     return rows
 
 
+def _sizing_id(name: str) -> tuple:
+    """(row ID, words) of a sizing margin's name."""
+    if name in SIZING_ROWS:
+        return SIZING_ROWS[name]
+    for head, rid, words in (("L10 ", "life", "L10 life: {}"),
+                             ("static load ", "static_load", "static load rating: peak thrust on {}")):
+        if name.startswith(head):
+            part = name[len(head):]
+            return f"{rid}_{re.sub(r'[^0-9a-z]+', '_', part.lower()).strip('_')}", words.format(part)
+    return "sizing_" + re.sub(r"[^0-9a-z]+", "_", name.lower()).strip("_"), name
+
+
+def sizing_rows(sizing) -> list[RequirementRow]:
+    """Rows of a :class:`~servo_toolkit.studies.sizing.SizingResult`'s margins: the motor's
+    envelope (``envelope_*``), the winding's thermal margin (``thermal_margin``), a roller
+    screw's peak thrust against its static rating (``static_load_<screw>``) and the L10 lives
+    (``life_<part>``, only when the duty cycle sets ``required_life``)."""
+    rows = []
+    how = sizing.method.replace("_", " ")
+    for m in sizing.margins:
+        rid, label = _sizing_id(m.name)
+        sense = ">=" if m.name.startswith("L10 ") else "<="
+        short = abs(m.value - m.limit) if math.isfinite(m.value) else math.inf
+        of = "the allowed rise over the ambient" if m.name == "winding temperature" else "the limit"
+        detail = f"margin {fmt(100 * m.margin, 3)} % of {of}; {how} along the [duty_cycle]"
+        if m.name == "winding temperature" and sizing.thermal is not None and sizing.thermal.runaway:
+            detail = f"thermal runaway: the winding heats without bound; {how} along the [duty_cycle]"
+        rows.append(RequirementRow(rid, label, f"{sense} {_value(m.limit, m.unit)}", _value(m.value, m.unit),
+                                   "" if m.passed else _value(short, m.unit), "pass" if m.passed else "fail",
+                                   detail))
+    return rows
+
+
 def unavailable_rows(ids_labels, why: str) -> list[RequirementRow]:
     """Rows without a verdict: ``(id, requirement)`` pairs and the reason."""
     return [RequirementRow(i, label, "", "not evaluated", "", "unavailable", why) for i, label in ids_labels]
@@ -168,6 +214,8 @@ class Gate:
     rows : tuple of RequirementRow
     montecarlo_checks : tuple of Check
         The Monte Carlo requirements' checks (empty when the scene sets none).
+    sizing : SizingResult or None
+        The sizing along the scene's ``[duty_cycle]`` (None without one).
     """
 
     result: object
@@ -176,6 +224,7 @@ class Gate:
     montecarlo: object
     rows: tuple
     montecarlo_checks: tuple = ()
+    sizing: object = None
 
     @property
     def passed(self) -> bool:
@@ -191,7 +240,7 @@ class Gate:
         return f"<Gate of {self.result.scene_name}: {len(self.rows)} requirements, {failed} not met>"
 
 
-def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None) -> Gate:
+def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None) -> Gate:
     """Judge ``result`` (a DesignResult of ``scene``) as ``servo-toolkit check`` does.
 
     Parameters
@@ -206,6 +255,10 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     montecarlo : (checks, MonteCarloResult), optional
         Monte Carlo checks already computed (the report's); else they are run when ``spec``
         sets Monte Carlo requirements.
+    sizing : SizingResult or Exception, optional
+        The sizing of the scene's ``[duty_cycle]`` already computed (the report's), or the
+        error it raised (its rows are then without a verdict); else it is computed (inverse
+        dynamics, no ratio sweep) when the scene has a duty cycle.
 
     Returns
     -------
@@ -214,7 +267,8 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     Raises
     ------
     SimulationError
-        A nonlinear run the rows need could not be carried out (no verdict).
+        A nonlinear run the rows need could not be carried out (no verdict), or the inverse
+        dynamics of the duty cycle left its validity domain.
     """
     from .large_signal import with_large_signal
     from .montecarlo_check import montecarlo_checks
@@ -232,7 +286,15 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     checks, mc = montecarlo if montecarlo is not None else montecarlo_checks(scene, spec, result.controller)
     if mc is not None:
         rows += montecarlo_rows(checks, mc)
-    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks))
+    if sizing is None and getattr(scene, "duty_cycle", None) is not None:
+        from .sizing import size
+        sizing = size(scene, sweep=False)
+    if isinstance(sizing, Exception):
+        rows += unavailable_rows([("sizing", "sizing along the duty cycle")], str(sizing))
+        sizing = None
+    elif sizing is not None:
+        rows += sizing_rows(sizing)
+    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks), sizing)
 
 
 def failed_count(rows) -> int:
@@ -240,5 +302,5 @@ def failed_count(rows) -> int:
     return sum(not r.passed for r in rows)
 
 
-__all__ = ["Gate", "LABELS", "RequirementRow", "STATUSES", "check_row", "design_rows", "failed_count", "gate",
-           "montecarlo_rows", "robust_rows", "unavailable_rows"]
+__all__ = ["Gate", "LABELS", "RequirementRow", "SIZING_ROWS", "STATUSES", "check_row", "design_rows", "failed_count",
+           "gate", "montecarlo_rows", "robust_rows", "sizing_rows", "unavailable_rows"]

@@ -48,6 +48,7 @@ import numpy as np
 
 from ..components.ball_screw import BallScrew
 from ..components.linkage import RockerLinkage
+from ..components.roller_screw.stages import RollerScrew
 from ..drivetrain.reflected import Drivetrain
 from ..errors import SimulationError
 
@@ -72,7 +73,8 @@ class InverseDynamicsResult:
         Parts of ``motor_torque`` (N*m): all inertial forces over N, external moments over
         N, stage losses, motor friction. They add up to ``motor_torque``.
     screw_thrust, rod_force : numpy.ndarray or None
-        N; None when the chain has no ball screw / no rocker linkage after it.
+        N; None when the chain has no ball or roller screw / no rocker linkage after it (a
+        roller screw's thrust is that on its last nut).
     losses : str
         Loss model used.
     """
@@ -243,9 +245,10 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
 
 
 def _chain_forces(drivetrain, chains, required, q, qd, qdd):
-    """Screw thrust and link-rod force from the first ball screw of the chain."""
+    """Screw thrust and link-rod force from the first ball or roller screw of the chain (a
+    roller screw's thrust is that on its last nut)."""
     stages = drivetrain.stages
-    k = next((i for i, s in enumerate(stages) if isinstance(s, BallScrew)), None)
+    k = next((i for i, s in enumerate(stages) if isinstance(s, (BallScrew, RollerScrew))), None)
     if k is None:
         return None, None
     beyond = chains[k + 1]

@@ -256,6 +256,18 @@ class RollerScrew(Stage):
         Forward efficiency; by default the steady-state value of :func:`steady_efficiency`.
     stroke_range : tuple of float or None
         Admissible travel of the last nut (m), scene key ``stroke``; None when not given.
+    dynamic_load_rating : float or None
+        Basic dynamic axial load rating C_a of the screw (N): the thrust on the last nut for
+        an L10 life of 10**6 screw revolutions (life exponent 3, as ISO 3408-5 rates ball
+        screws and roller-screw makers rate theirs); None: no screw life computed.
+    static_load_rating : float or None
+        Basic static axial load rating C_0a (N): the peak thrust on the last nut is sized
+        against it; None when not given.
+    bearing_dynamic_load_rating : float or None
+        Basic dynamic axial load rating of the first screw's axial support bearing (N,
+        ISO 281); it carries the thrust.
+    bearing_kind : str
+        ``"ball"`` (life exponent 3) or ``"roller"`` (10/3) bearing.
     """
 
     name: str
@@ -265,6 +277,16 @@ class RollerScrew(Stage):
     nut_screw_friction: float = 0.0
     efficiency: float = 1.0
     stroke_range: tuple | None = None
+    dynamic_load_rating: float | None = None
+    static_load_rating: float | None = None
+    bearing_dynamic_load_rating: float | None = None
+    bearing_kind: str = "ball"
+
+    @property
+    def nut_mass(self) -> float:
+        """Mass carried by the last nut's thread (kg): the last nut and its rollers."""
+        last = self.stages[-1]
+        return last.nut_mass + last.rollers * last.roller_mass
 
     @property
     def backdrive_efficiency(self) -> float:
@@ -317,6 +339,9 @@ class RollerScrew(Stage):
             travel = tuple(f.quantity_list("stroke", "m", rule="finite"))
             require(len(travel) == 2 and travel[0] < travel[1], f.key("stroke"),
                     "must be [lowest, highest] nut travel with lowest < highest")
+        ratings = {name: f.quantity(name, "N", rule="positive") if f.has(name) else None
+                   for name in ("dynamic_load_rating", "static_load_rating", "bearing_dynamic_load_rating")}
+        bearing_kind = f.text("bearing_kind", "ball", choices=("ball", "roller"))
         f.check_unknown()
         return cls(name=f.text("name", "roller screw"), stages=stages, efficiency=efficiency,
-                   stroke_range=travel, **mus)
+                   stroke_range=travel, bearing_kind=bearing_kind, **ratings, **mus)

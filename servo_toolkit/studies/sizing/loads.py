@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...components.ball_screw import BallScrew
+from ...components.roller_screw.stages import RollerScrew
 from ..inverse_dynamics import inverse_dynamics, subchain
 
 
@@ -32,7 +33,8 @@ class CycleLoads:
     friction_torque : numpy.ndarray
         The motor's own friction inside ``motor_torque`` (N*m).
     screw_thrust : numpy.ndarray or None
-        Axial force on the first ball screw's nut (N); None without a ball screw.
+        Axial force on the first ball screw's nut, or on a roller screw's last nut (N); None
+        without a screw.
     screw_speed : numpy.ndarray or None
         That screw's angular speed (rad/s).
     """
@@ -69,9 +71,15 @@ def cycle_loads(drivetrain, motion, losses: str = "directional") -> CycleLoads:
             thrust[idx] = res.screw_thrust
     screw_speed = None
     if thrust is not None:
-        k = next(i for i, s in enumerate(drivetrain.stages) if isinstance(s, BallScrew))
+        k = screw_index(drivetrain)
         screw_speed = subchain(drivetrain, k).ratio(motion.q)[0] * motion.qd
     return CycleLoads(torque, speed, ratio, fric, thrust, screw_speed)
+
+
+def screw_index(drivetrain) -> int | None:
+    """Index of the first ball or roller screw of the chain (the one the thrust is taken on),
+    or None."""
+    return next((i for i, s in enumerate(drivetrain.stages) if isinstance(s, (BallScrew, RollerScrew))), None)
 
 
 def electrical(motor, torque, speed, winding_temperature: float | None = None) -> dict:
@@ -90,4 +98,4 @@ def resistance_at(motor, temperature: float) -> float:
     return motor.resistance * (1 + motor.copper_temperature_coefficient * (temperature - motor.resistance_temperature))
 
 
-__all__ = ["CycleLoads", "cycle_loads", "electrical", "resistance_at"]
+__all__ = ["CycleLoads", "cycle_loads", "electrical", "resistance_at", "screw_index"]

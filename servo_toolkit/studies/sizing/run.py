@@ -10,7 +10,7 @@ from ...errors import SceneError
 from .cycle import sample_cycle
 from .envelope import Envelope, lower, upper
 from .life import screw_lives
-from .loads import cycle_loads, electrical
+from .loads import cycle_loads, electrical, screw_index
 from .result import SizingResult
 from .sweep import ratio_sweep
 from .thermal import ThermalNetwork, cycle_temperatures
@@ -81,12 +81,14 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     thermal = cycle_temperatures(net, torque / motor.torque_constant, motion.weight) if net else None
     hot = motor.max_winding_temperature
     elec = electrical(motor, torque, speed, hot)
-    lives = []
+    lives, stage = [], None
     if loads.screw_thrust is not None and method == "inverse_dynamics":
-        stage = next(s for s in drivetrain.stages if hasattr(s, "dynamic_load_rating"))
+        stage = drivetrain.stages[screw_index(drivetrain)]
         lives = screw_lives(stage, loads.screw_thrust, loads.screw_speed, motion.weight, motion.duration)
     rms_t = motion.rms(torque)
-    margins = [upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m")]
+    margins = []   # a limit the scene does not give (no peak torque nor current limit) is no margin
+    if math.isfinite(env.peak_torque):
+        margins.append(upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m"))
     if env.continuous_torque is not None:
         margins.append(upper("RMS torque", rms_t, env.continuous_torque, "N*m"))
     if math.isfinite(motor.current_limit):
@@ -96,6 +98,10 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     if thermal is not None:
         margins.append(upper("winding temperature", thermal.peak_winding - KELVIN, hot - KELVIN, "degC",
                              motor.ambient_temperature - KELVIN))
+    static = getattr(stage, "static_load_rating", None)
+    if static is not None:    # a roller screw's static rating against the peak thrust on its last nut
+        margins.append(upper(f"static load {stage.name}", float(np.abs(loads.screw_thrust).max()),
+                             static, "N"))
     if duty.required_life is not None:
         margins += [lower(f"L10 {life.part}", life.hours, duty.required_life / 3600, "h") for life in lives]
     sweep_result = None
