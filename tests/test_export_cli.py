@@ -70,18 +70,30 @@ def test_bad_options_name_the_option(tmp_path, capsys):
     assert exc.value.code == 2
 
 
-def test_quantization_that_costs_a_requirement_exits_1(tmp_path, capsys):
-    """At 20 us the notch poles sit within 5e-3 of z = 1; Q15 cannot hold them."""
+def test_q15_holds_the_notch_near_z1_and_exits_0(tmp_path, capsys):
+    """At 20 us the notch poles sit within 5e-3 of z = 1; stored about z = 1, Q15 holds them
+    (a direct-form Q15 section turned the notch's zeros real and exited 1)."""
     scene = tmp_path / "fast.toml"
     text = EMA.read_text()
     assert 'sample_time = "0.1 ms"' in text
     scene.write_text(text.replace('sample_time = "0.1 ms"', 'sample_time = "20 us"'))
-    assert main(["export", str(scene), "-o", str(tmp_path / "q15"), "--fixed-point", "q15", "--json"]) == 1
+    assert main(["export", str(scene), "-o", str(tmp_path / "q15"), "--fixed-point", "q15", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["passed"] is True and not data["quantized"]["failures"]
+
+
+def test_quantization_that_costs_a_requirement_exits_1(tmp_path, capsys, monkeypatch):
+    """One-bit coefficients (a power of two each) cost the 66 deg of phase margin required."""
+    import importlib
+    qmod = importlib.import_module("servo_toolkit.export.quantize")
+    monkeypatch.setitem(qmod.FORMATS, "q15", (1, 15, 16))
+    args = ["export", str(EMA), "--require", "phase_margin=66", "--fixed-point", "q15"]
+    assert main([*args, "-o", str(tmp_path / "q15"), "--json"]) == 1
     cap = capsys.readouterr()
     data = json.loads(cap.out)
     assert data["passed"] is False and data["quantized"]["failures"]
     assert "servo-toolkit: export: " in cap.err
-    assert main(["export", str(scene), "-o", str(tmp_path / "q31"), "--fixed-point", "q31"]) == 0
+    assert main(["export", str(EMA), "-o", str(tmp_path / "q31"), "--fixed-point", "q31"]) == 0
 
 
 def test_output_below_a_file_is_refused(tmp_path, capsys):

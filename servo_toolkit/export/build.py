@@ -17,6 +17,7 @@ from .blocks import blocks_of, tustin_to_continuous
 from .c_code import HEADER_NAME, SOURCE_NAME, header, source
 from .quantize import filter_shifts, quantize
 from .result import ExportResult
+from .sensitivity import coefficient_sensitivity
 from .writer import check_directory, write_files
 
 
@@ -40,9 +41,11 @@ def evaluate_quantized(scene, design_result, controller):
     """The quantized controller analysed like the design (:func:`servo_toolkit.loop.design.evaluate`);
     when that analysis breaks down on a degenerate loop (e.g. a notch whose zeros became real
     and a closed-loop pole at the origin), the margins and stability from python-control
-    directly, every requirement counted as missed, and the reason."""
+    from :func:`servo_toolkit.loop.margins.loop_margins` on the loop itself (the loop's own
+    crossings), every requirement counted as missed, and the reason."""
     from ..loop.closed_loop import linear_closed_loop, open_loop
     from ..loop.design import evaluate
+    from ..loop.margins import loop_margins
     try:
         return evaluate(scene, controller, design_result.q0, reqs=_requirements(design_result),
                         phase_hz=design_result.margins.phase_at_hz), None
@@ -52,10 +55,12 @@ def evaluate_quantized(scene, design_result, controller):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cl = linear_closed_loop(scene, controller, design_result.q0)["theta", "theta_ref"]
-        gm, pm, *_ = ct.stability_margins(open_loop(scene, controller, design_result.q0))
-    stable = bool(np.all(ct.poles(cl).real < 0))
-    margins = replace(design_result.margins, gain_margin_db=float(20 * np.log10(gm)) if gm > 0 else -math.inf,
-                      phase_margin_deg=float(pm), closed_loop_stable=stable, bandwidth_hz=math.nan)
+        try:
+            margins = replace(loop_margins(open_loop(scene, controller, design_result.q0), cl,
+                                           phase_hz=design_result.margins.phase_at_hz), bandwidth_hz=math.nan)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            margins = replace(design_result.margins, gain_margin_db=math.nan, phase_margin_deg=math.nan,
+                              closed_loop_stable=bool(np.all(ct.poles(cl).real < 0)), bandwidth_hz=math.nan)
     checks = [replace(c, achieved=math.nan, passed=False) for c in design_result.requirements]
     return replace(design_result, controller=controller, margins=margins, requirements=checks,
                    closed_loop=cl, motion=None, notes=(reason,)), reason
@@ -133,6 +138,7 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         qdesign, reason = evaluate_quantized(scene, design_result, quantized_controller(design_result, q))
         shifts = filter_shifts(blocks, q)
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
+                         sensitivity=coefficient_sensitivity(q, blocks.sample_time),
                          failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
     files = {"controller.json": to_json(result.controller_json()) + "\n",
              HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),

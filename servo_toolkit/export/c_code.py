@@ -118,12 +118,17 @@ def _float_tables(blocks) -> str:
 def _fixed_tables(quantized) -> str:
     ctype = f"int{quantized.word + 1}_t"
 
-    def row(s):
-        return ("{{" + ", ".join(str(v) for v in s.b_int) + "}, {" + ", ".join(str(v) for v in s.a_int)
-                + f"}}, {s.fb}, {s.fa}}}")
+    def ints(values):
+        return "{" + ", ".join(str(v) for v in values) + "}"
 
-    out = (f"typedef struct {{ {ctype} b[3]; {ctype} a[2]; int fb; int fa; }} servo_sos_t;\n"
-           "/* b in Q(W-fb).(fb), a in Q(W-fa).(fa), counts out per count in */\n"
+    def row(s):
+        return "{" + ", ".join(ints(v) for v in (s.b_int, s.a_int, s.fb, s.fa)) + "}"
+
+    out = (f"typedef struct {{ {ctype} b[3]; {ctype} a[2]; int fb[3]; int fa[2]; }} servo_sos_t;\n"
+           "/* each section about z = 1 (z = 1 + w): b = n0, n1, n2 of N(1 + w) = n0 w^2 + n1 w + n2\n"
+           " * (counts out per count in), a = d1, d2 of D(1 + w) = w^2 + d1 w + d2; coefficient k in\n"
+           " * Q(W-f[k]).(f[k]), each in its own format. Direct form: b0 = n0, b1 = n1 - 2 n0,\n"
+           " * b2 = n2 - n1 + n0, a1 = d1 - 2, a2 = d2 - d1 + 1. */\n"
            f"static const servo_sos_t SERVO_POSITION[{len(quantized.position)}] = {{\n"
            + ",\n".join(f"    {row(s)}  /* {s.name} */" for s in quantized.position) + "\n};\n")
     if quantized.speed is not None:
@@ -169,12 +174,19 @@ static int64_t servo_sat(int64_t v, int64_t lim)
     return v > lim ? lim : (v < -lim ? -lim : v);
 }}
 
-/* DF2T with states in 2^-SERVO_GUARD counts; the recursion uses the unrounded output */
+/* DF2T with states in 2^-SERVO_GUARD counts; the recursion uses the unrounded output. The
+ * coefficients about z = 1 enter through the direct form's (b1 = n1 - 2 n0, ...), whose integer
+ * parts (2 y, y) are added exactly */
 static int32_t servo_biquad(const servo_sos_t *c, int64_t s[2], int32_t x)
 {{
-    int64_t y = servo_sat(servo_shift((int64_t)c->b[0] * x, c->fb - SERVO_GUARD) + s[0], SERVO_STATE_MAX);
-    s[0] = servo_shift((int64_t)c->b[1] * x, c->fb - SERVO_GUARD) - servo_shift((int64_t)c->a[0] * y, c->fa) + s[1];
-    s[1] = servo_shift((int64_t)c->b[2] * x, c->fb - SERVO_GUARD) - servo_shift((int64_t)c->a[1] * y, c->fa);
+    int64_t p0 = servo_shift((int64_t)c->b[0] * x, c->fb[0] - SERVO_GUARD);
+    int64_t p1 = servo_shift((int64_t)c->b[1] * x, c->fb[1] - SERVO_GUARD);
+    int64_t p2 = servo_shift((int64_t)c->b[2] * x, c->fb[2] - SERVO_GUARD);
+    int64_t y = servo_sat(p0 + s[0], SERVO_STATE_MAX);
+    int64_t q1 = servo_shift((int64_t)c->a[0] * y, c->fa[0]);
+    int64_t q2 = servo_shift((int64_t)c->a[1] * y, c->fa[1]);
+    s[0] = p1 - 2 * p0 - q1 + 2 * y + s[1];
+    s[1] = p2 - p1 + p0 - q2 + q1 - y;
     return (int32_t)servo_sat(servo_shift(y, SERVO_GUARD), SERVO_SIGNAL_MAX);
 }}
 """

@@ -7,16 +7,24 @@ Formats (``fixed_point``):
 * ``"q31"``: coefficients int32 in Q(m).(n), m + n = 31; signals int32 values with full scale
   2^29 counts (two guard bits keep every 64-bit product sum in range); states int64.
 
-Each section has one Q format for its numerator and one for its denominator (the largest
-coefficient of each uses the full word). A signal is an integer count of its LSB: the output
-angle ``pi / 2^S`` rad, the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
+Each section is stored about z = 1 (the delta-operator coefficients): with ``z = 1 + w``,
+``N(1 + w) = n0 w^2 + n1 w + n2`` and ``D(1 + w) = w^2 + d1 w + d2``, i.e.
+``b0 = n0, b1 = n1 - 2 n0, b2 = n2 - n1 + n0`` and ``a1 = d1 - 2, a2 = d2 - d1 + 1``. A pole or
+zero pair near z = 1 (a filter far below the sample rate) makes ``d1, d2`` (``n1, n2``) small,
+and each coefficient has its own Q format (the full word on its own value), so these get the
+fraction bits a direct-form ``a1 = -2 + ...`` would lose: the natural frequency of a pair is set
+by ``d2 = D(1)`` to the word's relative precision, however close to z = 1 it sits. The
+recursion adds the integer parts (``2 y``, ``y``) exactly. :mod:`.sensitivity` tells how far one
+LSB of each stored coefficient moves the section's poles and zeros.
+
+A signal is an integer count of its LSB: the output angle ``pi / 2^S`` rad, the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
 ``Wfs`` and ``Ifs`` the powers of two above the no-load speed ``Vlim / Ke`` and the current
 limit. In the integer domain a section's numerator carries ``LSB_in / LSB_out``.
 
 Rounding (the C ``rshift_round``: half away from zero): every product shifted right loses at
-most half a count of the state scale ``2^-G`` LSB, and the DF2T recursion sums five of them
-per output, amplified by the recursive part ``1 / A(z)``; the output is rounded to half an
-LSB (the recursion keeps the unrounded value). With the inputs rounded to half an LSB, the
+most half a count of the state scale ``2^-G`` LSB, and the DF2T recursion sums ten of them
+per output (the ``n0`` product four times, ``n1`` and ``d1`` twice, ``n2`` and ``d2`` once),
+amplified by the recursive part ``1 / A(z)``; the output is rounded to half an LSB (the recursion keeps the unrounded value). With the inputs rounded to half an LSB, the
 i_ref difference between the fixed-point code and the same quantized coefficients in exact
 arithmetic is at most :meth:`Quantized.error_bound` (l1 norms of the impulse responses over
 the horizon; the speed PI integrates, so the bound grows with the horizon). The coefficient
@@ -62,35 +70,63 @@ def q_name(word: int, frac: int) -> str:
     return f"Q{word - frac}.{frac}"
 
 
+def about_one(b, a) -> tuple:
+    """``(n, d)``: ``N(1 + w)`` and ``D(1 + w)`` of ``b0 + b1 z^-1 + b2 z^-2`` over
+    ``1 + a1 z^-1 + a2 z^-2`` (``n = (n0, n1, n2)``, ``d = (d1, d2)``)."""
+    b0, b1, b2 = (float(v) for v in b)
+    a1, a2 = (float(v) for v in a)
+    return (b0, 2 * b0 + b1, b0 + b1 + b2), (2 + a1, 1 + a1 + a2)
+
+
+def direct_form(n, d) -> tuple:
+    """Inverse of :func:`about_one`: ``(b, a)`` with ``b = (b0, b1, b2)``, ``a = (a1, a2)``."""
+    n0, n1, n2 = n
+    d1, d2 = d
+    return (n0, n1 - 2 * n0, n2 - n1 + n0), (d1 - 2, d2 - d1 + 1)
+
+
+#: rounding terms per output of the C section: products of n0, n1, n2, d1, d2 (module docstring)
+ROUNDING_WEIGHTS = (4, 2, 1, 2, 1)
+
+
 @dataclass(frozen=True)
 class QSection:
-    """A biquad with integer coefficients.
+    """A biquad with integer coefficients about z = 1 (see the module docstring).
 
-    ``b = b_int 2^-fb`` (counts out per count in) and ``a = a_int 2^-fa``.
+    ``n_k = b_int[k] 2^-fb[k]`` (counts out per count in) and ``d_k = a_int[k - 1] 2^-fa[k - 1]``,
+    each coefficient in its own Q format.
     """
 
     name: str
     b_int: tuple
     a_int: tuple
-    fb: int
-    fa: int
+    fb: tuple
+    fa: tuple
     lsb_in: float
     lsb_out: float
 
+    def about_one(self) -> tuple:
+        """``(n, d)`` as floats in the integer domain."""
+        return (tuple(v * 2.0**-f for v, f in zip(self.b_int, self.fb)),
+                tuple(v * 2.0**-f for v, f in zip(self.a_int, self.fa)))
+
     def biquad(self, original: Biquad) -> Biquad:
-        """The quantized coefficients back in physical units."""
+        """The quantized coefficients back in physical units (direct form)."""
+        b, a = direct_form(*self.about_one())
         scale = self.lsb_out / self.lsb_in
-        return replace(original, b=tuple(v * 2.0**-self.fb * scale for v in self.b_int),
-                       a=tuple(v * 2.0**-self.fa for v in self.a_int))
+        return replace(original, b=tuple(v * scale for v in b), a=tuple(a))
 
     def counts(self):
         """``(b, [1, a1, a2])`` in the integer domain (floats)."""
-        return (np.array(self.b_int) * 2.0**-self.fb, np.array([1.0] + [v * 2.0**-self.fa for v in self.a_int]))
+        b, a = direct_form(*self.about_one())
+        return np.array(b), np.array([1.0, *a])
 
     def to_dict(self, word: int) -> dict:
-        return {"name": self.name, "b": list(self.b_int), "a": list(self.a_int),
-                "b_format": q_name(word, self.fb), "a_format": q_name(word, self.fa),
-                "b_fraction_bits": self.fb, "a_fraction_bits": self.fa,
+        b, a = self.counts()
+        return {"name": self.name, "form": "about_z_1", "b": list(self.b_int), "a": list(self.a_int),
+                "b_formats": [q_name(word, f) for f in self.fb], "a_formats": [q_name(word, f) for f in self.fa],
+                "b_fraction_bits": list(self.fb), "a_fraction_bits": list(self.fa),
+                "direct_form_counts": {"b": [float(v) for v in b], "a": [float(v) for v in a]},
                 "input_lsb": self.lsb_in, "output_lsb": self.lsb_out}
 
 
@@ -165,8 +201,9 @@ def _l1(b, a, steps: int) -> float:
 def _section_error(sec: QSection, err_in: float, steps: int, guard: int) -> float:
     """Bound on the output error (counts) of a section from its input error (counts)."""
     b, a = sec.counts()
-    shifts = [sec.fb - guard] * sum(1 for v in sec.b_int if v) + [sec.fa] * sum(1 for v in sec.a_int if v)
-    injected = 0.5 * sum(1 for k in shifts if k > 0) * 2.0**-guard
+    shifts = [f - guard for f in sec.fb] + list(sec.fa)
+    ints = tuple(sec.b_int) + tuple(sec.a_int)
+    injected = 0.5 * sum(w for w, k, v in zip(ROUNDING_WEIGHTS, shifts, ints) if v and k > 0) * 2.0**-guard
     return 0.5 + injected * _l1([1.0], a, steps) + err_in * _l1(b, a, steps)
 
 
@@ -185,10 +222,10 @@ def quantize(blocks: Blocks, motor, fmt: str) -> Quantized:
     out_lsb = lsb["omega"] if blocks.speed is not None else lsb["current"]
 
     def q(sec: Biquad, lsb_in, lsb_out):
-        b = np.array(sec.b) * lsb_in / lsb_out
-        fb, fa = q_format(b, word), q_format(sec.a, word)
-        return QSection(sec.name, tuple(int(round(v * 2.0**fb)) for v in b),
-                        tuple(int(round(v * 2.0**fa)) for v in sec.a), fb, fa, lsb_in, lsb_out)
+        n, d = about_one(np.array(sec.b) * lsb_in / lsb_out, sec.a)
+        fb, fa = tuple(q_format([v], word) for v in n), tuple(q_format([v], word) for v in d)
+        return QSection(sec.name, tuple(int(round(v * 2.0**f)) for v, f in zip(n, fb)),
+                        tuple(int(round(v * 2.0**f)) for v, f in zip(d, fa)), fb, fa, lsb_in, lsb_out)
 
     position = tuple(q(s, lsb["theta"] if j == 0 else out_lsb, out_lsb) for j, s in enumerate(blocks.position))
     speed = None if blocks.speed is None else q(blocks.speed, lsb["omega"], lsb["current"])

@@ -40,6 +40,9 @@ class ExportResult:
         The quantized controller evaluated like the design (margins, requirements).
     filters : list of dict
         Natural-frequency shift of each quantized filter section.
+    sensitivity : list of dict
+        Each stored fixed-point coefficient (:func:`.sensitivity.coefficient_sensitivity`):
+        its integer, Q format, and how far one LSB of it moves its section's poles or zeros.
     files : dict
         File name -> text (``controller.json``, ``servo_controller.h``, ``servo_controller.c``).
     directory : pathlib.Path or None
@@ -59,6 +62,7 @@ class ExportResult:
     quantized: object = None
     quantized_design: object = None
     filters: list = field(default_factory=list)
+    sensitivity: list = field(default_factory=list)
     files: dict = field(default_factory=dict)
     directory: object = None
     failures: tuple = ()
@@ -86,6 +90,7 @@ class ExportResult:
             qd = self.quantized_design
             m = qd.margins
             out["quantized"] = {**self.quantized.to_dict(), "filters": self.filters,
+                                "coefficient_sensitivity": self.sensitivity,
                                 "gain_margin_db": m.gain_margin_db, "phase_margin_deg": m.phase_margin_deg,
                                 "closed_loop_stable": bool(m.closed_loop_stable),
                                 "bandwidth_hz": m.bandwidth_hz,
@@ -125,6 +130,11 @@ class ExportResult:
                     continue
                 lines.append(f"  {f['section']} {f['what']}: {f['design_hz']:.4g} Hz -> {f['quantized_hz']:.4g} Hz "
                              f"({100 * f['shift_relative']:+.3g} %)")
+            if self.sensitivity:
+                worst = max(self.sensitivity, key=lambda r: r["root_shift_relative_per_lsb"])
+                lines.append(f"  most sensitive coefficient: {worst['section']} {worst['coefficient']} "
+                             f"({worst['format']}), one LSB moves a root by "
+                             f"{100 * worst['root_shift_relative_per_lsb']:.2g} %")
             lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantized loop within the requirements (every one met)"]
         return "\n".join(lines)
 
