@@ -53,8 +53,10 @@ def exported_coefficients(ctx) -> Section:
                 f"every {fmt(res.blocks.sample_time * 1e3)} ms by Tustin, exactly the controller the "
                 "simulation runs.")
     text += table(head, rows) + table(("item", "value"), extra)
-    text += para("Fixed point (--fixed-point): margins recomputed with the quantized coefficients, the shift of "
-                 "each filter's natural frequency and the bound on the i_ref rounding error over 0.1 s.")
+    text += para("Fixed point (--fixed-point): each section stored about z = 1 (the coefficients of N(1 + w) and "
+                 "D(1 + w), z = 1 + w, each in its own Q format, so that a filter far below the sample rate keeps "
+                 "its frequency); margins recomputed with the quantized coefficients, the shift of each filter's "
+                 "natural frequency and the bound on the i_ref rounding error over 0.1 s.")
     text += table(("format", "gain margin", "phase margin", "stable", "filter shift", "rounding bound", "verdict"),
                   qrows)
     return Section("Exported controller coefficients", text, key="export")
