@@ -135,3 +135,19 @@ def test_lanes_run_a_feedforward_variant_by_variant(ema):
         np.testing.assert_array_equal(runs[1], runs[0])
         out.append(runs[0])
     assert not np.allclose(out[0], out[1])  # the feedforward is carried, not dropped
+
+
+def test_cli_simulate_feedforward(capsys):
+    """``simulate --feedforward model``: the JSON run with the feedforward in its notes and a
+    smaller error than the feedback alone (its peak includes the start's transient); a
+    seed-mechanism study refuses the option (exit 2, one line naming it)."""
+    import json
+
+    from servo_toolkit.cli import main
+    assert main(["simulate", str(SCENES / "ema_reference.toml"), "--feedforward", "model", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["max_abs_tracking_error_deg"] < 2.0
+    assert any("feedforward" in n for n in out.get("notes", ["feedforward"]))
+    code = main(["simulate", str(SCENES / "cam_follower.toml"), "--study", "constant_speed", "--feedforward", "model"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--feedforward" in err[0]
