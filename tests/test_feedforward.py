@@ -132,7 +132,8 @@ def test_lanes_run_a_feedforward_variant_by_variant(ema):
             fn(X, P, model.T[None].copy(), np.zeros(3, dtype=np.int64), 1e-4, 200,
                int(round(model.sample_time / 1e-4)), figs, snaps)
             runs.append(X)
-        np.testing.assert_array_equal(runs[1], runs[0])
+        # the lanes' fast-math flags differ from the single run's in the last bit (test_batch_lanes)
+        np.testing.assert_allclose(runs[1], runs[0], rtol=1e-9, atol=1e-12)
         out.append(runs[0])
     assert not np.allclose(out[0], out[1])  # the feedforward is carried, not dropped
 
