@@ -22,6 +22,10 @@ def register(sub) -> None:
                    help="fixed step (s), 1e-9 to 1, of the fixed-step methods (rk4, paper); without --method it "
                         "runs rk4 at that step; refused with --method auto or reference")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
+    p.add_argument("--feedforward", choices=("off", "model"), default="off",
+                   help="feedforward from the command (default off): 'model' adds the current the "
+                        "drivetrain's inverse dynamics needs along the stroke and gives the speed loop "
+                        "the commanded motor speed; outside the loop, the margins are unchanged")
     add_force(p)
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
@@ -42,7 +46,8 @@ def _mechanism_dispatch(scene, args):
     if not is_mechanism_study(scene, name):
         return None
     given = [opt for opt, value in (("--amplitude", args.amplitude), ("--frequency", args.frequency),
-                                    ("--full", args.full)) if value]
+                                    ("--full", args.full), ("--feedforward", args.feedforward != "off"))
+             if value]
     if given:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; "
                          f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to closed-loop sine runs only")
@@ -88,7 +93,8 @@ def run(args) -> int:
         method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
         check_budget(scene, args, amplitude)
         prepare_kernels(scene, paper=method == "paper")
-        options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency)
+        options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
+                       feedforward=args.feedforward)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()

@@ -11,7 +11,7 @@ reference r(t) the block shares) and the same RK4 stage arithmetic
 (:func:`integrators.rk4_coefficients`). Per variant the block keeps the
 figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
 stroke end) is masked out while its block-mates go on. A block holding a continuous
-controller, a cam or controllers of different structures falls back to
+controller, a cam, a feedforward or controllers of different structures falls back to
 :func:`batch.variant_run` per variant.
 """
 
@@ -46,13 +46,15 @@ CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)
 @jit
 def block_kind(P, v0, nl):
     """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
-    sampled or open-loop controller of one structure, no cam, the two-mass (or rigid) chain
-    and no friction that sticks (its speed reversals split a variant's step) in every variant."""
+    sampled or open-loop controller of one structure, no cam, the two-mass (or rigid) chain,
+    no friction that sticks (its speed reversals split a variant's step) and no feedforward
+    (it runs variant by variant, :func:`batch.variant_run`, whose controller sample adds it)
+    in every variant."""
     lanes = True
     shared = True
     for v in range(v0, v0 + nl):
         if (int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0 or P[v, lo.NMID] > 0.0
-                or P[v, lo.STICK] > 0.0):
+                or P[v, lo.STICK] > 0.0 or P[v, lo.FF_ON] > 0.0):
             lanes = False
         for j in CONTROLLER_SLOTS:
             if P[v, j] != P[v0, j]:

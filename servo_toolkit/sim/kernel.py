@@ -53,7 +53,8 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID)
+                     TS_L, INV_VS_L, NMID, FF_ON)
+from .feedforward_kernel import feedforward  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
@@ -187,8 +188,12 @@ def speed_estimate(x, P, T, wm_true):
 @jit  # called once per sample, not per step: compiled once, shared by every loop and Python
 def controller_sample(t, x, P, T, work):
     """Sampled motion controller at time t: returns the held i_ref, updates x[NX_PHYS:]
-    (:func:`controller_update` at the reference r(t))."""
-    return controller_update(reference(t, P), x, P, T, work)
+    (:func:`controller_update` at the reference r(t), plus the feedforward current along
+    r(t), r'(t), r''(t) when ``FF_ON``: once per sample, never per integration stage)."""
+    if P[FF_ON] > 0.0:
+        r, i_ff, w_ff = feedforward(t, P, T)
+        return controller_update(r, x, P, T, work, i_ff, w_ff)
+    return controller_update(reference(t, P), x, P, T, work, 0.0, 0.0)
 
 
 @inline
@@ -202,9 +207,11 @@ def controller_inputs(x, P, T):
 
 
 @inline
-def controller_update(r, x, P, T, work):
-    """The sample of :func:`controller_sample` at a given reference r: returns the held i_ref,
-    updates x[NX_PHYS:].
+def controller_update(r, x, P, T, work, i_ff, w_ff):
+    """The sample of :func:`controller_sample` at a given reference r: returns the held i_ref
+    (the motion controller's output plus the feedforward current ``i_ff``, clamped at the
+    current limit), updates x[NX_PHYS:]. The speed loop sees the measured motor speed less
+    the feedforward's speed reference ``w_ff`` (0 without one).
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -212,10 +219,10 @@ def controller_update(r, x, P, T, work):
     """
     nc = int(P[NC])
     th, wm = controller_inputs(x, P, T)
-    y = _motion(x, P, r, th, wm, work, 0, True)
+    y = _motion(x, P, r, th, wm - w_ff, work, 0, True)
     for j in range(nc):
         x[NX_PHYS + j] = work[j]
-    return clip(y, P[ILIM])
+    return clip(y + i_ff, P[ILIM])
 
 
 @inline
@@ -253,7 +260,11 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         dxi = 0.0
     else:
         if not lanes and mode == CONTINUOUS:
-            iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
+            if P[FF_ON] > 0.0:
+                r, i_ff, w_ff = feedforward(t, P, T)
+                iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
+            else:
+                iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
         else:
             iref = iref_held
         if P[L] > 0.0:

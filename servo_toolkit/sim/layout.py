@@ -76,7 +76,14 @@ SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
 # moments (N*m, N) and 1 / its Stribeck speed; STICK = 0: the smooth model Tc tanh(w / w_s) of
 # the motor's Coulomb friction alone
 TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
-NP_HEADER = 67
+# feedforward from the commanded trajectory (:class:`servo_toolkit.loop.controller.Feedforward`,
+# :func:`servo_toolkit.sim.kernel.feedforward_current`): 1 when on (0: the controller's output
+# alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1 for the model-based
+# torque feedforward, the scale of its inertia relative to the tables', 1 when the speed loop
+# takes the motor speed along the commanded trajectory as its reference, and the time (s) by
+# which the feedforward current leads the sample instant (half a sample)
+FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
+NP_HEADER = 74
 #: length of the packed cam parameters
 NCAM = 14
 

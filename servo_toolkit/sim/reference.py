@@ -120,7 +120,9 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
     with the current f / (N Kt), the current-loop integral supplies R i, and the controller
     state is the least-squares solution of ``x = A x + B u, C x + D u = i`` (sampled) or
     ``A x + B u = 0, C x + D u = i`` (continuous); a speed estimator starts at the measured
-    motor angle with zero speed. ``at_rest`` starts unloaded instead.
+    motor angle with zero speed. ``at_rest`` starts unloaded instead. With the model-based
+    feedforward the controller holds the current less the feedforward's static share (the
+    load moment over N(r) Kt at the starting reference).
     """
     x = np.zeros(model.nx)
     q = P[lo.REF_OFF]
@@ -155,7 +157,9 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
         u = np.array([q, measured_angle(x[2], P), 0.0])
         lhs = (np.eye(nc) - a) if P[lo.CMODE] == lo.SAMPLED else -a
         mat = np.vstack([lhs, c])
-        rhs_ = np.concatenate([b @ u, [cur - float(d @ u)]])
+        # the model-based feedforward supplies the static load's share at rest (r' = r'' = 0)
+        held = cur - (P[lo.FF_MODEL] * P[lo.FF_ON] * f / (hermite(model.T, lo.T_N, P, q)[0] * P[lo.KT]))
+        rhs_ = np.concatenate([b @ u, [held - float(d @ u)]])
         x[lo.NX_PHYS:lo.NX_PHYS + nc] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
     return _estimator_at_rest(model, P, x)
 

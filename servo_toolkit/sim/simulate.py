@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+from ..errors import SceneError
+from ..loop.controller import FEEDFORWARD_KINDS, Feedforward
 from .engine import run
 from .model import ModelOptions, build_model
 from .reference import Reference
@@ -28,9 +32,29 @@ def controller_for(scene):
     return result.controller, "loop.design"
 
 
+def with_feedforward(controller, feedforward):
+    """The controller with its feedforward replaced: a :class:`Feedforward`, ``"off"`` (none),
+    ``"model"`` (model-based torque feedforward) or None (the controller's own).
+
+    Raises
+    ------
+    SceneError
+        ``feedforward`` names no known kind (key ``feedforward``).
+    """
+    if feedforward is None:
+        return controller
+    if isinstance(feedforward, str):
+        if feedforward not in FEEDFORWARD_KINDS or feedforward == "gains":
+            raise SceneError("feedforward", f"must be 'off' or 'model' (got {feedforward!r})")
+        feedforward = Feedforward.from_kind(feedforward)
+    elif not isinstance(feedforward, Feedforward):
+        raise SceneError("feedforward", f"must be a Feedforward, 'off' or 'model' (got {feedforward!r})")
+    return replace(controller, feedforward=feedforward)
+
+
 def simulate(scene, controller=None, *, reference: Reference | None = None, duration: float = 1.0,
              method: str = "rk4", dt: float | None = None, voltage: float | None = None,
-             options: ModelOptions | None = None, **run_options):
+             options: ModelOptions | None = None, feedforward=None, **run_options):
     """Simulate a scene in closed loop (or open loop at a constant voltage).
 
     Parameters
@@ -48,6 +72,9 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     voltage : float, optional
         Open-loop armature voltage (V).
     options : ModelOptions, optional
+    feedforward : Feedforward or {"off", "model"}, optional
+        Replaces the controller's feedforward (:func:`with_feedforward`); None keeps it.
+        Outside the loop: the margins are the same with and without.
     **run_options
         Passed to :func:`servo_toolkit.sim.run` (``output_dt``, ``solver``, ``rtol``, ...).
 
@@ -59,12 +86,15 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     if voltage is not None:
         if controller is not None:
             raise ValueError("give either a controller or an open-loop voltage, not both")
+        if feedforward not in (None, "off"):
+            raise SceneError("feedforward", f"needs a closed loop, not an open-loop voltage (got {feedforward!r})")
         reference = Reference.voltage(voltage)
     elif controller is None:
         controller, source = controller_for(scene)
+    if controller is not None:
+        controller = with_feedforward(controller, feedforward)
     model = build_model(scene, controller, options)
     result = run(model, reference or Reference(), duration, method, dt, **run_options)
     if source != "given":
-        from dataclasses import replace
         result = replace(result, controller=f"{result.controller} [{source}]")
     return result

@@ -13,11 +13,13 @@ from dataclasses import replace
 
 from ..core.output_units import output_unit
 from ..sim import ModelOptions, controller_for, simulate
+from ..sim.simulate import with_feedforward
 from .time_reference import run_spec
 
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
-                   full: bool = False, amplitude: float | None = None, frequency: float | None = None):
+                   full: bool = False, amplitude: float | None = None, frequency: float | None = None,
+                   feedforward=None):
     """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
 
     Parameters
@@ -35,6 +37,9 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     amplitude, frequency : float, optional
         Replace the sine command's amplitude (rad, or m for an output travel) and
         frequency (Hz).
+    feedforward : Feedforward or {"off", "model"}, optional
+        The controller's feedforward (:func:`servo_toolkit.sim.simulate.with_feedforward`);
+        None: the designed controller's (none).
 
     Returns
     -------
@@ -45,8 +50,10 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude, frequency=frequency)
     method, dt = resolve_method(method, study_method, dt, study_dt)
     if voltage is not None:
-        return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage)
+        return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage,
+                        feedforward=feedforward)
     controller, source = controller_for(scene)
+    controller = with_feedforward(controller, feedforward)
     options, notes = sine_run_options(scene, controller, reference, full)
     notes.insert(0, f"controller from {source}")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,

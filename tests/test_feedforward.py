@@ -1,0 +1,154 @@
+"""Feedforward from the commanded trajectory: off by default, outside the loop, and what the
+model-based torque feedforward does on the reference EMA's 8 Hz, 2 deg sine."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from servo_toolkit.errors import SceneError
+from servo_toolkit.loop.controller import Feedforward
+from servo_toolkit.loop.design import evaluate
+from servo_toolkit.scene.loader import load_scene
+from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, simulate
+from servo_toolkit.sim import layout as lo
+from servo_toolkit.sim.batch import NFIG, NSNAP, run_variants
+from servo_toolkit.sim.batch_lanes import block_kind, run_lanes
+from servo_toolkit.sim.reference import fill, initial_state
+from servo_toolkit.studies.time_run import simulate_study
+
+from .conftest import SCENES
+
+#: the sine starts at full speed from rest: its first two periods are the start's transient
+SETTLE_S = 0.25
+FF_SLOTS = [lo.FF_ON, lo.FF_KV, lo.FF_KA, lo.FF_MODEL, lo.FF_JSCALE, lo.FF_SPEED, lo.FF_LEAD]
+
+
+@pytest.fixture(scope="module")
+def ema():
+    scene = load_scene(SCENES / "ema_reference.toml")
+    controller, _ = controller_for(scene)
+    return scene, controller
+
+
+@pytest.fixture(scope="module")
+def sine_errors(ema):
+    """Tracking error of the default sine run with the feedforward off, on, and with its
+    inertia off by -30 %, +30 % and -100 % (no inertial term)."""
+    scene, _ = ema
+    runs = {"off": "off", "on": "model"}
+    runs.update({s: Feedforward(model=True, inertia_scale=s) for s in (0.7, 1.3, 0.0)})
+    out = {}
+    for name, ff in runs.items():
+        r = simulate_study(scene, feedforward=ff)
+        settled = r.times > SETTLE_S
+        out[name] = (r.output_angle - r.reference_angle)[settled]
+        out["start_" + str(name)] = (r.output_angle - r.reference_angle)[~settled]
+        out["notes_" + str(name)] = r.notes
+    return out
+
+
+def _peak(e):
+    return float(np.max(np.abs(e)))
+
+
+def test_off_by_default_packs_nothing(ema):
+    scene, controller = ema
+    assert controller.feedforward is None
+    plain = build_model(scene, controller)
+    assert not np.any(plain.P[FF_SLOTS])
+    inactive = build_model(scene, replace(controller, feedforward=Feedforward()))
+    np.testing.assert_array_equal(inactive.P, plain.P)
+    on = build_model(scene, replace(controller, feedforward=Feedforward(model=True)))
+    assert on.P[lo.FF_ON] == 1.0 and on.P[lo.FF_MODEL] == 1.0 and on.P[lo.FF_SPEED] == 1.0
+    assert on.P[lo.FF_LEAD] == pytest.approx(0.5 * controller.sample_time)
+    assert any("feedforward" in n for n in on.notes) and not any("feedforward" in n for n in plain.notes)
+
+
+def test_margins_identical_with_and_without_feedforward(ema):
+    """The feedforward acts on the reference only: every margin is the same."""
+    scene, controller = ema
+    with_ff = replace(controller, feedforward=Feedforward(velocity=0.3, acceleration=0.01, model=True))
+    a = evaluate(scene, controller).margins.to_dict()
+    b = evaluate(scene, with_ff).margins.to_dict()
+    assert a == b
+
+
+def test_bad_feedforward_names_the_option(ema):
+    scene, controller = ema
+    with pytest.raises(SceneError) as err:
+        simulate(scene, controller, duration=0.01, feedforward="velocity")
+    assert err.value.key == "feedforward"
+    with pytest.raises(SceneError):
+        simulate(scene, None, voltage=1.0, duration=0.01, feedforward="model")
+    with pytest.raises(ValueError):
+        Feedforward(inertia_scale=-1.0)
+
+
+def test_model_feedforward_cuts_the_8hz_sine_error_fivefold(sine_errors):
+    """Peak error once the start's transient has passed (about 11x here: 2.3 -> 0.21 deg)."""
+    off, on = _peak(sine_errors["off"]), _peak(sine_errors["on"])
+    assert math.degrees(off) > 2.0  # the feedback alone: about 2.3 deg
+    assert on <= off / 5.0
+    assert any("feedforward" in n for n in sine_errors["notes_on"])
+
+
+def test_inertia_error_degrades_as_first_order_sensitivity_predicts(sine_errors):
+    """The error is linear in the missing feedforward current to first order: with the
+    feedforward's inertia scaled by 1 + d, e(d) = e(0) + d (e(0) - e(-1)), e(-1) the error
+    without the inertial term."""
+    e0, e_none = sine_errors["on"], sine_errors[0.0]
+    sens = e0 - e_none
+    for d, key in ((-0.3, 0.7), (0.3, 1.3)):
+        measured = sine_errors[key]
+        predicted = e0 + d * sens
+        assert _peak(measured) == pytest.approx(_peak(predicted), rel=0.05)
+        # the whole trace, not only its peak, follows the prediction
+        assert _peak(measured - predicted) < 0.05 * _peak(d * sens)
+        # and still beats the feedback alone by far
+        assert _peak(measured) < 0.3 * _peak(sine_errors["off"])
+    # the inertia's share is real: without it the error is several times the nominal one
+    assert _peak(e_none) > 2 * _peak(e0)
+
+
+def test_lanes_run_a_feedforward_variant_by_variant(ema):
+    scene, controller = ema
+    ref = Reference.sine(math.radians(2.0), 8.0)
+    opts = ModelOptions(chain="two_mass")
+    plain = build_model(scene, controller, opts)
+    on = build_model(scene, replace(controller, feedforward=Feedforward(model=True)), opts)
+    out = []
+    for model in (plain, on):
+        P = np.array([fill(model, ref)] * 3)
+        assert block_kind(P, 0, 3)[0] == (model is plain)
+        runs = []
+        for fn in (run_variants, run_lanes):
+            X = np.array([initial_state(model, p) for p in P])
+            figs = np.zeros((3, NFIG))
+            snaps = np.zeros((3, NSNAP, X.shape[1] + 2))
+            fn(X, P, model.T[None].copy(), np.zeros(3, dtype=np.int64), 1e-4, 200,
+               int(round(model.sample_time / 1e-4)), figs, snaps)
+            runs.append(X)
+        # the lanes' fast-math flags differ from the single run's in the last bit (test_batch_lanes)
+        np.testing.assert_allclose(runs[1], runs[0], rtol=1e-9, atol=1e-12)
+        out.append(runs[0])
+    assert not np.allclose(out[0], out[1])  # the feedforward is carried, not dropped
+
+
+def test_cli_simulate_feedforward(capsys):
+    """``simulate --feedforward model``: the JSON run with the feedforward in its notes and a
+    smaller error than the feedback alone (its peak includes the start's transient); a
+    seed-mechanism study refuses the option (exit 2, one line naming it)."""
+    import json
+
+    from servo_toolkit.cli import main
+    assert main(["simulate", str(SCENES / "ema_reference.toml"), "--feedforward", "model", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["max_abs_tracking_error_deg"] < 2.0
+    assert any("feedforward" in n for n in out.get("notes", ["feedforward"]))
+    code = main(["simulate", str(SCENES / "cam_follower.toml"), "--study", "constant_speed", "--feedforward", "model"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--feedforward" in err[0]
