@@ -168,7 +168,7 @@ def test_motion_columns_equals_the_single_controller_update_bit_for_bit(nc):
 
 def test_a_block_of_controllers_of_different_structures_runs_variant_by_variant():
     from servo_toolkit.sim.batch_lanes import block_kind
-    P = np.zeros((3, 64))
+    P = np.zeros((3, lo.NP_HEADER))  # every header slot (the kernels read them unchecked)
     P[:, lo.CMODE] = 1.0
     assert block_kind(P, 0, 3) == (True, True)
     P[1, lo.NC] = 2.0
