@@ -116,6 +116,14 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
     return p
 
 
+def _regular_or_gone(path: Path) -> bool:
+    """True for a regular file, or an entry another writer's swap removed since the listing."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except FileNotFoundError:
+        return True
+
+
 def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False) -> Path:
     """Check, before any work, that a folder output may be (re)written at ``path``.
 
@@ -160,8 +168,11 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
         if inside or any(_same_file(p / entry, name) for entry in allowed):
             raise SceneError(key, f"the output would overwrite its input {_q(name)}")
     if st is not None:
-        entries = os.listdir(p)
-        others = sorted(e for e in entries if e not in allowed or not stat.S_ISREG(os.lstat(p / e).st_mode))
+        try:
+            entries = os.listdir(p)
+        except FileNotFoundError:  # another writer is swapping its set in (two renames)
+            entries = []
+        others = sorted(e for e in entries if e not in allowed or not _regular_or_gone(p / e))
         if others:
             raise SceneError(key, f"{_q(path)} holds other files ({', '.join(others[:3])}"
                              f"{', ...' if len(others) > 3 else ''}); give an empty or new folder, or an "

@@ -66,7 +66,19 @@ def context(report, target: str, tick=None) -> dict:
         sections.append({"number": i, "anchor": anchor, "title": s.title, "status": s.status, "reason": s.reason,
                          "html": Markup(s.html), "figures": figs})
     return {"target": target, "scene_name": report.scene_name, "subtitle": report.subtitle,
-            "meta": report.meta, "verdict": _verdict(report), "sections": sections}
+            "meta": _identity(report.meta), "verdict": _verdict(report), "sections": sections}
+
+
+def _identity(meta: dict) -> dict:
+    """The report's identity with every field the document prints (a report built without
+    one, e.g. from Python, still names the toolkit version and the date it was written)."""
+    import datetime
+
+    from ..core.version import __version__
+    out = {"source": "(built in memory)", "sha256": "(scene not read from a file)", "version": __version__,
+           "date": datetime.date.today().isoformat(), "settings": ""}
+    out.update(meta or {})
+    return out
 
 
 def render(report, target: str = "html", tick=None) -> str:
