@@ -45,3 +45,20 @@ def variant(data: dict, **edits):
 def build(data: dict):
     """Scene from a dict."""
     return scene_from_dict(data, "test.toml")
+
+
+def open_circuit_run(model, P, x0, dt: float, n_steps: int, every: int = 1):
+    """Fixed-step RK4 from ``x0`` with the armature open (its resistance set to 1e12 ohm in the
+    parameter block; a scene refuses such a resistance). Returns the recorded states."""
+    import numpy as np
+
+    from servo_toolkit.sim import layout as lo
+    from servo_toolkit.sim.integrators import integrate
+    P = P.copy()
+    P[lo.R] = 1e12
+    x = np.array(x0, dtype=float)
+    n_rec = n_steps // every + 1
+    out_t, out_x, aux = np.zeros(n_rec), np.zeros((n_rec, model.nx)), np.zeros((n_rec, lo.NAUX))
+    status, _, got, _, _ = integrate(x, P, model.T, 0.0, dt, n_steps, 0, 0.0, False, every, out_t, out_x, aux)
+    assert status == 0, status
+    return out_x[:got]

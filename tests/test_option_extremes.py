@@ -49,6 +49,7 @@ BASE = {
     "montecarlo": [EMA, "--samples", "8", "--duration", "0.02"],
     "fit": None,  # no numeric option
     "frf": None,  # needs a log file; its --segment bounds are tested in test_identify_frf.py
+    "size": None,  # no numeric option (the duty cycle's numbers are scene keys, tested in test_sizing*.py)
 }
 #: options whose base argument the case replaces
 REPLACES = {("kv", "--frequency"): ["--study", "kv_8hz"], ("kv", "--amplitude"): ["--study", "kv_8hz"],

@@ -114,8 +114,10 @@ def _publish(tmp: str, target: Path, key: str) -> None:
         except OSError as exc:
             try:
                 os.rename(trash, target)
-            except OSError:
-                if os.path.isdir(target):  # another writer's output is in place
+            except OSError as back:
+                # the rename failed because a folder with entries stood at the target: another
+                # writer's complete output was in place (it may be swapped out again by now)
+                if back.errno in (errno.EEXIST, errno.ENOTEMPTY):
                     _remove(trash)
                     continue
                 raise SceneError(key, f"could not publish {_q(target)}; the earlier output is kept in "
