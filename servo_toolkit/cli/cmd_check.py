@@ -27,7 +27,8 @@ from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
-from .common import add_force, add_json, bounded, check_robustness_budget, to_json
+from .common import add_force, add_json, add_scheduler, bounded, check_robustness_budget, scheduler_of, study_executor, \
+    to_json
 
 
 def register(sub) -> None:
@@ -44,6 +45,7 @@ def register(sub) -> None:
     p.add_argument("--samples", type=bounded(int, 1, 1_000_000, what="a number of variants"), default=None,
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
+    add_scheduler(p, workers=False, what="the chunks of the robustness variants (margins and Monte Carlo runs)")
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
@@ -174,15 +176,17 @@ def _tagged(exc: SceneError, path) -> SceneError:
     return exc if exc.source else exc.with_source(str(path))
 
 
-def _check_scene(path, scene, args, varies):
-    """Design and check one scene: (suite name, cases, JSON dict)."""
+def _check_scene(path, scene, args, varies, executor=None):
+    """Design and check one scene: (suite name, cases, JSON dict); ``executor`` runs the
+    chunks of its variants."""
     from ..studies.gate import SIZING_ROWS, gate
     sizing_ids = {rid for rid, _ in SIZING_ROWS.values()}
     spec = robustness_spec(scene, varies, args.samples)
     if not getattr(args, "design", None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
         check_robustness_budget(scene, spec, robust, args.samples, args.force)
-    g = gate(scene, design_from_args(scene, args, spec), spec, linear_only=getattr(args, "linear_only", False))
+    g = gate(scene, design_from_args(scene, args, spec, executor=executor), spec,
+             linear_only=getattr(args, "linear_only", False), executor=executor)
     result, ls, robust = g.result, g.large_signal, g.robustness
     cases = _cases(g.rows)
     ok = g.passed
@@ -217,33 +221,17 @@ def _check_scene(path, scene, args, varies):
     return scene.name, cases, d
 
 
-def run(args) -> int:
-    """Run the command.
+def _executor(scheduler, scenes, paths):
+    """:func:`~.common.study_executor` of ``--scheduler`` when some scene has a loop to check,
+    else nothing to open."""
+    if scheduler is not None and not any(not isinstance(s, SceneError) and skip_reason(s, p) is None
+                                         for s, p in zip(scenes, paths)):
+        scheduler = None
+    return study_executor(scheduler)
 
-    Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
-    ``--junit`` path) stop before any design. A scene without a motor-driven drivetrain has
-    no loop to gate: it is reported as skipped (a ``skipped`` testcase in the JUnit file,
-    ``"skipped": true`` in the JSON) and does not change the exit code. A scene that cannot
-    be checked (it does not load, or its own nonlinear run, large-signal or Monte Carlo,
-    cannot be carried out) is reported on one stderr line naming its file and becomes an
-    ``error`` testcase of the JUnit file; the other scenes are still checked and written,
-    and the exit code is 2.
-    """
-    from ..loop.robustness import parse_vary
-    varies = dict(parse_vary(text) for text in args.vary)
-    for text in args.require:
-        parse_override(text)
-    if args.samples is not None and args.samples < 1:
-        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
-    if args.junit:
-        check_writable(args.junit, args.scenes)
-    scenes = []
-    for path in args.scenes:  # every file is read before any design runs
-        try:
-            scenes.append(load_scene(path))
-        except SceneError as exc:
-            scenes.append(_tagged(exc, path))
-            print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
+
+def _check_all(args, scenes, varies, executor):
+    """Check every scene: (JUnit entries, errors, skipped, all met, JSON list)."""
     entries, out, all_ok, errors, skipped = [], [], True, 0, 0
     for path, scene in zip(args.scenes, scenes):
         reason = None if isinstance(scene, SceneError) else skip_reason(scene, path)
@@ -258,7 +246,7 @@ def run(args) -> int:
         try:
             if isinstance(scene, SceneError):
                 raise scene
-            name, cases, d = _check_scene(path, scene, args, varies)
+            name, cases, d = _check_scene(path, scene, args, varies, executor)
         except SimulationError as exc:  # its own nonlinear run could not run: no verdict, exit 2
             print(f"servo-toolkit: simulation error: {path}: {exc}", file=sys.stderr)
             errors += 1
@@ -279,6 +267,39 @@ def run(args) -> int:
         all_ok &= ok
         entries.append((name, cases))
         out.append(d)
+    return entries, errors, skipped, all_ok, out
+
+
+def run(args) -> int:
+    """Run the command.
+
+    Errors of the command line (``--require``, ``--vary``, ``--samples``, an unwritable
+    ``--junit`` path) stop before any design. A scene without a motor-driven drivetrain has
+    no loop to gate: it is reported as skipped (a ``skipped`` testcase in the JUnit file,
+    ``"skipped": true`` in the JSON) and does not change the exit code. A scene that cannot
+    be checked (it does not load, or its own nonlinear run, large-signal or Monte Carlo,
+    cannot be carried out) is reported on one stderr line naming its file and becomes an
+    ``error`` testcase of the JUnit file; the other scenes are still checked and written,
+    and the exit code is 2.
+    """
+    from ..loop.robustness import parse_vary
+    varies = dict(parse_vary(text) for text in args.vary)
+    for text in args.require:
+        parse_override(text)
+    if args.samples is not None and args.samples < 1:
+        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+    if args.junit:
+        check_writable(args.junit, args.scenes)
+    scheduler = scheduler_of(args)
+    scenes = []
+    for path in args.scenes:  # every file is read before any design runs
+        try:
+            scenes.append(load_scene(path))
+        except SceneError as exc:
+            scenes.append(_tagged(exc, path))
+            print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
+    with _executor(scheduler, scenes, args.scenes) as (executor, _):
+        entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor)
     if args.junit:
         write_junit(args.junit, entries)
     if args.json:

@@ -43,9 +43,10 @@ def gate_result(scene, args, result):
     return with_large_signal(scene, result)
 
 
-def design_from_args(scene, args, spec=None):
+def design_from_args(scene, args, spec=None, executor=None):
     """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
-    scene's ``[robustness]`` for a robust design (``check --vary``)."""
+    scene's ``[robustness]`` for a robust design (``check --vary``); ``executor`` runs the
+    chunks of its variants (``check --scheduler``)."""
     require = dict(parse_override(text) for text in args.require)
     if getattr(args, "design", None):
         from ..loop.tuning import load_design
@@ -54,7 +55,7 @@ def design_from_args(scene, args, spec=None):
     if spec is not None and (robust is True or (robust is None and scene.robustness is not None)):
         robust = spec
     return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require,
-                  robust=robust, progress=False)
+                  robust=robust, progress=False, executor=executor)
 
 
 def register(sub) -> None:

@@ -11,7 +11,8 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
+from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, emit,
+                     prepare_kernels, scheduler_of, study_executor)
 
 #: most variants of one run (as ``check --samples`` and a scene's ``[robustness] samples``)
 MAX_SAMPLES = 1_000_000
@@ -34,6 +35,7 @@ def register(sub) -> None:
     p.add_argument("--full", action="store_true", help="run the full model (default: simulate's reduced model)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process, every core)")
+    add_scheduler(p, what="chunks of variants")
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
@@ -56,7 +58,7 @@ def _check_args(args):
         raise SceneError("workers", f"must be at most 256 (got {args.workers})")
     if args.workers is not None and args.workers < 1:
         raise SceneError("workers", f"must be at least 1 (got {args.workers})")
-    return varies
+    return varies, scheduler_of(args)
 
 
 def _check_budget(scene, args) -> None:
@@ -75,9 +77,8 @@ def _check_budget(scene, args) -> None:
 
 def run(args) -> int:
     """Run the command."""
-    from ..core.parallel import process_pool
     from ..studies.montecarlo import CHUNK_SIZE, montecarlo
-    varies = _check_args(args)  # every option is checked before the scene is read
+    varies, scheduler = _check_args(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
     reference = None
     if args.amplitude is not None or args.frequency is not None:
@@ -85,7 +86,6 @@ def run(args) -> int:
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
                              frequency=args.frequency, duration=args.duration)[0]
     _check_budget(scene, args)
-    prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
     variants = None
     if varies:
         base = dict(scene.robustness.ranges) if scene.robustness is not None else {}
@@ -93,12 +93,10 @@ def run(args) -> int:
     progress = not args.json and sys.stderr.isatty()
     kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress,
                   reference=reference)
-    if args.workers and args.workers > 1:
-        n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
-        with process_pool(args.workers) as pool:
-            result = montecarlo(scene, variants, executor=pool, chunk_size=min(CHUNK_SIZE, -(-n // args.workers)),
-                                **kwargs)
-    else:
-        result = montecarlo(scene, variants, **kwargs)
+    n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
+    with study_executor(scheduler, args.workers) as (executor, slots):  # a cluster that is not there: before any work
+        prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
+        chunk_size = CHUNK_SIZE if slots is None else min(CHUNK_SIZE, -(-n // slots))
+        result = montecarlo(scene, variants, executor=executor, chunk_size=chunk_size, **kwargs)
     emit(args, result, f"Monte Carlo of {scene.name}\n" + result.table())
     return 0

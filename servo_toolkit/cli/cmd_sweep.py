@@ -9,7 +9,8 @@ import numpy as np
 from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit
+from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
+                     scheduler_of, study_executor)
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -24,25 +25,22 @@ def register(sub) -> None:
     p.add_argument("--full", action="store_true", help="run the full model (default: the reduced model)")
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=0, metavar="N",
                    help="run the dwells in N processes (at least 1; default: in this process)")
+    add_scheduler(p, what="the dwells (or a seed-mechanism study's cases)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
 
-def _run_mechanism(scene, name, args) -> int:
+def _run_mechanism(scene, name, args, scheduler) -> int:
     """A seed-mechanism study: its own runner; the sine-dwell options do not apply."""
     given = [opt for opt, value in (("--frequency", args.frequency), ("--amplitude", args.amplitude),
                                     ("--full", args.full)) if value]
     if given:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
                          f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
-    if args.workers > 1:
-        from ..core.parallel import process_pool
-        with process_pool(args.workers) as pool:
-            res = run_study(scene, name, executor=pool)
-    else:
-        res = run_study(scene, name)
+    with study_executor(scheduler, args.workers) as (executor, _):
+        res = run_study(scene, name, executor=executor)
     if args.plot and hasattr(res, "plot"):
         import matplotlib
         matplotlib.use("Agg")
@@ -78,6 +76,7 @@ def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs:
 
 def run(args) -> int:
     """Run the command."""
+    scheduler = scheduler_of(args)  # before the scene is read
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
@@ -87,18 +86,14 @@ def run(args) -> int:
             print(f"servo-toolkit: note: {scene.name} has no motor-driven drivetrain (no loop to sweep); "
                   f"running its study {name!r} as simulate does", file=sys.stderr)
         if is_mechanism_study(scene, name):
-            return _run_mechanism(scene, name, args)
+            return _run_mechanism(scene, name, args, scheduler)
     amps = amplitudes_si(scene, args.amplitude)
     check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     try:
-        if args.workers > 1:
-            from ..core.parallel import process_pool
-            with process_pool(args.workers) as pool:
-                res = _sweep(scene, args.study, executor=pool, **kw)
-        else:
-            res = _sweep(scene, args.study, **kw)
+        with study_executor(scheduler, args.workers) as (executor, _):
+            res = _sweep(scene, args.study, executor=executor, **kw)
     except SceneError as exc:
         if exc.key == "frequencies":  # the option, not the scene
             raise SceneError("--frequency", exc.rule) from None

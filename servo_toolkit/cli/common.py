@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 
 from ..core.json_text import to_json
+from ..errors import SceneError
 
 
 def add_scene(parser, optional: bool = False) -> None:
@@ -112,3 +114,50 @@ def amplitudes_si(scene, texts, option: str = "--amplitude"):
         for a in values:
             check_amplitude(scene, a, option)
     return values[0] if isinstance(texts, str) else values
+
+
+def add_scheduler(parser, *, workers: bool = True, what: str = "chunks of the work") -> None:
+    """Add ``--scheduler ADDRESS``: run ``what`` on an existing dask.distributed cluster."""
+    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                        help=f"send {what} to the dask scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786; needs the "
+                             "cluster extra, pip install 'servo-toolkit[cluster]', and servo-toolkit of this version "
+                             "on the workers); the results equal a run in one process. Without it, dask's "
+                             "DASK_SCHEDULER_ADDRESS is used when set"
+                             + (" and --workers is not given; --scheduler and --workers exclude each other"
+                                if workers else ""))
+
+
+def scheduler_of(args):
+    """The dask scheduler a command sends its chunks to (a
+    :class:`~servo_toolkit.core.cluster.SchedulerAddress`), or None: ``--scheduler``, else
+    ``DASK_SCHEDULER_ADDRESS`` unless ``--workers`` asks for local processes. Checked before
+    the scene is read; ``--scheduler`` with ``--workers`` is a SceneError."""
+    from ..core.cluster import scheduler_address
+    workers = getattr(args, "workers", None)
+    if args.scheduler is not None and workers:
+        raise SceneError("--scheduler", f"excludes --workers: the chunks run on the cluster or in local processes, "
+                                        f"not both (got --workers {workers})")
+    if workers:
+        return None
+    return scheduler_address(args.scheduler)
+
+
+@contextlib.contextmanager
+def study_executor(scheduler, workers=None):
+    """``(executor, slots)`` for a study's ``executor=``: the dask cluster's (``scheduler``,
+    a SchedulerAddress; a stderr note names it), a process pool of ``workers`` > 1, or
+    ``(None, None)`` to run here. ``slots`` is how many chunks run at once. The cluster's
+    client or the pool is closed on leaving."""
+    if scheduler is not None:
+        from ..core.cluster import open_cluster
+        with open_cluster(scheduler) as cluster:
+            given = "" if scheduler.key == "--scheduler" else f" (from {scheduler.key})"
+            print(f"servo-toolkit: note: running chunks on the dask cluster at {cluster.address}{given}, "
+                  f"{cluster.threads} worker thread{'s' if cluster.threads != 1 else ''}", file=sys.stderr)
+            yield cluster.executor, cluster.threads
+    elif workers and workers > 1:
+        from ..core.parallel import process_pool
+        with process_pool(workers) as pool:
+            yield pool, workers
+    else:
+        yield None, None

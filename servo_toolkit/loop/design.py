@@ -173,7 +173,7 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
 def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
            model: str = "auto", require=None, phase_hz: float = REQUIREMENT_SINE_HZ, robust=None,
-           progress: bool = True, over_stroke: bool = True) -> DesignResult:
+           progress: bool = True, over_stroke: bool = True, executor=None) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
 
     A nominal design maximizes the smallest slack against the requirements on the nominal
@@ -217,6 +217,9 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         (:func:`.stroke_design.design_points`; bandwidth and phase lag at q0) and try the
         resonance filters that cover the mode's walk along the stroke (default). ``False``
         designs on the plant at q0 alone (the check over the stroke still runs).
+    executor : concurrent.futures.Executor, optional
+        Runs the chunks of a robust design's check over the variants (e.g. a dask
+        ``Client.get_executor()``); the result does not depend on it.
 
     Returns
     -------
@@ -230,7 +233,8 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     if spec is not None:
         r = _robust_design(scene, spec, q0=q0, structure=structure, current_bandwidth_hz=current_bandwidth_hz,
                            structural_damping=structural_damping, model=model, require=require,
-                           phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter)
+                           phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter,
+                           executor=executor)
         return r if op_note is None else replace(r, notes=(op_note,) + r.notes)
     if structure not in STRUCTURES:
         from ..errors import SceneError
@@ -359,7 +363,7 @@ def robust_spec(scene, robust):
 
 
 def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structural_damping, model, require,
-                   phase_hz, progress, resonance_filter):
+                   phase_hz, progress, resonance_filter, executor=None):
     """Robust design (cascade search), or a nominal design evaluated over the variants."""
     from .robust_design import confirm_worst_case, robust_search
     from .robustness import robustness
@@ -371,7 +375,8 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
         r = design(scene, q0, structure=structure, resonance_filter=resonance_filter,
                    current_bandwidth_hz=current_bandwidth_hz, structural_damping=structural_damping, model=model,
                    require=require, phase_hz=phase_hz, robust=False)
-        rb = robustness(scene, r, spec=spec, progress=progress, structural_damping=structural_damping)
+        rb = robustness(scene, r, spec=spec, progress=progress, structural_damping=structural_damping,
+                        executor=executor)
         notes = (f"{header}: the robust search covers the cascade with its own filter choice; this "
                  f"{structure} design (filter {resonance_filter}) is nominal, only evaluated over the variants",)
         r = replace(r, robustness=rb, notes=r.notes + notes)
@@ -388,7 +393,7 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
                         structural_damping=structural_damping, phase_hz=phase_hz)
 
     result, _ = robust_search(scene, p, spec, reqs, (kp_i, ki_i), sample_time, structural_damping,
-                              evaluate_design=evaluate_design, progress=progress)
+                              evaluate_design=evaluate_design, progress=progress, executor=executor)
     notes = (header + "; priority: every variant stable, then margins, then bandwidth",
              confirm_worst_case(scene, result, structural_damping))
     result = replace(result, notes=result.notes + notes)

@@ -307,7 +307,7 @@ def design_grid(spec, load_inertia: float, per_axis: int = GRID_PER_AXIS) -> dic
 
 
 def robust_search(scene, p, spec, nominal, current_gains, sample_time, structural_damping, *,
-                  evaluate_design, progress: bool = True, rounds: int = 2):
+                  evaluate_design, progress: bool = True, rounds: int = 2, executor=None):
     """Search the cascade over ``spec``'s variations (see module docstring).
 
     ``evaluate_design(controller, motion)`` turns a controller into a nominal DesignResult
@@ -315,6 +315,7 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
     ``robustness`` checked on ``spec``'s own variants, and the search state (its design grid
     in ``search.values``). When the scene's variants reveal a worse variant than the grid,
     it is added to the grid and the refinement runs again (at most ``rounds`` times).
+    ``executor`` runs the chunks of that check over the scene's variants.
     """
     robust = robust_requirements(spec, nominal)
     search = _Search(scene, p, nominal, robust, current_gains, sample_time, structural_damping)
@@ -333,7 +334,7 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
         ctrl = CascadeController(motion.state_space(), *current_gains, sample_time, motion.describe())
         nominal_result = evaluate_design(ctrl, motion)
         rb = robustness(scene, nominal_result, spec=spec, requirements=robust, progress=False,
-                        structural_damping=structural_damping)
+                        structural_damping=structural_damping, executor=executor)
         result = replace(nominal_result, robustness=rb)
         achieved_n = {c.name: c.achieved for c in nominal_result.requirements}
         worst = {c.name: c.achieved for c in rb.requirements}

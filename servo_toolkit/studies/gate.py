@@ -240,7 +240,8 @@ class Gate:
         return f"<Gate of {self.result.scene_name}: {len(self.rows)} requirements, {failed} not met>"
 
 
-def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None) -> Gate:
+def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None,
+         executor=None) -> Gate:
     """Judge ``result`` (a DesignResult of ``scene``) as ``servo-toolkit check`` does.
 
     Parameters
@@ -259,6 +260,9 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         The sizing of the scene's ``[duty_cycle]`` already computed (the report's), or the
         error it raised (its rows are then without a verdict); else it is computed (inverse
         dynamics, no ratio sweep) when the scene has a duty cycle.
+    executor : concurrent.futures.Executor, optional
+        Runs the chunks of the variants (robustness and Monte Carlo), e.g. a dask
+        ``Client.get_executor()``; the rows do not depend on it.
 
     Returns
     -------
@@ -279,11 +283,13 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     robust = result.robustness
     if robust is None and spec is not None:
         from ..loop.robustness import robustness
-        robust = robustness(scene, result, spec=spec, progress=False)
+        robust = robustness(scene, result, spec=spec, progress=False, executor=executor)
     rows = design_rows(result, None if ls is None else ls.frequency_hz)
     if robust is not None:
         rows += robust_rows(robust)
-    checks, mc = montecarlo if montecarlo is not None else montecarlo_checks(scene, spec, result.controller)
+    if montecarlo is None:
+        montecarlo = montecarlo_checks(scene, spec, result.controller, executor=executor)
+    checks, mc = montecarlo
     if mc is not None:
         rows += montecarlo_rows(checks, mc)
     if sizing is None and getattr(scene, "duty_cycle", None) is not None:

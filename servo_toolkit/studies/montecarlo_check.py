@@ -47,9 +47,9 @@ def montecarlo_requirements(scene, spec) -> list[Requirement]:
     return out
 
 
-def montecarlo_checks(scene, spec, controller, *, progress: bool = False):
+def montecarlo_checks(scene, spec, controller, *, progress: bool = False, executor=None):
     """Run the variants of ``spec`` with ``controller`` and check its Monte Carlo
-    requirements.
+    requirements; ``executor`` runs the chunks of variants (the checks do not depend on it).
 
     Returns
     -------
@@ -60,7 +60,7 @@ def montecarlo_checks(scene, spec, controller, *, progress: bool = False):
     requirements = montecarlo_requirements(scene, spec)
     if not requirements:
         return [], None
-    result = spec_montecarlo(scene, spec, controller, progress=progress)
+    result = spec_montecarlo(scene, spec, controller, progress=progress, executor=executor)
     return result_checks(requirements, result), result
 
 
