@@ -8,6 +8,7 @@ Nothing here imports from another part of the toolkit (except :mod:`servo_toolki
 :mod:`.fields`            reading one scene table with key paths in every error
 :mod:`.output_units`      the output coordinate shown in deg or mm
 :mod:`.parallel`          many independent cases: an optional executor, a progress bar
+:mod:`.cluster`           the executor of a running dask.distributed cluster (``--scheduler``)
 :mod:`.jit_cache`         where compiled kernels are cached, and when that is stale
 ========================  ==========================================================
 """
