@@ -17,6 +17,7 @@ import sys
 import time
 from argparse import Namespace
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -192,3 +193,18 @@ def test_workers_on_the_command_line_win_over_the_environment(monkeypatch):
     assert scheduler_of(Namespace(scheduler=None, workers=2)) is None
     assert scheduler_of(Namespace(scheduler=None, workers=None)) == SchedulerAddress("tcp://10.0.0.5:8786", ENV_VAR)
     assert scheduler_of(Namespace(scheduler=None)).key == ENV_VAR  # check has no --workers
+
+
+def test_a_cluster_failure_during_the_run_is_one_error_naming_the_option(cluster):
+    """A worker lost mid-run (dask's KilledWorker) becomes a SceneError naming the key and the
+    address; an error of the work itself keeps its type."""
+    import distributed
+
+    from servo_toolkit.core.cluster import open_cluster
+    from servo_toolkit.errors import SceneError
+    with pytest.raises(SceneError, match=r"^--scheduler: the dask cluster failed during the run: KilledWorker"):
+        with open_cluster(SchedulerAddress(cluster)):
+            raise distributed.KilledWorker("apply_chunk-0", SimpleNamespace(address="tcp://127.0.0.1:1"), 3)
+    with pytest.raises(ValueError, match="the work's own error"):
+        with open_cluster(SchedulerAddress(cluster, ENV_VAR)):
+            raise ValueError("the work's own error")

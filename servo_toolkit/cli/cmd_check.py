@@ -27,8 +27,8 @@ from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
-from .common import add_force, add_json, add_scheduler, bounded, check_robustness_budget, scheduler_of, study_executor, \
-    to_json
+from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, scheduler_of,
+                     study_executor, to_json)
 
 
 def register(sub) -> None:

@@ -15,6 +15,7 @@ before it cuts them into chunks, and each chunk is a pure function of its own in
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import contextlib
 import os
 import warnings
@@ -128,7 +129,10 @@ def _resolve(address: str, key: str) -> str:
 
 
 def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
+    try:
+        text = str(exc).strip().splitlines()
+    except Exception:  # an exception that cannot say what it is
+        text = []
     return text[0] if text else type(exc).__name__
 
 
@@ -149,6 +153,15 @@ def _worker_check(client, address: str, key: str, timeout: float = WORKER_TIMEOU
         raise SceneError(key, f"the cluster's workers run servo-toolkit {', '.join(other)}, this is "
                               f"{__version__}: install the same version there (got {address})")
     return max(1, sum(client.nthreads().values()))
+
+
+def is_cluster_failure(exc: BaseException) -> bool:
+    """True when ``exc`` comes from the cluster rather than from the work: an error of dask
+    or its network layer (a worker that died, a closed connection, a cancelled task) or a
+    lost connection. An error a chunk raises itself comes back with its own type."""
+    module = type(exc).__module__ or ""
+    return module.split(".")[0] in ("distributed", "tornado") or \
+        isinstance(exc, (ConnectionError, TimeoutError, cf.CancelledError))
 
 
 @contextlib.contextmanager
@@ -175,7 +188,8 @@ def open_cluster(scheduler: SchedulerAddress, *, timeout: float = CONNECT_TIMEOU
         Naming ``scheduler.key``: ``distributed`` is not installed (the message says how to
         install the ``cluster`` extra), the address does not parse, no scheduler answers
         there within ``timeout``, no worker joins within ``worker_timeout``, or the workers cannot
-        import this toolkit or have another version of it.
+        import this toolkit or have another version of it; or, while the work runs, the
+        cluster fails (:func:`is_cluster_failure`: a worker dies, the scheduler goes away).
     """
     key, address = scheduler.key, scheduler.address
     distributed = _import_distributed(key)
@@ -186,6 +200,13 @@ def open_cluster(scheduler: SchedulerAddress, *, timeout: float = CONNECT_TIMEOU
         raise SceneError(key, f"cannot reach a dask scheduler within {timeout:g} s (got {address})") from None
     try:
         threads = _worker_check(client, address, key, worker_timeout)
-        yield Cluster(client.get_executor(), resolved, threads)
+        try:
+            yield Cluster(client.get_executor(), resolved, threads)
+        except Exception as exc:
+            if isinstance(exc, SceneError) or not is_cluster_failure(exc):
+                raise
+            raise SceneError(key, f"the dask cluster failed during the run: {type(exc).__name__}: "
+                                  f"{_first_line(exc)} (got {address})") from None
     finally:
-        client.close()
+        with contextlib.suppress(Exception):  # a scheduler already gone: nothing left to close
+            client.close()
