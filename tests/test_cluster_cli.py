@@ -208,3 +208,13 @@ def test_a_cluster_failure_during_the_run_is_one_error_naming_the_option(cluster
     with pytest.raises(ValueError, match="the work's own error"):
         with open_cluster(SchedulerAddress(cluster, ENV_VAR)):
             raise ValueError("the work's own error")
+
+
+@pytest.mark.parametrize("command", ["montecarlo", "sweep", "check"])
+def test_help_names_the_option_and_the_environment_variable(command, monkeypatch):
+    from servo_toolkit.cli import build_parser
+    monkeypatch.setenv("COLUMNS", "1000")  # no line wrapped inside a word
+    parser = build_parser(only=command)
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    text = " ".join(sub.format_help().split())
+    assert "--scheduler ADDRESS" in text and ENV_VAR in text and "servo-toolkit[cluster]" in text
