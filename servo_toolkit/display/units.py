@@ -17,12 +17,16 @@ from functools import lru_cache
 
 import pint
 
+from ..core.fields import Fields
 from ..core.output_units import OutputUnit
 from ..core.units import UREG, parse_text
 from ..errors import SceneError
 
 #: the unit cell of a dimensionless value (a ratio, an efficiency, a damping ratio)
 DIMENSIONLESS = ""
+
+#: the value of a ``[display]`` key that keeps the SI unit (its default)
+SI = "SI"
 
 #: quantity -> ((what it is, an example) at an output angle, the same at an output travel)
 PREFERENCES = {
@@ -53,17 +57,21 @@ def _factor(si: str, unit: str) -> float:
 class DisplayUnits:
     """The units a reader sees for quantities at the output (a scene's ``[display]``).
 
-    ``None`` keeps the SI unit: N*m/rad and kg*m^2 at an output angle, N/m and kg at an
-    output travel. Only what is shown changes: results, JSON and the scene stay SI.
+    ``None`` (``"SI"`` in a scene) keeps the SI unit: N*m/rad and kg*m^2 at an output
+    angle, N/m and kg at an output travel. Only what is shown changes: tables, cards,
+    figures and text; results, JSON and the scene stay SI.
 
     Attributes
     ----------
     stiffness : str or None
-        Unit of a stiffness at the output, e.g. ``"N*m/deg"``, ``"kN*m/rad"``; ``"N/um"``
-        or ``"N/mm"`` at an output travel.
+        Unit of a stiffness at the output: a torque per angle at an output angle
+        (``"N*m/deg"``, ``"kN*m/rad"``), a force per length at an output travel
+        (``"N/um"``, ``"N/mm"``). Shown by ``servo-toolkit stiffness``, ``design`` and the
+        report's stiffness tables and figures.
     inertia : str or None
-        Unit of an inertia at the output, e.g. ``"kg*cm^2"``; a mass unit (``"g"``) at an
-        output travel.
+        Unit of an inertia at the output: a moment of inertia at an output angle
+        (``"kg*cm^2"``, ``"g*mm^2"``), a mass at an output travel (``"g"``). The motor's own
+        rotor inertia stays in kg*m^2.
     """
 
     stiffness: str | None = None
@@ -95,13 +103,14 @@ class DisplayUnits:
         return {q: self.unit(q, linear) for q in PREFERENCES}
 
 
-def display_units_from_table(table, linear: bool) -> DisplayUnits:
-    """Read a scene's ``[display]`` table.
+def display_units_from_table(f: Fields, linear: bool) -> DisplayUnits:
+    """Read a scene's ``[display]`` table (absent: an empty table, everything SI).
 
     Parameters
     ----------
-    table : mapping
-        ``stiffness`` and ``inertia``, each a unit string (optional).
+    f : Fields
+        The ``[display]`` table: ``stiffness`` and ``inertia``, each a unit string, or
+        ``"SI"`` (the default) for the SI unit of the output.
     linear : bool
         True when the scene's output is a travel (a stiffness is then a force per length,
         an inertia a mass).
@@ -112,17 +121,19 @@ def display_units_from_table(table, linear: bool) -> DisplayUnits:
         Key ``display.NAME``: an unknown key, not a unit, or a unit of the wrong dimension
         (naming the dimension expected).
     """
-    if not isinstance(table, dict):
-        raise SceneError("display", f"must be a table [display] (got {table!r})")
-    unknown = sorted(set(table) - set(PREFERENCES))
+    chosen = {name: _preference(f, name, linear) for name in PREFERENCES}
+    unknown = sorted(set(f.table) - set(PREFERENCES))
     if unknown:
-        raise SceneError(f"display.{unknown[0]}", f"unknown key; known: {sorted(PREFERENCES)}")
-    return DisplayUnits(**{name: _preference(name, value, linear) for name, value in table.items()})
+        raise SceneError(f.key(unknown[0]), f"unknown key; known keys are {sorted(PREFERENCES)}")
+    return DisplayUnits(**chosen)
 
 
-def _preference(name: str, text, linear: bool) -> str:
-    """A checked unit string for preference ``name``."""
-    key = f"display.{name}"
+def _preference(f: Fields, name: str, linear: bool) -> str | None:
+    """A checked unit string for preference ``name`` (None for SI)."""
+    text = f.text(name, SI)
+    if text.strip() == SI:
+        return None
+    key = f.key(name)
     what, example = PREFERENCES[name][1 if linear else 0]
     coordinate = "an output travel" if linear else "an output angle"
     expected = f"expected a unit of {name} at {coordinate}, {what} such as '{example}'"
@@ -160,5 +171,5 @@ def label(quantity: str, unit: str = DIMENSIONLESS) -> str:
     return f"{quantity} [{unit}]" if unit else quantity
 
 
-__all__ = ["DIMENSIONLESS", "DisplayUnits", "display_units_from_table", "inertia_unit", "label",
+__all__ = ["DIMENSIONLESS", "SI", "DisplayUnits", "display_units_from_table", "inertia_unit", "label",
            "stiffness_unit"]

@@ -216,7 +216,7 @@ class RobustnessResult(RichDisplay):
         ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
                    label="unstable")
         unit = OutputUnit(self.output_unit)
-        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} ({unit.inertia})")
+        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} [{unit.inertia}]")
         ax.set_ylabel(figure)
         ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
         return ax

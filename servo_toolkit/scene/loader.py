@@ -424,7 +424,8 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                       studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
                       duty_cycle=_duty_cycle(data, stages, unit, source),
-                      display=display_units_from_table(data.get("display", {}), unit == "m"), source=source)
+                      display=display_units_from_table(Fields(data.get("display", {}), "display"), unit == "m"),
+                      source=source)
         if stages:
             _built("drivetrain", scene.drivetrain.check)
             from .study_stroke import check_study_amplitudes

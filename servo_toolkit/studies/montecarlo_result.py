@@ -204,13 +204,13 @@ class MonteCarloResult:
         x = self.values.get("load_inertia", np.arange(self.count))
         c = self.values.get("stiffness")
         ok = ~self.failed
-        for ax, y, label in ((axes[0], self.error_display, f"max |tracking error| ({self.error_unit})"),
-                             (axes[1], self.peak_current, "peak |current| (A)")):
+        for ax, y, label in ((axes[0], self.error_display, f"max |tracking error| [{self.error_unit}]"),
+                             (axes[1], self.peak_current, "peak |current| [A]")):
             sc = ax.scatter(x[ok], y[ok], c=None if c is None else c[ok], s=6, cmap="viridis")
             if np.any(self.failed):
                 ax.scatter(x[self.failed], np.zeros(int(np.sum(self.failed))), marker="x", color="r", label="failed")
                 ax.legend()
-            ax.set_xlabel(f"load {'mass' if self.unit.linear else 'inertia'} ({self.unit.inertia})"
+            ax.set_xlabel(f"load {'mass' if self.unit.linear else 'inertia'} [{self.unit.inertia}]"
                           if "load_inertia" in self.values else "variant")
             ax.set_ylabel(label)
         if c is not None:
