@@ -256,3 +256,15 @@ def test_axis_labels_put_units_in_brackets():
     assert not wrong, f"axis labels with a unit in parentheses (write 'quantity [unit]'): {wrong}"
     assert _unit_in_parentheses("gain (dB)") == "dB" and _unit_in_parentheses("time ({})") == "{}"
     assert _unit_in_parentheses("efficiency (eq 32)") is None
+
+
+def test_kv_table_shows_the_load_inertia_in_the_scene_unit(tmp_path, capsys):
+    assert main(["kv", str(EMA)]) == 0
+    default = capsys.readouterr().out
+    assert main(["kv", str(_scene(tmp_path, 'inertia = "kg*cm^2"'))]) == 0
+    shown = capsys.readouterr().out
+    assert "[kg*m^2]" in default and "[kg*cm^2]" in shown and "[kg*m^2]" not in shown
+
+    def loads(text):
+        return [float(line.split()[1]) for line in text.splitlines() if re.match(r"\s+\d+\s+\d", line)]
+    assert loads(shown) and loads(shown) == pytest.approx([1e4 * j for j in loads(default)])
