@@ -268,3 +268,30 @@ def test_kv_table_shows_the_load_inertia_in_the_scene_unit(tmp_path, capsys):
     def loads(text):
         return [float(line.split()[1]) for line in text.splitlines() if re.match(r"\s+\d+\s+\d", line)]
     assert loads(shown) and loads(shown) == pytest.approx([1e4 * j for j in loads(default)])
+
+
+def test_robustness_and_monte_carlo_show_the_load_inertia_in_the_scene_unit():
+    """Variants are SI (kg*m^2); the text and the plot show them in the scene's unit."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from servo_toolkit.loop.robustness import RobustnessResult
+    from servo_toolkit.studies.montecarlo_result import MonteCarloResult
+    import numpy as np
+    values = {"load_inertia": np.array([0.0, 4.0]), "stiffness": np.array([0.7, 1.3])}
+    cm = DisplayUnits(inertia="kg*cm^2")
+    robust = RobustnessResult("x", values, {"stable": np.array([True, True]), "phase_margin_deg": np.array([50.0, 45.0])},
+                              [], {}, display=cm)
+    assert "load_inertia 0..40e3 kg*cm^2" in robust.table()
+    ax = robust.plot(Figure().subplots())
+    assert ax.get_xlabel() == "load inertia [kg*cm^2]" and max(ax.collections[0].get_offsets()[:, 0]) == 4e4
+    mc = MonteCarloResult("x", values, np.array([1e-3, 2e-3]), np.array([1.0, 2.0]), np.array([False, False]),
+                          np.array([False, False]), ("", ""), np.array([0.1, 0.1]), 0.1, 1e-4, 10, 1.0, display=cm)
+    assert mc.ranges_text() == "load_inertia 0..4e+04 kg*cm^2, stiffness 0.7..1.3"
+    assert mc.values["load_inertia"][1] == 4.0 and "load_inertia=4e+04" in mc.table()
+    axes = mc.plot(Figure().subplots(1, 2))
+    assert axes[0].get_xlabel() == "load inertia [kg*cm^2]"
+    si = MonteCarloResult("x", values, np.array([1e-3, 2e-3]), np.array([1.0, 2.0]), np.array([False, False]),
+                          np.array([False, False]), ("", ""), np.array([0.1, 0.1]), 0.1, 1e-4, 10, 1.0)
+    assert si.ranges_text() == "load_inertia 0..4 kg*m^2, stiffness 0.7..1.3"
