@@ -63,6 +63,8 @@ def test_stiffness_table_with_angles(capsys):
     out = capsys.readouterr().out
     assert "+5.0 deg" in out and "-5.0 deg" in out and "series total" in out
     assert "seed 001 neglect criterion" in out
+    # SI by default, as `design` and the JSON: N*m/rad (a scene's [display] may choose N*m/deg)
+    assert "stage [N*m/rad]" in out and "series total [N*m/rad]" in out and "N*m/deg" not in out
     rows = {line.split("  ")[0]: line for line in out.splitlines()[-7:]}
     assert rows["spur gear train"].rstrip().endswith("YES (ratio yes, K yes)")
     assert rows["ball screw"].rstrip().endswith("no (ratio no, K yes)")
@@ -109,6 +111,7 @@ def test_linear_output_table_units(capsys):
     assert main(["stiffness", LINEAR]) == 0
     out = capsys.readouterr().out
     assert "ratio N [rad/m]" in out and "reflected mass [kg]" in out and "+0.00 mm" in out
+    assert "series total [N/m]" in out
     assert "rad/rad" not in out and "kg*m^2" not in out and "N*m" not in out
 
 

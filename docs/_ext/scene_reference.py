@@ -19,7 +19,7 @@ from generated import page_generator
 _PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
 _ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "studies.*",
           "duty_cycle", "duty_cycle.segments[]", "duty_cycle.motors[]", "mechanism", "stages[]",
-          "drivetrain[].stages[]", "operating")
+          "drivetrain[].stages[]", "operating", "display")
 
 
 def scene_files(root: Path | None = None) -> list:
@@ -72,7 +72,8 @@ def _component(pattern: str, kind):
     from servo_toolkit.components.motor import DCMotor
     from servo_toolkit.components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
     from servo_toolkit.scene.duty_cycle import DutyCycle, Segment
-    table = {"duty_cycle": DutyCycle, "duty_cycle.segments[]": Segment, "duty_cycle.motors[]": DCMotor,
+    from servo_toolkit.display.units import DisplayUnits
+    table = {"display": DisplayUnits, "duty_cycle": DutyCycle, "duty_cycle.segments[]": Segment, "duty_cycle.motors[]": DCMotor,
              "motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
              "robustness": sc.Robustness, "stages[]": RollerScrewStage,
              "drivetrain[].stages[]": RollerScrewStage, "operating": RollerScrewOperating}
@@ -127,7 +128,7 @@ def _title(pattern: str, kind) -> str:
              "requirements": "`[requirements]`", "robustness": "`[robustness]`",
              "operating": "`[operating]` (roller-screw scene)", "stages[]": "`[[stages]]` (roller-screw scene)",
              "drivetrain[].stages[]": "`stages` of a `roller_screw` stage", "duty_cycle": "`[duty_cycle]`",
-             "duty_cycle.segments[]": "`[[duty_cycle.segments]]`",
+             "duty_cycle.segments[]": "`[[duty_cycle.segments]]`", "display": "`[display]`",
              "duty_cycle.motors[]": "`[[duty_cycle.motors]]` (motor candidates: the keys of `[motor]`)"}
     if pattern == "drivetrain[]":
         return f"`[[drivetrain]]` kind = `{kind}`"
@@ -163,7 +164,9 @@ def scene_markdown(reads=None) -> str:
            "stages": "Stages of a stand-alone roller-screw scene, `[[stages]]`.",
            "operating": "Operating point of a stand-alone roller-screw scene, `[operating]`.",
            "robustness": "Parameter variations the loop must tolerate, `[robustness]`.",
-           "duty_cycle": "The motion the actuator repeats in service, for `servo-toolkit size`, `[duty_cycle]`."}
+           "duty_cycle": "The motion the actuator repeats in service, for `servo-toolkit size`, `[duty_cycle]`.",
+           "display": "Units a reader is shown for a stiffness and an inertia at the output, `[display]` "
+                      "(default SI; JSON stays SI)."}
     for key in sorted(sc._TOP_KEYS):
         out.append(f"| `{key}` | {_cell(top.get(key, ''))} |")
     out.append("")

@@ -46,8 +46,9 @@ def fmt(value, digits: int = 4) -> str:
     return engineering(x, digits)
 
 
-def engineering(x: float, digits: int = 4) -> str:
-    """``x`` in engineering notation with ``digits`` significant digits (``"804.5e3"``)."""
+def engineering(x: float, digits: int = 4, trim: bool = True) -> str:
+    """``x`` in engineering notation with ``digits`` significant digits (``"804.5e3"``);
+    ``trim=False`` keeps trailing zeros (``"520.20e3"``), as a table column does."""
     rounded = float(f"{x:.{max(1, digits) - 1}e}")
     if rounded == 0 or not math.isfinite(rounded):
         return f"{x:.{digits}g}"
@@ -57,9 +58,34 @@ def engineering(x: float, digits: int = 4) -> str:
         exp3, mant = exp3 + 3, mant / 1000.0
     whole = len(str(int(abs(mant))))
     text = f"{mant:.{max(0, digits - whole)}f}"
-    if "." in text:
+    if "." in text and trim:
         text = text.rstrip("0").rstrip(".")
     return f"{text}e{exp3}"
+
+
+def _plain(x: float, digits: int) -> str:
+    """``x`` written plainly with ``digits`` significant digits, trailing zeros kept."""
+    rounded = float(f"{x:.{digits}g}")
+    if abs(rounded) >= 10 ** digits:
+        return f"{rounded:.0f}"
+    return f"{x:#.{digits}g}".rstrip(".")
+
+
+def column(values, digits: int = 4) -> list[str]:
+    """Numbers of one column (or one block of a table) in ONE format.
+
+    Plain, ``digits`` significant digits (``1696.8``, ``0.1403``), when every finite non-zero
+    magnitude lies from :data:`ENG_LOW` up to :data:`ENG_HIGH`; otherwise all in engineering
+    notation (``97.219e3``, ``1.6968e3``, ``710.94e0``), so the column never mixes the two.
+    Trailing zeros are kept (``520.20e3``, ``136.90``); zero is ``0``, inf and NaN are
+    spelled out as :func:`fmt` does.
+    """
+    digits = max(1, int(digits))
+    xs = [float(v) for v in values]
+    finite = [abs(float(f"{x:.{digits}g}")) for x in xs if math.isfinite(x) and x != 0]
+    plain = all(ENG_LOW <= x < ENG_HIGH for x in finite)
+    return [fmt(x, digits) if not math.isfinite(x) or x == 0
+            else _plain(x, digits) if plain else engineering(x, digits, trim=False) for x in xs]
 
 
 def table(header, rows, cls: str = "", table_id: str = "") -> str:

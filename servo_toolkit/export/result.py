@@ -163,10 +163,10 @@ class ExportResult:
             axes[0].plot(t, np.ravel(y), label=label)
             h = ct.frequency_response(sysd[0, 0], w).complex.ravel()
             axes[1].semilogx(w / (2 * math.pi), 20 * np.log10(np.abs(h)), label=label)
-        axes[0].set_xlabel("time (s)")
+        axes[0].set_xlabel("time [s]")
         axes[0].set_ylabel("theta / theta_ref")
-        axes[1].set_xlabel("frequency (Hz)")
-        axes[1].set_ylabel("|i_ref / theta error| (dB A/rad)")
+        axes[1].set_xlabel("frequency [Hz]")
+        axes[1].set_ylabel("|i_ref / theta error| [dB A/rad]")
         for ax in axes:
             ax.legend()
             ax.grid(True, alpha=0.3)

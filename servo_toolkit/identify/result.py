@@ -181,9 +181,9 @@ class FitResult:
                 ag.semilogx(d.frequency_hz, 20 * np.log10(np.abs(h)), style, label=label)
                 ap.semilogx(d.frequency_hz, phase, style, label=label)
             ap.semilogx(d.frequency_hz, d.phase_deg, "o", ms=3, color="k", label="measured")
-            ag.set_ylabel("gain (dB)")
-            ap.set_ylabel("phase (deg)")
-            ap.set_xlabel("frequency (Hz)")
+            ag.set_ylabel("gain [dB]")
+            ap.set_ylabel("phase [deg]")
+            ap.set_xlabel("frequency [Hz]")
             ag.set_title(f"{self.scene}: {_RESPONSE_LABEL[self.response]}")
             ag.legend()
             for a in axes:
@@ -192,11 +192,11 @@ class FitResult:
         d = self.data
         if self.response == "loop":
             measured = (d.output, d.current_A)
-            labels = (f"output ({d.unit})", "current (A)")
+            labels = (f"output [{d.unit}]", "current [A]")
         else:
             measured = (d.current_A, d.motor_angle_rad - d.motor_angle_rad[0],
                         d.output_angle_rad - d.output_angle_rad[0])
-            labels = ("current (A)", "motor angle (rad)", "output angle (rad)")
+            labels = ("current [A]", "motor angle [rad]", "output angle [rad]")
         if axes is None:
             _, axes = plt.subplots(len(measured), 1, sharex=True, figsize=(7, 2.4 * len(measured)))
         for a, m, yi, yf, label in zip(axes, measured, self.initial_model, self.fitted_model, labels):
@@ -207,5 +207,5 @@ class FitResult:
             a.grid(True, alpha=0.3)
         axes[0].legend()
         axes[0].set_title(f"{self.scene}: {_RESPONSE_LABEL[self.response]}")
-        axes[-1].set_xlabel("time (s)")
+        axes[-1].set_xlabel("time [s]")
         return axes

@@ -344,7 +344,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
                         loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
                         motion=motion, notes=tuple(notes), closed_loop_full=cl, stroke=stroke,
-                        output_unit=scene.drivetrain.output_unit)
+                        output_unit=scene.drivetrain.output_unit, display=scene.display)
 
 
 def robust_spec(scene, robust):

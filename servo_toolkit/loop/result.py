@@ -12,6 +12,7 @@ from ..display.cards import RichDisplay
 from ..core.output_units import OutputUnit
 from ..display.cards import card, esc_lines, facts, num, svg
 from ..display.cards import requirements_table as requirements_html
+from ..display.units import DisplayUnits
 
 
 @dataclass(frozen=True, repr=False)
@@ -56,6 +57,9 @@ class DesignResult(RichDisplay):
     output_unit : {"rad", "m"}
         The output coordinate's SI unit: q0, the plant's inertias and stiffness are per rad
         of an output angle or per m of an output travel (shown in deg or mm).
+    display : DisplayUnits
+        Units :meth:`table` shows the plant's inertias and stiffness in (the scene's
+        ``[display]``; default SI); :meth:`to_dict` stays SI.
     """
 
     scene_name: str
@@ -73,6 +77,7 @@ class DesignResult(RichDisplay):
     robustness: object = None
     stroke: object = None
     output_unit: str = "rad"
+    display: DisplayUnits = DisplayUnits()
 
     @property
     def unit(self) -> OutputUnit:
@@ -120,7 +125,7 @@ class DesignResult(RichDisplay):
                                "gains": dict(getattr(self.motion, "gains", {}) or {}),
                                "filter": getattr(self.motion, "filter", None),
                                "filter_params": dict(getattr(self.motion, "filter_params", {}) or {})},
-                "notes": list(self.notes),
+                "notes": list(self.notes), "display_units": self.display.to_dict(u.linear),
                 **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {}),
                 **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {})}
 
@@ -129,9 +134,13 @@ class DesignResult(RichDisplay):
         m = self.margins
         p = self.parameters
         u = self.unit
+
+        def show(quantity, value):
+            return self.display.show(quantity, value, u.linear)
         lines = [f"Loop design of {self.scene_name} at q0 = {u.text(self.q0)}",
-                 f"  plant: {'rigid' if p.rigid else 'two-mass'}, J1 = {p.J1:.4g}, J2 = {p.J2:.4g} {u.inertia}, "
-                 f"K = {p.K:.4g} {u.stiffness}, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
+                 f"  plant: {'rigid' if p.rigid else 'two-mass'}, J1 = {num(show('inertia', p.J1))}, "
+                 f"J2 = {num(show('inertia', p.J2))} {self.display.inertia_unit(u.linear)}, "
+                 f"K = {num(show('stiffness', p.K))} {self.display.stiffness_unit(u.linear)}, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
                  f"{p.antiresonance_hz:.3g} Hz",
                  f"  controller: {self.controller.description}",
                  f"  closed loop stable: {'yes' if m.closed_loop_stable else 'NO'}; bandwidth "
@@ -160,9 +169,9 @@ class DesignResult(RichDisplay):
         axes[0].semilogx(w / (2 * np.pi), 20 * np.log10(np.abs(1 / (1 + lw))), "--", label="sensitivity S")
         axes[0].axhline(-3, color="0.6", lw=0.8)
         axes[1].axhline(-180, color="0.6", lw=0.8)
-        axes[0].set_ylabel("magnitude (dB)")
-        axes[1].set_ylabel("phase (deg)")
-        axes[1].set_xlabel("frequency (Hz)")
+        axes[0].set_ylabel("magnitude [dB]")
+        axes[1].set_ylabel("phase [deg]")
+        axes[1].set_xlabel("frequency [Hz]")
         axes[0].legend()
         axes[0].set_title(f"{self.scene_name}: {'requirements met' if self.passed else 'requirements NOT met'}")
         return axes

@@ -28,6 +28,8 @@ from .response import loop_response, plant_responses, state_space_response
 from .sampling import sample_variants as _sample
 from ..display.cards import RichDisplay
 from ..display.cards import card, facts, requirements_table, svg
+from ..display.html import fmt
+from ..display.units import DisplayUnits
 
 PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
@@ -145,6 +147,9 @@ class RobustnessResult(RichDisplay):
         ``method``, ``samples``, ``seed`` of the sampling.
     output_unit : {"rad", "m"}
         The output coordinate: ``load_inertia`` is in kg*m^2 for an angle, kg for a travel.
+    display : DisplayUnits
+        Unit the text and plot show a load inertia in (the scene's ``[display]``; default
+        SI); ``values`` and :meth:`to_dict` stay SI.
     """
 
     scene_name: str
@@ -154,6 +159,7 @@ class RobustnessResult(RichDisplay):
     worst: dict
     settings: dict = field(default_factory=dict)
     output_unit: str = "rad"
+    display: DisplayUnits = DisplayUnits()
 
     @property
     def count(self) -> int:
@@ -193,10 +199,14 @@ class RobustnessResult(RichDisplay):
 
     def table(self) -> str:
         """Worst cases as text."""
-        rng = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in self.values.items())
+        linear = OutputUnit(self.output_unit).linear
+        show = {"load_inertia": lambda v: self.display.show("inertia", v, linear)}
+        unit = {"load_inertia": " " + self.display.inertia_unit(linear)}
+        rng = ", ".join(f"{k} {fmt(show.get(k, float)(v.min()), 3)}..{fmt(show.get(k, float)(v.max()), 3)}"
+                        f"{unit.get(k, '')}" for k, v in self.values.items())
         lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
         for c in self.requirements:
-            at = ", ".join(f"{k}={v:.3g}" for k, v in self.worst.get(c.name, {}).items())
+            at = ", ".join(f"{k}={fmt(show.get(k, float)(v), 3)}" for k, v in self.worst.get(c.name, {}).items())
             short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
             lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
                          f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
@@ -207,7 +217,9 @@ class RobustnessResult(RichDisplay):
         import matplotlib.pyplot as plt
         if ax is None:
             _, ax = plt.subplots(figsize=(7, 4))
-        x = self.values.get("load_inertia", np.arange(self.count))
+        unit = OutputUnit(self.output_unit)
+        x = (self.display.show("inertia", self.values["load_inertia"], unit.linear) if "load_inertia" in self.values
+             else np.arange(self.count))
         c = self.values.get("stiffness", None)
         y = np.where(self.figures["stable"], self.figures[figure], np.nan)
         sc = ax.scatter(x, y, c=c, s=6, cmap="viridis")
@@ -215,8 +227,7 @@ class RobustnessResult(RichDisplay):
             ax.figure.colorbar(sc, ax=ax, label="stiffness factor")
         ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
                    label="unstable")
-        unit = OutputUnit(self.output_unit)
-        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} ({unit.inertia})")
+        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} [{self.display.inertia_unit(unit.linear)}]")
         ax.set_ylabel(figure)
         ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
         return ax
@@ -314,7 +325,8 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
                            progress=progress, structural_damping=structural_damping, refine=refine)
     checks, worst = worst_cases(values, figs, requirements)
     settings = {"method": "grid" if grid else "monte_carlo", "samples": int(samples), "seed": int(seed)}
-    return RobustnessResult(scene.name, values, figs, checks, worst, settings, scene.drivetrain.output_unit)
+    return RobustnessResult(scene.name, values, figs, checks, worst, settings, scene.drivetrain.output_unit,
+                            scene.display)
 
 
 def _bandwidth_requirement(design_result) -> float:

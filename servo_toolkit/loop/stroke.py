@@ -255,7 +255,7 @@ class StrokeCheck:
         """One line per point and the worst cases, as text."""
         lines = [f"  over the stroke ({self.q.size} points, controller of q0 = {self.show(self.q0)}): "
                  f"{int(np.sum(~self.stable))} unstable",
-                 f"  {'q (mm)' if self.output_unit == 'm' else 'q (deg)':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}"
+                 f"  {'q [mm]' if self.output_unit == 'm' else 'q [deg]':>9}{'N':>9}{'J_motor':>11}  {'stable':>6}"
                  f"{'GM dB':>8}{'PM deg':>8}{'Ms dB':>7}{'BW Hz':>8}"]
         for k in range(self.q.size):
             qk = self.q[k] * 1e3 if self.output_unit == "m" else math.degrees(self.q[k])

@@ -8,7 +8,7 @@ import io
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..display.units import stiffness_unit
+from ..display.units import DisplayUnits
 
 DPI = 110
 
@@ -50,11 +50,12 @@ def shares_along_stroke(chain, q, ax, linear: bool = False) -> None:
     ax.set_title("Who is compliant: each stage's share of the series compliance")
 
 
-def stiffness_along_stroke(chain, q, ax, linear: bool = False) -> None:
-    """Each stage's stiffness at the output and the series total (N*m/rad, or N/m for a
-    linear output; log scale)."""
+def stiffness_along_stroke(chain, q, ax, linear: bool = False, display: DisplayUnits | None = None) -> None:
+    """Each stage's stiffness at the output and the series total, in ``display``'s unit
+    (default SI: N*m/rad, or N/m for a linear output; log scale)."""
     x, xlabel = _x(q, linear)
-    scale, unit = 1.0, stiffness_unit(linear)
+    display = display or DisplayUnits()
+    scale, unit = display.factor("stiffness", linear), display.stiffness_unit(linear)
     for name, k in zip(chain.names, chain.stage_stiffness):
         ax.semilogy(x, k * scale, label=name)
     ax.semilogy(x, chain.total * scale, "k", lw=2.2, label="series total")
@@ -65,11 +66,13 @@ def stiffness_along_stroke(chain, q, ax, linear: bool = False) -> None:
     ax.set_title("Stage stiffness reflected to the output (k times ratio squared)")
 
 
-def ratio_inertia_along_stroke(drivetrain, q, axes) -> None:
-    """Ratio N(q) and reflected inertia J(q) (at the output and at the motor)."""
+def ratio_inertia_along_stroke(drivetrain, q, axes, display: DisplayUnits | None = None) -> None:
+    """Ratio N(q) and reflected inertia J(q) (at the output, in ``display``'s unit, default
+    SI; and at the motor, kg*m^2)."""
     linear = bool(getattr(drivetrain, "output_is_linear", False))
     deg, xlabel = _x(q, linear)
-    out_unit, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
+    display = display or DisplayUnits()
+    out_unit, j_unit, jf = ("m" if linear else "rad"), display.inertia_unit(linear), display.factor("inertia", linear)
     n, dn = drivetrain.ratio(q)
     j, dj = drivetrain.inertia(q)
     ax1, ax2 = axes
@@ -80,7 +83,7 @@ def ratio_inertia_along_stroke(drivetrain, q, axes) -> None:
     ax1b.set_ylabel(f"dN/dq [rad/{out_unit}^2]" if linear else "dN/dq [1/rad]", color="C1")
     ax1.set_title("Kinematic ratio along the stroke")
     ax1.grid(True, alpha=0.3)
-    ax2.plot(deg, j, label="J(q) at the output")
+    ax2.plot(deg, j * jf, label="J(q) at the output")
     ax2.set_ylabel(f"{'mass' if linear else 'J'} at the output [{j_unit}]")
     ax2b = ax2.twinx()
     ax2b.plot(deg, j / n**2, "C2--", label="J / N^2 at the motor")

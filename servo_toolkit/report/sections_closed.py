@@ -9,7 +9,6 @@ import math
 import numpy as np
 
 from . import figures
-from ..display.units import stiffness_unit
 from .section import FigureSpec, Section, fmt, para, table
 
 F_MIN, F_MAX = 0.1, 1000.0
@@ -29,11 +28,13 @@ def _db(x):
 
 def output_units(scene):
     """(stroke unit, external load unit, display factor of a stiffness, its unit, angle
-    factor, angle unit) for an output angle or an output travel."""
+    factor, angle unit) for an output angle or an output travel; the stiffness in the
+    scene's ``[display]`` unit (SI by default)."""
     linear = scene.drivetrain.output_unit == "m"
+    k_factor, k_unit = scene.display.factor("stiffness", linear), scene.display.stiffness_unit(linear)
     if linear:
-        return "m", "N", 1.0, stiffness_unit(True), 1e3, "mm"
-    return "rad", "N*m", 1.0, stiffness_unit(False), 180 / math.pi, "deg"
+        return "m", "N", k_factor, k_unit, 1e3, "mm"
+    return "rad", "N*m", k_factor, k_unit, 180 / math.pi, "deg"
 
 
 def dynamic_stiffness(design, f):
@@ -129,8 +130,9 @@ def closed_loop(ctx) -> Section:
             ("closed-loop bandwidth (-3 dB)", fmt(m.bandwidth_hz), "Hz"),
             ("minimum dynamic stiffness", fmt(k[kmin]), k_unit),
             ("  at", fmt(f[kmin]), "Hz"),
-            (f"dynamic stiffness / w^2 at {F_MAX:g} Hz (inertia seen by the load)", fmt(high),
-             "kg" if load_unit == "N" else "kg*m^2"),
+            (f"dynamic stiffness / w^2 at {F_MAX:g} Hz (inertia seen by the load)",
+             fmt(ctx.scene.display.show("inertia", high, load_unit == "N")),
+             ctx.scene.display.inertia_unit(load_unit == "N")),
             ("step rise time (10-90 %)", fmt(tr * 1e3), "ms"),
             ("step overshoot", fmt(info["Overshoot"]), "%"),
             ("step settling time (2 %)", fmt(ts * 1e3), "ms")]

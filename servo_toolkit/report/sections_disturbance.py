@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..display.units import label, stiffness_unit
+from ..display.units import label
 from . import figures
 from .section import FigureSpec, NotApplicable, Section, fmt, para, table
 
@@ -103,10 +103,13 @@ def dynamic_stiffness_at(scene, design, q, f) -> np.ndarray:
         return 1.0 / np.abs(resp)
 
 
-def _show(drivetrain):
-    if getattr(drivetrain, "output_is_linear", False):
-        return 1e3, "mm", "N", stiffness_unit(True)
-    return 180 / math.pi, "deg", "N*m", stiffness_unit(False)
+def _show(drivetrain, display):
+    """(coordinate factor, its unit, load unit, stiffness unit, stiffness factor, inertia
+    unit, inertia factor) of the output; stiffness and inertia in ``display``'s units."""
+    linear = bool(getattr(drivetrain, "output_is_linear", False))
+    shown = (display.stiffness_unit(linear), display.factor("stiffness", linear),
+             display.inertia_unit(linear), display.factor("inertia", linear))
+    return ((1e3, "mm", "N") if linear else (180 / math.pi, "deg", "N*m")) + shown
 
 
 def disturbance(ctx) -> Section:
@@ -115,7 +118,7 @@ def disturbance(ctx) -> Section:
     if d.closed_loop_full is None:
         raise NotApplicable("the design carries no closed loop with the external load input")
     drive = ctx.scene.drivetrain
-    af, au, load_unit, k_unit = _show(drive)
+    af, au, load_unit, k_unit, kf, inertia, jf = _show(drive, ctx.scene.display)
     step = disturbance_step(d, step_amplitude(ctx.scene))
     fig1, ax1 = figures.new_figure(size=(7.5, 3.6))
     ax1.plot(step.t * 1e3, step.deflection * af, "C0", label="output deflection")
@@ -131,13 +134,13 @@ def disturbance(ctx) -> Section:
     fig2, ax2 = figures.new_figure(size=(7.5, 4.0))
     rows = []
     for j, q in enumerate(qs):
-        k = dynamic_stiffness_at(ctx.scene, d, q, f)
+        k = dynamic_stiffness_at(ctx.scene, d, q, f) * kf
         at_q0 = abs(q - d.q0) < 1e-12
         ax2.loglog(f, k, color="k" if at_q0 else f"C{j % 10}", lw=2.0 if at_q0 else 1.1,
                    label=f"q = {fmt(q * af, 3)} {au}" + (" (q0)" if at_q0 else ""))
         kmin = int(np.argmin(k))
         rows.append((f"{fmt(q * af, 4)}" + (" (q0)" if at_q0 else ""), fmt(k[0]), fmt(k[kmin]), fmt(f[kmin]),
-                     fmt(k[-1] / (2 * math.pi * f[-1]) ** 2)))
+                     fmt(k[-1] / kf / (2 * math.pi * f[-1]) ** 2 * jf)))
     ax2.set(xlabel=label("frequency", "Hz"), ylabel=label("dynamic stiffness", k_unit),
             title="Dynamic stiffness along the stroke (controller designed at q0)")
     ax2.grid(True, which="both", alpha=0.3)
@@ -159,7 +162,6 @@ def disturbance(ctx) -> Section:
                  ("peak deflection", fmt(step.peak * af), au), ("at", fmt(step.peak_time * 1e3), "ms"),
                  ("final deflection (static gain)", fmt(static_shown), au),
                  ("recovery to 10 % of the peak", fmt(rec * 1e3) if math.isfinite(rec) else "not recovered", "ms")]
-    inertia = "kg" if load_unit == "N" else "kg*m^2"
     body = (table(("figure", "value", "unit"), step_rows, table_id="disturbance-table")
             + table((f"q [{au}]", f"at {fmt(F_MIN)} Hz [{k_unit}]", f"minimum [{k_unit}]", "at [Hz]",
                      f"stiffness / w^2 at {fmt(F_MAX)} Hz [{inertia}]"), rows, table_id="dynamic-stiffness-table"))

@@ -8,7 +8,8 @@ import numpy as np
 
 from . import figures
 from .section import FigureSpec, Section, esc, fmt, para, table
-from ..display.units import DIMENSIONLESS, stiffness_unit
+from ..display.html import column
+from ..display.units import DIMENSIONLESS, DisplayUnits
 from .units_table import LINEAR_LOAD, rows as unit_rows
 
 DEG = 180.0 / math.pi
@@ -55,18 +56,20 @@ def scene_summary(ctx) -> Section:
     return Section("Scene summary", "".join(parts), key="scene")
 
 
-def _output_units(drive):
-    """(coordinate unit shown, factor SI -> shown, stiffness unit shown, factor) of the output."""
-    if getattr(drive, "output_is_linear", False):
-        return "mm", 1e3, stiffness_unit(True), 1.0
-    return "deg", DEG, stiffness_unit(False), 1.0
+def _output_units(drive, display: DisplayUnits | None = None):
+    """(coordinate unit shown, factor SI -> shown, stiffness unit shown, factor) of the
+    output; the stiffness in the scene's ``[display]`` unit (SI by default)."""
+    display = display or DisplayUnits()
+    linear = bool(getattr(drive, "output_is_linear", False))
+    qu, qf = ("mm", 1e3) if linear else ("deg", DEG)
+    return qu, qf, display.stiffness_unit(linear), display.factor("stiffness", linear)
 
 
 def stiffness_chain(ctx) -> Section:
     """Each stage's stiffness at the output, compliance shares, seed 001's neglect criterion."""
     ctx.require_drivetrain("the stiffness chain")
     drive = ctx.scene.drivetrain
-    qu, qf, ku, kf = _output_units(drive)
+    qu, qf, ku, kf = _output_units(drive, ctx.scene.display)
     lo, hi = np.asarray(drive.stroke) * qf
     points = [a for a in TABLE_ANGLES_DEG if qu == "deg" and lo - 1e-9 <= a <= hi + 1e-9] or [drive.mid_stroke * qf]
     q = np.asarray(points) / qf
@@ -82,21 +85,24 @@ def stiffness_chain(ctx) -> Section:
         + ["max share over stroke", "ratio to later stages (min)", "own stiffness / later (max)",
            "may be neglected (seed 001)"]
     body = []
+    # one number format for every stiffness of the table (a column never mixes plain and engineering)
+    cells = np.asarray(column(np.vstack([chain.stage_stiffness, chain.total]).ravel() * kf, 6),
+                       dtype=object).reshape(len(chain.names) + 1, -1)
     for i, name in enumerate(chain.names):
         later = crit.later_ratio[i]
-        body.append([name] + [fmt(k * kf, 6) for k in chain.stage_stiffness[i]]
+        body.append([name] + list(cells[i])
                     + [f"{s:.3%}" for s in chain.shares[i]]
                     + [f"{along.shares[i].max():.3%}", fmt(np.nanmin(later), 3) if np.isfinite(later).any() else "-",
                        fmt(crit.stiffness_to_later[i], 3) if np.isfinite(crit.stiffness_to_later[i]) else "-",
                        "yes" if crit.negligible[i] else "no"])
-    body.append(["series total"] + [fmt(t * kf, 6) for t in chain.total] + [""] * len(points) + ["", "", "", ""])
+    body.append(["series total"] + list(cells[-1]) + [""] * len(points) + ["", "", "", ""])
     imin = int(np.argmin(along.total))
     imax = int(np.argmax(along.total))
     text = [
         f"Every stage's stiffness is reflected to the {_q_label(drive)} through the square of its ratio to the "
         "output (seed 001, eq 8); compliances in series add.",
-        f"Along the stroke the series stiffness runs from {along.total[imin] * kf:.4g} {ku} at "
-        f"{qs[imin] * qf:+.4g} {qu} to {along.total[imax] * kf:.4g} {ku} at {qs[imax] * qf:+.4g} {qu}.",
+        f"Along the stroke the series stiffness runs from {fmt(along.total[imin] * kf)} {ku} at "
+        f"{qs[imin] * qf:+.4g} {qu} to {fmt(along.total[imax] * kf)} {ku} at {qs[imax] * qf:+.4g} {qu}.",
         f"Seed 001's criterion: a front stage may be left out when the ratio between it and every later stage "
         f"is large (at least {crit.min_ratio:g} over the whole stroke) and its own stiffness is within an order of "
         f"magnitude of some later stage's (at least 1/{crit.within:g} of it); its compliance is then at most "
@@ -109,7 +115,7 @@ def stiffness_chain(ctx) -> Section:
     figures.shares_along_stroke(along, qs, ax1, linear)
     ax1.set_xlabel(f"{_q_label(drive)} [{qu}]")
     fig2, ax2 = figures.new_figure()
-    figures.stiffness_along_stroke(along, qs, ax2, linear)
+    figures.stiffness_along_stroke(along, qs, ax2, linear, ctx.scene.display)
     ax2.set_xlabel(f"{_q_label(drive)} [{qu}]")
     return Section("Stiffness chain and compliance shares", para(*text) + table(header, body, table_id="stiffness-table"),
                    (FigureSpec(fig1, "Compliance shares along the stroke."),
@@ -135,11 +141,12 @@ def ratio_and_inertia(ctx) -> Section:
     lash = drive.backlash(np.array([drive.mid_stroke]))[0]
     qu, qf, _, _ = _output_units(drive)
     linear = qu == "mm"
-    out, j_unit = ("m", "kg") if linear else ("rad", "kg*m^2")
+    display = ctx.scene.display
+    out, j_unit, jf = ("m" if linear else "rad"), display.inertia_unit(linear), display.factor("inertia", linear)
     rows = [
         (f"ratio N (motor rad per output {out})", fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()),
          "rad/m" if linear else DIMENSIONLESS),
-        ("mass at the output" if linear else "inertia at the output J", fmt(j.min()), fmt(j.max()),
+        ("mass at the output" if linear else "inertia at the output J", fmt(j.min() * jf), fmt(j.max() * jf),
          fmt(j.max() / j.min()), j_unit),
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),
     ]
@@ -150,13 +157,13 @@ def ratio_and_inertia(ctx) -> Section:
         f"varies by a factor {n.max() / n.min():.3g} and the reflected inertia by {j.max() / j.min():.3g}.",
         f"The motor rotor contributes {share.min():.1%} to {share.max():.1%} of the inertia at the output along "
         f"the stroke (rotor inertia times N(q)^2 over J(q) at each point); the load "
-        f"{'mass' if linear else 'inertia'} is {fmt(load)} {j_unit}.",
+        f"{'mass' if linear else 'inertia'} is {fmt(load * jf)} {j_unit}.",
         (f"Lost motion at mid-stroke, all lashes reflected to the output: {lash * 1e6:.3g} um. " if linear else
          f"Lost motion at mid-stroke, all lashes reflected to the output: {math.degrees(lash) * 60:.3g} arcmin. ")
         + f"Drivetrain efficiency (product of the stages): {drive.efficiency:.3g}.",
     ]
     fig, axes = figures.new_figure(1, 2, size=(9.0, 3.4))
-    figures.ratio_inertia_along_stroke(drive, q, axes)
+    figures.ratio_inertia_along_stroke(drive, q, axes, display)
     for ax in axes:
         ax.set_xlabel(f"{_q_label(drive)} [{qu}]")
     return Section("Reflected inertia and ratio along the stroke",

@@ -143,10 +143,12 @@ def plant_bode(ctx) -> Section:
         ax.grid(True, which="both", alpha=0.3)
     what = "output travel" if u.linear else "output angle"
     am.set_title(f"Plant at q0 = {u.text(p.q0)}: armature voltage to {what}")
+    shown = ctx.scene.display
     rows = [("operating point q0", fmt(u.show(p.q0)), u.shown),
-            ("motor-side inertia J1 (at the output)", fmt(p.J1), u.inertia),
-            ("load-side inertia J2", fmt(p.J2), u.inertia),
-            ("series stiffness K", fmt(p.K), u.stiffness),
+            ("motor-side inertia J1 (at the output)", fmt(shown.show("inertia", p.J1, u.linear)),
+             shown.inertia_unit(u.linear)),
+            ("load-side inertia J2", fmt(shown.show("inertia", p.J2, u.linear)), shown.inertia_unit(u.linear)),
+            ("series stiffness K", fmt(shown.show("stiffness", p.K, u.linear)), shown.stiffness_unit(u.linear)),
             ("ratio N", fmt(p.N), DIMENSIONLESS), ("efficiency", fmt(p.eta), DIMENSIONLESS),
             ("resonance sqrt(K (1/J1 + 1/J2)) / 2 pi", fmt(p.resonance_hz), "Hz"),
             ("anti-resonance sqrt(K / J2) / 2 pi", fmt(p.antiresonance_hz), "Hz"),

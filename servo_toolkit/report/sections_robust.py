@@ -33,8 +33,12 @@ def robust_results(ctx):
 def robustness(ctx) -> Section:
     """Variant margins as scatter and histogram, worst cases, robust against nominal."""
     robust, nominal = robust_results(ctx)
-    x = robust.values.get("load_inertia", np.arange(robust.count))
-    xlabel = "load inertia [kg*m^2]" if "load_inertia" in robust.values else "variant"
+    linear = ctx.scene.drivetrain.output_is_linear
+    shown = ctx.scene.display
+    x = (shown.show("inertia", np.asarray(robust.values["load_inertia"]), linear)
+         if "load_inertia" in robust.values else np.arange(robust.count))
+    xlabel = (f"load {'mass' if linear else 'inertia'} [{shown.inertia_unit(linear)}]"
+              if "load_inertia" in robust.values else "variant")
     fig, axes = figures.new_figure(2, 3, size=(11.0, 6.0))
     for col, (key, (label, unit)) in enumerate(FIGURES.items()):
         ax, hist = axes[0, col], axes[1, col]

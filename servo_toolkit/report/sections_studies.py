@@ -124,11 +124,13 @@ def kv_tables(ctx) -> Section:
                   "the reflected mass matrix and Jacobians (equivalent-element method).")]
     figs = []
     for res in results:
-        u = res.unit
-        head = (f"amplitude [{u.shown}]", "frequency [Hz]", f"load {'mass' if u.linear else 'inertia'} [{u.inertia}]",
+        u, shown = res.unit, ctx.scene.display
+        head = (f"amplitude [{u.shown}]", "frequency [Hz]",
+                f"load {'mass' if u.linear else 'inertia'} [{shown.inertia_unit(u.linear)}]",
                 "peak motor torque [N*m]", "Kv motor", "peak screw thrust [N]", "Kv screw", "peak rod force [N]",
                 "Kv rod")
-        rows = [(fmt(u.show(c.amplitude)), fmt(c.frequency), fmt(c.load_inertia), fmt(c.peak_motor_torque),
+        rows = [(fmt(u.show(c.amplitude)), fmt(c.frequency), fmt(shown.show("inertia", c.load_inertia, u.linear)),
+                 fmt(c.peak_motor_torque),
                  fmt(c.kv_motor, 3), fmt(c.peak_screw_thrust), fmt(c.kv_screw, 3), fmt(c.peak_rod_force),
                  fmt(c.kv_rod, 3)) for c in res.cases]
         parts.append(f"<h3>{esc(res.study)}: {esc(res.motion)}</h3>")

@@ -7,7 +7,6 @@ import math
 
 from ..display.cards import card, facts, num, table
 from ..errors import SceneError
-from ..core.output_units import OutputUnit
 
 
 def scene_line(scene) -> str:
@@ -50,7 +49,8 @@ def scene_card(scene) -> str:
             parts.append(facts((("stroke", f"{show_q(lo, u)} .. {show_q(hi, u)}"),
                                 ("operating point q0", show_q(q0, u)),
                                 ("ratio N(q0)", f"{num(n)} motor rad per output {u}"),
-                                ("reflected inertia J(q0)", f"{num(j)} {OutputUnit(u).inertia}"),
+                                ("reflected inertia J(q0)", f"{num(scene.display.show('inertia', j, u == 'm'))} "
+                                                            f"{scene.display.inertia_unit(u == 'm')}"),
                                 ("efficiency", f"{num(dt.efficiency, 3)} driving, "
                                                f"{num(dt.backdrive_efficiency, 3)} back-driven"))))
         except SceneError as exc:

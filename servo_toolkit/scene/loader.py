@@ -19,6 +19,7 @@ from ..components.roller_screw.stages import RollerScrew, RollerScrewOperating, 
 from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import stage_units
+from ..display.units import DisplayUnits, display_units_from_table
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -27,7 +28,7 @@ STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": Roc
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
-             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle"}
+             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display"}
 #: ``[robustness] method`` values
 ROBUSTNESS_METHODS = ("monte_carlo", "grid")
 
@@ -264,6 +265,9 @@ class Scene:
     duty_cycle : DutyCycle or None
         ``[duty_cycle]``: the motion the actuator repeats in service, for the sizing
         (:mod:`servo_toolkit.scene.duty_cycle`).
+    display : DisplayUnits
+        ``[display]``: the units a reader is shown for a stiffness and an inertia at the
+        output (default SI); only tables, figures and text change, never the values.
     source : str or None
         File the scene was read from.
     """
@@ -281,6 +285,7 @@ class Scene:
     operating: RollerScrewOperating | None = None
     robustness: Robustness | None = None
     duty_cycle: object = None
+    display: DisplayUnits = field(default_factory=DisplayUnits)
     source: str | None = None
 
     def study(self, name: str) -> Study:
@@ -418,7 +423,9 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                       stages=stages, load=load, sensors=sensors, requirements=req,
                       studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
-                      duty_cycle=_duty_cycle(data, stages, unit, source), source=source)
+                      duty_cycle=_duty_cycle(data, stages, unit, source),
+                      display=display_units_from_table(Fields(data.get("display", {}), "display"), unit == "m"),
+                      source=source)
         if stages:
             _built("drivetrain", scene.drivetrain.check)
             from .study_stroke import check_study_amplitudes

@@ -175,15 +175,15 @@ class SimulationResult(RichDisplay):
         u = self.unit
         a0.plot(self.times, u.show(self.reference_angle), "k--", lw=1, label="reference")
         a0.plot(self.times, u.show(self.output_angle), label=f"output ({self.method})")
-        a0.set_ylabel(f"{'travel' if u.linear else 'angle'} ({u.shown})")
+        a0.set_ylabel(f"{'travel' if u.linear else 'angle'} [{u.shown}]")
         a0.legend(loc="best")
         a1.plot(self.times, self.current_reference, "k--", lw=1, label="i_ref")
         a1.plot(self.times, self.motor_current, label="i")
-        a1.set_ylabel("current (A)")
+        a1.set_ylabel("current [A]")
         a1.legend(loc="best")
         a2.plot(self.times, self.motor_voltage)
-        a2.set_ylabel("voltage (V)")
-        a2.set_xlabel("time (s)")
+        a2.set_ylabel("voltage [V]")
+        a2.set_xlabel("time [s]")
         return axes
 
     def _repr_line(self) -> str:

@@ -63,7 +63,7 @@ class AccuracyResult:
 
     def table(self) -> str:
         """Text table."""
-        lines = [f"{self.description}", f"{'method':10s} {'dt (s)':>10s} {'wall (ms)':>10s} {'error':>10s}"]
+        lines = [f"{self.description}", f"{'method':10s} {'dt [s]':>10s} {'wall [ms]':>10s} {'error':>10s}"]
         for r in self.runs:
             dt = "adaptive" if r["dt_s"] is None else f"{r['dt_s']:.3g}"
             lines.append(f"{r['method']:10s} {dt:>10s} {r['wall_s'] * 1e3:10.2f} {r['error']:10.3g}")
@@ -91,7 +91,7 @@ class AccuracyResult:
             rs = [r for r in self.runs if r["method"] == method]
             ax.loglog([r["wall_s"] for r in rs], [max(r["error"], 1e-16) for r in rs], marker, label=method)
         ax.axvline(self.reference_wall_s, color="k", ls=":", label="reference solve")
-        ax.set_xlabel("wall time (s)")
+        ax.set_xlabel("wall time [s]")
         ax.set_ylabel("max error / amplitude")
         ax.legend()
         return ax

@@ -40,6 +40,8 @@ from ..core.output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
 from ..display.cards import RichDisplay
 from ..display.cards import card, esc, num, svg, table
+from ..display.html import column
+from ..display.units import DisplayUnits
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,10 @@ class KvResult(RichDisplay):
     compliance_effect : float
         Relative change of the inertial motor torque that the drivetrain compliance would
         make, (f / f_n)^2 at the lowest mode over the load inertias (:func:`rigid_model_effect`).
+    output_unit : {"rad", "m"}
+    display : DisplayUnits
+        Unit :meth:`table` and :meth:`plot` show a load inertia in (the scene's ``[display]``;
+        default SI); :meth:`to_dict` stays SI.
     """
 
     scene: str
@@ -113,6 +119,7 @@ class KvResult(RichDisplay):
     notes: tuple = field(default=())
     compliance_effect: float = 0.0
     output_unit: str = "rad"
+    display: DisplayUnits = DisplayUnits()
 
     @property
     def unit(self) -> OutputUnit:
@@ -139,16 +146,19 @@ class KvResult(RichDisplay):
 
     def table(self) -> str:
         """Plain-text table in the spirit of seed 000's tables 2-4."""
-        head = (f"{'amplitude':>10s} {'J_load':>8s} {'motor torque':>13s} {'Kv motor':>9s} "
-                f"{'screw thrust':>13s} {'Kv screw':>9s} {'rod force':>11s}")
         u = self.unit
-        units = f"{'[' + u.shown + ']':>10s} {'[kg]' if u.linear else '[kg*m^2]':>8s} {'[N*m]':>13s} {'':>9s} {'[N]':>13s} {'':>9s} {'[N]':>11s}"
+        j_unit = "[" + self.display.inertia_unit(u.linear) + "]"
+        w = max(8, len(j_unit))
+        head = (f"{'amplitude':>10s} {'J_load':>{w}s} {'motor torque':>13s} {'Kv motor':>9s} "
+                f"{'screw thrust':>13s} {'Kv screw':>9s} {'rod force':>11s}")
+        units = f"{'[' + u.shown + ']':>10s} {j_unit:>{w}s} {'[N*m]':>13s} {'':>9s} {'[N]':>13s} {'':>9s} {'[N]':>11s}"
         lines = [f"{self.study}: {self.motion} ({self.amplitude_at} amplitude, losses: {self.losses})",
                  head, units, "-" * len(head)]
         def num(x, fmt):
             return f"{'-':>{len(format(0.0, fmt))}s}" if x is None else format(x, fmt)
-        for c in self.cases:
-            lines.append(f"{u.show(c.amplitude):>10.4g} {c.load_inertia:>8.3g} "
+        loads = column([self.display.show("inertia", c.load_inertia, u.linear) for c in self.cases], 3)
+        for c, load in zip(self.cases, loads):
+            lines.append(f"{u.show(c.amplitude):>10.4g} {load:>{w}s} "
                          f"{c.peak_motor_torque:>13.4f} {c.kv_motor:>9.3f} "
                          f"{num(c.peak_screw_thrust, '>13.1f')} {num(c.kv_screw, '>9.3f')} "
                          f"{num(c.peak_rod_force, '>11.1f')}")
@@ -162,13 +172,14 @@ class KvResult(RichDisplay):
             _, ax = plt.subplots(figsize=(6, 3.5))
         for a in self.amplitudes:
             cs = [c for c in self.cases if c.amplitude == a]
-            j = [c.load_inertia for c in cs]
+            j = [self.display.show("inertia", c.load_inertia, self.unit.linear) for c in cs]
             tag = self.unit.text(a, 3)
             line, = ax.plot(j, [c.kv_motor for c in cs], "o-", label=f"motor torque, {tag}")
             if cs[0].kv_screw is not None:
                 ax.plot(j, [c.kv_screw for c in cs], "s--", color=line.get_color(),
                         label=f"screw thrust, {tag}")
-        ax.set_xlabel("external load mass [kg]" if self.unit.linear else "external load inertia [kg*m^2]")
+        ax.set_xlabel(f"external load {'mass' if self.unit.linear else 'inertia'} "
+                      f"[{self.display.inertia_unit(self.unit.linear)}]")
         ax.set_ylabel("Kv")
         ax.set_title(f"{self.study}: dynamic-load factor")
         ax.grid(True, alpha=0.3)
@@ -353,7 +364,7 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     return KvResult(scene.name, study.name, motions[0].describe(unit) if len(motions) == 1 else
                     f"sine {', '.join(unit.text(m.amplitude) for m in motions)}, "
                     f"{motions[0].frequency:.4g} Hz", at, losses, tuple(cases), tuple(notes), effect,
-                    output_unit=unit.si)
+                    output_unit=unit.si, display=scene.display)
 
 
 def default_kv_study(scene, amplitude: float | None = None, frequency: float | None = None):
@@ -394,10 +405,11 @@ def _card_line(k) -> str:
 def _card_html(k) -> str:
     """The Jupyter card (HTML) of a result of this module."""
     u = k.unit
-    rows = [(u.text(c.amplitude), num(c.load_inertia), num(c.peak_motor_torque), num(c.kv_motor, 4),
+    rows = [(u.text(c.amplitude), num(k.display.show("inertia", c.load_inertia, u.linear)), num(c.peak_motor_torque),
+             num(c.kv_motor, 4),
              num(c.peak_screw_thrust) if c.peak_screw_thrust is not None else "-",
              num(c.kv_screw, 4) if c.kv_screw is not None else "-") for c in k.cases]
-    load = "load mass [kg]" if u.linear else "load inertia [kg*m^2]"
+    load = f"load {'mass' if u.linear else 'inertia'} [{k.display.inertia_unit(u.linear)}]"
     parts = [f'<p class="st-note">{esc(k.motion)}</p>',
              table(("amplitude", load, "motor torque [N*m]", "Kv motor", "screw thrust [N]", "Kv screw"), rows),
              svg(lambda ax: k.plot(ax), size=(6.0, 3.4))]

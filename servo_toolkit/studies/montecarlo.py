@@ -197,7 +197,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         scene_name=scene.name, values=values, tracking_error=figs[:, F_ERR], peak_current=figs[:, F_CUR],
         saturated=figs[:, F_SAT] > 0, failed=failed, reasons=reasons, abs_lambda_dt=lam_dt,
         wall_s=float(sum(p["wall"] for p in parts)), dt_s=float(dt), steps_per_variant=n_steps,
-        duration_s=duration, linear_output=linear,
+        duration_s=duration, linear_output=linear, display=scene.display,
         settings={"samples": int(samples), "seed": int(seed), "method": "grid" if grid else "monte_carlo",
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
                   "controller": model.controller},

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.output_units import OutputUnit
+from ..display.units import DisplayUnits
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,9 @@ class MonteCarloResult:
         The output is a travel (figures in mm) rather than an angle (deg).
     settings : dict
     notes : tuple of str
+    display : DisplayUnits
+        Unit the text, card and plot show a load inertia in (the scene's ``[display]``;
+        default SI); ``values`` and :meth:`to_dict` stay SI.
     """
 
     scene_name: str
@@ -60,6 +64,7 @@ class MonteCarloResult:
     linear_output: bool = False
     settings: dict = field(default_factory=dict)
     notes: tuple = ()
+    display: DisplayUnits = DisplayUnits()
     runner: tuple = field(default=(), repr=False, compare=False)
 
     @property
@@ -72,10 +77,15 @@ class MonteCarloResult:
         """Units of the output coordinate (an angle, or a travel)."""
         return OutputUnit("m" if self.linear_output else "rad")
 
+    def shown_values(self) -> dict:
+        """:attr:`values` as shown: ``load_inertia`` in :attr:`display`'s unit."""
+        return {k: self.display.show("inertia", v, self.unit.linear) if k == "load_inertia" else v
+                for k, v in self.values.items()}
+
     def ranges_text(self) -> str:
         """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2``."""
-        unit = {"load_inertia": " " + self.unit.inertia}
-        return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.values.items())
+        unit = {"load_inertia": " " + self.display.inertia_unit(self.unit.linear)}
+        return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.shown_values().items())
 
     @property
     def error_unit(self) -> str:
@@ -176,7 +186,7 @@ class MonteCarloResult:
         i = self.worst_index(figure)
         if i is None:
             return "every variant failed"
-        at = ", ".join(f"{k}={v[i]:.4g}" for k, v in self.values.items())
+        at = ", ".join(f"{k}={v[i]:.4g}" for k, v in self.shown_values().items())
         value = (f"{self.error_display[i]:.4g} {self.error_unit}" if figure == "tracking_error"
                  else f"{self.peak_current[i]:.4g} A")
         return f"{value} at {at}"
@@ -201,16 +211,16 @@ class MonteCarloResult:
         import matplotlib.pyplot as plt
         if axes is None:
             _, axes = plt.subplots(1, 2, figsize=(11, 4))
-        x = self.values.get("load_inertia", np.arange(self.count))
+        x = self.shown_values().get("load_inertia", np.arange(self.count))
         c = self.values.get("stiffness")
         ok = ~self.failed
-        for ax, y, label in ((axes[0], self.error_display, f"max |tracking error| ({self.error_unit})"),
-                             (axes[1], self.peak_current, "peak |current| (A)")):
+        for ax, y, label in ((axes[0], self.error_display, f"max |tracking error| [{self.error_unit}]"),
+                             (axes[1], self.peak_current, "peak |current| [A]")):
             sc = ax.scatter(x[ok], y[ok], c=None if c is None else c[ok], s=6, cmap="viridis")
             if np.any(self.failed):
                 ax.scatter(x[self.failed], np.zeros(int(np.sum(self.failed))), marker="x", color="r", label="failed")
                 ax.legend()
-            ax.set_xlabel(f"load {'mass' if self.unit.linear else 'inertia'} ({self.unit.inertia})"
+            ax.set_xlabel(f"load {'mass' if self.unit.linear else 'inertia'} [{self.display.inertia_unit(self.unit.linear)}]"
                           if "load_inertia" in self.values else "variant")
             ax.set_ylabel(label)
         if c is not None:

@@ -17,6 +17,11 @@ from ..errors import SceneError
 from ..drivetrain.elements import NeglectCriterion
 from ..display.cards import RichDisplay
 from ..display.cards import card, esc, num
+from ..display.html import column
+from ..display.units import DisplayUnits
+
+#: significant digits of the stiffness table's numbers
+DIGITS = 5
 
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
@@ -73,6 +78,9 @@ class StiffnessResult(RichDisplay):
     native_ratio : numpy.ndarray or None
         |du_i/dq| of each stage's spring coordinate, (n_stages, n_points): rad or m per
         unit of q.
+    display : DisplayUnits
+        Units :meth:`table` shows a stiffness and an inertia in (the scene's ``[display]``;
+        default SI). The arrays and :meth:`to_dict` stay SI.
     """
 
     angles_deg: np.ndarray
@@ -89,6 +97,7 @@ class StiffnessResult(RichDisplay):
     native_stiffness: np.ndarray | None = None
     native_units: tuple = ()
     native_ratio: np.ndarray | None = None
+    display: DisplayUnits = DisplayUnits()
 
     @property
     def linear(self) -> bool:
@@ -144,6 +153,7 @@ class StiffnessResult(RichDisplay):
             "ratio": self.ratio.tolist(),
             "reflected_inertia_kg_m2": self.reflected_inertia.tolist(),
             "rigid": not self.names,
+            "display_units": self.display.to_dict(self.linear),
         }
         if self.criterion is not None:
             data["criterion"] = {"min_ratio": self.criterion.min_ratio, "within": self.criterion.within,
@@ -155,27 +165,39 @@ class StiffnessResult(RichDisplay):
         return data
 
     def table(self) -> str:
-        """Plain-text table, one block of columns per point, then seed 001's criterion."""
+        """Plain-text table, one block of columns per point, then seed 001's criterion.
+
+        Stiffnesses and the inertia are in :attr:`display`'s units; each block of numbers
+        (the stiffnesses with their total, the ratio, the inertia) has one number format
+        (:func:`servo_toolkit.display.html.column`).
+        """
+        show = self.display
+        unit, inertia_unit = show.stiffness_unit(self.linear), show.inertia_unit(self.linear)
         if self.linear:
-            cols, scale, unit = [f"{p:>+10.2f} mm    share " for p in self.positions_mm], 1e-3, "N/mm"
-            ratio_label, inertia_label = "ratio N [rad/m]", "reflected mass [kg]"
+            cols = [f"{p:>+10.2f} mm    share " for p in self.positions_mm]
+            ratio_label, inertia_label = "ratio N [rad/m]", f"reflected mass [{inertia_unit}]"
         else:
-            cols, scale, unit = [f"{a:>+10.1f} deg   share " for a in self.angles_deg], DEG, "N*m/deg"
-            ratio_label, inertia_label = "ratio N [rad/rad]", "reflected inertia [kg*m^2]"
+            cols = [f"{a:>+10.1f} deg   share " for a in self.angles_deg]
+            ratio_label, inertia_label = "ratio N [rad/rad]", f"reflected inertia [{inertia_unit}]"
         head = f"{'stage [' + unit + ']':28s}" + "".join(cols)
         lines = [head, "-" * len(head)]
         if not self.names:
             lines.append("no compliant stage: the chain is rigid (give a stage a stiffness, or add a "
                          "compliance stage, to see series stiffness and shares)")
-        for n, k, s, neg in zip(self.names, self.stage_stiffness, self.shares, self.negligible):
-            row = f"{n[:28]:28s}" + "".join(f"{ki * scale:>14.6g} {si:>7.2%}" for ki, si in zip(k, s))
-            lines.append(row + ("   (negligible)" if neg else ""))
+        n_points = len(self.total)
+        stiff = np.concatenate([np.asarray(self.stage_stiffness, float).reshape(-1, n_points),
+                                np.asarray(self.total, float).reshape(1, -1)]) if self.names else np.empty((0, n_points))
+        cells = np.asarray(column(show.show("stiffness", stiff, self.linear).ravel(), DIGITS),
+                           dtype=object).reshape(stiff.shape)
+        for n, row, s, neg in zip(self.names, cells, self.shares, self.negligible):
+            text = f"{n[:28]:28s}" + "".join(f"{ki:>14s} {si:>7.2%}" for ki, si in zip(row, s))
+            lines.append(text + ("   (negligible)" if neg else ""))
         lines.append("-" * len(head))
-        total = "rigid" if not self.names else ""
-        lines.append(f"{'series total [' + unit + ']':28s}"
-                     + "".join(f"{total or f'{t * scale:.6g}':>14s}        " for t in self.total))
-        lines.append(f"{ratio_label:28s}" + "".join(f"{r:>14.5g}        " for r in self.ratio))
-        lines.append(f"{inertia_label:28s}" + "".join(f"{j:>14.5g}        " for j in self.reflected_inertia))
+        totals = cells[-1] if self.names else ["rigid"] * n_points
+        lines.append(f"{'series total [' + unit + ']':28s}" + "".join(f"{t:>14s}        " for t in totals))
+        lines.append(f"{ratio_label:28s}" + "".join(f"{r:>14s}        " for r in column(self.ratio, DIGITS)))
+        inertia = column(show.show("inertia", np.asarray(self.reflected_inertia, float), self.linear), DIGITS)
+        lines.append(f"{inertia_label:28s}" + "".join(f"{j:>14s}        " for j in inertia))
         if self.criterion is not None and len(self.names) > 1:
             lines += ["", self._criterion_table()]
         return "\n".join(lines)
@@ -185,13 +207,14 @@ class StiffnessResult(RichDisplay):
         head = (f"{'seed 001 neglect criterion':28s}{'own K [' + self.stiffness_unit + ']':>18s}"
                 f"{'ratio to output':>17s}{'later ratio':>13s}{'K / later':>11s}  neglect")
         lines = [head, "-" * len(head)]
+        own = column(c.own_stiffness, 4)
         for i, n in enumerate(self.names):
             later = c.later_ratio[i]
             lat = "-" if np.all(np.isnan(later)) else f"{np.nanmin(later):.3g}"
             stiff = "-" if np.isnan(c.stiffness_to_later[i]) else f"{c.stiffness_to_later[i]:.3g}"
             flags = ("ratio " + ("yes" if np.all(c.ratio_large[i]) else "no") + ", K "
                      + ("yes" if c.stiffness_comparable[i] else "no"))
-            lines.append(f"{n[:28]:28s}{c.own_stiffness[i]:>18.4g}"
+            lines.append(f"{n[:28]:28s}{own[i]:>18s}"
                          f"{f'{c.ratio[i].min():.3g}..{c.ratio[i].max():.3g}':>17s}{lat:>13s}{stiff:>11s}  "
                          f"{'YES' if c.negligible[i] else 'no'} ({flags})")
         lines.append(f"neglect: ratio to every later stage >= {c.min_ratio:g} and own stiffness >= "
@@ -306,12 +329,15 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
     return StiffnessResult(np.full(q.size, np.nan) if linear else values, chain.names,
                            chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
                            dt.output_unit, values if linear else None, crit,
-                           chain.native_stiffness, chain.native_units, chain.ratio_to_output)
+                           chain.native_stiffness, chain.native_units, chain.ratio_to_output,
+                           scene.display)
 
 
 def _card_line(s) -> str:
     """The one-line repr of a result of this module."""
-    return f"{len(s.names)} compliant stage(s) at {len(s.total)} point(s); series total {num(np.min(s.total), 4)} (SI) at its lowest"
+    total = num(s.display.show("stiffness", float(np.min(s.total)), s.linear), 4)
+    return (f"{len(s.names)} compliant stage(s) at {len(s.total)} point(s); series total {total} "
+            f"{s.display.stiffness_unit(s.linear)} at its lowest")
 
 
 def _card_html(s) -> str:
