@@ -4,6 +4,7 @@ inside the dead band without it, and the study that reports both."""
 
 import json
 import math
+from dataclasses import replace
 
 import control as ct
 import numpy as np
@@ -215,3 +216,51 @@ def test_the_rest_study_reports_hunting_and_stick_phases(hunting_runs):
     smooth = rest_study(sc, controller(kp, 0.0, kd), step=STEP, duration=0.5, dt=1e-5,
                         options=ModelOptions(controller_mode="continuous", quantization=False, efficiency=False))
     assert smooth.hunting is None and smooth.at_rest and "moving" not in repr(smooth)
+
+
+def test_the_time_section_rows_say_the_rest_and_the_hunting(hunting_runs):
+    """The report's rows: the error at rest in the shown unit (the largest while hunting) and
+    the hunting's amplitude and period, or none."""
+    from servo_toolkit.core.output_units import OutputUnit
+    from servo_toolkit.report.sections_time import rest_rows
+    _, _, res, _ = hunting_runs
+    found = analyse(res)
+    rows = dict(rest_rows(found, OutputUnit("rad")))
+    hunt = rows["hunting (amplitude [deg], period [ms])"]
+    assert f"period {found.hunting.period * 1e3:.4g} ms" in hunt
+    assert f"amplitude {math.degrees(found.hunting.amplitude):.4g} deg" in hunt
+    assert rows["position error at rest [deg]"].startswith(f"{math.degrees(found.position_error_at_rest):.4g}")
+    assert "largest while hunting" in rows["position error at rest [deg]"]
+
+
+def test_the_report_shades_the_stick_phases_and_the_design_says_what_the_plant_leaves_out():
+    """The shipped EMA: the time section runs the step with friction that holds, tables its
+    rest and hunting and shades each stick phase on the step plot; the design's notes say the
+    linear plant keeps viscous friction only."""
+    import re
+
+    from servo_toolkit import load_scene
+    from servo_toolkit.plant.linear import friction_note
+    from servo_toolkit.report import run_section
+    from servo_toolkit.report.context import Context
+    from servo_toolkit.report.sections_time import time_responses
+
+    from .conftest import SCENES
+    ema = load_scene(SCENES / "ema_reference.toml")
+    ctx = Context(ema, light=True)
+    sec = run_section("time", "time", time_responses, ctx)
+    assert sec.status == "info", sec.reason
+    table = re.search(r'<table id="rest-table">(.*?)</table>', sec.html, re.S).group(1)
+    cells = dict(re.findall(r"<tr><td>([^<]+)</td><td>([^<]+)</td></tr>", table))
+    assert set(cells) == {"position error at rest [deg]", "hunting (amplitude [deg], period [ms])",
+                          "time stuck (speed exactly 0)"}
+    phases = int(re.search(r"\((\d+) stick phases\)", cells["time stuck (speed exactly 0)"]).group(1))
+    step_axes = sec.figures[0].figure.axes[0]
+    assert phases >= 1 and len(step_axes.patches) == phases
+    assert any(n.startswith("linear plant: viscous friction only") for n in ctx.design().notes)
+    assert "Coulomb friction 0.02 N*m" in friction_note(ema)[0]
+    assert "static 0.05 N*m" in friction_note(scene())[0]
+    bare = scene()
+    bare = type(bare)("bare", motor=replace(bare.motor, coulomb_friction=0.0, static_friction=None),
+                      stages=bare.stages, load=bare.load)
+    assert friction_note(bare) == ()
