@@ -299,7 +299,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     # friction that holds (the smooth model without it)
     fric = friction_effect(scene, controller, p, w, t_full, amps, base)
     if fric is not None:
-        effects.append(fric)
+        effects.append(Effect("static friction (stick)", "friction", *fric))
 
     # inertia variation over the motion
     j, dj = drive.inertia(qs)

@@ -48,7 +48,7 @@ def disturbance_response(p, controller, motor, w) -> np.ndarray:
 
 
 def friction_effect(scene, controller, p, w, t_full, amplitudes, base):
-    """The effect "static friction (stick)" of a reduction, or None when the full model runs
+    """The numbers of the effect "static friction (stick)" of a reduction, or None when the full model runs
     the smooth friction (``base.friction != "stick"``) or the scene has no Coulomb or static
     friction.
 
@@ -69,10 +69,10 @@ def friction_effect(scene, controller, p, w, t_full, amplitudes, base):
 
     Returns
     -------
-    Effect or None
+    (str, float) or None
+        The quantity compared, in words, and the estimate.
     """
     from ..core.output_units import output_unit
-    from .reduce_estimates import Effect
     motor, load = scene.motor, scene.load
     ts_m, ts_l = motor.breakaway_torque, load.breakaway
     if base.friction != "stick" or max(motor.coulomb_friction, ts_m, load.coulomb_friction, ts_l) == 0:
@@ -91,7 +91,7 @@ def friction_effect(scene, controller, p, w, t_full, amplitudes, base):
                 f"{base.friction_speed:g} rad/s without stick) as a relay at the output"
                 + (f", load breakaway {ts_l:.4g} {u.moment}" if ts_l > 0 else "")
                 + f"; worst at {where[0]:.3g} Hz, {u.text(where[1], 3)}")
-    return Effect("static friction (stick)", "friction", quantity, worst)
+    return quantity, worst
 
 
 def without_stick(options):
