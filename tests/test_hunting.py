@@ -264,3 +264,16 @@ def test_the_report_shades_the_stick_phases_and_the_design_says_what_the_plant_l
     bare = type(bare)("bare", motor=replace(bare.motor, coulomb_friction=0.0, static_friction=None),
                       stages=bare.stages, load=bare.load)
     assert friction_note(bare) == ()
+
+
+def test_the_reference_solver_stops_on_the_same_events(hunting_runs):
+    """The toolkit's stiff reference (solve_ivp restarted at each friction event, the
+    continuous controller integrated with it) follows the event-driven solution through a
+    reversal, a stick and a breakaway, with output records sparser than the events."""
+    sc, (j, kp, ki, kd), _, pieces = hunting_runs
+    model = build_model(sc, controller(kp, ki, kd), OPTIONS)
+    ref = run(model, Reference.step(STEP), 0.3, "reference", output_dt=1e-3, rtol=1e-9, atol=1e-12)
+    stuck = [(a, b) for a, b, s, _ in pieces if s and b < 0.3]
+    assert len(stuck) >= 1 and np.any(ref.motor_speed == 0.0)
+    q = sample(pieces, ref.times)[:, 0] / N
+    assert np.max(np.abs(ref.output_angle - q)) < 1e-7 * STEP
