@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from . import figures
-from ..errors import SimulationError
+from ..errors import SceneError, SimulationError
 from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
 from .section import FigureSpec, NotAvailable, Section, fmt, para, table
 
@@ -175,7 +175,7 @@ def time_responses(ctx) -> Section:
             f"phases (the speed exactly 0) are shaded on the step plot; the run lasts {REST_SPANS:g} times "
             "the plot's span, and the rest and the hunting are judged on its second half.") + table(("friction that holds", "value"), rest_rows(rest, u),
                                                       table_id="rest-table")
-    except (NotAvailable, SimulationError) as exc:
+    except (SimulationError, SceneError) as exc:  # the section's time limit (NotAvailable) still stops it
         notes.append(f"Step with friction that holds not available: {exc}")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
     a1.plot(t_step * 1e3, y_step, label="linear")
