@@ -173,8 +173,8 @@ def time_responses(ctx) -> Section:
             "the motor's Coulomb friction and never stick): the loop stops where the moment it applies no "
             "longer breaks the static friction, or hunts when integral action winds up against it. Stick "
             f"phases (the speed exactly 0) are shaded on the step plot; the run lasts {REST_SPANS:g} times "
-            "the plot's span, and the rest and the hunting are judged on its second half.") + table(("friction that holds", "value"), rest_rows(rest, u),
-                                                      table_id="rest-table")
+            "the plot's span, and the rest and the hunting are judged on its second half.")
+        rest_body += table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
     except (SimulationError, SceneError) as exc:  # the section's time limit (NotAvailable) still stops it
         notes.append(f"Step with friction that holds not available: {exc}")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))

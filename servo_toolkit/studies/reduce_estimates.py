@@ -21,9 +21,10 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - inertia variation over the motion: loop with the motor-side inertia changed by
   max |J(q) - J(q0)| + max |dJ/dq| A / 2 (the velocity term J' q'^2 / 2 acts like an inertia
   error of J' A / 2);
-- static friction (stick), where the full model has it (``friction="stick"``): the
-  describing function of the friction the smooth model misses, through the loop's response
-  to a torque at the output (:mod:`.reduce_friction`); left out, the run uses the smooth model;
+- static friction (stick), where the full model has it (``friction="stick"``): the loop's
+  response to the whole friction as a relay at its breakaway levels, through the response to
+  a torque at the output (an upper estimate, :mod:`.reduce_friction`); left out, the run uses
+  the smooth model;
 - ratio variation and small inertias are reported: the tabulated model has no switch for
   them and they cost nothing (they add no state).
 
