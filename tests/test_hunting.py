@@ -17,7 +17,7 @@ from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.loop.controller import MOTION_INPUTS, MOTION_OUTPUTS, CascadeController
 from servo_toolkit.scene.loader import Scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, run
-from servo_toolkit.studies.hunting import analyse, rest_study
+from servo_toolkit.studies.hunting import analyse, dead_band, rest_study
 
 KT, R, N = 0.2, 0.5, 10.0
 TC, TS, B = 0.02, 0.05, 1e-4          # Coulomb, breakaway (motor shaft, N*m), viscous
@@ -193,6 +193,7 @@ def test_without_integral_action_the_loop_rests_inside_the_dead_band():
     assert found.hunting is None and found.at_rest
     assert np.all(res.motor_speed[res.times > 0.25] == 0.0)
     band = TS / (KT * kp)
+    assert dead_band(sc, controller(kp, 0.0, kd)) == pytest.approx(band, rel=1e-9)
     assert 0.0 < abs(found.position_error_at_rest) <= band
     pieces = event_driven(sc, kp, 0.0, kd, 0.5)
     assert pieces[-1][2]  # the reference ends stuck too
@@ -208,10 +209,13 @@ def test_the_rest_study_reports_hunting_and_stick_phases(hunting_runs):
                    options=ModelOptions(friction="smooth", controller_mode="continuous", quantization=False,
                                         efficiency=False))
     assert r.hunting is not None and len(r.stick_phases) >= 4
+    # the integral adds no stiffness at rest: the band is the proportional path's
+    assert r.dead_band == pytest.approx(TS / (KT * kp), rel=1e-6)
     assert all(b > a for a, b in r.stick_phases)
     d = json.loads(json.dumps(r.to_dict()))
     assert d["hunting"]["period_s"] == pytest.approx(r.hunting.period)
     assert d["position_error_at_rest_deg"] == pytest.approx(math.degrees(r.position_error_at_rest))
+    assert d["dead_band_deg"] == pytest.approx(math.degrees(r.dead_band))
     assert "hunting amplitude" in repr(r) and "<table>" in r._repr_html_()
     smooth = rest_study(sc, controller(kp, 0.0, kd), step=STEP, duration=0.5, dt=1e-5,
                         options=ModelOptions(controller_mode="continuous", quantization=False, efficiency=False))
@@ -231,6 +235,9 @@ def test_the_time_section_rows_say_the_rest_and_the_hunting(hunting_runs):
     assert f"amplitude {math.degrees(found.hunting.amplitude):.4g} deg" in hunt
     assert rows["position error at rest [deg]"].startswith(f"{math.degrees(found.position_error_at_rest):.4g}")
     assert "largest while hunting" in rows["position error at rest [deg]"]
+    assert rows["dead band of the proportional path [deg]"] == "none (no proportional stiffness)"
+    rows = dict(rest_rows(replace(found, dead_band=TS / (KT * 100.0)), OutputUnit("rad")))
+    assert rows["dead band of the proportional path [deg]"] == f"+-{math.degrees(TS / (KT * 100.0)):.4g}"
 
 
 def test_the_report_shades_the_stick_phases_and_the_design_says_what_the_plant_leaves_out():
@@ -252,11 +259,14 @@ def test_the_report_shades_the_stick_phases_and_the_design_says_what_the_plant_l
     assert sec.status == "info", sec.reason
     table = re.search(r'<table id="rest-table">(.*?)</table>', sec.html, re.S).group(1)
     cells = dict(re.findall(r"<tr><td>([^<]+)</td><td>([^<]+)</td></tr>", table))
-    assert set(cells) == {"position error at rest [deg]", "hunting (amplitude [deg], period [ms])",
-                          "time stuck (speed exactly 0)"}
+    assert set(cells) == {"dead band of the proportional path [deg]", "position error at rest [deg]",
+                          "hunting (amplitude [deg], period [ms])", "time stuck (speed exactly 0)"}
+    assert cells["dead band of the proportional path [deg]"].startswith("+-")
     phases = int(re.search(r"\((\d+) stick phases\)", cells["time stuck (speed exactly 0)"]).group(1))
     step_axes = sec.figures[0].figure.axes[0]
-    assert phases >= 1 and len(step_axes.patches) == phases
+    stuck = [p for p in step_axes.patches if p.get_facecolor()[:3] == (0.85, 0.85, 0.85)]
+    assert phases >= 1 and len(stuck) == phases
+    assert any(p.get_label() == "dead band (proportional path)" for p in step_axes.patches)
     assert any(n.startswith("linear plant: viscous friction only") for n in ctx.design().notes)
     assert "Coulomb friction 0.02 N*m" in friction_note(ema)[0]
     assert "static 0.05 N*m" in friction_note(scene())[0]

@@ -97,7 +97,9 @@ def rest_rows(rest, u):
     else:
         at_rest = fmt(u.show(err)) + (" (largest while hunting)" if rest.hunting is not None else "")
     hunting = hunting_text(rest.hunting, u)
-    return [(f"position error at rest [{u.shown}]", at_rest),
+    band = "none (no proportional stiffness)" if rest.dead_band is None else f"+-{fmt(u.show(rest.dead_band))}"
+    return [(f"dead band of the proportional path [{u.shown}]", band),
+            (f"position error at rest [{u.shown}]", at_rest),
             (f"hunting (amplitude [{u.shown}], period [ms])", f"{hunting} within {span}"),
             ("time stuck (speed exactly 0)", f"{rest.stuck.mean():.0%} ({len(rest.stick_phases)} stick phases)")]
 
@@ -171,7 +173,8 @@ def time_responses(ctx) -> Section:
             f"The same step with friction that holds (the motor's breakaway {fmt(motor.breakaway_torque)} N*m, "
             f"Coulomb {fmt(motor.coulomb_friction)} N*m, and the load's where it has any; the runs above smooth "
             "the motor's Coulomb friction and never stick): the loop stops where the moment it applies no "
-            "longer breaks the static friction, or hunts when integral action winds up against it. Stick "
+            "longer breaks the static friction (within the dead band of its proportional path, before integral "
+            "action winds up), or hunts when integral action winds up against it. Stick "
             f"phases (the speed exactly 0) are shaded on the step plot; the run lasts {REST_SPANS:g} times "
             "the plot's span, and the rest and the hunting are judged on its second half.")
         rest_body += table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
@@ -186,9 +189,11 @@ def time_responses(ctx) -> Section:
         a1.plot(nonlinear[0] * 1e3, nonlinear[1], "--", label="nonlinear")
         a2.plot(nonlinear[2] * 1e3, nonlinear[3], "--", label="nonlinear")
     if rest is not None:
-        from ..studies.hunting import shade_stick_phases
+        from ..studies.hunting import shade_stick_phases, show_dead_band
         a1.plot(rest.times * 1e3, step_amp - u.show(rest.error), ":", label="nonlinear, friction that holds")
         shade_stick_phases(a1, rest.stick_phases, scale=1e3)
+        if rest.dead_band is not None:
+            show_dead_band(a1, step_amp, float(u.show(rest.dead_band)))
         a1.set_xlim(0.0, t_step[-1] * 1e3)
     a1.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=step_title)
     a2.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=sine_title)
@@ -199,7 +204,8 @@ def time_responses(ctx) -> Section:
             f"phase at {SINE_HZ:g} Hz [deg]")
     body = table(head, rows) + rest_body
     figs = [FigureSpec(fig, "Step response and 8 Hz sine tracking"
-                       + ("; shaded: the shaft stuck in the step with friction that holds." if rest is not None else "."))]
+                       + ("; grey: the shaft stuck in the step with friction that holds; green: the dead band of the loop's "
+                          "proportional path about the command." if rest is not None else "."))]
     if electrics:
         body += para("Motor electrics in the nonlinear runs against the drive's limits (time at a limit: within "
                      "0.1 % of it).") + table(("run", "peak current [A]", "current limit [A]", "peak voltage [V]",

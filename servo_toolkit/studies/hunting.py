@@ -30,6 +30,8 @@ from ..display.cards import RichDisplay, card, facts, num, svg
 STEP_FRACTION = 0.5
 #: records a stick phase must span (one exact zero is a reversal, not a stick)
 MIN_STICK_RECORDS = 2
+#: angular frequency (rad/s) at which the controller's proportional stiffness is read
+LOW_FREQUENCY = 1e-3
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,9 @@ class RestResult(RichDisplay):
         Start of the judged part of the run (s): its second half.
     output_unit : {"rad", "m"}
     notes : tuple of str
+    dead_band : float or None
+        Half-width (rad, or m) of the dead band of the loop's proportional path,
+        :func:`dead_band`; None when not computed or the loop has no proportional stiffness.
     """
 
     times: np.ndarray
@@ -87,6 +92,7 @@ class RestResult(RichDisplay):
     window: float
     output_unit: str = "rad"
     notes: tuple = ()
+    dead_band: float | None = None
 
     @property
     def unit(self) -> OutputUnit:
@@ -107,6 +113,7 @@ class RestResult(RichDisplay):
                 "hunting": None if hunt is None else {u.key("amplitude"): float(u.show(hunt.amplitude)),
                                                       "period_s": hunt.period, "cycles": hunt.cycles},
                 "at_rest": self.at_rest, "stick_phases_s": [list(p) for p in self.stick_phases],
+                u.key("dead_band"): None if self.dead_band is None else float(u.show(self.dead_band)),
                 "stuck_fraction": float(self.stuck.mean()), "window_s": self.window, "notes": list(self.notes)}
 
     def plot(self, ax=None):
@@ -117,6 +124,8 @@ class RestResult(RichDisplay):
         u = self.unit
         ax.plot(self.times, u.show(self.error), lw=1.0, label="command - output")
         shade_stick_phases(ax, self.stick_phases)
+        if self.dead_band is not None:
+            show_dead_band(ax, 0.0, float(u.show(self.dead_band)))
         ax.set(xlabel="time [s]", ylabel=f"error [{u.shown}]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
@@ -130,6 +139,7 @@ class RestResult(RichDisplay):
         rest = self.position_error_at_rest
         rows = [("position error at rest", "moving at the end" if rest is None else f"{num(u.show(rest))} {u.shown}"),
                 ("hunting", hunting_text(self.hunting, u)), ("stick phases", str(len(self.stick_phases))),
+                ("dead band", "none" if self.dead_band is None else f"+-{num(u.show(self.dead_band))} {u.shown}"),
                 ("time stuck", f"{self.stuck.mean():.0%}")]
         return card("Friction at rest", parts=[facts(rows), svg(self.plot, size=(7.0, 3.2))], notes=self.notes)
 
@@ -138,7 +148,8 @@ def hunting_text(hunting, u: OutputUnit) -> str:
     """``"none"`` or the amplitude and period of a limit cycle, in words."""
     if hunting is None:
         return "none"
-    return f"amplitude {num(u.show(hunting.amplitude))} {u.shown}, period {num(hunting.period * 1e3)} ms"
+    seen = f"{hunting.cycles} cycle{'s' if hunting.cycles != 1 else ''} seen"
+    return f"amplitude {num(u.show(hunting.amplitude))} {u.shown}, period {num(hunting.period * 1e3)} ms ({seen})"
 
 
 def summary_line(r: RestResult) -> str:
@@ -153,6 +164,49 @@ def shade_stick_phases(ax, phases, scale: float = 1.0, label: str = "stuck (spee
     """Shade the stick phases (times x ``scale``) on a time axis."""
     for k, (a, b) in enumerate(phases):
         ax.axvspan(a * scale, b * scale, color="0.85", lw=0, zorder=0, label=label if k == 0 else None)
+
+
+def show_dead_band(ax, centre: float, half_width: float, label: str = "dead band (proportional path)"):
+    """Draw a dead band ``centre +- half_width`` across a time axis."""
+    ax.axhspan(centre - half_width, centre + half_width, color="C2", alpha=0.15, lw=0, label=label)
+
+
+def dead_band(scene, controller, q0: float | None = None) -> float | None:
+    """Half-width of the dead band of a loop's proportional path at the output (rad, or m).
+
+    A node at rest sticks while the moment on it stays within its breakaway level; the loop's
+    moment per unit of position error, before any integral action winds up, is its
+    proportional stiffness Kt Kp with Kp the real part of the motion controller's response
+    from the output angle to the current command at a low frequency (an integrator adds a
+    purely imaginary part there). With the motor's breakaway Ts and the load's Ts_L reflected
+    to the motor (the chain at rest taken as rigid),
+
+        |e| <= (Ts + Ts_L / N) / (Kt Kp).
+
+    Parameters
+    ----------
+    scene : Scene
+    controller : CascadeController
+    q0 : float, optional
+        Operating point (default the design's).
+
+    Returns
+    -------
+    float or None
+        None when the controller has no proportional stiffness (Kp <= 0).
+    """
+    import control as ct
+
+    from ..drivetrain.operating_point import operating_point
+    q0 = operating_point(scene)[0] if q0 is None else q0
+    motion = controller.motion
+    path = motion[0, list(motion.input_labels).index("theta")]
+    gain = -complex(np.asarray(ct.frequency_response(path, [LOW_FREQUENCY]).complex).ravel()[0]).real
+    if not gain > 0:
+        return None
+    n = abs(float(scene.drivetrain.ratio([q0])[0][0]))
+    motor = scene.motor
+    return (motor.breakaway_torque + scene.load.breakaway / n) / (motor.torque_constant * gain)
 
 
 def stick_mask(result, load_friction: bool = False) -> np.ndarray:
@@ -260,8 +314,8 @@ def rest_study(scene, controller=None, *, step: float | None = None, duration: f
     head = (f"{u.text(size, 3)} step, {duration:g} s, {run.method}"
             + (f" at {run.dt_s:.3g} s" if run.dt_s else "")
             + f"; friction that holds (motor breakaway {ts:.4g} N*m, Coulomb {scene.motor.coulomb_friction:.4g} N*m)")
-    return replace(res, notes=(head, *res.notes, *run.notes))
+    return replace(res, notes=(head, *res.notes, *run.notes), dead_band=dead_band(scene, controller))
 
 
-__all__ = ["Hunting", "MIN_STICK_RECORDS", "RestResult", "STEP_FRACTION", "analyse", "hunting_text", "rest_study",
-           "shade_stick_phases", "stick_mask", "summary_line"]
+__all__ = ["Hunting", "LOW_FREQUENCY", "MIN_STICK_RECORDS", "RestResult", "STEP_FRACTION", "analyse", "dead_band",
+           "hunting_text", "rest_study", "shade_stick_phases", "show_dead_band", "stick_mask", "summary_line"]
