@@ -287,3 +287,23 @@ def test_the_reference_solver_stops_on_the_same_events(hunting_runs):
     assert len(stuck) >= 1 and np.any(ref.motor_speed == 0.0)
     q = sample(pieces, ref.times)[:, 0] / N
     assert np.max(np.abs(ref.output_angle - q)) < 1e-7 * STEP
+
+
+def test_a_stick_slip_that_dies_out_is_rest_not_hunting(hunting_runs):
+    """Cut the hunting run where a stick phase has lasted longer than a period (the last
+    records held at the stuck state): the analysis calls that rest, at the stuck error."""
+    from dataclasses import replace as dc_replace
+    _, _, res, _ = hunting_runs
+    found = analyse(res)
+    period = found.hunting.period
+    keep = res.times <= found.stick_phases[-2][1]  # ends inside the second-to-last stick phase
+    n_hold = int(1.5 * period / (res.times[1] - res.times[0]))
+    states = np.concatenate([res.states[keep], np.repeat(res.states[keep][-1:], n_hold, axis=0)])
+    times = np.concatenate([res.times[keep], res.times[keep][-1] + (res.times[1] - res.times[0])
+                            * np.arange(1, n_hold + 1)])
+    cut = dc_replace(res, times=times, states=states,
+                     reference_angle=np.full(times.size, res.reference_angle[-1]),
+                     motor_speed=np.concatenate([res.motor_speed[keep], np.zeros(n_hold)]))
+    rested = analyse(cut)
+    assert rested.hunting is None and rested.at_rest
+    assert rested.position_error_at_rest == pytest.approx(cut.reference_angle[-1] - cut.output_angle[-1])

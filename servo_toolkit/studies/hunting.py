@@ -13,7 +13,8 @@ node's speed at exactly zero, so stick is read without a threshold. A breakaway 
 a stick phase before the end of the run. The run is judged on its second half (the
 ``window``): hunting when the output breaks away at least twice in the same direction there
 (period: the mean interval between same-direction breakaways; amplitude: half the output's
-peak-to-peak over the last period), at rest when it ends in a stick phase.
+peak-to-peak over the last period) unless the run ends in a stick phase longer than that
+period (the stick-slip died out), at rest when it ends in a stick phase.
 """
 
 from __future__ import annotations
@@ -259,8 +260,10 @@ def analyse(result, load_friction: bool = False, window: float | None = None) ->
     for idx, direction in breaks:
         cycles.setdefault(direction, []).append(idx)
     same = max(cycles.values(), key=len) if cycles else []
+    period = float(np.mean(np.diff(t[same]))) if len(same) >= 2 else math.nan
+    if stuck[-1] and runs and t[-1] - t[runs[-1][0]] > period:
+        same = []  # stuck for longer than a period at the end: the stick-slip died out, at rest
     if len(same) >= 2:
-        period = float(np.mean(np.diff(t[same])))
         a, b = same[-2], same[-1]
         amp = 0.5 * float(np.ptp(result.output_angle[a:b + 1]))
         hunting = Hunting(amplitude=amp, period=period, cycles=len(same) - 1)
