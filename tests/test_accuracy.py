@@ -83,3 +83,39 @@ def test_the_order_floor_leaves_out_rounding():
     fourth = [1e-10 * (d / 1e-4) ** 4 for d in dts]  # from the third on below the rounding floor
     assert abs(_order(dts, fourth, ROUNDING_FLOOR) - 4.0) < 1e-9
     assert math.isnan(_order(dts, fourth))  # the reference floor (1e-11) leaves a single point
+
+
+def test_with_friction_that_holds_the_order_stays_four_away_from_the_switching_instants():
+    """A geared motor with static friction, set turning and then driven by a sine voltage
+    that stops it, reverses it and breaks it away again: before the first switching instant
+    RK4's order against the reference (which stops on the same events) is 4; over the whole
+    run the steps meeting a switching instant bring it down, and the note says so."""
+    import numpy as np
+
+    from servo_toolkit.components.compliance import Load
+    from servo_toolkit.components.gear import GearTrain
+    from servo_toolkit.components.motor import DCMotor
+    from servo_toolkit.scene.loader import Scene
+
+    motor = DCMotor(resistance=0.5, inductance=0.0, torque_constant=0.2, back_emf_constant=0.2, rotor_inertia=2e-4,
+                    viscous_friction=1e-4, coulomb_friction=0.02, static_friction=0.05, voltage_limit=100.0,
+                    current_limit=50.0)
+    scene = Scene("stick", motor=motor, stages=(GearTrain("gear", ratio=10.0, inertias=(1e-5, 1e-3)),),
+                  load=Load(inertia=0.05))
+    model = build_model(scene, None, ModelOptions(friction="stick", efficiency=False))
+    x0 = np.zeros(model.nx)
+    x0[0] = x0[2] = model.q0
+    x0[1] = x0[3] = 1.0  # output rad/s: 10 rad/s at the motor
+    volts = 3.0 * 0.5 * 0.05 / 0.2  # three times the breakaway voltage
+    res = accuracy_study(model, Reference.voltage(0.0, swing=volts, frequency=5.0), 0.5,
+                         dts=[4e-4, 2e-4, 1e-4, 5e-5], progress=False, repeats=1, x0=x0)
+    sw = res.switching
+    assert sw["instants"] >= 4 and 0.05 < sw["first_s"] < 0.2
+    assert 3.7 < sw["order_smooth"] < 4.3
+    assert not res.order > 3.0  # NaN or low: the switching instants
+    (note,) = res.notes
+    assert f"RK4's order is {sw['order_smooth']:.2f}" in note and "switching instants" in note
+    assert res.to_dict()["switching"]["instants"] == sw["instants"] and note in res.table()
+    smooth = accuracy_study(build_model(scene, None, ModelOptions(efficiency=False)), Reference.voltage(1.0), 0.05,
+                            dts=[4e-4, 2e-4], progress=False, repeats=1)
+    assert smooth.switching == {} and smooth.notes == ()

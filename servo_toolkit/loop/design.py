@@ -19,7 +19,8 @@ import numpy as np
 
 from .controller import CascadeController
 from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, plant, plant_matrices, plant_parameters
+from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant, plant_matrices,
+                            plant_parameters)
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
@@ -242,7 +243,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require)
     notes = [f"{r.name} {r.sense} {r.value:g} {r.unit}: default (the scene sets none)"
-             for r in reqs if r.source == "default"] + ([op_note] if op_note else [])
+             for r in reqs if r.source == "default"] + ([op_note] if op_note else []) + list(friction_note(scene))
     sample_time = scene.sensors.sample_time
     if sample_time == 0:
         notes.append("continuous controller: the scene gives no sample time")
@@ -384,7 +385,7 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require)
     notes = [f"{r.name} {r.sense} {r.value:g} {r.unit}: default (the scene sets none)"
-             for r in reqs if r.source == "default"]
+             for r in reqs if r.source == "default"] + list(friction_note(scene))
     sample_time = scene.sensors.sample_time
     kp_i, ki_i = current_loop_gains(scene.motor, current_bandwidth_hz) if p.L > 0 else (0.0, 0.0)
 

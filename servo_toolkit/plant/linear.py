@@ -123,6 +123,37 @@ def spring_damping(J1, J2, K, zeta):
     return c if c.ndim else float(c)
 
 
+def friction_note(scene) -> tuple:
+    """What the linear plant leaves out of the scene's friction, in words (empty when the
+    scene has only viscous friction).
+
+    The plant keeps the viscous friction (the motor's b N^2 on the motor side, the load's
+    damping); Coulomb and static friction have no linearization at rest (their slope there
+    is infinite): a loop designed on the plant may stop short of its command inside the
+    static friction's dead band, or hunt against it with integral action, which the
+    nonlinear model with ``ModelOptions(friction="stick")`` shows
+    (:mod:`servo_toolkit.studies.hunting`).
+
+    Returns
+    -------
+    tuple of str
+    """
+    from ..core.output_units import output_unit
+    motor, load = scene.motor, scene.load
+    if motor is None:
+        return ()
+    parts = [f"the {who}'s Coulomb friction {tc:.4g} {unit}" + (f", static {ts:.4g} {unit}" if ts > tc else "")
+             for who, tc, ts, unit in (("motor", motor.coulomb_friction, motor.breakaway_torque, "N*m"),
+                                       ("load", load.coulomb_friction, load.breakaway, output_unit(scene).moment))
+             if max(tc, ts) > 0]
+    if not parts:
+        return ()
+    return ("linear plant: viscous friction only (the motor's b N^2, the load's damping); left out, having no "
+            "linearization at rest: " + "; ".join(parts) + ". A loop may stop short of its command inside the "
+            "dead band of static friction or hunt against it with integral action (the report's time section "
+            "runs the step with friction that holds)",)
+
+
 def plant_parameters(scene, q0=None, model: str = "auto",
                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> PlantParameters:
     """Linear parameters of a scene's drivetrain at ``q0``.

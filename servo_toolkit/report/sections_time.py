@@ -1,4 +1,5 @@
-"""Step response and 8 Hz sine tracking: the linear closed loop and the nonlinear simulation."""
+"""Step response and 8 Hz sine tracking: the linear closed loop and the nonlinear simulation;
+the same step with friction that holds (stick phases, position error at rest, hunting)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import math
 import numpy as np
 
 from . import figures
+from ..errors import SceneError, SimulationError
 from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
 from .section import FigureSpec, NotAvailable, Section, fmt, para, table
 
@@ -14,6 +16,9 @@ SINE_HZ = REQUIREMENT_SINE_HZ
 #: the step is this fraction of the sine's amplitude (the output's default command amplitude:
 #: 2 deg for an angle, 1 mm for a travel)
 STEP_FRACTION = 0.5
+#: the step with friction that holds runs this many times the step plot's span (a loop
+#: hunting against static friction or creeping to rest is slower than its step)
+REST_SPANS = 2.0
 
 
 def _fit_sine(t, y, f):
@@ -81,6 +86,24 @@ def _electrics(runs, motor):
     return fig
 
 
+def rest_rows(rest, u):
+    """Rows (quantity, value) of a step run to rest with friction that holds: the position
+    error at rest and the hunting (amplitude and period of a limit cycle, or none)."""
+    from ..studies.hunting import hunting_text
+    span = f"{fmt(rest.window * 1e3)}-{fmt(rest.times[-1] * 1e3)} ms"
+    err = rest.position_error_at_rest
+    if err is None:
+        at_rest = f"not at rest at {fmt(rest.times[-1] * 1e3)} ms (error there {fmt(u.show(rest.error[-1]))})"
+    else:
+        at_rest = fmt(u.show(err)) + (" (largest while hunting)" if rest.hunting is not None else "")
+    hunting = hunting_text(rest.hunting, u)
+    band = "none (no proportional stiffness)" if rest.dead_band is None else f"+-{fmt(u.show(rest.dead_band))}"
+    return [(f"dead band of the proportional path [{u.shown}]", band),
+            (f"position error at rest [{u.shown}]", at_rest),
+            (f"hunting (amplitude [{u.shown}], period [ms])", f"{hunting} within {span}"),
+            ("time stuck (speed exactly 0)", f"{rest.stuck.mean():.0%} ({len(rest.stick_phases)} stick phases)")]
+
+
 def time_responses(ctx) -> Section:
     """Step and 8 Hz sine: linear closed loop (python-control) and, when available, the
     nonlinear simulation with the same controller (limits, friction, backlash)."""
@@ -140,6 +163,23 @@ def time_responses(ctx) -> Section:
         electric_fig = _electrics(((step_title, r1.times - t_at, r1), (sine_title, r2.times, r2)), motor)
     except NotAvailable as exc:
         notes.append(f"Nonlinear simulation not available: {exc}")
+    rest, rest_body = None, ""
+    try:
+        from ..studies.hunting import rest_study
+        rest = rest_study(ctx.scene, d.controller, step=step_amp / u.factor, duration=REST_SPANS * t_step[-1],
+                          method="rk4")
+        motor = ctx.scene.motor
+        rest_body = para(
+            f"The same step with friction that holds (the motor's breakaway {fmt(motor.breakaway_torque)} N*m, "
+            f"Coulomb {fmt(motor.coulomb_friction)} N*m, and the load's where it has any; the runs above smooth "
+            "the motor's Coulomb friction and never stick): the loop stops where the moment it applies no "
+            "longer breaks the static friction (within the dead band of its proportional path, before integral "
+            "action winds up), or hunts when integral action winds up against it. Stick "
+            f"phases (the speed exactly 0) are shaded on the step plot; the run lasts {REST_SPANS:g} times "
+            "the plot's span, and the rest and the hunting are judged on its second half.")
+        rest_body += table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
+    except (SimulationError, SceneError) as exc:  # the section's time limit (NotAvailable) still stops it
+        notes.append(f"Step with friction that holds not available: {exc}")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
     a1.plot(t_step * 1e3, y_step, label="linear")
     a1.axhline(step_amp, color="0.6", lw=0.8)
@@ -148,6 +188,13 @@ def time_responses(ctx) -> Section:
     if nonlinear is not None:
         a1.plot(nonlinear[0] * 1e3, nonlinear[1], "--", label="nonlinear")
         a2.plot(nonlinear[2] * 1e3, nonlinear[3], "--", label="nonlinear")
+    if rest is not None:
+        from ..studies.hunting import shade_stick_phases, show_dead_band
+        a1.plot(rest.times * 1e3, step_amp - u.show(rest.error), ":", label="nonlinear, friction that holds")
+        shade_stick_phases(a1, rest.stick_phases, scale=1e3)
+        if rest.dead_band is not None:
+            show_dead_band(a1, step_amp, float(u.show(rest.dead_band)))
+        a1.set_xlim(0.0, t_step[-1] * 1e3)
     a1.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=step_title)
     a2.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=sine_title)
     for ax in (a1, a2):
@@ -155,8 +202,10 @@ def time_responses(ctx) -> Section:
         ax.legend(fontsize="small")
     head = ("model", "rise 10-90 % [ms]", "overshoot", "settling 2 % [ms]", f"gain at {SINE_HZ:g} Hz [dB]",
             f"phase at {SINE_HZ:g} Hz [deg]")
-    body = table(head, rows)
-    figs = [FigureSpec(fig, "Step response and 8 Hz sine tracking.")]
+    body = table(head, rows) + rest_body
+    figs = [FigureSpec(fig, "Step response and 8 Hz sine tracking"
+                       + ("; grey: the shaft stuck in the step with friction that holds; green: the dead band of the loop's "
+                          "proportional path about the command." if rest is not None else "."))]
     if electrics:
         body += para("Motor electrics in the nonlinear runs against the drive's limits (time at a limit: within "
                      "0.1 % of it).") + table(("run", "peak current [A]", "current limit [A]", "peak voltage [V]",

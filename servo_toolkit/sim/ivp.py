@@ -208,6 +208,8 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigi
         evs = (events or []) + ev_f
         te = t_eval[t_eval >= t0]
         sol = solve_ivp(fun, (t0, b), x, method=solver, t_eval=te, rtol=rtol, atol=atol, events=evs)
+        # no output time before an event: solve_ivp leaves its empty lists as they are
+        sol.t, sol.y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float).reshape(x.size, -1)
         if sol.status != 1:
             ts.append(sol.t)
             ys.append(sol.y)

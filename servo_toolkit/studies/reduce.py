@@ -306,7 +306,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         if not amps or not all(math.isfinite(a) and a > 0 for a in amps):
             raise ValueError("amplitudes must be non-empty, positive and finite")
     stop = "stop" if measure == "trace" else "error"
-    full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop, chain="full")
+    full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop, chain="full", friction="stick")
     rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
     reduced = rplan.options
     dwell = plan or DwellPlan()
@@ -385,7 +385,8 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     if amplitudes is not None:
         amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
     rplan = plan_reduction(scene, controller, freqs, amps,
-                           base=ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, chain="full"),
+                           base=ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, chain="full",
+                                             friction="stick"),
                            tolerance=tolerance)
     return replace(rplan.options), rplan
 

@@ -21,6 +21,10 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - inertia variation over the motion: loop with the motor-side inertia changed by
   max |J(q) - J(q0)| + max |dJ/dq| A / 2 (the velocity term J' q'^2 / 2 acts like an inertia
   error of J' A / 2);
+- static friction (stick), where the full model has it (``friction="stick"``): the loop's
+  response to the whole friction as a relay at its breakaway levels, through the response to
+  a torque at the output (an upper estimate, :mod:`.reduce_friction`); left out, the run uses
+  the smooth model;
 - ratio variation and small inertias are reported: the tabulated model has no switch for
   them and they cost nothing (they add no state).
 
@@ -44,6 +48,7 @@ from ..drivetrain.operating_point import operating_point
 from ..core.output_units import OutputUnit, output_unit
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
                             plant_parameters, sample_delay, spring_damping)
+from .reduce_friction import friction_effect, without_stick
 
 #: compliance share below which a stage's compliance is negligible (seed 001)
 SHARE_THRESHOLD = 1e-3
@@ -292,6 +297,11 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
                    f"{static:.4g} static)")
         effects.append(Effect("backlash", "backlash", why, e))
 
+    # friction that holds (the smooth model without it)
+    fric = friction_effect(scene, controller, p, w, t_full, amps, base)
+    if fric is not None:
+        effects.append(Effect("static friction (stick)", "friction", *fric))
+
     # inertia variation over the motion
     j, dj = drive.inertia(qs)
     j0 = float(drive.inertia([q0])[0][0])
@@ -377,5 +387,7 @@ def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes
         opts = replace(opts, inductance=False)
     if "variable_inertia" in omitted:
         opts = replace(opts, variable_inertia=False)
+    if "friction" in omitted:
+        opts = without_stick(opts)
     return ReductionPlan(effects=tuple(out), options=opts, tolerance=tol, predicted=used,
                          frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes))
