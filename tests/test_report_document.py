@@ -260,7 +260,8 @@ def test_accuracy_wall_times_are_the_best_of_repeats(monkeypatch):
         return SimpleNamespace(dt_s=dt, wall_s=next(walls), output_angle=np.sin(t) * (1 + (dt or 0.0)),
                                method=method)
     monkeypatch.setattr(acc, "run", fake_run)
-    model = SimpleNamespace(sample_time=1e-3, name="m", output_unit="rad", controller="c")
+    from servo_toolkit.sim import layout as lo
+    model = SimpleNamespace(sample_time=1e-3, name="m", output_unit="rad", controller="c", P=np.zeros(lo.NP_HEADER))
     reference = SimpleNamespace(kind="sine", amplitude=1.0, describe=lambda unit: "sine")
     res = acc.accuracy_study(model, reference, 0.01, dts=[1e-3, 5e-4], progress=False, repeats=3)
     assert len(calls) == 3 * (1 + 2 * 2) and res.repeats == 3
