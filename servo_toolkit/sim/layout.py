@@ -83,7 +83,14 @@ TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
 # takes the motor speed along the commanded trajectory as its reference, and the time (s) by
 # which the feedforward current leads the sample instant (half a sample)
 FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
-NP_HEADER = 74
+# slots 74..117 are reserved for further header blocks (each block states its own meaning)
+# 74..81: the drivetrain chain's per-node tables and damping
+# 82..89: friction at the chain's nodes
+# 90..97: reference tables and multisines
+# 98..105: gain scheduling along the stroke and command shaping
+# 106..113: toleranced parameters
+# 114..117: the run's own bookkeeping
+NP_HEADER = 118
 #: length of the packed cam parameters
 NCAM = 14
 
