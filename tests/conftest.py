@@ -1,8 +1,10 @@
-"""Shared fixtures: the reference scenes and small scene builders."""
+"""Shared fixtures: the reference scenes and small scene builders; with several test
+processes (pytest-xdist), one compilation of the simulation kernels for all of them."""
 
 from __future__ import annotations
 
 import copy
+import os
 import tomllib
 from pathlib import Path
 
@@ -13,6 +15,26 @@ from servo_toolkit.scene.loader import scene_from_dict
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"
 SCENE_FILES = sorted(SCENES.glob("*.toml"))
+
+
+def pytest_sessionstart(session):
+    """Under pytest-xdist the first worker compiles (or loads) every simulation kernel while
+    the others wait on a lock in the cache folder, then load what it compiled: without it
+    each worker would compile the same kernels at once."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    import fcntl
+
+    from servo_toolkit.core.jit_cache import cache_dir
+    from servo_toolkit.studies.warmup import compile_kernels
+    folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "warm-up.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            compile_kernels()
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 @pytest.fixture

@@ -15,6 +15,7 @@ from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TA
                                      S_PEAK, run_variants)
 from servo_toolkit.sim.batch_lanes import W, run_lanes
 from servo_toolkit.sim.reference import fill, initial_state
+from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.sim.variants import VariantBuilder
 from servo_toolkit.studies.time_run import sine_run_options
 
@@ -38,7 +39,7 @@ def _both(P, T, tix, X0, sub, steps=STEPS):
         X = np.array(X0, dtype=float)
         figs = np.zeros((len(X), NFIG))
         snaps = np.zeros((len(X), NSNAP, X.shape[1] + 2))
-        fn(X, np.ascontiguousarray(P), np.ascontiguousarray(T), np.ascontiguousarray(tix, dtype=np.int64), DT,
+        fn(X, np.ascontiguousarray(P), frozen_tables(T), np.ascontiguousarray(tix, dtype=np.int64), DT,
            steps, sub, figs, snaps)
         out.append((X, figs, snaps))
     return out

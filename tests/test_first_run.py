@@ -113,9 +113,10 @@ def test_first_report_on_an_empty_cache_is_complete(tmp_path):
     assert 'class="unavailable-box"' not in html and 'class="badge unavailable"' not in html
 
 
-def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missing(tmp_path, monkeypatch, capsys):
-    """With the single-run kernels cached but not the batch, ``montecarlo`` and the report of
-    a scene with [robustness] still say on stderr that they compile (about half a minute)."""
+def test_one_warm_up_compiles_every_kernel_and_says_so(tmp_path, monkeypatch, capsys):
+    """Any command that simulates warms every kernel a user meets next (the single run's, the
+    paper scheme's and the Monte Carlo batch's): with only the batch missing it still says
+    that it compiles, and with every entry point cached it says nothing."""
     from servo_toolkit import load_scene
     from servo_toolkit.core import jit_cache
     from servo_toolkit.cli.common import prepare_kernels
@@ -125,16 +126,42 @@ def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missin
     (tmp_path / "sim" / "integrators._paper-200.py311.nbi").write_bytes(b"")
     monkeypatch.setattr(jit_cache, "cache_dir", lambda: tmp_path)
     calls = []
-    monkeypatch.setattr(warmup, "compile_kernels", lambda *a: calls.append(a))
+    monkeypatch.setattr(warmup, "compile_kernels", lambda: calls.append("warm"))
     scene = load_scene()
-    prepare_kernels(scene, paper=True)
-    assert "compiling" not in capsys.readouterr().err
-    prepare_kernels(scene, batch=True)
+    prepare_kernels(scene)
     assert "compiling the simulation kernels" in capsys.readouterr().err
     (tmp_path / "sim" / "batch_lanes.run_lanes-250.py311.nbi").write_bytes(b"")
-    prepare_kernels(scene, paper=True, batch=True)
+    prepare_kernels(scene)
     assert "compiling" not in capsys.readouterr().err
-    assert calls == [(True, False), (False, True), (True, True)]
+    assert calls == ["warm", "warm"]
+
+
+def test_the_warm_up_compiles_the_batch_beside_the_single_run(tmp_path, monkeypatch):
+    """A cold batch compiles in a second process while the single run's kernels compile here;
+    an interrupted warm-up stops that process too."""
+    from servo_toolkit.studies import warmup
+    order = []
+
+    class Child:
+        def wait(self):
+            order.append("wait")
+
+        def terminate(self):
+            order.append("terminate")
+    monkeypatch.setattr(warmup, "_batch_cached", lambda: False)
+    monkeypatch.setattr(warmup, "_start_batch_process", lambda: order.append("start") or Child())
+    monkeypatch.setattr(warmup, "_warm_single", lambda: order.append("single"))
+    monkeypatch.setattr(warmup, "_warm_batch", lambda: order.append("batch"))
+    warmup.compile_kernels()
+    assert order == ["start", "single", "wait", "batch"]
+    order.clear()
+
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(warmup, "_warm_single", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        warmup.compile_kernels()
+    assert order == ["start", "terminate", "wait"]
 
 
 def test_the_report_compiles_the_kernels_before_its_first_section(monkeypatch):

@@ -22,10 +22,11 @@ def test_scalar_loop_matches_array_loop(mode):
     dt, n = 2e-5, 5000
     sub = int(round(model.sample_time / dt)) if mode == "sampled" else 0
     runs = []
-    for loop, extra in ((_rk4, ()), (_paper, (False,))):
+    fig, snap = np.zeros(lo.NFIG), np.zeros((lo.NSNAP, model.nx + 2))
+    for loop, extra, tail in ((_rk4, (), (fig, snap)), (_paper, (False,), ())):
         x = x0.copy()
         out = (np.empty(60), np.empty((60, model.nx)), np.empty((60, lo.NAUX)))
-        status = loop(x, P, model.T, 0.0, dt, n, sub, 0.0, *extra, 100, *out)
+        status = loop(x, P, model.T, 0.0, dt, n, sub, 0.0, *extra, 100, *out, *tail)
         runs.append((x, status, out))
     (xa, sa, oa), (xb, sb, ob) = runs
     assert sa[:3] == sb[:3] == (lo.OK, n, 51)

@@ -27,8 +27,8 @@ from ..loop.requirements import parse_override
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
-from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, scheduler_of,
-                     study_executor, to_json)
+from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, prepare_kernels,
+                     scheduler_of, study_executor, to_json)
 
 
 def register(sub) -> None:
@@ -298,6 +298,10 @@ def run(args) -> int:
         except SceneError as exc:
             scenes.append(_tagged(exc, path))
             print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
+    if not getattr(args, "linear_only", False):
+        loops = [s for s in scenes if not isinstance(s, Exception) and s.stages and s.motor is not None]
+        if loops:
+            prepare_kernels(loops[0])  # one warm-up for every scene's nonlinear rows
     with _executor(scheduler, scenes, args.scenes) as (executor, _):
         entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor)
     if args.junit:

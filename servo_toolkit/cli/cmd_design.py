@@ -6,7 +6,7 @@ from ..errors import SceneError
 from ..loop import design
 from ..loop.requirements import parse_override
 from ..scene import load_scene
-from .common import add_force, add_json, add_scene, check_robustness_budget, emit
+from .common import add_force, add_json, add_scene, check_robustness_budget, emit, prepare_kernels
 
 
 def add_design_options(p) -> None:
@@ -79,6 +79,8 @@ def run(args) -> int:
         from ..loop.design import robust_spec
         spec = robust_spec(scene, args.robust)
         check_robustness_budget(scene, spec, spec is not None, None, args.force)
+    if not getattr(args, "linear_only", False):
+        prepare_kernels(scene)  # the large-signal rows simulate
     try:
         result = design_from_args(scene, args)
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)

@@ -95,7 +95,7 @@ def run(args) -> int:
                   reference=reference)
     n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     with study_executor(scheduler, args.workers) as (executor, slots):  # a cluster that is not there: before any work
-        prepare_kernels(scene, batch=True)  # after every input check; the first run after an install says it compiles
+        prepare_kernels(scene)  # after every input check; the first run after an install says it compiles
         chunk_size = CHUNK_SIZE if slots is None else min(CHUNK_SIZE, -(-n // slots))
         result = montecarlo(scene, variants, executor=executor, chunk_size=chunk_size, **kwargs)
     emit(args, result, f"Monte Carlo of {scene.name}\n" + result.table())

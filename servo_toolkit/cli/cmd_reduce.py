@@ -7,7 +7,7 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit
+from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, prepare_kernels
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -65,6 +65,7 @@ def run(args) -> int:
         emit(args, plan, "\n".join(lines))
         return 0
     _check_budget(scene, args, amps)
+    prepare_kernels(scene)
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
                  amplitudes=amps,
                  progress=not args.json and sys.stderr.isatty())

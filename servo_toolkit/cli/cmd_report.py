@@ -66,7 +66,7 @@ def run(args) -> int:
     _check_budget(scene, args, given is None)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
     # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
-    prepare_kernels(scene, paper=True, batch=scene.robustness is not None)
+    prepare_kernels(scene)
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
     paths = write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()

@@ -92,7 +92,7 @@ def run(args) -> int:
         _, _, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
         method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
         check_budget(scene, args, amplitude)
-        prepare_kernels(scene, paper=method == "paper")
+        prepare_kernels(scene)
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
                        feedforward=args.feedforward)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study

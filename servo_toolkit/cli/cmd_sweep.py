@@ -10,7 +10,7 @@ from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
-                     scheduler_of, study_executor)
+                     prepare_kernels, scheduler_of, study_executor)
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -89,6 +89,7 @@ def run(args) -> int:
             return _run_mechanism(scene, name, args, scheduler)
     amps = amplitudes_si(scene, args.amplitude)
     check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
+    prepare_kernels(scene)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     try:

@@ -51,18 +51,18 @@ def emit(args, result, text: str) -> None:
         sys.stdout.write(text.rstrip() + "\n")
 
 
-def prepare_kernels(scene, paper: bool = False, batch: bool = False) -> None:
-    """Compile (or load) the simulation kernels before the timed work of a command, saying
-    on stderr what happens when they are not cached yet (the first run after an install);
-    ``paper`` and ``batch`` add the cam paper's scheme and the Monte Carlo's batch."""
+def prepare_kernels(scene) -> None:
+    """Compile (or load) every simulation kernel before the timed work of a command, saying on
+    stderr what happens when they are not cached yet (the first run after an install): one
+    warm-up serves every command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`)."""
     if not (scene.stages and scene.motor is not None):
         return
     from ..core.jit_cache import cache_dir
     from ..studies.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
-    if not is_cached(paper, batch):
+    if not is_cached():
         print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
               f"cached in {cache_dir()})", file=sys.stderr, flush=True)
-    compile_kernels(paper, batch)
+    compile_kernels()
 
 
 def bounded(kind=float, low=None, high=None, *, low_open: bool = False, what: str = "a number"):

@@ -171,8 +171,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         ctx.use_design(design)
     if ctx.has_drivetrain():  # compilation is never charged to a section's time limit
         from ..studies.warmup import compile_kernels
-        # the accuracy section runs both fixed-step schemes; the Monte Carlo one, the batch
-        compile_kernels(paper=True, batch=scene.robustness is not None)
+        compile_kernels()
     built = []
     steps = list(SECTIONS) + [REQUIREMENTS]
     with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:

@@ -24,9 +24,9 @@ from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
 from . import layout as lo
-from .batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK,
-                    _snap, variant_run)
-from .integrators import rk4_coefficients, step_status
+from .batch import variant_run
+from .integrators import rk4_coefficients, snapshot as _snap, step_status
+from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
 from .kernel import FASTMATH, clip, controller_inputs, motion_columns, reference, rhs_phys
 
 #: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
@@ -228,48 +228,53 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN)
                 to_sample = sub
             to_sample -= 1
-        S[:, :] = 0.0
-        _stage(t, 0.0, 1.0, 0, Y, S, U, A, PT, T, TI, IREF, dummy)
-        for l in range(nl):
-            if ACT[l] == 0.0:
+        # one call site of the stage (its code compiles once): stage 0 also keeps the figures
+        for stage in range(4):
+            c, w = rk4_coefficients(stage, dt)
+            if stage == 0:
+                S[:, :] = 0.0
+            _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy)
+            if stage > 0:
                 continue
-            v = v0 + l
-            x = Y[:, l]
-            p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
-            err = abs(q - (r if shared else reference(t, P[v])))
-            if err > fig[l, 0]:
-                fig[l, 0] = err
-            tau = abs(A[3, l])
-            if tau > fig[l, 3]:
-                fig[l, 3] = tau
-            if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
-                fig[l, 2] = 1.0
-            if abs(A[0, l]) > fig[l, 1]:
-                fig[l, 1] = abs(A[0, l])
-                _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
-            defl = abs(p - q)
-            if defl > fig[l, 4]:
-                fig[l, 4] = defl
-                _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
-            status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P[v], P[v, lo.STROKE_MODE] == 0.0,
-                                 P[v, lo.RIGID] > 0.0)
-            if status != lo.OK or step == n_steps:
-                ACT[l] = 0.0
-                running -= 1
-                for j in range(nx):
-                    X[v, j] = Y[j, l]
-                _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
-                figs[v, F_STATUS] = status
-                figs[v, F_STEP] = step
-                figs[v, F_ERR] = fig[l, 0]
-                figs[v, F_CUR] = fig[l, 1]
-                figs[v, F_SAT] = fig[l, 2]
-                figs[v, F_TAU] = fig[l, 3]
+            for l in range(nl):
+                if ACT[l] == 0.0:
+                    continue
+                v = v0 + l
+                x = Y[:, l]
+                p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
+                err = abs(q - (r if shared else reference(t, P[v])))
+                if err > fig[l, 0]:
+                    fig[l, 0] = err
+                tau = abs(A[3, l])
+                if tau > fig[l, 3]:
+                    fig[l, 3] = tau
+                if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
+                    fig[l, 2] = 1.0
+                if abs(A[0, l]) > fig[l, 1]:
+                    fig[l, 1] = abs(A[0, l])
+                    _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
+                defl = abs(p - q)
+                if defl > fig[l, 4]:
+                    fig[l, 4] = defl
+                    _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+                status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P[v], P[v, lo.STROKE_MODE] == 0.0,
+                                     P[v, lo.RIGID] > 0.0)
+                if status != lo.OK or step == n_steps:
+                    ACT[l] = 0.0
+                    running -= 1
+                    for j in range(nx):
+                        X[v, j] = Y[j, l]
+                    _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+                    figs[v, F_STATUS] = status
+                    figs[v, F_STEP] = step
+                    figs[v, F_ERR] = fig[l, 0]
+                    figs[v, F_CUR] = fig[l, 1]
+                    figs[v, F_SAT] = fig[l, 2]
+                    figs[v, F_TAU] = fig[l, 3]
+            if running == 0:
+                break
         if running == 0:
             break
-        for stage in range(1, 4):
-            c, w = rk4_coefficients(stage, dt)
-            _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy)
         for l in range(W):  # stopped lanes keep the state they stopped in
             for j in range(6):
                 Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 else Y[j, l]

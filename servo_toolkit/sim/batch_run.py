@@ -9,6 +9,7 @@ import numpy as np
 
 from .batch import NFIG, NSNAP
 from .batch_lanes import run_lanes
+from .tables import frozen_tables
 
 
 def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
@@ -42,7 +43,9 @@ def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
         Seconds of integration.
     """
     P = np.ascontiguousarray(P, dtype=float)
-    T = np.ascontiguousarray(T, dtype=float)
+    # read-only, as a single run's tables are: the per-variant kernels then share the single
+    # run's compiled right-hand side and controller sample instead of compiling their own
+    T = frozen_tables(T)
     tix = np.ascontiguousarray(tix, dtype=np.int64)
     X = np.array(X0, dtype=float, order="C")
     nv, nx = X.shape

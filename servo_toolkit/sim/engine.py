@@ -110,9 +110,10 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     integrate(x0.copy(), P.copy(), model.T, 0.0, dt, 0, sub, 0.0, paper, rec, out_t[:1].copy(),
               out_x[:1].copy(), out_aux[:1].copy())
     x = x0.copy()
+    fig = np.full(lo.NFIG, np.nan)
     start = time.perf_counter()
     status, step, k, max_tau, _ = integrate(x, P, model.T, 0.0, dt, n_steps, sub, 0.0, paper,
-                                            rec, out_t, out_x, out_aux)
+                                            rec, out_t, out_x, out_aux, fig)
     wall = time.perf_counter() - start
     t_fail = step * dt
     if status == lo.NONFINITE:
@@ -135,7 +136,10 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
                                f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
                                f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
                                f"for an elastic end stop)", t_fail)
-    return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps
+    # peaks over every step (RK4 keeps them; the paper's scheme leaves fig NaN: the records)
+    peaks = {} if paper or not model.closed_loop else {
+        "max_abs_current_A": float(fig[lo.F_CUR]), "max_abs_tracking_error": float(fig[lo.F_ERR])}
+    return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps, peaks
 
 
 def run(model, reference: Reference, duration: float, method: str = "rk4", dt: float | None = None,
@@ -227,8 +231,8 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
                 f"|lambda dt| = {probe['max_abs_lambda'] * dt:.3g}; use dt <= {limit:.4g} s or method='auto'")
         tries = 0
         while True:
-            times, states, aux, max_tau, wall, steps = _fixed(model, P, x0, duration, dt, output_dt,
-                                                              method == "paper")
+            times, states, aux, max_tau, wall, steps, peaks = _fixed(model, P, x0, duration, dt, output_dt,
+                                                                     method == "paper")
             pick = _along_samples(states, aux)
             along = fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
             if method == "paper":
@@ -253,7 +257,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
                 if along["max_abs_lambda"] > probe["max_abs_lambda"] else probe
             aux_t, speed, refs = _aux_traces(model, P, times, states, aux[:, lo.AUX_IREF])
             return _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps,
-                           requested, choice, probe, reference, notes)
+                           requested, choice, probe, reference, notes, peaks)
     # implicit / adaptive reference
     if output_dt is None:
         n = min(MAX_RECORDS, max(200, int(duration / (model.sample_time or duration / 1000))))
@@ -273,7 +277,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
 
 
 def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps, requested,
-            choice, probe, reference, notes):
+            choice, probe, reference, notes, peaks=None):
     stab = {k: v for k, v in probe.items()}
     if dt is not None:
         stab["abs_lambda_dt"] = probe["max_abs_lambda"] * dt
@@ -284,4 +288,4 @@ def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, s
                             wall_s=wall, method=method, dt_s=dt, steps=steps, requested=requested,
                             choice=choice, stability=stab, reference=reference.to_dict(),
                             controller=model.controller, notes=tuple(notes),
-                            output_unit=getattr(model, "output_unit", "rad"))
+                            output_unit=getattr(model, "output_unit", "rad"), peaks=peaks or {})

@@ -21,10 +21,11 @@ import math
 
 import numpy as np
 
-from .kernel import controller_sample, inline, jit, rhs, rhs_phys
-from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, HALF_PLAY, NAUX,
-                     NMID, NONFINITE, NX_PHYS, OK, STICK, TS_M, TS_L, RIGID, STROKE_END, STROKE_HI, STROKE_LO,
-                     STROKE_MODE)
+from .kernel import controller_sample, inline, jit, reference, rhs, rhs_phys, rhs_phys_serial
+from .tables import frozen_tables
+from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, F_ERR, F_SAT, F_STATUS,
+                     F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
+                     S_PEAK, STICK, TS_M, TS_L, RIGID, STROKE_END, STROKE_HI, STROKE_LO, STROKE_MODE, VLIM)
 
 
 @jit
@@ -36,8 +37,12 @@ def _finite(x):
     return math.isfinite(acc)
 
 
-def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux):
+def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux, fig=None, snap=None):
     """Advance ``x`` in place by ``n_steps`` fixed steps.
+
+    RK4 also fills ``fig`` (``NFIG``: the figures kept at every step, ``F_*`` of
+    :mod:`.layout`) and ``snap`` (``(NSNAP, nx + 2)`` snapshots, ``S_*``) when given; the
+    paper's scheme leaves them as they are.
 
     Returns
     -------
@@ -57,11 +62,16 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     The choice between the loops is made here, in Python, so that a run compiles only the
     loop it uses.
     """
+    T = frozen_tables(T)
     if paper:
         return _paper(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), True, int(rec_every),
                       out_t, out_x, out_aux)
+    if fig is None:
+        fig = np.zeros(NFIG)
+    if snap is None:
+        snap = np.zeros((NSNAP, x.size + 2))
     return _rk4(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), int(rec_every),
-                out_t, out_x, out_aux)
+                out_t, out_x, out_aux, fig, snap)
 
 
 @inline
@@ -103,53 +113,40 @@ def rk4_coefficients(stage, dt):
     return c, w
 
 
-@inline
-def rk4_stages(t, dt, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
-               k1, k2, k3, k4):
-    """Stages 2-4 and the update of one classical RK4 step from the first stage's derivatives
-    (a0..a5 of the physical states, ``k1`` of a continuous controller's states).
+@jit  # called at a speed reversal only: compiled once, outside the step loop
+def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
+    """One classical RK4 step of length h from the physical state given as scalars (a
+    continuous controller's and the full chain's states x[7:] are advanced in place).
+    Returns the advanced ``(p, pd, q, qd, cur, xi)``.
 
-    Returns the advanced ``(p, pd, q, qd, cur, xi)`` (the play state s is held); a
-    continuous controller's states ``x[7:]`` are advanced in place. Shared by the single
-    run (:func:`_rk4`) and the batched variants (:mod:`.batch`): one step, one physics.
+    Its right-hand side is :func:`kernel.rhs_phys_serial`, called rather than inlined: this
+    step runs only where a step is split, and a call compiles in a fraction of the time of
+    another inlined copy of the whole right-hand side.
     """
     nx = x.size
-    sixth = dt / 6.0
-    # stages 2-4 in one loop over a single inlined copy of the right-hand side (four copies
-    # compile four times as long for the same code): stage k evaluates at t + c_k dt from
-    # the previous stage's slopes, and its slopes enter the update with weight w_k
-    s0, s1, s2, s3, s4, s5 = a0, a1, a2, a3, a4, a5
-    u0, u1, u2, u3, u4, u5 = a0, a1, a2, a3, a4, a5
-    for stage in range(1, 4):
-        c, w = rk4_coefficients(stage, dt)
-        kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
-        kout = k2 if stage == 1 else (k3 if stage == 2 else k4)
-        if cont:
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    u0 = u1 = u2 = u3 = u4 = u5 = 0.0
+    for stage in range(4):
+        c, w = rk4_coefficients(stage, h)
+        kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
+        if cont and stage > 0:
+            kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
             for j in range(NX_PHYS, nx):
                 xs[j] = x[j] + c * kin[j]
-        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys(
-            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3,
-            cur + c * s4, xi + c * s5, s, P, T, iref, xs, kout, False)
+        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
+            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+            P, T, iref, x if stage == 0 else xs, kout)
         u0 += w * s0
         u1 += w * s1
         u2 += w * s2
         u3 += w * s3
         u4 += w * s4
         u5 += w * s5
+    sixth = h / 6.0
     if cont:
         for j in range(NX_PHYS, nx):
             x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
-
-
-@jit  # called at a speed reversal only: compiled once, outside the step loop
-def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
-    """One classical RK4 step of length h from the physical state given as scalars (a
-    continuous controller's and the full chain's states x[7:] are advanced in place).
-    Returns the advanced ``(p, pd, q, qd, cur, xi)``."""
-    a0, a1, a2, a3, a4, a5, _, _, _, _ = rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref, x, k1, False)
-    return rk4_stages(t, h, p, pd, q, qd, cur, xi, s, a0, a1, a2, a3, a4, a5, P, T, iref, cont, x, xs,
-                      k1, k2, k3, k4)
 
 
 @inline
@@ -183,7 +180,7 @@ def reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
     return frac, node
 
 
-@inline
+@jit  # called at a speed reversal only
 def split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
                       k1, k2, k3, k4):
     """The step of a reversal in two: RK4 to the reversal, the node's speed set to 0 there
@@ -200,12 +197,28 @@ def split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T, iref, c
 
 
 @jit
-def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
+def snapshot(snap, k, p, pd, q, qd, cur, xi, s, x, t, iref):
+    """Row ``k`` of a run's snapshots: the physical state, x[7:], the time and the held i_ref."""
+    nx = x.size
+    snap[k, 0], snap[k, 1], snap[k, 2], snap[k, 3] = p, pd, q, qd
+    snap[k, 4], snap[k, 5], snap[k, 6] = cur, xi, s
+    for j in range(NX_PHYS, nx):
+        snap[k, j] = x[j]
+    snap[k, nx] = t
+    snap[k, nx + 1] = iref
+
+
+@jit
+def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, fig, snap):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
 
     Same arithmetic as the array form (:func:`kernel.rhs`); x[0:7] is written back before
     each controller sample and at the end. The controller and estimator states x[7:] change
-    only at the samples unless the motion controller is continuous.
+    only at the samples unless the motion controller is continuous. Every ``rec_every``
+    steps the state at the step's start is recorded; at every step the run's figures
+    (``fig``, ``F_*`` of :mod:`.layout`: peak tracking error, current and torque, limits
+    reached) and its snapshots (``snap``, ``S_*``) are kept, so that a figure never depends
+    on the record interval.
     """
     nx = x.size
     k1 = np.zeros(nx)
@@ -216,6 +229,12 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     work = np.empty(max(nx, 1))
     n_rec = 0
     max_tau = 0.0
+    max_err = 0.0
+    max_cur = -1.0
+    max_defl = -1.0
+    sat = 0.0
+    ilim = P[ILIM]
+    vlim = P[VLIM]
     err_mode = P[STROKE_MODE] == 0.0
     rigid = P[RIGID] > 0.0
     # states in x[7:] that move between samples: a continuous controller's, the full chain's nodes
@@ -227,9 +246,14 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
     status = OK
     sixth = dt / 6.0
     g1 = g3 = 0.0
+    step = 0
+    t = t0
     for step in range(n_steps + 1):
         t = t0 + step * dt
         iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
+        err = abs(q - reference(t, P))
+        if err > max_err:
+            max_err = err
         # the four stages share one inlined right-hand side (one copy compiles in a quarter
         # of the time of four); stage k evaluates at t + c_k dt from the previous slopes and
         # enters the update with weight w_k; the first stage also records and checks
@@ -251,6 +275,15 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
                 tau = abs(tau_)
                 if tau > max_tau:
                     max_tau = tau
+                if abs(r_) >= ilim or abs(v_) >= vlim:
+                    sat = 1.0
+                if abs(i_) > max_cur:
+                    max_cur = abs(i_)
+                    snapshot(snap, S_PEAK, p, pd, q, qd, i_, xi, s, x, t, iref)
+                defl = abs(p - q)
+                if defl > max_defl:
+                    max_defl = defl
+                    snapshot(snap, S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, iref)
                 if to_record == 0 or step == n_steps:
                     to_record = rec_every
                     out_t[n_rec] = t
@@ -293,6 +326,13 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux):
         p, pd, q, qd, cur, xi = (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3,
                                  cur + sixth * u4, xi + sixth * u5)
     x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
+    snapshot(snap, S_END, p, pd, q, qd, cur, xi, s, x, t, iref)
+    fig[F_STATUS] = status
+    fig[F_STEP] = step if status != OK else n_steps
+    fig[F_ERR] = max_err
+    fig[F_CUR] = max_cur
+    fig[F_SAT] = sat
+    fig[F_TAU] = max_tau
     if status != OK:
         return status, step, n_rec, max_tau, iref
     return OK, n_steps, n_rec, max_tau, iref
@@ -344,7 +384,7 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
             return STROKE_END, step, n_rec, max_tau, iref
         if step == n_steps:
             break
-        for stage in range(3):  # one inlined right-hand side for stages 2-4 (see rk4_stages)
+        for stage in range(3):  # stages 2-4 in one loop (see _rk4)
             h = dt if stage == 2 else half
             kin = k1 if stage == 0 else (k2 if stage == 1 else k3)
             kout = k2 if stage == 0 else (k3 if stage == 1 else k4)

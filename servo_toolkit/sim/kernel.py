@@ -364,13 +364,22 @@ def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
     return pdd, qdd
 
 
-@inline
+@jit
+def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
+    """:func:`rhs_phys` outside the vectorized lanes, compiled once as a function of its own:
+    the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the
+    cam paper's scheme, Jacobians, the stiff reference solver) call it instead of inlining
+    their own copy, which would compile the whole right-hand side again for each."""
+    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False)
+
+
+@jit
 def rhs(t, x, P, T, iref_held, dx, aux):
     """dx/dt of the closed loop; ``aux`` receives current, voltage, i_ref and motor torque."""
     for j in range(NX_PHYS, x.size):  # sampled controller and estimator states are held
         dx[j] = 0.0
-    d0, d1, d2, d3, d4, d5, cur, v, iref, tau = rhs_phys(t, x[0], x[1], x[2], x[3], x[4], x[5],
-                                                         x[6], P, T, iref_held, x, dx, False)
+    d0, d1, d2, d3, d4, d5, cur, v, iref, tau = rhs_phys_serial(t, x[0], x[1], x[2], x[3], x[4], x[5],
+                                                                x[6], P, T, iref_held, x, dx)
     dx[0] = d0
     dx[1] = d1
     dx[2] = d2

@@ -89,7 +89,7 @@ FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 # 90..97: reference tables and multisines
 # 98..105: gain scheduling along the stroke and command shaping
 # 106..113: toleranced parameters
-# 114..117: the run's own bookkeeping
+# 114..117: free
 NP_HEADER = 118
 #: length of the packed cam parameters
 NCAM = 14
@@ -120,3 +120,13 @@ NAUX = 4
 
 # loop status codes
 OK, NONFINITE, STROKE_END = 0, 1, 2
+
+# a fixed-step run's figures, kept at every step (not only at the records): status, steps
+# done, max |q - r| (rad or m), max |i| (A), 1 when the current reference or the voltage
+# reached its limit, max |motor torque| (N*m)
+F_STATUS, F_STEP, F_ERR, F_CUR, F_SAT, F_TAU = range(6)
+NFIG = 6
+# its snapshots (state, then time and held i_ref): at the peak |current|, at the largest
+# |p - q|, at the end
+S_PEAK, S_DEFLECTION, S_END = range(3)
+NSNAP = 3

@@ -55,6 +55,7 @@ from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
 from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
+from .tables import frozen_tables
 from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
@@ -219,6 +220,10 @@ class Model:
     speed_estimator: str = "ideal"
     estimator: dict = field(default_factory=dict)
     output_unit: str = "rad"
+
+    def __post_init__(self):
+        # read-only tables, as every kernel is compiled for (a writable copy would compile again)
+        object.__setattr__(self, "T", frozen_tables(self.T))
 
     def parameters(self) -> np.ndarray:
         """A writable copy of ``P`` (fill the reference slots, then run)."""

@@ -1,10 +1,13 @@
 """Stroke tables inside the compiled kernels: the cell of a position and the cubic Hermite
-interpolation of a table row (values and exact derivatives). Layout of the rows in
+interpolation of a table row (values and exact derivatives), and the one array type every
+kernel takes its tables as (:func:`frozen_tables`). Layout of the rows in
 :mod:`servo_toolkit.sim.layout`."""
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from ..core.jit_cache import install as _install_cache
 
@@ -58,3 +61,12 @@ def hermite(T, row, P, q):
 
 
 __all__ = ["cell", "hermite", "interp"]
+
+
+def frozen_tables(T) -> np.ndarray:
+    """``T`` as a read-only C-contiguous float64 array (a copy only when it is not one): the
+    type every compiled kernel is compiled for, so no table array compiles a kernel again."""
+    if T.flags.writeable or not T.flags.c_contiguous or T.dtype != np.float64:
+        T = np.array(T, dtype=np.float64, order="C")
+        T.setflags(write=False)
+    return T

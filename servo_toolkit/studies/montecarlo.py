@@ -26,6 +26,7 @@ from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
 from ..sim.batch_run import integrate_variants
 from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import fill, initial_state
+from ..sim.tables import frozen_tables
 from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
@@ -81,6 +82,7 @@ def _chunk(case):
             tix = np.arange(len(P))
     else:
         tix = np.arange(len(P))
+    T = frozen_tables(T)  # as a single run's: its compiled kernels serve the variants too
     models = [model] * len(P) if case.get("T") is None else [replace(model, T=t) for t in T]
     X0 = np.array([initial_state(m, p) for m, p in zip(models, P)])
     _, figs, snaps, wall = integrate_variants(P, T, tix, X0, dt, n_steps, sub)
