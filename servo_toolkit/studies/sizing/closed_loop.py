@@ -87,10 +87,11 @@ def hot_scene(scene):
     return replace(scene, motor=replace(motor, resistance=hot, resistance_temperature=motor.max_winding_temperature))
 
 
-def closed_loop_loads(scene, motion, loads, *, progress: bool = False) -> ClosedLoopLoads:
+def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controller=None) -> ClosedLoopLoads:
     """The :class:`ClosedLoopLoads` at the samples of ``motion`` (a
     :class:`~.cycle.CycleMotion`): from the closed-loop simulation where a segment allows
-    (module docstring), from ``loads`` (the inverse dynamics) elsewhere.
+    (module docstring), from ``loads`` (the inverse dynamics) elsewhere; ``controller``
+    (default the scene's design) runs the loop.
 
     Raises
     ------
@@ -107,7 +108,8 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False) -> Closed
     current = torque / kt
     voltage = np.full(torque.size, np.nan)
     simulated = np.zeros(torque.size, bool)
-    controller, _ = controller_for(scene)
+    if controller is None and any(seg.kind in RUN_KINDS for seg in duty.segments):
+        controller, _ = controller_for(scene)
     hot = hot_scene(scene)
     v_lim = scene.motor.voltage_limit
     q0 = scene.drivetrain.mid_stroke if duty.start is None else duty.start

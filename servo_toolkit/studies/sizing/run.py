@@ -27,7 +27,7 @@ def _scene(scene):
 
 
 def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep: bool = True,
-         progress: bool = False) -> SizingResult:
+         progress: bool = False, controller=None) -> SizingResult:
     """Size the motor and the screw of a scene along its ``[duty_cycle]``.
 
     Parameters
@@ -45,6 +45,9 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
         Also sweep the first stage's ratio (:mod:`.sweep`).
     progress : bool
         Progress bar of the closed-loop runs.
+    controller : CascadeController, optional
+        The loop the closed-loop simulation runs; default the scene's design
+        (:func:`servo_toolkit.loop.design`).
 
     Returns
     -------
@@ -80,7 +83,7 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     method = "inverse_dynamics"
     if closed_loop:
         from .closed_loop import closed_loop_loads
-        cl = closed_loop_loads(scene, motion, loads, progress=progress)
+        cl = closed_loop_loads(scene, motion, loads, progress=progress, controller=controller)
         method, torque, speed, current = "closed_loop", cl.torque, cl.speed, cl.current
         steady = electrical(motor, torque, speed, hot)["voltage"]
         voltage = np.where(cl.simulated, cl.voltage, steady)

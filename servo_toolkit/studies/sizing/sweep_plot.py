@@ -39,18 +39,24 @@ def _panels(sw) -> list:
     return panels
 
 
+def layout(sw) -> tuple:
+    """(rows, columns) of the axes :func:`plot_sweep` draws on: a panel per figure and a cell
+    for the legend."""
+    return 2, math.ceil((len(_panels(sw)) + 1) / 2)
+
+
 def plot_sweep(sw, axes=None):
     """Draw a :class:`~.sweep.RatioSweep`: RMS current, peak torque, peak speed, winding
     temperature, the bandwidth estimate, the output stiffness and (with a swept lead) the
     screw's lives over the overall ratio; each motor a colour, its limits dashed, its feasible
-    ratios shaded, the scene's ratio a dotted line. Returns the axes (created in two rows
-    when not given)."""
+    ratios shaded, the scene's ratio a dotted line. Returns the axes (created in the
+    :func:`layout` when not given)."""
     import matplotlib.pyplot as plt
     panels = _panels(sw)
-    cols = None
     if axes is None:
-        cols = math.ceil((len(panels) + 1) / 2)    # a cell for the legend
-        _, axes = plt.subplots(2, cols, figsize=(3.6 * cols, 6.4), sharex=True, layout="constrained")
+        rows, cols = layout(sw)
+        _, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 6.4), sharex=True, layout="constrained")
+    cols = np.shape(axes)[1] if np.ndim(axes) == 2 else None
     axes = np.ravel(axes)
     colours = [f"C{i}" for i in range(len(sw.motors))]
     xlabel = label("overall ratio", "rad/m" if sw.output_unit == "m" else "rad/rad")
@@ -125,4 +131,4 @@ def plot_rms_panel(sw, ax):
     return ax
 
 
-__all__ = ["plot_sweep", "plot_rms_panel"]
+__all__ = ["layout", "plot_sweep", "plot_rms_panel"]
