@@ -197,11 +197,13 @@ def test_bad_duty_cycle_is_one_line_naming_the_key(duty, key, tmp_path):
 
 def test_cli_size_exit_codes(tmp_path):
     env_cwd = dict(cwd=ROOT, capture_output=True, text=True, timeout=300)
+    figure = tmp_path / "sweep.png"
     run = subprocess.run([sys.executable, "-m", "servo_toolkit", "size", "scenes/ema_sizing.toml", "--json",
-                          "--no-sweep"], **env_cwd)
+                          "--sweep-plot", str(figure)], **env_cwd)
     assert run.returncode == 0, run.stderr
     payload = json.loads(run.stdout)
-    assert payload["passed"] and payload["sweep"] is None
+    assert payload["passed"] and payload["sweep"]["swept"] == "ratio of spur gear train"
+    assert figure.read_bytes().startswith(b"\x89PNG")
     text = (SCENES / "ema_sizing.toml").read_text()
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace('kind = "ramp"\nto = "30 deg"', 'kind = "ramp"\nto = "30 deg"\nspeed = 3', 1))
@@ -214,3 +216,11 @@ def test_cli_size_exit_codes(tmp_path):
     assert run.returncode == 1 and "EXCEEDED" in run.stdout
     run = subprocess.run([sys.executable, "-m", "servo_toolkit", "size", "scenes/ema_robust.toml"], **env_cwd)
     assert run.returncode == 2 and run.stderr.startswith("servo-toolkit: error: duty_cycle")
+
+
+def test_cli_sweep_plot_needs_the_sweep(tmp_path, capsys):
+    from servo_toolkit.cli import main
+    figure = tmp_path / "sweep.png"
+    assert main(["size", str(SCENES / "ema_sizing.toml"), "--no-sweep", "--sweep-plot", str(figure)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--sweep-plot" in err and not figure.exists()
