@@ -16,7 +16,7 @@ direction k has its own equivalent load F_m,k over all the revolutions of the cy
 turned under the other direction's thrust count with zero load) and its own life L_k, and
 the nut's life is the weakest-link combination of the two,
 
-    L = (L_+^(-10/9) + L_-^(-10/9))^(-9/10)
+    L = (L+^(-10/9) + L-^(-10/9))^(-9/10)
 
 (10/9: the Weibull slope of ball and roller raceways). A thrust in one direction only gives
 the single F_m; thrusts in both directions give at most 2^(1/10) = 7.2 % more life than
