@@ -5,6 +5,7 @@ One design of the reference EMA serves every test."""
 
 from __future__ import annotations
 
+import json
 import tomllib
 
 import numpy as np
@@ -66,6 +67,8 @@ def test_the_voltage_is_the_simulations_own_on_the_hot_winding(scene, sized):
     assert np.array_equal(closed.voltage[kept], inverse.voltage[kept])
     notes = " ".join(closed.notes)
     assert "0 (ramp), 2 (ramp), 4 (step)" in notes and "hot" in notes
+    text = json.dumps(closed.to_dict(traces=True))
+    assert "NaN" not in text and json.loads(text)["notes"] == list(closed.notes)
 
 
 def test_the_lives_stay_with_the_inverse_dynamics_in_closed_loop(sized):

@@ -112,7 +112,8 @@ class SizingResult(RichDisplay):
         if traces:
             out["traces"] = {"t_s": self.motion.t.tolist(), "q": self.motion.q.tolist(),
                              "motor_torque_Nm": self.motor_torque.tolist(),
-                             "motor_speed_rad_s": self.motor_speed.tolist(), "current_A": self.current.tolist()}
+                             "motor_speed_rad_s": self.motor_speed.tolist(), "current_A": self.current.tolist(),
+                             "voltage_V": self.voltage.tolist()}
         return out
 
     def table(self) -> str:
