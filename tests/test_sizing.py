@@ -16,7 +16,7 @@ import pytest
 from servo_toolkit.errors import SceneError
 from servo_toolkit.scene.loader import scene_from_dict
 from servo_toolkit.studies.sizing import size
-from servo_toolkit.studies.sizing.life import equivalent_load, part_life, rating_life
+from servo_toolkit.studies.sizing.life import equivalent_load, nut_life, part_life, rating_life
 from servo_toolkit.studies.sizing.thermal import ThermalNetwork, cycle_temperatures, step_response
 
 from .conftest import ROOT, SCENES
@@ -110,6 +110,28 @@ def test_l10_of_a_hand_built_spectrum():
     assert roller.revolutions == pytest.approx((30e3 / fm_r) ** (10 / 3) * 1e6, rel=1e-12)
 
 
+def test_a_single_nut_loaded_both_ways_lives_by_direction():
+    """ISO 3408-5, a nut with backlash: each direction's F_m over every revolution of the cycle,
+    its life, and the two combined as L = (L+^(-10/9) + L-^(-10/9))^(-9/10)."""
+    forces, revs, c = [10e3, -5e3, 2e3], [1e5, 3e5, 6e5], 30e3
+    f_plus = ((10e3**3 * 1e5 + 2e3**3 * 6e5) / 1e6) ** (1 / 3)
+    f_minus = ((5e3**3 * 3e5) / 1e6) ** (1 / 3)
+    l_plus, l_minus = (c / f_plus) ** 3 * 1e6, (c / f_minus) ** 3 * 1e6
+    combined = (l_plus ** (-10 / 9) + l_minus ** (-10 / 9)) ** (-9 / 10)
+    life = nut_life("nut", c, forces, revs, cycle_duration=3600.0)     # 1e6 revolutions per hour
+    assert life.direction_loads == pytest.approx((f_plus, f_minus), rel=1e-12)
+    assert life.revolutions == pytest.approx(combined, rel=1e-12)
+    assert life.hours == pytest.approx(combined / 1e6, rel=1e-12)
+    assert rating_life(c, life.equivalent_load) == pytest.approx(combined, rel=1e-12)
+    # one direction only: the lumped spectrum's life; the same spectrum both ways: 2^(1/10) of it
+    one = [10e3, 5e3, 2e3]
+    assert nut_life("nut", c, one, revs, 3600.0).revolutions == pytest.approx(
+        part_life("nut", c, one, revs, 3600.0).revolutions, rel=1e-12)
+    both = nut_life("nut", c, [4e3, -4e3], [1e5, 1e5], 3600.0).revolutions
+    assert both == pytest.approx(2 ** 0.1 * part_life("nut", c, [4e3, 4e3], [1e5, 1e5], 3600.0).revolutions,
+                                 rel=1e-12)
+
+
 def test_reference_ema_sizes_every_quantity_against_its_limit():
     res = size(SCENES / "ema_sizing.toml")
     names = [m.name for m in res.margins]
@@ -175,11 +197,13 @@ def test_bad_duty_cycle_is_one_line_naming_the_key(duty, key, tmp_path):
 
 def test_cli_size_exit_codes(tmp_path):
     env_cwd = dict(cwd=ROOT, capture_output=True, text=True, timeout=300)
+    figure = tmp_path / "sweep.png"
     run = subprocess.run([sys.executable, "-m", "servo_toolkit", "size", "scenes/ema_sizing.toml", "--json",
-                          "--no-sweep"], **env_cwd)
+                          "--sweep-plot", str(figure)], **env_cwd)
     assert run.returncode == 0, run.stderr
     payload = json.loads(run.stdout)
-    assert payload["passed"] and payload["sweep"] is None
+    assert payload["passed"] and payload["sweep"]["swept"] == "ratio of spur gear train"
+    assert figure.read_bytes().startswith(b"\x89PNG")
     text = (SCENES / "ema_sizing.toml").read_text()
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace('kind = "ramp"\nto = "30 deg"', 'kind = "ramp"\nto = "30 deg"\nspeed = 3', 1))
@@ -194,20 +218,9 @@ def test_cli_size_exit_codes(tmp_path):
     assert run.returncode == 2 and run.stderr.startswith("servo-toolkit: error: duty_cycle")
 
 
-def test_inverse_dynamics_and_closed_loop_agree_on_a_slow_cycle():
-    import tomllib
-    data = tomllib.loads((SCENES / "ema_sizing.toml").read_text())
-    data["duty_cycle"] = {"start": "0 deg", "segments": [
-        {"kind": "sine", "amplitude": "10 deg", "frequency": "0.5 Hz", "cycles": 2, "load": "300 N*m"},
-        {"kind": "dwell", "duration": "0.5 s", "load": "-200 N*m"}]}
-    scene = scene_from_dict(data)
-    inverse = size(scene, sweep=False)
-    closed = size(scene, closed_loop=True, sweep=False)
-    assert closed.method == "closed_loop"
-    assert closed.rms_torque == pytest.approx(inverse.rms_torque, rel=0.02)
-    assert closed.rms_current == pytest.approx(inverse.rms_current, rel=0.02)
-    # pointwise after the start from rest and away from the reversals, where the loop's lag of a
-    # few ms shifts the switch of the stage losses between motoring and back-driving
-    moving = (np.abs(inverse.motor_speed) > 0.4 * np.abs(inverse.motor_speed).max()) & (inverse.motion.t > 0.1)
-    scale = float(np.abs(inverse.motor_torque).max())
-    assert np.abs(closed.motor_torque - inverse.motor_torque)[moving].max() < 0.05 * scale
+def test_cli_sweep_plot_needs_the_sweep(tmp_path, capsys):
+    from servo_toolkit.cli import main
+    figure = tmp_path / "sweep.png"
+    assert main(["size", str(SCENES / "ema_sizing.toml"), "--no-sweep", "--sweep-plot", str(figure)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--sweep-plot" in err and not figure.exists()

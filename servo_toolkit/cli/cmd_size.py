@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from ..errors import SceneError
 from ..scene.loader import load_scene
 from .common import add_json, add_scene, emit, prepare_kernels
 
@@ -28,6 +29,10 @@ def register(sub) -> None:
     p.add_argument("--no-sweep", action="store_true", help="leave out the ratio sweep")
     p.add_argument("--plot", metavar="FILE",
                    help="save the torque-speed, thermal, ratio-sweep and torque plots (.png, .svg or .pdf)")
+    p.add_argument("--sweep-plot", metavar="FILE",
+                   help="save the ratio sweep's figure: RMS current, peak torque and speed, winding temperature, "
+                        "bandwidth estimate, output stiffness (and a swept lead's L10) over the ratio, limits "
+                        "dashed, feasible ratios shaded (.png, .svg or .pdf)")
     add_json(p)
     p.set_defaults(run=run)
 
@@ -35,16 +40,22 @@ def register(sub) -> None:
 def run(args) -> int:
     """Run the command."""
     from ..studies.sizing import size
+    if args.sweep_plot and args.no_sweep:
+        raise SceneError("--sweep-plot", "needs the ratio sweep: leave out --no-sweep")
     scene = load_scene(args.scene)
-    if args.plot:  # checked before any work
-        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+    for key, path in (("--plot", args.plot), ("--sweep-plot", args.sweep_plot)):   # checked before any work
+        if path:
+            check_output_file(path, key, FIGURE_SUFFIXES, inputs=[args.scene])
     if args.closed_loop:
         prepare_kernels(scene)
     result = size(scene, closed_loop=args.closed_loop, losses=args.losses, sweep=not args.no_sweep,
                   progress=not args.json and sys.stderr.isatty())
-    if args.plot:
+    if args.plot or args.sweep_plot:
         import matplotlib
         matplotlib.use("Agg")
+    if args.plot:
         save_figure(result.plot()[0].figure, args.plot)
+    if args.sweep_plot:
+        save_figure(result.plot_sweep()[0].figure, args.sweep_plot)
     emit(args, result, result.table())
     return 0 if result.passed else 1

@@ -61,9 +61,16 @@ def sizing(ctx) -> Section:
                        "Winding temperature at the end of each cycle from a cold start, and the peak of the "
                        "steady periodic state (two-node network, copper resistance rising with temperature).")]
     if res.sweep is not None:
-        figs.append(FigureSpec(_figure(res.plot_sweep),
-                               "RMS current over the overall ratio, per motor; dots mark the feasible ratios "
-                               "(envelope, winding temperature and bandwidth), the dotted line the scene's."))
+        from ..studies.sizing.sweep_plot import layout
+        rows, cols = layout(res.sweep)
+        fig, axes = figures.new_figure(rows, cols, size=(3.2 * cols, 6.0), sharex=True)
+        res.plot_sweep(axes)
+        what = "the screw's L10 (its lead swept), " if res.sweep.lives else ""
+        figs.append(FigureSpec(fig, f"Ratio sweep ({res.sweep.swept}) over the overall ratio, per motor: RMS "
+                               "current, peak torque and speed, peak winding temperature, the achievable "
+                               f"bandwidth (an estimate from the chain's resonance), {what}the output stiffness "
+                               "(the chain's, the same at every ratio); dashed lines the limits, shaded the "
+                               "feasible ratios (every limit holds), dotted the scene's ratio."))
     return Section("Sizing along the duty cycle", text, tuple(figs), status="pass" if res.passed else "fail",
                    key="sizing")
 

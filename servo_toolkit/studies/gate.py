@@ -186,7 +186,9 @@ def sizing_rows(sizing) -> list[RequirementRow]:
         sense = ">=" if m.name.startswith("L10 ") else "<="
         short = abs(m.value - m.limit) if math.isfinite(m.value) else math.inf
         of = "the allowed rise over the ambient" if m.name == "winding temperature" else "the limit"
-        detail = f"margin {fmt(100 * m.margin, 3)} % of {of}; {how} along the [duty_cycle]"
+        # the screw's thrust is the inverse dynamics' in both modes
+        source = "inverse dynamics" if m.name.startswith(("L10 ", "static load ")) else how
+        detail = f"margin {fmt(100 * m.margin, 3)} % of {of}; {source} along the [duty_cycle]"
         if m.name == "winding temperature" and sizing.thermal is not None and sizing.thermal.runaway:
             detail = f"thermal runaway: the winding heats without bound; {how} along the [duty_cycle]"
         rows.append(RequirementRow(rid, label, f"{sense} {_value(m.limit, m.unit)}", _value(m.value, m.unit),

@@ -51,7 +51,13 @@ class SizingResult(RichDisplay):
     margins : tuple of Margin
     sweep : RatioSweep or None
     screw_thrust : numpy.ndarray or None
-        N at each sample (inverse dynamics only).
+        N at each sample, from the inverse dynamics of the prescribed motion (in both
+        modes); None without a screw.
+    notes : tuple of str
+        What the figures rest on (closed loop: the winding, the segments kept on the
+        inverse dynamics, the time at the supply's voltage, the tracking error).
+    voltage_clamp_time : float or None
+        Closed loop: time per cycle the voltage sat at the supply's limit (s).
     """
 
     scene: str
@@ -75,6 +81,8 @@ class SizingResult(RichDisplay):
     margins: tuple
     sweep: object
     screw_thrust: np.ndarray | None = None
+    notes: tuple = ()
+    voltage_clamp_time: float | None = None
 
     @property
     def passed(self) -> bool:
@@ -99,11 +107,13 @@ class SizingResult(RichDisplay):
                "thermal_runaway": None if self.thermal is None else self.thermal.runaway,
                "lives": [life.to_dict() for life in self.lives],
                "margins": [m.to_dict() for m in self.margins],
+               "voltage_clamp_time_s": self.voltage_clamp_time, "notes": list(self.notes),
                "sweep": None if self.sweep is None else self.sweep.to_dict()}
         if traces:
             out["traces"] = {"t_s": self.motion.t.tolist(), "q": self.motion.q.tolist(),
                              "motor_torque_Nm": self.motor_torque.tolist(),
-                             "motor_speed_rad_s": self.motor_speed.tolist(), "current_A": self.current.tolist()}
+                             "motor_speed_rad_s": self.motor_speed.tolist(), "current_A": self.current.tolist(),
+                             "voltage_V": self.voltage.tolist()}
         return out
 
     def table(self) -> str:
@@ -122,6 +132,7 @@ class SizingResult(RichDisplay):
                 text = "none" if rng is None else f"{rng[0]:.4g} .. {rng[1]:.4g}"
                 lines.append(f"  {name}: feasible overall ratio {text}; RMS-optimal ratio "
                              f"{self.sweep.rms_optimal_ratio[i]:.4g}")
+        lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
     def _repr_line(self) -> str:
@@ -141,17 +152,22 @@ class SizingResult(RichDisplay):
         return card(f"Sizing of {self.scene}", status=self.passed, parts=parts)
 
     def plot(self, axes=None):
-        """Torque-speed points on the envelope, the thermal trace, the ratio sweep and the
-        torque over the cycle; returns the 4 axes."""
+        """Torque-speed points on the envelope, the thermal trace, the ratio sweep's RMS
+        current (the whole sweep: :meth:`plot_sweep`) and the torque over the cycle; returns
+        the 4 axes."""
         if axes is None:
             import matplotlib.pyplot as plt
             _, axes = plt.subplots(2, 2, figsize=(10, 7.5))
             axes = np.ravel(axes)
         self.plot_torque_speed(axes[0])
         self.plot_thermal(axes[1])
-        self.plot_sweep(axes[2])
+        if self.sweep is None:
+            axes[2].text(0.5, 0.5, "no ratio sweep", ha="center", transform=axes[2].transAxes)
+        else:
+            from .sweep_plot import plot_rms_panel
+            plot_rms_panel(self.sweep, axes[2])
         axes[3].plot(self.motion.t, self.motor_torque, lw=1)
-        axes[3].set_xlabel("t [s]")
+        axes[3].set_xlabel("time [s]")
         axes[3].set_ylabel("motor torque [N*m]")
         axes[3].grid(True, alpha=0.3)
         return axes
@@ -191,23 +207,14 @@ class SizingResult(RichDisplay):
         ax.legend(fontsize="small")
         return ax
 
-    def plot_sweep(self, ax):
-        """RMS current over the overall ratio, feasible ratios marked, per motor."""
-        sw = self.sweep
-        if sw is None:
-            ax.text(0.5, 0.5, "no ratio sweep", ha="center", transform=ax.transAxes)
-            return ax
-        for i, name in enumerate(sw.motors):
-            line, = ax.plot(sw.ratio, sw.rms_current[i], label=f"{name}: RMS current")
-            ok = sw.feasible[i]
-            ax.plot(sw.ratio[ok], sw.rms_current[i][ok], "o", ms=3, color=line.get_color())
-        ax.axvline(sw.ratio[np.argmin(np.abs(sw.factors - 1))], color="k", ls=":", lw=1, label="scene ratio")
-        ax.set_xscale("log")
-        ax.set_xlabel("overall ratio (dots: feasible)")
-        ax.set_ylabel("RMS current [A]")
-        ax.grid(True, alpha=0.3, which="both")
-        ax.legend(fontsize="small")
-        return ax
+    def plot_sweep(self, axes=None):
+        """The ratio choice on one figure (:meth:`RatioSweep.plot`: RMS current, peak torque and
+        speed, winding temperature, bandwidth estimate, output stiffness and a swept lead's
+        lives over the overall ratio, the limits, feasible ratios and the scene's ratio);
+        returns the axes."""
+        if self.sweep is None:
+            raise ValueError("no ratio sweep: size(scene, sweep=True) computes it")
+        return self.sweep.plot(axes)
 
 
 __all__ = ["SizingResult"]

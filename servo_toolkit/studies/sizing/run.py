@@ -27,7 +27,7 @@ def _scene(scene):
 
 
 def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep: bool = True,
-         progress: bool = False) -> SizingResult:
+         progress: bool = False, controller=None) -> SizingResult:
     """Size the motor and the screw of a scene along its ``[duty_cycle]``.
 
     Parameters
@@ -35,14 +35,19 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     scene : Scene or path-like
         A scene with a ``[duty_cycle]`` (a path is loaded with :func:`~servo_toolkit.scene.load_scene`).
     closed_loop : bool
-        Take the motor's torque and speed from the nonlinear closed-loop simulation of the
-        cycle (:mod:`.closed_loop`) instead of the inverse dynamics.
+        Take the motor's torque, speed, current and voltage from the nonlinear closed-loop
+        simulation of the cycle's dwell and sine segments (:mod:`servo_toolkit.studies.sizing.closed_loop`: the winding
+        hot, the simulation's own voltage) instead of the inverse dynamics; the other
+        segments, the screw's thrust and its lives stay with the inverse dynamics.
     losses : {"directional", "none"}
         Stage-loss model of the inverse dynamics.
     sweep : bool
-        Also sweep the first stage's ratio (:mod:`.sweep`).
+        Also sweep the first stage's ratio (:mod:`servo_toolkit.studies.sizing.sweep`).
     progress : bool
         Progress bar of the closed-loop runs.
+    controller : CascadeController, optional
+        The loop the closed-loop simulation runs; default the scene's design
+        (:func:`servo_toolkit.loop.design`).
 
     Returns
     -------
@@ -70,31 +75,44 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     motor = drivetrain.motor
     motion = sample_cycle(duty, drivetrain.mid_stroke, scene.load.hinge_moment)
     loads = cycle_loads(drivetrain, motion, losses)
-    method = "inverse_dynamics"
+    hot = motor.max_winding_temperature
     torque, speed = loads.motor_torque, loads.motor_speed
+    elec = electrical(motor, torque, speed, hot)
+    current, voltage = elec["current"], elec["voltage"]
+    peak_i, peak_u, notes, clamp = float(np.abs(current).max()), float(np.abs(voltage).max()), [], None
+    method = "inverse_dynamics"
     if closed_loop:
         from .closed_loop import closed_loop_loads
-        torque, speed = closed_loop_loads(scene, motion, loads, progress=progress)
-        method = "closed_loop"
+        cl = closed_loop_loads(scene, motion, loads, progress=progress, controller=controller)
+        method, torque, speed, current = "closed_loop", cl.torque, cl.speed, cl.current
+        steady = electrical(motor, torque, speed, hot)["voltage"]
+        voltage = np.where(cl.simulated, cl.voltage, steady)
+        # the peaks over the simulations' own records, which the cycle's samples may step over
+        peak_i = max(float(np.abs(current).max()), cl.peak_current)
+        peak_u = max(float(np.abs(voltage).max()), cl.peak_voltage)
+        notes += list(cl.notes)
+        clamp = cl.clamp_time
     env = Envelope.of(motor)
     net = ThermalNetwork.from_motor(motor)
-    thermal = cycle_temperatures(net, torque / motor.torque_constant, motion.weight) if net else None
-    hot = motor.max_winding_temperature
-    elec = electrical(motor, torque, speed, hot)
+    thermal = cycle_temperatures(net, current, motion.weight) if net else None
     lives, stage = [], None
-    if loads.screw_thrust is not None and method == "inverse_dynamics":
+    if loads.screw_thrust is not None:   # the prescribed motion's thrust, in both modes
         stage = drivetrain.stages[screw_index(drivetrain)]
         lives = screw_lives(stage, loads.screw_thrust, loads.screw_speed, motion.weight, motion.duration)
+        if closed_loop:
+            notes.append("the screw's thrust, its lives and static load are the inverse dynamics' of the prescribed "
+                         "motion (the thrust is no output of the simulation)")
     rms_t = motion.rms(torque)
     margins = []   # a limit the scene does not give (no peak torque nor current limit) is no margin
     if math.isfinite(env.peak_torque):
-        margins.append(upper("peak torque", float(np.abs(torque).max()), env.peak_torque, "N*m"))
+        margins.append(upper("peak torque", max(float(np.abs(torque).max()), motor.torque_constant * peak_i),
+                             env.peak_torque, "N*m"))
     if env.continuous_torque is not None:
         margins.append(upper("RMS torque", rms_t, env.continuous_torque, "N*m"))
     if math.isfinite(motor.current_limit):
-        margins.append(upper("peak current", float(np.abs(elec["current"]).max()), motor.current_limit, "A"))
+        margins.append(upper("peak current", peak_i, motor.current_limit, "A"))
     if math.isfinite(motor.voltage_limit):
-        margins.append(upper("peak voltage", float(np.abs(elec["voltage"]).max()), motor.voltage_limit, "V"))
+        margins.append(upper("peak voltage", peak_u, motor.voltage_limit, "V"))
     if thermal is not None:
         margins.append(upper("winding temperature", thermal.peak_winding - KELVIN, hot - KELVIN, "degC",
                              motor.ambient_temperature - KELVIN))
@@ -108,17 +126,21 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     if sweep:
         factors = np.geomspace(duty.ratio_range[0], duty.ratio_range[1], duty.ratio_points)
         sweep_result = ratio_sweep(drivetrain, motion, loads, (("scene motor", motor),) + tuple(duty.motors),
-                                   factors, required_bandwidth=scene.requirements.bandwidth)
-    regen = float(np.sum(np.maximum(-elec["electrical_power"], 0.0) * motion.weight))
+                                   factors, required_bandwidth=scene.requirements.bandwidth,
+                                   lives=lives if screw_index(drivetrain) == 0 else None,
+                                   required_life=duty.required_life, display=scene.display)
+    power = voltage * current
+    mechanical = torque * speed
+    regen = float(np.sum(np.maximum(-power, 0.0) * motion.weight))
     return SizingResult(
         scene=scene.name, output_unit=drivetrain.output_unit, method=method, motion=motion,
-        motor_torque=torque, motor_speed=speed, current=elec["current"], voltage=elec["voltage"],
-        electrical_power=elec["electrical_power"], mechanical_power=elec["mechanical_power"],
-        envelope=env, rms_torque=rms_t, rms_current=motion.rms(elec["current"]),
-        peak_power=float(np.abs(elec["mechanical_power"]).max()),
-        peak_electrical_power=float(elec["electrical_power"].max()), regenerated_energy=regen,
+        motor_torque=torque, motor_speed=speed, current=current, voltage=voltage,
+        electrical_power=power, mechanical_power=mechanical,
+        envelope=env, rms_torque=rms_t, rms_current=motion.rms(current),
+        peak_power=float(np.abs(mechanical).max()),
+        peak_electrical_power=float(power.max()), regenerated_energy=regen,
         thermal=thermal, lives=tuple(lives), margins=tuple(margins), sweep=sweep_result,
-        screw_thrust=loads.screw_thrust if method == "inverse_dynamics" else None)
+        screw_thrust=loads.screw_thrust, notes=tuple(notes), voltage_clamp_time=clamp)
 
 
 __all__ = ["size", "METHODS"]

@@ -10,14 +10,33 @@ same way through every stage, so the inverse dynamics splits exactly:
 
 with T_rest and T_shaft the two parts at s = 1: one inverse-dynamics run serves every ratio,
 and the whole sweep is array arithmetic. The members keep their inertia as the ratio
-changes (a different gear would change it too).
+changes (a different gear would change it too). A motor candidate's rotor replaces the
+scene's in T_shaft and in the chain's motor node.
 
-Per ratio: RMS torque and current, peak torque and speed, peak voltage (hot winding), the
-steady periodic winding temperature, the output stiffness (the series stiffness of the
-chain, which a first-stage ratio leaves unchanged) and an estimate of the achievable
-position-loop bandwidth from the two-mass model: min(f_r / 3, f_a / 2), f_r the resonance
-(its motor-side inertia scaled by s^2) and f_a the antiresonance; an estimate to choose a
-ratio with, the design of the chosen one is ``servo-toolkit design``.
+Per motor and ratio: RMS torque and current, peak torque and speed, peak voltage (hot
+winding), the steady periodic winding temperature and the estimate of the achievable
+position-loop bandwidth; per ratio the screw's lives when the lead is swept. Feasible: every
+limit of the sizing holds (peak and RMS torque, peak voltage, winding temperature, the
+required bandwidth and, with a swept lead, the required life).
+
+* **Bandwidth estimate**: min(f_r / 3, f_a / 2), f_r the chain's lowest resonance with the
+  motor node's inertia of that motor and ratio (the chain's eigenproblem at the cycle's
+  start position, one small eigenproblem per motor and ratio) and f_a its lowest
+  antiresonance (the motor node held, which no ratio changes). It is an estimate to choose a
+  ratio with, not a design: at the reference EMA's own ratio it lies 12 % under the -3 dB
+  bandwidth of the scene's design, which meets every requirement (that design's search,
+  asked 1.5 times the estimate, misses some); design the chosen ratio with
+  ``servo-toolkit design``. A rigid chain has no estimate (nan).
+* **Screw life with a swept lead**: the thrust on the nut is set by the chain after the screw,
+  which the lead does not change, but the screw turns s times more revolutions per cycle: its
+  lives in hours are those at s = 1 divided by s. A gear ratio in front of the screw leaves
+  the screw's speed and lives as they are.
+* **Output stiffness**: the chain's series stiffness at the output (seed 001, eq 8). Every
+  spring of a stage (a gear's mesh, a screw's axial, a rod's, the housing's) is given at
+  that stage's output, after the first stage's ratio, so the factor leaves the output
+  stiffness unchanged: it is shown as the one value of the chain. (The loop's stiffness
+  against a load depends on the design and is no closed form of the ratio; see the report's
+  dynamic stiffness.)
 
 Without friction the RMS torque is smallest at s* = (mean(T_rest^2) / mean(T_shaft^2))^(1/4):
 for a pure inertia J_L behind a ratio N and a rotor J_m, the inertia-matching ratio
@@ -31,6 +50,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scipy import linalg
+
+from ...components.ball_screw import BallScrew
+from ...components.roller_screw.stages import RollerScrew
 from .envelope import Envelope
 from .thermal import ThermalNetwork, interval_i2, periodic_peak
 
@@ -52,15 +75,33 @@ class RatioSweep:
         Shape (motors, factors); A, N*m, N*m, rad/s, V, K (nan without a thermal
         network, inf for thermal runaway).
     bandwidth : numpy.ndarray
-        Bandwidth estimate (Hz) per factor (nan for a rigid chain).
+        Shape (motors, factors): the achievable bandwidth estimate (Hz; nan for a rigid
+        chain; module docstring).
     stiffness : float
-        Series stiffness at the output (N*m/rad, or N/m for an output travel).
+        Series stiffness at the output (N*m/rad, or N/m for an output travel), the same at
+        every factor.
     feasible : numpy.ndarray of bool
         Shape (motors, factors): every limit holds.
     rms_optimal_ratio : tuple of float
         Per motor, the overall ratio of smallest RMS torque without friction.
     required_bandwidth : float or None
         The scene's ``[requirements] bandwidth`` (Hz).
+    lives : tuple of (str, numpy.ndarray)
+        With a swept lead: each rated part's L10 (h) per factor; empty otherwise.
+    required_life : float or None
+        The duty cycle's ``required_life`` (h) the lives are held to.
+    limits : tuple of dict
+        Per motor: ``continuous_current`` (A, or None), ``peak_torque`` (N*m), ``no_load_speed``
+        (rad/s), ``voltage`` (V), ``winding_temperature`` (K, or None without a network).
+    swept : str
+        What the factor multiplies, e.g. ``"ratio of spur gear train"`` or ``"1 / lead of
+        ball screw"``.
+    output_unit : str
+        ``"rad"`` or ``"m"``.
+    stiffness_unit : str
+        The unit the stiffness is shown in (the scene's ``[display]``).
+    stiffness_factor : float
+        Shown units per SI unit of the stiffness.
     """
 
     factors: np.ndarray
@@ -77,6 +118,18 @@ class RatioSweep:
     feasible: np.ndarray
     rms_optimal_ratio: tuple
     required_bandwidth: float | None = None
+    lives: tuple = ()
+    required_life: float | None = None
+    limits: tuple = ()
+    swept: str = ""
+    output_unit: str = "rad"
+    stiffness_unit: str = "N*m/rad"
+    stiffness_factor: float = 1.0
+
+    @property
+    def scene_ratio(self) -> float:
+        """The scene's own overall ratio (factor 1)."""
+        return float(self.ratio[0] / self.factors[0])
 
     def feasible_range(self, motor: int = 0) -> tuple | None:
         """(lowest, highest) feasible overall ratio of a motor, None when none is."""
@@ -91,11 +144,17 @@ class RatioSweep:
                 "rms_current_A": arr(self.rms_current), "rms_torque_Nm": arr(self.rms_torque),
                 "peak_torque_Nm": arr(self.peak_torque), "peak_speed_rad_s": arr(self.peak_speed),
                 "peak_voltage_V": arr(self.peak_voltage), "winding_temperature_degC": arr(self.winding_temperature - 273.15),
-                "bandwidth_estimate_Hz": arr(self.bandwidth)[0],
+                "bandwidth_estimate_Hz": arr(self.bandwidth), "swept": self.swept,
                 "stiffness": self.stiffness if math.isfinite(self.stiffness) else None,
+                "lives_h": {part: arr(hours)[0] for part, hours in self.lives}, "required_life_h": self.required_life,
                 "feasible": self.feasible.tolist(),
                 "feasible_ratio_range": [self.feasible_range(i) for i in range(len(self.motors))],
                 "rms_optimal_ratio": list(self.rms_optimal_ratio), "required_bandwidth_Hz": self.required_bandwidth}
+
+    def plot(self, axes=None):
+        """The ratio choice on one figure (:func:`.sweep_plot.plot_sweep`); returns the axes."""
+        from .sweep_plot import plot_sweep
+        return plot_sweep(self, axes)
 
 
 def split_torque(drivetrain, motion, loads):
@@ -119,19 +178,31 @@ def split_torque(drivetrain, motion, loads):
     return loads.motor_torque - loads.friction_torque - t_shaft, t_shaft, j_shaft
 
 
-def _bandwidth(drivetrain, q0: float, j_shaft: float, factors) -> np.ndarray:
-    chain = drivetrain.chain
+def bandwidth_estimate(chain, q0: float, node_inertia, factors) -> np.ndarray:
+    """min(f_r / 3, f_a / 2) (Hz) of ``chain`` at ``q0`` with the motor node's inertia scaled:
+    ``node_inertia(s)`` is that node's inertia (reflected to q) at each factor; nan for a
+    rigid chain (module docstring)."""
+    factors = np.asarray(factors, dtype=float)
     if chain.rigid:
         return np.full(factors.size, np.nan)
-    j1, j2, k = chain.modal_two_mass(q0)
-    j1s = np.maximum(j1 + (factors**2 - 1) * j_shaft, 1e-12 * j1)
-    fr = np.sqrt(k * (1 / j1s + 1 / j2)) / (2 * math.pi)
-    fa = math.sqrt(k / j2) / (2 * math.pi)
+    M, K, keep = chain.condensed(q0)
+    fa = float(chain.antiresonances(q0)[0]) / (2 * math.pi)
+    m = np.diag(M).copy()
+    fr = np.empty(factors.size)
+    for i, j0 in enumerate(np.broadcast_to(node_inertia(factors), factors.shape)):
+        m[0] = max(float(j0), 1e-12 * m.sum())
+        w2 = np.sort(linalg.eigh(K, np.diag(m), eigvals_only=True))[1]
+        fr[i] = math.sqrt(max(w2, 0.0)) / (2 * math.pi)
     return np.minimum(fr / 3, fa / 2)
 
 
-def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidth=None,
-                thermal_steps: int = 200) -> RatioSweep:
+def _swept(drivetrain) -> str:
+    first = drivetrain.stages[0]
+    return f"1 / lead of {first.name}" if isinstance(first, (BallScrew, RollerScrew)) else f"ratio of {first.name}"
+
+
+def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidth=None, lives=None,
+                required_life=None, display=None, thermal_steps: int = 200) -> RatioSweep:
     """The :class:`RatioSweep` of a sized duty cycle (module docstring).
 
     Parameters
@@ -146,21 +217,37 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
         Factors s on the first stage's ratio.
     required_bandwidth : float, optional
         Hz; ratios whose bandwidth estimate is below it are not feasible.
+    lives : sequence of Life, optional
+        The screw's lives at s = 1 when the first stage is the screw (its lead is swept).
+    required_life : float, optional
+        s; ratios where a life of ``lives`` falls short of it are not feasible.
+    display : DisplayUnits, optional
+        The scene's ``[display]``: the unit the stiffness is shown in.
     thermal_steps : int
         Intervals per cycle of the thermal integration.
     """
+    from ...display.units import DisplayUnits
+    display = display or DisplayUnits()
     s = np.asarray(factors, dtype=float)[:, None]
     rest, shaft, j_shaft = split_torque(drivetrain, motion, loads)
     n = loads.ratio
+    dn = _dn(drivetrain, motion)
     rotor0 = drivetrain.motor.rotor_inertia
+    q0 = float(motion.q[0])
+    node0 = float(np.diag(drivetrain.chain.condensed(q0)[0])[0]) if not drivetrain.chain.rigid else 0.0
     w1 = n * motion.qd
     rows = {k: [] for k in ("rms_current", "rms_torque", "peak_torque", "peak_speed", "peak_voltage",
-                            "winding_temperature", "feasible")}
-    optimal = []
-    bw = _bandwidth(drivetrain, float(motion.q[0]), float(j_shaft[0]), s[:, 0])
+                            "winding_temperature", "bandwidth", "feasible")}
+    optimal, limits = [], []
+    life_rows = tuple((life.part, life.hours / s[:, 0]) for life in (lives or ()))
+    life_ok = np.ones(s.size, bool)
+    if required_life is not None:
+        for _, hours in life_rows:
+            life_ok &= hours >= required_life / 3600
     for _, motor in motors:
-        # the candidate's rotor replaces the scene's in the shaft's torque
-        t_shaft = shaft + (motor.rotor_inertia - rotor0) * (n * motion.qdd + _dn(drivetrain, motion) * motion.qd**2)
+        # the candidate's rotor replaces the scene's in the shaft's torque and on the motor node
+        extra = motor.rotor_inertia - rotor0
+        t_shaft = shaft + extra * (n * motion.qdd + dn * motion.qd**2)
         torque = rest / s + s * t_shaft + motor.viscous_friction * s * w1 + motor.coulomb_friction * np.sign(w1)
         speed = s * w1
         env = Envelope.of(motor)
@@ -175,26 +262,38 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
         else:
             i2, h = interval_i2(current, motion.weight, thermal_steps)
             temp = periodic_peak(net, i2, h)
-        ok = (peak_t <= env.peak_torque) & (peak_u <= motor.voltage_limit)
+        j_shaft_m = float(j_shaft[0]) + extra * float(n[0]) ** 2
+        bw = bandwidth_estimate(drivetrain.chain, q0, lambda f: node0 + (f**2 - 1) * j_shaft_m
+                                + extra * float(n[0]) ** 2, s[:, 0])
+        ok = (peak_t <= env.peak_torque) & (peak_u <= motor.voltage_limit) & life_ok
         if env.continuous_torque is not None:
             ok &= rms_t <= env.continuous_torque
         if net is not None:
             ok &= temp <= motor.max_winding_temperature
         if required_bandwidth is not None:
             ok &= ~(bw < required_bandwidth)
-        for key, value in zip(rows, (rms_t / motor.torque_constant, rms_t, peak_t, peak_w, peak_u, temp, ok)):
+        for key, value in zip(rows, (rms_t / motor.torque_constant, rms_t, peak_t, peak_w, peak_u, temp, bw, ok)):
             rows[key].append(value)
         a2, b2 = motion.mean(rest**2), motion.mean(t_shaft**2)
         optimal.append(float(n[0] * (a2 / b2) ** 0.25) if b2 > 0 else math.inf)
+        limits.append({"continuous_current": None if env.continuous_torque is None
+                       else env.continuous_torque / motor.torque_constant,
+                       "peak_torque": env.peak_torque, "no_load_speed": env.no_load_speed,
+                       "voltage": motor.voltage_limit,
+                       "winding_temperature": motor.max_winding_temperature if net is not None else None})
     arrays = {k: np.array(v) for k, v in rows.items()}
-    stiff = float(drivetrain.stiffness([float(motion.q[0])]).total[0])
+    stiff = float(drivetrain.stiffness([q0]).total[0])
+    linear = drivetrain.output_unit == "m"
     return RatioSweep(factors=s[:, 0], ratio=s[:, 0] * float(n[0]), motors=tuple(m for m, _ in motors),
-                      bandwidth=bw, stiffness=stiff, rms_optimal_ratio=tuple(optimal),
-                      required_bandwidth=required_bandwidth, **arrays)
+                      stiffness=stiff, rms_optimal_ratio=tuple(optimal), required_bandwidth=required_bandwidth,
+                      lives=life_rows, required_life=None if required_life is None else required_life / 3600,
+                      limits=tuple(limits), swept=_swept(drivetrain), output_unit=drivetrain.output_unit,
+                      stiffness_unit=display.stiffness_unit(linear),
+                      stiffness_factor=display.factor("stiffness", linear), **arrays)
 
 
 def _dn(drivetrain, motion) -> np.ndarray:
     return drivetrain.ratio(motion.q)[1]
 
 
-__all__ = ["RatioSweep", "ratio_sweep", "split_torque"]
+__all__ = ["RatioSweep", "ratio_sweep", "split_torque", "bandwidth_estimate"]

@@ -1,0 +1,138 @@
+"""The ratio choice of the sizing: motor candidates (their rotor in the torque and in the
+bandwidth), a swept screw lead (its lives), the bandwidth estimate against the closed form
+of a two-mass chain (against the scene's design: tests/test_sizing_closed_loop.py, which
+designs the reference EMA once), the sweep's figure and the sizing scene's shared tables."""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+import numpy as np
+import pytest
+
+from servo_toolkit.scene.loader import scene_from_dict
+from servo_toolkit.studies.sizing import size
+
+from .conftest import SCENES
+from .test_sizing import J_L, J_M, N, inertia_scene, trapezoid_cycle
+
+K_GEAR = 2.0e4           # N*m/rad at the gear's output
+BIG_ROTOR = 10 * J_M
+
+
+def two_mass_scene(**duty) -> dict:
+    """The inertia scene with a compliant gear mesh: rotor -> N, spring at the output -> J_L;
+    a candidate motor with ten times the rotor."""
+    data = inertia_scene(trapezoid_cycle(), start="0 deg", ratio_range=[0.5, 2.0], ratio_points=3, **duty)
+    data["drivetrain"][0]["torsional_stiffness"] = K_GEAR
+    big = dict(data["motor"], rotor_inertia=BIG_ROTOR, name="big rotor")
+    data["duty_cycle"]["motors"] = [big]
+    return data
+
+
+def _closed_form_bandwidth(rotor: float, factor: float) -> float:
+    """min(f_r / 3, f_a / 2) of rotor -> spring K_GEAR -> J_L with the ratio N * factor."""
+    j1 = rotor * (N * factor) ** 2
+    fr = math.sqrt(K_GEAR * (1 / j1 + 1 / J_L)) / (2 * math.pi)
+    fa = math.sqrt(K_GEAR / J_L) / (2 * math.pi)
+    return min(fr / 3, fa / 2)
+
+
+def test_a_motor_candidate_has_its_own_rotor_in_the_torque_and_the_bandwidth():
+    data = two_mass_scene()
+    sweep = size(scene_from_dict(data)).sweep
+    assert sweep.motors == ("scene motor", "big rotor") and np.allclose(sweep.factors, [0.5, 1.0, 2.0])
+    for m, rotor in enumerate((J_M, BIG_ROTOR)):
+        for i, s in enumerate(sweep.factors):
+            assert sweep.bandwidth[m, i] == pytest.approx(_closed_form_bandwidth(rotor, s), rel=1e-9)
+    assert sweep.bandwidth[1, 1] < sweep.bandwidth[0, 1]     # ten times the rotor: a lower resonance
+    # the candidate's row at s = 1 is the sizing of the scene with that motor
+    alone = copy.deepcopy(data)
+    alone["motor"]["rotor_inertia"] = BIG_ROTOR
+    own = size(scene_from_dict(alone), sweep=False)
+    assert sweep.rms_torque[1, 1] == pytest.approx(own.rms_torque, rel=1e-9)
+    assert sweep.peak_torque[1, 1] == pytest.approx(float(np.abs(own.motor_torque).max()), rel=1e-9)
+    # and at twice the ratio, the sizing of a scene with the gear ratio doubled
+    double = copy.deepcopy(alone)
+    double["drivetrain"][0]["ratio"] = 2 * N
+    own2 = size(scene_from_dict(double), sweep=False)
+    assert sweep.rms_torque[1, 2] == pytest.approx(own2.rms_torque, rel=1e-9)
+    assert sweep.peak_speed[1, 2] == pytest.approx(float(np.abs(own2.motor_speed).max()), rel=1e-9)
+
+
+def screw_scene(lead: float = 5e-3, required_life: str | None = None) -> dict:
+    """A motor driving a ball screw (the first stage) and a mass, with the screw's ratings."""
+    segments = [{"kind": "ramp", "to": "20 mm", "duration": "0.4 s", "accel_time": "0.1 s", "load": "3 kN"},
+                {"kind": "dwell", "duration": "0.2 s", "load": "3 kN"},
+                {"kind": "ramp", "to": "0 mm", "duration": "0.4 s", "accel_time": "0.1 s", "load": "-1 kN"},
+                {"kind": "dwell", "duration": "0.2 s"}]
+    duty = {"segments": segments, "start": "0 mm", "ratio_range": [0.5, 2.0], "ratio_points": 3}
+    if required_life:
+        duty["required_life"] = required_life
+    return {"name": "screw", "motor": {"resistance": "0.5 ohm", "torque_constant": "0.2 N*m/A",
+                                       "back_emf_constant": "0.2 V*s/rad", "rotor_inertia": J_M},
+            "drivetrain": [{"kind": "ball_screw", "lead": lead, "screw_inertia": 1e-5, "nut_mass": 0.5,
+                            "efficiency": 0.9, "dynamic_load_rating": "20 kN",
+                            "bearing_dynamic_load_rating": "30 kN"}],
+            "load": {"inertia": "40 kg"}, "duty_cycle": duty}
+
+
+def test_a_swept_lead_divides_the_screws_life_and_bounds_the_feasible_range():
+    base = size(scene_from_dict(screw_scene()))
+    sweep = base.sweep
+    assert sweep.swept.startswith("1 / lead")
+    hours = dict(sweep.lives)
+    screw = next(life for life in base.lives if "(screw)" in life.part)
+    assert hours[screw.part] == pytest.approx(screw.hours / sweep.factors, rel=1e-12)
+    # s = 2 is the screw of half the lead: the same thrust, twice the revolutions
+    half = size(scene_from_dict(screw_scene(lead=2.5e-3)), sweep=False)
+    for life in half.lives:
+        assert hours[life.part][2] == pytest.approx(life.hours, rel=1e-9)
+    assert sweep.rms_torque[0, 2] == pytest.approx(half.rms_torque, rel=1e-9)
+    # a required life between the lives at s = 1 and s = 2 leaves s = 2 out (the motor has no limits)
+    need = 0.75 * screw.hours
+    limited = size(scene_from_dict(screw_scene(required_life=f"{need} h"))).sweep
+    assert limited.feasible[0].tolist() == [True, True, False]
+    assert size(scene_from_dict(screw_scene())).sweep.feasible[0].all()
+
+
+def test_a_gear_in_front_of_the_screw_leaves_its_lives_out_of_the_sweep():
+    sweep = size(SCENES / "ema_sizing.toml").sweep
+    assert sweep.swept == "ratio of spur gear train" and sweep.lives == ()
+
+
+def test_the_sweep_figure_draws_every_figure_against_its_limit():
+    import matplotlib
+    matplotlib.use("Agg")
+    res = size(scene_from_dict(screw_scene(required_life="1 h")))
+    axes = res.plot_sweep()
+    labels = [ax.get_ylabel() for ax in axes if ax.get_ylabel()]
+    assert labels[:6] == ["RMS current [A]", "peak motor torque [N*m]", "peak motor speed [rad/s]",
+                          "peak winding temperature [degC]", "achievable bandwidth (estimate) [Hz]",
+                          "output stiffness [N/m]"]
+    assert any(lab.startswith("L10") and lab.endswith("[h]") for lab in labels)
+    assert axes[0].get_xlabel() == "" or "overall ratio [rad/m]" in {ax.get_xlabel() for ax in axes}
+    # the feasible ratios shaded and the scene's ratio marked on every panel
+    for ax in axes[:len(labels)]:
+        assert ax.patches and any(np.allclose(line.get_xdata(), res.sweep.scene_ratio) for line in ax.lines)
+    import matplotlib.pyplot as plt
+    plt.close("all")
+
+
+def test_the_sizing_scene_keeps_the_reference_emas_tables():
+    """ema_sizing.toml repeats ema_reference.toml (the loader has no include): every table they
+    share is the same, the sizing's additions aside."""
+    ref = tomllib.loads((SCENES / "ema_reference.toml").read_text())
+    siz = tomllib.loads((SCENES / "ema_sizing.toml").read_text())
+    added = {"motor": {"thermal_resistance_winding", "thermal_resistance_housing", "thermal_time_constant_winding",
+                       "thermal_time_constant_housing", "max_winding_temperature", "ambient_temperature"},
+             "ball screw": {"dynamic_load_rating", "bearing_dynamic_load_rating", "bearing_kind"}}
+    assert set(siz) - set(ref) == {"duty_cycle"} and set(ref) <= set(siz)
+    for key in set(ref) - {"name", "description", "motor", "drivetrain"}:
+        assert siz[key] == ref[key], key
+    assert {k: v for k, v in siz["motor"].items() if k not in added["motor"]} == ref["motor"]
+    assert len(siz["drivetrain"]) == len(ref["drivetrain"])
+    for a, b in zip(siz["drivetrain"], ref["drivetrain"]):
+        extra = added.get(a.get("name"), set())
+        assert {k: v for k, v in a.items() if k not in extra} == b, a.get("name")
