@@ -12,7 +12,9 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JL, JW, KT, REF_A, REF_F, REF_KIND,
-                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS)
+                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ,
+                     REF_MOVE, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2)
+from .command_kernel import move_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -20,9 +22,26 @@ from .vmath import inline, tanh  # noqa: E402
 @inline
 def reference_rates(t, P):
     """The reference and its analytic first and second time derivatives at time t,
-    ``(r, r', r'')``: a sine's, a ramp's rate (0 before it starts), 0 for a hold and a step
-    (the step's impulses are not fed forward)."""
+    ``(r, r', r'')``: the command's (:func:`command_rates`), through the command shaper when
+    one is set (the same impulses shape r, r' and r'')."""
+    r, rd, rdd = command_rates(t, P)
+    if P[SHAPE_A0] > 0.0:
+        r1, rd1, rdd1 = command_rates(t - P[SHAPE_T1], P)
+        r2, rd2, rdd2 = command_rates(t - P[SHAPE_T2], P)
+        a0, a1, a2 = P[SHAPE_A0], P[SHAPE_A1], P[SHAPE_A2]
+        r, rd, rdd = (a0 * r + a1 * r1 + a2 * r2, a0 * rd + a1 * rd1 + a2 * rd2,
+                      a0 * rdd + a1 * rdd1 + a2 * rdd2)
+    return r, rd, rdd
+
+
+@inline
+def command_rates(t, P):
+    """The command and its analytic first and second time derivatives at time t,
+    ``(r, r', r'')``: a sine's, a move's, a ramp's rate (0 before it starts), 0 for a hold
+    and a step (the step's impulses are not fed forward)."""
     kind = int(P[REF_KIND])
+    if kind == REF_MOVE:
+        return move_rates(t, P)
     if kind == REF_SINE:
         w = 2.0 * math.pi * P[REF_F]
         s = math.sin(w * (t - P[REF_T0]))
@@ -52,7 +71,7 @@ def feedforward_current(r, rd, rdd, P, T):
         ih = P[INV_H]
         j, dj = interp(T, T_J, kc, tc, hc, ih)
         n, dn = interp(T, T_N, kc, tc, hc, ih)
-        j = (j + P[JL]) * P[FF_JSCALE]
+        j = (j + P[JL] + P[FF_DJ]) * P[FF_JSCALE]
         dj = dj * P[FF_JSCALE]
         m_load = -P[HINGE_M] - P[HINGE_K] * r - P[HINGE_D] * rd
         tq = j * rdd + 0.5 * dj * rd * rd - m_load
@@ -88,4 +107,4 @@ def feedforward(t, P, T):
     return r, feedforward_current(ra, rda, rdda, P, T), w_ff
 
 
-__all__ = ["feedforward", "feedforward_current", "reference_rates"]
+__all__ = ["command_rates", "feedforward", "feedforward_current", "reference_rates"]

@@ -53,7 +53,9 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1,
+                     SHAPE_T2)
+from .command_kernel import move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -61,8 +63,22 @@ jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
 @inline
 def reference(t, P):
-    """The position reference at time t (evaluated inside the kernel)."""
+    """The position reference at time t (evaluated inside the kernel): the command
+    (:func:`command`), through the command shaper when one is set (``SHAPE_A0`` > 0):
+    sum_i A_i r(t - t_i) over its impulses (:mod:`servo_toolkit.loop.shaper`)."""
+    r = command(t, P)
+    if P[SHAPE_A0] > 0.0:
+        r = (P[SHAPE_A0] * r + P[SHAPE_A1] * command(t - P[SHAPE_T1], P)
+             + P[SHAPE_A2] * command(t - P[SHAPE_T2], P))
+    return r
+
+
+@inline
+def command(t, P):
+    """The position command at time t, before the command shaper."""
     kind = int(P[REF_KIND])
+    if kind == REF_MOVE:
+        return move_rates(t, P)[0]
     if kind == REF_SINE:
         return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
     if kind == REF_STEP:
@@ -211,7 +227,12 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     """The sample of :func:`controller_sample` at a given reference r: returns the held i_ref
     (the motion controller's output plus the feedforward current ``i_ff``, clamped at the
     current limit), updates x[NX_PHYS:]. The speed loop sees the measured motor speed less
-    the feedforward's speed reference ``w_ff`` (0 without one).
+    the feedforward's speed reference ``w_ff`` (0 without one). A gain schedule
+    (``SCHED``) scales the controller's position-error inputs and its speed input by its
+    factors at the measured output angle (:func:`~.command_kernel.schedule_factors`). With
+    ``FF_ON`` a sample whose output is clamped keeps the controller's states when their
+    update would drive the output further into the limit (conditional integration: the
+    feedforward's share of the current is not wound up by the feedback).
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -219,10 +240,20 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     """
     nc = int(P[NC])
     th, wm = controller_inputs(x, P, T)
-    y = _motion(x, P, r, th, wm - w_ff, work, 0, True)
+    ge, gw = schedule_factors(P, th)
+    y = _motion(x, P, ge * r, ge * th, gw * (wm - w_ff), work, 0, True) + i_ff
+    if P[FF_ON] > 0.0 and abs(y) > P[ILIM]:
+        # the clamp's conditional integration: a clamped sample keeps the states whose update
+        # would drive the output further into the limit
+        oc = int(P[OFF_C])
+        dy = 0.0
+        for j in range(nc):
+            dy += P[oc + j] * (work[j] - x[NX_PHYS + j])
+        if dy * y > 0.0:
+            return clip(y, P[ILIM])
     for j in range(nc):
         x[NX_PHYS + j] = work[j]
-    return clip(y + i_ff, P[ILIM])
+    return clip(y, P[ILIM])
 
 
 @inline
