@@ -77,17 +77,18 @@ def test_stroke_figures_of_the_scaled_loop_match_python_control(ema):
 def test_compiled_sample_applies_the_table(ema):
     """The kernel's sample with the schedule equals the sample of the controller scaled by
     the table's factors at the measured angle (linear between the points)."""
-    from servo_toolkit.sim import build_model
+    from servo_toolkit.sim import ModelOptions, build_model
     from servo_toolkit.sim import layout as lo
     from servo_toolkit.sim.command_kernel import schedule_factors
     from servo_toolkit.sim.kernel import controller_sample
     from servo_toolkit.sim.reference import Reference, fill, initial_state
     scene, result, schedule, _ = ema
-    on = build_model(scene, replace(result.controller, schedule=schedule))
+    exact = ModelOptions(quantization=False)  # the factors at the true angle in both
+    on = build_model(scene, replace(result.controller, schedule=schedule), exact)
     q = 0.5 * (schedule.q[3] + schedule.q[4]) + 0.1 * (schedule.q[4] - schedule.q[3])
     got = schedule_factors(fill(on, Reference()), q)
     np.testing.assert_allclose(got, [f[0] for f in schedule.factors([q])], rtol=1e-14)
-    scaled = build_model(scene, schedule.scaled(result.controller, q))
+    scaled = build_model(scene, schedule.scaled(result.controller, q), exact)
     ref = Reference.step(0.01, offset=q)
     outs = []
     for model in (on, scaled):

@@ -8,8 +8,8 @@ compute with the rounded values, and the export states what the rounding costs: 
 relative error of each table and, for the schedule, the crossover's largest deviation from
 q0 over the stroke with the rounded factors (:func:`servo_toolkit.loop.stroke.stroke_check`).
 The shaper's impulse times are whole motion samples (the drive delays its command by samples):
-their rounding leaves the residual vibration :meth:`~servo_toolkit.loop.shaper.InputShaper.
-residual_vibration` states at the mode.
+their rounding leaves the residual vibration that
+:meth:`~servo_toolkit.loop.shaper.InputShaper.residual_vibration` states at the mode.
 """
 
 from __future__ import annotations

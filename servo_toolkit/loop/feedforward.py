@@ -35,7 +35,7 @@ def feedforward_gains(scene, q0: float | None = None) -> dict:
         ``velocity`` (Kv, A*s/rad), ``acceleration`` (Ka, A*s^2/rad), ``q0``, ``inertia``
         J(q0), ``ratio`` N(q0), ``torque_constant``, ``motor_viscous``, ``load_damping``.
     """
-    from .stroke import operating_point
+    from ..drivetrain.operating_point import operating_point
     drive, motor = scene.drivetrain, scene.motor
     if motor is None:
         raise SceneError("motor", "feedforward gains need a motor-driven drivetrain")

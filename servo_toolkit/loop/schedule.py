@@ -137,7 +137,7 @@ def gain_schedule(scene, q0: float | None = None, points: int = SCHEDULE_POINTS)
     SceneError
         ``schedule_points`` below 2; a ratio or inertia that is not positive and finite.
     """
-    from .stroke import operating_point
+    from ..drivetrain.operating_point import operating_point
     if int(points) != points or points < 2:
         raise SceneError("schedule_points", f"must be an integer of at least 2 (got {points!r})")
     drive = scene.drivetrain

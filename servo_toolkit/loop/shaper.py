@@ -137,7 +137,7 @@ def drivetrain_modes(scene, controller=None, q0: float | None = None,
 
     from ..errors import SceneError
     from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
-    from .stroke import operating_point
+    from ..drivetrain.operating_point import operating_point
     zeta = DEFAULT_STRUCTURAL_DAMPING if structural_damping is None else float(structural_damping)
     q0, _ = operating_point(scene, q0)
     p = plant_parameters(scene, q0, "auto", zeta)

@@ -30,16 +30,12 @@ def tracking_along_stroke(scene, design, kinds=("off", "gains", "model"), durati
     u = output_unit(scene)
     points = _points(scene, design.q0)
     duration = 4.0 / SINE_HZ if duration is None else duration
+    refs = [Reference.sine(u.default_amplitude, SINE_HZ, offset=q) for q in points]
+    options = [sine_run_options(scene, design.controller, ref)[0] for ref in refs]  # the same for every kind
     out = {}
     for kind in kinds:
-        errs = []
-        for q in points:
-            ref = Reference.sine(u.default_amplitude, SINE_HZ, offset=q)
-            options, _ = sine_run_options(scene, design.controller, ref)
-            r = simulate(scene, design.controller, reference=ref, duration=duration, options=options,
-                         feedforward=kind)
-            errs.append(r.settled_tracking_error)
-        out[kind] = np.array(errs)
+        out[kind] = np.array([simulate(scene, design.controller, reference=ref, duration=duration, options=opts,
+                                       feedforward=kind).settled_tracking_error for ref, opts in zip(refs, options)])
     return np.array(points), out
 
 

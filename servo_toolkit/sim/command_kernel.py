@@ -9,7 +9,7 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import MOVE, REF_OFF, REF_T0, SCHED  # noqa: E402
+from .layout import MOVE, REF_OFF, REF_T0, SCHED, SHAPE_A0, SHAPE_T1  # noqa: E402
 from .vmath import inline  # noqa: E402
 
 
@@ -49,6 +49,21 @@ def move_rates(t, P):
 
 
 @inline
+def impulses(P):
+    """The command shaper's impulse count: 3 with a shaper (``SHAPE_A0`` > 0; a ZV's third
+    amplitude is 0), else 1 (the command itself)."""
+    return 3 if P[SHAPE_A0] > 0.0 else 1
+
+
+@inline
+def impulse(P, i):
+    """Amplitude and delay (s) of impulse i of the command shaper; ``(1, 0)`` without one."""
+    if P[SHAPE_A0] <= 0.0:
+        return 1.0, 0.0
+    return P[SHAPE_A0 + i], (0.0 if i == 0 else P[SHAPE_T1 + i - 1])
+
+
+@inline
 def schedule_factors(P, q):
     """The gain schedule's factors at the measured output position q: ``(g_e, g_w)``, the
     factor on the position-error inputs (theta_ref, theta) and on the speed input (omega_m)
@@ -71,4 +86,4 @@ def schedule_factors(P, q):
     return P[e] + f * (P[e + 1] - P[e]), P[w] + f * (P[w + 1] - P[w])
 
 
-__all__ = ["move_rates", "schedule_factors"]
+__all__ = ["impulse", "impulses", "move_rates", "schedule_factors"]

@@ -12,9 +12,8 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JL, JW, KT, REF_A, REF_F, REF_KIND,
-                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ,
-                     REF_MOVE, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2)
-from .command_kernel import move_rates  # noqa: E402
+                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ, REF_MOVE)
+from .command_kernel import impulse, impulses, move_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -24,13 +23,13 @@ def reference_rates(t, P):
     """The reference and its analytic first and second time derivatives at time t,
     ``(r, r', r'')``: the command's (:func:`command_rates`), through the command shaper when
     one is set (the same impulses shape r, r' and r'')."""
-    r, rd, rdd = command_rates(t, P)
-    if P[SHAPE_A0] > 0.0:
-        r1, rd1, rdd1 = command_rates(t - P[SHAPE_T1], P)
-        r2, rd2, rdd2 = command_rates(t - P[SHAPE_T2], P)
-        a0, a1, a2 = P[SHAPE_A0], P[SHAPE_A1], P[SHAPE_A2]
-        r, rd, rdd = (a0 * r + a1 * r1 + a2 * r2, a0 * rd + a1 * rd1 + a2 * rd2,
-                      a0 * rdd + a1 * rdd1 + a2 * rdd2)
+    r, rd, rdd = 0.0, 0.0, 0.0
+    for i in range(impulses(P)):
+        a, d = impulse(P, i)
+        ri, rdi, rddi = command_rates(t - d, P)
+        r += a * ri
+        rd += a * rdi
+        rdd += a * rddi
     return r, rd, rdd
 
 

@@ -53,9 +53,8 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1,
-                     SHAPE_T2)
-from .command_kernel import move_rates, schedule_factors  # noqa: E402
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE)
+from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -64,21 +63,22 @@ jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 @inline
 def reference(t, P):
     """The position reference at time t (evaluated inside the kernel): the command
-    (:func:`command`), through the command shaper when one is set (``SHAPE_A0`` > 0):
-    sum_i A_i r(t - t_i) over its impulses (:mod:`servo_toolkit.loop.shaper`)."""
-    r = command(t, P)
-    if P[SHAPE_A0] > 0.0:
-        r = (P[SHAPE_A0] * r + P[SHAPE_A1] * command(t - P[SHAPE_T1], P)
-             + P[SHAPE_A2] * command(t - P[SHAPE_T2], P))
+    (:func:`command`, or the jerk-limited move of ``REF_MOVE``), through the command shaper
+    when one is set (``SHAPE_A0`` > 0): sum_i A_i r(t - t_i) over its impulses
+    (:mod:`servo_toolkit.loop.shaper`)."""
+    move = int(P[REF_KIND]) == REF_MOVE
+    r = 0.0
+    for i in range(impulses(P)):  # one inlined command in the loop: the code stays small
+        a, d = impulse(P, i)
+        r += a * (move_rates(t - d, P)[0] if move else command(t - d, P))
     return r
 
 
 @inline
 def command(t, P):
-    """The position command at time t, before the command shaper."""
+    """The position command at time t, before the command shaper (the move,
+    :func:`~.command_kernel.move_rates`, is a closed-loop command: :func:`reference`)."""
     kind = int(P[REF_KIND])
-    if kind == REF_MOVE:
-        return move_rates(t, P)[0]
     if kind == REF_SINE:
         return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
     if kind == REF_STEP:
@@ -212,6 +212,15 @@ def controller_sample(t, x, P, T, work):
     return controller_update(reference(t, P), x, P, T, work, 0.0, 0.0)
 
 
+@jit  # a call, not inlined into every copy of the right-hand side: compiled once
+def continuous_command(t, P, T):
+    """The continuous controller's reference and feedforward at time t, ``(r, i_ff, w_ff)``
+    (:func:`feedforward` when ``FF_ON``, else ``(r(t), 0, 0)``)."""
+    if P[FF_ON] > 0.0:
+        return feedforward(t, P, T)
+    return reference(t, P), 0.0, 0.0
+
+
 @inline
 def controller_inputs(x, P, T):
     """The motion controller's measurements at the state x: the output angle as the output
@@ -281,8 +290,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     # --- controller and electrics
     if mode == OPEN_LOOP:
         iref = 0.0
-        # a constant voltage, plus a sine (its kernel reference about REF_OFF) for a dwell
-        v = clip(P[V_OPEN] + (reference(t, P) - P[REF_OFF]), P[VLIM])
+        # a constant voltage, plus a sine (its kernel command about REF_OFF, never shaped) for a dwell
+        v = clip(P[V_OPEN] + (command(t, P) - P[REF_OFF]), P[VLIM])
         if P[L] > 0.0:
             di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
         else:
@@ -291,11 +300,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         dxi = 0.0
     else:
         if not lanes and mode == CONTINUOUS:
-            if P[FF_ON] > 0.0:
-                r, i_ff, w_ff = feedforward(t, P, T)
-                iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
-            else:
-                iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
+            r, i_ff, w_ff = continuous_command(t, P, T)
+            iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
         else:
             iref = iref_held
         if P[L] > 0.0:
