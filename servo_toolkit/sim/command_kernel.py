@@ -9,7 +9,7 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import MOVE, REF_OFF, REF_T0, SCHED, SHAPE_A0, SHAPE_T1  # noqa: E402
+from .layout import REF_F, REF_OFF, REF_T0, SCHED, SHAPE_A0, SHAPE_T1  # noqa: E402
 from .vmath import inline  # noqa: E402
 
 
@@ -20,10 +20,10 @@ def move_rates(t, P):
     Seven segments from ``REF_T0``: jerk +j for the jerk time Tj, constant acceleration for
     Ta, jerk -j for Tj, constant speed for Tv, then the acceleration's mirror image
     (r(T - s) = D - r(s), r' even and r'' odd about the middle of the move); the start value
-    ``REF_OFF`` before it, the end value after it. The block at ``P[MOVE]`` holds
+    ``REF_OFF`` before it, the end value after it. The block at ``P[REF_F]`` holds
     [signed jerk, Tj, Ta, Tv] (:class:`servo_toolkit.loop.profile.MoveProfile`).
     """
-    o = int(P[MOVE])
+    o = int(P[REF_F])
     j, tj, ta, tv = P[o], P[o + 1], P[o + 2], P[o + 3]
     t3 = 2.0 * tj + ta  # end of the acceleration
     a = j * tj  # peak acceleration

@@ -37,8 +37,7 @@ def pack_feedforward(P, controller, scene, sample_time: float, notes: list) -> N
     notes.append("feedforward from the reference and its derivatives, once per controller sample"
                  + (f" (current at half a sample ahead, {0.5 * sample_time:.3g} s, the hold's delay)"
                     if sample_time > 0 else "") + ": " + ", ".join(parts)
-                 + "; the speed loop's reference is the motor speed along the command; a clamped sample keeps "
-                   "the controller's states that would drive it further into the current limit")
+                 + "; the speed loop's reference is the motor speed along the command")
 
 
 def pack_shaper(P, controller, notes: list) -> None:
@@ -77,4 +76,24 @@ def with_schedule(P, controller, mode: int, notes: list):
     return np.concatenate([P, schedule.block()])
 
 
-__all__ = ["pack_feedforward", "pack_shaper", "with_schedule"]
+def with_back_calculation(P, a, c, mode: int, notes: list):
+    """Append the clamp's back-calculation gains when the sample does more than the state-space
+    update (``FF_ON``: a feedforward or a schedule): the discrete motion controller's integrator
+    direction v (its eigenvector at z = 1) over its output gain C v, so that a clamped sample
+    moves the integrator by the excess and the next output starts at the limit. A controller
+    without an integrator, or a continuous one, gets none. Returns P."""
+    if P[lo.FF_ON] <= 0.0 or mode != lo.SAMPLED or a.shape[0] == 0:
+        return P
+    ev, vec = np.linalg.eig(a)
+    k = int(np.argmin(np.abs(ev - 1.0)))
+    v = np.real(vec[:, k])
+    gain = float(np.ravel(c) @ v)
+    if abs(ev[k] - 1.0) > 1e-9 or not abs(gain) > 1e-300:
+        return P
+    P[lo.AW] = P.size
+    notes.append("at the current limit the motion controller's integrator takes the clamp's excess "
+                 "(back-calculation: the feedback is not wound up while the feedforward holds the limit)")
+    return np.concatenate([P, v / gain])
+
+
+__all__ = ["pack_feedforward", "pack_shaper", "with_back_calculation", "with_schedule"]

@@ -53,7 +53,7 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW)
 from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 
@@ -239,9 +239,9 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     the feedforward's speed reference ``w_ff`` (0 without one). A gain schedule
     (``SCHED``) scales the controller's position-error inputs and its speed input by its
     factors at the measured output angle (:func:`~.command_kernel.schedule_factors`). With
-    ``FF_ON`` a sample whose output is clamped keeps the controller's states when their
-    update would drive the output further into the limit (conditional integration: the
-    feedforward's share of the current is not wound up by the feedback).
+    back-calculation gains (``AW``) a clamped sample moves the controller's integrator by the
+    clamp's excess (its next output starts at the limit: the feedback is not wound up while
+    the feedforward's share of the current holds the limit).
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -251,15 +251,13 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     th, wm = controller_inputs(x, P, T)
     ge, gw = schedule_factors(P, th)
     y = _motion(x, P, ge * r, ge * th, gw * (wm - w_ff), work, 0, True) + i_ff
-    if P[FF_ON] > 0.0 and abs(y) > P[ILIM]:
-        # the clamp's conditional integration: a clamped sample keeps the states whose update
-        # would drive the output further into the limit
-        oc = int(P[OFF_C])
-        dy = 0.0
+    o = int(P[AW])
+    if o > 0 and abs(y) > P[ILIM]:
+        # back-calculation at the clamp: the controller's integrator takes the excess, so the
+        # feedback is not wound up while the feedforward's share holds the limit
+        excess = clip(y, P[ILIM]) - y
         for j in range(nc):
-            dy += P[oc + j] * (work[j] - x[NX_PHYS + j])
-        if dy * y > 0.0:
-            return clip(y, P[ILIM])
+            work[j] += P[o + j] * excess
     for j in range(nc):
         x[NX_PHYS + j] = work[j]
     return clip(y, P[ILIM])

@@ -78,8 +78,8 @@ SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
 TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
 # feedforward from the commanded trajectory (:class:`servo_toolkit.loop.controller.Feedforward`,
 # :func:`servo_toolkit.sim.kernel.feedforward_current`): 1 when the controller sample does more
-# than the state-space update (a feedforward, a gain schedule, the clamp's conditional
-# integration; such a variant runs the per-variant loop, not the SIMD lanes; 0: the
+# than the state-space update (a feedforward, a gain schedule, the clamp's back-calculation;
+# such a variant runs the per-variant loop, not the SIMD lanes; 0: the
 # controller's output alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1 for the model-based
 # torque feedforward, the scale of its inertia relative to the tables', 1 when the speed loop
 # takes the motor speed along the commanded trajectory as its reference, and the time (s) by
@@ -97,10 +97,12 @@ FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 # of the feedforward's inertia from the model's (the load inertia the feedforward assumes less
 # the model's: a Monte Carlo variant's feedforward keeps the nominal load), the command
 # shaper's impulse amplitudes (SHAPE_A0 = 0: no shaper) and the times of its second and third
-# impulses (s; the first is at 0), and the index in P of a move's block (REF_MOVE:
-# [signed jerk, jerk time, constant-acceleration time, constant-speed time])
-SCHED, FF_DJ, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2, MOVE = range(98, 106)
-#: reference kind of a jerk-limited move (:class:`servo_toolkit.sim.reference.Reference`)
+# impulses (s; the first is at 0), and the index in P of the clamp's back-calculation gains
+# (one per motion-controller state: the integrator's direction over its output gain; 0: none)
+SCHED, FF_DJ, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2, AW = range(98, 106)
+#: reference kind of a jerk-limited move (:class:`servo_toolkit.sim.reference.Reference`); its
+#: REF_F slot holds the index in P of the move's block [signed jerk, jerk time,
+#: constant-acceleration time, constant-speed time]
 REF_MOVE = 6
 # 106..113: toleranced parameters
 # 114..117: the run's own bookkeeping

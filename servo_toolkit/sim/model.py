@@ -57,7 +57,7 @@ from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
 from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
-from .command_slots import pack_feedforward, pack_shaper, with_schedule
+from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
 from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
 
 
@@ -399,6 +399,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             names += est_names
             notes.append(note)
         P = with_schedule(P, controller, mode, notes)
+        P = with_back_calculation(P, a, c, mode, notes)
     else:
         P[lo.CMODE] = lo.OPEN_LOOP
     if full is not None:

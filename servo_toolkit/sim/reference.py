@@ -130,8 +130,8 @@ def fill(model, ref: Reference) -> np.ndarray:
     P[lo.REF_KIND] = KINDS[ref.kind]
     P[lo.REF_A], P[lo.REF_F], P[lo.REF_T0] = ref.amplitude, ref.frequency, ref.t0
     P[lo.REF_OFF] = model.q0 if ref.offset is None else ref.offset
-    if ref.profile is not None:  # the move's block after the parameters
-        P[lo.MOVE] = P.size
+    if ref.profile is not None:  # the move's block after the parameters, its index in REF_F
+        P[lo.REF_F] = P.size
         P = np.concatenate([P, ref.profile.block()])
     return P
 
