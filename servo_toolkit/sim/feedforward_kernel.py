@@ -60,7 +60,8 @@ def feedforward_current(r, rd, rdd, P, T):
     """The feedforward current (A) along the commanded trajectory r, r', r''
     (:class:`servo_toolkit.loop.controller.Feedforward`): the velocity and acceleration gains'
     terms plus, with ``FF_MODEL``, the rigid chain's inverse dynamics at r from the model's
-    tables (J, J', N, N'), its loss by the direction of the power flow (:func:`lossy`'s
+    tables (J, J', N, N'; the inertia offset by ``FF_DJ``, the load the feedforward assumes
+    less the model's), its loss by the direction of the power flow (:func:`lossy`'s
     coefficient, solved for the motor torque), the load's hinge moment and damping and the
     motor's viscous and smoothed Coulomb friction."""
     i = P[FF_KV] * rd + P[FF_KA] * rdd
