@@ -8,7 +8,7 @@ the motor) and the position loop's, around the closed speed loop, ``Cp N0 / (N(q
 the speed gains by ``J_m(q) / J_m(q0)`` and the position gain by ``N(q) / N(q0)`` keeps both
 loops' gains, and so their crossovers and margins, at their q0 values on the rigid-body part of
 the plant. A gain scale is applied to the controller's inputs (the integrator sums the scaled
-error, so a change of the factor never steps the output):
+error, so a change of the factor never steps the output)::
 
     g_w(q) = J_m(q) / J_m(q0)                        on omega_m (the speed loop)
     g_e(q) = g_w(q) N(q) / N(q0) = (J(q) / N(q)) / (J(q0) / N(q0))
