@@ -89,5 +89,10 @@ def run(args) -> int:
     data = result.to_dict()
     if ls is not None:
         data["large_signal"] = ls.to_dict()
-    emit(args, data, result.table())
+    from ..loop.command_design import command_design
+    command = command_design(scene, result)
+    data["command"] = command.to_dict()
+    emit(args, data, result.table() + "\ncommand options (feedforward, gain schedule, shapers; "
+                                      "servo-toolkit simulate --feedforward, --schedule, --shaper):\n"
+         + "\n".join(command.lines()))
     return 0 if result.passed and result.margins.closed_loop_stable else 1

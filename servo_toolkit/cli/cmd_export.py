@@ -29,9 +29,23 @@ def register(sub) -> None:
     p.add_argument("--current-sample-time", metavar="S", default=None,
                    help="current-loop sample time, e.g. 25us (default: an integer fraction of the motion "
                         "sample time with w_i Ts <= 0.2)")
+    p.add_argument("--feedforward", choices=("off", "gains", "model"), default=None,
+                   help="export the feedforward: its velocity and acceleration gains (the model-based one as its "
+                        "designed gains at q0) and the ratio table of its speed reference (default: the design "
+                        "file's, else off)")
+    p.add_argument("--schedule", action="store_true",
+                   help="export the gain schedule along the stroke (the table the drive interpolates)")
+    p.add_argument("--shaper", choices=("off", "zv", "zvd"), default=None,
+                   help="export a command shaper on the drivetrain mode (impulses at whole motion samples)")
     add_design_options(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+def replace_controller(result, controller):
+    """The design result with its controller replaced (the command options ride on it)."""
+    from dataclasses import replace
+    return replace(result, controller=controller)
 
 
 def run(args) -> int:
@@ -58,6 +72,11 @@ def run(args) -> int:
         scene = replace(scene, sensors=replace(scene.sensors, sample_time=ts))
     try:
         result = design_from_args(scene, args)
+        if args.feedforward is not None or args.schedule or args.shaper is not None:
+            from ..loop.feedforward import with_command
+            result = replace_controller(result, with_command(result.controller, scene, feedforward=args.feedforward,
+                                                             schedule=True if args.schedule else None,
+                                                             shaper=args.shaper))
         result = export(result, scene, args.output, fixed_point=args.fixed_point, current_sample_time=ts_i,
                         inputs=[args.scene, args.design])
     except SceneError as exc:

@@ -33,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S", help="seconds (default: simulate's, 1 s)")
     add_sine_options(p)
     p.add_argument("--full", action="store_true", help="run the full model (default: simulate's reduced model)")
+    p.add_argument("--feedforward", choices=("off", "gains", "model"), default="off",
+                   help="feedforward from the command, as simulate's (default off); a variant's feedforward keeps "
+                        "the nominal scene's load inertia, as a drive's would")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process, every core)")
     add_scheduler(p, what="chunks of variants")
@@ -92,7 +95,7 @@ def run(args) -> int:
         variants = {**base, **varies}
     progress = not args.json and sys.stderr.isatty()
     kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress,
-                  reference=reference)
+                  reference=reference, feedforward=None if args.feedforward == "off" else args.feedforward)
     n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     with study_executor(scheduler, args.workers) as (executor, slots):  # a cluster that is not there: before any work
         prepare_kernels(scene)  # after every input check; the first run after an install says it compiles

@@ -22,10 +22,18 @@ def register(sub) -> None:
                    help="fixed step (s), 1e-9 to 1, of the fixed-step methods (rk4, paper); without --method it "
                         "runs rk4 at that step; refused with --method auto or reference")
     p.add_argument("-o", "--output", metavar="FILE", help="write the traces (.csv or .npz)")
-    p.add_argument("--feedforward", choices=("off", "model"), default="off",
-                   help="feedforward from the command (default off): 'model' adds the current the "
-                        "drivetrain's inverse dynamics needs along the stroke and gives the speed loop "
-                        "the commanded motor speed; outside the loop, the margins are unchanged")
+    p.add_argument("--feedforward", choices=("off", "gains", "model"), default="off",
+                   help="feedforward from the command (default off): 'gains' adds the designed velocity and "
+                        "acceleration gains' current (Kv = (b N^2 + c_load) / (N Kt), Ka = J / (N Kt) at q0), "
+                        "'model' the current the drivetrain's inverse dynamics needs along the stroke; both give "
+                        "the speed loop the commanded motor speed; outside the loop, the margins are unchanged")
+    p.add_argument("--shaper", choices=("off", "zv", "zvd"), default="off",
+                   help="command shaper on the drivetrain mode the command excites (the closed loop's pole pair "
+                        "of the mode): ZV delays the command by half its damped period, ZVD by a whole one "
+                        "(default off)")
+    p.add_argument("--schedule", action="store_true",
+                   help="schedule the loop's gains along the stroke (speed gains with the motor-side inertia, "
+                        "position gain with the ratio), interpolated at the measured output angle each sample")
     add_force(p)
     p.add_argument("--full", action="store_true",
                    help="run the full model (default: a closed-loop sine runs the reduced model and says what it "
@@ -46,7 +54,8 @@ def _mechanism_dispatch(scene, args):
     if not is_mechanism_study(scene, name):
         return None
     given = [opt for opt, value in (("--amplitude", args.amplitude), ("--frequency", args.frequency),
-                                    ("--full", args.full), ("--feedforward", args.feedforward != "off"))
+                                    ("--full", args.full), ("--feedforward", args.feedforward != "off"),
+                                    ("--shaper", args.shaper != "off"), ("--schedule", args.schedule))
              if value]
     if given:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; "
@@ -94,7 +103,7 @@ def run(args) -> int:
         check_budget(scene, args, amplitude)
         prepare_kernels(scene)
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
-                       feedforward=args.feedforward)
+                       feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()

@@ -15,6 +15,7 @@ from ..loop.controller import CascadeController
 from ..errors import SceneError
 from .blocks import blocks_of, tustin_to_continuous
 from .c_code import HEADER_NAME, SOURCE_NAME, header, source
+from .command import command_export
 from .quantize import filter_shifts, quantize
 from .result import ExportResult
 from .sensitivity import coefficient_sensitivity
@@ -140,9 +141,11 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
                          failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
+    command = command_export(design_result, scene, fixed_point)
+    result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",
-             HEADER_NAME: header(blocks, result.quantized, scene.name, __version__),
-             SOURCE_NAME: source(blocks, result.quantized)}
+             HEADER_NAME: header(blocks, result.quantized, scene.name, __version__, result.command),
+             SOURCE_NAME: source(blocks, result.quantized, result.command)}
     result = replace(result, files=files)
     if directory is not None:
         result = replace(result, directory=write_files(directory, files))

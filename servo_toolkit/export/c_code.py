@@ -9,6 +9,7 @@ of a negative number, no left shift at all).
 
 from __future__ import annotations
 
+from .c_command import header_part, shaper_type, source_part
 from .quantize import FORMATS
 
 HEADER_NAME = "servo_controller.h"
@@ -42,8 +43,9 @@ def _units_comment(blocks, quantized) -> str:
     return "\n".join(" * " + line for line in lines)
 
 
-def header(blocks, quantized=None, scene_name: str = "", version: str = "") -> str:
-    """Text of ``servo_controller.h``."""
+def header(blocks, quantized=None, scene_name: str = "", version: str = "", command=None) -> str:
+    """Text of ``servo_controller.h`` (with the command helpers of ``command``, a
+    :class:`.command.CommandExport`, when it has any)."""
     fixed = quantized is not None
     sig = "int32_t" if fixed else "double"
     st = "int64_t" if fixed else "double"
@@ -68,6 +70,9 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "") -> s
              "double servo_current_step(servo_state_t *st, double i_ref, double i, double omega_m);"]
     if est != "ideal":
         proto.insert(1, "double servo_speed_estimate(servo_state_t *st, double motor_angle_rad);")
+    cdefs, cproto = header_part(command)
+    defs += cdefs
+    proto += cproto
     fmt = f"fixed point {quantized.fmt} (coefficients int{quantized.word + 1}_t)" if fixed else "double precision"
     return f"""/*
  * {HEADER_NAME}: sampled servo cascade of scene "{scene_name}", {fmt}.
@@ -95,7 +100,7 @@ typedef struct {{
     double current_integral;   /* current PI integral, V */
     double estimator[3];       /* speed estimator: angle rad, speed rad/s, acceleration rad/s^2 */
 }} servo_state_t;
-
+{shaper_type(command)}
 /* servo_init: zero states; the speed estimator starts at motor_angle_rad, at rest. */
 {chr(10).join(proto)}
 
@@ -290,12 +295,12 @@ double servo_speed_estimate(servo_state_t *st, double motor_angle_rad)
 """
 
 
-def source(blocks, quantized=None) -> str:
-    """Text of ``servo_controller.c``."""
+def source(blocks, quantized=None, command=None) -> str:
+    """Text of ``servo_controller.c`` (with the command helpers of ``command``)."""
     if quantized is None:
         core, tables = _FLOAT_CORE, _float_tables(blocks)
     else:
         core, tables = _FIXED_CORE.format(guard=FORMATS[quantized.fmt][2]), _fixed_tables(quantized)
     parts = [f'#include "{HEADER_NAME}"\n', tables, core, _init(blocks), _motion(blocks, quantized),
-             _current(blocks.current), _estimator(blocks.estimator, blocks.sample_time)]
+             _current(blocks.current), _estimator(blocks.estimator, blocks.sample_time), source_part(command)]
     return "\n".join(p for p in parts if p)

@@ -53,6 +53,9 @@ class ExportResult:
         loop meets every requirement of the scene).
     bound_horizon_s : float
         Horizon of the stated fixed-point rounding bound.
+    command : CommandExport or None
+        The controller's feedforward gains, gain schedule and command shaper as exported
+        (:mod:`.command`; None when it has none).
     """
 
     scene_name: str
@@ -67,6 +70,7 @@ class ExportResult:
     directory: object = None
     failures: tuple = ()
     bound_horizon_s: float = 0.1
+    command: object = None
 
     @property
     def passed(self) -> bool:
@@ -86,6 +90,8 @@ class ExportResult:
                "format": "float64" if self.quantized is None else self.quantized.fmt,
                "signals": SIGNALS, "motion": motion_dict(self.motion, self.motion.state_labels),
                "blocks": self.blocks.to_dict()}
+        if self.command is not None:
+            out["command"] = self.command.to_dict()
         if self.quantized is not None:
             qd = self.quantized_design
             m = qd.margins
@@ -136,6 +142,9 @@ class ExportResult:
                              f"({worst['format']}), one LSB moves a root by "
                              f"{100 * worst['root_shift_relative_per_lsb']:.2g} %")
             lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantized loop within the requirements (every one met)"]
+        if self.command is not None:
+            from .command import describe
+            lines += describe(self.command)
         return "\n".join(lines)
 
     def __repr__(self) -> str:

@@ -56,6 +56,11 @@ class Feedforward:
     inertia_scale : float
         The feedforward's inertia J(q) and J'(q) relative to the simulated model's (1: the
         model's; a sensitivity study sets 0.7 or 1.3).
+    load_inertia : float or None
+        The load inertia (kg*m^2; kg for an output travel) the model-based feedforward assumes
+        (None: the simulated scene's). A drive's feedforward knows the nominal load: Monte
+        Carlo variants keep it at the nominal scene's while their own load varies. The load
+        sits at the output, so it enters J(q) one to one.
 
     Notes
     -----
@@ -69,6 +74,7 @@ class Feedforward:
     acceleration: float = 0.0
     model: bool = False
     inertia_scale: float = 1.0
+    load_inertia: float | None = None
 
     def __post_init__(self):
         for name in ("velocity", "acceleration", "inertia_scale"):
@@ -77,6 +83,18 @@ class Feedforward:
                 raise ValueError(f"feedforward {name} must be finite, got {value!r}")
         if self.inertia_scale < 0:
             raise ValueError(f"feedforward inertia_scale must be >= 0, got {self.inertia_scale!r}")
+        if self.load_inertia is not None and not (np.isfinite(self.load_inertia) and self.load_inertia >= 0):
+            raise ValueError(f"feedforward load_inertia must be >= 0 and finite, got {self.load_inertia!r}")
+
+    @property
+    def kind(self) -> str:
+        """``"model"``, ``"gains"`` or ``"off"``."""
+        return "model" if self.model else "gains" if self.active else "off"
+
+    def to_dict(self) -> dict:
+        """JSON-ready fields (SI: A per output rad/s and rad/s^2, or per m/s and m/s^2)."""
+        return {"kind": self.kind, "velocity_gain": self.velocity, "acceleration_gain": self.acceleration,
+                "model": self.model, "inertia_scale": self.inertia_scale, "load_inertia": self.load_inertia}
 
     @property
     def active(self) -> bool:
@@ -115,6 +133,13 @@ class CascadeController:
     feedforward : Feedforward or None
         Feedforward from the commanded trajectory (None: feedback only). Outside the loop:
         it changes no margin.
+    schedule : GainSchedule or None
+        Gains scheduled along the stroke (:mod:`servo_toolkit.loop.schedule`): the motion
+        controller's inputs scaled by the factors at the measured output position, once per
+        sample (None: the same gains everywhere).
+    shaper : InputShaper or None
+        Command shaper on the reference and its derivatives (:mod:`servo_toolkit.loop.shaper`):
+        outside the loop, it delays the command by its stated delay.
     """
 
     motion: ct.StateSpace
@@ -123,6 +148,8 @@ class CascadeController:
     sample_time: float = 0.0
     description: str = ""
     feedforward: Feedforward | None = None
+    schedule: object = None
+    shaper: object = None
 
     def discrete_motion(self):
         """``(Ad, Bd, Cd, Dd)`` of the motion controller sampled at ``sample_time``.

@@ -317,11 +317,13 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     """
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require) if reqs is None else reqs
+    # a gain schedule's factors at q0 (1 at the design's own q0, up to the table's interpolation)
+    at_q0 = controller if getattr(controller, "schedule", None) is None else controller.schedule.scaled(controller, p.q0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cl = closed if closed is not None else linear_closed_loop(scene, controller, p.q0, model,
+        cl = closed if closed is not None else linear_closed_loop(scene, at_q0, p.q0, model,
                                                                    structural_damping)
-        loop = open_loop(scene, controller, p.q0, model, structural_damping)
+        loop = open_loop(scene, at_q0, p.q0, model, structural_damping)
     cl_siso = cl["theta", "theta_ref"]
     f_req = next(r.value for r in reqs if r.name == "bandwidth")
     mg = loop_margins(loop, cl_siso, phase_hz=phase_hz,

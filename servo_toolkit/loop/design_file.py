@@ -112,3 +112,63 @@ def design_fields(data: dict, scene):
         raise SceneError(KEY, f"q0_rad: the operating point must lie within the scene's stroke "
                               f"[{u.text(lo)}, {u.text(hi)}] (got {q0:g} {unit}, {u.text(q0)})")
     return Motion(structure, gains, kind, params, ratio), kp_i, ki_i, ts, q0
+
+
+def _numbers(data: dict, field: str, lo: float, hi: float, min_len: int = 2, max_len: int = 1025) -> tuple:
+    values = data.get(field.rsplit(".", 1)[-1])
+    if not isinstance(values, list) or not min_len <= len(values) <= max_len:
+        raise SceneError(KEY, f"{field}: must be a list of {min_len} to {max_len} numbers")
+    return tuple(number({"v": v}, f"{field}[{k}]", lo, hi, container={f"{field}[{k}]".rsplit(".", 1)[-1]: v})
+                 for k, v in enumerate(values))
+
+
+def command_options(data: dict) -> dict:
+    """The optional ``feedforward``, ``schedule`` and ``shaper`` tables of a design file as
+    ``Feedforward``, ``GainSchedule`` and ``InputShaper`` (None where a table is absent or
+    null), every field checked.
+
+    Raises
+    ------
+    SceneError
+        ``--design``, naming the field (``feedforward.velocity_gain``, ``schedule.error_factor[3]``,
+        ``shaper.kind``, ...).
+    """
+    from .controller import Feedforward
+    from .schedule import GainSchedule
+    from .shaper import SHAPER_KINDS, InputShaper
+    out = {"feedforward": None, "schedule": None, "shaper": None}
+    ff = data.get("feedforward")
+    if ff is not None:
+        if not isinstance(ff, dict):
+            raise SceneError(KEY, "feedforward: must be a table (or null)")
+        model = ff.get("model", False)
+        if not isinstance(model, bool):
+            raise _fail("feedforward.model", "must be true or false", model)
+        out["feedforward"] = Feedforward(
+            velocity=number(ff, "feedforward.velocity_gain", -BOUND, BOUND),
+            acceleration=number(ff, "feedforward.acceleration_gain", -BOUND, BOUND), model=model)
+    sched = data.get("schedule")
+    if sched is not None:
+        if not isinstance(sched, dict):
+            raise SceneError(KEY, "schedule: must be a table (or null)")
+        key = "q_m" if sched.get("output_unit") == "m" else "q_rad"
+        q = _numbers(sched, f"schedule.{key}", -BOUND, BOUND)
+        ge = _numbers(sched, "schedule.error_factor", 1.0 / BOUND, BOUND, len(q), len(q))
+        gw = _numbers(sched, "schedule.speed_factor", 1.0 / BOUND, BOUND, len(q), len(q))
+        q0 = number(sched, "schedule.q0", -BOUND, BOUND)
+        try:
+            out["schedule"] = GainSchedule(q, ge, gw, q0, output_unit="m" if key == "q_m" else "rad")
+        except SceneError as exc:
+            raise SceneError(KEY, f"schedule: {exc.rule}") from None
+    shaper = data.get("shaper")
+    if shaper is not None:
+        if not isinstance(shaper, dict):
+            raise SceneError(KEY, "shaper: must be a table (or null)")
+        if shaper.get("kind") not in SHAPER_KINDS:
+            raise _fail("shaper.kind", f"must be one of {SHAPER_KINDS}", shaper.get("kind"))
+        f = number(shaper, "shaper.frequency_hz", 0.0, BOUND, lo_open=True)
+        z = number(shaper, "shaper.damping_ratio", 0.0, 0.99)
+        out["shaper"] = InputShaper.from_dict({"kind": shaper["kind"], "frequency_hz": f, "damping_ratio": z,
+                                               "mode": str(shaper.get("mode", ""))[:40]})
+    return out
+

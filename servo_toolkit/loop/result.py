@@ -124,7 +124,8 @@ class DesignResult(RichDisplay):
                                "structure": getattr(self.motion, "structure", None),
                                "gains": dict(getattr(self.motion, "gains", {}) or {}),
                                "filter": getattr(self.motion, "filter", None),
-                               "filter_params": dict(getattr(self.motion, "filter_params", {}) or {})},
+                               "filter_params": dict(getattr(self.motion, "filter_params", {}) or {}),
+                               **command_fields(self.controller)},
                 "notes": list(self.notes), "display_units": self.display.to_dict(u.linear),
                 **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {}),
                 **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {})}
@@ -181,6 +182,13 @@ class DesignResult(RichDisplay):
 
     def _repr_card(self) -> str:
         return _card_html(self)
+
+
+def command_fields(controller) -> dict:
+    """The controller's feedforward, gain schedule and command shaper as JSON fields (None
+    where it has none)."""
+    return {name: (None if getattr(controller, name, None) is None else getattr(controller, name).to_dict())
+            for name in ("feedforward", "schedule", "shaper")}
 
 
 def requirements_table(checks) -> str:

@@ -17,7 +17,7 @@ before the loop and the feedforward, outside the loop, and changes no margin.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,6 +39,8 @@ class InputShaper:
         Impulse times (s), from 0.
     amplitudes : tuple of float
         Impulse amplitudes, summing to 1.
+    mode : str
+        Which mode it was designed on (:func:`drivetrain_modes`; "" when given by hand).
     """
 
     kind: str
@@ -46,6 +48,7 @@ class InputShaper:
     damping_ratio: float
     times: tuple
     amplitudes: tuple
+    mode: str = ""
 
     @property
     def delay(self) -> float:
@@ -90,32 +93,105 @@ class InputShaper:
 
     def describe(self) -> str:
         """One line: kind, mode and delay."""
-        return (f"{self.kind.upper()} shaper on {self.frequency:.4g} Hz (zeta {self.damping_ratio:.3g}), "
+        on = f"{self.mode.replace('_', '-')} mode " if self.mode else ""
+        return (f"{self.kind.upper()} shaper on the {on}{self.frequency:.4g} Hz (zeta {self.damping_ratio:.3g}), "
                 f"delay {self.delay * 1e3:.3g} ms")
 
     def to_dict(self) -> dict:
         """JSON-ready fields."""
         return {"kind": self.kind, "frequency_hz": self.frequency, "damping_ratio": self.damping_ratio,
-                "times_s": list(self.times), "amplitudes": list(self.amplitudes), "delay_s": self.delay}
+                "times_s": list(self.times), "amplitudes": list(self.amplitudes), "delay_s": self.delay,
+                "mode": self.mode}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "InputShaper":
+        """A shaper from :meth:`to_dict`'s fields (redesigned from kind, frequency and damping,
+        so its impulses are the theory's)."""
+        return replace(cls.design(str(data["kind"]), float(data["frequency_hz"]), float(data["damping_ratio"])),
+                       mode=str(data.get("mode", "")))
 
 
-def shaper_for(scene, kind: str = "zv", damping_ratio: float = 0.05, q0: float | None = None) -> InputShaper:
-    """The ``kind`` shaper on the drivetrain's lowest mode at ``q0`` (default mid-stroke):
-    the two-mass reduction's resonance sqrt(K (J1 + J2) / (J1 J2)).
+#: the modes a shaper may be designed on
+SHAPER_MODES = ("auto", "closed_loop", "free", "locked")
+
+
+def drivetrain_modes(scene, controller=None, q0: float | None = None,
+                     structural_damping: float | None = None) -> dict:
+    """The drivetrain's mode three ways at ``q0`` (default: the design's operating point),
+    each ``(frequency Hz, damping ratio)``:
+
+    - ``"free"``: the two-mass reduction's free-free mode sqrt(K (J1 + J2) / (J1 J2)), with
+      the plant's structural damping: what an unpowered (or torque-driven) drive rings at;
+    - ``"locked"``: the load against a held motor, sqrt(K / J2) (the antiresonance): the limit
+      of a speed loop much stiffer than the mode;
+    - ``"closed_loop"`` (with a controller): the least damped pole pair of the linear closed
+      loop between half the locked and twice the free frequency: the mode as the controller
+      shapes it, which is what a command through the loop excites.
 
     Raises
     ------
     SceneError
         A rigid drivetrain has no mode to shape (key ``drivetrain``).
     """
+    import control as ct
+
     from ..errors import SceneError
-    drive = scene.drivetrain
-    q = drive.mid_stroke if q0 is None else q0
-    j1, j2, k = drive.chain.modal_two_mass(q)
-    if not (math.isfinite(k) and j2 > 0):
+    from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
+    from ..drivetrain.operating_point import operating_point
+    zeta = DEFAULT_STRUCTURAL_DAMPING if structural_damping is None else float(structural_damping)
+    q0, _ = operating_point(scene, q0)
+    p = plant_parameters(scene, q0, "auto", zeta)
+    if p.rigid:
         raise SceneError("drivetrain", "has no compliance: there is no mode to shape (got a rigid chain)")
-    wr = math.sqrt(k * (j1 + j2) / (j1 * j2))
-    return InputShaper.design(kind, wr / (2 * math.pi), damping_ratio)
+    out = {"free": (p.resonance_hz, zeta), "locked": (p.antiresonance_hz, zeta * math.sqrt(p.J1 / (p.J1 + p.J2)))}
+    if controller is not None:
+        from .closed_loop import linear_closed_loop
+        poles = ct.poles(linear_closed_loop(scene, replace(controller, schedule=None, shaper=None,
+                                                           feedforward=None), q0, "auto", zeta))
+        wn = np.abs(poles)
+        band = ((poles.imag > 0) & (wn >= 2 * math.pi * 0.5 * p.antiresonance_hz)
+                & (wn <= 2 * math.pi * 2.0 * p.resonance_hz))
+        if np.any(band):
+            z = -poles.real / np.where(wn > 0, wn, 1.0)
+            k = int(np.argmin(np.where(band, z, np.inf)))
+            out["closed_loop"] = (float(wn[k] / (2 * math.pi)), float(max(z[k], 0.0)))
+    return out
 
 
-__all__ = ["InputShaper", "SHAPER_KINDS", "shaper_for"]
+def shaper_for(scene, kind: str = "zv", damping_ratio: float | None = None, q0: float | None = None,
+               controller=None, mode: str = "auto") -> InputShaper:
+    """The ``kind`` shaper on the drivetrain's mode at ``q0`` (:func:`drivetrain_modes`).
+
+    Parameters
+    ----------
+    scene : Scene
+    kind : {"zv", "zvd"}
+    damping_ratio : float, optional
+        Replaces the mode's damping ratio (default: the model's).
+    q0 : float, optional
+    controller : CascadeController, optional
+        The loop the command goes through (for the closed-loop mode).
+    mode : {"auto", "closed_loop", "free", "locked"}
+        ``"auto"``: the closed-loop mode when a controller is given (and found), else the
+        free-free mode.
+
+    Raises
+    ------
+    SceneError
+        A rigid drivetrain (key ``drivetrain``); an unknown mode, or the closed-loop mode
+        without a controller (key ``shaper``).
+    """
+    from ..errors import SceneError
+    if mode not in SHAPER_MODES:
+        raise SceneError("shaper", f"mode must be one of {', '.join(SHAPER_MODES)} (got {mode!r})")
+    modes = drivetrain_modes(scene, controller, q0)
+    if mode == "auto":
+        mode = "closed_loop" if "closed_loop" in modes else "free"
+    if mode not in modes:
+        raise SceneError("shaper", "the closed-loop mode needs the controller (and a lightly damped pole pair "
+                                   "near the drivetrain mode)")
+    f, zeta = modes[mode]
+    return replace(InputShaper.design(kind, f, zeta if damping_ratio is None else damping_ratio), mode=mode)
+
+
+__all__ = ["InputShaper", "SHAPER_KINDS", "SHAPER_MODES", "drivetrain_modes", "shaper_for"]

@@ -37,6 +37,7 @@ from .metrics import grid_figures
 from .requirements import Check, check
 from .response import current_response, loop_response, mechanical_response
 from .robustness import _controller_blocks, _controller_response
+from .schedule import crossover_hz
 
 STROKE_POINTS = 25
 """Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
@@ -89,10 +90,13 @@ class StrokeLoops:
     params: tuple
     current_gains: tuple
     blocks: tuple
+    factors: tuple = ()
 
     def __post_init__(self):
         cols = {k: np.array([getattr(p, k) for p in self.params], float)
                 for k in ("J1", "J2", "K", "c", "b1", "b2", "kh", "N", "eta", "Kt")}
+        ge, gw = self.factors if len(self.factors) else (np.ones(len(self.params)), np.ones(len(self.params)))
+        cols["ge"], cols["gw"] = np.asarray(ge, float), np.asarray(gw, float)
         object.__setattr__(self, "_cols", cols)
 
     def __call__(self, rows, w):
@@ -104,7 +108,7 @@ class StrokeLoops:
         tg = col["eta"] * col["N"] * col["Kt"]
         ic = current_response(s, _Rows(p0.L, p0.R, p0.Ke, col["N"], tg), g1, *self.current_gains)
         cy, cw, delay = _controller_response(self.blocks, s)
-        return loop_response(s, tg * g1 * ic, tg * g2 * ic, delay, cy, cw, col["N"])
+        return loop_response(s, tg * g1 * ic, tg * g2 * ic, delay, cy * col["ge"], cw * col["gw"], col["N"])
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,11 @@ class StrokeCheck:
     gain_margin_db, phase_margin_deg, sensitivity_peak_db, bandwidth_hz : numpy.ndarray
         Smallest |gain margin|, smallest phase margin, Ms, closed-loop -3 dB bandwidth
         (``inf`` without a crossing); meaningful where ``stable``.
+    crossover_hz : numpy.ndarray or None
+        The loop's gain crossover (Hz; first fall of |L| through 1, on the frequency grid).
+    scheduled : bool
+        The controller's gains were scheduled along the stroke (:mod:`.schedule`): each point
+        ran its own factors.
     """
 
     q: np.ndarray
@@ -144,6 +153,8 @@ class StrokeCheck:
     sensitivity_peak_db: np.ndarray
     bandwidth_hz: np.ndarray
     output_unit: str = "rad"
+    crossover_hz: np.ndarray | None = None
+    scheduled: bool = False
 
     def show(self, q: float) -> str:
         """Operating point ``q`` as text (deg, or mm for a travel)."""
@@ -238,7 +249,27 @@ class StrokeCheck:
                 f"output_inertia_{'kg' if u.linear else 'kg_m2'}": floats(self.inertia),
                 "stable": [bool(x) for x in self.stable], "max_pole_real": floats(self.max_pole_real),
                 **{k: floats(getattr(self, k)) for k in _FIGURES},
+                **({} if self.crossover_hz is None else {"crossover_hz": floats(self.crossover_hz)}),
+                "scheduled": self.scheduled, "spread": self.spread(),
                 "output_unit": self.output_unit, "all_stable": self.all_stable, "worst": self.worst()}
+
+    def spread(self) -> dict:
+        """Over the stable points: each margin's range (``phase_margin_deg``, ``gain_margin_db``:
+        max - min) and the crossover's (``crossover``: max / min - 1;
+        ``crossover_deviation_from_q0``: the largest |f_c / f_c(q0) - 1|); empty without a stable
+        point."""
+        ok = self.stable & np.isfinite(self.phase_margin_deg)
+        if not np.any(ok):
+            return {}
+        gm = self.gain_margin_db[ok & np.isfinite(self.gain_margin_db)]
+        out = {"phase_margin_deg": float(np.ptp(self.phase_margin_deg[ok])),
+               "gain_margin_db": float(np.ptp(gm)) if gm.size else 0.0}
+        if self.crossover_hz is not None and np.all(np.isfinite(self.crossover_hz[ok])):
+            c = self.crossover_hz[ok]
+            k0 = int(np.argmin(np.abs(self.q - self.q0)))
+            out["crossover"] = float(c.max() / c.min() - 1.0)
+            out["crossover_deviation_from_q0"] = float(np.max(np.abs(c / self.crossover_hz[k0] - 1.0)))
+        return out
 
     def summary(self) -> str:
         """Two lines: the span of the check, stability and the worst cases."""
@@ -302,13 +333,15 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
     params = tuple(plant_parameters(scene, qi, model, structural_damping) for qi in q)
     ratio, _ = dt.ratio(q)
     j, _ = dt.inertia(q)
-    kc = controller_matrices(controller, scene.motor)
+    schedule = getattr(controller, "schedule", None)
     max_real = np.empty(q.size)
     for k, p in enumerate(params):  # a chain may be rigid at some points: one matrix each
         A, B, C, D, _ = plant_matrices(p, inductance=True)
+        kc = controller_matrices(controller if schedule is None else schedule.scaled(controller, q[k]), scene.motor)
         max_real[k] = np.linalg.eigvals(closed_loop_matrix(A, B[:, :1], C[:3], D[:3, :1], *kc)).real.max()
     gains = (controller.current_kp, controller.current_ki) if params[0].L > 0 else (0.0, 0.0)
-    response = StrokeLoops(params, gains, _controller_blocks(controller))
+    factors = () if schedule is None else schedule.factors(q)
+    response = StrokeLoops(params, gains, _controller_blocks(controller), factors)
     w = frequency_grid(f_min=0.01, f_max=5e3, points=600, extra=[f_req])
     L = response(np.arange(q.size)[:, None], w[None, :])
     try:
@@ -319,4 +352,4 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
                        stable=max_real < 0, max_pole_real=max_real,
                        gain_margin_db=np.abs(figs["gain_margin_db"]), phase_margin_deg=figs["phase_margin_deg"],
                        sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"],
-                       output_unit=dt.output_unit)
+                       output_unit=dt.output_unit, crossover_hz=crossover_hz(w, L), scheduled=schedule is not None)

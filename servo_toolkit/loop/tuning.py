@@ -18,7 +18,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from .controller import CascadeController
+from .controller import FEEDFORWARD_KINDS, CascadeController
+from .feedforward import designed_feedforward
 from ..errors import SceneError
 from .design import design, evaluate
 from .structures import FILTERS, Motion
@@ -54,6 +55,9 @@ class LoopTuning:
     q0 : float or None
         Operating point where the loop is evaluated (rad, or m for an output travel); the
         controller is the same (a loop runs unchanged along the stroke).
+    feedforward : {None, "off", "gains", "model"}
+        The controller's feedforward (:func:`~.feedforward.designed_feedforward`); outside the
+        loop: it changes the tracking, not the margins.
     """
 
     bandwidth_hz: float | None = None
@@ -65,6 +69,7 @@ class LoopTuning:
     depth_db: float | None = None
     width: float | None = None
     q0: float | None = None
+    feedforward: str | None = None
 
     def check(self) -> None:
         """Raise SceneError(``tuning.<name>``, rule) for a value out of range."""
@@ -76,6 +81,8 @@ class LoopTuning:
             raise SceneError("tuning.depth_db", f"a notch depth is negative dB (got {self.depth_db!r})")
         if self.resonance_filter is not None and self.resonance_filter not in FILTERS:
             raise SceneError("tuning.resonance_filter", f"must be one of {FILTERS} (got {self.resonance_filter!r})")
+        if self.feedforward is not None and self.feedforward not in FEEDFORWARD_KINDS:
+            raise SceneError("tuning.feedforward", f"must be one of {FEEDFORWARD_KINDS} (got {self.feedforward!r})")
 
 
 def base_design(scene, bandwidth_hz: float | None = None):
@@ -151,7 +158,12 @@ def tuned_design(scene, tuning: LoopTuning = LoopTuning(), base=None):
                                                          + ")" if params else ""))
     motion = Motion("cascade", gains, kind, params, m.ratio)
     c = base.controller
-    ctrl = CascadeController(motion.state_space(), c.current_kp, c.current_ki, c.sample_time, motion.describe())
+    ff = c.feedforward if tuning.feedforward is None else designed_feedforward(scene, tuning.feedforward, base.q0)
+    ctrl = CascadeController(motion.state_space(), c.current_kp, c.current_ki, c.sample_time, motion.describe(),
+                             feedforward=ff, schedule=c.schedule, shaper=c.shaper)
+    if (ff is not None) != (c.feedforward is not None):
+        changed.append(f"feedforward {'off' if c.feedforward is None else c.feedforward.kind} -> "
+                       f"{'off' if ff is None else ff.kind}")
     q0 = base.q0 if tuning.q0 is None else float(tuning.q0)
     require = {"bandwidth": float(tuning.bandwidth_hz)} if tuning.bandwidth_hz is not None else None
     notes = (f"tuned from the automatic design{' at ' + format(tuning.bandwidth_hz, 'g') + ' Hz' if tuning.bandwidth_hz else ''}: "
@@ -172,7 +184,21 @@ def design_data(result) -> dict:
             "structure": m.structure, "gains": dict(m.gains), "filter": m.filter,
             "filter_params": dict(m.filter_params), "ratio": m.ratio,
             "current_kp_v_per_a": c.current_kp, "current_ki_v_per_a_s": c.current_ki,
-            "sample_time_s": c.sample_time}
+            "sample_time_s": c.sample_time, **_command_data(c)}
+
+
+def _command_data(controller) -> dict:
+    """The controller's feedforward (its gains and the model switch), gain schedule and command
+    shaper, where it has them."""
+    out = {}
+    ff = controller.feedforward
+    if ff is not None and ff.active:
+        out["feedforward"] = {"velocity_gain": ff.velocity, "acceleration_gain": ff.acceleration, "model": ff.model}
+    if controller.schedule is not None:
+        out["schedule"] = controller.schedule.to_dict()
+    if controller.shaper is not None:
+        out["shaper"] = controller.shaper.to_dict()
+    return out
 
 
 def save_design(result, path, inputs=()) -> Path:
@@ -207,9 +233,9 @@ def load_design(scene, path, require=None):
         raise SceneError(key, f"the design file {str(path)!r} is nested too deeply") from None
     if not isinstance(data, dict) or data.get("servo_toolkit_design") != DESIGN_FILE_VERSION:
         raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
-    from .design_file import design_fields
+    from .design_file import command_options, design_fields
     motion, kp_i, ki_i, ts, q0 = design_fields(data, scene)  # every field checked: one line naming it
-    ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe())
+    ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe(), **command_options(data))
     notes = (f"controller from {Path(path).name} (designed for {data.get('scene', '?')})",)
     return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
 

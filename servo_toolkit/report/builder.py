@@ -16,6 +16,7 @@ from . import sections_export as export_section
 from . import sections_loop as loop
 from . import sections_montecarlo as montecarlo
 from . import sections_closed as closed
+from . import sections_command as command
 from . import sections_disturbance as disturbance
 from . import sections_poles as poles
 from . import sections_limits as limits
@@ -47,6 +48,7 @@ SECTIONS = (
     ("robustness", "Robustness over the parameter variants", robust.robustness),
     ("montecarlo", "Nonlinear Monte Carlo over the parameter variants", montecarlo.montecarlo_section),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
+    ("command", "Control that uses the model: feedforward, gain schedule, command shaping", command.command_section),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),
     ("sizing", "Sizing along the duty cycle", sizing.sizing),

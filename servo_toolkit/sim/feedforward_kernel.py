@@ -12,7 +12,8 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JL, JW, KT, REF_A, REF_F, REF_KIND,
-                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS)
+                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ, REF_MOVE)
+from .command_kernel import impulse, impulses, move_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -20,9 +21,26 @@ from .vmath import inline, tanh  # noqa: E402
 @inline
 def reference_rates(t, P):
     """The reference and its analytic first and second time derivatives at time t,
-    ``(r, r', r'')``: a sine's, a ramp's rate (0 before it starts), 0 for a hold and a step
-    (the step's impulses are not fed forward)."""
+    ``(r, r', r'')``: the command's (:func:`command_rates`), through the command shaper when
+    one is set (the same impulses shape r, r' and r'')."""
+    r, rd, rdd = 0.0, 0.0, 0.0
+    for i in range(impulses(P)):
+        a, d = impulse(P, i)
+        ri, rdi, rddi = command_rates(t - d, P)
+        r += a * ri
+        rd += a * rdi
+        rdd += a * rddi
+    return r, rd, rdd
+
+
+@inline
+def command_rates(t, P):
+    """The command and its analytic first and second time derivatives at time t,
+    ``(r, r', r'')``: a sine's, a move's, a ramp's rate (0 before it starts), 0 for a hold
+    and a step (the step's impulses are not fed forward)."""
     kind = int(P[REF_KIND])
+    if kind == REF_MOVE:
+        return move_rates(t, P)
     if kind == REF_SINE:
         w = 2.0 * math.pi * P[REF_F]
         s = math.sin(w * (t - P[REF_T0]))
@@ -42,7 +60,8 @@ def feedforward_current(r, rd, rdd, P, T):
     """The feedforward current (A) along the commanded trajectory r, r', r''
     (:class:`servo_toolkit.loop.controller.Feedforward`): the velocity and acceleration gains'
     terms plus, with ``FF_MODEL``, the rigid chain's inverse dynamics at r from the model's
-    tables (J, J', N, N'), its loss by the direction of the power flow (:func:`lossy`'s
+    tables (J, J', N, N'; the inertia offset by ``FF_DJ``, the load the feedforward assumes
+    less the model's), its loss by the direction of the power flow (:func:`lossy`'s
     coefficient, solved for the motor torque), the load's hinge moment and damping and the
     motor's viscous and smoothed Coulomb friction."""
     i = P[FF_KV] * rd + P[FF_KA] * rdd
@@ -52,7 +71,7 @@ def feedforward_current(r, rd, rdd, P, T):
         ih = P[INV_H]
         j, dj = interp(T, T_J, kc, tc, hc, ih)
         n, dn = interp(T, T_N, kc, tc, hc, ih)
-        j = (j + P[JL]) * P[FF_JSCALE]
+        j = (j + P[JL] + P[FF_DJ]) * P[FF_JSCALE]
         dj = dj * P[FF_JSCALE]
         m_load = -P[HINGE_M] - P[HINGE_K] * r - P[HINGE_D] * rd
         tq = j * rdd + 0.5 * dj * rd * rd - m_load
@@ -88,4 +107,4 @@ def feedforward(t, P, T):
     return r, feedforward_current(ra, rda, rdda, P, T), w_ff
 
 
-__all__ = ["feedforward", "feedforward_current", "reference_rates"]
+__all__ = ["command_rates", "feedforward", "feedforward_current", "reference_rates"]

@@ -53,7 +53,8 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW)
+from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
@@ -61,7 +62,22 @@ jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
 @inline
 def reference(t, P):
-    """The position reference at time t (evaluated inside the kernel)."""
+    """The position reference at time t (evaluated inside the kernel): the command
+    (:func:`command`, or the jerk-limited move of ``REF_MOVE``), through the command shaper
+    when one is set (``SHAPE_A0`` > 0): sum_i A_i r(t - t_i) over its impulses
+    (:mod:`servo_toolkit.loop.shaper`)."""
+    move = int(P[REF_KIND]) == REF_MOVE
+    r = 0.0
+    for i in range(impulses(P)):  # one inlined command in the loop: the code stays small
+        a, d = impulse(P, i)
+        r += a * (move_rates(t - d, P)[0] if move else command(t - d, P))
+    return r
+
+
+@inline
+def command(t, P):
+    """The position command at time t, before the command shaper (the move,
+    :func:`~.command_kernel.move_rates`, is a closed-loop command: :func:`reference`)."""
     kind = int(P[REF_KIND])
     if kind == REF_SINE:
         return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
@@ -196,6 +212,15 @@ def controller_sample(t, x, P, T, work):
     return controller_update(reference(t, P), x, P, T, work, 0.0, 0.0)
 
 
+@jit  # a call, not inlined into every copy of the right-hand side: compiled once
+def continuous_command(t, P, T):
+    """The continuous controller's reference and feedforward at time t, ``(r, i_ff, w_ff)``
+    (:func:`feedforward` when ``FF_ON``, else ``(r(t), 0, 0)``)."""
+    if P[FF_ON] > 0.0:
+        return feedforward(t, P, T)
+    return reference(t, P), 0.0, 0.0
+
+
 @inline
 def controller_inputs(x, P, T):
     """The motion controller's measurements at the state x: the output angle as the output
@@ -211,7 +236,12 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     """The sample of :func:`controller_sample` at a given reference r: returns the held i_ref
     (the motion controller's output plus the feedforward current ``i_ff``, clamped at the
     current limit), updates x[NX_PHYS:]. The speed loop sees the measured motor speed less
-    the feedforward's speed reference ``w_ff`` (0 without one).
+    the feedforward's speed reference ``w_ff`` (0 without one). A gain schedule
+    (``SCHED``) scales the controller's position-error inputs and its speed input by its
+    factors at the measured output angle (:func:`~.command_kernel.schedule_factors`). With
+    back-calculation gains (``AW``) a clamped sample moves the controller's integrator by the
+    clamp's excess (its next output starts at the limit: the feedback is not wound up while
+    the feedforward's share of the current holds the limit).
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -219,10 +249,18 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     """
     nc = int(P[NC])
     th, wm = controller_inputs(x, P, T)
-    y = _motion(x, P, r, th, wm - w_ff, work, 0, True)
+    ge, gw = schedule_factors(P, th)
+    y = _motion(x, P, ge * r, ge * th, gw * (wm - w_ff), work, 0, True) + i_ff
+    o = int(P[AW])
+    if o > 0 and abs(y) > P[ILIM]:
+        # back-calculation at the clamp: the controller's integrator takes the excess, so the
+        # feedback is not wound up while the feedforward's share holds the limit
+        excess = clip(y, P[ILIM]) - y
+        for j in range(nc):
+            work[j] += P[o + j] * excess
     for j in range(nc):
         x[NX_PHYS + j] = work[j]
-    return clip(y + i_ff, P[ILIM])
+    return clip(y, P[ILIM])
 
 
 @inline
@@ -250,8 +288,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     # --- controller and electrics
     if mode == OPEN_LOOP:
         iref = 0.0
-        # a constant voltage, plus a sine (its kernel reference about REF_OFF) for a dwell
-        v = clip(P[V_OPEN] + (reference(t, P) - P[REF_OFF]), P[VLIM])
+        # a constant voltage, plus a sine (its kernel command about REF_OFF, never shaped) for a dwell
+        v = clip(P[V_OPEN] + (command(t, P) - P[REF_OFF]), P[VLIM])
         if P[L] > 0.0:
             di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
         else:
@@ -260,11 +298,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         dxi = 0.0
     else:
         if not lanes and mode == CONTINUOUS:
-            if P[FF_ON] > 0.0:
-                r, i_ff, w_ff = feedforward(t, P, T)
-                iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
-            else:
-                iref = clip(_motion(x, P, reference(t, P), q, wm, dx, NX_PHYS, True), P[ILIM])
+            r, i_ff, w_ff = continuous_command(t, P, T)
+            iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
         else:
             iref = iref_held
         if P[L] > 0.0:

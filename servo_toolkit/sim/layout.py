@@ -77,8 +77,10 @@ SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
 # the motor's Coulomb friction alone
 TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
 # feedforward from the commanded trajectory (:class:`servo_toolkit.loop.controller.Feedforward`,
-# :func:`servo_toolkit.sim.kernel.feedforward_current`): 1 when on (0: the controller's output
-# alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1 for the model-based
+# :func:`servo_toolkit.sim.kernel.feedforward_current`): 1 when the controller sample does more
+# than the state-space update (a feedforward, a gain schedule, the clamp's back-calculation;
+# such a variant runs the per-variant loop, not the SIMD lanes; 0: the
+# controller's output alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1 for the model-based
 # torque feedforward, the scale of its inertia relative to the tables', 1 when the speed loop
 # takes the motor speed along the commanded trajectory as its reference, and the time (s) by
 # which the feedforward current leads the sample instant (half a sample)
@@ -87,7 +89,21 @@ FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 # 74..81: the drivetrain chain's per-node tables and damping
 # 82..89: friction at the chain's nodes
 # 90..97: reference tables and multisines
-# 98..105: gain scheduling along the stroke and command shaping
+# gain scheduling along the stroke and command shaping (slots 98..105;
+# :mod:`servo_toolkit.loop.schedule`, :mod:`servo_toolkit.loop.shaper`,
+# :mod:`servo_toolkit.sim.command_kernel`): index in P of the gain schedule (0: none; its block
+# [points, first position, 1 / step, the position-error factors, the speed factors], linear
+# between its points, its end values held beyond them), the offset (kg*m^2; kg for a travel)
+# of the feedforward's inertia from the model's (the load inertia the feedforward assumes less
+# the model's: a Monte Carlo variant's feedforward keeps the nominal load), the command
+# shaper's impulse amplitudes (SHAPE_A0 = 0: no shaper) and the times of its second and third
+# impulses (s; the first is at 0), and the index in P of the clamp's back-calculation gains
+# (one per motion-controller state: the integrator's direction over its output gain; 0: none)
+SCHED, FF_DJ, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2, AW = range(98, 106)
+#: reference kind of a jerk-limited move (:class:`servo_toolkit.sim.reference.Reference`); its
+#: REF_F slot holds the index in P of the move's block [signed jerk, jerk time,
+#: constant-acceleration time, constant-speed time]
+REF_MOVE = 6
 # 106..113: toleranced parameters
 # 114..117: free
 NP_HEADER = 118

@@ -58,6 +58,7 @@ from . import speed_estimator as estimator, layout as lo
 from .tables import frozen_tables
 from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
+from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
 from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
 
 
@@ -258,29 +259,6 @@ def _pack_controller(controller, mode):
     return a, b, c, d
 
 
-def _pack_feedforward(P, controller, sample_time: float, notes: list) -> None:
-    """Fill the feedforward slots from ``controller.feedforward`` (all 0 without one: the
-    controller's output alone, every result as before)."""
-    ff = getattr(controller, "feedforward", None)
-    if ff is None or not ff.active:
-        return
-    P[lo.FF_ON] = 1.0
-    P[lo.FF_KV], P[lo.FF_KA] = ff.velocity, ff.acceleration
-    P[lo.FF_MODEL] = 1.0 if ff.model else 0.0
-    P[lo.FF_JSCALE] = ff.inertia_scale
-    P[lo.FF_SPEED] = 1.0 if ff.model else 0.0
-    P[lo.FF_LEAD] = 0.5 * sample_time
-    parts = [f"velocity {ff.velocity:.4g} A*s/rad"] if ff.velocity else []
-    parts += [f"acceleration {ff.acceleration:.4g} A*s^2/rad"] if ff.acceleration else []
-    if ff.model:
-        parts.append("model-based torque (rigid-chain inverse dynamics along the stroke"
-                     + (f", inertia x{ff.inertia_scale:.3g}" if ff.inertia_scale != 1.0 else "") + ")")
-    notes.append("feedforward from the reference and its derivatives, once per controller sample"
-                 + (f" (current at half a sample ahead, {0.5 * sample_time:.3g} s, the hold's delay)"
-                    if sample_time > 0 else "") + ": " + ", ".join(parts)
-                 + ("; the speed loop's reference is the motor speed along the command" if ff.model else ""))
-
-
 def build_model(scene, controller=None, options: ModelOptions | None = None) -> Model:
     """Assemble the compiled model of ``scene`` driven by ``controller``.
 
@@ -393,7 +371,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
         a, b, c, d = _pack_controller(controller, mode)
         nc = a.shape[0]
         P[lo.CMODE], P[lo.NC] = mode, nc
-        _pack_feedforward(P, controller, controller.sample_time if mode == lo.SAMPLED else 0.0, notes)
+        pack_feedforward(P, controller, scene, controller.sample_time if mode == lo.SAMPLED else 0.0, notes)
+        pack_shaper(P, controller, notes)
         P[lo.KPI], P[lo.KII] = controller.current_kp, controller.current_ki
         # back-calculation tracking time = the PI's integral time Kpi / Kii
         P[lo.KAW] = (P[lo.KII] / P[lo.KPI] if P[lo.KPI] > 0 else
@@ -424,6 +403,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             P = np.concatenate([P, extra])
             names += est_names
             notes.append(note)
+        P = with_schedule(P, controller, mode, notes)
+        P = with_back_calculation(P, a, c, mode, notes)
     else:
         P[lo.CMODE] = lo.OPEN_LOOP
     if full is not None:

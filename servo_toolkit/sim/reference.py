@@ -10,10 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..loop.profile import MoveProfile
 from . import layout as lo
 from .kernel import hermite, measured_angle, measured_motor_angle
 
-KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP}
+KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP,
+         "move": lo.REF_MOVE}
 
 
 @dataclass(frozen=True)
@@ -23,9 +25,10 @@ class Reference:
     Parameters
     ----------
     kind : str
-        ``"hold"``, ``"sine"``, ``"step"``, ``"ramp"`` or ``"voltage"`` (open loop).
+        ``"hold"``, ``"sine"``, ``"step"``, ``"ramp"``, ``"move"`` or ``"voltage"`` (open loop).
     amplitude : float
-        Sine amplitude or step size (rad), ramp rate (rad/s), or the voltage (V).
+        Sine amplitude or step size (rad), ramp rate (rad/s), a move's distance (rad), or the
+        voltage (V).
     frequency : float
         Sine frequency (Hz).
     offset : float or None
@@ -35,6 +38,8 @@ class Reference:
     swing : float
         Open loop: amplitude (V) of a sine at ``frequency`` added to the voltage (a sine
         dwell of the plant).
+    profile : MoveProfile or None
+        A move's jerk-limited profile (:meth:`move`).
     """
 
     kind: str = "hold"
@@ -43,10 +48,13 @@ class Reference:
     offset: float | None = None
     t0: float = 0.0
     swing: float = 0.0
+    profile: MoveProfile | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS and self.kind != "voltage":
             raise ValueError(f"reference kind must be one of {sorted(KINDS) + ['voltage']}, got {self.kind!r}")
+        if (self.kind == "move") != (self.profile is not None):
+            raise ValueError("a move reference needs its profile (Reference.move), and only a move has one")
 
     @classmethod
     def sine(cls, amplitude: float, frequency: float, offset: float | None = None) -> "Reference":
@@ -62,6 +70,14 @@ class Reference:
     def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset + rate * max(t - at, 0)."""
         return cls("ramp", rate, 0.0, offset, at)
+
+    @classmethod
+    def move(cls, distance: float, v_max: float, a_max: float, j_max: float, at: float = 0.0,
+             offset: float | None = None) -> "Reference":
+        """A jerk-limited move of ``distance`` from ``offset`` starting at ``at`` (s), within the
+        speed, acceleration and jerk limits (:class:`~servo_toolkit.loop.profile.MoveProfile`)."""
+        profile = MoveProfile(distance, v_max, a_max, j_max)
+        return cls("move", profile.distance, 0.0, offset, at, profile=profile)
 
     @classmethod
     def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
@@ -80,6 +96,8 @@ class Reference:
             return f"step {self.amplitude * scale:.3g} {unit} at t = {self.t0:.3g} s from {off}"
         if self.kind == "ramp":
             return f"ramp {self.amplitude * scale:.3g} {unit}/s from {off}"
+        if self.kind == "move":
+            return f"{self.profile.describe(output_unit)} at t = {self.t0:.3g} s from {off}"
         if self.kind == "voltage":
             sine = f" + {self.swing:.4g} V sine at {self.frequency:.4g} Hz" if self.swing else ""
             return f"open loop, {self.amplitude:.4g} V{sine}"
@@ -91,6 +109,8 @@ class Reference:
                "offset_rad": self.offset, "t0_s": self.t0}
         if self.swing:
             out["swing_V"] = self.swing
+        if self.profile is not None:
+            out["move"] = self.profile.to_dict()
         return out
 
 
@@ -110,6 +130,9 @@ def fill(model, ref: Reference) -> np.ndarray:
     P[lo.REF_KIND] = KINDS[ref.kind]
     P[lo.REF_A], P[lo.REF_F], P[lo.REF_T0] = ref.amplitude, ref.frequency, ref.t0
     P[lo.REF_OFF] = model.q0 if ref.offset is None else ref.offset
+    if ref.profile is not None:  # the move's block after the parameters, its index in REF_F
+        P[lo.REF_F] = P.size
+        P = np.concatenate([P, ref.profile.block()])
     return P
 
 

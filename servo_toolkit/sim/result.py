@@ -100,6 +100,23 @@ class SimulationResult(RichDisplay):
         return self.trace("output_angle_rad")
 
     @property
+    def start_transient_s(self) -> float:
+        """End of the start's transient (s): a sine starts at full speed from rest, so its first
+        two periods are left out of :attr:`settled_tracking_error`; 0 for other commands."""
+        ref = self.reference or {}
+        f = ref.get("frequency_Hz") or 0.0
+        if ref.get("kind") != "sine" or not f > 0:
+            return 0.0
+        end = float(ref.get("t0_s") or 0.0) + 2.0 / f
+        return end if end < self.t_final else 0.0
+
+    @property
+    def settled_tracking_error(self) -> float:
+        """Peak |q - r| after the start's transient (:attr:`start_transient_s`; rad, or m)."""
+        keep = self.times > self.start_transient_s
+        return float(np.max(np.abs(self.output_angle - self.reference_angle)[keep]))
+
+    @property
     def final_state(self) -> dict:
         """Last state by name."""
         return {n: float(v) for n, v in zip(self.state_names, self.states[-1])}
@@ -129,6 +146,8 @@ class SimulationResult(RichDisplay):
             "max_abs_current_A": float(self.peaks.get("max_abs_current_A", np.max(np.abs(self.motor_current)))),
             "max_abs_voltage_V": float(np.max(np.abs(self.motor_voltage))),
             self.unit.key("max_abs_tracking_error"): float(self.unit.show(err)),
+            self.unit.key("max_abs_tracking_error_after_start"): float(self.unit.show(self.settled_tracking_error)),
+            "start_transient_s": self.start_transient_s,
             "wall_s": float(self.wall_s),
             "method": self.method,
             "requested_method": self.requested,
@@ -151,7 +170,9 @@ class SimulationResult(RichDisplay):
                  f"  controller: {self.controller}",
                  f"  t_final {d['t_final_s']:.4g} s, peak motor torque {d['max_abs_motor_torque_Nm']:.4g} N*m, "
                  f"peak current {d['max_abs_current_A']:.4g} A, peak |error| "
-                 f"{d[self.unit.key('max_abs_tracking_error')]:.4g} {self.unit.shown}"]
+                 f"{d[self.unit.key('max_abs_tracking_error')]:.4g} {self.unit.shown}"
+                 + (f" ({d[self.unit.key('max_abs_tracking_error_after_start')]:.4g} {self.unit.shown} after the "
+                    f"start's transient, t > {self.start_transient_s:.3g} s)" if self.start_transient_s else "")]
         if self.stability:
             lam = self.stability.get("max_abs_lambda", math.nan)
             lines.append(f"  fastest eigenvalue |lambda| = {lam:.4g} 1/s, RK4 step limit "

@@ -32,29 +32,37 @@ def controller_for(scene):
     return result.controller, "loop.design"
 
 
-def with_feedforward(controller, feedforward):
-    """The controller with its feedforward replaced: a :class:`Feedforward`, ``"off"`` (none),
-    ``"model"`` (model-based torque feedforward) or None (the controller's own).
+def with_feedforward(controller, feedforward, scene=None, *, shaper=None, schedule=None):
+    """The controller with its feedforward (and, given, its command shaper and gain schedule)
+    replaced: a :class:`Feedforward`, ``"off"`` (none), ``"gains"`` (the designed velocity and
+    acceleration gains of ``scene``, :func:`servo_toolkit.loop.feedforward.feedforward_gains`),
+    ``"model"`` (model-based torque feedforward) or None (the controller's own); ``shaper``
+    and ``schedule`` as :func:`servo_toolkit.loop.feedforward.with_command`.
 
     Raises
     ------
     SceneError
-        ``feedforward`` names no known kind (key ``feedforward``).
+        ``feedforward`` names no known kind (key ``feedforward``), ``"gains"`` without a
+        scene; a bad shaper or schedule (their keys).
     """
-    if feedforward is None:
-        return controller
-    if isinstance(feedforward, str):
-        if feedforward not in FEEDFORWARD_KINDS or feedforward == "gains":
-            raise SceneError("feedforward", f"must be 'off' or 'model' (got {feedforward!r})")
-        feedforward = Feedforward.from_kind(feedforward)
-    elif not isinstance(feedforward, Feedforward):
-        raise SceneError("feedforward", f"must be a Feedforward, 'off' or 'model' (got {feedforward!r})")
-    return replace(controller, feedforward=feedforward)
+    from ..loop.feedforward import with_command
+    if isinstance(feedforward, str) and feedforward not in FEEDFORWARD_KINDS:
+        raise SceneError("feedforward", f"must be one of {', '.join(FEEDFORWARD_KINDS)} (got {feedforward!r})")
+    if feedforward is not None and not isinstance(feedforward, (str, Feedforward)):
+        raise SceneError("feedforward", f"must be a Feedforward or one of {', '.join(FEEDFORWARD_KINDS)} "
+                                        f"(got {feedforward!r})")
+    if scene is None:
+        if feedforward == "gains" or shaper is not None or schedule is not None:
+            raise SceneError("feedforward", "designed gains, a shaper or a schedule need the scene")
+        return controller if feedforward is None else replace(controller, feedforward=Feedforward.from_kind(feedforward)
+                                                              if isinstance(feedforward, str) else feedforward)
+    return with_command(controller, scene, feedforward=feedforward, shaper=shaper, schedule=schedule)
 
 
 def simulate(scene, controller=None, *, reference: Reference | None = None, duration: float = 1.0,
              method: str = "rk4", dt: float | None = None, voltage: float | None = None,
-             options: ModelOptions | None = None, feedforward=None, **run_options):
+             options: ModelOptions | None = None, feedforward=None, shaper=None, schedule=None,
+             **run_options):
     """Simulate a scene in closed loop (or open loop at a constant voltage).
 
     Parameters
@@ -72,9 +80,13 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     voltage : float, optional
         Open-loop armature voltage (V).
     options : ModelOptions, optional
-    feedforward : Feedforward or {"off", "model"}, optional
+    feedforward : Feedforward or {"off", "gains", "model"}, optional
         Replaces the controller's feedforward (:func:`with_feedforward`); None keeps it.
         Outside the loop: the margins are the same with and without.
+    shaper : InputShaper or {"off", "zv", "zvd"}, optional
+        Command shaper on the reference (None keeps the controller's).
+    schedule : bool or GainSchedule, optional
+        Gains scheduled along the stroke (None keeps the controller's).
     **run_options
         Passed to :func:`servo_toolkit.sim.run` (``output_dt``, ``solver``, ``rtol``, ...).
 
@@ -86,13 +98,14 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     if voltage is not None:
         if controller is not None:
             raise ValueError("give either a controller or an open-loop voltage, not both")
-        if feedforward not in (None, "off"):
-            raise SceneError("feedforward", f"needs a closed loop, not an open-loop voltage (got {feedforward!r})")
+        if feedforward not in (None, "off") or shaper not in (None, "off") or schedule not in (None, False):
+            raise SceneError("feedforward", "a feedforward, shaper or schedule needs a closed loop, not an open-loop "
+                                            "voltage")
         reference = Reference.voltage(voltage)
     elif controller is None:
         controller, source = controller_for(scene)
     if controller is not None:
-        controller = with_feedforward(controller, feedforward)
+        controller = with_feedforward(controller, feedforward, scene, shaper=shaper, schedule=schedule)
     model = build_model(scene, controller, options)
     result = run(model, reference or Reference(), duration, method, dt, **run_options)
     if source != "given":

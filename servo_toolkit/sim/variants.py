@@ -9,7 +9,9 @@ parameter slots and table rows move:
 
 - the tables and the load-side inertia are linear in the load inertia (J = sum m t^2);
 - the slots that follow from the inertias and the stiffness at q0 (damping, end stop) are
-  filled by :func:`~.model.drivetrain_slots`, the function :func:`build_model` uses.
+  filled by :func:`~.model.drivetrain_slots`, the function :func:`build_model` uses;
+- a feedforward that assumes a given load inertia (the nominal one) offsets its inertia from
+  the variant's by the difference (``FF_DJ``, linear in the load inertia too).
 
 Every other slot is copied from the nominal model, so slots added to the model later follow
 without change here. If any other slot moves with a varied parameter, or the rows built
@@ -94,25 +96,27 @@ class VariantBuilder:
     j0: float
     k0: float
     fast: bool
+    d_ff: float = 0.0
 
     @classmethod
     def create(cls, scene, controller, options, varied=("load_inertia", "stiffness"), model=None):
         """Build the nominal model and learn how the varied parameters move its rows."""
         m0 = model or build_model(scene, controller, options)
         # the full chain's variants are built exactly (its segment block moves with them)
-        fast, d_table, d_jl, d_j0 = m0.P[lo.NMID] == 0.0, None, 0.0, 0.0
+        fast, d_table, d_jl, d_j0, d_ff = m0.P[lo.NMID] == 0.0, None, 0.0, 0.0, 0.0
         if "load_inertia" in varied and fast:
             m1 = build_model(with_load_inertia(scene, scene.load.inertia + 1.0), controller, options)
-            fast &= m1.rigid == m0.rigid and _moved(m0.P, m1.P) <= DRIVETRAIN_SLOTS
+            fast &= m1.rigid == m0.rigid and _moved(m0.P, m1.P) <= DRIVETRAIN_SLOTS | {lo.FF_DJ}
             if fast:
                 d_jl = float(m1.P[lo.JL] - m0.P[lo.JL])
                 d_j0 = _j0_total(m1) - _j0_total(m0)
+                d_ff = float(m1.P[lo.FF_DJ] - m0.P[lo.FF_DJ])
                 d_table = m1.T - m0.T if _moved(m0.T, m1.T) else None
         if "stiffness" in varied and fast:
             m2 = build_model(scene, controller, replace(options, stiffness_scale=2 * options.stiffness_scale))
             fast &= m2.rigid == m0.rigid and _moved(m0.P, m2.P) <= DRIVETRAIN_SLOTS and not _moved(m0.T, m2.T)
         return cls(scene, controller, options, m0, d_table, d_jl, d_j0, _j0_total(m0),
-                   0.0 if m0.rigid else _k0(m0), fast)
+                   0.0 if m0.rigid else _k0(m0), fast, d_ff)
 
     def _options(self, stiffness):
         return replace(self.options, stiffness_scale=self.options.stiffness_scale * float(stiffness))
@@ -130,6 +134,7 @@ class VariantBuilder:
         drivetrain_slots(P, rigid=m.rigid, j0_tot=self.j0 + delta * self.d_j0, jl=jl, k0=self.k0,
                          options=self._options(1.0 if stiffness is None else stiffness),
                          play=2.0 * float(m.P[lo.HALF_PLAY]))
+        P[lo.FF_DJ] = P0[lo.FF_DJ] + delta * self.d_ff
         return P, (None if self.d_table is None or delta == 0.0 else delta * self.d_table)
 
     def exact(self, load_inertia=None, stiffness=None):

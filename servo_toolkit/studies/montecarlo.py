@@ -21,6 +21,7 @@ from ..errors import SceneError
 from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
 from ..core.parallel import chunks, run_cases
 from ..sim import controller_for
+from ..sim.simulate import with_feedforward
 from ..sim import layout as lo
 from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
 from ..sim.batch_run import integrate_variants
@@ -105,7 +106,7 @@ def _reason(status, step, dt, stable, lam_dt):
 def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
                grid: bool | None = None, duration: float | None = None, full: bool = False,
                controller=None, reference=None, dt: float | None = None, executor=None,
-               chunk_size: int = CHUNK_SIZE, progress: bool = True) -> MonteCarloResult:
+               chunk_size: int = CHUNK_SIZE, progress: bool = True, feedforward=None) -> MonteCarloResult:
     """Closed-loop time runs of parameter variants of ``scene``, batched.
 
     Parameters
@@ -134,6 +135,10 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         Runs chunks of ``chunk_size`` variants.
     chunk_size : int
     progress : bool
+    feedforward : Feedforward or {"off", "gains", "model"}, optional
+        Replaces the controller's feedforward. A model-based feedforward keeps the nominal
+        scene's load inertia in every variant (``Feedforward.load_inertia``, unless it sets
+        its own), as a drive's does: it does not know a variant's true inertia.
 
     Returns
     -------
@@ -163,6 +168,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     if controller is None:
         controller, source = controller_for(scene)
         source = f"controller from {source}"
+    controller = nominal_feedforward(with_feedforward(controller, feedforward, scene), scene)
     options, notes = sine_run_options(scene, controller, reference, full)
     notes.insert(0, f"{source}, the same on every variant")
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
@@ -202,8 +208,18 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         duration_s=duration, linear_output=linear, display=scene.display,
         settings={"samples": int(samples), "seed": int(seed), "method": "grid" if grid else "monte_carlo",
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
-                  "controller": model.controller},
+                  "controller": model.controller,
+                  "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
         notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference))
+
+
+def nominal_feedforward(controller, scene):
+    """The controller with a model-based feedforward pinned to ``scene``'s load inertia (the
+    nominal model a drive's feedforward is built from); unchanged otherwise."""
+    ff = controller.feedforward
+    if ff is None or not ff.model or ff.load_inertia is not None:
+        return controller
+    return replace(controller, feedforward=replace(ff, load_inertia=float(scene.load.inertia)))
 
 
 def _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size):

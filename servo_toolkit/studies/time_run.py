@@ -19,7 +19,7 @@ from .time_reference import run_spec
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
                    full: bool = False, amplitude: float | None = None, frequency: float | None = None,
-                   feedforward=None):
+                   feedforward=None, shaper=None, schedule=None):
     """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
 
     Parameters
@@ -37,9 +37,13 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     amplitude, frequency : float, optional
         Replace the sine command's amplitude (rad, or m for an output travel) and
         frequency (Hz).
-    feedforward : Feedforward or {"off", "model"}, optional
+    feedforward : Feedforward or {"off", "gains", "model"}, optional
         The controller's feedforward (:func:`servo_toolkit.sim.simulate.with_feedforward`);
         None: the designed controller's (none).
+    shaper : InputShaper or {"off", "zv", "zvd"}, optional
+        Command shaper on the sine (None: none).
+    schedule : bool or GainSchedule, optional
+        Gains scheduled along the stroke (None: none).
 
     Returns
     -------
@@ -51,9 +55,9 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     method, dt = resolve_method(method, study_method, dt, study_dt)
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage,
-                        feedforward=feedforward)
+                        feedforward=feedforward, shaper=shaper, schedule=schedule)
     controller, source = controller_for(scene)
-    controller = with_feedforward(controller, feedforward)
+    controller = with_feedforward(controller, feedforward, scene, shaper=shaper, schedule=schedule)
     options, notes = sine_run_options(scene, controller, reference, full)
     notes.insert(0, f"controller from {source}")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,

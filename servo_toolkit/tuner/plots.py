@@ -1,4 +1,5 @@
-"""The tuner's figure: loop Bode with margins, Nichols chart, step and 8 Hz sine responses."""
+"""The tuner's figure: loop Bode with margins, Nichols chart, step and 8 Hz sine responses
+(the sine with and without the controller's feedforward, when it has one)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,10 @@ import numpy as np
 SINE_HZ = 8.0
 
 
-def draw(result, axes) -> None:
-    """Draw the four panels of ``result`` (a DesignResult) on a 2x2 array of axes."""
+def draw(result, axes, scene=None) -> None:
+    """Draw the four panels of ``result`` (a DesignResult) on a 2x2 array of axes; with the
+    ``scene`` and a controller with a feedforward, the sine panel also shows the output with
+    it (:func:`servo_toolkit.loop.tracking.sine_tracking`)."""
     import control as ct
     (bode, nichols), (step, sine) = axes
     m = result.margins
@@ -46,7 +49,13 @@ def draw(result, axes) -> None:
     out = np.asarray(ct.forced_response(result.closed_loop, ts, ref).outputs).reshape(-1)
     sine.plot(ts * 1e3, ref, color="0.6", lw=0.8, label="command")
     sine.plot(ts * 1e3, out, label="output")
+    title = ""
+    if scene is not None and result.controller.feedforward is not None:
+        from ..loop.tracking import sine_tracking
+        tr = sine_tracking(scene, result.controller, u.default_amplitude, SINE_HZ, result.q0, cycles=4, points=800)
+        sine.plot(tr["t"] * 1e3, u.show(tr["output"]), label=f"output, {result.controller.feedforward.kind} feedforward")
+        title = f", error {u.show(tr['steady_error']):.2g} {u.shown} with feedforward"
     sine.set(xlabel="time [ms]", ylabel=f"{'travel' if u.linear else 'angle'} [{u.shown}]",
-             title=f"{amp:g} {u.shown} sine at {SINE_HZ:g} Hz")
+             title=f"{amp:g} {u.shown} sine at {SINE_HZ:g} Hz{title}")
     sine.grid(True, alpha=0.3)
     sine.legend(fontsize="x-small")

@@ -30,8 +30,8 @@ class Tuner:
     ----------
     controls : dict of str to ipywidgets widget
         ``bandwidth_hz``, ``kp``, ``kv``, ``wvi``, ``resonance_filter``, ``filter_hz``,
-        ``depth_db``, ``width``, ``q0`` (deg, or mm for an output travel): set their ``value``
-        to tune from code.
+        ``depth_db``, ``width``, ``q0`` (deg, or mm for an output travel), ``feedforward``
+        (``"off"``, ``"gains"``, ``"model"``): set their ``value`` to tune from code.
     current : DesignResult
         The loop with the controls' values (updated on every change).
     result : DesignResult or None
@@ -72,6 +72,10 @@ class Tuner:
             "q0": w.FloatSlider(value=self._unit.show(t.q0), min=self._unit.show(lo), max=self._unit.show(hi),
                                 step=(self._unit.show(hi) - self._unit.show(lo)) / 200,
                                 description=f"operating point [{self._unit.shown}]", **log),
+            "feedforward": w.Dropdown(options=["off", "gains", "model"],
+                                      value="off" if self._base.controller.feedforward is None
+                                      else self._base.controller.feedforward.kind,
+                                      description="feedforward", style=log["style"]),
         }
         self._bw0 = self.controls["bandwidth_hz"].value
         self.views = w.HTML()
@@ -95,7 +99,7 @@ class Tuner:
         return LoopTuning(bandwidth_hz=None if math.isclose(bw, self._bw0) else bw, kp=c["kp"].value,
                           kv=c["kv"].value, wvi=c["wvi"].value, resonance_filter=c["resonance_filter"].value,
                           filter_hz=c["filter_hz"].value, depth_db=c["depth_db"].value, width=c["width"].value,
-                          q0=c["q0"].value / self._unit.factor)
+                          q0=c["q0"].value / self._unit.factor, feedforward=c["feedforward"].value)
 
     def _base_for(self, bandwidth_hz):
         if bandwidth_hz not in self._bases:
@@ -128,7 +132,7 @@ class Tuner:
         self.current = tuned_design(self.scene, values, base=base)
         d = self.current
         m = d.margins
-        self.views.value = svg(lambda ax: draw(d, ax), size=(9.0, 6.0), rows=2, cols=2)
+        self.views.value = svg(lambda ax: draw(d, ax, self.scene), size=(9.0, 6.0), rows=2, cols=2)
         worst = d.stroke.summary().replace("\n", "<br>") if d.stroke is not None else ""
         self.table.value = (f"<b>{'requirements met' if d.passed else 'requirements NOT met'}</b>; bandwidth "
                             f"{m.bandwidth_hz:.3g} Hz, phase at 8 Hz {m.phase_at_freq_deg:.3g} deg, disk margin "

@@ -1,0 +1,99 @@
+"""The parameter slots of what a controller adds around its feedback: the feedforward, the
+command shaper and the gain schedule along the stroke (:class:`servo_toolkit.loop.controller.
+CascadeController`; slots in :mod:`servo_toolkit.sim.layout`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SceneError
+from . import layout as lo
+
+
+def pack_feedforward(P, controller, scene, sample_time: float, notes: list) -> None:
+    """Fill the feedforward slots from ``controller.feedforward`` (all 0 without one: the
+    controller's output alone, every result as before). Velocity and acceleration gains and
+    the model-based feedforward all give the speed loop the motor speed along the command as
+    its reference (it would otherwise oppose the commanded motion)."""
+    ff = getattr(controller, "feedforward", None)
+    if ff is None or not ff.active:
+        return
+    P[lo.FF_ON] = 1.0
+    P[lo.FF_KV], P[lo.FF_KA] = ff.velocity, ff.acceleration
+    P[lo.FF_MODEL] = 1.0 if ff.model else 0.0
+    P[lo.FF_JSCALE] = ff.inertia_scale
+    P[lo.FF_SPEED] = 1.0
+    P[lo.FF_LEAD] = 0.5 * sample_time
+    unit = "m" if scene.drivetrain.output_unit == "m" else "rad"
+    parts = [f"velocity {ff.velocity:.4g} A*s/{unit}"] if ff.velocity else []
+    parts += [f"acceleration {ff.acceleration:.4g} A*s^2/{unit}"] if ff.acceleration else []
+    if ff.model:
+        if ff.load_inertia is not None:
+            P[lo.FF_DJ] = ff.load_inertia - scene.load.inertia
+        parts.append("model-based torque (rigid-chain inverse dynamics along the stroke"
+                     + (f", inertia x{ff.inertia_scale:.3g}" if ff.inertia_scale != 1.0 else "")
+                     + (f", load inertia {ff.load_inertia:.4g} assumed (the model's {scene.load.inertia:.4g})"
+                        if ff.load_inertia is not None and P[lo.FF_DJ] != 0.0 else "") + ")")
+    notes.append("feedforward from the reference and its derivatives, once per controller sample"
+                 + (f" (current at half a sample ahead, {0.5 * sample_time:.3g} s, the hold's delay)"
+                    if sample_time > 0 else "") + ": " + ", ".join(parts)
+                 + "; the speed loop's reference is the motor speed along the command")
+
+
+def pack_shaper(P, controller, notes: list) -> None:
+    """Fill the command shaper's slots from ``controller.shaper`` (up to three impulses)."""
+    shaper = getattr(controller, "shaper", None)
+    if shaper is None:
+        return
+    amps, times = list(shaper.amplitudes), list(shaper.times)
+    if len(amps) > 3 or times[0] != 0.0:
+        raise SceneError("shaper", f"the kernel takes up to 3 impulses, the first at t = 0 (got {len(amps)})")
+    amps += [0.0] * (3 - len(amps))
+    times += [0.0] * (3 - len(times))
+    P[[lo.SHAPE_A0, lo.SHAPE_A1, lo.SHAPE_A2]] = amps
+    P[lo.SHAPE_T1], P[lo.SHAPE_T2] = times[1], times[2]
+    notes.append(f"command shaped: {shaper.describe()} (outside the loop; the reference and its derivatives)")
+
+
+def with_schedule(P, controller, mode: int, notes: list):
+    """Append ``controller.schedule``'s block (its index in ``SCHED``); ``FF_ON`` marks the
+    sample as more than the state-space update. Returns P.
+
+    Raises
+    ------
+    SceneError
+        A schedule on a continuous controller (key ``schedule``): it is applied per sample.
+    """
+    schedule = getattr(controller, "schedule", None)
+    if schedule is None:
+        return P
+    if mode != lo.SAMPLED:
+        raise SceneError("schedule", "a gain schedule is applied once per controller sample: it needs a sampled "
+                                     "controller (the scene's sensors.sample_time, controller_mode 'sampled')")
+    P[lo.FF_ON] = 1.0
+    P[lo.SCHED] = P.size
+    notes.append(schedule.describe() + ", interpolated at the measured output position once per sample")
+    return np.concatenate([P, schedule.block()])
+
+
+def with_back_calculation(P, a, c, mode: int, notes: list):
+    """Append the clamp's back-calculation gains when the sample does more than the state-space
+    update (``FF_ON``: a feedforward or a schedule): the discrete motion controller's integrator
+    direction v (its eigenvector at z = 1) over its output gain C v, so that a clamped sample
+    moves the integrator by the excess and the next output starts at the limit. A controller
+    without an integrator, or a continuous one, gets none. Returns P."""
+    if P[lo.FF_ON] <= 0.0 or mode != lo.SAMPLED or a.shape[0] == 0:
+        return P
+    ev, vec = np.linalg.eig(a)
+    k = int(np.argmin(np.abs(ev - 1.0)))
+    v = np.real(vec[:, k])
+    gain = float(np.ravel(c) @ v)
+    if abs(ev[k] - 1.0) > 1e-9 or not abs(gain) > 1e-300:
+        return P
+    P[lo.AW] = P.size
+    notes.append("at the current limit the motion controller's integrator takes the clamp's excess "
+                 "(back-calculation: the feedback is not wound up while the feedforward holds the limit)")
+    return np.concatenate([P, v / gain])
+
+
+__all__ = ["pack_feedforward", "pack_shaper", "with_back_calculation", "with_schedule"]
