@@ -29,6 +29,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..core.output_units import REQUIREMENT_SINE_HZ
+from ..drivetrain.chain_damping import chain_damping, kept_nodes, segment_stiffness, segments
 from ..errors import SceneError
 from . import layout as lo
 
@@ -70,11 +71,6 @@ def crossover_hz(scene, controller) -> float:
     return float(f[above[-1]]) if above.size else math.nan
 
 
-def kept_nodes(chain, q0: float) -> np.ndarray:
-    """The chain's nodes with inertia at q0 (the others are condensed)."""
-    return chain.condensed(q0)[2]
-
-
 def resolve(scene, controller, options, q0: float, notes: list) -> str:
     """``"full"`` or ``"two_mass"`` for ``options.chain`` (``"auto"`` decided here, and said)."""
     chain = scene.drivetrain.chain
@@ -97,19 +93,6 @@ def resolve(scene, controller, options, q0: float, notes: list) -> str:
 
 def _hz(values) -> str:
     return ", ".join(f"{v:.4g}" for v in values) + " Hz"
-
-
-def segments(chain, q0: float) -> list[tuple[int, int]]:
-    """(first, last) node of each segment between consecutive kept nodes; segment s holds the
-    chain's springs first .. last - 1."""
-    keep = kept_nodes(chain, q0)
-    return [(int(a), int(b)) for a, b in zip(keep[:-1], keep[1:])]
-
-
-def segment_stiffness(chain, q, segs) -> np.ndarray:
-    """Series stiffness of each segment along q, shape (n_segments, n_q)."""
-    k = chain.spring_stiffness(q)
-    return np.array([1.0 / np.sum(1.0 / k[a:b], axis=0) for a, b in segs])
 
 
 def segment_plays(drive, segs, q0: float, options) -> np.ndarray:
@@ -136,51 +119,94 @@ def segment_plays(drive, segs, q0: float, options) -> np.ndarray:
     return plays
 
 
-def chain_model(drive, q, q0: float, options, j_tot, zeta: float):
+def chain_model(drive, q, q0: float, options, j_tot, dj_tot, zeta: float):
     """Tables and parameters of the full chain.
+
+    Parameters
+    ----------
+    drive : Drivetrain
+    q : numpy.ndarray
+        The stroke grid of the tables.
+    q0 : float
+        Operating point (nodes, segments and dampers are those at q0).
+    options : ModelOptions
+    j_tot, dj_tot : numpy.ndarray
+        The chain's total inertia along q and its derivative (constant without
+        ``options.variable_inertia``).
+    zeta : float
+        Damping ratio of each compliance whose stage gives none.
 
     Returns
     -------
     dict
-        ``j_row`` (the motor side's inertia along q), ``k_rows`` (segment stiffness, values and
-        derivatives, shape (2 n_seg, n_q)), ``block`` (the segment block of P, SEG_STRIDE per
-        segment), ``half_play`` (segment 0's), ``j_load``, ``j_motor0`` (the motor side at
-        q0), ``k_series0`` (every segment in series at q0), ``beta``, ``load_side`` (names),
-        ``nodes`` (kept node indices), ``jw_motor`` (node 0's inertia before the losses).
+        ``j_row``, ``dj_row`` (the motor node's inertia along p and its derivative: the total
+        less every other node's), ``k_rows`` (segment stiffness, values and derivatives,
+        shape (2 n_seg, n_q)), ``node_rows`` (the motor node's J_w, dJ_w/dp, then per further
+        node J_j, dJ_j/dp, J_w,j, dJ_w,j/dp), ``block`` (the segment block of P, SEG_STRIDE
+        per segment), ``half_play`` (segment 0's), ``j_load`` (the load node at q0),
+        ``j_motor0`` (the motor node at q0), ``k_series0`` (every segment in series at q0),
+        ``damping`` (:class:`~servo_toolkit.drivetrain.chain_damping.ChainDamping`),
+        ``load_side`` (names), ``nodes`` (kept node indices), ``jw_motor`` (node 0's inertia
+        before the losses at q0), ``variation`` (each further node's relative variation of
+        inertia along the stroke).
     """
     chain = drive.chain
     segs = segments(chain, q0)
     keep = kept_nodes(chain, q0)
-    nodes0 = chain.node_inertias([q0])[:, 0]
-    held = nodes0[keep[1:]]
-    j_row = j_tot - held.sum()
-    if np.any(j_row <= 0):
-        raise SceneError("drivetrain", "the motor node's inertia is not positive along the stroke")
+    beyond = list(keep[1:])
+    fractions = chain.loss_fractions()
+    grid = q if options.variable_inertia else np.array([q0])
+    jn, djn = chain.node_jets(grid)
+    jw, djw = chain.node_jets(grid, fractions)
+    if not options.variable_inertia:
+        jn, jw = (np.repeat(a, q.size, axis=1) for a in (jn, jw))
+        djn, djw = np.zeros_like(jn), np.zeros_like(jw)
+    j_row = j_tot - jn[beyond].sum(axis=0)
+    dj_row = dj_tot - djn[beyond].sum(axis=0)
+    if np.any(j_row <= 0) or np.any(jn[beyond] <= 0):
+        raise SceneError("drivetrain", "a node of the drivetrain chain has no positive inertia along the stroke "
+                         "(its inertia is tabulated along the stroke)")
     k_seg = segment_stiffness(chain, q, segs)
     k_rows = np.vstack([np.vstack([k, CubicSpline(q, k)(q, 1)]) for k in k_seg])
+    node_rows = np.vstack([jw[0], djw[0]] + [np.vstack([jn[j], djn[j], jw[j], djw[j]]) for j in beyond])
     eta = chain.efficiency
-    elem_j = chain.element_inertias([q0])[:, 0]
-    frac_e = np.array([(1.0 - eta / e.loss) / (1.0 - eta) if eta < 1.0 else 0.0 for e in chain.elements])
-    jw_node = np.zeros(chain.n_nodes)
-    for e, j, fr in zip(chain.elements, elem_j, frac_e):
-        jw_node[e.node] += j * fr
     pi_s = chain.spring_losses()
     frac_s = [(1.0 - eta / pi_s[a]) / (1.0 - eta) if eta < 1.0 else 0.0 for a, _ in segs]
     plays = segment_plays(drive, segs, q0, options)
+    damping = chain_damping(chain, q0, zeta, stiffness_scale=options.stiffness_scale)
     block = np.zeros(lo.SEG_STRIDE * len(segs))
-    for s, (a, b) in enumerate(segs):
+    for s in range(len(segs)):
         block[lo.SEG_STRIDE * s + lo.SEG_PLAY] = 0.5 * plays[s]
         block[lo.SEG_STRIDE * s + lo.SEG_LOSS] = frac_s[s]
-        block[lo.SEG_STRIDE * s + lo.SEG_J] = nodes0[b]
-        block[lo.SEG_STRIDE * s + lo.SEG_JW] = jw_node[b]
-    w1 = float(chain.eigenfrequencies(q0, driving=True)[0]) * math.sqrt(options.stiffness_scale)
+        block[lo.SEG_STRIDE * s + lo.SEG_BETA] = damping.beta[s]
     k0 = np.array([np.interp(q0, q, k) for k in k_seg])
+    at_q0 = chain.node_jets([q0])[0][:, 0]
     last = keep[-1]
-    return {"j_row": j_row, "k_rows": k_rows, "block": block, "half_play": 0.5 * plays[0],
-            "j_load": float(nodes0[last]), "j_motor0": float(np.interp(q0, q, j_row)),
-            "k_series0": float(1.0 / np.sum(1.0 / k0)), "beta": 2.0 * zeta / w1,
+    lo_s, hi_s = drive.stroke
+    inside = (q >= lo_s) & (q <= hi_s)
+    variation = {int(j): float(np.ptp(jn[j][inside]) / at_q0[j]) for j in beyond}
+    return {"j_row": j_row, "dj_row": dj_row, "k_rows": k_rows, "node_rows": node_rows, "block": block,
+            "half_play": 0.5 * plays[0], "j_load": float(at_q0[last]), "j_motor0": float(np.interp(q0, q, j_row)),
+            "k_series0": float(1.0 / np.sum(1.0 / k0)), "damping": damping,
             "load_side": tuple(e.label for e in chain.elements if e.node == last),
-            "nodes": tuple(int(n) for n in keep), "jw_motor": float(jw_node[0])}
+            "nodes": tuple(int(n) for n in keep), "jw_motor": float(chain.node_jets([q0], fractions)[0][0, 0]),
+            "variation": variation}
+
+
+def chain_damping_facts(damping) -> dict:
+    """The full chain's dampers as plain numbers (:attr:`servo_toolkit.sim.model.Model.damping`)."""
+    return {"segment_ratios": [float(z) for z in damping.ratios], "beta_s": [float(b) for b in damping.beta],
+            "modes_hz": [float(w / (2 * math.pi)) for w in damping.frequencies],
+            "mode_ratios": [float(z) for z in damping.modal_ratios]}
+
+
+def damping_note(damping) -> str:
+    """The full chain's structural damping in words: each segment's ratio, each mode's."""
+    ratios = ", ".join(f"{z:.3g}" for z in damping.ratios)
+    modes = ", ".join(f"{z:.3g} at {w / (2 * math.pi):.4g} Hz" for z, w in zip(damping.modal_ratios,
+                                                                             damping.frequencies))
+    return (f"a damper on each compliance (damping ratios {ratios} in the modes they dominate): modal damping "
+            f"ratios {modes}")
 
 
 def chain_state_names(nodes) -> list[str]:
@@ -188,5 +214,6 @@ def chain_state_names(nodes) -> list[str]:
     return [name for n in nodes[1:-1] for name in (f"node[{n}]_position", f"node[{n}]_rate")]
 
 
-__all__ = ["CHAIN_CHOICES", "MODE_FACTOR", "chain_model", "chain_state_names", "crossover_hz", "resolve",
+__all__ = ["CHAIN_CHOICES", "MODE_FACTOR", "chain_damping_facts", "chain_model", "chain_state_names", "crossover_hz",
+           "damping_note", "resolve",
            "segment_plays", "segment_stiffness", "segments", "working_frequency"]

@@ -55,7 +55,9 @@ from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
 from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
-from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
+from ..plant.linear import two_mass_damping
+from .chain_model import (CHAIN_CHOICES, chain_damping_facts, chain_model, chain_state_names, damping_note,
+                          resolve as resolve_chain)
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
 
@@ -199,6 +201,11 @@ class Model:
         The estimator's data (quantum, jerk, gain, state names); empty for ``"ideal"``.
     output_unit : {"rad", "m"}
         Unit of the output coordinate q (an angle, or a travel for a chain ending in a screw).
+    damping : dict
+        The drivetrain's structural damping: ``two_mass_ratio`` (the damping ratio of the
+        two-mass reduction's mode, the chain's lowest mode's), and for the full chain each
+        segment's ``segment_ratios`` and ``beta_s``, each mode's ``modes_hz`` and its
+        ``mode_ratios`` (modal); empty for a rigid chain.
     """
 
     name: str
@@ -219,6 +226,7 @@ class Model:
     speed_estimator: str = "ideal"
     estimator: dict = field(default_factory=dict)
     output_unit: str = "rad"
+    damping: dict = field(default_factory=dict)
 
     def parameters(self) -> np.ndarray:
         """A writable copy of ``P`` (fill the reference slots, then run)."""
@@ -315,9 +323,15 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
     jl, load_side, last_motor_node, k_factor = load_split(drive, q0)
     full = None
+    damping = {}
+    if not rigid:
+        zeta = two_mass_damping(drive.chain, q0, options.damping_ratio)
+        damping = {"two_mass_ratio": zeta}
     if not rigid and resolve_chain(scene, controller, options, q0, notes) == "full":
-        full = chain_model(drive, q, q0, options, j_tot, options.damping_ratio)
+        full = chain_model(drive, q, q0, options, j_tot, dj_tot, options.damping_ratio)
         jl, load_side, last_motor_node, k_factor = full["j_load"], full["load_side"], 0, 1.0
+        damping.update(chain_damping_facts(full["damping"]))
+        notes.append(damping_note(full["damping"]))
     if not rigid and full is None:
         k_tot = k_tot * k_factor
         if abs(k_factor - 1.0) > 1e-3:
@@ -330,24 +344,28 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if rigid and options.compliance and not np.all(np.isfinite(k_tot)):
         notes.append("no compliance in the scene: rigid chain")
         refuse_rigid_lash(drive.chain.rigid_lashes, options)
+    dj_row = dj_tot
     if rigid:
         last_motor_node = None
         j_row, k_row, dk_row, jl = j_tot, np.zeros_like(q), np.zeros_like(q), 0.0
+    elif full is not None:
+        j_row, dj_row, (k_row, dk_row) = full["j_row"], full["dj_row"], full["k_rows"][:2]
+        varies = {j: v for j, v in full["variation"].items() if v > 1e-3}
+        if varies and options.variable_inertia:
+            notes.append("every node's inertia along the stroke (" + ", ".join(
+                f"node {j} varies by {v:.1%}" for j, v in varies.items()) + ")")
     else:
-        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0) - (
-            0.0 if full is None else drive.chain.node_inertias([q0])[list(full["nodes"][1:-1]), 0].sum())
-        if np.ptp(moving) > 1e-3 * jl:
-            notes.append(f"load-side inertia held at its q0 value {jl:.4g} (it varies by "
+        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0)
+        if np.ptp(moving) > 1e-3 * jl and options.variable_inertia:
+            notes.append(f"two-mass reduction: load-side inertia held at its q0 value {jl:.4g} (it varies by "
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
         if np.any(j_row <= 0):
             raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
-        if full is not None:
-            j_row, (k_row, dk_row) = full["j_row"], full["k_rows"][:2]
-    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
-                      + ([] if full is None else [full["k_rows"][2:]])).astype(float)
+    table = np.vstack([j_row, dj_row, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
+                      + ([] if full is None else [full["k_rows"][2:], full["node_rows"]])).astype(float)
 
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
@@ -374,7 +392,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if not rigid and options.backlash:
         play = float(drive.backlash([q0])[0]) if options.play is None else options.play
     drivetrain_slots(P, rigid=rigid, j0_tot=float(np.interp(q0, q, j_tot)), jl=jl,
-                     k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play)
+                     k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play,
+                     zeta=damping.get("two_mass_ratio"))
     if full is not None:
         P = with_full_chain(P, full, options)
 
@@ -432,5 +451,5 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   state_names=tuple(names), sample_time=ts, closed_loop=closed, q0=q0,
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info,
-                  output_unit=drive.output_unit)
+                  output_unit=drive.output_unit, damping=damping)
     return with_table_error(model, drive, q)
