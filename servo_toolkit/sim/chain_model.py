@@ -4,21 +4,23 @@ reduction.
 The full chain keeps every node of :class:`~servo_toolkit.drivetrain.chain.Chain` that has
 inertia (nodes without inertia are condensed: the springs on either side act in series,
 their plays add up): the motor side p (node 0), the intermediate nodes (states after the
-controller's in x) and the load q. Each segment between two kept nodes has its stiffness
-tabulated along the stroke at p, its own play, and the chain's stiffness-proportional damping
-``beta = 2 zeta / w_1`` (w_1 the lowest mode, as :func:`servo_toolkit.plant.chain_plant.chain_plant`
-has it). Intermediate and load inertias are held at their q0 values; the variation of the
-chain's inertia along the stroke goes to the motor side, as in the two-mass model. The losses
-sit where the chain has them: node j's inertia before the losses J_w,j and segment s's loss
-fraction l_s = (1 - eta / Pi_s) / (1 - eta), scaled in the kernel by one loss coefficient c
-for the whole chain (:func:`servo_toolkit.sim.kernel.chain_accelerations`): driving, the model
-is the chain's driving-mode form and its Jacobian is the chain plant's.
+controller's in x) and the load q. Every node's inertia J_j(p) and its derivative are
+tabulated along the stroke at the motor-side position (the motor node's is the chain's total
+less the others'), so the velocity terms of Lagrange's equations keep the undamped chain's
+energy; each segment between two kept nodes has its stiffness tabulated along the stroke at
+p, its own play and its own damper, beta_s times its stiffness, with beta_s from the damping
+ratio of the mode it dominates (:mod:`servo_toolkit.drivetrain.chain_damping`, as
+:func:`servo_toolkit.plant.chain_plant.chain_plant` has it). The losses sit where the chain
+has them: node j's inertia before the losses J_w,j(p) (tabulated like J_j) and segment s's
+loss fraction l_s = (1 - eta / Pi_s) / (1 - eta), scaled in the kernel by one loss
+coefficient c for the whole chain (:func:`servo_toolkit.sim.kernel.chain_accelerations`):
+driving, the model is the chain's driving-mode form and its Jacobian is the chain plant's.
 
-Which one a run uses (``ModelOptions.chain``): ``"full"``, ``"two_mass"``, or ``"auto"``, the
-full chain when its second mode lies within :data:`MODE_FACTOR` times the frequencies the scene
-works at (the loop's crossover, the required bandwidth, the 8 Hz requirement sine), else the
-two-mass reduction with the left-out modes named in the model's notes. ``servo-toolkit reduce``
-measures what lumping them costs.
+Which one a run uses (``ModelOptions.chain``): ``"full"``, ``"two_mass"``, or ``"auto"``,
+decided by :func:`~servo_toolkit.sim.chain_choice.choose_chain` (the cost of lumping the upper
+modes at the scene's working frequencies against the RK4 step the reduction gains), the
+choice and its figures in the model's notes. ``servo-toolkit reduce`` measures what lumping
+them costs.
 """
 
 from __future__ import annotations
@@ -28,67 +30,31 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..drivetrain.chain_damping import chain_damping, kept_nodes, segment_stiffness, segments
 from ..errors import SceneError
 from . import layout as lo
+from .chain_choice import choose_chain, has_upper_modes, working_frequencies
 
-#: modes above this multiple of the scene's working frequencies are lumped by "auto"
-MODE_FACTOR = 10.0
 CHAIN_CHOICES = ("auto", "full", "two_mass")
 
 
-def working_frequency(scene, controller=None) -> tuple[float, str]:
-    """The highest frequency (Hz) the scene works at and what it is: the loop's gain
-    crossover (with a controller), the required bandwidth, the requirement sine."""
-    best, what = REQUIREMENT_SINE_HZ, f"the {REQUIREMENT_SINE_HZ:g} Hz requirement sine"
-    bw = scene.requirements.bandwidth if scene.requirements is not None else None
-    if bw is not None and bw > best:
-        best, what = bw, "the required bandwidth"
-    if controller is not None:
-        fc = crossover_hz(scene, controller)
-        if math.isfinite(fc) and fc > best:
-            best, what = fc, "the loop's crossover"
-    return best, what
-
-
-def crossover_hz(scene, controller) -> float:
-    """Highest 0 dB crossing of the loop broken at the position error (two-mass plant)."""
-    import warnings
-
-    import control as ct
-
-    from ..loop.closed_loop import open_loop
-    f = np.logspace(-1, 4, 400)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            mag = np.abs(ct.frequency_response(open_loop(scene, controller, model="two_mass"),
-                                               2 * np.pi * f).complex).ravel()
-    except (ValueError, np.linalg.LinAlgError, SceneError):
-        return math.nan
-    above = np.flatnonzero(mag >= 1.0)
-    return float(f[above[-1]]) if above.size else math.nan
-
-
 def resolve(scene, controller, options, q0: float, notes: list) -> str:
-    """``"full"`` or ``"two_mass"`` for ``options.chain`` (``"auto"`` decided here, and said)."""
+    """``"full"`` or ``"two_mass"`` for ``options.chain``: ``"auto"`` decided by
+    :func:`~servo_toolkit.sim.chain_choice.choose_chain` at the scene's working frequencies
+    (the requirement sine, the required bandwidth, the loop's crossover, the scene's study
+    frequencies), and said in ``notes``."""
     chain = scene.drivetrain.chain
-    if chain.rigid or kept_nodes(chain, q0).size <= 2:
+    if not has_upper_modes(chain, q0):
         return "two_mass"  # one compliance: the two-mass model is the chain
-    modes = chain.eigenfrequencies(q0, driving=True) / (2 * math.pi)
     if options.chain != "auto":
         if options.chain == "two_mass":
-            notes.append(f"drivetrain modes {_hz(modes[1:])} lumped into the two-mass reduction (chain='two_mass')")
+            modes = chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi)
+            notes.append(f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction (chain='two_mass')")
         return options.chain
-    f_work, what = working_frequency(scene, controller)
-    if modes[1] <= MODE_FACTOR * f_work:
-        notes.append(f"full drivetrain chain: its second mode {modes[1]:.4g} Hz lies within {MODE_FACTOR:g}x "
-                     f"{what} ({f_work:.3g} Hz)")
-        return "full"
-    notes.append(f"drivetrain modes {_hz(modes[1:])} lumped into the two-mass reduction: above {MODE_FACTOR:g}x "
-                 f"{what} ({f_work:.3g} Hz); chain='full' keeps them, `servo-toolkit reduce` measures the cost")
-    return "two_mass"
+    freqs, what = working_frequencies(scene, controller)
+    choice = choose_chain(scene, controller, q0, freqs, options.damping_ratio, what)
+    notes.append(choice.note)
+    return choice.chain
 
 
 def _hz(values) -> str:
@@ -214,6 +180,5 @@ def chain_state_names(nodes) -> list[str]:
     return [name for n in nodes[1:-1] for name in (f"node[{n}]_position", f"node[{n}]_rate")]
 
 
-__all__ = ["CHAIN_CHOICES", "MODE_FACTOR", "chain_damping_facts", "chain_model", "chain_state_names", "crossover_hz",
-           "damping_note", "resolve",
-           "segment_plays", "segment_stiffness", "segments", "working_frequency"]
+__all__ = ["CHAIN_CHOICES", "chain_damping_facts", "chain_model", "chain_state_names", "damping_note", "kept_nodes",
+           "resolve", "segment_plays", "segment_stiffness", "segments"]
