@@ -96,7 +96,8 @@ class BallScrew(Stage):
                                          if f.has("bearing_dynamic_load_rating") else None),
             bearing_kind=f.text("bearing_kind", "ball", choices=("ball", "roller")),
         )
-        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.axial_stiffness, f.key("axial_stiffness")))
+        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.axial_stiffness,
+                                                                f.key("axial_stiffness")))
         require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         require(stage.axial_stiffness > 0, f.key("axial_stiffness"), "must be positive")
         f.check_unknown()

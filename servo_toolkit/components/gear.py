@@ -93,7 +93,8 @@ class GearTrain(Stage):
             torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
         )
-        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.torsional_stiffness, f.key("torsional_stiffness")))
+        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.torsional_stiffness,
+                                                                f.key("torsional_stiffness")))
         require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         require(stage.torsional_stiffness > 0, f.key("torsional_stiffness"), "must be positive")
         f.check_unknown()
