@@ -67,12 +67,24 @@ def has_upper_modes(chain, q0: float) -> bool:
     return not chain.rigid and kept_nodes(chain, q0).size > 2
 
 
+#: the studies whose runs a model built for the scene serves (a frequency sweep reduces its
+#: own model at its own frequencies by the same rule)
+TIME_STUDIES = ("kv", "simulate")
+
+
 def study_frequencies(scene) -> list[float]:
-    """Every frequency (Hz) the scene's studies name: a sweep's points, a sine's frequency."""
+    """The frequencies (Hz) of the scene's time-run studies (:data:`TIME_STUDIES`): a sine's
+    frequency (or 1 / period), the frequencies a study lists."""
     out = []
     for study in scene.studies.values():
+        if study.kind not in TIME_STUDIES:
+            continue
         p = study.params
-        out += [float(f) for f in np.atleast_1d(p.get("frequencies", []))]
+        sweep = p.get("frequencies", [])
+        if isinstance(sweep, dict):  # {start, stop, points, spacing}
+            space = np.geomspace if sweep.get("spacing", "log") == "log" else np.linspace
+            sweep = space(sweep["start"], sweep["stop"], int(sweep.get("points", 20)))
+        out += [float(f) for f in np.atleast_1d(sweep)]
         if p.get("frequency"):
             out.append(float(p["frequency"]))
         elif p.get("period"):
@@ -83,7 +95,7 @@ def study_frequencies(scene) -> list[float]:
 def working_frequencies(scene, controller=None) -> tuple[list[float], str]:
     """The frequencies (Hz) a run of the scene works at, and what they are: the requirement
     sine, the required bandwidth, the loop's gain crossover (with a controller) and the
-    scene's study frequencies."""
+    frequencies of the scene's time-run studies (:func:`study_frequencies`)."""
     freqs, what = [REQUIREMENT_SINE_HZ], [f"the {REQUIREMENT_SINE_HZ:g} Hz requirement sine"]
     bw = scene.requirements.bandwidth if scene.requirements is not None else None
     if bw is not None:
@@ -97,7 +109,7 @@ def working_frequencies(scene, controller=None) -> tuple[list[float], str]:
     studies = study_frequencies(scene)
     if studies:
         freqs += studies
-        what.append(f"the scene's studies (up to {max(studies):.3g} Hz)")
+        what.append("the scene's kv and simulate studies")
     return sorted(set(freqs)), ", ".join(what)
 
 
@@ -191,14 +203,14 @@ def choose_chain(scene, controller, q0: float, frequencies_hz, damping: float, w
     at = f"at {what or 'the working frequencies'} ({_hz(freqs, 3)})"
     cost_text = f"lumping the modes {_hz(modes)} costs ~{cost:.2g} of the response {at}"
     if lump:
-        note = (f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction: RK4 step {dt_red:.3g} s against "
-                f"{dt_full:.3g} s for the full chain; {cost_text} (within {tolerance:g}); chain='full' keeps them, "
+        note = (f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction: RK4 step limit {dt_red:.3g} s "
+                f"against {dt_full:.3g} s for the full chain; {cost_text} (within {tolerance:g}); chain='full' keeps them, "
                 "`servo-toolkit reduce` measures the cost")
     elif cost > tolerance:
-        note = (f"full drivetrain chain kept: RK4 step {dt_full:.3g} s against {dt_red:.3g} s for the two-mass "
-                f"reduction; {cost_text} (more than {tolerance:g})")
+        note = (f"full drivetrain chain kept: RK4 step limit {dt_full:.3g} s against {dt_red:.3g} s for the "
+                f"two-mass reduction; {cost_text} (more than {tolerance:g})")
     else:
-        note = (f"full drivetrain chain kept: its RK4 step {dt_full:.3g} s is the two-mass reduction's "
+        note = (f"full drivetrain chain kept: its RK4 step limit {dt_full:.3g} s is the two-mass reduction's "
                 f"({dt_red:.3g} s); {cost_text}")
     return ChainChoice("two_mass" if lump else "full", modes, cost, dt_full, dt_red, freqs, note)
 
@@ -207,5 +219,5 @@ def _hz(values, digits: int = 4) -> str:
     return ", ".join(f"{v:.{digits}g}" for v in values) + " Hz"
 
 
-__all__ = ["ChainChoice", "LUMP_TOLERANCE", "choose_chain", "crossover_hz", "has_upper_modes", "lumping_cost",
+__all__ = ["ChainChoice", "LUMP_TOLERANCE", "TIME_STUDIES", "choose_chain", "crossover_hz", "has_upper_modes", "lumping_cost",
            "step_limit", "study_frequencies", "working_frequencies"]
