@@ -136,3 +136,49 @@ def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
     assert "no point stayed within the current and voltage limits" in text
     assert "does not apply" in text and "NOT within" not in text and not re.search(r"\bnan\b", text)
     assert f"{res.measured_saturated:.2e}" in text
+
+
+def test_each_effect_left_out_is_measured_on_its_own_with_the_chain_s_modes():
+    """A three-mass chain (modes 232 and 323 Hz) at 20 Hz: simulate's rule lumps the second
+    mode, and reduce names it with its frequency, runs the full model with only that switch
+    changed (chain "full" against "two_mass") and measures its cost, here the whole
+    reduction's: close to its estimate and within the bound."""
+    from .test_sim_full_chain import three_mass
+    res = reduce(three_mass(), frequencies=[20.0], amplitudes=[np.radians(1.0)], progress=False)
+    modes = next(e for e in res.plan.effects if e.effect == "drivetrain modes above the first")
+    assert modes.omitted and "323.5 Hz" in modes.quantity and "RK4 step" in modes.quantity
+    cost = {c.effect: c for c in res.per_effect}
+    assert set(cost) == {e.effect for e in res.plan.omitted}
+    alone = cost["drivetrain modes above the first"]
+    assert 0.5 * alone.estimate < alone.measured < 2 * alone.estimate and alone.measured < res.bound
+    assert alone.measured == pytest.approx(res.measured, rel=1e-6)  # the only effect left out
+    assert "each effect on its own" in res.table() and res.to_dict()["per_effect"][0]["effect"] == alone.effect
+
+
+def test_the_backlash_estimate_takes_the_two_mass_reduction_s_load_side():
+    """A rigid gear followed by a compliant shaft: the gear wheel turns with the output but sits
+    on the motor side of the shaft, so the inertia the backlash's dynamic force accelerates
+    is the load's alone (the chain's two-mass reduction), not the load and the wheel."""
+    import math
+
+    from servo_toolkit.components.compliance import Compliance, Load
+    from servo_toolkit.components.gear import GearTrain
+    from servo_toolkit.components.motor import DCMotor
+    from servo_toolkit.scene.loader import Scene
+    from servo_toolkit.sim import controller_for
+    from servo_toolkit.studies.reduce_estimates import load_side_inertia, loop_response, plan_reduction
+    from servo_toolkit.plant.linear import plant_parameters
+    motor = DCMotor(resistance=0.5, inductance=1e-3, torque_constant=0.2, back_emf_constant=0.2,
+                    rotor_inertia=2e-4, viscous_friction=1e-4, coulomb_friction=0.0, current_limit=20.0)
+    j_wheel, j_load = 0.05, 0.6
+    gear = GearTrain("gear", ratio=20.0, inertias=(1.5e-4, j_wheel), backlash=math.radians(0.2))
+    sc = Scene("lash", motor=motor, stages=(gear, Compliance("shaft", 2e4)), load=Load(inertia=j_load, hinge_moment=5.0))
+    assert load_side_inertia(sc.drivetrain, 0.0) == pytest.approx(j_load, rel=1e-9)
+    ctrl = controller_for(sc)[0]
+    plan = plan_reduction(sc, ctrl, [5.0, 20.0], [math.radians(1.0)])
+    lash = next(e for e in plan.effects if e.effect == "backlash")
+    w = 2 * np.pi * np.array([5.0, 20.0])
+    t = loop_response(plant_parameters(sc, 0.0, structural_damping=0.02), ctrl, motor, w)["theta"]
+    dynamic = float(np.max(np.abs(-j_load * w**2 * t))) * math.radians(1.0)
+    assert f"{dynamic:.4g} N*m dynamic" in lash.quantity
+    assert f"{float(np.max(np.abs(-(j_load + j_wheel) * w**2 * t))) * math.radians(1.0):.4g}" not in lash.quantity

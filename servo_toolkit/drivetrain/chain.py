@@ -69,12 +69,15 @@ class TwoMassSplit:
 @dataclass(frozen=True)
 class ChainElement:
     """An inertial element at its node: ``stage`` -1 for the rotor, ``len(stages)`` for the
-    load; ``loss`` is Pi_e, the product of the forward efficiencies before it."""
+    load; ``loss`` is Pi_e, the product of the forward efficiencies before it; ``past_loss``
+    says whether it sits beyond its own stage's loss (an output member, the load) or before it
+    (an input member: a pinion, a screw; the rotor)."""
 
     label: str
     stage: int
     node: int
     loss: float
+    past_loss: bool = True
 
 
 @dataclass(frozen=True)
@@ -145,7 +148,7 @@ class Chain:
             mine = list(np.flatnonzero(owner == k))
             for i in mine:
                 if kin.elements[i].member == "input":
-                    placed[i] = (node, eff)
+                    placed[i] = (node, eff, False)
             for j in [j for j, s in enumerate(spring_owner) if s == k]:
                 springs.append(ChainSpring(kin.springs[j].label, k, kin.springs[j].stiffness,
                                            STIFFNESS_UNIT[units[k]], (node, node + 1),
@@ -154,16 +157,16 @@ class Chain:
             eff *= float(getattr(stage, "efficiency", 1.0))
             for i in mine:
                 if i not in placed:
-                    placed[i] = (node, eff)
+                    placed[i] = (node, eff, True)
             at = len(springs) - 1 if spring_owner.count(k) else None
             key = f"drivetrain[{k}].{_LASH_KEYS.get(type(stage).__name__, 'backlash')}"
             lashes += [ChainLash(b.label, k, b.lash, key, at, out_units[k]) for b in stage.lashes(np.zeros(1))]
         elements = []
         for i, e in enumerate(kin.elements):
             if owner[i] < 0:
-                where = (0, 1.0)  # the rotor
+                where = (0, 1.0, False)  # the rotor
             elif owner[i] >= len(stages):
-                where = (node, eff)  # the load
+                where = (node, eff, True)  # the load
             else:
                 where = placed[i]
             elements.append(ChainElement(e.label, int(owner[i]), *where))
