@@ -30,7 +30,7 @@ def test_low_frequency_study_leaves_out_the_compliance_within_its_bound(slow_swe
     model is rigid with an ideal current loop, and the measured sine-dwell difference is
     within the bound and close to the first-order estimate (the estimate is not a loose
     upper bound but predicts the difference)."""
-    res = reduce(slow_sweep, "sweep", frequencies=LOW, progress=False)
+    res = reduce(slow_sweep, "sweep", frequencies=LOW, progress=False, per_effect=False)
     left = {e.effect for e in res.plan.omitted}
     assert {"drivetrain compliance", "armature inductance"} <= left
     assert res.reduced_options["compliance"] is False and res.reduced_options["inductance"] is False
@@ -55,7 +55,7 @@ def test_tighter_tolerance_keeps_more(slow_sweep):
     """A bound below the compliance's estimate keeps the compliance; the measurement then
     still meets the tighter bound."""
     loose = reduced_options(slow_sweep, "sweep", frequencies=LOW)[1]
-    tight = reduce(slow_sweep, "sweep", tolerance=1e-4, frequencies=LOW, progress=False)
+    tight = reduce(slow_sweep, "sweep", tolerance=1e-4, frequencies=LOW, progress=False, per_effect=False)
     assert len(tight.plan.omitted) < len(loose.omitted)
     assert "drivetrain compliance" not in {e.effect for e in tight.plan.omitted}
     assert tight.within_bound
@@ -73,7 +73,7 @@ def test_resonance_in_band_keeps_the_compliance():
 def test_time_study_reduction_within_bound():
     """The 8 Hz kv motion run as closed-loop simulations: output-angle RMS difference of
     the reduced model within the bound."""
-    res = reduce(load_scene(), "kv_8hz", progress=False)
+    res = reduce(load_scene(), "kv_8hz", progress=False, per_effect=False)
     assert res.measure == "trace"
     assert res.plan.omitted and res.within_bound
     assert np.all(np.isfinite(res.difference))
@@ -113,7 +113,7 @@ def test_kv_stroke_start_up_saturation_is_outside_the_compared_window():
     assert need / scene.motor.torque_constant < scene.motor.current_limit
     # the stiff loop designed at q0 alone (18.7 Hz): its start-up transient hits the limit
     stiff = st_design(scene, over_stroke=False).controller
-    res = reduce(scene, "kv_stroke", controller=stiff, progress=False)
+    res = reduce(scene, "kv_stroke", controller=stiff, progress=False, per_effect=False)
     assert not res.saturated.any() and res.bound_applies
     assert np.isfinite(res.measured) and res.within_bound is True
     assert any("start-up transient" in n for n in res.notes)
@@ -126,7 +126,7 @@ def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
     not apply. within_bound is None (not False), and the text says why and gives the
     difference at the saturated points instead of 'nan ... NOT within'."""
     scene = build(variant(ema_dict, motor__current_limit="30 A"))
-    res = reduce(scene, "kv_stroke", progress=False)
+    res = reduce(scene, "kv_stroke", progress=False, per_effect=False)
     assert res.saturated.all() and not res.bound_applies
     assert res.within_bound is None and res.verdict == "not applicable"
     d = res.to_dict()

@@ -12,9 +12,9 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
   study's highest frequency);
 - the drivetrain chain's modes above the first: the two-mass loop against the full chain's
   (:func:`servo_toolkit.sim.chain_choice.lumping_cost`); kept or left out by the rule
-  ``simulate`` follows (:func:`servo_toolkit.sim.chain_choice.choose_chain`: the cost within
-  half the tolerance and a larger RK4 step), not by the budget; left out, the run uses the
-  two-mass reduction;
+  ``simulate`` follows (:func:`servo_toolkit.sim.chain_choice.choose_chain`: lumped when the
+  cost is within half the tolerance), not by the budget; left out, the run uses the two-mass
+  reduction;
 - backlash of total lost motion b at the output: zero when the force through the
   compliance never reverses (the static load keeps the contact closed: the dynamic force
   amplitude, from the linear loop, stays below 80 % of the static one); otherwise the
