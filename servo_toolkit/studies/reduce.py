@@ -88,7 +88,7 @@ def _trace_difference(full, red, t_settle):
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
            executor=None, progress: bool = True, frequencies=None, amplitudes=None,
-           per_effect: bool = True) -> ReductionResult:
+           per_effect=True) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -109,9 +109,9 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         Hz, replacing a sweep study's frequencies (8 Hz is then not added).
     amplitudes : sequence of float, optional
         Command amplitudes (rad, or m for an output travel), replacing the study's.
-    per_effect : bool
+    per_effect : bool or sequence of str
         Also measure each effect left out on its own, and the chain's modes above the first
-        (one more run of the study each).
+        (one more run of the study each); a sequence names the effects to measure so.
 
     Returns
     -------
@@ -185,6 +185,8 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
                          "decayed by then")
     costs = []
     alone = [e for e in rplan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
+    if not isinstance(per_effect, bool):
+        alone = [e for e in alone if e.effect in set(per_effect)]
     for effect in alone if per_effect else []:
         alone = study_on(options_without(full, [effect]), f"without {effect.effect}")
         d, s_ = _difference(s_full, alone)
