@@ -1,12 +1,22 @@
 """Model assembly: a scene and a controller -> an immutable :class:`Model` of flat arrays.
 
-The drivetrain is reduced as the linear plant reduces it, by the chain's two-mass reduction
-(:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0, the chain's lowest resonance and
-antiresonance): its load-side inertia J2 is held at its q0 value, the motor side is
-J(q) - J2, and the series stiffness K(q) (scaled to the reduction's stiffness at q0) and the
-lost motion of every stage are lumped between them at the output; for one compliance these
-are the nodes on either side of it (rotor, pinion, ... each member at its node). A lost motion
-in a chain without a compliance is refused (:class:`SceneError` naming its key), never dropped.
+The drivetrain is the lumped chain (:mod:`servo_toolkit.drivetrain.chain`) in one of two
+forms (``ModelOptions.chain``; ``"auto"`` chooses by :func:`~.chain_choice.choose_chain`, the
+cost of lumping the upper modes at the scene's working frequencies, and the notes say which):
+
+- the **full chain** (:mod:`.chain_model`): every node with inertia, each with its inertia
+  J_j(p) tabulated along the stroke at the motor-side position (Lagrange's velocity terms
+  keep the undamped chain's energy), every compliance with its stiffness along the stroke,
+  its own play and its own damper;
+- the **two-mass reduction** (:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0,
+  the chain's lowest resonance and antiresonance), as the linear design plant has it: its
+  load-side inertia J2 is held at its q0 value, the motor side is J(q) - J2, and the series
+  stiffness K(q) (scaled to the reduction's stiffness at q0) and the lost motion of every
+  stage are lumped between them at the output; for one compliance these are the nodes on
+  either side of it (rotor, pinion, ... each member at its node).
+
+A lost motion in a chain without a compliance is refused (:class:`SceneError` naming its key),
+never dropped.
 
 Position-dependent data are tabulated along the stroke and interpolated with cubic Hermite
 polynomials on exact values and derivatives (J, dJ/dq and N, dN/dq from the drivetrain's
@@ -38,8 +48,11 @@ Simplifications (documented, switchable where a reduction study needs it):
   torque and speed are in quadrature) sees eta on half the cycle and 1/eta_b on the other,
   and the sweep measures what that changes. The other losses are the motor's viscous and
   Coulomb friction, the structural damping of the compliance and the load's damping;
-- the drivetrain's structural damping is stiffness-proportional, ``beta K`` with
-  ``beta = 2 zeta / omega_n`` at q0 (``zeta = options.damping_ratio``).
+- the drivetrain's structural damping is a damper per compliance, stiffness-proportional
+  along the stroke, set by the damping ratio of the mode it dominates
+  (:mod:`servo_toolkit.drivetrain.chain_damping`; the stage's ``damping_ratio``, else
+  ``options.damping_ratio``); the two-mass reduction's damper, ``beta K`` with
+  ``beta = 2 zeta_1 / omega_n`` at q0, keeps the chain's lowest mode's ratio zeta_1.
 """
 
 from __future__ import annotations
@@ -53,13 +66,13 @@ from scipy.interpolate import CubicSpline
 from ..errors import SceneError
 from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
-from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
 from ..plant.linear import two_mass_damping
 from .chain_model import (CHAIN_CHOICES, chain_damping_facts, chain_model, chain_state_names, damping_note,
                           resolve as resolve_chain)
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
-from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
+from .model_slots import (FRICTION_CHOICES, drivetrain_slots, feedforward_slots, friction_slots, pack_controller,
+                          with_cam, with_full_chain, with_table_error)
 
 
 @dataclass(frozen=True)
@@ -75,11 +88,13 @@ class ModelOptions:
     backlash : bool
         Lost motion in the compliance (False: plain spring-damper).
     variable_inertia : bool
-        J(q) and dJ/dq along the stroke (False: J(q0) everywhere, no velocity term).
+        J(q) and dJ/dq along the stroke, each node's in the full chain (False: their q0 values
+        everywhere, no velocity term).
     stiffness_scale : float
         Multiplies the series stiffness (stiff-case studies).
     damping_ratio : float
-        Structural damping ratio of the drivetrain mode at q0.
+        Damping ratio of each compliance whose stage gives none (``damping_ratio``), in the
+        mode it dominates (:mod:`servo_toolkit.drivetrain.chain_damping`).
     friction_speed : float
         Motor speed (rad/s) of the tanh smoothing of Coulomb friction.
     controller_mode : str
@@ -104,10 +119,12 @@ class ModelOptions:
         breakaway creeps, the load's friction and static levels are left out and the notes
         say so); ``"off"``, left out (viscous friction stays).
     chain : {"auto", "full", "two_mass"}
-        The drivetrain's compliances: every one of them (the full chain, every mode), its
-        two-mass reduction (the lowest mode), or the full chain only where its second mode
-        lies within :data:`~.chain_model.MODE_FACTOR` times the scene's working frequencies
-        (:mod:`servo_toolkit.sim.chain_model`; the model's notes say which and why).
+        The drivetrain's compliances: every one of them (the full chain, every mode, every
+        node's inertia along the stroke), its two-mass reduction (the lowest mode), or the
+        full chain only where lumping its upper modes costs more than
+        :data:`~.chain_choice.LUMP_TOLERANCE` of the response at the scene's working
+        frequencies (:func:`~.chain_choice.choose_chain`; the model's notes say which, with
+        both RK4 step limits and the cost).
     speed_estimator : {None, "ideal", "difference", "kalman"}
         Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
         speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
@@ -247,43 +264,6 @@ def _grid(drive, n):
     return (q, False) if ok else (np.linspace(lo_, hi, n), False)
 
 
-def _pack_controller(controller, mode):
-    names = tuple(controller.motion.input_labels)
-    if names != MOTION_INPUTS:
-        raise SceneError("controller", f"motion controller inputs must be {MOTION_INPUTS}, got {names}")
-    if mode == lo.SAMPLED:
-        a, b, c, d = controller.discrete_motion()
-    else:
-        s = controller.motion
-        a, b, c, d = (np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
-    if c.shape[0] != 1:
-        raise SceneError("controller", "the motion controller must have one output (i_ref)")
-    return a, b, c, d
-
-
-def _pack_feedforward(P, controller, sample_time: float, notes: list) -> None:
-    """Fill the feedforward slots from ``controller.feedforward`` (all 0 without one: the
-    controller's output alone, every result as before)."""
-    ff = getattr(controller, "feedforward", None)
-    if ff is None or not ff.active:
-        return
-    P[lo.FF_ON] = 1.0
-    P[lo.FF_KV], P[lo.FF_KA] = ff.velocity, ff.acceleration
-    P[lo.FF_MODEL] = 1.0 if ff.model else 0.0
-    P[lo.FF_JSCALE] = ff.inertia_scale
-    P[lo.FF_SPEED] = 1.0 if ff.model else 0.0
-    P[lo.FF_LEAD] = 0.5 * sample_time
-    parts = [f"velocity {ff.velocity:.4g} A*s/rad"] if ff.velocity else []
-    parts += [f"acceleration {ff.acceleration:.4g} A*s^2/rad"] if ff.acceleration else []
-    if ff.model:
-        parts.append("model-based torque (rigid-chain inverse dynamics along the stroke"
-                     + (f", inertia x{ff.inertia_scale:.3g}" if ff.inertia_scale != 1.0 else "") + ")")
-    notes.append("feedforward from the reference and its derivatives, once per controller sample"
-                 + (f" (current at half a sample ahead, {0.5 * sample_time:.3g} s, the hold's delay)"
-                    if sample_time > 0 else "") + ": " + ", ".join(parts)
-                 + ("; the speed loop's reference is the motor speed along the command" if ff.model else ""))
-
-
 def build_model(scene, controller=None, options: ModelOptions | None = None) -> Model:
     """Assemble the compiled model of ``scene`` driven by ``controller``.
 
@@ -404,10 +384,10 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if closed:
         mode = lo.SAMPLED if (options.controller_mode == "sampled" and controller.sample_time > 0) \
             else lo.CONTINUOUS
-        a, b, c, d = _pack_controller(controller, mode)
+        a, b, c, d = pack_controller(controller, mode)
         nc = a.shape[0]
         P[lo.CMODE], P[lo.NC] = mode, nc
-        _pack_feedforward(P, controller, controller.sample_time if mode == lo.SAMPLED else 0.0, notes)
+        feedforward_slots(P, controller, controller.sample_time if mode == lo.SAMPLED else 0.0, notes)
         P[lo.KPI], P[lo.KII] = controller.current_kp, controller.current_ki
         # back-calculation tracking time = the PI's integral time Kpi / Kii
         P[lo.KAW] = (P[lo.KII] / P[lo.KPI] if P[lo.KPI] > 0 else

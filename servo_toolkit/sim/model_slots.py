@@ -1,6 +1,7 @@
-"""The parameter slots of an assembled model that follow from the drivetrain: the two-mass
-slots (shared with the batched variants), the full chain's segment block, a chain-ending cam's
-parameters, and the measured interpolation error of the stroke tables."""
+"""The parameter slots of an assembled model: the two-mass slots (shared with the batched
+variants), the full chain's segment block and table rows, friction, a chain-ending cam's
+parameters, the motion controller's matrices and the feedforward, and the measured
+interpolation error of the stroke tables."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..errors import SceneError
+from ..loop.controller import MOTION_INPUTS
 from . import layout as lo
 from .chain_model import segment_stiffness, segments
 from .chain_split import load_split
@@ -152,4 +155,43 @@ def with_table_error(model, drive, q):
     return replace(model, table_error=err)
 
 
-__all__ = ["FRICTION_CHOICES", "drivetrain_slots", "friction_slots", "with_cam", "with_full_chain", "with_table_error"]
+def pack_controller(controller, mode):
+    """The motion controller's (A, B, C, D): discretized for a sampled loop, continuous otherwise."""
+    names = tuple(controller.motion.input_labels)
+    if names != MOTION_INPUTS:
+        raise SceneError("controller", f"motion controller inputs must be {MOTION_INPUTS}, got {names}")
+    if mode == lo.SAMPLED:
+        a, b, c, d = controller.discrete_motion()
+    else:
+        s = controller.motion
+        a, b, c, d = (np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
+    if c.shape[0] != 1:
+        raise SceneError("controller", "the motion controller must have one output (i_ref)")
+    return a, b, c, d
+
+
+def feedforward_slots(P, controller, sample_time: float, notes: list) -> None:
+    """Fill the feedforward slots from ``controller.feedforward`` (all 0 without one: the
+    controller's output alone, every result as before)."""
+    ff = getattr(controller, "feedforward", None)
+    if ff is None or not ff.active:
+        return
+    P[lo.FF_ON] = 1.0
+    P[lo.FF_KV], P[lo.FF_KA] = ff.velocity, ff.acceleration
+    P[lo.FF_MODEL] = 1.0 if ff.model else 0.0
+    P[lo.FF_JSCALE] = ff.inertia_scale
+    P[lo.FF_SPEED] = 1.0 if ff.model else 0.0
+    P[lo.FF_LEAD] = 0.5 * sample_time
+    parts = [f"velocity {ff.velocity:.4g} A*s/rad"] if ff.velocity else []
+    parts += [f"acceleration {ff.acceleration:.4g} A*s^2/rad"] if ff.acceleration else []
+    if ff.model:
+        parts.append("model-based torque (rigid-chain inverse dynamics along the stroke"
+                     + (f", inertia x{ff.inertia_scale:.3g}" if ff.inertia_scale != 1.0 else "") + ")")
+    notes.append("feedforward from the reference and its derivatives, once per controller sample"
+                 + (f" (current at half a sample ahead, {0.5 * sample_time:.3g} s, the hold's delay)"
+                    if sample_time > 0 else "") + ": " + ", ".join(parts)
+                 + ("; the speed loop's reference is the motor speed along the command" if ff.model else ""))
+
+
+__all__ = ["FRICTION_CHOICES", "drivetrain_slots", "feedforward_slots", "friction_slots", "pack_controller", "with_cam",
+           "with_full_chain", "with_table_error"]
