@@ -68,7 +68,7 @@ def _results(ema, designed):
         "kv": kv_study(ema, "kv_8hz", progress=False),
         "stiffness": stiffness_study(ema),
         "robustness": robustness(ema, designed, {"stiffness": (0.8, 1.2)}, samples=20, progress=False),
-        "reduction": reduce(linear, progress=False),
+        "reduction": reduce(linear, progress=False, per_effect=False),
         "report": Report("ema_reference", "test", (Section("Loop", status="pass", key="loop"),),
                          (RequirementRow("bandwidth", "closed-loop bandwidth", ">= 8 Hz", "18 Hz", "", "pass"),)),
     }

@@ -78,7 +78,7 @@ def test_reduce_measures_leaving_stick_out(ema_dict):
     leaves the stick out (the smooth friction), and the measured difference of the two runs
     is within the bound."""
     scene = sticky(ema_dict, amplitude="2 deg", breakaway="0.02 N*m")
-    res = reduce(scene, "kv_8hz", tolerance=0.2, progress=False)
+    res = reduce(scene, "kv_8hz", tolerance=0.2, progress=False, per_effect=False)
     effect = next(e for e in res.plan.effects if e.effect == STICK)
     assert effect.omitted
     assert res.full_options["friction"] == "stick" and res.reduced_options["friction"] == "smooth"

@@ -58,7 +58,7 @@ def test_auto_hands_over_to_the_implicit_solver_above_the_step_budget(monkeypatc
     scene = build(BASE)
     model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous"))
     ref = Reference.sine(math.radians(2.0), 8.0)
-    monkeypatch.setattr(engine, "MAX_STEPS", 50)
+    monkeypatch.setattr(engine, "AUTO_MAX_STEPS", 50)
     res = run(model, ref, 0.02, "auto", output_dt=1e-3)
     assert res.method.startswith("reference:") and res.requested == "auto"
     assert "implicit solver instead" in res.choice

@@ -13,7 +13,8 @@ from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 def register(sub) -> None:
     """Register the command."""
-    p = sub.add_parser("reduce", help="what the scene's model leaves out for a study, why, and the measured cost")
+    p = sub.add_parser("reduce", help="what the scene's model leaves out for a study, why, and the measured cost "
+                                      "(of all together and of each effect on its own)")
     add_scene(p)
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study (plus 8 Hz), or a kv or simulate (sine) study "
@@ -33,15 +34,16 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _check_budget(scene, args, amps) -> None:
-    """The full and the reduced model's dwells of a sweep study, within the work budget
-    unless ``--force`` (other studies run one short sine)."""
+def _check_budget(scene, args, amps, runs: int) -> None:
+    """The dwells of a sweep study on ``runs`` models (the full, the reduced and the full
+    without each effect left out), within the work budget unless ``--force`` (other studies
+    run one short sine per model)."""
     from .cmd_sweep import check_sweep_budget
     study = scene.studies.get(args.study) if args.study else None
     if study is None or study.kind == "frequency_sweep":
         if args.study is None and not scene.studies_of_kind("frequency_sweep") and not args.frequency:
             return
-        check_sweep_budget(scene, args.study, args.frequency, amps, args.force, runs=2)
+        check_sweep_budget(scene, args.study, args.frequency, amps, args.force, runs=runs)
 
 
 def run(args) -> int:
@@ -57,14 +59,15 @@ def run(args) -> int:
     if args.plot:  # checked before any work
         check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
+    _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
     if args.estimate_only:
-        _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}\n{'':34s}   {e.quantity}" for e in plan.effects]
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0
-    _check_budget(scene, args, amps)
+    alone = [e for e in plan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
+    _check_budget(scene, args, amps, 2 + len(alone))
     prepare_kernels(scene)
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
                  amplitudes=amps,

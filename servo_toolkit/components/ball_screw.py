@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, screw_backdrive_efficiency
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio,
+                   screw_backdrive_efficiency)
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,9 @@ class BallScrew(Stage):
         it carries the screw thrust.
     bearing_kind : str
         ``"ball"`` (life exponent 3) or ``"roller"`` (10/3) bearing.
+    damping_ratio : float or None
+        Damping ratio of the axial compliance (:mod:`servo_toolkit.drivetrain.chain_damping`);
+        None: the model's default structural damping.
     """
 
     name: str
@@ -48,6 +52,7 @@ class BallScrew(Stage):
     dynamic_load_rating: float | None = None
     bearing_dynamic_load_rating: float | None = None
     bearing_kind: str = "ball"
+    damping_ratio: float | None = None
 
     @property
     def backdrive_efficiency(self) -> float:
@@ -69,7 +74,7 @@ class BallScrew(Stage):
     def springs(self, z) -> list[Spring]:
         if math.isinf(self.axial_stiffness):
             return []
-        return [Spring(self.name, self.axial_stiffness, Jet.linear(z, 1.0))]
+        return [Spring(self.name, self.axial_stiffness, Jet.linear(z, 1.0), self.damping_ratio)]
 
     def lashes(self, z) -> list[Lash]:
         return [Lash(f"{self.name}: nut lash", self.backlash, Jet.linear(z, 1.0))] if self.backlash else []
@@ -91,6 +96,8 @@ class BallScrew(Stage):
                                          if f.has("bearing_dynamic_load_rating") else None),
             bearing_kind=f.text("bearing_kind", "ball", choices=("ball", "roller")),
         )
+        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.axial_stiffness,
+                                                                f.key("axial_stiffness")))
         require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         require(stage.axial_stiffness > 0, f.key("axial_stiffness"), "must be positive")
         f.check_unknown()

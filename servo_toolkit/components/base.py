@@ -11,13 +11,27 @@ coordinate ``u(z)`` with derivatives; the drivetrain composes them with the chai
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.fields import require
+
 #: efficiencies the loss models are conditioned for: below 1 % a stage's loss torque dwarfs
 #: what it transmits and the lumped chain becomes singular
 EFFICIENCY_RANGE = (0.01, 1.0)
+#: damping ratios a compliance's damper is conditioned for (0 is allowed: an undamped spring)
+DAMPING_RATIO_RANGE = (1e-4, 1.0)
+
+
+def read_damping_ratio(f, stiffness: float, stiffness_key: str):
+    """The stage's ``damping_ratio`` key (None when absent): the damping ratio of its
+    compliance, refused on a stage without one (``stiffness_key`` not given or infinite)."""
+    ratio = f.number("damping_ratio", None, rule="nonnegative", bounds=DAMPING_RATIO_RANGE)
+    require(ratio is None or math.isfinite(stiffness), f.key("damping_ratio"),
+            f"damps the stage's compliance: give {stiffness_key} too (the stage is rigid)")
+    return ratio
 
 
 @dataclass(frozen=True)
@@ -56,11 +70,14 @@ class Element:
 
 @dataclass(frozen=True)
 class Spring:
-    """A compliance of stiffness ``k`` (N/m or N*m/rad) acting on coordinate ``u``."""
+    """A compliance of stiffness ``k`` (N/m or N*m/rad) acting on coordinate ``u``, with the
+    damping ratio its stage gives it (None: the model's default structural damping; see
+    :mod:`servo_toolkit.drivetrain.chain_damping`)."""
 
     label: str
     stiffness: float
     u: Jet
+    damping_ratio: float | None = None
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..core.fields import Fields, require
-from .base import Jet, Spring, Stage
+from .base import DAMPING_RATIO_RANGE, Jet, Spring, Stage
 
 
 @dataclass(frozen=True)
@@ -20,24 +20,29 @@ class Compliance(Stage):
         N*m/rad for rotary coordinates, N/m for linear ones.
     at : str
         ``"output"`` (the coordinate after the previous stage, the usual case).
+    damping_ratio : float or None
+        Damping ratio of the compliance (:mod:`servo_toolkit.drivetrain.chain_damping`);
+        None: the model's default structural damping.
     """
 
     name: str
     stiffness: float
     at: str = "output"
+    damping_ratio: float | None = None
 
     def map(self, z) -> Jet:
         return Jet.linear(z, 1.0)
 
     def springs(self, z) -> list[Spring]:
-        return [Spring(self.name, self.stiffness, Jet.linear(z, 1.0))]
+        return [Spring(self.name, self.stiffness, Jet.linear(z, 1.0), self.damping_ratio)]
 
     @classmethod
     def from_table(cls, f: Fields) -> "Compliance":
         """Build from a ``[[drivetrain]]`` table of kind ``compliance``."""
         stage = cls(name=f.text("name", "compliance"),
                     stiffness=f.quantity("stiffness", "N*m/rad", rule="positive"),
-                    at=f.text("at", "output", choices={"output"}))
+                    at=f.text("at", "output", choices={"output"}),
+                    damping_ratio=f.number("damping_ratio", None, rule="nonnegative", bounds=DAMPING_RATIO_RANGE))
         f.check_unknown()
         return stage
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage
+from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio
 
 
 @dataclass(frozen=True)
@@ -29,6 +29,9 @@ class GearTrain(Stage):
         Mesh stiffness seen at the output shaft (N*m/rad); ``inf`` for rigid.
     backlash : float
         Total lost motion at the output shaft (rad).
+    damping_ratio : float or None
+        Damping ratio of the mesh compliance (:mod:`servo_toolkit.drivetrain.chain_damping`);
+        None: the model's default structural damping.
     """
 
     name: str
@@ -38,6 +41,7 @@ class GearTrain(Stage):
     efficiency: float = 1.0
     torsional_stiffness: float = math.inf
     backlash: float = 0.0
+    damping_ratio: float | None = None
 
     def _speed_ratios(self) -> list[float]:
         """Each gear's angle per output angle."""
@@ -56,7 +60,7 @@ class GearTrain(Stage):
     def springs(self, z) -> list[Spring]:
         if math.isinf(self.torsional_stiffness):
             return []
-        return [Spring(self.name, self.torsional_stiffness, Jet.linear(z, 1.0))]
+        return [Spring(self.name, self.torsional_stiffness, Jet.linear(z, 1.0), self.damping_ratio)]
 
     def lashes(self, z) -> list[Lash]:
         return [Lash(f"{self.name}: backlash", self.backlash, Jet.linear(z, 1.0))] if self.backlash else []
@@ -89,6 +93,8 @@ class GearTrain(Stage):
             torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
         )
+        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.torsional_stiffness,
+                                                                f.key("torsional_stiffness")))
         require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
         require(stage.torsional_stiffness > 0, f.key("torsional_stiffness"), "must be positive")
         f.check_unknown()

@@ -9,12 +9,12 @@ h = r + rod_offset, A = (x_A, h) behind the arm, |AB| = l, so
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..core.fields import Fields, require
-from .base import Element, Jet, Spring, Stage
+from .base import Element, Jet, Spring, Stage, read_damping_ratio
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,9 @@ class RockerLinkage(Stage):
         N/m along AB; ``inf`` for rigid.
     stroke : tuple of float
         (min, max) output angle (rad).
+    damping_ratio : float or None
+        Damping ratio of the rod's axial compliance
+        (:mod:`servo_toolkit.drivetrain.chain_damping`); None: the model's default.
     """
 
     name: str
@@ -47,6 +50,7 @@ class RockerLinkage(Stage):
     rod_axial_stiffness: float = math.inf
     stroke_range: tuple = (-math.pi / 6, math.pi / 6)
     efficiency: float = 1.0
+    damping_ratio: float | None = None
 
     @property
     def stroke(self):
@@ -95,7 +99,7 @@ class RockerLinkage(Stage):
             return []
         rate = self.rod_stretch_rate(z)
         return [Spring(self.name, self.rod_axial_stiffness,
-                       Jet(np.zeros_like(rate), rate, np.zeros_like(rate)))]
+                       Jet(np.zeros_like(rate), rate, np.zeros_like(rate)), self.damping_ratio)]
 
     @classmethod
     def from_table(cls, f: Fields) -> "RockerLinkage":
@@ -116,6 +120,8 @@ class RockerLinkage(Stage):
             rod_axial_stiffness=f.quantity("rod_axial_stiffness", "N/m", math.inf),
             stroke_range=tuple(stroke),
         )
+        stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.rod_axial_stiffness,
+                                                                f.key("rod_axial_stiffness")))
         require(stage.rod_axial_stiffness > 0, f.key("rod_axial_stiffness"), "must be positive")
         phi = np.linspace(stroke[0], stroke[1], 721)
         w, _, _ = stage._w(phi)

@@ -69,23 +69,28 @@ class TwoMassSplit:
 @dataclass(frozen=True)
 class ChainElement:
     """An inertial element at its node: ``stage`` -1 for the rotor, ``len(stages)`` for the
-    load; ``loss`` is Pi_e, the product of the forward efficiencies before it."""
+    load; ``loss`` is Pi_e, the product of the forward efficiencies before it; ``past_loss``
+    says whether it sits beyond its own stage's loss (an output member, the load) or before it
+    (an input member: a pinion, a screw; the rotor)."""
 
     label: str
     stage: int
     node: int
     loss: float
+    past_loss: bool = True
 
 
 @dataclass(frozen=True)
 class ChainSpring:
-    """A compliance between ``nodes`` (i, i + 1): its own stiffness in ``unit``."""
+    """A compliance between ``nodes`` (i, i + 1): its own stiffness in ``unit`` and the damping
+    ratio its stage gives it (None: the model's default, :mod:`.chain_damping`)."""
 
     label: str
     stage: int
     stiffness: float
     unit: str
     nodes: tuple
+    damping_ratio: float | None = None
 
 
 @dataclass(frozen=True)
@@ -143,24 +148,25 @@ class Chain:
             mine = list(np.flatnonzero(owner == k))
             for i in mine:
                 if kin.elements[i].member == "input":
-                    placed[i] = (node, eff)
+                    placed[i] = (node, eff, False)
             for j in [j for j, s in enumerate(spring_owner) if s == k]:
                 springs.append(ChainSpring(kin.springs[j].label, k, kin.springs[j].stiffness,
-                                           STIFFNESS_UNIT[units[k]], (node, node + 1)))
+                                           STIFFNESS_UNIT[units[k]], (node, node + 1),
+                                           kin.springs[j].damping_ratio))
                 node += 1
             eff *= float(getattr(stage, "efficiency", 1.0))
             for i in mine:
                 if i not in placed:
-                    placed[i] = (node, eff)
+                    placed[i] = (node, eff, True)
             at = len(springs) - 1 if spring_owner.count(k) else None
             key = f"drivetrain[{k}].{_LASH_KEYS.get(type(stage).__name__, 'backlash')}"
             lashes += [ChainLash(b.label, k, b.lash, key, at, out_units[k]) for b in stage.lashes(np.zeros(1))]
         elements = []
         for i, e in enumerate(kin.elements):
             if owner[i] < 0:
-                where = (0, 1.0)  # the rotor
+                where = (0, 1.0, False)  # the rotor
             elif owner[i] >= len(stages):
-                where = (node, eff)  # the load
+                where = (node, eff, True)  # the load
             else:
                 where = placed[i]
             elements.append(ChainElement(e.label, int(owner[i]), *where))
@@ -182,6 +188,29 @@ class Chain:
         """Each element's inertia reflected to q, m_e (du_e/dq)^2, shape (n_elements, n_q)."""
         kin = self.drivetrain.kinematics(q)
         return np.array([e.inertia * e.u.d1**2 for e in kin.elements])
+
+    def node_jets(self, q, weights=None) -> tuple[np.ndarray, np.ndarray]:
+        """Each node's inertia along q and its derivative, J_j(q) = sum_e w_e m_e (du_e/dq)^2
+        and dJ_j/dq = sum_e w_e 2 m_e (du_e/dq) (d2u_e/dq2), shapes (n_nodes, n_q).
+
+        ``weights``: one per element (default 1; the loss fractions of
+        :meth:`loss_fractions` give each node's inertia before the losses, J_w,j)."""
+        kin = self.drivetrain.kinematics(q)
+        w = np.ones(len(self.elements)) if weights is None else np.asarray(weights, dtype=float)
+        value = np.zeros((self.n_nodes, kin.q.size))
+        slope = np.zeros_like(value)
+        for e, ce, we in zip(kin.elements, self.elements, w):
+            value[ce.node] += we * e.inertia * e.u.d1**2
+            slope[ce.node] += we * 2.0 * e.inertia * e.u.d1 * e.u.d2
+        return value, slope
+
+    def loss_fractions(self) -> np.ndarray:
+        """Each element's share of the chain's loss, (1 - eta / Pi_e) / (1 - eta): 1 before
+        every loss (the rotor, a pinion), 0 beyond them all; zeros for a lossless chain."""
+        eta = self.efficiency
+        if eta >= 1.0:
+            return np.zeros(len(self.elements))
+        return np.array([(1.0 - eta / e.loss) / (1.0 - eta) for e in self.elements])
 
     @property
     def efficiency(self) -> float:
@@ -226,13 +255,9 @@ class Chain:
         lossy stage J_w is the inertia before its loss (the rotor and the input members).
         Zero for a lossless chain. ``last_node``: only the elements on the nodes up to it (the
         motor side of a two-mass split)."""
-        eta = self.efficiency
         j = self.element_inertias(q)
-        if eta >= 1.0:
-            return np.zeros(j.shape[1])
         last = self.n_nodes if last_node is None else last_node
-        weight = np.array([(1.0 - eta / e.loss) / (1.0 - eta) if e.node <= last else 0.0
-                           for e in self.elements])
+        weight = np.where([e.node <= last for e in self.elements], self.loss_fractions(), 0.0)
         return weight @ j
 
     # --- at one operating point -----------------------------------------------------------

@@ -229,7 +229,7 @@ class Drivetrain:
     @staticmethod
     def _collect(stage, z: Jet, elements, springs, lashes) -> None:
         elements += [replace(e, u=e.u.compose(z)) for e in stage.elements(z.value)]
-        springs += [Spring(s.label, s.stiffness, s.u.compose(z)) for s in stage.springs(z.value)]
+        springs += [replace(s, u=s.u.compose(z)) for s in stage.springs(z.value)]
         lashes += [Lash(b.label, b.lash, b.u.compose(z)) for b in stage.lashes(z.value)]
 
     def ratio(self, q) -> tuple[np.ndarray, np.ndarray]:

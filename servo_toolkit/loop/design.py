@@ -22,6 +22,7 @@ from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant, plant_matrices,
                             plant_parameters)
 from .assembly import closed_loop_matrix, controller_matrices
+from .chain_margins import chain_margins
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
 from .metrics import grid_figures
@@ -344,10 +345,13 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
         checks += stroke.margin_requirements(reqs)
         notes = tuple(notes) + stroke.notes(reqs)
     g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
+    n_mass = None if p.rigid else chain_margins(scene, controller, p.q0, structural_damping, mg, phase_hz, f_req)
+    if n_mass is not None and n_mass.note:
+        notes = tuple(notes) + (n_mass.note,)
     return DesignResult(scene_name=scene.name, q0=p.q0, parameters=p, plant=g, controller=controller,
                         loop=loop, closed_loop=cl_siso, margins=mg, requirements=checks,
                         motion=motion, notes=tuple(notes), closed_loop_full=cl, stroke=stroke,
-                        output_unit=scene.drivetrain.output_unit, display=scene.display)
+                        output_unit=scene.drivetrain.output_unit, display=scene.display, chain_margins=n_mass)
 
 
 def robust_spec(scene, robust):

@@ -60,6 +60,9 @@ class DesignResult(RichDisplay):
     display : DisplayUnits
         Units :meth:`table` shows the plant's inertias and stiffness in (the scene's
         ``[display]``; default SI); :meth:`to_dict` stays SI.
+    chain_margins : ChainMargins or None
+        The same controller on the n-mass plant of the drivetrain chain (every mode,
+        :mod:`servo_toolkit.loop.chain_margins`); None for a chain with one mode.
     """
 
     scene_name: str
@@ -78,6 +81,7 @@ class DesignResult(RichDisplay):
     stroke: object = None
     output_unit: str = "rad"
     display: DisplayUnits = DisplayUnits()
+    chain_margins: object = None
 
     @property
     def unit(self) -> OutputUnit:
@@ -128,7 +132,8 @@ class DesignResult(RichDisplay):
                                **command_fields(self.controller)},
                 "notes": list(self.notes), "display_units": self.display.to_dict(u.linear),
                 **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {}),
-                **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {})}
+                **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {}),
+                **({"n_mass_plant": self.chain_margins.to_dict()} if self.chain_margins is not None else {})}
 
     def table(self) -> str:
         """Requirements and margins as text."""

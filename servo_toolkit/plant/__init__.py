@@ -9,8 +9,8 @@ mode of the chain), :mod:`.signals` (shared signal names) and
 from .chain_plant import chain_plant
 from .linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, PlantParameters, current_controller,
                      current_loop_gains, mechanics, plant, plant_matrices, plant_parameters, rigid_plant,
-                     sample_delay, spring_damping, two_mass_plant)
+                     sample_delay, spring_damping, two_mass_damping, two_mass_plant)
 
 __all__ = ["DEFAULT_STRUCTURAL_DAMPING", "PLANT_OUTPUTS", "PlantParameters", "chain_plant", "current_controller",
            "current_loop_gains", "mechanics", "plant", "plant_matrices", "plant_parameters", "rigid_plant",
-           "sample_delay", "spring_damping", "two_mass_plant"]
+           "sample_delay", "spring_damping", "two_mass_damping", "two_mass_plant"]

@@ -3,10 +3,11 @@
 The chain (:mod:`servo_toolkit.drivetrain.chain`) at q0 in its driving-mode form (each
 element's inertia and each spring weighted by the losses before it, the motor torque reaching
 the output as eta N Kt i) gives M, K; nodes without inertia are condensed statically.
-Structural damping is stiffness-proportional, C = beta K with beta = 2 zeta / w_1 (the
-lowest mode gets the damping ratio zeta, as the simulation's compliance and the two-mass
-plant's damper have it). The motor's viscous friction b N^2 acts on node 0, the load's
-damping and hinge stiffness on the last node.
+Each segment between two kept nodes has its own damper, beta_s times its stiffness, with
+beta_s from the damping ratio of the mode it dominates
+(:mod:`servo_toolkit.drivetrain.chain_damping`, as the compiled model has it); the two-mass
+plant keeps the lowest mode's damping ratio. The motor's viscous friction b N^2 acts on
+node 0, the load's damping and hinge stiffness on the last node.
 
 Signals: inputs ``u`` (V) and ``tau_ext`` (N*m at the output, on the last node); states
 ``theta[j]``, ``omega[j]`` per kept node j (referred to the output), and ``i`` (A) with
@@ -19,6 +20,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ..drivetrain.chain_damping import chain_damping, segment_stiffness
 from ..errors import SceneError
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
@@ -37,7 +39,8 @@ def chain_plant(scene, q0=None, inductance: bool = True,
     inductance : bool
         Armature inductance as a state (False: i = (u - Ke omega_m) / R).
     structural_damping : float
-        Damping ratio of the lowest drivetrain mode.
+        Damping ratio of each compliance whose stage gives none (``damping_ratio``), in the
+        mode it dominates.
 
     Returns
     -------
@@ -53,8 +56,8 @@ def chain_plant(scene, q0=None, inductance: bool = True,
         raise SceneError("motor.rotor_inertia", "the chain's motor node has no inertia")
     m = np.diag(M)
     n_n = m.size
-    w1 = chain.eigenfrequencies(q0, driving=True)[0]
-    C = (2 * structural_damping / w1) * K
+    damping = chain_damping(chain, q0, structural_damping)
+    C = damping.matrix(segment_stiffness(chain, [q0], damping.segments, driving=True)[:, 0])
     motor, load = scene.motor, scene.load
     n = abs(float(dt.ratio([q0])[0][0]))
     gain = chain.efficiency * n * motor.torque_constant

@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
+from ..drivetrain.chain_damping import chain_damping
 from ..errors import SceneError
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
@@ -114,6 +115,17 @@ class PlantParameters:
         return replace(self, J2=J2, K=K, c=spring_damping(self.J1, J2, K, structural_damping))
 
 
+def two_mass_damping(chain, q0: float, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> float:
+    """The damping ratio of the chain's two-mass reduction: its lowest mode's modal damping
+    ratio with each compliance's damper (:mod:`servo_toolkit.drivetrain.chain_damping`;
+    ``structural_damping`` where a stage gives no ``damping_ratio``). With one compliance,
+    that compliance's ratio."""
+    if chain.rigid:
+        return 0.0
+    damping = chain_damping(chain, q0, structural_damping)
+    return damping.lowest_ratio if damping.segments else 0.0
+
+
 def spring_damping(J1, J2, K, zeta):
     """Damper across the spring giving the two-mass mode the damping ratio ``zeta``."""
     J1, J2, K = np.asarray(J1, float), np.asarray(J2, float), np.asarray(K, float)
@@ -167,7 +179,9 @@ def plant_parameters(scene, q0=None, model: str = "auto",
         ``auto`` is two-mass when the chain has a finite stiffness, else rigid (both
         reductions of the drivetrain's chain; :func:`plant` also takes ``"chain"``).
     structural_damping : float
-        Damping ratio of the drivetrain mode (the scene has no damping for it).
+        Damping ratio of each compliance whose stage gives none (``damping_ratio``); the
+        two-mass plant's mode has the chain's lowest mode's damping ratio
+        (:func:`two_mass_damping`).
     """
     dt = scene.drivetrain
     q0 = dt.mid_stroke if q0 is None else float(q0)
@@ -181,7 +195,8 @@ def plant_parameters(scene, q0=None, model: str = "auto",
         raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:
         J1, J2, K = float(dt.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
-    return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, structural_damping)),
+    zeta = two_mass_damping(dt.chain, q0, structural_damping) if math.isfinite(K) else 0.0
+    return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, zeta)),
                            b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
                            N=abs(n), eta=dt.efficiency, Kt=motor.torque_constant,
                            Ke=motor.back_emf_constant, R=motor.resistance, L=motor.inductance, q0=q0)

@@ -90,8 +90,8 @@ def _measured_reduction(ctx):
     """The reduction of the report's sweep: the a-priori plan and the measured difference.
 
     :func:`servo_toolkit.studies.reduce.reduce` on the scene's sweep study, with the report's
-    sweep settings: as defined under full settings, the report's light points and short
-    dwells otherwise.
+    sweep settings: as defined under full settings (each effect left out also measured on its
+    own), the report's light points and short dwells otherwise.
     """
     from dataclasses import replace
 
@@ -100,7 +100,7 @@ def _measured_reduction(ctx):
     name, freqs, _, options = studies.sweep_settings(ctx)
     light = {"frequencies": freqs, "plan": options["plan"]} if ctx.light else {}
     res = reduce(ctx.scene, name, controller=ctx.design().controller, executor=ctx.executor, progress=False,
-                 **light)
+                 per_effect=not ctx.light, **light)
     if ctx.light:
         res = replace(res, notes=tuple(res.notes) + (
             "light settings: the report's sweep points and short dwells (servo-toolkit reduce SCENE, or "
@@ -112,9 +112,12 @@ def _reduction(ctx):
     """HTML and figures of the reduction study."""
     res = _measured_reduction(ctx)
     plan = res.plan
-    rows = [(e.effect, e.quantity, fmt(e.estimate, 3), fmt(_db(e.estimate), 3), fmt(_deg(e.estimate), 3),
-             badge("left out" if e.omitted else "kept"), _why(e.reason)) for e in plan.effects]
-    head = ("effect", "compared", "estimate |dT/T|", "[dB]", "[deg]", "decision", "why")
+    alone = {c.effect: c.measured for c in res.per_effect}
+    rows = [(e.effect, e.quantity, fmt(e.estimate, 3), fmt(_db(e.estimate), 3), fmt(_deg(e.estimate), 3))
+            + ((fmt(alone[e.effect], 3) if e.effect in alone else "",) if alone else ())
+            + (badge("left out" if e.omitted else "kept"), _why(e.reason)) for e in plan.effects]
+    head = (("effect", "compared", "estimate |dT/T|", "[dB]", "[deg]") + (("measured alone",) if alone else ())
+            + ("decision", "why"))
     left = ", ".join(e.effect for e in plan.omitted) or "nothing"
     freqs = res.frequencies_hz
     measured, bound = res.measured, res.bound

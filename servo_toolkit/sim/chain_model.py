@@ -4,21 +4,23 @@ reduction.
 The full chain keeps every node of :class:`~servo_toolkit.drivetrain.chain.Chain` that has
 inertia (nodes without inertia are condensed: the springs on either side act in series,
 their plays add up): the motor side p (node 0), the intermediate nodes (states after the
-controller's in x) and the load q. Each segment between two kept nodes has its stiffness
-tabulated along the stroke at p, its own play, and the chain's stiffness-proportional damping
-``beta = 2 zeta / w_1`` (w_1 the lowest mode, as :func:`servo_toolkit.plant.chain_plant.chain_plant`
-has it). Intermediate and load inertias are held at their q0 values; the variation of the
-chain's inertia along the stroke goes to the motor side, as in the two-mass model. The losses
-sit where the chain has them: node j's inertia before the losses J_w,j and segment s's loss
-fraction l_s = (1 - eta / Pi_s) / (1 - eta), scaled in the kernel by one loss coefficient c
-for the whole chain (:func:`servo_toolkit.sim.kernel.chain_accelerations`): driving, the model
-is the chain's driving-mode form and its Jacobian is the chain plant's.
+controller's in x) and the load q. Every node's inertia J_j(p) and its derivative are
+tabulated along the stroke at the motor-side position (the motor node's is the chain's total
+less the others'), so the velocity terms of Lagrange's equations keep the undamped chain's
+energy; each segment between two kept nodes has its stiffness tabulated along the stroke at
+p, its own play and its own damper, beta_s times its stiffness, with beta_s from the damping
+ratio of the mode it dominates (:mod:`servo_toolkit.drivetrain.chain_damping`, as
+:func:`servo_toolkit.plant.chain_plant.chain_plant` has it). The losses sit where the chain
+has them: node j's inertia before the losses J_w,j(p) (tabulated like J_j) and segment s's
+loss fraction l_s = (1 - eta / Pi_s) / (1 - eta), scaled in the kernel by one loss
+coefficient c for the whole chain (:func:`servo_toolkit.sim.kernel.chain_accelerations`):
+driving, the model is the chain's driving-mode form and its Jacobian is the chain plant's.
 
-Which one a run uses (``ModelOptions.chain``): ``"full"``, ``"two_mass"``, or ``"auto"``, the
-full chain when its second mode lies within :data:`MODE_FACTOR` times the frequencies the scene
-works at (the loop's crossover, the required bandwidth, the 8 Hz requirement sine), else the
-two-mass reduction with the left-out modes named in the model's notes. ``servo-toolkit reduce``
-measures what lumping them costs.
+Which one a run uses (``ModelOptions.chain``): ``"full"``, ``"two_mass"``, or ``"auto"``,
+decided by :func:`~servo_toolkit.sim.chain_choice.choose_chain` (the cost of lumping the upper
+modes at the scene's working frequencies against the RK4 step the reduction gains), the
+choice and its figures in the model's notes. ``servo-toolkit reduce`` measures what lumping
+them costs.
 """
 
 from __future__ import annotations
@@ -28,88 +30,35 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..core.output_units import REQUIREMENT_SINE_HZ
+from ..drivetrain.chain_damping import chain_damping, kept_nodes, segment_stiffness, segments
 from ..errors import SceneError
 from . import layout as lo
+from .chain_choice import choose_chain, has_upper_modes, working_frequencies
 
-#: modes above this multiple of the scene's working frequencies are lumped by "auto"
-MODE_FACTOR = 10.0
 CHAIN_CHOICES = ("auto", "full", "two_mass")
 
 
-def working_frequency(scene, controller=None) -> tuple[float, str]:
-    """The highest frequency (Hz) the scene works at and what it is: the loop's gain
-    crossover (with a controller), the required bandwidth, the requirement sine."""
-    best, what = REQUIREMENT_SINE_HZ, f"the {REQUIREMENT_SINE_HZ:g} Hz requirement sine"
-    bw = scene.requirements.bandwidth if scene.requirements is not None else None
-    if bw is not None and bw > best:
-        best, what = bw, "the required bandwidth"
-    if controller is not None:
-        fc = crossover_hz(scene, controller)
-        if math.isfinite(fc) and fc > best:
-            best, what = fc, "the loop's crossover"
-    return best, what
-
-
-def crossover_hz(scene, controller) -> float:
-    """Highest 0 dB crossing of the loop broken at the position error (two-mass plant)."""
-    import warnings
-
-    import control as ct
-
-    from ..loop.closed_loop import open_loop
-    f = np.logspace(-1, 4, 400)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            mag = np.abs(ct.frequency_response(open_loop(scene, controller, model="two_mass"),
-                                               2 * np.pi * f).complex).ravel()
-    except (ValueError, np.linalg.LinAlgError, SceneError):
-        return math.nan
-    above = np.flatnonzero(mag >= 1.0)
-    return float(f[above[-1]]) if above.size else math.nan
-
-
-def kept_nodes(chain, q0: float) -> np.ndarray:
-    """The chain's nodes with inertia at q0 (the others are condensed)."""
-    return chain.condensed(q0)[2]
-
-
 def resolve(scene, controller, options, q0: float, notes: list) -> str:
-    """``"full"`` or ``"two_mass"`` for ``options.chain`` (``"auto"`` decided here, and said)."""
+    """``"full"`` or ``"two_mass"`` for ``options.chain``: ``"auto"`` decided by
+    :func:`~servo_toolkit.sim.chain_choice.choose_chain` at the scene's working frequencies
+    (the requirement sine, the required bandwidth, the loop's crossover, the scene's study
+    frequencies), and said in ``notes``."""
     chain = scene.drivetrain.chain
-    if chain.rigid or kept_nodes(chain, q0).size <= 2:
+    if not has_upper_modes(chain, q0):
         return "two_mass"  # one compliance: the two-mass model is the chain
-    modes = chain.eigenfrequencies(q0, driving=True) / (2 * math.pi)
     if options.chain != "auto":
         if options.chain == "two_mass":
-            notes.append(f"drivetrain modes {_hz(modes[1:])} lumped into the two-mass reduction (chain='two_mass')")
+            modes = chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi)
+            notes.append(f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction (chain='two_mass')")
         return options.chain
-    f_work, what = working_frequency(scene, controller)
-    if modes[1] <= MODE_FACTOR * f_work:
-        notes.append(f"full drivetrain chain: its second mode {modes[1]:.4g} Hz lies within {MODE_FACTOR:g}x "
-                     f"{what} ({f_work:.3g} Hz)")
-        return "full"
-    notes.append(f"drivetrain modes {_hz(modes[1:])} lumped into the two-mass reduction: above {MODE_FACTOR:g}x "
-                 f"{what} ({f_work:.3g} Hz); chain='full' keeps them, `servo-toolkit reduce` measures the cost")
-    return "two_mass"
+    freqs, what = working_frequencies(scene, controller)
+    choice = choose_chain(scene, controller, q0, freqs, options.damping_ratio, what)
+    notes.append(choice.note)
+    return choice.chain
 
 
 def _hz(values) -> str:
     return ", ".join(f"{v:.4g}" for v in values) + " Hz"
-
-
-def segments(chain, q0: float) -> list[tuple[int, int]]:
-    """(first, last) node of each segment between consecutive kept nodes; segment s holds the
-    chain's springs first .. last - 1."""
-    keep = kept_nodes(chain, q0)
-    return [(int(a), int(b)) for a, b in zip(keep[:-1], keep[1:])]
-
-
-def segment_stiffness(chain, q, segs) -> np.ndarray:
-    """Series stiffness of each segment along q, shape (n_segments, n_q)."""
-    k = chain.spring_stiffness(q)
-    return np.array([1.0 / np.sum(1.0 / k[a:b], axis=0) for a, b in segs])
 
 
 def segment_plays(drive, segs, q0: float, options) -> np.ndarray:
@@ -136,51 +85,94 @@ def segment_plays(drive, segs, q0: float, options) -> np.ndarray:
     return plays
 
 
-def chain_model(drive, q, q0: float, options, j_tot, zeta: float):
+def chain_model(drive, q, q0: float, options, j_tot, dj_tot, zeta: float):
     """Tables and parameters of the full chain.
+
+    Parameters
+    ----------
+    drive : Drivetrain
+    q : numpy.ndarray
+        The stroke grid of the tables.
+    q0 : float
+        Operating point (nodes, segments and dampers are those at q0).
+    options : ModelOptions
+    j_tot, dj_tot : numpy.ndarray
+        The chain's total inertia along q and its derivative (constant without
+        ``options.variable_inertia``).
+    zeta : float
+        Damping ratio of each compliance whose stage gives none.
 
     Returns
     -------
     dict
-        ``j_row`` (the motor side's inertia along q), ``k_rows`` (segment stiffness, values and
-        derivatives, shape (2 n_seg, n_q)), ``block`` (the segment block of P, SEG_STRIDE per
-        segment), ``half_play`` (segment 0's), ``j_load``, ``j_motor0`` (the motor side at
-        q0), ``k_series0`` (every segment in series at q0), ``beta``, ``load_side`` (names),
-        ``nodes`` (kept node indices), ``jw_motor`` (node 0's inertia before the losses).
+        ``j_row``, ``dj_row`` (the motor node's inertia along p and its derivative: the total
+        less every other node's), ``k_rows`` (segment stiffness, values and derivatives,
+        shape (2 n_seg, n_q)), ``node_rows`` (the motor node's J_w, dJ_w/dp, then per further
+        node J_j, dJ_j/dp, J_w,j, dJ_w,j/dp), ``block`` (the segment block of P, SEG_STRIDE
+        per segment), ``half_play`` (segment 0's), ``j_load`` (the load node at q0),
+        ``j_motor0`` (the motor node at q0), ``k_series0`` (every segment in series at q0),
+        ``damping`` (:class:`~servo_toolkit.drivetrain.chain_damping.ChainDamping`),
+        ``load_side`` (names), ``nodes`` (kept node indices), ``jw_motor`` (node 0's inertia
+        before the losses at q0), ``variation`` (each further node's relative variation of
+        inertia along the stroke).
     """
     chain = drive.chain
     segs = segments(chain, q0)
     keep = kept_nodes(chain, q0)
-    nodes0 = chain.node_inertias([q0])[:, 0]
-    held = nodes0[keep[1:]]
-    j_row = j_tot - held.sum()
-    if np.any(j_row <= 0):
-        raise SceneError("drivetrain", "the motor node's inertia is not positive along the stroke")
+    beyond = list(keep[1:])
+    fractions = chain.loss_fractions()
+    grid = q if options.variable_inertia else np.array([q0])
+    jn, djn = chain.node_jets(grid)
+    jw, djw = chain.node_jets(grid, fractions)
+    if not options.variable_inertia:
+        jn, jw = (np.repeat(a, q.size, axis=1) for a in (jn, jw))
+        djn, djw = np.zeros_like(jn), np.zeros_like(jw)
+    j_row = j_tot - jn[beyond].sum(axis=0)
+    dj_row = dj_tot - djn[beyond].sum(axis=0)
+    if np.any(j_row <= 0) or np.any(jn[beyond] <= 0):
+        raise SceneError("drivetrain", "a node of the drivetrain chain has no positive inertia along the stroke "
+                         "(its inertia is tabulated along the stroke)")
     k_seg = segment_stiffness(chain, q, segs)
     k_rows = np.vstack([np.vstack([k, CubicSpline(q, k)(q, 1)]) for k in k_seg])
+    node_rows = np.vstack([jw[0], djw[0]] + [np.vstack([jn[j], djn[j], jw[j], djw[j]]) for j in beyond])
     eta = chain.efficiency
-    elem_j = chain.element_inertias([q0])[:, 0]
-    frac_e = np.array([(1.0 - eta / e.loss) / (1.0 - eta) if eta < 1.0 else 0.0 for e in chain.elements])
-    jw_node = np.zeros(chain.n_nodes)
-    for e, j, fr in zip(chain.elements, elem_j, frac_e):
-        jw_node[e.node] += j * fr
     pi_s = chain.spring_losses()
     frac_s = [(1.0 - eta / pi_s[a]) / (1.0 - eta) if eta < 1.0 else 0.0 for a, _ in segs]
     plays = segment_plays(drive, segs, q0, options)
+    damping = chain_damping(chain, q0, zeta, stiffness_scale=options.stiffness_scale)
     block = np.zeros(lo.SEG_STRIDE * len(segs))
-    for s, (a, b) in enumerate(segs):
+    for s in range(len(segs)):
         block[lo.SEG_STRIDE * s + lo.SEG_PLAY] = 0.5 * plays[s]
         block[lo.SEG_STRIDE * s + lo.SEG_LOSS] = frac_s[s]
-        block[lo.SEG_STRIDE * s + lo.SEG_J] = nodes0[b]
-        block[lo.SEG_STRIDE * s + lo.SEG_JW] = jw_node[b]
-    w1 = float(chain.eigenfrequencies(q0, driving=True)[0]) * math.sqrt(options.stiffness_scale)
+        block[lo.SEG_STRIDE * s + lo.SEG_BETA] = damping.beta[s]
     k0 = np.array([np.interp(q0, q, k) for k in k_seg])
+    at_q0 = chain.node_jets([q0])[0][:, 0]
     last = keep[-1]
-    return {"j_row": j_row, "k_rows": k_rows, "block": block, "half_play": 0.5 * plays[0],
-            "j_load": float(nodes0[last]), "j_motor0": float(np.interp(q0, q, j_row)),
-            "k_series0": float(1.0 / np.sum(1.0 / k0)), "beta": 2.0 * zeta / w1,
+    lo_s, hi_s = drive.stroke
+    inside = (q >= lo_s) & (q <= hi_s)
+    variation = {int(j): float(np.ptp(jn[j][inside]) / at_q0[j]) for j in beyond}
+    return {"j_row": j_row, "dj_row": dj_row, "k_rows": k_rows, "node_rows": node_rows, "block": block,
+            "half_play": 0.5 * plays[0], "j_load": float(at_q0[last]), "j_motor0": float(np.interp(q0, q, j_row)),
+            "k_series0": float(1.0 / np.sum(1.0 / k0)), "damping": damping,
             "load_side": tuple(e.label for e in chain.elements if e.node == last),
-            "nodes": tuple(int(n) for n in keep), "jw_motor": float(jw_node[0])}
+            "nodes": tuple(int(n) for n in keep), "jw_motor": float(chain.node_jets([q0], fractions)[0][0, 0]),
+            "variation": variation}
+
+
+def chain_damping_facts(damping) -> dict:
+    """The full chain's dampers as plain numbers (:attr:`servo_toolkit.sim.model.Model.damping`)."""
+    return {"segment_ratios": [float(z) for z in damping.ratios], "beta_s": [float(b) for b in damping.beta],
+            "modes_hz": [float(w / (2 * math.pi)) for w in damping.frequencies],
+            "mode_ratios": [float(z) for z in damping.modal_ratios]}
+
+
+def damping_note(damping) -> str:
+    """The full chain's structural damping in words: each segment's ratio, each mode's."""
+    ratios = ", ".join(f"{z:.3g}" for z in damping.ratios)
+    modes = ", ".join(f"{z:.3g} at {w / (2 * math.pi):.4g} Hz" for z, w in zip(damping.modal_ratios,
+                                                                             damping.frequencies))
+    return (f"a damper on each compliance (damping ratios {ratios} in the modes they dominate): modal damping "
+            f"ratios {modes}")
 
 
 def chain_state_names(nodes) -> list[str]:
@@ -188,5 +180,5 @@ def chain_state_names(nodes) -> list[str]:
     return [name for n in nodes[1:-1] for name in (f"node[{n}]_position", f"node[{n}]_rate")]
 
 
-__all__ = ["CHAIN_CHOICES", "MODE_FACTOR", "chain_model", "chain_state_names", "crossover_hz", "resolve",
-           "segment_plays", "segment_stiffness", "segments", "working_frequency"]
+__all__ = ["CHAIN_CHOICES", "chain_damping_facts", "chain_model", "chain_state_names", "damping_note", "kept_nodes",
+           "resolve", "segment_plays", "segment_stiffness", "segments"]

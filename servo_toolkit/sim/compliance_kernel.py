@@ -9,9 +9,9 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import (BETA, ETA_HALF, ETA_MEAN, HALF_PLAY, INV_H, INV_JD0, INV_TAU_S, JW, KSCALE,  # noqa: E402
-                     NMID, OFF_NODE, OFF_SEG, SEG_J, SEG_JW, SEG_LOSS, SEG_PLAY, SEG_STRIDE, T_K, T_KS,
-                     TAB_H, WS)
+from .layout import (ETA_HALF, ETA_MEAN, INV_H, INV_JD0, INV_TAU_S, JL, JW, KSCALE, NMID,  # noqa: E402
+                     NODE_ROWS, OFF_NODE, OFF_SEG, ROW_JW0, ROW_NODE, SEG_BETA, SEG_LOSS, SEG_PLAY,
+                     SEG_STRIDE, T_K, T_KS, TAB_H, WS)
 from .tables import interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -92,49 +92,99 @@ def segment_force(k, d, dd, c, beta):
 
 
 @inline
+def node_inertia(P, T, j, c, kc, tc, hc, ih):
+    """Node j's inertia at the motor-side position and its derivative along it, J_j - c J_w,j
+    and J_j' - c J_w,j' (j = 1..NMID + 1: the intermediate nodes, then the load; c the
+    loss coefficient, 0 for a lossless chain)."""
+    r = int(P[ROW_NODE]) + NODE_ROWS * (j - 1)
+    jj, dj = interp(T, r, kc, tc, hc, ih)
+    if c != 0.0:
+        jw, djw = interp(T, r + 2, kc, tc, hc, ih)
+        jj -= c * jw
+        dj -= c * djw
+    return jj, dj
+
+
+@inline
+def inertia_beyond_motor(P, T, kc, tc, hc, ih):
+    """The inertia of every node beyond the motor side and its derivative along p: the load
+    side ``JL`` of a two-mass model, the sum of the further nodes' tables of the full chain."""
+    nm = int(P[NMID])
+    if nm == 0:
+        return P[JL], 0.0
+    total, slope = 0.0, 0.0
+    for j in range(1, nm + 2):
+        jj, dj = node_inertia(P, T, j, 0.0, kc, tc, hc, ih)
+        total += jj
+        slope += dj
+    return total, slope
+
+
+@inline
 def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx):
     """The full chain (``P[NMID]`` intermediate nodes, :mod:`servo_toolkit.sim.chain_model`):
     writes the intermediate nodes' derivatives into dx and returns ``(p'', q'')``.
 
-    Segment s joins node s and s + 1 (node 0 = p, the last = q); its stiffness is tabulated
-    at p (its variation adds -k_s'(p) z_s^2 / 2 to the motor side's equation, so the
-    undamped chain conserves energy). The losses act where the chain has them, with one
-    coefficient c for the whole chain (:func:`loss_coefficient`, judged at the motor side):
-    node j's inertia J_j - c J_w,j and segment s's force weighted by 1 - c l_s,
-    l_s = (1 - eta / Pi_s) / (1 - eta) (driving: eta / Pi_s, the chain's driving-mode form).
+    Node 0 is the motor side p, nodes 1..NMID the intermediate ones y_j, node NMID + 1 the
+    load q. Every node's inertia J_j(p) is tabulated along the motor-side position (``jd``,
+    ``djd`` for node 0), and segment s (between nodes s and s + 1) has its stiffness k_s(p),
+    play and damper beta_s k_s(p) (:func:`segment_force`, force f_s, deflection beyond the
+    play z_s). Lagrange's equations of T = sum_j J_j(p) y_j'^2 / 2 and
+    V = sum_s k_s(p) z_s^2 / 2::
+
+        J_0 p'' = N tau - J_0' p'^2 / 2 + sum_{j>0} J_j' y_j'^2 / 2 - f_0 - sum_s k_s' z_s^2 / 2
+        J_j y_j'' = f_{j-1} - f_j - J_j' p' y_j'
+
+    so the undamped, lossless chain conserves T + V exactly. The losses act where the chain
+    has them, with one coefficient c for the whole chain (:func:`loss_coefficient`, judged
+    at the motor side): node j's inertia J_j - c J_w,j (J_w,j its inertia before the
+    losses, tabulated like J_j), the motor torque (1 - c) N tau and segment s weighted by
+    1 - c l_s, l_s = (1 - eta / Pi_s) / (1 - eta) (driving: eta / Pi, the chain's
+    driving-mode form). The power the losses take is then c times the power transmitted
+    past the members before them.
     """
     nm = int(P[NMID])
     o = int(P[OFF_NODE])
     g = int(P[OFF_SEG])
-    hc, ih, ks, beta = P[TAB_H], P[INV_H], P[KSCALE], P[BETA]
+    hc, ih, ks = P[TAB_H], P[INV_H], P[KSCALE]
+    # segment 0: the motor side against node 1
     k0, dk0 = interp(T, T_K, kc, tc, hc, ih)
-    f0, z0 = segment_force(k0 * ks, p - x[o], pd - x[o + 1], P[HALF_PLAY], beta)
+    k0 *= ks
     dk0 *= ks
+    f0, z0 = segment_force(k0, p - x[o], pd - x[o + 1], P[g + SEG_PLAY], P[g + SEG_BETA])
     c = loss_coefficient(P, nts, jd, pd, n, -f0 - 0.5 * dk0 * z0 * z0)
-    w = 1.0 - c * P[g + SEG_LOSS]
-    pot = -0.5 * w * dk0 * z0 * z0
-    f_in = w * f0
-    for j in range(1, nm + 1):
+    w0 = 1.0 - c * P[g + SEG_LOSS]
+    pot = -0.5 * w0 * dk0 * z0 * z0  # -sum_s w_s k_s' z_s^2 / 2 on the motor side
+    kin = 0.0  # sum_{j>0} J_j' y_j'^2 / 2 on the motor side
+    f_in = w0 * f0  # the force the segment before node j passes on to it
+    for j in range(1, nm + 1):  # the intermediate nodes
         a = o + 2 * (j - 1)
         y, yd = x[a], x[a + 1]
         if j < nm:
             yn, ynd = x[a + 2], x[a + 3]
         else:
             yn, ynd = q, qd
+        jj, dj = node_inertia(P, T, j, c, kc, tc, hc, ih)
+        kin += 0.5 * dj * yd * yd
         kj, dkj = interp(T, T_KS + 2 * (j - 1), kc, tc, hc, ih)
+        kj *= ks
+        dkj *= ks
         gj = g + SEG_STRIDE * j
-        fj, zj = segment_force(kj * ks, y - yn, yd - ynd, P[gj + SEG_PLAY], beta)
+        fj, zj = segment_force(kj, y - yn, yd - ynd, P[gj + SEG_PLAY], P[gj + SEG_BETA])
         wj = 1.0 - c * P[gj + SEG_LOSS]
-        pot -= 0.5 * wj * dkj * ks * zj * zj
-        gi = gj - SEG_STRIDE  # node j's inertia sits with the segment before it
+        pot -= 0.5 * wj * dkj * zj * zj
         dx[a] = yd
-        dx[a + 1] = (f_in - wj * fj) / (P[gi + SEG_J] - c * P[gi + SEG_JW])
+        dx[a + 1] = (f_in - wj * fj - dj * pd * yd) / jj
         f_in = wj * fj
-    jw = P[JW] * n * n
-    pdd = ((1.0 - c) * nts - 0.5 * (djd - c * 2.0 * P[JW] * n * dn) * pd * pd - w * f0 + pot) / (jd - c * jw)
-    gl = g + SEG_STRIDE * nm
-    qdd = (f_in + m_load) / (P[gl + SEG_J] - c * P[gl + SEG_JW])
+    jl, djl = node_inertia(P, T, nm + 1, c, kc, tc, hc, ih)  # the load
+    kin += 0.5 * djl * qd * qd
+    qdd = (f_in + m_load - djl * pd * qd) / jl
+    jw0, djw0 = 0.0, 0.0
+    if c != 0.0:
+        jw0, djw0 = interp(T, int(P[ROW_JW0]), kc, tc, hc, ih)
+    pdd = ((1.0 - c) * nts - 0.5 * (djd - c * djw0) * pd * pd + kin - w0 * f0 + pot) / (jd - c * jw0)
     return pdd, qdd
 
 
-__all__ = ["B_EPS", "chain_accelerations", "contact", "loss_coefficient", "lossy", "segment_force"]
+__all__ = ["B_EPS", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy",
+           "node_inertia", "segment_force"]

@@ -20,7 +20,10 @@ METHODS = ("rk4", "paper", "reference", "auto")
 #: target |lambda dt| for the automatic step (RK4's real-axis limit is 2.785)
 AUTO_Z = 1.0
 #: above this many steps ``auto`` hands the run to the implicit solver
-MAX_STEPS = 20_000_000
+AUTO_MAX_STEPS = 20_000_000
+#: most fixed steps one run may take (about a minute of the compiled loop): a step or a
+#: duration that asks for more is refused instead of running for hours
+MAX_STEPS = 300_000_000
 MAX_RECORDS = 4000
 #: states checked for the step limit along a fixed-step run
 ALONG_SAMPLES = 48
@@ -34,11 +37,6 @@ def _snap(dt, model, duration, output_dt=None):
     span = model.sample_time if model.sample_time > 0 else (output_dt or duration)
     n = max(1, math.ceil(span / dt * (1 - 1e-12)))
     return span / n
-
-
-#: most fixed steps one run may take (about a minute of the compiled loop): a step or a
-#: duration that asks for more is refused instead of running for hours
-MAX_STEPS = 300_000_000
 
 
 def _grid(model, duration, dt, output_dt):
@@ -200,9 +198,9 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
     auto_dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration, output_dt)
     choice = ""
     if method == "auto":
-        if duration / auto_dt > MAX_STEPS:
+        if duration / auto_dt > AUTO_MAX_STEPS:
             method, choice = "reference", (f"fastest eigenvalue |lambda| = {probe['max_abs_lambda']:.3g} 1/s "
-                                          f"needs dt <= {limit:.3g} s, more than {MAX_STEPS} RK4 steps: "
+                                          f"needs dt <= {limit:.3g} s, more than {AUTO_MAX_STEPS} RK4 steps: "
                                           f"implicit solver instead")
         else:
             method, dt = "rk4", auto_dt
@@ -246,7 +244,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
                     f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'")
             tries += 1
             new_dt = _snap(AUTO_Z / along["max_abs_lambda"], model, duration, output_dt)
-            if tries > 3 or duration / new_dt > MAX_STEPS:
+            if tries > 3 or duration / new_dt > AUTO_MAX_STEPS:
                 method = "reference"
                 choice += f"; along the run |lambda| rose to {along['max_abs_lambda']:.3g} 1/s: implicit solver instead"
                 break

@@ -11,9 +11,10 @@ from ..core.jit_cache import install as _install_cache
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
-                     HINGE_K, HINGE_M, INV_H, INV_TAU_S, JL, JW, KT, REF_A, REF_F, REF_KIND,
+                     HINGE_K, HINGE_M, INV_H, INV_TAU_S, JW, KT, REF_A, REF_F, REF_KIND,
                      REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ, REF_MOVE)
 from .command_kernel import impulse, impulses, move_rates  # noqa: E402
+from .compliance_kernel import inertia_beyond_motor  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -71,8 +72,9 @@ def feedforward_current(r, rd, rdd, P, T):
         ih = P[INV_H]
         j, dj = interp(T, T_J, kc, tc, hc, ih)
         n, dn = interp(T, T_N, kc, tc, hc, ih)
-        j = (j + P[JL] + P[FF_DJ]) * P[FF_JSCALE]
-        dj = dj * P[FF_JSCALE]
+        jb, djb = inertia_beyond_motor(P, T, kc, tc, hc, ih)  # the whole chain's J(r), J'(r)
+        j = (j + jb + P[FF_DJ]) * P[FF_JSCALE]
+        dj = (dj + djb) * P[FF_JSCALE]
         m_load = -P[HINGE_M] - P[HINGE_K] * r - P[HINGE_D] * rd
         tq = j * rdd + 0.5 * dj * rd * rd - m_load
         if P[ETA_MEAN] > 0.0:

@@ -62,14 +62,14 @@ JW = 56
 # 1 / the motor side's inertia at q0 (J(q0) - JL): the scale of the loss's smooth torque sign
 # (:func:`kernel.lossy`), a product where a division would cost the step rate
 INV_JD0 = 57
-# the full chain (:func:`servo_toolkit.sim.chain_model.chain_slots`): number of intermediate
+# the full chain (:func:`servo_toolkit.sim.chain_model.chain_model`): number of intermediate
 # nodes between the motor side (p) and the load (q) (0: two-mass or rigid), index in x of the
 # first intermediate node's angle, and index in P of the segment block: per segment s = 0..NMID
 # (between node s and s + 1), SEG_STRIDE values [half play, loss fraction of its spring
-# (1 - eta / Pi_s) / (1 - eta), inertia of node s + 1, its inertia before the losses J_w]
+# (1 - eta / Pi_s) / (1 - eta), its damper's beta_s (s): the damper is beta_s k_s(p)]
 NMID, OFF_NODE, OFF_SEG = 58, 59, 60
-SEG_STRIDE = 4
-SEG_PLAY, SEG_LOSS, SEG_J, SEG_JW = range(4)
+SEG_STRIDE = 3
+SEG_PLAY, SEG_LOSS, SEG_BETA = range(3)
 # friction that holds (:func:`servo_toolkit.sim.friction_kernel.slip_friction`, STICK = 1): the
 # motor's breakaway torque (N*m at the motor shaft; TC is its Coulomb level) and 1 / its
 # Stribeck speed (s/rad; inf: the drop from Ts to Tc at once), the load's Coulomb and breakaway
@@ -86,7 +86,15 @@ TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
 # which the feedforward current leads the sample instant (half a sample)
 FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 # slots 74..117 are reserved for further header blocks (each block states its own meaning)
-# 74..81: the drivetrain chain's per-node tables and damping
+# 74..81: the drivetrain chain's per-node tables and damping (the full chain,
+# :mod:`servo_toolkit.sim.chain_model`; 0 in a two-mass or rigid model): the table row of the
+# motor node's inertia before the losses J_w,0(p) (value row, then its derivative along p), and
+# the first table row of the further nodes: node j = 1..NMID + 1 (the intermediate nodes, then
+# the load's) has NODE_ROWS rows from ROW_NODE + NODE_ROWS (j - 1), its inertia J_j(p), dJ_j/dp,
+# its inertia before the losses J_w,j(p), dJ_w,j/dp, every one tabulated at the motor-side
+# position p (each segment's damper is in the segment block, SEG_BETA); 76..81 free
+ROW_JW0, ROW_NODE = 74, 75
+NODE_ROWS = 4
 # 82..89: friction at the chain's nodes
 # 90..97: reference tables and multisines
 # gain scheduling along the stroke and command shaping (slots 98..105;

@@ -1,12 +1,22 @@
 """Model assembly: a scene and a controller -> an immutable :class:`Model` of flat arrays.
 
-The drivetrain is reduced as the linear plant reduces it, by the chain's two-mass reduction
-(:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0, the chain's lowest resonance and
-antiresonance): its load-side inertia J2 is held at its q0 value, the motor side is
-J(q) - J2, and the series stiffness K(q) (scaled to the reduction's stiffness at q0) and the
-lost motion of every stage are lumped between them at the output; for one compliance these
-are the nodes on either side of it (rotor, pinion, ... each member at its node). A lost motion
-in a chain without a compliance is refused (:class:`SceneError` naming its key), never dropped.
+The drivetrain is the lumped chain (:mod:`servo_toolkit.drivetrain.chain`) in one of two
+forms (``ModelOptions.chain``; ``"auto"`` chooses by :func:`~.chain_choice.choose_chain`, the
+cost of lumping the upper modes at the scene's working frequencies, and the notes say which):
+
+- the **full chain** (:mod:`.chain_model`): every node with inertia, each with its inertia
+  J_j(p) tabulated along the stroke at the motor-side position (Lagrange's velocity terms
+  keep the undamped chain's energy), every compliance with its stiffness along the stroke,
+  its own play and its own damper;
+- the **two-mass reduction** (:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass` at q0,
+  the chain's lowest resonance and antiresonance), as the linear design plant has it: its
+  load-side inertia J2 is held at its q0 value, the motor side is J(q) - J2, and the series
+  stiffness K(q) (scaled to the reduction's stiffness at q0) and the lost motion of every
+  stage are lumped between them at the output; for one compliance these are the nodes on
+  either side of it (rotor, pinion, ... each member at its node).
+
+A lost motion in a chain without a compliance is refused (:class:`SceneError` naming its key),
+never dropped.
 
 Position-dependent data are tabulated along the stroke and interpolated with cubic Hermite
 polynomials on exact values and derivatives (J, dJ/dq and N, dN/dq from the drivetrain's
@@ -38,8 +48,11 @@ Simplifications (documented, switchable where a reduction study needs it):
   torque and speed are in quadrature) sees eta on half the cycle and 1/eta_b on the other,
   and the sweep measures what that changes. The other losses are the motor's viscous and
   Coulomb friction, the structural damping of the compliance and the load's damping;
-- the drivetrain's structural damping is stiffness-proportional, ``beta K`` with
-  ``beta = 2 zeta / omega_n`` at q0 (``zeta = options.damping_ratio``).
+- the drivetrain's structural damping is a damper per compliance, stiffness-proportional
+  along the stroke, set by the damping ratio of the mode it dominates
+  (:mod:`servo_toolkit.drivetrain.chain_damping`; the stage's ``damping_ratio``, else
+  ``options.damping_ratio``); the two-mass reduction's damper, ``beta K`` with
+  ``beta = 2 zeta_1 / omega_n`` at q0, keeps the chain's lowest mode's ratio zeta_1.
 """
 
 from __future__ import annotations
@@ -53,13 +66,15 @@ from scipy.interpolate import CubicSpline
 from ..errors import SceneError
 from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
-from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
+from ..plant.linear import two_mass_damping
 from .tables import frozen_tables
-from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
+from .chain_model import (CHAIN_CHOICES, chain_damping_facts, chain_model, chain_state_names, damping_note,
+                          resolve as resolve_chain)
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
-from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
+from .model_slots import (FRICTION_CHOICES, drivetrain_slots, friction_slots, pack_controller,
+                          with_cam, with_full_chain, with_table_error)
 
 
 @dataclass(frozen=True)
@@ -75,11 +90,13 @@ class ModelOptions:
     backlash : bool
         Lost motion in the compliance (False: plain spring-damper).
     variable_inertia : bool
-        J(q) and dJ/dq along the stroke (False: J(q0) everywhere, no velocity term).
+        J(q) and dJ/dq along the stroke, each node's in the full chain (False: their q0 values
+        everywhere, no velocity term).
     stiffness_scale : float
         Multiplies the series stiffness (stiff-case studies).
     damping_ratio : float
-        Structural damping ratio of the drivetrain mode at q0.
+        Damping ratio of each compliance whose stage gives none (``damping_ratio``), in the
+        mode it dominates (:mod:`servo_toolkit.drivetrain.chain_damping`).
     friction_speed : float
         Motor speed (rad/s) of the tanh smoothing of Coulomb friction.
     controller_mode : str
@@ -104,10 +121,12 @@ class ModelOptions:
         breakaway creeps, the load's friction and static levels are left out and the notes
         say so); ``"off"``, left out (viscous friction stays).
     chain : {"auto", "full", "two_mass"}
-        The drivetrain's compliances: every one of them (the full chain, every mode), its
-        two-mass reduction (the lowest mode), or the full chain only where its second mode
-        lies within :data:`~.chain_model.MODE_FACTOR` times the scene's working frequencies
-        (:mod:`servo_toolkit.sim.chain_model`; the model's notes say which and why).
+        The drivetrain's compliances: every one of them (the full chain, every mode, every
+        node's inertia along the stroke), its two-mass reduction (the lowest mode), or the
+        full chain only where lumping its upper modes costs more than
+        :data:`~.chain_choice.LUMP_TOLERANCE` of the response at the scene's working
+        frequencies (:func:`~.chain_choice.choose_chain`; the model's notes say which, with
+        both RK4 step limits and the cost).
     speed_estimator : {None, "ideal", "difference", "kalman"}
         Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
         speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
@@ -201,6 +220,11 @@ class Model:
         The estimator's data (quantum, jerk, gain, state names); empty for ``"ideal"``.
     output_unit : {"rad", "m"}
         Unit of the output coordinate q (an angle, or a travel for a chain ending in a screw).
+    damping : dict
+        The drivetrain's structural damping: ``two_mass_ratio`` (the damping ratio of the
+        two-mass reduction's mode, the chain's lowest mode's), and for the full chain each
+        segment's ``segment_ratios`` and ``beta_s``, each mode's ``modes_hz`` and its
+        ``mode_ratios`` (modal); empty for a rigid chain.
     """
 
     name: str
@@ -221,6 +245,7 @@ class Model:
     speed_estimator: str = "ideal"
     estimator: dict = field(default_factory=dict)
     output_unit: str = "rad"
+    damping: dict = field(default_factory=dict)
 
     def __post_init__(self):
         # read-only tables, as every kernel is compiled for (a writable copy would compile again)
@@ -243,20 +268,6 @@ def _grid(drive, n):
     except (ValueError, SceneError):
         ok = False
     return (q, False) if ok else (np.linspace(lo_, hi, n), False)
-
-
-def _pack_controller(controller, mode):
-    names = tuple(controller.motion.input_labels)
-    if names != MOTION_INPUTS:
-        raise SceneError("controller", f"motion controller inputs must be {MOTION_INPUTS}, got {names}")
-    if mode == lo.SAMPLED:
-        a, b, c, d = controller.discrete_motion()
-    else:
-        s = controller.motion
-        a, b, c, d = (np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
-    if c.shape[0] != 1:
-        raise SceneError("controller", "the motion controller must have one output (i_ref)")
-    return a, b, c, d
 
 
 def build_model(scene, controller=None, options: ModelOptions | None = None) -> Model:
@@ -298,9 +309,15 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     rigid = not options.compliance or not np.all(np.isfinite(k_tot))
     jl, load_side, last_motor_node, k_factor = load_split(drive, q0)
     full = None
+    damping = {}
+    if not rigid:
+        zeta = two_mass_damping(drive.chain, q0, options.damping_ratio)
+        damping = {"two_mass_ratio": zeta}
     if not rigid and resolve_chain(scene, controller, options, q0, notes) == "full":
-        full = chain_model(drive, q, q0, options, j_tot, options.damping_ratio)
+        full = chain_model(drive, q, q0, options, j_tot, dj_tot, options.damping_ratio)
         jl, load_side, last_motor_node, k_factor = full["j_load"], full["load_side"], 0, 1.0
+        damping.update(chain_damping_facts(full["damping"]))
+        notes.append(damping_note(full["damping"]))
     if not rigid and full is None:
         k_tot = k_tot * k_factor
         if abs(k_factor - 1.0) > 1e-3:
@@ -313,24 +330,28 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if rigid and options.compliance and not np.all(np.isfinite(k_tot)):
         notes.append("no compliance in the scene: rigid chain")
         refuse_rigid_lash(drive.chain.rigid_lashes, options)
+    dj_row = dj_tot
     if rigid:
         last_motor_node = None
         j_row, k_row, dk_row, jl = j_tot, np.zeros_like(q), np.zeros_like(q), 0.0
+    elif full is not None:
+        j_row, dj_row, (k_row, dk_row) = full["j_row"], full["dj_row"], full["k_rows"][:2]
+        varies = {j: v for j, v in full["variation"].items() if v > 1e-3}
+        if varies and options.variable_inertia:
+            notes.append("every node's inertia along the stroke (" + ", ".join(
+                f"node {j} varies by {v:.1%}" for j, v in varies.items()) + ")")
     else:
-        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0) - (
-            0.0 if full is None else drive.chain.node_inertias([q0])[list(full["nodes"][1:-1]), 0].sum())
-        if np.ptp(moving) > 1e-3 * jl:
-            notes.append(f"load-side inertia held at its q0 value {jl:.4g} (it varies by "
+        moving = drive.chain.node_inertias(q)[last_motor_node + 1:].sum(axis=0)
+        if np.ptp(moving) > 1e-3 * jl and options.variable_inertia:
+            notes.append(f"two-mass reduction: load-side inertia held at its q0 value {jl:.4g} (it varies by "
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
         if np.any(j_row <= 0):
             raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
-        if full is not None:
-            j_row, (k_row, dk_row) = full["j_row"], full["k_rows"][:2]
-    table = np.vstack([j_row, dj_tot, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
-                      + ([] if full is None else [full["k_rows"][2:]])).astype(float)
+    table = np.vstack([j_row, dj_row, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
+                      + ([] if full is None else [full["k_rows"][2:], full["node_rows"]])).astype(float)
 
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
@@ -357,7 +378,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if not rigid and options.backlash:
         play = float(drive.backlash([q0])[0]) if options.play is None else options.play
     drivetrain_slots(P, rigid=rigid, j0_tot=float(np.interp(q0, q, j_tot)), jl=jl,
-                     k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play)
+                     k0=0.0 if rigid else float(np.interp(q0, q, k_tot)), options=options, play=play,
+                     zeta=damping.get("two_mass_ratio"))
     if full is not None:
         P = with_full_chain(P, full, options)
 
@@ -368,7 +390,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     if closed:
         mode = lo.SAMPLED if (options.controller_mode == "sampled" and controller.sample_time > 0) \
             else lo.CONTINUOUS
-        a, b, c, d = _pack_controller(controller, mode)
+        a, b, c, d = pack_controller(controller, mode)
         nc = a.shape[0]
         P[lo.CMODE], P[lo.NC] = mode, nc
         pack_feedforward(P, controller, scene, controller.sample_time if mode == lo.SAMPLED else 0.0, notes)
@@ -418,5 +440,5 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                   state_names=tuple(names), sample_time=ts, closed_loop=closed, q0=q0,
                   stroke=(lo_s, hi_s), rigid=rigid, load_side=load_side if not rigid else (),
                   controller=desc, notes=tuple(notes), speed_estimator=est_kind, estimator=est_info,
-                  output_unit=drive.output_unit)
+                  output_unit=drive.output_unit, damping=damping)
     return with_table_error(model, drive, q)

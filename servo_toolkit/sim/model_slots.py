@@ -1,6 +1,7 @@
-"""The parameter slots of an assembled model that follow from the drivetrain: the two-mass
-slots (shared with the batched variants), the full chain's segment block, a chain-ending cam's
-parameters, and the measured interpolation error of the stroke tables."""
+"""The parameter slots of an assembled model: the two-mass slots (shared with the batched
+variants), the full chain's segment block and table rows, friction, a chain-ending cam's
+parameters, the motion controller's matrices, and the measured
+interpolation error of the stroke tables."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..errors import SceneError
+from ..loop.controller import MOTION_INPUTS
 from . import layout as lo
 from .chain_model import segment_stiffness, segments
 from .chain_split import load_split
@@ -44,12 +47,12 @@ def friction_slots(P, motor, load, options, notes: list) -> None:
 
 
 def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, options,
-                     play: float) -> None:
+                     play: float, zeta: float | None = None) -> None:
     """Fill the parameter slots that follow from the inertias and the series stiffness at q0.
 
     Load-side inertia ``JL`` (and its reciprocal), the motor side's reciprocal ``INV_JD0``,
     stiffness factor ``KSCALE``, structural
-    damping ``BETA = 2 zeta / omega_n`` of the drivetrain mode at q0, half the lost motion,
+    damping ``BETA = 2 zeta / omega_n`` of the two-mass mode at q0, half the lost motion,
     and the elastic stroke-end stop (10x the drivetrain stiffness; 100 Hz on a rigid chain).
     :func:`build_model` and the batched variants (:mod:`servo_toolkit.sim.batch`) both fill
     them here.
@@ -68,6 +71,9 @@ def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, opt
     options : ModelOptions
     play : float
         Total lost motion at the output (rad; ignored when rigid).
+    zeta : float, optional
+        Damping ratio of the two-mass mode: the chain's lowest mode's
+        (:func:`servo_toolkit.plant.linear.two_mass_damping`); None: ``options.damping_ratio``.
     """
     P[lo.JL] = jl
     P[lo.INV_JL] = 1.0 / jl if jl > 0 else 0.0
@@ -80,18 +86,22 @@ def drivetrain_slots(P, *, rigid: bool, j0_tot: float, jl: float, k0: float, opt
         k0 = k0 * options.stiffness_scale
         jd0 = j0_tot - jl
         wn = math.sqrt(k0 * (1 / jd0 + 1 / jl))
-        P[lo.BETA] = 2 * options.damping_ratio / wn
+        P[lo.BETA] = 2 * (options.damping_ratio if zeta is None else zeta) / wn
         P[lo.HALF_PLAY] = 0.5 * play
         k_stop, j_stop = 10 * k0, jl
     P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * j_stop)
 
 
 def with_full_chain(P, full, options):
-    """The full chain's slots (:mod:`.chain_model`): its segment block appended, the motor
-    node's reciprocal inertia, segment 0's play and the chain's damping."""
-    P[lo.NMID] = len(full["nodes"]) - 2
+    """The full chain's slots (:mod:`.chain_model`): its segment block appended (each
+    segment's play, loss fraction and damper), the rows of its per-node tables, the motor
+    node's reciprocal inertia and segment 0's play and damper."""
+    nm = len(full["nodes"]) - 2
+    P[lo.NMID] = nm
+    P[lo.ROW_JW0] = lo.T_KS + 2 * nm
+    P[lo.ROW_NODE] = P[lo.ROW_JW0] + 2
     P[lo.INV_JD0] = 1.0 / full["j_motor0"]
-    P[lo.BETA] = full["beta"]
+    P[lo.BETA] = full["damping"].beta[0]
     P[lo.HALF_PLAY] = full["half_play"]
     k_stop = 10 * full["k_series0"] * options.stiffness_scale
     P[lo.KSTOP], P[lo.DSTOP] = k_stop, math.sqrt(k_stop * full["j_load"])
@@ -120,8 +130,10 @@ def with_table_error(model, drive, q):
     """Measure the Hermite interpolation error at the cell midpoints against the drivetrain."""
     mid = 0.5 * (q[1:] + q[:-1])
     nm = int(model.P[lo.NMID])
-    g = int(model.P[lo.OFF_SEG])
-    held = model.P[g + lo.SEG_J:g + lo.SEG_STRIDE * (nm + 1):lo.SEG_STRIDE].sum() if nm else model.P[lo.JL]
+    nodes = segments(drive.chain, model.q0) if nm else []
+    beyond = [b for _, b in nodes]
+    exact_nodes = drive.chain.node_jets(mid)[0][beyond] if nm else np.zeros((0, mid.size))
+    held = exact_nodes.sum(axis=0) if nm else model.P[lo.JL]
     exact_j = drive.inertia(mid)[0] - (0.0 if model.rigid else held)
     exact_n = np.abs(drive.ratio(mid)[0])
     if not model.options.variable_inertia:
@@ -136,7 +148,27 @@ def with_table_error(model, drive, q):
         else:
             exact_k = drive.stiffness(mid).total * load_split(drive, model.q0)[3]
         err["K"] = float(np.max(np.abs(interp[2] - exact_k)) / np.max(exact_k))
+    if nm and model.options.variable_inertia:
+        rows = [int(model.P[lo.ROW_NODE]) + lo.NODE_ROWS * j for j in range(len(beyond))]
+        got = np.array([[hermite(model.T, r, model.P, x)[0] for x in mid] for r in rows])
+        err["J_nodes"] = float(np.max(np.abs(got - exact_nodes) / np.max(np.abs(exact_nodes), axis=1)[:, None]))
     return replace(model, table_error=err)
 
 
-__all__ = ["FRICTION_CHOICES", "drivetrain_slots", "friction_slots", "with_cam", "with_full_chain", "with_table_error"]
+def pack_controller(controller, mode):
+    """The motion controller's (A, B, C, D): discretized for a sampled loop, continuous otherwise."""
+    names = tuple(controller.motion.input_labels)
+    if names != MOTION_INPUTS:
+        raise SceneError("controller", f"motion controller inputs must be {MOTION_INPUTS}, got {names}")
+    if mode == lo.SAMPLED:
+        a, b, c, d = controller.discrete_motion()
+    else:
+        s = controller.motion
+        a, b, c, d = (np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
+    if c.shape[0] != 1:
+        raise SceneError("controller", "the motion controller must have one output (i_ref)")
+    return a, b, c, d
+
+
+__all__ = ["FRICTION_CHOICES", "drivetrain_slots", "friction_slots", "pack_controller", "with_cam",
+           "with_full_chain", "with_table_error"]

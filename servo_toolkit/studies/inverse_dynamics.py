@@ -207,22 +207,23 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     chains = [subchain(drivetrain, k) for k in range(n + 1)]
     inertial = [inertial_force(c, q, qd, qdd) for c in chains]   # inertial[n] = load only
     external = external_force(drivetrain, q, qd)
-    # each element's inertial force, and its place in the chain (drivetrain.chain): a stage's
-    # input members before its loss, its output members beyond it
+    # each element's inertial force, and its place in the chain (drivetrain.chain): before its
+    # stage's loss (a stage's input members) or beyond it (its output members)
     per = drivetrain.reflected_inertias(q)
     force = per.output * qdd + 0.5 * per.output_dq * qd**2
-    member = np.array([e.member == "input" for e in drivetrain.kinematics(q[:1]).elements])
-    owner = np.asarray(per.stage)
+    chain = drivetrain.chain
+    before = ~np.array([e.past_loss for e in chain.elements])
+    owner = np.array([e.stage for e in chain.elements])
     required = [None] * (n + 1)
     required[n] = inertial[n] + external
     for k in reversed(range(n)):
         mine = owner == k
-        raw = required[k + 1] + force[mine & ~member].sum(axis=0)
+        raw = required[k + 1] + force[mine & ~before].sum(axis=0)
         if losses == "none":
             eta = eta_b = 1.0
         else:
             eta, eta_b = float(getattr(stages[k], "efficiency", 1.0)), stages[k].backdrive_efficiency
-        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta_b) + force[mine & member].sum(axis=0)
+        required[k] = np.where(raw * qd >= 0, raw / eta, raw * eta_b) + force[mine & before].sum(axis=0)
     ratio, _ = drivetrain.ratio(q)
     if not np.all(np.isfinite(ratio)) or np.any(ratio == 0):
         raise SimulationError("the drivetrain ratio is zero or not finite along the motion")

@@ -2,7 +2,11 @@
 
 :func:`reduce` judges every modelled effect against a study's frequencies and amplitudes
 (:func:`.reduce_estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
-then runs the study on the full and on the reduced model and measures their difference:
+then runs the study on the full and on the reduced model and measures their difference, and
+measures the cost of each effect left out on its own: one more run of the study on the full
+model with only that effect's switch changed, compared with the full model the same way. The
+chain's modes above the first are measured so whether ``simulate``'s rule lumps them or not
+(the full chain against its two-mass reduction: the measurement checks the rule's estimate):
 
 - a ``frequency_sweep`` study: the sine-dwell responses of both models (:func:`.sweep.sweep`),
   difference ``|H_reduced / H_full - 1|`` per point;
@@ -19,192 +23,21 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import SceneError, SimulationError
-from ..core.output_units import OutputUnit, output_unit
+from ..core.output_units import output_unit
 from ..core.parallel import run_cases
 from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from .reduce_estimates import DEFAULT_TOLERANCE, ReductionPlan, plan_reduction
+from .reduce_choice import options_without
+from .reduce_estimates import DEFAULT_TOLERANCE, plan_reduction
+from .reduce_result import EffectCost, ReductionResult
 from .sine_dwell import DwellPlan
 from .sweep import linear_response, study_points, sweep
-from ..display.cards import RichDisplay
-from ..display.cards import card, facts, num, svg, table
 
 TIME_KINDS = ("kv", "simulate")
-
-
-@dataclass(frozen=True, repr=False)
-class ReductionResult(RichDisplay):
-    """What a study's reduced model leaves out, and how much that changes the study.
-
-    Attributes
-    ----------
-    scene : str
-    study : str or None
-    measure : str
-        ``"sweep"`` (sine-dwell responses) or ``"trace"`` (time-trace RMS).
-    plan : ReductionPlan
-        Effects, estimates, the reduced options and the tolerance (the a-priori bound).
-    frequencies_hz : numpy.ndarray
-    amplitudes_rad : numpy.ndarray
-        Command amplitudes in SI (rad, or m for an output travel; see ``output_unit``).
-    difference : numpy.ndarray
-        (n_a, n_f) measured relative difference full/reduced (NaN: a run failed in both).
-    saturated : numpy.ndarray
-        (n_a, n_f) bool: a limit was reached in either run (outside the linear statement).
-    full_options, reduced_options : dict
-    full_wall_s, reduced_wall_s : float
-        Wall time of the study on each model.
-    notes : tuple of str
-    output_unit : {"rad", "m"}
-        Unit of the output coordinate; amplitudes are shown in deg or mm after it.
-    """
-
-    scene: str
-    study: str | None
-    measure: str
-    plan: ReductionPlan
-    frequencies_hz: np.ndarray
-    amplitudes_rad: np.ndarray
-    difference: np.ndarray
-    saturated: np.ndarray
-    full_options: dict
-    reduced_options: dict
-    full_wall_s: float
-    reduced_wall_s: float
-    notes: tuple = field(default_factory=tuple)
-    output_unit: str = "rad"
-
-    @property
-    def bound(self) -> float:
-        """The a-priori bound on the relative difference (the tolerance)."""
-        return self.plan.tolerance
-
-    @property
-    def measured(self) -> float:
-        """Largest measured relative difference over the points within the limits."""
-        ok = ~self.saturated & ~np.isnan(self.difference)
-        return float(np.max(self.difference[ok])) if ok.any() else math.nan
-
-    @property
-    def measured_saturated(self) -> float:
-        """Largest measured relative difference over the points that reached a limit."""
-        sat = self.saturated & ~np.isnan(self.difference)
-        return float(np.max(self.difference[sat])) if sat.any() else math.nan
-
-    @property
-    def bound_applies(self) -> bool:
-        """True when at least one point stayed within the current and voltage limits (and ran
-        on both models): the a-priori bound is a statement about the linear range only."""
-        return bool(np.any(~self.saturated & ~np.isnan(self.difference)))
-
-    @property
-    def within_bound(self) -> bool | None:
-        """Measured difference (within the limits) <= the a-priori bound; None (not
-        applicable) when no point stayed within the limits."""
-        if not self.bound_applies:
-            return None
-        return bool(self.measured <= self.bound)
-
-    @property
-    def verdict(self) -> str:
-        """``"within"``, ``"NOT within"`` or ``"not applicable"`` (no point within the limits)."""
-        return {True: "within", False: "NOT within", None: "not applicable"}[self.within_bound]
-
-    def to_dict(self) -> dict:
-        """JSON-ready."""
-        def db(e):
-            return 20 * math.log10(1 + e) if math.isfinite(e) else e
-
-        def deg(e):
-            return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else e
-        u = OutputUnit(self.output_unit)
-        return {"scene": self.scene, "study": self.study, "measure": self.measure,
-                **self.plan.to_dict(),
-                "bound_relative": self.bound, "measured_relative": self.measured,
-                "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
-                "measured_saturated_relative": self.measured_saturated,
-                "within_bound": self.within_bound, "bound_applies": self.bound_applies,
-                "points": [{"frequency_hz": float(f), u.key("amplitude"): float(u.show(a)),
-                            "difference_relative": float(self.difference[i, k]),
-                            "saturated": bool(self.saturated[i, k])}
-                           for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
-                "full_options": self.full_options, "reduced_options": self.reduced_options,
-                "full_wall_s": self.full_wall_s, "reduced_wall_s": self.reduced_wall_s,
-                "notes": list(self.notes)}
-
-    def table(self) -> str:
-        """Plain-text report: effects, estimates, choice, bound and measured difference."""
-        p = self.plan
-        lines = [f"Reduction of {self.scene} for study {self.study or '(default sweep)'}: "
-                 f"{self.frequencies_hz.size} frequencies {self.frequencies_hz[0]:.3g}..{self.frequencies_hz[-1]:.3g} Hz, "
-                 f"amplitudes {', '.join(OutputUnit(self.output_unit).text(a, 3) for a in self.amplitudes_rad)}",
-                 f"{'effect':34s} {'estimate':>9} {'[dB]':>7} {'[deg]':>6}  decision",
-                 "-" * 96]
-        for e in p.effects:
-            lines.append(f"{e.effect[:34]:34s} {e.estimate:9.2e} {_db(e.estimate):7.3f} {_deg(e.estimate):6.2f}  "
-                         f"{e.reason or ('left out' if e.omitted else 'kept')}")
-            lines.append(f"{'':34s}   {e.quantity}")
-        lines.append("-" * 96)
-        left = [e.effect for e in p.omitted]
-        lines.append("left out: " + (", ".join(left) if left else "nothing"))
-        lines.append(f"a-priori: sum of estimates of the omissions {p.predicted:.2e}; bound (tolerance) "
-                     f"{self.bound:.2e} = {_db(self.bound):.3f} dB / {_deg(self.bound):.2f} deg")
-        what = "sine-dwell response" if self.measure == "sweep" else "output-angle RMS"
-        if self.bound_applies:
-            lines.append(f"measured ({what}, full vs reduced): {self.measured:.2e} = {_db(self.measured):.3f} dB / "
-                         f"{_deg(self.measured):.2f} deg -> {self.verdict} the bound")
-        else:
-            sat = self.measured_saturated
-            lines.append(f"measured ({what}, full vs reduced): no point stayed within the current and voltage "
-                         f"limits, so the linear bound does not apply (not applicable); difference at the "
-                         f"saturated points {sat:.2e} = {_db(sat):.3f} dB / {_deg(sat):.2f} deg")
-        if np.any(self.saturated) and self.bound_applies:
-            lines.append(f"points that reached a limit (outside the linear statement): largest difference "
-                         f"{self.measured_saturated:.2e}")
-        lines.append(f"wall time: full {self.full_wall_s:.2f} s, reduced {self.reduced_wall_s:.2f} s")
-        lines += [f"note: {n}" for n in p.notes + self.notes]
-        return "\n".join(lines)
-
-    def plot(self, ax=None):
-        """Measured relative difference per point, with the bound and the a-priori sum."""
-        import matplotlib.pyplot as plt
-        if ax is None:
-            _, ax = plt.subplots(figsize=(7, 3.5))
-        for i, a in enumerate(self.amplitudes_rad):
-            d = np.where(np.isnan(self.difference[i]), np.nan, np.maximum(self.difference[i], 1e-12))
-            line, = ax.loglog(self.frequencies_hz, d, "o-", ms=4, label=f"measured, {OutputUnit(self.output_unit).text(a, 3)}")
-            sat = self.saturated[i]
-            if sat.any():
-                ax.loglog(self.frequencies_hz[sat], d[sat], "o", mfc="none", ms=8, color=line.get_color(),
-                          label="reached a limit")
-        ax.axhline(self.bound, color="r", lw=1, label="a-priori bound")
-        if self.plan.predicted > 0:
-            ax.axhline(self.plan.predicted, color="k", ls="--", lw=1, label="sum of estimates")
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel("|reduced / full - 1|")
-        ax.set_title(f"{self.scene}: reduced model left out " +
-                     (", ".join(e.effect for e in self.plan.omitted) or "nothing"), fontsize="small")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
-        return ax
-
-    def _repr_line(self) -> str:
-        return _card_line(self)
-
-    def _repr_card(self) -> str:
-        return _card_html(self)
-
-
-def _db(e):
-    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
-
-
-def _deg(e):
-    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
 
 
 def time_points(study):
@@ -254,7 +87,8 @@ def _trace_difference(full, red, t_settle):
 
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
-           executor=None, progress: bool = True, frequencies=None, amplitudes=None) -> ReductionResult:
+           executor=None, progress: bool = True, frequencies=None, amplitudes=None,
+           per_effect=True) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -275,6 +109,9 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         Hz, replacing a sweep study's frequencies (8 Hz is then not added).
     amplitudes : sequence of float, optional
         Command amplitudes (rad, or m for an output travel), replacing the study's.
+    per_effect : bool or sequence of str
+        Also measure each effect left out on its own, and the chain's modes above the first
+        (one more run of the study each); a sequence names the effects to measure so.
 
     Returns
     -------
@@ -313,47 +150,81 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     if measure == "sweep":
         kw = dict(frequencies=freqs, amplitudes=amps, controller=controller, plan=dwell, executor=executor,
                   progress=progress)
-        s_full = sweep(scene, name, options=full, **kw)
-        s_red = sweep(scene, name, options=reduced, **kw)
-        with np.errstate(invalid="ignore"):
-            diff = np.abs(s_red.response / s_full.response - 1.0)
-        failed_one = np.isnan(s_full.response) ^ np.isnan(s_red.response)
-        diff[failed_one] = math.inf
-        sat = s_full.saturated | s_red.saturated | failed_one
-        walls = (s_full.wall_s, s_red.wall_s)
-        if np.isnan(diff).any():
-            notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
-                         f"{next(e for e in s_full.errors if e)}); not compared")
+
+        def study_on(options, label):
+            return sweep(scene, name, options=options, **kw)
     else:
-        notes.append("time runs with an elastic stroke-end stop on both models")
+        notes.append("time runs with an elastic stroke-end stop on every model")
         _, decay = linear_response(scene, controller, freqs, full.damping_ratio)
         f = float(freqs[0])
         settle, est = dwell.cycles(f, decay)
         limits = (scene.motor.current_limit, scene.motor.voltage_limit)
-        walls, runs = [], {}
-        for key, opts in (("full", full), ("reduced", reduced)):
+
+        def study_on(options, label):
             start = time.perf_counter()
-            model = build_model(scene, controller, opts)
-            runs[key] = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits, settle / f) for a in amps],
-                                  executor=executor, progress=progress, description=f"{key} model")
-            walls.append(time.perf_counter() - start)
-        pairs = [_trace_difference(a, b, settle / f) for a, b in zip(runs["full"], runs["reduced"])]
-        diff = np.array([[d] for d, _ in pairs])
-        sat = np.array([[s] for _, s in pairs])
+            model = build_model(scene, controller, options)
+            runs = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits, settle / f) for a in amps],
+                             executor=executor, progress=progress, description=f"{label} model")
+            return _Traces(runs, settle / f, time.perf_counter() - start)
+    s_full = study_on(full, "full")
+    s_red = study_on(reduced, "reduced")
+    diff, sat = _difference(s_full, s_red)
+    walls = (s_full.wall_s, s_red.wall_s)
+    if measure == "sweep" and np.isnan(diff).any():
+        notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
+                     f"{next(e for e in s_full.errors if e)}); not compared")
+    if measure == "trace":
         notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "
                      f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode); "
                      "a point counts as saturated when a limit was reached in that window")
-        early = [output_unit(scene).text(a, 3) for a, r_f, r_r in zip(amps, runs["full"], runs["reduced"])
+        early = [output_unit(scene).text(a, 3) for a, r_f, r_r in zip(amps, s_full.runs, s_red.runs)
                  if r_f.get("startup_saturated") or r_r.get("startup_saturated")]
         if early:
             notes.append(f"the start-up transient (the sine command starts with its full slope) reached a limit "
                          f"before the compared window at {', '.join(early)}; it has "
                          "decayed by then")
+    costs = []
+    alone = [e for e in rplan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
+    if not isinstance(per_effect, bool):
+        alone = [e for e in alone if e.effect in set(per_effect)]
+    for effect in alone if per_effect else []:
+        alone = study_on(options_without(full, [effect]), f"without {effect.effect}")
+        d, s_ = _difference(s_full, alone)
+        costs.append(EffectCost(effect.effect, effect.estimate, _largest(d, ~s_), _largest(d, s_), alone.wall_s))
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
                            full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes),
-                           output_unit=output_unit(scene).si)
+                           output_unit=output_unit(scene).si, per_effect=tuple(costs))
+
+
+@dataclass(frozen=True)
+class _Traces:
+    """The closed-loop sine runs of a time study on one model (one per amplitude)."""
+
+    runs: list
+    t_settle: float
+    wall_s: float
+
+
+def _difference(a, b):
+    """``(difference, saturated)``, each (n_a, n_f), of a study run on two models: sine-dwell
+    responses ``|H_b / H_a - 1|`` or the output traces' RMS difference; inf where one model's
+    run failed (and counted as saturated), NaN where both did."""
+    if isinstance(a, _Traces):
+        pairs = [_trace_difference(x, y, a.t_settle) for x, y in zip(a.runs, b.runs)]
+        return np.array([[d] for d, _ in pairs]), np.array([[s] for _, s in pairs])
+    with np.errstate(invalid="ignore"):
+        diff = np.abs(b.response / a.response - 1.0)
+    failed_one = np.isnan(a.response) ^ np.isnan(b.response)
+    diff[failed_one] = math.inf
+    return diff, a.saturated | b.saturated | failed_one
+
+
+def _largest(diff, where) -> float:
+    """Largest difference over the points ``where`` (NaN: none ran on both models)."""
+    ok = where & ~np.isnan(diff)
+    return float(np.max(diff[ok])) if ok.any() else math.nan
 
 
 def _sweep_points(scene, study, frequencies):
@@ -380,8 +251,11 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":
         _, freqs, amps = _sweep_points(scene, study, frequencies)
-    else:
+    elif study.kind in TIME_KINDS:
         freqs, amps = time_points(study)
+    else:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
+                         "simulate studies")
     if amplitudes is not None:
         amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
     rplan = plan_reduction(scene, controller, freqs, amps,
@@ -389,21 +263,3 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
                                              friction="stick"),
                            tolerance=tolerance)
     return replace(rplan.options), rplan
-
-
-def _card_line(r) -> str:
-    """The one-line repr of a result of this module."""
-    left = ", ".join(e.effect for e in r.plan.omitted) or "nothing"
-    return f"{r.scene}: left out {left}; measured {num(r.measured, 3)} vs bound {num(r.bound, 3)} ({r.verdict})"
-
-
-def _card_html(r) -> str:
-    """The Jupyter card (HTML) of a result of this module."""
-    rows = [(e.effect, num(e.estimate, 3), "left out" if e.omitted else "kept", e.reason) for e in r.plan.effects]
-    parts = [table(("effect", "estimate (relative)", "decision", "why"), rows),
-             facts((("a-priori bound", num(r.bound, 3)), ("measured difference", num(r.measured, 3)),
-                    ("verdict", r.verdict), ("wall time full / reduced",
-                                             f"{num(r.full_wall_s, 3)} s / {num(r.reduced_wall_s, 3)} s"))),
-             svg(lambda ax: r.plot(ax), size=(7.0, 3.4))]
-    return card(f"Reduction of {r.scene}", status=r.within_bound if r.within_bound is not None else None,
-                parts=parts, notes=r.notes)

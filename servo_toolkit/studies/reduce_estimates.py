@@ -11,7 +11,9 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - the whole drivetrain compliance: rigid loop against the two-mass loop (resonance vs the
   study's highest frequency);
 - the drivetrain chain's modes above the first: the two-mass loop against the full chain's
-  (:func:`servo_toolkit.plant.chain_plant.chain_plant`); left out, the run uses the two-mass
+  (:func:`servo_toolkit.sim.chain_choice.lumping_cost`); kept or left out by the rule
+  ``simulate`` follows (:func:`servo_toolkit.sim.chain_choice.choose_chain`: lumped when the
+  cost is within half the tolerance), not by the budget; left out, the run uses the two-mass
   reduction;
 - backlash of total lost motion b at the output: zero when the force through the
   compliance never reverses (the static load keeps the contact closed: the dynamic force
@@ -39,16 +41,18 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import control as ct
 import numpy as np
 
 from ..drivetrain.operating_point import operating_point
-from ..core.output_units import OutputUnit, output_unit
+from ..core.output_units import output_unit
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
                             plant_parameters, sample_delay, spring_damping)
-from .reduce_friction import friction_effect, without_stick
+from ..sim.chain_choice import choose_chain, has_upper_modes
+from .reduce_choice import Effect, ReductionPlan, choose
+from .reduce_friction import friction_effect
 
 #: compliance share below which a stage's compliance is negligible (seed 001)
 SHARE_THRESHOLD = 1e-3
@@ -58,92 +62,6 @@ INERTIA_SHARE_THRESHOLD = 1e-3
 DEFAULT_TOLERANCE = 0.02
 #: backlash has no effect while the dynamic force stays below this fraction of the static one
 CONTACT_MARGIN = 0.8
-
-
-@dataclass(frozen=True)
-class Effect:
-    """One effect of the model judged against a study.
-
-    Attributes
-    ----------
-    effect : str
-        What it is (``"armature inductance"``, ``"compliance of <stage>"``, ...).
-    switch : str or None
-        The :class:`~servo_toolkit.sim.ModelOptions` field leaving it out (None: no switch).
-    quantity : str
-        The numbers compared, in words.
-    estimate : float
-        A-priori relative response error if left out (see the module docstring).
-    omitted : bool
-    reason : str
-    """
-
-    effect: str
-    switch: str | None
-    quantity: str
-    estimate: float
-    omitted: bool = False
-    reason: str = ""
-
-    def to_dict(self) -> dict:
-        """JSON-ready."""
-        return {"effect": self.effect, "switch": self.switch, "quantity": self.quantity,
-                "estimate_relative": self.estimate, "estimate_dB": _db(self.estimate),
-                "estimate_deg": _deg(self.estimate), "left_out": self.omitted, "reason": self.reason}
-
-
-@dataclass(frozen=True)
-class ReductionPlan:
-    """The a-priori part of a reduction: effects, the reduced options and the bound.
-
-    Attributes
-    ----------
-    effects : tuple of Effect
-    options : ModelOptions
-        The reduced model's options.
-    tolerance : float
-        A-priori bound on the relative full/reduced response difference.
-    predicted : float
-        Sum of the estimates of the effects left out (<= tolerance / 2).
-    frequencies_hz : numpy.ndarray
-    amplitudes_rad : tuple
-        Command amplitudes in SI (rad, or m for an output travel; see ``output_unit``).
-    notes : tuple of str
-    output_unit : {"rad", "m"}
-    """
-
-    effects: tuple
-    options: object
-    tolerance: float
-    predicted: float
-    frequencies_hz: np.ndarray
-    amplitudes_rad: tuple
-    notes: tuple = ()
-    output_unit: str = "rad"
-
-    @property
-    def omitted(self) -> tuple:
-        """The effects left out."""
-        return tuple(e for e in self.effects if e.omitted)
-
-    def to_dict(self) -> dict:
-        """JSON-ready."""
-        return {"effects": [e.to_dict() for e in self.effects],
-                "left_out": [e.effect for e in self.omitted],
-                "tolerance_relative": self.tolerance, "tolerance_dB": _db(self.tolerance),
-                "tolerance_deg": _deg(self.tolerance), "predicted_relative": self.predicted,
-                "frequencies_hz": self.frequencies_hz.tolist(),
-                OutputUnit(self.output_unit).key("amplitudes"):
-                    [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
-                "notes": list(self.notes)}
-
-
-def _db(e):
-    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
-
-
-def _deg(e):
-    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
 
 
 def loop_response(p, controller, motor, w, inductance: bool = True, plant_ss=None):
@@ -181,12 +99,11 @@ def _rel(t_var, t_ref):
     return float(np.max(np.abs(t_var / t_ref - 1.0)))
 
 
-def _load_side_inertia(drive, q0):
-    """Inertia turning with the output itself (the simulation model's load side)."""
-    labels, masses, t, t2 = drive.jacobians([q0])
-    keep = [(lab != "motor rotor" and abs(ti[0] - 1) < 1e-12 and abs(t2i[0]) < 1e-12)
-            for lab, ti, t2i in zip(labels, t, t2)]
-    return float(np.sum(masses[keep]))
+def load_side_inertia(drive, q0: float) -> float:
+    """The inertia beyond the drivetrain's compliance at q0: the load side of the chain's
+    two-mass reduction (:meth:`servo_toolkit.drivetrain.chain.Chain.two_mass`), as the plant and
+    the simulation have it; 0 for a rigid chain."""
+    return float(drive.chain.two_mass([q0]).load_side[0])
 
 
 def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
@@ -261,25 +178,26 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
                 pv = replace(p, K=k_new, c=float(spring_damping(p.J1, p.J2, k_new, zeta)))
                 e = _rel(loop_response(pv, controller, motor, w)["theta"], t_full)
                 effects.append(Effect(f"compliance of {name}", "stiffness_scale",
-                                      f"compliance share {smax:.2e} < {SHARE_THRESHOLD:g} over the motion", e))
+                                      f"compliance share {smax:.2e} < {SHARE_THRESHOLD:g} over the motion", e,
+                                      share=smax))
         e = _rel(loop_response(replace(p, J1=p.J1 + p.J2, J2=0.0, K=math.inf, c=0.0), controller, motor,
                                w)["theta"], t_full)
         rigid_effect = Effect("drivetrain compliance", "compliance",
                               f"resonance {p.resonance_hz:.3g} Hz vs study up to {freqs[-1]:.3g} Hz", e)
 
-    # the chain's modes above the first (the two-mass reduction lumps them)
-    if base.chain != "two_mass" and math.isfinite(p.K) and drive.chain.condensed(q0)[2].size > 2:
-        from ..plant.chain_plant import chain_plant
-        modes = drive.chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi)
-        t_chain = loop_response(p, controller, motor, w, plant_ss=chain_plant(scene, q0, structural_damping=zeta))
+    # the chain's modes above the first (the two-mass reduction lumps them), by simulate's rule
+    choice = None
+    if base.chain != "two_mass" and math.isfinite(p.K) and has_upper_modes(drive.chain, q0):
+        choice = choose_chain(scene, controller, q0, freqs, zeta, "the study's frequencies", tolerance / 2)
         effects.append(Effect("drivetrain modes above the first", "chain",
-                              f"modes {', '.join(f'{m:.4g}' for m in modes)} Hz vs study up to {freqs[-1]:.3g} Hz "
-                              "(full chain against its two-mass reduction)", _rel(t_full, t_chain["theta"])))
+                              f"modes {', '.join(f'{m:.4g}' for m in choice.modes_hz)} Hz vs study up to "
+                              f"{freqs[-1]:.3g} Hz (full chain against its two-mass reduction); RK4 step "
+                              f"{choice.dt_full:.3g} s full, {choice.dt_reduced:.3g} s reduced", choice.cost))
 
     # backlash
     play = float(drive.backlash([q0])[0])
     if play > 0 and math.isfinite(p.K):
-        jl = _load_side_inertia(drive, q0)
+        jl = load_side_inertia(drive, q0)
         static = abs(scene.load.hinge_moment + scene.load.hinge_stiffness * q0)
         dyn_tf = np.abs((-jl * w**2 + 1j * w * scene.load.damping + scene.load.hinge_stiffness) * t_full)
         dynamic = float(np.max(dyn_tf)) * a_max
@@ -329,65 +247,5 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         effects.append(Effect("small inertias", None, ", ".join(f"{lab} {s:.1e}" for lab, s in small) +
                               " of J", e, reason="kept: they add no state (J(q) is one table), nothing to gain"))
 
-    plan = _choose(effects, rigid_effect, base, tolerance, limited.any(), chain, freqs, amps, notes)
+    plan = choose(effects, rigid_effect, base, tolerance, limited.any(), freqs, amps, notes, choice)
     return replace(plan, output_unit=output_unit(scene).si)
-
-
-def _choose(effects, rigid_effect, base, tol, limited, chain, freqs, amps, notes):
-    budget = tol / 2
-    used = 0.0
-    chosen = set()
-    by_switch = [e for e in effects if e.switch is not None]
-    backlash = [e for e in by_switch if e.switch == "backlash"]
-    if rigid_effect is not None:
-        bl = backlash[0].estimate if backlash else 0.0
-        if rigid_effect.estimate + bl <= budget:
-            chosen.add(rigid_effect.effect)
-            used += rigid_effect.estimate + bl
-    for e in sorted(by_switch, key=lambda x: x.estimate):
-        if rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale",
-                                                                                         "chain"):
-            continue
-        if e.switch == "inductance" and limited:
-            continue
-        if used + e.estimate <= budget:
-            chosen.add(e.effect)
-            used += e.estimate
-    out = []
-    for e in effects + ([rigid_effect] if rigid_effect is not None else []):
-        if e.switch is None:
-            out.append(e)
-        elif e.effect in chosen:
-            out.append(replace(e, omitted=True, reason=f"left out: {e.estimate:.2g} within the budget "
-                                                       f"(sum of omissions <= {budget:.2g})"))
-        elif rigid_effect is not None and rigid_effect.effect in chosen and e.switch in ("backlash", "stiffness_scale",
-                                                                                           "chain"):
-            out.append(replace(e, omitted=True, reason="left out with the whole compliance"))
-        elif e.switch == "inductance" and limited:
-            out.append(replace(e, reason="kept: limits reached, where the inductive voltage matters"))
-        else:
-            out.append(replace(e, reason=f"kept: {e.estimate:.2g} exceeds the remaining budget "
-                                         f"{max(budget - used, 0):.2g}"))
-    omitted = {e.switch for e in out if e.omitted}
-    opts = base
-    if "chain" in omitted:
-        opts = replace(opts, chain="two_mass")
-    elif any(e.switch == "chain" for e in out):
-        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
-    if "compliance" in omitted:
-        opts = replace(opts, compliance=False)
-    else:
-        if "backlash" in omitted:
-            opts = replace(opts, backlash=False)
-        stage_shares = [float(np.max(s)) for name, s in zip(chain.names, chain.shares)
-                        if f"compliance of {name}" in chosen]
-        if stage_shares:
-            opts = replace(opts, stiffness_scale=opts.stiffness_scale / (1 - sum(stage_shares)))
-    if "inductance" in omitted:
-        opts = replace(opts, inductance=False)
-    if "variable_inertia" in omitted:
-        opts = replace(opts, variable_inertia=False)
-    if "friction" in omitted:
-        opts = without_stick(opts)
-    return ReductionPlan(effects=tuple(out), options=opts, tolerance=tol, predicted=used,
-                         frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes))

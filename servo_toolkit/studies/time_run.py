@@ -110,6 +110,9 @@ def sine_run_options(scene, controller, reference, full: bool = False):
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
     size = output_unit(scene).text(amp, 3)
-    return plan.options, [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
-                          f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
-                          "the reasoning, --full for the full model)"]
+    notes = [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
+             f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
+             "the reasoning, --full for the full model)"]
+    if plan.chain_choice is not None and plan.options.compliance:
+        notes.append(plan.chain_choice.note)  # simulate's rule: the steps and the cost
+    return plan.options, notes

@@ -1,0 +1,221 @@
+"""Keep the drivetrain chain's modes above the first, or lump them: the one rule of
+``simulate`` (``ModelOptions.chain="auto"``) and of the time runs and reductions of
+:mod:`servo_toolkit.studies`.
+
+The two-mass reduction keeps the chain's lowest mode and lumps the others. Lumping them
+*costs* the change of the linear loop's response at the frequencies the run works at: the
+relative difference ``max_f |T_two_mass(j w) / T_chain(j w) - 1|`` of the closed loop
+theta/theta_ref (open loop: of the plant's output speed per volt), the two-mass plant against
+the chain plant (:func:`servo_toolkit.plant.linear.plant`, ``model="chain"``). Keeping them
+costs run time: fewer states per step for the reduction, and often a larger RK4 step (the
+stability limit of the fastest eigenvalue of each linear model: the plant with its current
+loop closed, as the compiled model integrates it; a sampled controller's step is at most its
+sample time).
+
+The rule: the chain is lumped when the cost is within :data:`LUMP_TOLERANCE` (the reduction
+is then as good for the run, and never slower); it is kept otherwise, at its own step. The
+note says which, with both steps and the cost.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.output_units import REQUIREMENT_SINE_HZ
+from ..drivetrain.chain_damping import kept_nodes
+from ..errors import SceneError
+from .stability import max_stable_dt
+
+#: the largest estimated cost (relative response difference) of lumping the upper modes:
+#: half the reductions' default tolerance (:data:`servo_toolkit.studies.reduce_estimates.DEFAULT_TOLERANCE`)
+LUMP_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class ChainChoice:
+    """Whether a run keeps the chain's upper modes.
+
+    Attributes
+    ----------
+    chain : {"full", "two_mass"}
+    modes_hz : tuple of float
+        The chain's modes above the first (Hz), those the reduction lumps.
+    cost : float
+        Estimated relative response difference of lumping them, at ``frequencies_hz``.
+    dt_full, dt_reduced : float
+        The RK4 step (s) each model allows: the stability limit of its fastest eigenvalue,
+        at most the controller's sample time.
+    frequencies_hz : tuple of float
+        The frequencies the cost is taken at.
+    note : str
+    """
+
+    chain: str
+    modes_hz: tuple
+    cost: float
+    dt_full: float
+    dt_reduced: float
+    frequencies_hz: tuple
+    note: str
+
+
+def has_upper_modes(chain, q0: float) -> bool:
+    """True when the chain has more than one mode (three or more nodes with inertia)."""
+    return not chain.rigid and kept_nodes(chain, q0).size > 2
+
+
+#: the studies whose runs a model built for the scene serves (a frequency sweep reduces its
+#: own model at its own frequencies by the same rule)
+TIME_STUDIES = ("kv", "simulate")
+
+
+def study_frequencies(scene) -> list[float]:
+    """The frequencies (Hz) of the scene's time-run studies (:data:`TIME_STUDIES`): a sine's
+    frequency (or 1 / period), the frequencies a study lists."""
+    out = []
+    for study in scene.studies.values():
+        if study.kind not in TIME_STUDIES:
+            continue
+        p = study.params
+        sweep = p.get("frequencies", [])
+        if isinstance(sweep, dict):  # {start, stop, points, spacing}
+            space = np.geomspace if sweep.get("spacing", "log") == "log" else np.linspace
+            sweep = space(sweep["start"], sweep["stop"], int(sweep.get("points", 20)))
+        out += [float(f) for f in np.atleast_1d(sweep)]
+        if p.get("frequency"):
+            out.append(float(p["frequency"]))
+        elif p.get("period"):
+            out.append(1.0 / float(p["period"]))
+    return out
+
+
+def working_frequencies(scene, controller=None) -> tuple[list[float], str]:
+    """The frequencies (Hz) a run of the scene works at, and what they are: the requirement
+    sine, the required bandwidth, the loop's gain crossover (with a controller) and the
+    frequencies of the scene's time-run studies (:func:`study_frequencies`)."""
+    freqs, what = [REQUIREMENT_SINE_HZ], [f"the {REQUIREMENT_SINE_HZ:g} Hz requirement sine"]
+    bw = scene.requirements.bandwidth if scene.requirements is not None else None
+    if bw is not None:
+        freqs.append(float(bw))
+        what.append("the required bandwidth")
+    if controller is not None:
+        fc = crossover_hz(scene, controller)
+        if math.isfinite(fc):
+            freqs.append(fc)
+            what.append(f"the loop's crossover {fc:.3g} Hz")
+    studies = study_frequencies(scene)
+    if studies:
+        freqs += studies
+        what.append("the scene's kv and simulate studies")
+    return sorted(set(freqs)), ", ".join(what)
+
+
+def crossover_hz(scene, controller) -> float:
+    """Highest 0 dB crossing of the loop broken at the position error (two-mass plant)."""
+    import control as ct
+
+    from ..loop.closed_loop import open_loop
+    f = np.logspace(-1, 4, 400)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mag = np.abs(ct.frequency_response(open_loop(scene, controller, model="two_mass"),
+                                               2 * np.pi * f).complex).ravel()
+    except (ValueError, np.linalg.LinAlgError, SceneError):
+        return math.nan
+    above = np.flatnonzero(mag >= 1.0)
+    return float(f[above[-1]]) if above.size else math.nan
+
+
+def lumping_cost(scene, controller, q0: float, frequencies_hz, damping: float) -> float:
+    """``max_f |T_two_mass / T_chain - 1|``: the closed loop's theta/theta_ref with the
+    two-mass plant against the chain plant (no controller: the plant's output speed per
+    volt)."""
+    import control as ct
+
+    from ..loop.closed_loop import linear_closed_loop
+    from ..plant.linear import plant
+    w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
+    resp = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for model in ("two_mass", "chain"):
+            if controller is None:
+                g = plant(scene, q0, model=model, structural_damping=damping)
+                sys = g[g.output_labels.index("omega"), g.input_labels.index("u")]
+            else:
+                cl = linear_closed_loop(scene, controller, q0, model=model, structural_damping=damping)
+                sys = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
+            resp.append(np.asarray(ct.frequency_response(sys, w).complex).ravel())
+    return float(np.max(np.abs(resp[0] / resp[1] - 1.0)))
+
+
+def step_limit(scene, controller, q0: float, model: str, damping: float) -> float:
+    """RK4's stability limit (s) of the linear model with the ``model`` plant: the plant with
+    its current loop closed (a controller's current PI, as the compiled model integrates
+    it), or the voltage-driven plant; at most the controller's sample time."""
+    import control as ct
+
+    from ..plant.linear import current_controller, plant
+    g = plant(scene, q0, model=model, structural_damping=damping)
+    if controller is None:
+        return max_stable_dt(np.linalg.eigvals(g.A))
+    cur = current_controller(controller.current_kp, controller.current_ki, scene.motor)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sys = ct.interconnect([g, cur], inplist=["i_cmd"], outlist=["theta"], check_unused=False)
+    limit = max_stable_dt(np.linalg.eigvals(sys.A))
+    return min(limit, controller.sample_time) if controller.sample_time > 0 else limit
+
+
+def choose_chain(scene, controller, q0: float, frequencies_hz, damping: float, what: str = "",
+                 tolerance: float = LUMP_TOLERANCE) -> ChainChoice:
+    """Keep or lump the chain's modes above the first (module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+        Its chain must have more than one mode (:func:`has_upper_modes`).
+    controller : CascadeController or None
+    q0 : float
+    frequencies_hz : sequence of float
+        The frequencies the run works at.
+    damping : float
+        Damping ratio of each compliance whose stage gives none.
+    what : str
+        The frequencies in words, for the note.
+    tolerance : float
+
+    Returns
+    -------
+    ChainChoice
+    """
+    chain = scene.drivetrain.chain
+    modes = tuple(float(m) for m in chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi))
+    freqs = tuple(float(f) for f in frequencies_hz)
+    cost = lumping_cost(scene, controller, q0, freqs, damping)
+    dt_full = step_limit(scene, controller, q0, "chain", damping)
+    dt_red = step_limit(scene, controller, q0, "two_mass", damping)
+    lump = cost <= tolerance
+    at = f"at {what or 'the working frequencies'} ({_hz(freqs, 3)})"
+    cost_text = f"lumping the modes {_hz(modes)} costs ~{cost:.2g} of the response {at}"
+    if lump:
+        note = (f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction: RK4 step limit {dt_red:.3g} s "
+                f"against {dt_full:.3g} s for the full chain; {cost_text} (within {tolerance:g}); chain='full' keeps "
+                "them, `servo-toolkit reduce` measures the cost")
+    else:
+        note = (f"full drivetrain chain kept: RK4 step limit {dt_full:.3g} s against {dt_red:.3g} s for the "
+                f"two-mass reduction; {cost_text} (more than {tolerance:g})")
+    return ChainChoice("two_mass" if lump else "full", modes, cost, dt_full, dt_red, freqs, note)
+
+
+def _hz(values, digits: int = 4) -> str:
+    return ", ".join(f"{v:.{digits}g}" for v in values) + " Hz"
+
+
+__all__ = ["ChainChoice", "LUMP_TOLERANCE", "TIME_STUDIES", "choose_chain", "crossover_hz", "has_upper_modes", "lumping_cost",
+           "step_limit", "study_frequencies", "working_frequencies"]

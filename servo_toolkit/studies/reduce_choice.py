@@ -1,0 +1,206 @@
+"""The reduced model a study allows: which effects to leave out, and the model options that
+leave out one effect or several (:mod:`.reduce_estimates` judges them).
+
+The reduced model leaves out effects, smallest estimate first, while the sum of their
+estimates stays within half the tolerance; the drivetrain chain's modes above the first follow
+``simulate``'s own rule (:func:`servo_toolkit.sim.chain_choice.choose_chain`). Limits reached
+in the linear prediction keep the electrical path (inductance).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..core.output_units import OutputUnit
+from .reduce_friction import without_stick
+
+#: switches that leave out a part of the compliance, all left out with the whole of it
+_WITH_COMPLIANCE = ("backlash", "stiffness_scale", "chain")
+
+
+def _db(e):
+    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
+
+
+def _deg(e):
+    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect of the model judged against a study.
+
+    Attributes
+    ----------
+    effect : str
+        What it is (``"armature inductance"``, ``"compliance of <stage>"``, ...).
+    switch : str or None
+        The :class:`~servo_toolkit.sim.ModelOptions` field leaving it out (None: no switch).
+    quantity : str
+        The numbers compared, in words.
+    estimate : float
+        A-priori relative response error if left out (see the module docstring).
+    omitted : bool
+    reason : str
+    share : float
+        A stage's compliance share (``switch == "stiffness_scale"``): leaving it out raises the
+        series stiffness by 1 / (1 - share).
+    """
+
+    effect: str
+    switch: str | None
+    quantity: str
+    estimate: float
+    omitted: bool = False
+    reason: str = ""
+    share: float = 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"effect": self.effect, "switch": self.switch, "quantity": self.quantity,
+                "estimate_relative": self.estimate, "estimate_dB": _db(self.estimate),
+                "estimate_deg": _deg(self.estimate), "left_out": self.omitted, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class ReductionPlan:
+    """The a-priori part of a reduction: effects, the reduced options and the bound.
+
+    Attributes
+    ----------
+    effects : tuple of Effect
+    options : ModelOptions
+        The reduced model's options.
+    tolerance : float
+        A-priori bound on the relative full/reduced response difference.
+    predicted : float
+        Sum of the estimates of the effects left out (<= tolerance / 2).
+    frequencies_hz : numpy.ndarray
+    amplitudes_rad : tuple
+        Command amplitudes in SI (rad, or m for an output travel; see ``output_unit``).
+    notes : tuple of str
+    output_unit : {"rad", "m"}
+    chain_choice : ChainChoice or None
+        Whether the drivetrain chain's modes above the first are kept
+        (:func:`servo_toolkit.sim.chain_choice.choose_chain`); None for a chain with one mode.
+    """
+
+    effects: tuple
+    options: object
+    tolerance: float
+    predicted: float
+    frequencies_hz: np.ndarray
+    amplitudes_rad: tuple
+    notes: tuple = ()
+    output_unit: str = "rad"
+    chain_choice: object = None
+
+    @property
+    def omitted(self) -> tuple:
+        """The effects left out."""
+        return tuple(e for e in self.effects if e.omitted)
+
+    def to_dict(self) -> dict:
+        """JSON-ready."""
+        return {"effects": [e.to_dict() for e in self.effects],
+                "left_out": [e.effect for e in self.omitted],
+                "tolerance_relative": self.tolerance, "tolerance_dB": _db(self.tolerance),
+                "tolerance_deg": _deg(self.tolerance), "predicted_relative": self.predicted,
+                "frequencies_hz": self.frequencies_hz.tolist(),
+                OutputUnit(self.output_unit).key("amplitudes"):
+                    [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
+                "notes": list(self.notes)}
+
+
+def options_without(base, effects):
+    """``base`` (a :class:`~servo_toolkit.sim.ModelOptions`) with each of ``effects`` left out:
+    its switch changed, and nothing else."""
+    omitted = {e.switch for e in effects}
+    opts = base
+    if "chain" in omitted:
+        opts = replace(opts, chain="two_mass")
+    if "compliance" in omitted:
+        opts = replace(opts, compliance=False)
+    else:
+        if "backlash" in omitted:
+            opts = replace(opts, backlash=False)
+        shares = [e.share for e in effects if e.switch == "stiffness_scale"]
+        if shares:
+            opts = replace(opts, stiffness_scale=opts.stiffness_scale / (1 - sum(shares)))
+    if "inductance" in omitted:
+        opts = replace(opts, inductance=False)
+    if "variable_inertia" in omitted:
+        opts = replace(opts, variable_inertia=False)
+    if "friction" in omitted:
+        opts = without_stick(opts)
+    return opts
+
+
+def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice=None) -> ReductionPlan:
+    """The effects to leave out (module docstring) and the reduced model's options.
+
+    Parameters
+    ----------
+    effects : list of Effect
+    rigid_effect : Effect or None
+        The whole drivetrain compliance (left out together with its backlash).
+    base : ModelOptions
+        The full model's.
+    tol : float
+    limited : bool
+        The linear loop reaches a limit: the inductance is kept.
+    freqs, amps, notes
+        For the plan.
+    choice : ChainChoice, optional
+        ``simulate``'s rule for the chain's modes above the first.
+    """
+    budget = tol / 2
+    used = 0.0
+    chosen = set()
+    modes = [e for e in effects if e.switch == "chain"]
+    if modes and choice is not None and choice.chain == "two_mass":
+        chosen.add(modes[0].effect)  # simulate's rule lumps them
+        used += modes[0].estimate
+    by_switch = [e for e in effects if e.switch is not None and e.switch != "chain"]
+    backlash = [e for e in by_switch if e.switch == "backlash"]
+    if rigid_effect is not None:
+        bl = backlash[0].estimate if backlash else 0.0
+        if rigid_effect.estimate + bl <= budget:
+            chosen.add(rigid_effect.effect)
+            used += rigid_effect.estimate + bl
+    for e in sorted(by_switch, key=lambda x: x.estimate):
+        if rigid_effect is not None and rigid_effect.effect in chosen and e.switch in _WITH_COMPLIANCE:
+            continue
+        if e.switch == "inductance" and limited:
+            continue
+        if used + e.estimate <= budget:
+            chosen.add(e.effect)
+            used += e.estimate
+    out = []
+    for e in effects + ([rigid_effect] if rigid_effect is not None else []):
+        if e.switch is None:
+            out.append(e)
+        elif e.effect in chosen:
+            why = (f"simulate's rule: {choice.note}" if e.switch == "chain" else
+                   f"{e.estimate:.2g} within the budget (sum of omissions <= {budget:.2g})")
+            out.append(replace(e, omitted=True, reason=f"left out: {why}"))
+        elif rigid_effect is not None and rigid_effect.effect in chosen and e.switch in _WITH_COMPLIANCE:
+            out.append(replace(e, omitted=True, reason="left out with the whole compliance"))
+        elif e.switch == "inductance" and limited:
+            out.append(replace(e, reason="kept: limits reached, where the inductive voltage matters"))
+        elif e.switch == "chain":
+            out.append(replace(e, reason="kept: " + choice.note))
+        else:
+            out.append(replace(e, reason=f"kept: {e.estimate:.2g} exceeds the remaining budget "
+                                         f"{max(budget - used, 0):.2g}"))
+    opts = options_without(base, [e for e in out if e.omitted])
+    if opts.chain != "two_mass" and any(e.switch == "chain" for e in out):
+        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
+    return ReductionPlan(effects=tuple(out), options=opts, tolerance=tol, predicted=used,
+                         frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes), chain_choice=choice)
+
+
+__all__ = ["Effect", "ReductionPlan", "choose", "options_without"]
