@@ -12,7 +12,8 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JL, JW, KT, REF_A, REF_F, REF_KIND,
-                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS)
+                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, T_J, T_N, TAB_H, TC, WS)
+from .table_kernel import table_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -20,8 +21,9 @@ from .vmath import inline, tanh  # noqa: E402
 @inline
 def reference_rates(t, P):
     """The reference and its analytic first and second time derivatives at time t,
-    ``(r, r', r'')``: a sine's, a ramp's rate (0 before it starts), 0 for a hold and a step
-    (the step's impulses are not fed forward)."""
+    ``(r, r', r'')``: a sine's, a ramp's rate (0 before it starts), a sampled command's
+    interpolant (:func:`.table_kernel.table_rates`), 0 for a hold and a step (the step's
+    impulses are not fed forward)."""
     kind = int(P[REF_KIND])
     if kind == REF_SINE:
         w = 2.0 * math.pi * P[REF_F]
@@ -34,6 +36,8 @@ def reference_rates(t, P):
         if t > P[REF_T0]:
             return P[REF_OFF] + P[REF_A] * (t - P[REF_T0]), P[REF_A], 0.0
         return P[REF_OFF], 0.0, 0.0
+    if kind == REF_TABLE:
+        return table_rates(t, P)
     return P[REF_OFF], 0.0, 0.0
 
 
