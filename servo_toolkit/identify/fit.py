@@ -129,6 +129,9 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     SceneError
         Bad data, an unknown key, a key that is not a positive scalar, or fewer points than
         parameters + 2.
+    SimulationError
+        Closed-loop traces: the fitted scene's run leaves RK4's stability region at the step
+        the initial scene's run chose.
     """
     if not isinstance(data, (FrequencyData, TimeData, LoopData)):
         data = read_data(data)
@@ -224,6 +227,8 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         fitted_model = comparison.evaluate(fitted_scene)[0]
     except SceneError as exc:
         raise SceneError(exc.key, f"the fit ended on a value the scene refuses ({exc.rule})") from None
+    if comparison.verify is not None:
+        comparison.verify(fitted_scene)
     residual_db_rms, residual_phase_deg_rms = None, None
     if isinstance(data, FrequencyData):
         gain = 20 * np.log10(np.abs(fitted_model)) - data.gain_db

@@ -62,6 +62,9 @@ class Comparison:
         ``"Hz"`` or ``"s"``.
     noise : str
         Where the noise floor comes from.
+    verify : callable or None
+        ``scene -> None``: the checks the evaluations of the search leave out, run once on the
+        fitted scene (raises SimulationError).
     """
 
     evaluate: Callable
@@ -70,6 +73,7 @@ class Comparison:
     axis: np.ndarray
     unit: str
     noise: str = "scatter of the measurement (third differences)"
+    verify: Callable | None = None
 
 
 def frequency_residual(h, data: FrequencyData, noise: FrequencyNoise) -> np.ndarray:
@@ -134,8 +138,9 @@ def loop_traces(data: LoopData, base, controller) -> Comparison:
     features = loop_features(data.time_s, data.output, data.current_A)
 
     def evaluate(scene):
-        model = loop.traces(scene)
+        model = loop.traces(scene, check=False)
         r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, noise)])
         return model, r, scales.mismatch(loop_features(data.time_s, *model), features)
     floor = None if scatter_sd(data.output) is None else 1.0
-    return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s")
+    return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s",
+                      verify=lambda scene: loop.traces(scene, check=True))
