@@ -11,7 +11,7 @@ spectra averaged; ``--derivative`` turns an angle's response into the speed's (w
 
 from __future__ import annotations
 
-from .common import add_json, bounded, emit
+from .common import add_json, bounded, emit, parse_band
 from ..core.files import check_output_file, write_text
 from ..errors import SceneError
 
@@ -44,19 +44,6 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _band(text):
-    if text is None:
-        return None
-    lo, sep, hi = text.partition(":")
-    try:
-        band = (float(lo), float(hi))
-    except ValueError:
-        band = None
-    if not sep or band is None or not 0 <= band[0] < band[1] or band[1] == float("inf"):
-        raise SceneError("--band", f"must be LO:HI in Hz with 0 <= LO < HI (got {text})")
-    return band
-
-
 def _estimator(data) -> str:
     if data.window == "periodic":
         return f"H1 estimator, rectangular window on each of {data.averages} periods"
@@ -81,7 +68,7 @@ def _table(data) -> str:
 def run(args) -> int:
     """Run the command."""
     from ..identify.frf import estimate_frf, frf_csv, read_log
-    band = _band(args.band)
+    band = parse_band(args.band)
     if args.out is not None:
         check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
     t, columns = read_log(args.log)

@@ -59,10 +59,15 @@ class Spectrum:
     window: str
 
 
-def _finish(f, suu, syy, suy, averages, window, excited_db, band) -> Spectrum:
+def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None) -> Spectrum:
     if not np.any(suu[f > 0] > 0):
         raise ValueError("the input is constant: nothing excites the response")
-    keep = (f > 0) & (suu >= suu[f > 0].max() * 10 ** (-excited_db / 10))
+    if lines is None:
+        keep = (f > 0) & (suu >= suu[f > 0].max() * 10 ** (-excited_db / 10))
+    else:
+        keep = np.zeros(f.size, bool)
+        keep[np.asarray(lines, int)] = True
+        keep &= f > 0
     if band is not None:
         keep &= (f >= band[0]) & (f <= band[1])
     if not keep.any():
@@ -114,7 +119,7 @@ def welch_h1(fs: float, u, y, segment: int, *, excited_db: float = EXCITED_DB, b
 
 
 def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: float = EXCITED_DB,
-                band=None) -> Spectrum:
+                band=None, lines=None) -> Spectrum:
     """H1 from whole periods of a periodic excitation, rectangular window, no overlap.
 
     The last whole periods after ``settle`` of them are used (a partial period at the start
@@ -132,6 +137,9 @@ def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: fl
         Periods left out at the start (transients).
     excited_db, band
         As :func:`welch_h1`.
+    lines : array_like of int, optional
+        Keep these bins of the period's DFT (the lines a multisine excites) instead of the
+        bins whose input power is within ``excited_db`` of the peak.
 
     Raises
     ------
@@ -152,7 +160,18 @@ def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: fl
     suu = np.sum(np.abs(uu) ** 2, axis=0)
     syy = np.sum(np.abs(yy) ** 2, axis=0)
     suy = np.sum(np.conj(uu) * yy, axis=0)
-    return _finish(f, suu, syy, suy, periods, "periodic", excited_db, band)
+    return _finish(f, suu, syy, suy, periods, "periodic", excited_db, band, lines)
+
+
+def response_csv(frequency_hz, gain_db, phase_deg, coherence, averages: int | None = None) -> str:
+    """A frequency response as the CSV ``fit`` reads:
+    ``frequency_hz,gain_db,phase_deg,coherence[,averages]`` (the coherence with all its
+    digits: its distance from 1 sets the noise)."""
+    head = "frequency_hz,gain_db,phase_deg,coherence" + (",averages" if averages is not None else "")
+    tail = "" if averages is None else f",{int(averages):d}"
+    lines = [head] + [f"{f:.9g},{g:.9g},{p:.9g},{c:.17g}{tail}"
+                      for f, g, p, c in zip(frequency_hz, gain_db, phase_deg, coherence)]
+    return "\n".join(lines) + "\n"
 
 
 def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC_TOLERANCE) -> int | None:
@@ -184,4 +203,5 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     return None
 
 
-__all__ = ["EXCITED_DB", "MIN_SEGMENT", "Spectrum", "find_period", "periodic_h1", "welch_h1", "welch_segments"]
+__all__ = ["EXCITED_DB", "MIN_SEGMENT", "Spectrum", "find_period", "periodic_h1", "response_csv", "welch_h1",
+           "welch_segments"]

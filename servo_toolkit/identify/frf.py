@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from ..core.inputs import read_input_text
-from ..core.spectra import MIN_SEGMENT, find_period, periodic_h1, welch_h1
+from ..core.spectra import MIN_SEGMENT, find_period, periodic_h1, response_csv, welch_h1
 from ..errors import SceneError
 from .data import MAX_DATA_BYTES, FrequencyData
 
@@ -193,12 +193,4 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
 def frf_csv(data: FrequencyData) -> str:
     """The CSV that ``fit`` reads: ``frequency_hz,gain_db,phase_deg,coherence,averages`` (the
     last column when the number of spectra averaged is known)."""
-    if data.averages is None:
-        lines = ["frequency_hz,gain_db,phase_deg,coherence"]
-        lines += [f"{f:.9g},{g:.9g},{p:.9g},{c:.17g}" for f, g, p, c in
-                  zip(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence)]
-    else:
-        lines = ["frequency_hz,gain_db,phase_deg,coherence,averages"]
-        lines += [f"{f:.9g},{g:.9g},{p:.9g},{c:.17g},{data.averages:d}" for f, g, p, c in
-                  zip(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence)]
-    return "\n".join(lines) + "\n"
+    return response_csv(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence, data.averages)
