@@ -88,6 +88,14 @@ def test_the_physical_range_bounds_the_fit(scene):
     lower, upper = physical_range(template.parameters)
     assert lower[0] == pytest.approx(1 / RANGE_FACTOR) and upper[0] == pytest.approx(RANGE_FACTOR)
     assert upper[1] == 1.0  # an efficiency never exceeds 1
+    # ... nor falls below the 0.01 the scene accepts (0.97 / 100 would)
+    assert lower[1] == pytest.approx(0.01)
+    # the range a key's model is conditioned for bounds the factor 100 box as well
+    from servo_toolkit.identify.params import Parameter
+    resistance = Parameter("motor.resistance", "motor", "resistance", "ohm", 5e3, bounds=(1e-3, 1e4))
+    hinge = Parameter("load.hinge_moment", "load", "hinge_moment", "N*m", -5e8, signed=True, bounds=(1e-12, 1e9))
+    lo, hi = physical_range([resistance, hinge])
+    assert (lo[0], hi[0]) == pytest.approx((50.0, 1e4)) and (lo[1], hi[1]) == pytest.approx((-1e9, 1e9))
 
 
 def test_the_search_finds_the_deepest_of_many_valleys():
