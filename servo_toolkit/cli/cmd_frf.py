@@ -58,7 +58,7 @@ def _table(data) -> str:
         lines.append(f"  {data.frequency_hz[k]:12.4g}  {data.gain_db[k]:10.4g}  {data.phase_deg[k]:10.4g}  "
                      f"{data.coherence[k]:9.3f}")
     if step > 1:
-        lines.append(f"  (every {step}th frequency; -o writes them all)")
+        lines.append(f"  (one frequency in {step}; -o writes them all)")
     low = data.coherence < 0.8
     if low.any():
         lines.append(f"  coherence below 0.8 at {int(low.sum())} of {data.points} frequencies")

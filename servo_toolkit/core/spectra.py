@@ -68,8 +68,8 @@ def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None) ->
         keep = np.zeros(f.size, bool)
         keep[np.asarray(lines, int)] = True
         keep &= f > 0
-    if band is not None:
-        keep &= (f >= band[0]) & (f <= band[1])
+    if band is not None:  # a band edge on a bin keeps it, whatever the digits of the log's times
+        keep &= (f >= band[0] * (1 - 1e-6)) & (f <= band[1] * (1 + 1e-6))
     if not keep.any():
         raise LookupError("no excited frequency in the band")
     h = suy[keep] / suu[keep]
