@@ -103,6 +103,7 @@ def test_the_sweep_and_frf_estimate_the_same_log_alike(tmp_path, capsys):
     (["--method", "multisine", "--band", "2:2000"], "--band"),
     (["--method", "multisine", "--band", "2:50", "--amplitude", "1 deg", "--amplitude", "2 deg", "-o", "x.csv"], "-o"),
     (["--method", "multisine", "--band", "2:50", "--log", "x.txt"], "--log"),
+    (["--method", "multisine", "--band", "2:50", "--log", "x.csv", "-o", "x.csv"], "--log"),
 ])
 def test_bad_multisine_options_are_one_line(tmp_path, capsys, monkeypatch, args, where):
     monkeypatch.chdir(tmp_path)

@@ -10,6 +10,7 @@ same as ``--response`` here), ``--log`` the run's records as a log ``frf`` reads
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ..core.files import check_output_file, save_figure, write_text
 from ..errors import SceneError, SimulationError
@@ -61,6 +62,8 @@ def run(args, scene, amps, scheduler) -> int:
     for option, path, suffixes in (("-o", args.out, (".csv",)), ("--log", args.log, (".csv",))):
         if path is not None:
             check_output_file(path, option, suffixes, inputs=[args.scene])
+    if args.out and args.log and Path(args.out).resolve() == Path(args.log).resolve():
+        raise SceneError("--log", "must be another file than -o")
     if (args.out or args.log) and amps is not None and len(amps) > 1:
         raise SceneError("-o" if args.out else "--log", "writes one response: give one --amplitude")
     band = parse_band(args.band, low_open=True)
