@@ -2,15 +2,16 @@
 
 LOG.csv has a ``time_s`` column (equally spaced) and one column per signal; ``--input`` and
 ``--output`` name the excitation and the response (default ``current_A`` and
-``motor_angle_rad``). The H1 estimator with Welch averaging (see
-:mod:`servo_toolkit.identify.frf`) gives the response at every excited frequency with its
-coherence; ``--derivative`` turns an angle's response into the speed's (what ``fit
+``motor_angle_rad``). The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole
+periods of a periodic excitation in rectangular windows, or Welch averaging of Hann
+windows) gives the response at every excited frequency with its coherence and the number of
+spectra averaged; ``--derivative`` turns an angle's response into the speed's (what ``fit
 --response plant`` compares). ``-o`` writes the CSV that ``fit`` reads.
 """
 
 from __future__ import annotations
 
-from .common import add_json, bounded, emit
+from .common import add_json, bounded, emit, parse_band
 from ..core.files import check_output_file, write_text
 from ..errors import SceneError
 
@@ -26,8 +27,16 @@ def register(sub) -> None:
     p.add_argument("--derivative", action="store_true",
                    help="the response of the output's time derivative (an angle log gives the speed response, "
                         "as fit --response plant compares)")
+    p.add_argument("--window", choices=("auto", "periodic", "hann"), default="auto",
+                   help="periodic: whole periods of a periodic excitation (multisine), rectangular windows, no "
+                        "leakage; hann: Welch averaging (noise, chirp); auto (default): periodic when the input "
+                        "repeats, else hann")
     p.add_argument("--segment", type=bounded(int, 16, 2 ** 24, what="a number of samples"), metavar="N",
-                   help="samples per Welch segment (default: the largest power of two giving 8 segments)")
+                   help="hann: samples per Welch segment (default: the largest power of two giving 8 segments)")
+    p.add_argument("--period", type=bounded(int, 16, 2 ** 30, what="a number of samples"), metavar="N",
+                   help="periodic: samples per period (default: the period the input repeats with)")
+    p.add_argument("--settle", type=bounded(int, 0, 2 ** 20, what="a number of periods"), metavar="K",
+                   help="periodic: periods left out at the start (default 1 when the log holds 3 or more, else 0)")
     p.add_argument("--band", metavar="LO:HI", help="keep frequencies from LO to HI Hz (default: every excited one)")
     p.add_argument("-o", "--out", dest="out", metavar="FRF.csv",
                    help="write frequency_hz,gain_db,phase_deg,coherence here (the CSV fit reads)")
@@ -35,28 +44,21 @@ def register(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _band(text):
-    if text is None:
-        return None
-    lo, sep, hi = text.partition(":")
-    try:
-        band = (float(lo), float(hi))
-    except ValueError:
-        band = None
-    if not sep or band is None or not 0 <= band[0] < band[1] or band[1] == float("inf"):
-        raise SceneError("--band", f"must be LO:HI in Hz with 0 <= LO < HI (got {text})")
-    return band
+def _estimator(data) -> str:
+    if data.window == "periodic":
+        return f"H1 estimator, rectangular window on each of {data.averages} periods"
+    return f"H1 estimator, Hann windows, {data.averages} Welch segments"
 
 
 def _table(data) -> str:
-    lines = [f"Frequency response from {data.source} ({data.points} frequencies, H1 estimator)",
+    lines = [f"Frequency response from {data.source} ({data.points} frequencies, {_estimator(data)})",
              "  frequency_hz     gain_db   phase_deg  coherence"]
     step = max(1, data.points // 40)
     for k in range(0, data.points, step):
         lines.append(f"  {data.frequency_hz[k]:12.4g}  {data.gain_db[k]:10.4g}  {data.phase_deg[k]:10.4g}  "
                      f"{data.coherence[k]:9.3f}")
     if step > 1:
-        lines.append(f"  (every {step}th frequency; -o writes them all)")
+        lines.append(f"  (one frequency in {step}; -o writes them all)")
     low = data.coherence < 0.8
     if low.any():
         lines.append(f"  coherence below 0.8 at {int(low.sum())} of {data.points} frequencies")
@@ -66,18 +68,20 @@ def _table(data) -> str:
 def run(args) -> int:
     """Run the command."""
     from ..identify.frf import estimate_frf, frf_csv, read_log
-    band = _band(args.band)
+    band = parse_band(args.band)
     if args.out is not None:
         check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
     t, columns = read_log(args.log)
     for option, name in (("--input", args.input), ("--output", args.output)):
         if name not in columns:
             raise SceneError(option, f"no column {name!r} in {args.log}; it has {', '.join(columns)}")
-    data = estimate_frf(t, columns[args.input], columns[args.output], segment=args.segment, band=band,
-                        derivative=args.derivative, source=str(args.log))
+    data = estimate_frf(t, columns[args.input], columns[args.output], window=args.window, segment=args.segment,
+                        period=args.period, settle=args.settle, band=band, derivative=args.derivative,
+                        source=str(args.log))
     if args.out is not None:
         write_text(args.out, frf_csv(data), "-o")
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
+           "window": data.window, "averages": data.averages,
            "points": data.points, "frequency_hz": data.frequency_hz.tolist(), "gain_db": data.gain_db.tolist(),
            "phase_deg": data.phase_deg.tolist(), "coherence": data.coherence.tolist()}
     if args.out is not None:

@@ -1,4 +1,5 @@
-"""``servo-toolkit sweep``: sine-dwell frequency response of the nonlinear loop vs the linear one."""
+"""``servo-toolkit sweep``: frequency response of the nonlinear loop vs the linear one, by sine
+dwell or (``--method multisine``, :mod:`.sweep_multisine`) by a periodic multisine."""
 
 from __future__ import annotations
 
@@ -12,11 +13,13 @@ from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
                      prepare_kernels, scheduler_of, study_executor)
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from . import sweep_multisine
 
 
 def register(sub) -> None:
     """Register the command."""
-    p = sub.add_parser("sweep", help="nonlinear closed-loop sine-dwell sweep against the linear loop")
+    p = sub.add_parser("sweep", help="nonlinear closed-loop frequency response (sine dwell or multisine) against the "
+                                     "linear loop")
     add_scene(p)
     p.add_argument("--study", metavar="NAME",
                    help="a frequency_sweep study, plus 8 Hz (default: the scene's first), or a "
@@ -27,6 +30,7 @@ def register(sub) -> None:
                    help="run the dwells in N processes (at least 1; default: in this process)")
     add_scheduler(p, what="the dwells (or a seed-mechanism study's cases)")
     p.add_argument("--plot", metavar="FILE", help="save the Bode comparison (PNG/SVG/PDF)")
+    sweep_multisine.register(p)
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
@@ -35,7 +39,7 @@ def register(sub) -> None:
 def _run_mechanism(scene, name, args, scheduler) -> int:
     """A seed-mechanism study: its own runner; the sine-dwell options do not apply."""
     given = [opt for opt, value in (("--frequency", args.frequency), ("--amplitude", args.amplitude),
-                                    ("--full", args.full)) if value]
+                                    ("--full", args.full), ("--method", args.method != "sine")) if value]
     if given:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; {', '.join(given)} "
                          f"{'applies' if len(given) == 1 else 'apply'} to frequency_sweep studies only")
@@ -77,6 +81,7 @@ def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs:
 def run(args) -> int:
     """Run the command."""
     scheduler = scheduler_of(args)  # before the scene is read
+    sweep_multisine.check_options(args)
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
         check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
@@ -88,6 +93,8 @@ def run(args) -> int:
         if is_mechanism_study(scene, name):
             return _run_mechanism(scene, name, args, scheduler)
     amps = amplitudes_si(scene, args.amplitude)
+    if args.method == "multisine":
+        return sweep_multisine.run(args, scene, amps, scheduler)
     check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
     prepare_kernels(scene)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,

@@ -116,6 +116,22 @@ def amplitudes_si(scene, texts, option: str = "--amplitude"):
     return values[0] if isinstance(texts, str) else values
 
 
+def parse_band(text, option: str = "--band", low_open: bool = False):
+    """``LO:HI`` in Hz as a tuple (None for None); SceneError naming ``option`` unless
+    0 <= LO < HI < inf (0 < LO with ``low_open``)."""
+    if text is None:
+        return None
+    lo, sep, hi = text.partition(":")
+    try:
+        band = (float(lo), float(hi))
+    except ValueError:
+        band = None
+    if (not sep or band is None or not 0 <= band[0] < band[1] or band[1] == float("inf")
+            or (low_open and band[0] == 0)):
+        raise SceneError(option, f"must be LO:HI in Hz with {'0 <' if low_open else '0 <='} LO < HI (got {text})")
+    return band
+
+
 def add_scheduler(parser, *, workers: bool = True, what: str = "chunks of the work") -> None:
     """Add ``--scheduler ADDRESS``: run ``what`` on an existing dask.distributed cluster."""
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None,

@@ -2,13 +2,15 @@
 
 A rig differs from its scene, but not without limit: a value is searched within a factor
 :data:`RANGE_FACTOR` either side of the scene's (in log space, where an inertia twice too
-large and one half too large are equally far), and within the limits of its kind (an
-efficiency never exceeds 1). The scene's loader refuses anything else it knows to be
-unphysical; the fit steps back from such values.
+large and one half too large are equally far), and within the range the loader accepts for
+its key (:mod:`servo_toolkit.core.ranges`: the range the models are conditioned for, or the
+component's own, e.g. an efficiency in [0.01, 1]). The scene's loader refuses anything else
+it knows to be unphysical; the fit steps back from such values.
 
 A parameter the scene accepts with either sign (a constant force such as a hinge moment)
 has no logarithm: it is searched as ``value = initial + |initial| z`` within
-:data:`SIGNED_SPAN` times its magnitude either side. :class:`Coordinates` maps the search's
+:data:`SIGNED_SPAN` times its magnitude either side (and within the magnitude its key
+accepts). :class:`Coordinates` maps the search's
 coordinates z to values and back, and a half-width in z to an interval.
 """
 
@@ -60,11 +62,18 @@ class Coordinates:
         self.initial = np.array([p.initial for p in parameters], float)
         self.signed = np.array([getattr(p, "signed", False) for p in parameters], bool)
         self.scale = np.abs(self.initial)
-        top = np.array([UPPER.get(p.name, math.inf) for p in parameters])
+        accepted = [getattr(p, "bounds", None) or (0.0, math.inf) for p in parameters]
+        low = np.array([b[0] for b in accepted], float)
+        high = np.minimum([b[1] for b in accepted], [UPPER.get(p.name, math.inf) for p in parameters])
         with np.errstate(divide="ignore", invalid="ignore"):
-            log_hi = np.where(self.signed, 0.0, np.log(np.minimum(RANGE_FACTOR * self.initial, top) / self.scale))
-        self.lower = np.where(self.signed, -SIGNED_SPAN, -math.log(RANGE_FACTOR))
-        self.upper = np.where(self.signed, SIGNED_SPAN, np.maximum(log_hi, 0.0))
+            # positive: ln(value / initial) within +-ln(RANGE_FACTOR) and the accepted magnitudes
+            log_lo = np.maximum(-math.log(RANGE_FACTOR), np.log(low / self.scale))
+            log_hi = np.minimum(math.log(RANGE_FACTOR), np.log(high / self.scale))
+            # signed: (value - initial) / |initial| within +-SIGNED_SPAN and |value| <= high
+            lin_lo = np.maximum(-SIGNED_SPAN, (-high - self.initial) / self.scale)
+            lin_hi = np.minimum(SIGNED_SPAN, (high - self.initial) / self.scale)
+        self.lower = np.minimum(np.where(self.signed, lin_lo, log_lo), 0.0)
+        self.upper = np.maximum(np.where(self.signed, lin_hi, log_hi), 0.0)
 
     def values(self, z) -> np.ndarray:
         """Values (SI) at coordinates z."""

@@ -1,13 +1,17 @@
 """The position command of a closed-loop log as a command the compiled simulation follows.
 
-The simulation evaluates its command inside the kernel (:class:`servo_toolkit.sim.Reference`:
-hold, step, ramp or sine), so a logged command is recognised as one of them: a constant, one
-jump, a constant followed by a constant rate, or ``offset + A sin(2 pi f (t - t0))``. Each is
-accepted when it reproduces every logged sample within :data:`TOLERANCE` of the command's span
-(the digits a log writes); any other command is refused with one line saying so.
+The simulation evaluates its command inside the kernel (:class:`servo_toolkit.sim.Reference`).
+A logged command is first recognised as one of its analytic kinds: a constant, one jump, a
+constant followed by a constant rate, or ``offset + A sin(2 pi f (t - t0))``, each accepted
+when it reproduces every logged sample within :data:`TOLERANCE` of the command's span (the
+digits a log writes); these are exact between the samples too (a jump stays a jump). Any
+other command (a logged trajectory, a chirp, a sequence of moves) is followed as it was
+logged: a sampled command (:meth:`~servo_toolkit.sim.Reference.table`, the cubic spline
+through the samples), which the controller reads exactly at its sample instants when the log
+is written at the controller's sample rate.
 
 Times are counted from the log's first sample, where the simulation starts in equilibrium at
-the command's offset.
+the command's first value.
 """
 
 from __future__ import annotations
@@ -93,12 +97,8 @@ def command_reference(time_s, command, source: str | None = None) -> Reference:
     Returns
     -------
     Reference
-        Hold, step, ramp or sine, with times from the first sample.
-
-    Raises
-    ------
-    SceneError
-        A command that is none of them within :data:`TOLERANCE` of its span.
+        Hold, step, ramp or sine, or else the sampled command (kind ``"table"``), with times
+        from the first sample.
     """
     t = np.asarray(time_s, float) - float(time_s[0])
     c = np.asarray(command, float)
@@ -110,5 +110,7 @@ def command_reference(time_s, command, source: str | None = None) -> Reference:
         ref = recognise(t, c, tol)
         if ref is not None:
             return ref
-    raise SceneError("command", "the simulation follows a hold, a step, a ramp or a sine command; the logged "
-                     f"command is none of them within {TOLERANCE:g} of its span", source)
+    try:  # the log's times are equally spaced (checked when read): its mean step, free of their digits
+        return Reference.table(np.arange(t.size) * (t[-1] / (t.size - 1)), c - c[0], offset=float(c[0]))
+    except SceneError as exc:
+        raise SceneError("command", exc.rule, source) from None

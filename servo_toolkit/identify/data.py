@@ -2,9 +2,10 @@
 
 Two kinds of CSV are read, told apart by their header:
 
-``frequency_hz,gain_db,phase_deg[,coherence]``
+``frequency_hz,gain_db,phase_deg[,coherence[,averages]]``
     A measured frequency response; frequencies positive and strictly increasing, coherence
-    (optional) in [0, 1].
+    (optional) in [0, 1], and the number of spectra averaged behind it (optional, a whole
+    number >= 1, the same on every row: what ``frf`` writes).
 ``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``
     Time traces of a rig driven by a voltage; times equally spaced and increasing.
 ``time_s,command_m,output_m,current_A`` (``_rad`` for an output angle)
@@ -42,6 +43,11 @@ class FrequencyData:
         One value per point; coherence is 1 where the file gives none.
     source : str or None
         The file it was read from.
+    averages : int or None
+        Spectra averaged behind the coherence (Welch segments or periods); None: unknown
+        (the coherence then weighs nothing in the noise floor).
+    window : str or None
+        The estimator's window (``"periodic"`` or ``"hann"``), when known.
     """
 
     frequency_hz: np.ndarray
@@ -49,6 +55,8 @@ class FrequencyData:
     phase_deg: np.ndarray
     coherence: np.ndarray
     source: str | None = None
+    averages: int | None = None
+    window: str | None = None
 
     kind = "frequency"
 
@@ -63,12 +71,14 @@ class FrequencyData:
         return 10 ** (self.gain_db / 20) * np.exp(1j * np.radians(self.phase_deg))
 
     @classmethod
-    def from_complex(cls, frequency_hz, response, coherence=None, source=None) -> "FrequencyData":
+    def from_complex(cls, frequency_hz, response, coherence=None, source=None, averages=None,
+                     window=None) -> "FrequencyData":
         """From complex values (e.g. a model's response)."""
         f = np.asarray(frequency_hz, float)
         h = np.asarray(response, complex)
         coh = np.ones_like(f) if coherence is None else np.asarray(coherence, float)
-        data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h))), coh, source)
+        data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h))), coh, source,
+                   None if averages is None else int(averages), window)
         check_frequency(data)
         return data
 
@@ -148,6 +158,8 @@ def check_frequency(data: FrequencyData) -> None:
     bad = np.flatnonzero((c < 0) | (c > 1))
     if bad.size:
         raise SceneError(f"row {bad[0] + 2}", f"coherence must lie in [0, 1] (got {c[bad[0]]:g})", src)
+    if data.averages is not None and not data.averages >= 1:
+        raise SceneError("averages", f"must be a whole number >= 1 (got {data.averages})", src)
 
 
 def check_time(data) -> None:
@@ -174,6 +186,18 @@ def check_time(data) -> None:
                          f"{dt:g} s from row 2 to row 3)", src)
 
 
+def _averages(column, src) -> int:
+    """The one whole number >= 1 of an ``averages`` column."""
+    bad = np.flatnonzero(~np.isfinite(column) | (column < 1) | (column != np.round(column)))
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 2}", f"averages must be a whole number >= 1 (got {column[bad[0]]:g})", src)
+    bad = np.flatnonzero(column != column[0])
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 2}", f"averages must be the same on every row ({column[bad[0]]:g} here, "
+                         f"{column[0]:g} on row 2)", src)
+    return int(column[0])
+
+
 def read_data(path) -> FrequencyData | TimeData | LoopData:
     """Read a measured frequency response or time traces from CSV (kind from the header).
 
@@ -196,13 +220,13 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
         rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
     except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
         raise SceneError("(file)", f"cannot read data: not a CSV table ({exc})", src) from None
-    expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence], {','.join(TIME_HEADER)} or "
+    expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence[,averages]], {','.join(TIME_HEADER)} or "
                 f"{','.join(LOOP_HEADERS['m'])} (_rad for an output angle)")
     if not rows:
         raise SceneError("header", f"empty file; expected the header {expected}", src)
     header = tuple(c.strip() for c in rows[0])
     loop_unit = next((u for u, h in LOOP_HEADERS.items() if h == header), None)
-    if header in (FREQUENCY_HEADER, FREQUENCY_HEADER + ("coherence",)):
+    if header in (FREQUENCY_HEADER, FREQUENCY_HEADER + ("coherence",), FREQUENCY_HEADER + ("coherence", "averages")):
         kind = "frequency"
     elif header == TIME_HEADER:
         kind = "time"
@@ -222,8 +246,8 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
         raise SceneError("row 2", "no data rows after the header", src)
     cols = np.array(values, float).T
     if kind == "frequency":
-        coh = cols[3] if len(header) == 4 else np.ones(cols.shape[1])
-        data = FrequencyData(cols[0], cols[1], cols[2], coh, src)
+        coh = cols[3] if len(header) >= 4 else np.ones(cols.shape[1])
+        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, _averages(cols[4], src) if len(header) == 5 else None)
         check_frequency(data)
     elif kind == "time":
         data = TimeData(*cols, source=src)

@@ -35,8 +35,6 @@ from .search import global_least_squares
 from .verdict import MISS_FLOORS, bands, judge
 
 __all__ = ["PHASE_DB_PER_DEG", "fit", "wrap_deg"]
-#: fitted values stay within this factor of the initial ones
-MAX_FACTOR = 100.0
 #: relative half-width of the 95 % interval above which a parameter is called unidentified
 MAX_RELATIVE_INTERVAL = 1.0
 #: the search stops at a residual RMS within this factor of the noise floor
@@ -131,6 +129,9 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     SceneError
         Bad data, an unknown key, a key that is not a positive scalar, or fewer points than
         parameters + 2.
+    SimulationError
+        Closed-loop traces: the fitted scene's run leaves RK4's stability region at the step
+        the initial scene's run chose.
     """
     if not isinstance(data, (FrequencyData, TimeData, LoopData)):
         data = read_data(data)
@@ -199,7 +200,8 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     residual_rms = float(np.sqrt(np.mean(sol.fun ** 2)))
     unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or wide[j])]
     inseparable = [(a, b) for a in range(npar) for b in range(a + 1, npar) if abs(corr[a, b]) > MAX_CORRELATION]
-    verdict = judge(residual_rms, floor, dof, m, not unidentified and not inseparable)
+    # a strong correlation alone is no verdict: the intervals (from the same information) allow for it
+    verdict = judge(residual_rms, floor, dof, m, not unidentified)
     judged = verdict != "model mismatch"  # at a mismatch the intervals mean nothing
     warnings = []
     for j, key in enumerate(keys):
@@ -216,14 +218,17 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
             warnings.append(f"{key}: ended at the bound of its physical range [{lower[j]:.4g}, {upper[j]:.4g}] "
                             f"{template.parameters[j].unit}")
     if judged:
-        for a, b in inseparable:
-            warnings.append(f"{keys[a]} and {keys[b]}: correlation {corr[a, b]:+.3f}; the data identify "
-                            "only a combination of them")
+        for a, b in inseparable:  # narrow intervals of correlated estimates are no problem: the table shows it
+            if a in unidentified or b in unidentified:
+                warnings.append(f"{keys[a]} and {keys[b]}: correlation {corr[a, b]:+.3f}; the data identify "
+                                "only a combination of them")
     try:
         fitted_scene = template.scene(values)
         fitted_model = comparison.evaluate(fitted_scene)[0]
     except SceneError as exc:
         raise SceneError(exc.key, f"the fit ended on a value the scene refuses ({exc.rule})") from None
+    if comparison.verify is not None:
+        comparison.verify(fitted_scene)
     residual_db_rms, residual_phase_deg_rms = None, None
     if isinstance(data, FrequencyData):
         gain = 20 * np.log10(np.abs(fitted_model)) - data.gain_db
@@ -238,4 +243,5 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
                      initial_residual_rms=float(np.sqrt(np.mean(r0 ** 2))), warnings=tuple(warnings),
                      data=data, initial_model=initial_model, fitted_model=fitted_model,
                      calibrated=fitted_scene, written=tuple(p.written for p in template.parameters),
-                     evaluations=int(sol.nfev), dof=int(dof), verdict=verdict, noise_floor=floor, misses=misses)
+                     evaluations=int(sol.nfev), dof=int(dof), verdict=verdict, noise_floor=floor, misses=misses,
+                     noise_basis=comparison.noise)

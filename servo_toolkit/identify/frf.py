@@ -1,12 +1,21 @@
 """Frequency response and coherence from time logs of a broadband excitation (chirp,
-multisine, noise): the H1 estimator with Welch averaging.
+multisine, noise): the H1 estimator (:mod:`servo_toolkit.core.spectra`, which the simulated
+multisine sweep uses too).
 
-``H1(f) = P_uy(f) / P_uu(f)``, the cross spectrum of input and output over the input's own
-(scipy.signal.csd and welch, Hann windows, half-overlapping segments, means removed): noise
-on the output averages out of it. The coherence ``|P_uy|^2 / (P_uu P_yy)`` says, per
+``H1(f) = P_uy(f) / P_uu(f)``, the cross spectrum of input and output over the input's own:
+noise on the output averages out of it. The coherence ``|P_uy|^2 / (P_uu P_yy)`` says, per
 frequency, how much of the output the input explains (1: all of it; noise, nonlinearity or
 leakage lower it). Only the frequencies the input excites (power within
-:data:`EXCITED_DB` of its peak) are kept.
+:data:`~servo_toolkit.core.spectra.EXCITED_DB` of its peak) are kept.
+
+Two windows. ``periodic``: a periodic excitation (a multisine) is cut into whole periods,
+each a rectangular window; every excited line falls on a bin, so the estimate has no
+leakage and is exact for a periodic steady state; the first period is left out as settling
+when the log holds three or more. ``hann``: Welch averaging of Hann-windowed,
+half-overlapping segments, for noise and chirps. ``auto`` (the default) takes ``periodic``
+when the input repeats (:func:`~servo_toolkit.core.spectra.find_period`), else ``hann``.
+The number of spectra averaged (periods or segments) goes with the estimate: the
+coherence's random error depends on it.
 
 A log is a CSV with a ``time_s`` column (equally spaced) and one column per signal, e.g.
 ``time_s,current_A,motor_angle_rad``. The response of an angle's derivative (a speed, as the
@@ -19,20 +28,20 @@ import csv
 import math
 
 import numpy as np
-from scipy import signal
 
 from ..core.inputs import read_input_text
+from ..core.spectra import MIN_SEGMENT, find_period, periodic_h1, response_csv, welch_h1
 from ..errors import SceneError
 from .data import MAX_DATA_BYTES, FrequencyData
 
-#: input power below its peak (dB) under which a frequency counts as not excited
-EXCITED_DB = 40.0
 #: fewest Welch segments the default segment length gives
 DEFAULT_AVERAGES = 8
 #: largest deviation of a time step from the mean step (relative)
 SPACING_TOLERANCE = 0.01
-#: shortest segment (samples)
-MIN_SEGMENT = 16
+#: the windows ``estimate_frf`` offers
+WINDOWS = ("auto", "periodic", "hann")
+#: a periodic log with at least this many periods leaves its first one out as settling
+SETTLE_FROM = 3
 
 
 def read_log(path) -> tuple[np.ndarray, dict]:
@@ -85,7 +94,8 @@ def read_log(path) -> tuple[np.ndarray, dict]:
     return t, columns
 
 
-def estimate_frf(time_s, u, y, *, segment: int | None = None, band=None, derivative: bool = False,
+def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,
+                 settle: int | None = None, band=None, derivative: bool = False,
                  source: str | None = None) -> FrequencyData:
     """H1 estimate of the response y / u, with its coherence.
 
@@ -95,9 +105,17 @@ def estimate_frf(time_s, u, y, *, segment: int | None = None, band=None, derivat
         Equally spaced sample times (s).
     u, y : array_like
         Input (the excitation: a current, a voltage, a command) and output samples.
+    window : {"auto", "periodic", "hann"}
+        ``periodic``: whole periods of a periodic input, rectangular windows; ``hann``:
+        Welch averaging; ``auto``: periodic when the input repeats, else hann.
     segment : int, optional
-        Samples per Welch segment (frequency resolution 1 / (segment dt)); default the
+        Hann: samples per Welch segment (frequency resolution 1 / (segment dt)); default the
         largest power of two giving at least :data:`DEFAULT_AVERAGES` segments.
+    period : int, optional
+        Periodic: samples per period; default the period the input repeats with.
+    settle : int, optional
+        Periodic: periods left out at the start; default 1 when the log holds at least
+        :data:`SETTLE_FROM`, else 0.
     band : (float, float), optional
         Keep frequencies in [lo, hi] Hz; default every excited frequency.
     derivative : bool
@@ -109,49 +127,70 @@ def estimate_frf(time_s, u, y, *, segment: int | None = None, band=None, derivat
     Returns
     -------
     FrequencyData
-        Frequencies, gain, phase and coherence of the excited bins.
+        Frequencies, gain, phase and coherence of the excited bins, the number of spectra
+        averaged and the window.
 
     Raises
     ------
     SceneError
-        A segment shorter than :data:`MIN_SEGMENT` or longer than half the log, an input
-        without excitation, a band that keeps no frequency.
+        A segment shorter than :data:`~servo_toolkit.core.spectra.MIN_SEGMENT` or longer
+        than half the log, ``periodic`` on an input that does not repeat (or a period that
+        leaves no whole one), an option of the other window, an input without excitation, a
+        band that keeps no frequency.
     """
     t = np.asarray(time_s, float)
     u = np.asarray(u, float)
     y = np.asarray(y, float)
     n = t.size
-    fs = (t.size - 1) / float(t[-1] - t[0])
-    if segment is None:
-        segment = max(MIN_SEGMENT, 2 ** int(math.floor(math.log2(max(n // DEFAULT_AVERAGES, 1)))))
-    if not MIN_SEGMENT <= segment <= n // 2:
-        raise SceneError("--segment", f"must lie in [{MIN_SEGMENT}, {n // 2}] samples for a log of {n} "
-                         f"(got {segment})", source)
-    kw = dict(fs=fs, window="hann", nperseg=segment, noverlap=segment // 2, detrend="constant")
-    f, puu = signal.welch(u, **kw)
-    _, pyy = signal.welch(y, **kw)
-    _, puy = signal.csd(u, y, **kw)
-    if not np.any(puu > 0):
-        raise SceneError("--input", "the input is constant: nothing excites the response", source)
-    keep = (f > 0) & (puu >= puu.max() * 10 ** (-EXCITED_DB / 10))
-    if band is not None:
-        keep &= (f >= band[0]) & (f <= band[1])
-    if not keep.any():
-        raise SceneError("--band", "keeps no excited frequency of the log", source)
-    h = puy[keep] / puu[keep]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        coh = np.abs(puy[keep]) ** 2 / (puu[keep] * pyy[keep])
-    coh = np.clip(np.nan_to_num(coh, nan=0.0), 0.0, 1.0)
-    fk = f[keep]
+    fs = (n - 1) / float(t[-1] - t[0])
+    if window not in WINDOWS:
+        raise SceneError("--window", f"must be one of {', '.join(WINDOWS)} (got {window!r})", source)
+    if window == "auto":
+        window = "hann" if segment is not None or (period is None and find_period(u) is None) else "periodic"
+    try:
+        if window == "periodic":
+            if segment is not None:
+                raise SceneError("--segment", "applies to the hann window; a periodic log is cut into its periods",
+                                 source)
+            if period is None:
+                period = find_period(u)
+                if period is None:
+                    raise SceneError("--window", "periodic needs an input that repeats (none found: give --period "
+                                     "or --window hann)", source)
+            if not MIN_SEGMENT <= period <= n:
+                raise SceneError("--period", f"must lie in [{MIN_SEGMENT}, {n}] samples for a log of {n} "
+                                 f"(got {period})", source)
+            whole = n // period
+            settle = (1 if whole >= SETTLE_FROM else 0) if settle is None else settle
+            if not 0 <= settle < whole:
+                raise SceneError("--settle", f"must leave at least one of the log's {whole} whole periods "
+                                 f"(got {settle})", source)
+            spec = periodic_h1(fs, u, y, period, settle=settle, band=band)
+        else:
+            if period is not None or settle is not None:
+                raise SceneError("--period" if period is not None else "--settle",
+                                 "applies to the periodic window", source)
+            if segment is None:
+                segment = max(MIN_SEGMENT, 2 ** int(math.floor(math.log2(max(n // DEFAULT_AVERAGES, 1)))))
+            if not MIN_SEGMENT <= segment <= n // 2:
+                raise SceneError("--segment", f"must lie in [{MIN_SEGMENT}, {n // 2}] samples for a log of {n} "
+                                 f"(got {segment})", source)
+            spec = welch_h1(fs, u, y, segment, band=band)
+    except LookupError:
+        raise SceneError("--band", "keeps no excited frequency of the log", source) from None
+    except ValueError as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError("--input", f"{exc}", source) from None
+    fk, h = spec.frequency_hz, spec.response
     if derivative:
         h = h * 2j * math.pi * fk
     h = np.where(h == 0, 1e-300, h)
-    return FrequencyData.from_complex(fk, h, coherence=coh, source=source)
+    return FrequencyData.from_complex(fk, h, coherence=spec.coherence, source=source, averages=spec.averages,
+                                      window=spec.window)
 
 
 def frf_csv(data: FrequencyData) -> str:
-    """The CSV that ``fit`` reads: ``frequency_hz,gain_db,phase_deg,coherence``."""
-    lines = ["frequency_hz,gain_db,phase_deg,coherence"]
-    lines += [f"{f:.9g},{g:.9g},{p:.9g},{c:.6g}" for f, g, p, c in
-              zip(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence)]
-    return "\n".join(lines) + "\n"
+    """The CSV that ``fit`` reads: ``frequency_hz,gain_db,phase_deg,coherence,averages`` (the
+    last column when the number of spectra averaged is known)."""
+    return response_csv(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence, data.averages)

@@ -40,6 +40,9 @@ class Parameter:
     signed : bool
         The scene accepts any sign (a constant force or moment): fitted as a value, not as a
         logarithm.
+    bounds : tuple or None
+        ``(low, high)``: the magnitudes the loader accepts for the key, the range its model
+        is conditioned for (:mod:`servo_toolkit.core.ranges`, or the component's own).
     """
 
     key: str
@@ -49,6 +52,7 @@ class Parameter:
     initial: float
     written: object = None
     signed: bool = False
+    bounds: tuple | None = None
 
 
 def _split(key: str) -> tuple[str, str]:
@@ -125,7 +129,8 @@ class SceneTemplate:
                                  f"search's scale (is {value:g} {read.unit})")
             if not signed and not (value > 0 and value < float("inf")):
                 raise SceneError(key, f"must be a positive finite scalar to be fitted (is {value:g} {read.unit})")
-            params.append(Parameter(key, read.table, read.key, read.unit, value, written, signed))
+            params.append(Parameter(key, read.table, read.key, read.unit, value, written, signed,
+                                    None if read.bounds is None else tuple(float(b) for b in read.bounds)))
         self.parameters = tuple(params)
 
     def _value(self, key, read) -> float:

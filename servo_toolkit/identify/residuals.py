@@ -2,9 +2,12 @@
 search starts from, and the noise floor of that vector.
 
 Frequency responses
-    Gain difference in dB and wrapped phase difference in deg times
-    :data:`PHASE_DB_PER_DEG` (one neper weighs as one radian), each weighted by
-    sqrt(coherence); features of a current -> speed response (:mod:`.features`).
+    Gain difference and wrapped phase difference, each over its own noise at that point
+    (:mod:`.noise`: from the coherence and the number of averages, or from the scatter
+    about a local fit), so that the floor is 1 and the intervals weigh gain and phase by
+    their noise; with the noise unknown, dB and deg times :data:`PHASE_DB_PER_DEG` (one
+    neper weighs as one radian), each weighted by sqrt(coherence). Features of a current
+    -> speed response (:mod:`.features`).
 Voltage-driven time traces
     Current, motor angle and output angle, each divided by the RMS of its measurement;
     features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
@@ -28,8 +31,9 @@ from .data import FrequencyData, LoopData
 from .features import feature_mismatch, response_features
 from .loop_model import LoopRun
 from .model import frequency_model, time_response
+from .noise import FrequencyNoise, frequency_noise
 from .trace_features import LoopScales, loop_features, step_features, step_mismatch
-from .verdict import coherence_variance, scatter_sd
+from .verdict import scatter_sd
 
 #: dB of log-magnitude per degree of phase with the weight of the complex logarithm
 PHASE_DB_PER_DEG = 20 / math.log(10) * math.pi / 180
@@ -56,6 +60,11 @@ class Comparison:
         Frequencies (Hz) or times from the start (s) of the points.
     unit : str
         ``"Hz"`` or ``"s"``.
+    noise : str
+        Where the noise floor comes from.
+    verify : callable or None
+        ``scene -> None``: the checks the evaluations of the search leave out, run once on the
+        fitted scene (raises SimulationError).
     """
 
     evaluate: Callable
@@ -63,28 +72,34 @@ class Comparison:
     blocks: int
     axis: np.ndarray
     unit: str
+    noise: str = "scatter of the measurement (third differences)"
+    verify: Callable | None = None
+
+
+def frequency_residual(h, data: FrequencyData, noise: FrequencyNoise) -> np.ndarray:
+    """Residual vector of a model response ``h`` (complex) against ``data``: the gain and the
+    wrapped phase differences, each over its own noise (so each is in standard deviations
+    and the vector's floor is 1); with the noise unknown, the gain difference in dB and the
+    phase difference times :data:`PHASE_DB_PER_DEG`, each weighted by sqrt(coherence)."""
+    gain = 20 * np.log10(np.abs(h)) - data.gain_db
+    phase = wrap_deg(np.degrees(np.angle(h)) - data.phase_deg)
+    if noise.known:
+        return np.concatenate([gain / noise.gain_db, phase / noise.phase_deg])
+    w = np.sqrt(data.coherence)
+    return np.concatenate([w * gain, w * PHASE_DB_PER_DEG * phase])
 
 
 def frequency(data: FrequencyData, kind: str, base, controller=None) -> Comparison:
     """A frequency response (``kind`` ``plant`` or ``closed_loop``)."""
-    w = np.sqrt(data.coherence)
     model = frequency_model(base, kind, controller)
     features = response_features(data.frequency_hz, data.complex) if kind == "plant" else None
+    noise = frequency_noise(data)
 
     def evaluate(scene):
         h = model(scene, data.frequency_hz)
-        gain = 20 * np.log10(np.abs(h)) - data.gain_db
-        phase = wrap_deg(np.degrees(np.angle(h)) - data.phase_deg)
-        r = np.concatenate([w * gain, w * PHASE_DB_PER_DEG * phase])
         m = None if features is None else feature_mismatch(response_features(data.frequency_hz, h), features)
-        return h, r, m
-    sg = scatter_sd(data.gain_db)
-    sp = scatter_sd(np.degrees(np.unwrap(np.radians(data.phase_deg))))
-    # the coherence's own uncertainty (gain and phase alike: one neper is one radian, 20/ln 10 dB)
-    coh = (20 / math.log(10)) ** 2 * float(np.mean(coherence_variance(data.coherence)))
-    floor = None if sg is None else math.sqrt(float(np.mean(w ** 2)) * (sg ** 2 + (PHASE_DB_PER_DEG * sp) ** 2) / 2
-                                              + coh)
-    return Comparison(evaluate, floor, 2, data.frequency_hz, "Hz")
+        return h, frequency_residual(h, data, noise), m
+    return Comparison(evaluate, 1.0 if noise.known else None, 2, data.frequency_hz, "Hz", noise.basis)
 
 
 def voltage_traces(data) -> Comparison:
@@ -123,8 +138,9 @@ def loop_traces(data: LoopData, base, controller) -> Comparison:
     features = loop_features(data.time_s, data.output, data.current_A)
 
     def evaluate(scene):
-        model = loop.traces(scene)
+        model = loop.traces(scene, check=False)
         r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, noise)])
         return model, r, scales.mismatch(loop_features(data.time_s, *model), features)
     floor = None if scatter_sd(data.output) is None else 1.0
-    return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s")
+    return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s",
+                      verify=lambda scene: loop.traces(scene, check=True))

@@ -58,6 +58,9 @@ class FitResult:
         RMS of the weighted residual vector that the data's own noise would leave.
     misses : tuple of str
         Where a mismatched model misses the data most (frequency bands or time windows).
+    noise_basis : str
+        Where the noise floor comes from (the coherence, the scatter of the data), or why it
+        is unknown.
     """
 
     scene: str
@@ -84,6 +87,7 @@ class FitResult:
     verdict: str = "noise floor unknown"
     noise_floor: float | None = None
     misses: tuple = ()
+    noise_basis: str = ""
 
     @property
     def mismatch(self) -> bool:
@@ -98,8 +102,10 @@ class FitResult:
                     f"{self.noise_floor:.3g}{where} (a parameter missing from --param, or the model lacks what "
                     "the rig does)")
         if self.verdict == "noise floor unknown":
-            return "noise floor unknown (too few points to estimate it); residual not judged"
-        text = f"{self.verdict}: residual {self.residual_rms:.3g}, noise floor {self.noise_floor:.3g}"
+            why = self.noise_basis.partition("unknown: ")[2] or "too few points to estimate it"
+            return f"noise floor unknown ({why}); residual not judged"
+        basis = f" ({self.noise_basis})" if self.noise_basis else ""
+        text = f"{self.verdict}: residual {self.residual_rms:.3g}, noise floor {self.noise_floor:.3g}{basis}"
         return text + ("; see the warnings" if self.verdict == "not identifiable" else "")
 
     def to_dict(self) -> dict:
@@ -115,7 +121,8 @@ class FitResult:
                 "residual_rms": self.residual_rms, "initial_residual_rms": self.initial_residual_rms,
                 "correlation": {"keys": list(self.keys), "matrix": corr},
                 "warnings": list(self.warnings), "points": int(self.data.points), "dof": self.dof,
-                "verdict": self.verdict, "noise_floor": self.noise_floor, "misses": list(self.misses),
+                "verdict": self.verdict, "noise_floor": self.noise_floor, "noise_basis": self.noise_basis,
+                "misses": list(self.misses),
                 "evaluations": self.evaluations}
 
     def value(self, key: str) -> float:
@@ -136,7 +143,7 @@ class FitResult:
         lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
         if self.residual_db_rms is not None:
             lines.append(f"  residual: {self.residual_db_rms:.3g} dB RMS gain, {self.residual_phase_deg_rms:.3g} deg "
-                         f"RMS phase (weighted RMS {self.initial_residual_rms:.3g} -> {self.residual_rms:.3g})")
+                         f"RMS phase (weighted residual RMS {self.initial_residual_rms:.3g} -> {self.residual_rms:.3g})")
         else:
             lines.append(f"  residual: {self.residual_rms:.3g} RMS of traces normalised by their RMS "
                          f"(initial {self.initial_residual_rms:.3g})")

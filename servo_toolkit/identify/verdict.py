@@ -1,19 +1,18 @@
 """The verdict of a fit: the residual against the noise floor the data show.
 
-The noise floor is estimated from the data alone: measurement noise is rough from point to
-point while a response (or a trace) is smooth, so the third differences of neighbouring
-points are noise (their variance 20 sigma^2 for white noise) plus a small smooth part. The
-largest tenth is left out (a sharp resonance, a phase wrap), the rest gives sigma.
-
-A frequency response estimated from a time log (``frf``) carries its coherence: where it
-is below 1 the estimate is uncertain even if it looks smooth (random error of the averaged
-spectra, and the window's leakage around a sharp resonance, which lowers the coherence as
-well). Its variance in the complex logarithm (nepers, or radians of phase) is
-``(1 - coh) / (2 n coh)`` for ``n`` averages (Bendat and Piersol): :func:`coherence_variance`,
-added to the point-to-point floor.
+The residual vector of a frequency response is in standard deviations of its own noise
+(:mod:`.noise`: from the coherence and the number of averaged spectra, or from the
+scatter of the points about a local fit), and so is that of closed-loop traces (each channel
+over its scatter): their floor is 1. The floor of voltage-driven traces is the scatter of
+each trace relative to its RMS. The scatter of a densely sampled trace is estimated from
+third differences (:func:`scatter_sd`): measurement noise is rough from sample to sample
+while a trace is smooth, so the third differences of neighbouring samples are noise (their
+variance 20 sigma^2 for white noise) plus a small smooth part; the largest tenth (a step, a
+reversal) is left out.
 
 ``fits to the noise``
-    The residual is at most :data:`MISMATCH_RATIO` times the floor.
+    The residual RMS is at most :data:`MISMATCH_RATIO` times the floor (times the share of
+    degrees of freedom the fit leaves).
 ``model mismatch``
     It is larger: the model (or the parameters chosen) cannot follow the data; the
     frequencies or times where it misses most are named. Intervals and identifiability
@@ -23,7 +22,8 @@ added to the point-to-point floor.
     leaves a parameter without an independent influence or with an interval wider than
     its value.
 ``noise floor unknown``
-    Too few points to estimate the floor; the fit is reported as it is.
+    Too few points, or a frequency grid too coarse, to estimate the floor; the fit is
+    reported as it is.
 """
 
 from __future__ import annotations
@@ -42,8 +42,6 @@ MIN_POINTS = 12
 TRIM = 0.1
 #: RMS of a unit normal variable over its (1 - TRIM) smallest magnitudes
 _TRIMMED_RMS = 0.7897
-#: averages assumed behind a coherence column (``frf``'s default segment gives at least 8)
-COHERENCE_AVERAGES = 8
 VERDICTS = ("fits to the noise", "model mismatch", "not identifiable", "noise floor unknown")
 
 
@@ -56,14 +54,6 @@ def scatter_sd(values) -> float | None:
     d3 = np.abs(np.diff(v, 3))
     keep = np.sort(d3)[: max(1, int(math.ceil((1 - TRIM) * d3.size)))]
     return float(np.sqrt(np.mean(keep ** 2)) / _TRIMMED_RMS / math.sqrt(20))
-
-
-def coherence_variance(coherence, averages: int = COHERENCE_AVERAGES) -> np.ndarray:
-    """Variance of the log-magnitude (nepers^2) and of the phase (rad^2) of an H1 estimate
-    at each coherence ``coh``, times ``coh`` (the weight of its residual squared): ``(1 - coh)
-    / (2 averages)``, finite at zero coherence."""
-    c = np.clip(np.asarray(coherence, float), 0.0, 1.0)
-    return (1.0 - c) / (2.0 * averages)
 
 
 def bands(x, miss, unit: str, limit: int = 3) -> list[str]:

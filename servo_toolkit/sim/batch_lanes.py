@@ -37,7 +37,7 @@ jit = nb.njit(cache=True, fastmath=LANE_MATH, error_model="numpy")
 #: lanes per block: one AVX-512 register of float64 (two AVX2 registers)
 W = 8
 #: parameter slots of the reference r(t), shared by a block when equal in all its variants
-REF_SLOTS = (lo.REF_KIND, lo.REF_A, lo.REF_F, lo.REF_OFF, lo.REF_T0)
+REF_SLOTS = (lo.REF_KIND, lo.REF_A, lo.REF_F, lo.REF_OFF, lo.REF_T0, *range(lo.REF_TAB_OFF, lo.REF_TAB_SUM + 1))
 #: the controller's structure (state count and coefficient offsets), which the lanes' state-space
 #: update (:func:`kernel.motion_columns`) takes from the block's first variant
 CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)

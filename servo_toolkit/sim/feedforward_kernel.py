@@ -12,9 +12,11 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JW, KT, REF_A, REF_F, REF_KIND,
-                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, T_J, T_N, TAB_H, TC, WS, FF_DJ, REF_MOVE)
+                     REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, T_J, T_N, TAB_H, TC, WS,
+                     FF_DJ, REF_MOVE)
 from .command_kernel import impulse, impulses, move_rates  # noqa: E402
 from .compliance_kernel import inertia_beyond_motor  # noqa: E402
+from .table_kernel import table_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -37,8 +39,9 @@ def reference_rates(t, P):
 @inline
 def command_rates(t, P):
     """The command and its analytic first and second time derivatives at time t,
-    ``(r, r', r'')``: a sine's, a move's, a ramp's rate (0 before it starts), 0 for a hold
-    and a step (the step's impulses are not fed forward)."""
+    ``(r, r', r'')``: a sine's, a move's, a ramp's rate (0 before it starts), a sampled
+    command's interpolant (:func:`.table_kernel.table_rates`), 0 for a hold and a step (the
+    step's impulses are not fed forward)."""
     kind = int(P[REF_KIND])
     if kind == REF_MOVE:
         return move_rates(t, P)
@@ -53,6 +56,8 @@ def command_rates(t, P):
         if t > P[REF_T0]:
             return P[REF_OFF] + P[REF_A] * (t - P[REF_T0]), P[REF_A], 0.0
         return P[REF_OFF], 0.0, 0.0
+    if kind == REF_TABLE:
+        return table_rates(t, P)
     return P[REF_OFF], 0.0, 0.0
 
 

@@ -50,12 +50,13 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
                      HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE, KSTOP, KT, KAW, L, CAM, NCAM,
                      LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP, PAPER, PERIODIC, R,
-                     REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
+                     REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
                      TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW)
 from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
+from .table_kernel import table_rates  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
@@ -85,6 +86,8 @@ def command(t, P):
         return P[REF_OFF] + (P[REF_A] if t >= P[REF_T0] else 0.0)
     if kind == REF_RAMP:
         return P[REF_OFF] + P[REF_A] * max(t - P[REF_T0], 0.0)
+    if kind == REF_TABLE:
+        return table_rates(t, P)[0]
     return P[REF_OFF]
 
 

@@ -96,7 +96,14 @@ FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 ROW_JW0, ROW_NODE = 74, 75
 NODE_ROWS = 4
 # 82..89: friction at the chain's nodes
-# 90..97: reference tables and multisines
+# 90..97: a sampled position command (REF_KIND = REF_TABLE, :mod:`servo_toolkit.sim.table_kernel`):
+# index in P of its data (values y_0..y_{n-1}, then the slopes m_0..m_{n-1} of the cubic
+# Hermite interpolant through them, rad/s or m/s), the number of samples n, the time of the first
+# sample (s), 1 / the sample spacing (1/s), 1 for a periodic table (its last sample repeats the
+# first: the command wraps with period (n - 1) spacings), and a fingerprint of the data (a
+# 48-bit hash, exact in a float), so that equal slots mean equal commands (the batch's shared
+# reference, :data:`servo_toolkit.sim.batch_lanes.REF_SLOTS`); 96..97 unused
+REF_TAB_OFF, REF_TAB_N, REF_TAB_T0, REF_TAB_INV_DT, REF_TAB_WRAP, REF_TAB_SUM = range(90, 96)
 # gain scheduling along the stroke and command shaping (slots 98..105;
 # :mod:`servo_toolkit.loop.schedule`, :mod:`servo_toolkit.loop.shaper`,
 # :mod:`servo_toolkit.sim.command_kernel`): index in P of the gain schedule (0: none; its block
@@ -137,6 +144,8 @@ OPEN_LOOP, SAMPLED, CONTINUOUS = 0, 1, 2
 STROKE_ERROR, STROKE_STOP, STROKE_NONE = 0, 1, 2
 # reference kinds
 REF_CONST, REF_SINE, REF_STEP, REF_RAMP = 0, 1, 2, 3
+#: a sampled command: REF_OFF plus the table's interpolated value (slots 90..95)
+REF_TABLE = 4
 
 # aux outputs written by the right-hand side
 AUX_I, AUX_V, AUX_IREF, AUX_TAU = range(4)

@@ -1,21 +1,23 @@
 """Command signals evaluated inside the kernel, and the initial state of a run.
 
-A :class:`Reference` fills five parameter slots; changing it does not recompile anything,
-so a frequency sweep is a loop over ``run(model, Reference.sine(a, f), ...)``.
+A :class:`Reference` fills five parameter slots (a sampled command also its table slots and
+its samples after the parameters); changing it does not recompile anything, so a frequency
+sweep is a loop over ``run(model, Reference.sine(a, f), ...)``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..loop.profile import MoveProfile
 from . import layout as lo
-from .kernel import hermite, measured_angle, measured_motor_angle
+from .kernel import hermite, measured_angle, measured_motor_angle, reference as reference_at
+from .reference_table import duration_of, pack_table, table_span
 
 KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP,
-         "move": lo.REF_MOVE}
+         "move": lo.REF_MOVE, "table": lo.REF_TABLE}
 
 
 @dataclass(frozen=True)
@@ -25,7 +27,8 @@ class Reference:
     Parameters
     ----------
     kind : str
-        ``"hold"``, ``"sine"``, ``"step"``, ``"ramp"``, ``"move"`` or ``"voltage"`` (open loop).
+        ``"hold"``, ``"sine"``, ``"step"``, ``"ramp"``, ``"move"``, ``"table"`` (sampled, see
+        :meth:`table`) or ``"voltage"`` (open loop).
     amplitude : float
         Sine amplitude or step size (rad), ramp rate (rad/s), a move's distance (rad), or the
         voltage (V).
@@ -34,12 +37,18 @@ class Reference:
     offset : float or None
         Starting / centre value (rad); None = the model's mid-stroke q0.
     t0 : float
-        Step time, ramp start or sine phase origin (s).
+        Step time, ramp start, sine phase origin or a table's first sample time (s).
     swing : float
         Open loop: amplitude (V) of a sine at ``frequency`` added to the voltage (a sine
         dwell of the plant).
     profile : MoveProfile or None
         A move's jerk-limited profile (:meth:`move`).
+    samples : tuple of float
+        A table's values (relative to ``offset``), one every ``step`` seconds from ``t0``.
+    step : float
+        A table's sample spacing (s).
+    periodic : bool
+        The table is one period of a command that repeats.
     """
 
     kind: str = "hold"
@@ -49,12 +58,19 @@ class Reference:
     t0: float = 0.0
     swing: float = 0.0
     profile: MoveProfile | None = None
+    samples: tuple = field(default=(), repr=False)
+    step: float = 0.0
+    periodic: bool = False
+    _packed: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.kind not in KINDS and self.kind != "voltage":
             raise ValueError(f"reference kind must be one of {sorted(KINDS) + ['voltage']}, got {self.kind!r}")
         if (self.kind == "move") != (self.profile is not None):
             raise ValueError("a move reference needs its profile (Reference.move), and only a move has one")
+        if self.kind == "table":
+            times = self.t0 + self.step * np.arange(len(self.samples))
+            object.__setattr__(self, "_packed", pack_table(times, self.samples, periodic=self.periodic))
 
     @classmethod
     def sine(cls, amplitude: float, frequency: float, offset: float | None = None) -> "Reference":
@@ -80,6 +96,38 @@ class Reference:
         return cls("move", profile.distance, 0.0, offset, at, profile=profile)
 
     @classmethod
+    def table(cls, time_s, values, offset: float | None = None, periodic: bool = False) -> "Reference":
+        """A sampled command: offset + the cubic spline through ``values`` at ``time_s``.
+
+        Parameters
+        ----------
+        time_s : array_like
+            Sample times (s), strictly increasing and equally spaced (at least 4).
+        values : array_like
+            The command at those times relative to ``offset`` (rad, or m for an output travel).
+        offset : float, optional
+            Added to every value; None = the model's mid-stroke q0 (0 for absolute values).
+        periodic : bool
+            The samples are one period of a repeating command (period: ``len(values)``
+            spacings; the spline is periodic).
+
+        Before the first sample and after the last the end values are held; a periodic
+        table repeats. The run starts in equilibrium at the command's value at t = 0. The
+        kernel evaluates the spline and its first two derivatives exactly
+        (:mod:`servo_toolkit.sim.table_kernel`), so the model-based feedforward follows it.
+
+        Raises
+        ------
+        SceneError
+            Naming ``time_s`` or ``values``: fewer than 4 samples, a value that is not
+            finite, times that do not increase equally spaced.
+        """
+        from .reference_table import check_samples
+        t0, step, v = check_samples(time_s, values, periodic=periodic)
+        return cls("table", 0.0, 0.0, offset, t0, samples=tuple(float(x) for x in v), step=step,
+                   periodic=bool(periodic))
+
+    @classmethod
     def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
         """Open loop: armature voltage ``volts + swing sin(2 pi frequency t)`` (clamped at the
         voltage limit)."""
@@ -101,16 +149,34 @@ class Reference:
         if self.kind == "voltage":
             sine = f" + {self.swing:.4g} V sine at {self.frequency:.4g} Hz" if self.swing else ""
             return f"open loop, {self.amplitude:.4g} V{sine}"
+        if self.kind == "table":
+            lo_, hi_ = table_span(self._packed[2])
+            span = f"{lo_ * scale:.3g} to {hi_ * scale:.3g} {unit}"
+            what = (f"periodic table of {len(self.samples)} samples (period {self.duration:.4g} s)" if self.periodic
+                    else f"table of {len(self.samples)} samples over {self.duration:.4g} s")
+            return f"{what} every {self.step:.3g} s, {span} about {off}"
         return f"hold {off}"
 
+    @property
+    def duration(self) -> float:
+        """A table's time span (s): its period, or first to last sample; 0 for other kinds."""
+        if self.kind != "table":
+            return 0.0
+        return duration_of(len(self.samples), self.step, self.periodic)
+
     def to_dict(self) -> dict:
-        """JSON-ready description (SI)."""
+        """JSON-ready description (SI); a table gives its sample count, spacing, period flag
+        and the range of its values, not the samples."""
         out = {"kind": self.kind, "amplitude": self.amplitude, "frequency_Hz": self.frequency,
                "offset_rad": self.offset, "t0_s": self.t0}
         if self.swing:
             out["swing_V"] = self.swing
         if self.profile is not None:
             out["move"] = self.profile.to_dict()
+        if self.kind == "table":
+            lo_, hi_ = table_span(self._packed[2])
+            out.update(samples=len(self.samples), step_s=self.step, periodic=self.periodic, duration_s=self.duration,
+                       values_min=lo_, values_max=hi_)
         return out
 
 
@@ -133,6 +199,11 @@ def fill(model, ref: Reference) -> np.ndarray:
     if ref.profile is not None:  # the move's block after the parameters, its index in REF_F
         P[lo.REF_F] = P.size
         P = np.concatenate([P, ref.profile.block()])
+    if ref.kind == "table":
+        t0, step, data, fingerprint = ref._packed
+        P[lo.REF_TAB_OFF], P[lo.REF_TAB_N], P[lo.REF_TAB_T0] = P.size, data.size // 2, t0
+        P[lo.REF_TAB_INV_DT], P[lo.REF_TAB_WRAP], P[lo.REF_TAB_SUM] = 1.0 / step, float(ref.periodic), fingerprint
+        P = np.concatenate([P, data])
     return P
 
 
@@ -148,7 +219,7 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
     load moment over N(r) Kt at the starting reference).
     """
     x = np.zeros(model.nx)
-    q = P[lo.REF_OFF]
+    q = P[lo.REF_OFF] if P[lo.REF_KIND] != lo.REF_TABLE else reference_at(0.0, P)
     x[0] = x[2] = x[6] = q
     if at_rest:
         return _estimator_at_rest(model, P, x)
