@@ -1,18 +1,14 @@
 """The motor's torque, speed, current and voltage along a duty cycle from the nonlinear
 closed-loop simulation.
 
-The simulation's position commands are holds, sines, steps and constant-speed ramps
-(:class:`~servo_toolkit.sim.Reference`), so the cycle runs segment by segment: each ``dwell``
-(a hold) and ``sine`` segment is its own simulation of the scene's designed loop from rest at
-the segment's start position, with the segment's load as the hinge moment, over the
-segment's duration. A hold at a stroke end may touch it: the runs use the elastic end stop
-(``stroke_end="stop"``).
-
-``ramp``, ``step`` and ``points`` segments keep their inverse-dynamics torque and speed: a
-trapezoid, a step's move over its ``rise_time`` and a spline are no position command of the
-simulation (a true step would ask the loop for a move the sizing does not prescribe), so
-these segments are sized on the prescribed motion in both modes; :attr:`ClosedLoopLoads.notes`
-says which.
+Every segment runs as its own simulation of the scene's designed loop from rest at the
+segment's start position, with the segment's load as the hinge moment, over the segment's
+duration: a ``dwell`` is a hold and a ``sine`` a sine command; a ``ramp`` (trapezoid), a
+``step`` (its move over ``rise_time``, then the hold) and a ``points`` spline are sampled
+commands (:meth:`~servo_toolkit.sim.Reference.table`: a cubic spline through the prescribed
+motion at :func:`table_spacing`, evaluated in the compiled loop with its exact derivatives,
+so a model-based feedforward follows it). A hold at a stroke end may touch it: the runs use
+the elastic end stop (``stroke_end="stop"``).
 
 The winding is hot in the simulation: its resistance is R(T_max) at the motor's
 ``max_winding_temperature``, as in every voltage figure of the inverse dynamics and the
@@ -29,8 +25,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-#: segment kinds the closed loop runs
-RUN_KINDS = ("dwell", "sine")
+#: segment kinds the closed loop runs (every kind of :mod:`servo_toolkit.scene.duty_cycle`)
+RUN_KINDS = ("dwell", "sine", "ramp", "step", "points")
+#: largest spacing of a sampled command (s), and the fewest samples over its segment and over
+#: the shortest phase of its motion (a ramp's acceleration, a step's rise)
+TABLE_SPACING, TABLE_MIN_SAMPLES, PHASE_MIN_SAMPLES = 1e-3, 200, 40
+#: most samples of one segment's command
+TABLE_MAX_SAMPLES = 200_000
 #: a voltage within this fraction of the supply's limit is at the clamp
 CLAMP_TOLERANCE = 1e-6
 
@@ -72,11 +73,31 @@ class ClosedLoopLoads:
     notes: tuple
 
 
+def table_spacing(seg) -> float:
+    """Sample spacing (s) of a segment's sampled command: at most :data:`TABLE_SPACING`, with
+    at least :data:`TABLE_MIN_SAMPLES` over the segment and :data:`PHASE_MIN_SAMPLES` over
+    its shortest phase (a ramp's ``accel_time``, half a step's ``rise_time``), and four
+    samples in a points file's smallest interval."""
+    h = min(TABLE_SPACING, seg.duration / TABLE_MIN_SAMPLES)
+    if seg.kind == "ramp":
+        h = min(h, seg.accel_time / PHASE_MIN_SAMPLES)
+    elif seg.kind == "step":
+        h = min(h, 0.5 * seg.rise_time / PHASE_MIN_SAMPLES)
+    elif seg.kind == "points" and len(seg.times) > 1:
+        h = min(h, float(np.min(np.diff(seg.times))) / 4)
+    return max(h, seg.duration / TABLE_MAX_SAMPLES)
+
+
 def _reference(seg, q0: float):
     from ...sim import Reference
+    from .cycle import segment_motion
     if seg.kind == "sine":
         return Reference.sine(seg.amplitude, seg.frequency, offset=q0)
-    return Reference.step(0.0, 0.0, offset=q0)
+    if seg.kind == "dwell":
+        return Reference.step(0.0, 0.0, offset=q0)
+    n = int(math.ceil(seg.duration / table_spacing(seg) - 1e-9))
+    t = np.linspace(0.0, seg.duration, n + 1)
+    return Reference.table(t, segment_motion(seg, q0, t)[0], offset=0.0)
 
 
 def hot_scene(scene):
@@ -145,9 +166,12 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
         from ...core.output_units import OutputUnit
         unit = OutputUnit(scene.drivetrain.output_unit)
         notes.append(f"largest tracking error of the simulated segments {float(unit.show(error)):.3g} {unit.shown}")
+    tabled = [f"{i} ({seg.kind})" for i, seg in enumerate(duty.segments) if seg.kind in ("ramp", "step", "points")]
+    if tabled:
+        notes.append("segments " + ", ".join(tabled) + " run their prescribed motion as a sampled command (a cubic "
+                     "spline through it, the compiled loop's table command)")
     if kept:
-        notes.append("segments " + ", ".join(kept) + " keep the inverse dynamics: their move (a trapezoid, a step's "
-                     "rise, a spline) is no position command of the simulation")
+        notes.append("segments " + ", ".join(kept) + " keep the inverse dynamics")
     if clamp > 0:
         notes.append(f"the voltage sits at the supply's {v_lim:.4g} V for {clamp:.4g} s of the cycle "
                      f"({clamp / motion.duration:.1%}): the loop asks more than the supply gives there")
@@ -155,4 +179,4 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
                            hot.motor.resistance, tuple(notes))
 
 
-__all__ = ["ClosedLoopLoads", "closed_loop_loads", "hot_scene", "RUN_KINDS"]
+__all__ = ["ClosedLoopLoads", "closed_loop_loads", "hot_scene", "table_spacing", "RUN_KINDS"]

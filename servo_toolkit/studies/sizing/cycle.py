@@ -83,7 +83,9 @@ def trapezoid(distance: float, duration: float, accel_time: float, t) -> tuple:
     return q, qd, qdd
 
 
-def _segment_motion(seg, q0: float, t) -> tuple:
+def segment_motion(seg, q0: float, t) -> tuple:
+    """(q, qd, qdd) of segment ``seg`` starting at ``q0`` at local times ``t`` (s from the
+    segment's start; module docstring)."""
     zero = np.zeros_like(t)
     if seg.kind == "ramp":
         q, qd, qdd = trapezoid(seg.to - q0, seg.duration, seg.accel_time, t)
@@ -127,7 +129,7 @@ def sample_cycle(duty, start: float, default_load: float, sample_time: float | N
         n = max(MIN_SEGMENT_SAMPLES, int(math.ceil(seg.duration / dt - 1e-9)))
         h = seg.duration / n
         local = (np.arange(n) + 0.5) * h
-        q, qd, qdd = _segment_motion(seg, q0, local)
+        q, qd, qdd = segment_motion(seg, q0, local)
         load = default_load if seg.load is None else seg.load
         parts.append((t0 + local, np.full(n, h), q, qd, qdd, np.full(n, load), np.full(n, i)))
         t0 += seg.duration
@@ -136,4 +138,4 @@ def sample_cycle(duty, start: float, default_load: float, sample_time: float | N
     return CycleMotion(*cols[:6], segment=cols[6].astype(int))
 
 
-__all__ = ["CycleMotion", "sample_cycle", "trapezoid", "DEFAULT_SAMPLES"]
+__all__ = ["CycleMotion", "sample_cycle", "segment_motion", "trapezoid", "DEFAULT_SAMPLES"]

@@ -54,8 +54,8 @@ class SizingResult(RichDisplay):
         N at each sample, from the inverse dynamics of the prescribed motion (in both
         modes); None without a screw.
     notes : tuple of str
-        What the figures rest on (closed loop: the winding, the segments kept on the
-        inverse dynamics, the time at the supply's voltage, the tracking error).
+        What the figures rest on (closed loop: the winding, the segments run as sampled
+        commands, the time at the supply's voltage, the tracking error).
     voltage_clamp_time : float or None
         Closed loop: time per cycle the voltage sat at the supply's limit (s).
     """

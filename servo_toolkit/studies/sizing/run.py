@@ -36,9 +36,10 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
         A scene with a ``[duty_cycle]`` (a path is loaded with :func:`~servo_toolkit.scene.load_scene`).
     closed_loop : bool
         Take the motor's torque, speed, current and voltage from the nonlinear closed-loop
-        simulation of the cycle's dwell and sine segments (:mod:`servo_toolkit.studies.sizing.closed_loop`: the winding
-        hot, the simulation's own voltage) instead of the inverse dynamics; the other
-        segments, the screw's thrust and its lives stay with the inverse dynamics.
+        simulation of every segment of the cycle (:mod:`servo_toolkit.studies.sizing.closed_loop`:
+        the winding hot, the simulation's own voltage, ramps, steps and points as sampled
+        commands) instead of the inverse dynamics; the screw's thrust and its lives stay with
+        the inverse dynamics.
     losses : {"directional", "none"}
         Stage-loss model of the inverse dynamics.
     sweep : bool
