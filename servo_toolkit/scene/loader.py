@@ -28,7 +28,7 @@ STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": Roc
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
-             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display"}
+             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display", "tolerances"}
 #: ``[robustness] method`` values
 ROBUSTNESS_METHODS = ("monte_carlo", "grid")
 
@@ -142,6 +142,10 @@ class Robustness:
         ``"angle"`` or ``"length"`` as the scene gave it (None for a bare SI number).
     max_peak_current : float or None
         Worst peak motor current over those runs (A); not checked when ``None``.
+    min_yield : float or None
+        Fraction of the built actuators (the ranges drawn as tolerances,
+        :mod:`servo_toolkit.scene.tolerances`) that must meet every requirement; ``check``
+        gates on the lower end of its confidence interval. Not checked when ``None``.
     """
 
     load_inertia: tuple | None = (0.0, 4.0)
@@ -157,6 +161,7 @@ class Robustness:
     max_tracking_error: float | None = None
     tracking_error_dimension: str | None = None
     max_peak_current: float | None = None
+    min_yield: float | None = None
 
     @property
     def ranges(self) -> dict:
@@ -169,7 +174,7 @@ class Robustness:
         """Build from a ``[robustness]`` table."""
         known = {"load_inertia", "stiffness", "samples", "method", "seed", "min_stable_fraction",
                  "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth",
-                 "max_tracking_error", "max_peak_current"}
+                 "max_tracking_error", "max_peak_current", "min_yield"}
         unknown = sorted(set(f.table) - known)
         require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
 
@@ -197,7 +202,10 @@ class Robustness:
                 min_phase_margin=opt("min_phase_margin", "rad"),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
                 min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
+                min_yield=f.number("min_yield", rule="positive") if f.has("min_yield") else None,
                 **_tracking_error(f))
+        require(r.min_yield is None or r.min_yield <= 1.0, f.key("min_yield"),
+                f"a fraction of the variants, 0..1 (got {r.min_yield})")
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
@@ -268,6 +276,9 @@ class Scene:
     display : DisplayUnits
         ``[display]``: the units a reader is shown for a stiffness and an inertia at the
         output (default SI); only tables, figures and text change, never the values.
+    tolerances : Tolerances or None
+        ``[tolerances]`` and the ``[robustness]`` ranges as distributions of scene keys
+        (:mod:`servo_toolkit.scene.tolerances`); None when the scene has neither.
     source : str or None
         File the scene was read from.
     """
@@ -287,6 +298,7 @@ class Scene:
     duty_cycle: object = None
     display: DisplayUnits = field(default_factory=DisplayUnits)
     source: str | None = None
+    tolerances: object = None
 
     def study(self, name: str) -> Study:
         """The study called ``name``; a SceneError lists the available ones."""
@@ -434,6 +446,9 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
             from .duty_cycle import check_positions
             dt = scene.drivetrain
             check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
+        if "tolerances" in data or robust is not None:
+            from .tolerances import tolerances_of
+            scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene))
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
