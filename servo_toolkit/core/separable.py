@@ -36,6 +36,8 @@ CHECK_RANDOM = 3
 GRID_POINTS = (3, 7)
 #: integer keys with at most this many values are evaluated at every one
 MAX_INTEGER_POINTS = 9
+#: default acceptance: largest relative error of a verified fit
+DEFAULT_RTOL = 1e-4
 
 
 def _forward(y, code):
@@ -152,8 +154,8 @@ def _splines(grids, Ylist, y0, codes_try, log_keys):
     return out
 
 
-def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = 1e-6, seed: int = 0,
-        pairs: bool = True) -> SeparableFit:
+def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEFAULT_RTOL, seed: int = 0,
+        pairs: bool = True, scale=None) -> SeparableFit:
     """Fit and verify the separable approximation of ``evaluate`` over ``samples``.
 
     Parameters
@@ -173,6 +175,10 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = 1e-
         Seed of the random verification variants.
     pairs : bool
         Add pair terms when the separable sum does not verify.
+    scale : callable, optional
+        ``scale(Y)`` -> the magnitude each output's error is relative to, from the exact
+        outputs ``Y`` (rows: nominal and verification variants); default each output's
+        largest magnitude.
 
     Returns
     -------
@@ -194,8 +200,9 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = 1e-
     Xc = S[sorted(set(picks))]
     Yc = np.asarray(evaluate(Xc), float)
     spent += Xc.shape[0]
-    scale = np.maximum(np.max(np.abs(np.where(np.isfinite(Yc), Yc, 0.0)), axis=0),
-                       np.abs(np.where(np.isfinite(y0), y0, 0.0)))
+    both = np.vstack([y0[None], Yc])
+    scale = (np.max(np.abs(np.where(np.isfinite(both), both, 0.0)), axis=0) if scale is None
+             else np.asarray(scale(both), float))
     scale = np.where(scale > 0, scale, 1.0)
     best, grids, Ylist = None, [None] * d, [None] * d
     for points in GRID_POINTS:
@@ -311,4 +318,4 @@ def _pair_coefficients(pair_data, x0, y0, splines, code, log_keys) -> dict:
     return out
 
 
-__all__ = ["COORDINATES", "SeparableFit", "fit"]
+__all__ = ["COORDINATES", "DEFAULT_RTOL", "SeparableFit", "fit"]

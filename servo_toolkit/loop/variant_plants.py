@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SceneError
+from ..core.separable import DEFAULT_RTOL
 from ..plant.linear import plant_matrices, plant_parameters, sample_delay, spring_damping
 from .assembly import _abcd
 from .closed_loop import DELAY_SAMPLES
@@ -41,7 +42,7 @@ FIELDS = ("J1", "J2", "K", "b1", "b2", "kh", "N", "eta", "Kt", "Ke", "R", "L")
 #: they replace building every variant: a relative error e in K moves the drivetrain mode by
 #: e/2, i.e. 5e-5 at this bound, far below the two-mass reduction's own approximation of the
 #: chain and the resolution of any figure the margins report
-SEPARABLE_RTOL = 1e-4
+SEPARABLE_RTOL = DEFAULT_RTOL
 #: the robustness study's variation names
 LEGACY = ("load_inertia", "stiffness")
 
@@ -65,6 +66,9 @@ class VariantPlants:
         Keys that move no field: the linear loop does not depend on them.
     evaluations : int
         Exact scene builds spent.
+    mapper : callable or None
+        ``mapper(values)`` -> the VariantPlants of other variants of the same keys (by the
+        same verified maps; None when every variant was built exactly).
     """
 
     cols: dict
@@ -73,7 +77,7 @@ class VariantPlants:
     error: float = 0.0
     inert: tuple = ()
     evaluations: int = 0
-    notes: tuple = field(default=())
+    mapper: object = field(default=None, repr=False, compare=False)
 
     @property
     def count(self) -> int:
@@ -144,11 +148,11 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
     from ..core.separable import fit
     from ..scene.tolerances import STIFFNESS_SCALE
     n = next(iter(values.values())).size
-    scale = np.asarray(values.get(STIFFNESS_SCALE, np.ones(n)), float)
     names = [k for k in values if k != STIFFNESS_SCALE]
-    cols, method, error, inert, spent = _nominal(p, n), "closed form", 0.0, (), 0
+    method, error, inert, spent, f = "closed form", 0.0, (), 0, None
     if STIFFNESS_SCALE in values and p.rigid:
         inert = (STIFFNESS_SCALE,)
+    Y = np.array([[getattr(p, k) for k in FIELDS]] * n, float)
     if names:
         if keys is None:
             from ..scene.key_paths import SceneKeys
@@ -166,18 +170,34 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
             Y, method = f(X), "separable"
         else:
             from ..core.progress import progress_bar
-            Y = np.empty((n, len(FIELDS)))
+            Y, f = np.empty((n, len(FIELDS))), None
             with progress_bar(total=n, desc="plants", show=progress) as bar:
                 for i in range(n):
                     Y[i] = evaluate(X[i:i + 1])[0]
                     bar.update(1)
             method, spent = "exact", spent + n
-        cols = {k: Y[:, j].copy() for j, k in enumerate(FIELDS)}
-        if np.any(np.isfinite(cols["K"]) != np.isfinite(p.K)):
-            raise SceneError("tolerances", "some variants change whether the drivetrain is compliant")
+    from dataclasses import replace
+    result = VariantPlants(_plants_of(Y, values, p, zeta), p.rigid, method, float(error), inert, spent)
+    if f is None and names:
+        return result
+
+    def mapper(other, _f=f, _names=tuple(names)):
+        m = next(iter(other.values())).size
+        Yo = (_f(np.column_stack([np.asarray(other[k], float) for k in _names])) if _names else
+              np.array([[getattr(p, k) for k in FIELDS]] * m, float))
+        return replace(result, cols=_plants_of(Yo, other, p, zeta))
+    return replace(result, mapper=mapper)
+
+
+def _plants_of(Y, values, p, zeta) -> dict:
+    """The field columns of mapped rows ``Y`` (K scaled by a stiffness factor, c derived)."""
+    from ..scene.tolerances import STIFFNESS_SCALE
+    cols = {k: Y[:, j].copy() for j, k in enumerate(FIELDS)}
+    if np.any(np.isfinite(cols["K"]) != np.isfinite(p.K)):
+        raise SceneError("tolerances", "some variants change whether the drivetrain is compliant")
     if STIFFNESS_SCALE in values:
-        cols["K"] = cols["K"] * scale
-    return VariantPlants(_with_damping(cols, zeta), p.rigid, method, float(error), inert, spent)
+        cols["K"] = cols["K"] * np.asarray(values[STIFFNESS_SCALE], float)
+    return _with_damping(cols, zeta)
 
 
 def _refuse_inductance(p, names) -> None:
