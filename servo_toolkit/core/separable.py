@@ -258,7 +258,7 @@ def _assemble(x0, y0, grids, Ylist, log_keys, Xc, Yc, scale, pair_data, spent):
         P = trial(Xc)
         with np.errstate(invalid="ignore"):
             err = np.max(np.abs(P - Yc), axis=0) / scale
-        err = np.where(_same(P, Yc).all(axis=0), 0.0, err)
+        err = np.where(_same(P, Yc).all(axis=0) | np.isinf(scale), 0.0, err)
         errors[code] = np.where(ok, err, np.inf)
         fits[code] = (sp, pairs)
     choice = np.argmin(errors, axis=0)

@@ -117,6 +117,7 @@ class SceneKeys:
         with recording_reads() as reads:
             self.base = scene_from_dict(copy.deepcopy(self.data), source)
         self.reads = tuple(reads)
+        self._si = _in_si(self.data, self.reads)
         self._quantities = {f"{r.table}.{r.key}": r for r in reads if r.reader == "quantity"}
         self._integers = {f"{r.table}.{r.key}": r for r in reads if r.reader == "integer"}
         self._lists = {f"{r.table}.{r.key}" for r in reads if r.reader == "quantity list"}
@@ -192,8 +193,9 @@ class SceneKeys:
         return float(raw) if isinstance(raw, (int, float)) else parse_quantity(raw, read.unit, key)
 
     def data_with(self, values: dict) -> dict:
-        """A copy of the scene's tables with ``values`` (key path -> SI value) written in."""
-        data = copy.deepcopy(self.data)
+        """A copy of the scene's tables with ``values`` (key path -> SI value) written in
+        (its quantities already converted to SI numbers: the loader reads them as such)."""
+        data = copy.deepcopy(self._si)
         for key, v in values.items():
             table, name = split_key(key)
             read = self._integers.get(key)
@@ -207,6 +209,28 @@ class SceneKeys:
         """The scene with ``values`` (key path -> SI value) written into its tables."""
         from .loader import scene_from_dict
         return scene_from_dict(self.data_with(values), self.source)
+
+
+def _in_si(data: dict, reads) -> dict:
+    """A copy of ``data`` with every quantity of the actuator's tables that is written as text
+    replaced by its SI number (a bare number is SI to the loader), so that building the scene
+    again does not parse units: the same scene, several times faster to build."""
+    from ..core.units import parse_quantity
+    out = copy.deepcopy(data)
+    for r in reads:
+        if r.reader not in ("quantity", "quantity list") or not _physical(r.table) or r.unit in (None, "dB"):
+            continue
+        table = table_of(out, r.table)
+        if table is None or r.key not in table:
+            continue
+        value = table[r.key]
+        key = f"{r.table}.{r.key}"
+        if r.reader == "quantity" and isinstance(value, str):
+            table[r.key] = parse_quantity(value, r.unit, key)
+        elif r.reader == "quantity list" and isinstance(value, list):
+            table[r.key] = [parse_quantity(v, r.unit, f"{key}[{i}]") if isinstance(v, str) else v
+                            for i, v in enumerate(value)]
+    return out
 
 
 __all__ = ["KeyPath", "NOT_PHYSICAL", "PHYSICAL_TABLES", "SceneKeys", "split_key", "table_of"]

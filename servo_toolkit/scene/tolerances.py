@@ -153,7 +153,9 @@ class Tolerances:
     samples : int
         Variants drawn.
     method : {"lhs", "sobol", "random"}
+        Latin hypercube, scrambled Sobol (balanced for a power of 2) or independent draws.
     seed : int
+        Seed of the draws.
     min_yield : float or None
         Fraction of the variants that must meet every requirement: ``check`` gates on the
         lower end of its Clopper-Pearson interval (None: no yield gate; the default of a

@@ -38,6 +38,9 @@ from .reference import fill
 CONTROLLER_SLOTS = (lo.KPI, lo.KII, lo.KAW, lo.CMODE, lo.NC, lo.TS, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D,
                     lo.EST, lo.OFF_E, lo.OFF_KF, lo.INV_TS, lo.FF_ON, lo.FF_KV, lo.FF_KA, lo.FF_MODEL,
                     lo.FF_JSCALE, lo.FF_SPEED, lo.FF_LEAD)
+#: slots :func:`~.model_slots.drivetrain_slots` fills from the primaries (two-mass and rigid
+#: models; the full chain's come from its segment block)
+DERIVED_SLOTS = (lo.JL, lo.INV_JL, lo.INV_JD0, lo.KSCALE, lo.BETA, lo.HALF_PLAY, lo.KSTOP, lo.DSTOP)
 #: length of a Kalman speed estimator's packed gains (F 3x3 and K 3)
 KALMAN_VALUES = 12
 #: primary quantities mapped with the slots: total and load-side inertia at q0, series
@@ -138,10 +141,14 @@ class ToleranceRows:
         x0 = np.array([base._nominal(k) for k in names])
         nP, nT = P0.size, model.T.size
 
-        def scale(Y):  # a slot's own magnitude; a table entry's row's
+        derived = list(CONTROLLER_SLOTS) + ([lo.INV_L, lo.ETA_MEAN, lo.ETA_HALF] +
+                                            (list(DERIVED_SLOTS) if P0[lo.NMID] == 0 else []))
+
+        def scale(Y):  # a slot's own magnitude; a table entry's row's; recomputed slots not judged
             mag = np.max(np.abs(np.where(np.isfinite(Y), Y, 0.0)), axis=0)
             t = mag[nP:nP + nT].reshape(model.T.shape)
             mag[nP:nP + nT] = np.repeat(t.max(axis=1), model.T.shape[1])
+            mag[derived] = np.inf
             return mag
 
         integer = np.array([k in keys.known() and keys.resolve(k).integer for k in names])
