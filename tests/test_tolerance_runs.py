@@ -67,5 +67,5 @@ def test_each_batched_variant_equals_simulate_of_its_scene(runs):
         assert r.tracking_error[i] == pytest.approx(err, rel=1e-4)
         assert r.peak_current[i] == pytest.approx(cur, rel=1e-4)
     assert not r.failed.any()
-    # the 25 V supply limits the second variant: its error is the largest, its current at the limit's mercy
-    assert r.saturated[1] and r.tracking_error[1] > 1.2 * r.tracking_error[0]
+    # the 25 V supply limits the second variant: it saturates and tracks worse than the nominal one
+    assert r.saturated[1] and not r.saturated[0] and r.tracking_error[1] > 1.05 * r.tracking_error[0]

@@ -61,9 +61,9 @@ def test_robustness_ranges_are_tolerances_and_a_wide_range_is_log_uniform():
     robust = load_scene(SCENES / "ema_robust.toml").tolerances
     assert robust.keys == ("load.inertia", "drivetrain.stiffness_scale") and robust.min_yield is None
     assert (robust.item("load.inertia").low, robust.item("load.inertia").high) == (0.0, 4.0)
-    from servo_toolkit.scene.key_paths import SceneKeys
+    from servo_toolkit.scene.loader import scene_keys
     from servo_toolkit.scene.tolerances import parse_distribution
-    kp = SceneKeys.of_scene(load_scene(TOL)).resolve("drivetrain[3].stiffness")
+    kp = scene_keys(load_scene(TOL)).resolve("drivetrain[3].stiffness")
     assert parse_distribution("x0.01:x10", kp, "w").distribution == "log_uniform"
     assert parse_distribution("x0.5:x2", kp, "w").distribution == "uniform"
 

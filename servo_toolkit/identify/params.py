@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import SceneError
 from ..scene.key_paths import SceneKeys
-from ..scene.loader import read_scene_text
+from ..scene.loader import read_scene_text, scene_from_dict
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ class SceneTemplate:
         self.source = scene.source
         self.text = read_scene_text(Path(scene.source))
         self.data = tomllib.loads(self.text)
-        self.keys = SceneKeys(self.data, self.source)
+        self.keys = SceneKeys(self.data, self.source, scene_from_dict)
         self.base = self.keys.base if "robustness" not in self.data and "tolerances" not in self.data else \
             _full_scene(self.data, self.source)
         if not keys:
@@ -103,7 +103,6 @@ class SceneTemplate:
 
     def scene(self, values):
         """The scene with the parameters set to ``values`` (SI, in parameter order)."""
-        from ..scene.loader import scene_from_dict
         data = self.keys.data_with({p.key: v for p, v in zip(self.parameters, values)})
         for name in ("robustness", "tolerances"):
             if name in self.data:
@@ -112,5 +111,4 @@ class SceneTemplate:
 
 
 def _full_scene(data, source):
-    from ..scene.loader import scene_from_dict
     return scene_from_dict(dict(data), source)

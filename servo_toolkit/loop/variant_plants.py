@@ -155,8 +155,8 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
     Y = np.array([[getattr(p, k) for k in FIELDS]] * n, float)
     if names:
         if keys is None:
-            from ..scene.key_paths import SceneKeys
-            keys = scene.tolerances.scene_keys() if scene.tolerances is not None else SceneKeys.of_scene(scene)
+            from ..scene.loader import scene_keys
+            keys = scene_keys(scene)
         _refuse_inductance(p, names)
         X = np.column_stack([np.asarray(values[k], float) for k in names])
         x0 = np.array([keys.resolve(k).value for k in names])

@@ -108,10 +108,16 @@ class SceneKeys:
         a variant is the actuator, not the variations).
     source : str, optional
         File the scene came from (for error messages).
+    build : callable
+        ``build(data, source)`` -> Scene: the loader's
+        :func:`~servo_toolkit.scene.loader.scene_from_dict`.
     """
 
-    def __init__(self, data: dict, source: str | None = None):
-        from .loader import scene_from_dict
+    def __init__(self, data: dict, source: str | None = None, build=None):
+        if build is None:
+            raise TypeError("SceneKeys needs the loader's scene_from_dict as build")
+        self.build = build
+        scene_from_dict = build
         self.data = {k: copy.deepcopy(v) for k, v in data.items() if k not in ("tolerances", "robustness")}
         self.source = source
         with recording_reads() as reads:
@@ -122,17 +128,6 @@ class SceneKeys:
         self._integers = {f"{r.table}.{r.key}": r for r in reads if r.reader == "integer"}
         self._lists = {f"{r.table}.{r.key}" for r in reads if r.reader == "quantity list"}
         self._other = {f"{r.table}.{r.key}" for r in reads if r.reader in ("text", "value")}
-
-    @classmethod
-    def of_scene(cls, scene) -> "SceneKeys":
-        """The keys of a scene read from a file (its ``source``)."""
-        import tomllib
-        from pathlib import Path
-
-        from .loader import read_scene_text
-        if not scene.source:
-            raise SceneError("scene", "naming scene keys needs a scene read from a file (load_scene)")
-        return cls(tomllib.loads(read_scene_text(Path(scene.source))), scene.source)
 
     def known(self, integers: bool = True) -> list[str]:
         """The physical numeric keys of this scene, sorted."""
@@ -207,8 +202,7 @@ class SceneKeys:
 
     def scene(self, values: dict):
         """The scene with ``values`` (key path -> SI value) written into its tables."""
-        from .loader import scene_from_dict
-        return scene_from_dict(self.data_with(values), self.source)
+        return self.build(self.data_with(values), self.source)
 
 
 def _in_si(data: dict, reads) -> dict:

@@ -20,6 +20,7 @@ from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
+from .tracking import tracking_error as _tracking_error
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -211,25 +212,6 @@ class Robustness:
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
                 f.key("min_phase_margin"), "must be below 180 deg")
         return r
-
-
-def _tracking_error(f: Fields) -> dict:
-    """``max_tracking_error`` of a ``[robustness]`` table: an angle, a length (an output
-    travel) or a bare SI number, positive."""
-    if not f.has("max_tracking_error"):
-        return {}
-    if not isinstance(f.raw("max_tracking_error"), str):
-        return {"max_tracking_error": f.quantity("max_tracking_error", "rad", rule="positive")}
-    for unit, dimension in (("rad", "angle"), ("m", "length")):
-        try:
-            value = f.quantity("max_tracking_error", unit, rule="positive")
-        except SceneError as exc:
-            if "positive" in str(exc) or "finite" in str(exc):
-                raise
-            continue
-        return {"max_tracking_error": value, "tracking_error_dimension": dimension}
-    raise SceneError(f.key("max_tracking_error"), "expected an angle (e.g. '0.5 deg') or, for an output "
-                     "travel, a length (e.g. '0.2 mm')")
 
 
 @dataclass(frozen=True)
@@ -448,7 +430,7 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
             check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
         if "tolerances" in data or robust is not None:
             from .tolerances import tolerances_of
-            scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene))
+            scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene, scene_from_dict))
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
@@ -542,6 +524,17 @@ def _depth(obj, level: int = 0) -> int:
     return deepest
 
 
+def scene_keys(scene):
+    """The numeric keys of a scene read from a file (:class:`~.key_paths.SceneKeys`): its
+    tolerances' when it has them, else its file's."""
+    from .key_paths import SceneKeys
+    if scene.tolerances is not None:
+        return scene.tolerances.scene_keys()
+    if not scene.source:
+        raise SceneError("scene", "naming scene keys needs a scene read from a file (load_scene)")
+    return SceneKeys(tomllib.loads(read_scene_text(Path(scene.source))), scene.source, scene_from_dict)
+
+
 def replace_params(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with top-level fields replaced (studies never edit scenes)."""
     from dataclasses import replace
@@ -549,4 +542,4 @@ def replace_params(scene: Scene, **changes) -> Scene:
 
 
 __all__ = ["Robustness", "Scene", "Sensors", "Requirements", "Study", "load_scene", "read_scene_text",
-           "scene_from_dict", "default_scene_path", "replace_params"]
+           "scene_from_dict", "scene_keys", "default_scene_path", "replace_params"]

@@ -170,6 +170,8 @@ class Tolerances:
         The scene's tables (without ``[tolerances]`` and ``[robustness]``): the variants
         are built from them.
     source : str or None
+    build : callable
+        The loader's ``scene_from_dict``, with which the variants are built.
     """
 
     items: tuple
@@ -183,6 +185,7 @@ class Tolerances:
     tracking_error_dimension: str | None = None
     data: dict = field(default_factory=dict, compare=False, repr=False)
     source: str | None = field(default=None, compare=False, repr=False)
+    build: object = field(default=None, compare=False, repr=False)
 
     @property
     def keys(self) -> tuple:
@@ -196,7 +199,7 @@ class Tolerances:
     def scene_keys(self):
         """The scene's :class:`~.key_paths.SceneKeys` (variants are built from it)."""
         from .key_paths import SceneKeys
-        return SceneKeys(self.data, self.source)
+        return SceneKeys(self.data, self.source, self.build)
 
 
 def _flatten(table: dict, prefix: str = ""):
@@ -327,7 +330,7 @@ def _virtual(key: str, robust_value=None):
 
 
 def _settings(table: dict, robust) -> dict:
-    from .loader import _tracking_error
+    from .tracking import tracking_error as _tracking_error
     f = Fields({k: v for k, v in table.items() if k in SETTINGS}, "tolerances")
     samples = f.integer("samples", DEFAULT_SAMPLES, minimum=2)
     require(samples <= 1_000_000, f.key("samples"), f"at most 1000000 variants (got {samples})")
@@ -344,10 +347,10 @@ def _settings(table: dict, robust) -> dict:
     return out
 
 
-def tolerances_of(data: dict, source, robust, scene):
+def tolerances_of(data: dict, source, robust, scene, build):
     """The :class:`Tolerances` of ``scene`` (built from ``data``) from its ``[tolerances]``
     and the ranges of ``robust`` (its ``[robustness]``, a Robustness or None); None when it
-    has neither.
+    has neither; ``build`` is the loader's ``scene_from_dict``.
 
     Raises
     ------
@@ -360,7 +363,7 @@ def tolerances_of(data: dict, source, robust, scene):
         return None
     if table is not None and not isinstance(table, dict):
         raise SceneError("tolerances", f"expected a table, got {type(table).__name__}")
-    keys = SceneKeys(data, source) if table else None
+    keys = SceneKeys(data, source, build) if table else None
     items, where_of = [], {}
     for key, raw in _flatten({k: v for k, v in (table or {}).items() if k not in SETTINGS}):
         where = f"tolerances.{key}"
@@ -392,7 +395,7 @@ def tolerances_of(data: dict, source, robust, scene):
                                              "motor.resistance = '+-5 %'")
         return None
     body = {k: copy.deepcopy(v) for k, v in data.items() if k not in ("tolerances", "robustness")}
-    return Tolerances(tuple(items), data=body, source=source, **settings)
+    return Tolerances(tuple(items), data=body, source=source, build=build, **settings)
 
 
 def check_ends(tolerances) -> None:
