@@ -241,3 +241,24 @@ def test_the_command_prints_json_and_exits_on_the_yield(capsys):
     d = json.loads(capsys.readouterr().out)
     assert code == (0 if d["passed"] else 1)
     assert d["variants"] == 400 and d["passed"] == (d["yields"][-1]["low"] >= 0.99)
+
+
+def test_check_gates_on_the_lower_end_and_the_report_shows_the_same_rows(tmp_path, capsys):
+    from servo_toolkit.report.builder import run_section
+    from servo_toolkit.report.context import Context
+    from servo_toolkit.report.sections_tolerances import tolerance_results, tolerances_section
+    from servo_toolkit.studies.gate import yield_rows
+    path = tmp_path / "scene.toml"
+    path.write_text(TOL.read_text().replace("samples = 1024", "samples = 400"))
+    junit = tmp_path / "check.xml"
+    code = main(["check", str(path), "--linear-only", "--junit", str(junit), "--json"])
+    d = json.loads(capsys.readouterr().out)["scenes"][0]
+    rows = [r for r in d["rows"] if r["id"].startswith("yield")]
+    overall = d["tolerances"]["yields"][-1]
+    assert rows[0]["id"] == "yield" and rows[0]["status"] == ("pass" if overall["low"] >= 0.99 else "fail")
+    assert code == (0 if all(r["status"] == "pass" for r in d["rows"]) else 1)
+    assert 'name="yield"' in junit.read_text()
+    ctx = Context(load_scene(path))
+    section = run_section("tolerances", "Tolerances", tolerances_section, ctx)
+    assert section.status in ("pass", "fail") and "tolerance-yields" in section.html and section.figures
+    assert [r.to_dict() for r in yield_rows(tolerance_results(ctx))] == rows

@@ -46,7 +46,6 @@ def tolerances_section(ctx) -> Section:
     fig, axes = figures.new_figure(1, 2, size=(11.0, 0.9 + 0.42 * max(len(r.yields), len(r.tolerances.items))))
     _yield_axes(r, axes[0])
     r.plot(axes[1])
-    fig.tight_layout()
     tol = r.tolerances
     req = tol.min_yield
     text = para(
