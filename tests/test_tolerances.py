@@ -80,7 +80,8 @@ BAD = {
     "lo above hi": ('load.inertia = "2 kg*m^2:1 kg*m^2"', "tolerances.load.inertia", "must not exceed"),
     "not physical": ('requirements.bandwidth = "+-5 %"', "tolerances.requirements.bandwidth",
                      "not a physical parameter"),
-    "no yield above 1": ("min_yield = 1.5", "tolerances.min_yield", "0..1"),
+    "no yield above 1": ("min_yield = 1.5", "tolerances.min_yield", "must be in [1e-06, 1]"),
+    "no certain confidence": ("confidence = 1.0", "tolerances.confidence", "must be in [0.5, 0.999999]"),
 }
 
 
@@ -167,6 +168,22 @@ def test_a_tolerance_that_enters_nothing_gets_a_share_indistinguishable_from_zer
     assert s.method == "src" and s.r2 > 0.99 and s.top == "a"
     assert s.low[2] == 0.0 and s.high[2] < 1e-3  # its interval holds 0 and nothing more than noise
     np.testing.assert_allclose(s.share[:2], [9 / 10, 1 / 10], atol=0.01)  # 3^2 : 1^2 of the explained variance
+
+
+def test_an_idle_tolerance_of_a_nonlinear_figure_gets_a_sobol_index_indistinguishable_from_zero():
+    from scipy.stats import uniform
+
+    from servo_toolkit.core.sensitivity import rank, sobol
+
+    def f(x):  # x[2] enters nothing; x0 and x1 interact
+        return np.sin(2 * np.pi * x[0]) * (1 + 4 * x[1] ** 2)
+    rng = np.random.default_rng(6)
+    X = rng.random((500, 3))
+    s = rank("f", "f", "", ("a", "b", "idle"), X, f(X.T),
+             sobol_run=lambda live: sobol(lambda x: f(x)[None], [uniform(0, 1)] * int(live.sum()), 512, seed=1))
+    assert s.method == "sobol" and s.r2 < 0.9
+    assert s.low[2] == 0.0 and abs(s.share[2]) < 1e-12 and s.high[2] < 1e-9  # not one evaluation moved it
+    assert s.low[0] > 0.5 and s.low[1] > 0.05  # the two that enter are told apart from 0
 
 
 def test_keys_outside_the_linear_loop_get_exactly_zero(study):

@@ -198,7 +198,27 @@ def scene_markdown(reads=None) -> str:
             out.append(f"| `{key}` | {_reader(d)} | {_cell(default)} | {_cell(rule)} | {_cell(example)} | "
                        f"{_cell(desc.get(key, ''))} |")
         out.append("")
+        out += _NOTES.get(pattern, [])
     return "\n".join(out)
+
+
+#: what a table holds besides its fixed keys, below that table's rows
+_NOTES = {"tolerances": [
+    "Every other key of `[tolerances]` is the path of a numeric scene key (`motor.resistance`, "
+    "`\"drivetrain[3].stiffness\"`, `load.hinge_moment`, `sensors.output_encoder_bits`; the virtual key "
+    "`drivetrain.stiffness_scale` is a factor on the drivetrain's series stiffness, nominal 1) with its "
+    "distribution:", "",
+    "| form | distribution |", "| --- | --- |",
+    "| `\"lo:hi\"`, `[lo, hi]`, `{min = lo, max = hi}` | uniform over the range (each end a quantity in the "
+    "key's unit, or `xF` a factor of the scene's value); log-uniform when positive and wider than a decade |",
+    "| `\"+-5 %\"`, `\"+-0.1 ohm\"` | uniform about the scene's value |",
+    "| `{sigma = \"2 %\"}`, `{sigma = \"0.02 ohm\", mean = ..., min = ..., max = ...}` | normal about `mean` "
+    "(default the scene's value), truncated to the key's physical range and to `min`/`max` |", "",
+    "Each range end, and a normal's truncation, must obey the key's rule in the tables above (its sign and "
+    "the range its model is conditioned for); an unknown key, a list or text key, a requirement, a malformed "
+    "distribution or a sigma that is not positive is one line naming `tolerances.<key>` (exit 2). Integer keys "
+    "are rounded. `[robustness]`'s `load_inertia` and `stiffness` ranges are the tolerances `load.inertia` and "
+    "`drivetrain.stiffness_scale`.", ""]}
 
 
 def setup(app):

@@ -17,6 +17,7 @@ is computed from) gets exactly 0, stated as such, not estimated.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -159,12 +160,29 @@ def sobol(func, dists, n: int, *, seed: int = 0, confidence: float = 0.95, resam
     from scipy.stats import sobol_indices
     n = 1 << max(1, int(math.ceil(math.log2(max(int(n), 2)))))
     res = sobol_indices(func=func, n=n, dists=list(dists), rng=np.random.default_rng(seed))
-    boot = res.bootstrap(confidence_level=confidence, n_resamples=resamples)
+    with warnings.catch_warnings():  # an undefined BCa interval is replaced below
+        warnings.simplefilter("ignore")
+        boot = res.bootstrap(confidence_level=confidence, n_resamples=resamples)
+    first_low, first_high = _interval(boot.first_order, confidence)
+    total_low, total_high = _interval(boot.total_order, confidence)
     return {"first": np.atleast_2d(res.first_order), "total": np.atleast_2d(res.total_order),
-            "first_low": np.atleast_2d(boot.first_order.confidence_interval.low),
-            "first_high": np.atleast_2d(boot.first_order.confidence_interval.high),
-            "total_low": np.atleast_2d(boot.total_order.confidence_interval.low),
-            "total_high": np.atleast_2d(boot.total_order.confidence_interval.high), "n": n}
+            "first_low": first_low, "first_high": first_high, "total_low": total_low, "total_high": total_high,
+            "n": n}
+
+
+def _interval(boot, confidence: float):
+    """(low, high) of a bootstrap result: its BCa interval, or where that is undefined (a
+    degenerate bootstrap distribution, e.g. an input that enters nothing: every resample
+    gives the same index) the percentile interval of the resamples."""
+    low = np.asarray(boot.confidence_interval.low, float)
+    high = np.asarray(boot.confidence_interval.high, float)
+    bad = ~(np.isfinite(low) & np.isfinite(high))
+    if bad.any():
+        alpha = 100.0 * (1.0 - confidence) / 2.0
+        dist = np.asarray(boot.bootstrap_distribution, float)
+        p_low, p_high = np.percentile(dist, [alpha, 100.0 - alpha], axis=-1)
+        low, high = np.where(bad, p_low, low), np.where(bad, p_high, high)
+    return np.atleast_2d(low), np.atleast_2d(high)
 
 
 def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys=None, confidence: float = 0.95,

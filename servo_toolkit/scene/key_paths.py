@@ -6,7 +6,7 @@ A new value is put into the scene's own table (in SI, as a bare number) and the 
 built again by the loader, so that everything the loader derives from the key (reflected
 inertias, stiffness chain, checks) follows the new value exactly as it would for a file
 that wrote it. Fitting (:mod:`servo_toolkit.identify.params`) and tolerances
-(:mod:`.tolerances`) both name scene keys this way.
+(:mod:`servo_toolkit.scene.tolerances`) both name scene keys this way.
 """
 
 from __future__ import annotations

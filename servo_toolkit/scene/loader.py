@@ -203,10 +203,8 @@ class Robustness:
                 min_phase_margin=opt("min_phase_margin", "rad"),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
                 min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
-                min_yield=f.number("min_yield", rule="positive") if f.has("min_yield") else None,
+                min_yield=f.number("min_yield", rule="positive", bounds=(1e-6, 1.0)) if f.has("min_yield") else None,
                 **_tracking_error(f))
-        require(r.min_yield is None or r.min_yield <= 1.0, f.key("min_yield"),
-                f"a fraction of the variants, 0..1 (got {r.min_yield})")
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,

@@ -335,15 +335,13 @@ def _settings(table: dict, robust) -> dict:
     samples = f.integer("samples", DEFAULT_SAMPLES, minimum=2)
     require(samples <= 1_000_000, f.key("samples"), f"at most 1000000 variants (got {samples})")
     out = dict(samples=samples, method=f.text("method", "lhs", choices=METHODS), seed=f.integer("seed", 0, minimum=0),
-               min_yield=f.number("min_yield", 0.99, rule="positive"),
-               confidence=f.number("confidence", 0.95, rule="positive"),
+               min_yield=f.number("min_yield", 0.99, rule="positive", bounds=(1e-6, 1.0)),
+               confidence=f.number("confidence", 0.95, rule="positive", bounds=(0.5, 0.999999)),
                max_peak_current=f.quantity("max_peak_current", "A", rule="positive") if f.has("max_peak_current")
                else (robust.max_peak_current if robust is not None else None),
                **(_tracking_error(f) or ({"max_tracking_error": robust.max_tracking_error,
                                           "tracking_error_dimension": robust.tracking_error_dimension}
                                          if robust is not None else {})))
-    require(out["min_yield"] <= 1.0, f.key("min_yield"), f"a fraction of the variants, 0..1 (got {out['min_yield']:g})")
-    require(out["confidence"] < 1.0, f.key("confidence"), f"a confidence level below 1 (got {out['confidence']:g})")
     return out
 
 
