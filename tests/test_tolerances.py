@@ -184,6 +184,9 @@ def test_an_idle_tolerance_of_a_nonlinear_figure_gets_a_sobol_index_indistinguis
     assert s.method == "sobol" and s.r2 < 0.9
     assert s.low[2] == 0.0 and abs(s.share[2]) < 1e-12 and s.high[2] < 1e-9  # not one evaluation moved it
     assert s.low[0] > 0.5 and s.low[1] > 0.05  # the two that enter are told apart from 0
+    again = [sobol(lambda x: f(x)[None], [uniform(0, 1)] * 3, 64, seed=3, resamples=50) for _ in range(2)]
+    for k in again[0]:  # seeded bootstrap: the intervals are the same in every process
+        np.testing.assert_array_equal(again[0][k], again[1][k])
 
 
 def test_keys_outside_the_linear_loop_get_exactly_zero(study):

@@ -157,23 +157,44 @@ def sobol(func, dists, n: int, *, seed: int = 0, confidence: float = 0.95, resam
     dict
         ``first``, ``total`` (s, d) and their ``*_low``, ``*_high`` intervals; ``n``.
     """
-    from scipy.stats import sobol_indices
+    from scipy.stats import bootstrap, sobol_indices
     n = 1 << max(1, int(math.ceil(math.log2(max(int(n), 2)))))
-    res = sobol_indices(func=func, n=n, dists=list(dists), rng=np.random.default_rng(seed))
+    dists = list(dists)
+    calls = []
+
+    def recorded(x):
+        y = np.atleast_2d(np.asarray(func(x), float))
+        calls.append(y)
+        return y
+    res = sobol_indices(func=recorded, n=n, dists=dists, rng=np.random.default_rng(seed))
+    f_A, f_B, f_AB = calls  # the order sobol_indices evaluates them in: A, B, then every AB_i
+    f_AB = np.moveaxis(f_AB.reshape((-1, n, len(dists))), -1, 0)  # (d, s, n)
+    mean = np.mean([f_A, f_B], axis=(0, -1)).reshape(-1, 1)
+    f_A, f_B, f_AB = f_A - mean, f_B - mean, f_AB - mean
+
+    def statistic(idx):  # Saltelli 2010, the estimators of sobol_indices, on resampled rows
+        a, b, ab = f_A[:, idx], f_B[:, idx], f_AB[..., idx]
+        var = np.var([a, b], axis=(0, -1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            first = np.mean(b * (ab - a), axis=-1) / var
+            total = 0.5 * np.mean((a - ab) ** 2, axis=-1) / var
+        return np.stack([first.T, total.T])
+
+    # seeded here: the intervals are the same in every process (scipy's own bootstrap of a
+    # Sobol result draws from an unseeded generator)
     with warnings.catch_warnings():  # an undefined BCa interval is replaced below
         warnings.simplefilter("ignore")
-        boot = res.bootstrap(confidence_level=confidence, n_resamples=resamples)
-    first_low, first_high = _interval(boot.first_order, confidence)
-    total_low, total_high = _interval(boot.total_order, confidence)
+        boot = bootstrap([np.arange(n)], statistic, method="BCa", n_resamples=resamples,
+                         confidence_level=confidence, rng=np.random.default_rng(seed + 1))
+    low, high = _interval(boot, confidence)
     return {"first": np.atleast_2d(res.first_order), "total": np.atleast_2d(res.total_order),
-            "first_low": first_low, "first_high": first_high, "total_low": total_low, "total_high": total_high,
-            "n": n}
+            "first_low": low[0], "first_high": high[0], "total_low": low[1], "total_high": high[1], "n": n}
 
 
 def _interval(boot, confidence: float):
-    """(low, high) of a bootstrap result: its BCa interval, or where that is undefined (a
-    degenerate bootstrap distribution, e.g. an input that enters nothing: every resample
-    gives the same index) the percentile interval of the resamples."""
+    """(low, high), each (2, s, d), of a bootstrap result: its BCa interval, or where that
+    is undefined (a degenerate bootstrap distribution, e.g. an input that enters nothing:
+    every resample gives the same index) the percentile interval of the resamples."""
     low = np.asarray(boot.confidence_interval.low, float)
     high = np.asarray(boot.confidence_interval.high, float)
     bad = ~(np.isfinite(low) & np.isfinite(high))
@@ -182,7 +203,7 @@ def _interval(boot, confidence: float):
         dist = np.asarray(boot.bootstrap_distribution, float)
         p_low, p_high = np.percentile(dist, [alpha, 100.0 - alpha], axis=-1)
         low, high = np.where(bad, p_low, low), np.where(bad, p_high, high)
-    return np.atleast_2d(low), np.atleast_2d(high)
+    return low, high
 
 
 def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys=None, confidence: float = 0.95,
