@@ -27,6 +27,7 @@ from servo_toolkit.core.cluster import ENV_VAR, INSTALL_HINT, SchedulerAddress, 
 ROOT = Path(__file__).resolve().parents[1]
 EMA = str(ROOT / "scenes" / "ema_reference.toml")
 EMA_ROBUST = str(ROOT / "scenes" / "ema_robust.toml")
+EMA_TOLERANCES = str(ROOT / "scenes" / "examples" / "ema_tolerances.toml")
 
 
 def _env(**extra) -> dict:
@@ -116,6 +117,7 @@ def _without_wall_clock(value):
     (["montecarlo", EMA, "--samples", "16", "--duration", "0.02"], "option"),
     (["check", EMA_ROBUST, "--linear-only", "--samples", "200"], "option"),
     (["sweep", EMA, "--frequency", "4", "--frequency", "8", "--amplitude", "0.5 deg"], "environment"),
+    (["tolerances", EMA_TOLERANCES, "--samples", "64", "--nonlinear", "--duration", "0.02"], "option"),
 ])
 def test_a_command_on_the_cluster_prints_what_it_prints_in_one_process(cluster, args, how, capsys, monkeypatch):
     """The chunks run in the cluster's worker processes (the scheduler counts them) and the
@@ -210,7 +212,7 @@ def test_a_cluster_failure_during_the_run_is_one_error_naming_the_option(cluster
             raise ValueError("the work's own error")
 
 
-@pytest.mark.parametrize("command", ["montecarlo", "sweep", "check"])
+@pytest.mark.parametrize("command", ["montecarlo", "sweep", "check", "tolerances"])
 def test_help_names_the_option_and_the_environment_variable(command, monkeypatch):
     from servo_toolkit.cli import build_parser
     monkeypatch.setenv("COLUMNS", "1000")  # no line wrapped inside a word

@@ -50,6 +50,17 @@ def test_scene_reference_rows_carry_units_defaults_and_rules():
     assert "`H`" in row and "| 0 |" in row and "nonnegative" in row
 
 
+def test_scene_reference_documents_the_tolerance_forms():
+    import scene_reference
+    text = scene_reference.scene_markdown()
+    section = text[text.index("## `[tolerances]`"):]
+    section = section[:section.index("\n## ", 1)]
+    for form in ('`"lo:hi"`', '`"+-5 %"`', "`{sigma = ", "drivetrain.stiffness_scale", "exit 2"):
+        assert form in section, form
+    row = re.search(r"^\| `min_yield` \| (.*)$", section, flags=re.M).group(1)
+    assert "1e-06 .. 1 |" in row and "0.99" in row
+
+
 def test_cli_reference_names_every_command_and_option():
     import cli_reference
 

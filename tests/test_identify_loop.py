@@ -161,7 +161,7 @@ def test_any_other_logged_command_is_followed_as_logged():
     t = np.arange(0, 2, 1e-3) + 3.0
     c = 0.01 * np.sin(2 * np.pi * (1 + 2 * (t - 3.0)) * (t - 3.0)) + 0.004
     ref = command_reference(t, c, "log.csv")
-    assert ref.kind == "table" and ref.t0 == 0.0 and ref.step == pytest.approx(1e-3)
+    assert ref.kind == "table" and ref.t0 == 0.0 and ref.spacing == pytest.approx(1e-3)
     assert ref.offset == pytest.approx(0.004) and np.allclose(np.array(ref.samples) + ref.offset, c, atol=1e-15)
     assert "table of 2000 samples" in ref.describe("m")
 

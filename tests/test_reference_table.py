@@ -134,3 +134,13 @@ def test_bad_tables_are_one_line(times, values, key, words):
     with pytest.raises(SceneError) as info:
         Reference.table(times, values)
     assert info.value.key == key and words in str(info.value) and "\n" not in str(info.value)
+
+
+def test_every_reference_field_has_a_plain_default():
+    """No field of a reference is shadowed by a constructor of the same name (a field
+    ``step`` once took the classmethod ``Reference.step`` as its default)."""
+    import dataclasses
+    from servo_toolkit.sim.reference import Reference
+    for f in dataclasses.fields(Reference):
+        assert not callable(f.default), f.name
+    assert "method" not in repr(Reference.sine(1.0, 2.0))

@@ -17,15 +17,16 @@ from generated import page_generator
 
 #: reader names, most specific first (a number is read as a dimensionless quantity too)
 _PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
-_ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "studies.*",
+_ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "tolerances", "studies.*",
           "duty_cycle", "duty_cycle.segments[]", "duty_cycle.motors[]", "mechanism", "stages[]",
           "drivetrain[].stages[]", "operating", "display")
 
 
 def scene_files(root: Path | None = None) -> list:
-    """The scene files the reference is generated from: every ``scenes/*.toml``."""
+    """The scene files the reference is generated from: every ``scenes/*.toml`` and the
+    examples in ``scenes/examples/``."""
     root = root or Path(__file__).resolve().parents[2]
-    return sorted((root / "scenes").glob("*.toml"))
+    return sorted((root / "scenes").glob("*.toml")) + sorted((root / "scenes" / "examples").glob("*.toml"))
 
 
 def collect(paths=None) -> list:
@@ -73,7 +74,8 @@ def _component(pattern: str, kind):
     from servo_toolkit.components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
     from servo_toolkit.scene.duty_cycle import DutyCycle, Segment
     from servo_toolkit.display.units import DisplayUnits
-    table = {"display": DisplayUnits, "duty_cycle": DutyCycle, "duty_cycle.segments[]": Segment, "duty_cycle.motors[]": DCMotor,
+    from servo_toolkit.scene.tolerances import Tolerances
+    table = {"tolerances": Tolerances, "display": DisplayUnits, "duty_cycle": DutyCycle, "duty_cycle.segments[]": Segment, "duty_cycle.motors[]": DCMotor,
              "motor": DCMotor, "load": Load, "sensors": sc.Sensors, "requirements": sc.Requirements,
              "robustness": sc.Robustness, "stages[]": RollerScrewStage,
              "drivetrain[].stages[]": RollerScrewStage, "operating": RollerScrewOperating}
@@ -126,6 +128,8 @@ def _reader(d) -> str:
 def _title(pattern: str, kind) -> str:
     names = {"motor": "`[motor]`", "load": "`[load]`", "sensors": "`[sensors]`",
              "requirements": "`[requirements]`", "robustness": "`[robustness]`",
+             "tolerances": "`[tolerances]` (settings; every other key is a scene key path with its distribution, "
+                           "see the tolerances guide)",
              "operating": "`[operating]` (roller-screw scene)", "stages[]": "`[[stages]]` (roller-screw scene)",
              "drivetrain[].stages[]": "`stages` of a `roller_screw` stage", "duty_cycle": "`[duty_cycle]`",
              "duty_cycle.segments[]": "`[[duty_cycle.segments]]`", "display": "`[display]`",
@@ -164,6 +168,8 @@ def scene_markdown(reads=None) -> str:
            "stages": "Stages of a stand-alone roller-screw scene, `[[stages]]`.",
            "operating": "Operating point of a stand-alone roller-screw scene, `[operating]`.",
            "robustness": "Parameter variations the loop must tolerate, `[robustness]`.",
+           "tolerances": "How the built actuators differ: any numeric scene key with a distribution, the "
+                         "sampling and the required yield, `[tolerances]`.",
            "duty_cycle": "The motion the actuator repeats in service, for `servo-toolkit size`, `[duty_cycle]`.",
            "display": "Units a reader is shown for a stiffness and an inertia at the output, `[display]` "
                       "(default SI; JSON stays SI)."}
@@ -192,7 +198,27 @@ def scene_markdown(reads=None) -> str:
             out.append(f"| `{key}` | {_reader(d)} | {_cell(default)} | {_cell(rule)} | {_cell(example)} | "
                        f"{_cell(desc.get(key, ''))} |")
         out.append("")
+        out += _NOTES.get(pattern, [])
     return "\n".join(out)
+
+
+#: what a table holds besides its fixed keys, below that table's rows
+_NOTES = {"tolerances": [
+    "Every other key of `[tolerances]` is the path of a numeric scene key (`motor.resistance`, "
+    "`\"drivetrain[3].stiffness\"`, `load.hinge_moment`, `sensors.output_encoder_bits`; the virtual key "
+    "`drivetrain.stiffness_scale` is a factor on the drivetrain's series stiffness, nominal 1) with its "
+    "distribution:", "",
+    "| form | distribution |", "| --- | --- |",
+    "| `\"lo:hi\"`, `[lo, hi]`, `{min = lo, max = hi}` | uniform over the range (each end a quantity in the "
+    "key's unit, or `xF` a factor of the scene's value); log-uniform when positive and wider than a decade |",
+    "| `\"+-5 %\"`, `\"+-0.1 ohm\"` | uniform about the scene's value |",
+    "| `{sigma = \"2 %\"}`, `{sigma = \"0.02 ohm\", mean = ..., min = ..., max = ...}` | normal about `mean` "
+    "(default the scene's value), truncated to the key's physical range and to `min`/`max` |", "",
+    "Each range end, and a normal's truncation, must obey the key's rule in the tables above (its sign and "
+    "the range its model is conditioned for); an unknown key, a list or text key, a requirement, a malformed "
+    "distribution or a sigma that is not positive is one line naming `tolerances.<key>` (exit 2). Integer keys "
+    "are rounded. `[robustness]`'s `load_inertia` and `stiffness` ranges are the tolerances `load.inertia` and "
+    "`drivetrain.stiffness_scale`.", ""]}
 
 
 def setup(app):

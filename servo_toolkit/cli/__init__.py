@@ -38,6 +38,7 @@ COMMANDS = {
     "reduce": "what the scene's model leaves out for a study, why, and the measured cost",
     "export": "controller.json and C99 sources of the designed controller",
     "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
+    "tolerances": "yield over the scene's [tolerances] and which tolerance drives it",
     "fit": "fit scene parameters to a measured frequency response or time traces",
     "frf": "frequency response and coherence from a time log (H1, Welch)",
 }

@@ -11,6 +11,10 @@ cycle, as ``servo-toolkit size --no-sweep``): the motor's envelope (``envelope_p
 ``envelope_rms_torque``, ``envelope_peak_current``, ``envelope_peak_voltage``), the winding's
 ``thermal_margin``, a roller screw's ``static_load_<screw>`` (peak thrust against its static
 rating) and, when the cycle sets ``required_life``, the L10 lives (``life_<part>``).
+A scene that requires a yield (``min_yield`` in ``[tolerances]`` or ``[robustness]``) adds
+the rows of its tolerance study (:mod:`servo_toolkit.studies.tolerances`): ``yield`` (every
+requirement at once) and ``yield_<requirement>``, each met when the lower end of the yield's
+Clopper-Pearson interval reaches ``min_yield``.
 """
 
 from __future__ import annotations
@@ -204,6 +208,8 @@ def _check_scene(path, scene, args, varies, executor=None):
                            "worst": mc.worst(), "samples": mc.count, "failed_variants": int(mc.failed.sum())}
     if g.sizing is not None:
         d["sizing"] = g.sizing.to_dict()
+    if g.tolerances is not None:
+        d["tolerances"] = g.tolerances.to_dict()
     if not args.json:
         print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
         print(requirements_table(result.requirements))
@@ -214,7 +220,7 @@ def _check_scene(path, scene, args, varies, executor=None):
             print(robust.table())
         for r in g.rows:
             if r.id in ("robust_tracking_error", "robust_peak_current") or r.id in sizing_ids \
-                    or r.id.startswith(("life_", "static_load_")):
+                    or r.id.startswith(("life_", "static_load_", "yield")):
                 print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
         for n in result.notes:
             print(f"  note: {n}")

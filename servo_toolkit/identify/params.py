@@ -1,21 +1,19 @@
 """Scene key paths as fit parameters: resolve ``load.inertia``, ``drivetrain[3].stiffness``,
 ``motor.resistance`` ... to their SI unit and value, and build the scene with new values.
 
-A new value is put into the scene's own table (in SI, as a bare number) and the scene is
-built again by the loader, so that everything the loader derives from the key (reflected
-inertias, stiffness chain, checks) follows the new value exactly as it would for a file
-that wrote it.
+The key paths themselves are :mod:`servo_toolkit.scene.key_paths` (shared with the
+scene's ``[tolerances]``); a fit parameter is a positive scalar quantity of the actuator
+(or a nonzero signed one, a constant force or moment), fitted as a logarithm (or a value).
 """
 
 from __future__ import annotations
 
-import copy
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import SceneError
-from ..core.fields import recording_reads
+from ..scene.key_paths import SceneKeys
 from ..scene.loader import read_scene_text, scene_from_dict
 
 
@@ -55,26 +53,6 @@ class Parameter:
     bounds: tuple | None = None
 
 
-def _split(key: str) -> tuple[str, str]:
-    table, _, name = key.rpartition(".")
-    return table, name
-
-
-def _table(data: dict, table: str, create: bool = False):
-    """The dict of ``table`` (``motor``, ``drivetrain[3]``, ``studies.step``) inside ``data``."""
-    node = data
-    for part in table.split("."):
-        name, _, index = part.partition("[")
-        if name not in node:
-            if not create:
-                return None
-            node[name] = {}
-        node = node[name]
-        if index:
-            node = node[int(index.rstrip("]"))]
-    return node
-
-
 class SceneTemplate:
     """A scene's tables with some keys free: :meth:`scene` builds it with given values.
 
@@ -99,47 +77,29 @@ class SceneTemplate:
         self.source = scene.source
         self.text = read_scene_text(Path(scene.source))
         self.data = tomllib.loads(self.text)
-        with recording_reads() as reads:
-            base = scene_from_dict(copy.deepcopy(self.data), self.source)
-        self.base = base
-        quantities = {f"{r.table}.{r.key}": r for r in reads if r.reader == "quantity"}
-        lists = {f"{r.table}.{r.key}" for r in reads if r.reader == "quantity list"}
-        params = []
+        self.keys = SceneKeys(self.data, self.source, scene_from_dict)
+        self.base = self.keys.base if "robustness" not in self.data and "tolerances" not in self.data else \
+            _full_scene(self.data, self.source)
         if not keys:
             raise SceneError("--param", "give at least one scene key to fit, e.g. load.inertia")
         if len(set(keys)) != len(keys):
             dup = next(k for k in keys if list(keys).count(k) > 1)
             raise SceneError(dup, "given twice as a fit parameter")
+        params = []
         for key in keys:
-            read = quantities.get(key)
-            if read is None:
-                if key in lists or any(key.startswith(f"{k}[") for k in lists):
-                    raise SceneError(key, "a list, not a scalar quantity; fit parameters are positive scalars")
-                known = ", ".join(sorted(k for k in quantities if not k.startswith(("studies", "requirements", "sensors",
-                                                                                     "robustness"))))
-                raise SceneError(key, f"not a quantity of this scene; fit one of: {known}")
-            if read.table.startswith(("studies", "requirements", "robustness", "sensors")):
+            if key.startswith("sensors."):
                 raise SceneError(key, "not a physical parameter of the plant; fit motor, drivetrain or load keys")
-            table = _table(self.data, read.table)
-            written = table.get(read.key) if table is not None else None
-            value = self._value(key, read)
-            signed = read.rule == "finite"
+            kp = self.keys.resolve(key, integers=False, what="a quantity of this scene; fit one of:")
+            value = kp.value
+            signed = kp.rule == "finite"
             if signed and not (value != 0 and abs(value) < float("inf")):
                 raise SceneError(key, f"must be a nonzero finite scalar to be fitted: its magnitude sets the "
-                                 f"search's scale (is {value:g} {read.unit})")
+                                 f"search's scale (is {value:g} {kp.unit})")
             if not signed and not (value > 0 and value < float("inf")):
-                raise SceneError(key, f"must be a positive finite scalar to be fitted (is {value:g} {read.unit})")
-            params.append(Parameter(key, read.table, read.key, read.unit, value, written, signed,
-                                    None if read.bounds is None else tuple(float(b) for b in read.bounds)))
+                raise SceneError(key, f"must be a positive finite scalar to be fitted (is {value:g} {kp.unit})")
+            params.append(Parameter(key, kp.table, kp.name, kp.unit, value, kp.written, signed,
+                                    None if kp.bounds is None else tuple(float(b) for b in kp.bounds)))
         self.parameters = tuple(params)
-
-    def _value(self, key, read) -> float:
-        from ..core.units import parse_quantity
-        table = _table(self.data, read.table)
-        if table is not None and read.key in table:
-            return parse_quantity(table[read.key], read.unit, key)
-        default = read.default
-        return float(default) if isinstance(default, (int, float)) else parse_quantity(default, read.unit, key)
 
     @property
     def initial(self) -> list:
@@ -148,7 +108,12 @@ class SceneTemplate:
 
     def scene(self, values):
         """The scene with the parameters set to ``values`` (SI, in parameter order)."""
-        data = copy.deepcopy(self.data)
-        for p, v in zip(self.parameters, values):
-            _table(data, p.table, create=True)[p.name] = float(v)
+        data = self.keys.data_with({p.key: v for p, v in zip(self.parameters, values)})
+        for name in ("robustness", "tolerances"):
+            if name in self.data:
+                data[name] = self.data[name]
         return scene_from_dict(data, self.source)
+
+
+def _full_scene(data, source):
+    return scene_from_dict(dict(data), source)

@@ -1,35 +1,34 @@
-"""Margins over parameter variations (load inertia, drivetrain stiffness), vectorized.
+"""Margins over parameter variations (load inertia, drivetrain stiffness, or any scene key
+a ``[tolerances]`` table varies), vectorized.
 
 Every variant's open loop is evaluated on one frequency grid as array arithmetic with the
-closed-form plant responses (:mod:`.response`) and the designed controller's response,
-computed once; closed-loop stability comes from the eigenvalues of the batched closed-loop
-matrices (:mod:`.assembly`). :func:`reference_margins` does the same for one variant with
+closed-form plant responses (:mod:`.response`) of its lumped plant
+(:mod:`.variant_plants`) and the designed controller's response, computed once;
+closed-loop stability comes from the eigenvalues of the batched closed-loop matrices
+(:mod:`.assembly`). :func:`reference_margins` does the same for one variant with
 python-control, for checks and for the benchmark.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import control as ct
 import numpy as np
 
 from ..errors import SceneError
-from ..core.output_units import OutputUnit
 from ..core.parallel import chunks, run_cases
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, sample_delay, spring_damping
-from .assembly import _abcd, closed_loop_matrix, controller_matrices
-from .closed_loop import DELAY_SAMPLES, open_loop_of
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, spring_damping
+from .assembly import closed_loop_matrix, controller_matrices
+from .closed_loop import open_loop_of
 from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
-from .response import loop_response, plant_responses, state_space_response
+from .robustness_result import RobustnessResult
 from .sampling import sample_variants as _sample
-from ..display.cards import RichDisplay
-from ..display.cards import card, facts, requirements_table, svg
-from ..display.html import fmt
-from ..display.units import DisplayUnits
+from .variant_plants import (VariantLoops, batched_matrices, controller_blocks as _controller_blocks,
+                             controller_response as _controller_response, variant_grid, variant_plants)
 
 PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
               "stiffness": "factor on the series stiffness"}
@@ -73,175 +72,28 @@ def varied_parameters(p, load, values: dict, i: int, zeta: float):
 
 def _evaluate(case):
     """Figures and stability of one chunk of variants (module level: picklable)."""
-    p, J2, K, c = case["p"], case["J2"], case["K"], case["c"]
-    w = case["w"]
-    response = VariantLoops(p, J2, K, c, case["current_gains"], case["blocks"])
-    L = response(np.arange(J2.size)[:, None], w[None, :])
+    cols, rigid, w = case["cols"], case["rigid"], case["w"]
+    response = VariantLoops(cols, case["current_gains"], case["blocks"])
+    n = cols["J1"].size
+    L = response(np.arange(n)[:, None], w[None, :])
     figs = grid_figures(w, L, phase_freq=case["f_req"], response=response if case["refine"] else None)
-    A, B, C, D = batched_plant_matrices(p, J2, K, c)
+    A, B, C, D = batched_matrices(cols, rigid)
     acl = closed_loop_matrix(A, B[..., :1], C[..., :3, :], D[..., :3, :1], *case["controller"])
     figs["max_pole_real"] = np.linalg.eigvals(acl).real.max(axis=-1)
     return figs
 
 
-@dataclass(frozen=True)
-class VariantLoops:
-    """The open loop of every variant as a function of frequency, closed form (see
-    :mod:`.response`): ``self(rows, w)`` is ``L`` of variants ``rows`` at angular
-    frequencies ``w`` (arrays broadcasting together)."""
-
-    p: object
-    J2: np.ndarray
-    K: np.ndarray
-    c: np.ndarray
-    current_gains: tuple
-    blocks: tuple  # (motion A, B [theta, omega_m], C, D), (delay A, B, C, D)
-
-    def __call__(self, rows, w):
-        s = 1j * np.asarray(w, float)
-        rows = np.asarray(rows)
-        P1, P2 = plant_responses(s, self.p, *self.current_gains, J2=self.J2[rows], K=self.K[rows],
-                                 c=self.c[rows])
-        cy, cw, delay = _controller_response(self.blocks, s)
-        return loop_response(s, P1, P2, delay, cy, cw, self.p.N)
-
-
 def batched_plant_matrices(p, J2, K, c):
-    """:func:`plant_matrices` for arrays of J2, K, c (leading batch axis). A two-mass plant
-    only changes in its two mechanical rows; a rigid one is built variant by variant."""
-    if p.rigid:
-        mats = [plant_matrices(replace(p, J2=float(a), K=float(b), c=float(d))) for a, b, d in zip(J2, K, c)]
-        return tuple(np.stack([m[k] for m in mats]) for k in range(4))
-    A0, B0, C0, D0, _ = plant_matrices(p)
-    n = J2.size
-    A = np.repeat(A0[None], n, axis=0)
-    B = np.repeat(B0[None], n, axis=0)
-    electrical = A0[1, 1] + (p.c + p.b1) / p.J1  # back-emf damping without inductance
-    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = -K / p.J1, -(c + p.b1) / p.J1 + electrical, K / p.J1, c / p.J1
-    A[:, 3, 0], A[:, 3, 1], A[:, 3, 2], A[:, 3, 3] = K / J2, c / J2, -(K + p.kh) / J2, -(c + p.b2) / J2
-    B[:, 3, 1] = 1 / J2
-    return A, B, np.repeat(C0[None], n, axis=0), np.repeat(D0[None], n, axis=0)
-
-
-@dataclass(frozen=True, repr=False)
-class RobustnessResult(RichDisplay):
-    """Loop figures over parameter variants and the worst case against the requirements.
-
-    Attributes
-    ----------
-    scene_name : str
-    values : dict of numpy.ndarray
-        Parameter values per variant (see ``PARAMETERS``).
-    figures : dict of numpy.ndarray
-        ``gain_margin_db``, ``phase_margin_deg``, ``sensitivity_peak_db``, ``bandwidth_hz``,
-        ``phase_lag_deg`` (closed loop, at the required bandwidth), ``max_pole_real``
-        (largest real part of the closed-loop poles, 1/s) and ``stable``.
-    requirements : list of Check
-        ``stable_fraction`` (stable variants / all) and the worst case over the stable
-        variants of each margin requirement (see
-        :func:`servo_toolkit.loop.requirements.robust_requirements`).
-    worst : dict
-        Per requirement, the parameter values of the variant that gives the worst figure
-        (for ``stable_fraction``: the variant with the rightmost closed-loop pole).
-    settings : dict
-        ``method``, ``samples``, ``seed`` of the sampling.
-    output_unit : {"rad", "m"}
-        The output coordinate: ``load_inertia`` is in kg*m^2 for an angle, kg for a travel.
-    display : DisplayUnits
-        Unit the text and plot show a load inertia in (the scene's ``[display]``; default
-        SI); ``values`` and :meth:`to_dict` stay SI.
-    """
-
-    scene_name: str
-    values: dict
-    figures: dict
-    requirements: list
-    worst: dict
-    settings: dict = field(default_factory=dict)
-    output_unit: str = "rad"
-    display: DisplayUnits = DisplayUnits()
-
-    @property
-    def count(self) -> int:
-        """Number of variants."""
-        return int(self.figures["stable"].size)
-
-    @property
-    def unstable_count(self) -> int:
-        """Variants whose closed loop is unstable."""
-        return int(np.sum(~self.figures["stable"]))
-
-    @property
-    def all_stable(self) -> bool:
-        return self.unstable_count == 0
-
-    @property
-    def passed(self) -> bool:
-        """Every robustness requirement met."""
-        return all(c.passed for c in self.requirements)
-
-    @property
-    def failures(self) -> list:
-        """Checks that are not met."""
-        return [c for c in self.requirements if not c.passed]
-
-    def worst_variant(self, name: str) -> dict:
-        """Parameter values of the variant that gives the worst ``name`` figure."""
-        return dict(self.worst.get(name, {}))
-
-    def to_dict(self) -> dict:
-        """JSON-ready summary (worst cases and the variant giving each, not every variant)."""
-        return {"scene": self.scene_name, "variants": self.count, "unstable_variants": self.unstable_count,
-                **self.settings,
-                "ranges": {k: [float(v.min()), float(v.max())] for k, v in self.values.items()},
-                "worst": {c.name: {**c.to_dict(), "at": self.worst.get(c.name, {})} for c in self.requirements},
-                "passed": self.passed}
-
-    def table(self) -> str:
-        """Worst cases as text."""
-        linear = OutputUnit(self.output_unit).linear
-        show = {"load_inertia": lambda v: self.display.show("inertia", v, linear)}
-        unit = {"load_inertia": " " + self.display.inertia_unit(linear)}
-        rng = ", ".join(f"{k} {fmt(show.get(k, float)(v.min()), 3)}..{fmt(show.get(k, float)(v.max()), 3)}"
-                        f"{unit.get(k, '')}" for k, v in self.values.items())
-        lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
-        for c in self.requirements:
-            at = ", ".join(f"{k}={fmt(show.get(k, float)(v), 3)}" for k, v in self.worst.get(c.name, {}).items())
-            short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
-            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
-                         f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
-        return "\n".join(lines)
-
-    def plot(self, ax=None, figure: str = "phase_margin_deg"):
-        """Scatter of one figure against load inertia, coloured by stiffness factor."""
-        import matplotlib.pyplot as plt
-        if ax is None:
-            _, ax = plt.subplots(figsize=(7, 4))
-        unit = OutputUnit(self.output_unit)
-        x = (self.display.show("inertia", self.values["load_inertia"], unit.linear) if "load_inertia" in self.values
-             else np.arange(self.count))
-        c = self.values.get("stiffness", None)
-        y = np.where(self.figures["stable"], self.figures[figure], np.nan)
-        sc = ax.scatter(x, y, c=c, s=6, cmap="viridis")
-        if c is not None:
-            ax.figure.colorbar(sc, ax=ax, label="stiffness factor")
-        ax.scatter(x[~self.figures["stable"]], np.zeros(self.unstable_count), marker="x", color="r",
-                   label="unstable")
-        ax.set_xlabel(f"load {'mass' if unit.linear else 'inertia'} [{self.display.inertia_unit(unit.linear)}]")
-        ax.set_ylabel(figure)
-        ax.set_title(f"{self.scene_name}: {figure} over {self.count} variants")
-        return ax
+    """:func:`plant_matrices` for arrays of J2, K, c (leading batch axis), the other fields
+    those of ``p``."""
+    n = np.asarray(J2).size
+    cols = {k: np.full(n, float(getattr(p, k))) for k in ("J1", "b1", "b2", "kh", "N", "eta", "Kt", "Ke", "R", "L")}
+    cols.update(J2=np.asarray(J2, float).ravel(), K=np.asarray(K, float).ravel() * np.ones(n),
+                c=np.asarray(c, float).ravel() * np.ones(n))
+    return batched_matrices(cols, p.rigid)
 
 
 #: robust requirement -> (figure, worst is min or max)
-
-    def _repr_line(self) -> str:
-        return _card_line(self)
-
-    def _repr_card(self) -> str:
-        return _card_html(self)
-
-
 _WORST = {"gain_margin": ("gain_margin_db", "min"), "phase_margin": ("phase_margin_deg", "min"),
           "sensitivity_peak": ("sensitivity_peak_db", "max"), "bandwidth": ("bandwidth_hz", "min"),
           "phase_lag_at_bandwidth": ("phase_lag_deg", "max")}
@@ -335,45 +187,34 @@ def _bandwidth_requirement(design_result) -> float:
 
 def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None, chunk_size: int = 2500,
                     progress: bool = True, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-                    points: int = 600, refine: bool = True) -> dict:
+                    points: int | None = None, refine: bool = True, plants=None) -> dict:
     """Figures of controller ``ctrl`` on every variant of plant parameters ``p`` (see
-    :class:`RobustnessResult` ``figures``). The grid of ``points`` frequencies brackets
-    every crossing, the sensitivity peak and the bandwidth; with ``refine`` (default) each
-    is then solved to solver precision with the closed-form loop response, otherwise it is
-    interpolated on the grid."""
-    n = next(iter(values.values())).size
-    J2 = p.J2 + (values["load_inertia"] - scene.load.inertia if "load_inertia" in values else np.zeros(n))
-    if np.any(J2 < 0) if not p.rigid else np.any(p.J1 + J2 <= 0):  # rigid: the load is in J1
-        raise SceneError("vary.load_inertia", "gives a negative load-side inertia")
-    K = p.K * (values["stiffness"] if "stiffness" in values else np.ones(n))
-    c = spring_damping(p.J1, J2, K, structural_damping) * np.ones(n)
-    w = frequency_grid(f_min=0.01, f_max=5e3, points=points, extra=[f_req])
+    :class:`RobustnessResult` ``figures``). The frequency grid brackets every crossing, the
+    sensitivity peak and the bandwidth; with ``refine`` (default) each is then solved to
+    solver precision with the closed-form loop response, otherwise it is interpolated on
+    the grid. The grid is :func:`~.variant_plants.variant_grid` (fine over the variants'
+    drivetrain modes and the controller's lightly damped poles and zeros, coarse elsewhere),
+    or ``points`` log-spaced frequencies from 0.01 Hz to 5 kHz.
+
+    ``values`` names the variations by the robustness study's names (``load_inertia``,
+    ``stiffness``) or by scene key paths (:mod:`.variant_plants`); ``plants`` (a
+    :class:`~.variant_plants.VariantPlants`) gives the variants' plants directly."""
+    if plants is None:
+        plants = variant_plants(scene, p, values, structural_damping)
+    cols, n = plants.cols, plants.count
+    blocks = _controller_blocks(ctrl)
+    w = (variant_grid(cols, plants.rigid, blocks, f_req) if points is None else
+         frequency_grid(f_min=0.01, f_max=5e3, points=points, extra=[f_req]))
     kp_i, ki_i = (ctrl.current_kp, ctrl.current_ki) if p.L > 0 else (0.0, 0.0)
-    common = {"p": p, "w": w, "blocks": _controller_blocks(ctrl), "f_req": f_req, "refine": refine,
+    common = {"rigid": plants.rigid, "w": w, "blocks": blocks, "f_req": f_req, "refine": refine,
               "current_gains": (kp_i, ki_i), "controller": controller_matrices(ctrl, scene.motor)}
-    idx = np.arange(n)
-    cases = [dict(common, J2=J2[i], K=K[i], c=c[i]) for i in chunks(idx, chunk_size)]
+    cases = [dict(common, cols={k: v[i] for k, v in cols.items()}) for i in chunks(np.arange(n), chunk_size)]
     parts = run_cases(_evaluate, cases, executor=executor, progress=progress, description="robustness")
     figs = {k: np.concatenate([part[k] for part in parts]) for k in parts[0]}
     return {"gain_margin_db": np.abs(figs["gain_margin_db"]), "phase_margin_deg": figs["phase_margin_deg"],
             "sensitivity_peak_db": figs["sensitivity_peak_db"], "bandwidth_hz": figs["bandwidth_hz"],
             "phase_lag_deg": -figs["phase_at_freq_deg"], "max_pole_real": figs["max_pole_real"],
             "stable": figs["max_pole_real"] < 0}
-
-
-def _controller_blocks(ctrl):
-    """State-space matrices of the motion controller from [theta, omega_m] to i_ref and of
-    the sampling delay (Pade) from i_ref to i_cmd."""
-    Am, Bm, Cm, Dm = _abcd(ctrl.motion)
-    cols = [ctrl.motion.input_index[name] for name in ("theta", "omega_m")]
-    return (Am, Bm[:, cols], Cm, Dm[:, cols]), _abcd(sample_delay(ctrl.sample_time, DELAY_SAMPLES))
-
-
-def _controller_response(blocks, s):
-    """Cy (from -theta), Cw (from -omega_m) and the delay at ``s``."""
-    h = state_space_response(*blocks[0], s)
-    d = state_space_response(*blocks[1], s)
-    return -h[..., 0, 0], -h[..., 0, 1], d[..., 0, 0]
 
 
 def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
@@ -388,17 +229,3 @@ def reference_margins(scene, design_result, load_inertia: float, stiffness: floa
     return ct.stability_margins(loop), loop
 
 
-def _card_line(r) -> str:
-    """The one-line repr of a result of this module."""
-    return (f"{r.scene_name}: {r.count} variants, {r.unstable_count} unstable, "
-            f"{'requirements met' if r.passed else 'requirements NOT met'}")
-
-
-def _card_html(r) -> str:
-    """The Jupyter card (HTML) of a result of this module."""
-    ranges = ", ".join(f"{k} {np.min(v):.3g}..{np.max(v):.3g}" for k, v in r.values.items())
-    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", ranges))),
-             requirements_table(r.requirements)]
-    if hasattr(r, "plot"):
-        parts.append(svg(lambda ax: r.plot(ax), size=(7.0, 3.6)))
-    return card(f"Robustness of {r.scene_name}", status=r.passed, parts=parts)

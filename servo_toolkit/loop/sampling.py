@@ -1,5 +1,5 @@
 """Sampling of parameter ranges for the robustness studies (``check --vary``, a scene's
-``[robustness]``, ``montecarlo --vary``).
+``[robustness]``, ``montecarlo --vary``) and of a scene's ``[tolerances]``.
 
 A range of positive values spanning more than a decade (``hi / lo > 10``, e.g. a stiffness
 factor ``1e-3:1e3``) is sampled with logarithmic spacing: uniform in ``log(value)`` for the
@@ -8,18 +8,24 @@ above ``1e11``, leaving the soft end of the range unseen. Narrower ranges, and r
 include 0 (a load inertia ``0:4``), keep linear spacing. Every Monte Carlo sample holds the
 corners of the box (every combination of the ranges' ends) as its first variants, so its
 ends are always covered; a grid holds them by construction.
+
+Tolerances (:func:`sample_tolerances`) are drawn as points of the unit hypercube, one
+coordinate per tolerance, mapped through each tolerance's inverse CDF: a Latin hypercube
+(``scipy.stats.qmc.LatinHypercube``: every tolerance's range cut in ``n`` equal-probability
+strata, one draw in each), a scrambled Sobol sequence (``scipy.stats.qmc.Sobol``, balanced
+for ``n`` a power of 2) or independent draws. No corners are added: every variant is a draw
+of the distributions, so the fraction meeting a requirement estimates the yield.
 """
 
 from __future__ import annotations
 
 import itertools
+import warnings
 
 import numpy as np
 
 from ..errors import SceneError
-
-#: a positive range wider than this ratio (hi / lo) is sampled with logarithmic spacing
-LOG_RATIO = 10.0
+from ..scene.tolerances import LOG_RATIO, METHODS
 
 
 def is_log_range(lo: float, hi: float) -> bool:
@@ -84,3 +90,47 @@ def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed
     if len(sizes) != 1:
         raise SceneError("vary", f"explicit variant arrays must have one length, got {sorted(sizes)}")
     return out
+
+
+def unit_sample(d: int, n: int, method: str = "lhs", seed: int = 0) -> np.ndarray:
+    """``n`` points of the unit hypercube in ``d`` dimensions, shape (n, d), strictly inside
+    (0, 1).
+
+    Parameters
+    ----------
+    d, n : int
+    method : {"lhs", "sobol", "random"}
+        Latin hypercube, scrambled Sobol (balanced for ``n`` a power of 2; scipy warns
+        otherwise, the sequence is still a valid draw), or independent uniform draws.
+    seed : int
+    """
+    if method not in METHODS:
+        raise SceneError("tolerances.method", f"must be one of {list(METHODS)} (got {method!r})")
+    from scipy.stats import qmc
+    if method == "lhs":
+        u = qmc.LatinHypercube(d, seed=seed).random(n)
+    elif method == "sobol":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # n not a power of 2: still a valid draw
+            u = qmc.Sobol(d, scramble=True, seed=seed).random(n)
+    else:
+        u = np.random.default_rng(seed).random((n, d))
+    tiny = np.finfo(float).eps
+    return np.clip(u, tiny, 1.0 - tiny)
+
+
+def sample_tolerances(tolerances, samples: int | None = None, method: str | None = None,
+                      seed: int | None = None) -> dict:
+    """Values of every tolerance per variant: key path -> array (SI).
+
+    Parameters
+    ----------
+    tolerances : Tolerances
+        A scene's ``[tolerances]`` (:mod:`servo_toolkit.scene.tolerances`).
+    samples, method, seed : optional
+        Override the table's.
+    """
+    n = tolerances.samples if samples is None else int(samples)
+    u = unit_sample(len(tolerances.items), n, method or tolerances.method,
+                    tolerances.seed if seed is None else int(seed))
+    return {t.key: t.ppf(u[:, j]) for j, t in enumerate(tolerances.items)}

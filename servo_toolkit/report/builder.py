@@ -25,6 +25,7 @@ from . import sections_sizing as sizing
 from . import sections_stroke as stroke
 from . import sections_studies as studies
 from . import sections_time as timing
+from . import sections_tolerances as tolerances
 from .context import Context
 from .section import NotApplicable, NotAvailable, Section
 from .time_limit import time_limit as _time_limit
@@ -47,6 +48,7 @@ SECTIONS = (
     ("disturbance", "Disturbance step and dynamic stiffness along the stroke", disturbance.disturbance),
     ("robustness", "Robustness over the parameter variants", robust.robustness),
     ("montecarlo", "Nonlinear Monte Carlo over the parameter variants", montecarlo.montecarlo_section),
+    ("tolerances", "Tolerances: yield and sensitivity", tolerances.tolerances_section),
     ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
     ("command", "Control that uses the model: feedforward, gain schedule, command shaping", command.command_section),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),

@@ -47,6 +47,18 @@ def _montecarlo(ctx):
     return (tuple(checks), result), None
 
 
+def _tolerances(ctx):
+    """(ToleranceResult or None, error): the tolerance study when the scene requires a yield."""
+    tol = getattr(ctx.scene, "tolerances", None)
+    if tol is None or tol.min_yield is None:
+        return None, None
+    from .sections_tolerances import tolerance_results
+    try:
+        return tolerance_results(ctx), None
+    except Exception as exc:  # noqa: BLE001 - no verdict: the rows say why
+        return None, exc
+
+
 def _requirement_rows(ctx):
     from ..studies.gate import gate, unavailable_rows
     try:
@@ -61,11 +73,17 @@ def _requirement_rows(ctx):
     from ..errors import SimulationError
     from .sections_sizing import sizing_for_gate
     sized = sizing_for_gate(ctx)   # shared with the sizing section; its error leaves its rows without a verdict
+    tolerances, tol_error = _tolerances(ctx)
+    if tol_error is not None:  # no tolerance study for the gate to run again
+        from dataclasses import replace
+        ctx_scene = replace(ctx.scene, tolerances=replace(ctx.scene.tolerances, min_yield=None))
+    else:
+        ctx_scene = ctx.scene
     try:
-        g = gate(ctx.scene, design, montecarlo=mc, sizing=sized)
+        g = gate(ctx_scene, design, montecarlo=mc, sizing=sized, tolerances=tolerances)
         rows = list(g.rows)
     except SimulationError as exc:  # the large-signal run could not run: no verdict on its rows
-        g = gate(ctx.scene, design, montecarlo=mc, linear_only=True, sizing=sized)
+        g = gate(ctx_scene, design, montecarlo=mc, linear_only=True, sizing=sized, tolerances=tolerances)
         rows = list(g.rows) + unavailable_rows(
             [("large_signal_gain", "large signal: |gain difference| from the linear loop"),
              ("large_signal_phase", "large signal: |phase difference| from the linear loop")], str(exc))
@@ -75,6 +93,9 @@ def _requirement_rows(ctx):
             ("robust_tracking_error", "tracking error", spec.max_tracking_error),
             ("robust_peak_current", "peak current", spec.max_peak_current)) if v is not None]
         rows += unavailable_rows(ids, f"the nonlinear time runs: {mc_error}")
+    if tol_error is not None:
+        rows += unavailable_rows([("yield", "yield: built actuators meeting every requirement")],
+                                 f"the tolerance study: {tol_error}")
     return tuple(rows), tuple(g.result.notes)
 
 

@@ -20,6 +20,7 @@ from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
+from .tracking import tracking_error as _tracking_error
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -28,7 +29,7 @@ STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": Roc
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
-             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display"}
+             "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display", "tolerances"}
 #: ``[robustness] method`` values
 ROBUSTNESS_METHODS = ("monte_carlo", "grid")
 
@@ -142,6 +143,10 @@ class Robustness:
         ``"angle"`` or ``"length"`` as the scene gave it (None for a bare SI number).
     max_peak_current : float or None
         Worst peak motor current over those runs (A); not checked when ``None``.
+    min_yield : float or None
+        Fraction of the built actuators (the ranges drawn as tolerances,
+        :mod:`servo_toolkit.scene.tolerances`) that must meet every requirement; ``check``
+        gates on the lower end of its confidence interval. Not checked when ``None``.
     """
 
     load_inertia: tuple | None = (0.0, 4.0)
@@ -157,6 +162,7 @@ class Robustness:
     max_tracking_error: float | None = None
     tracking_error_dimension: str | None = None
     max_peak_current: float | None = None
+    min_yield: float | None = None
 
     @property
     def ranges(self) -> dict:
@@ -169,7 +175,7 @@ class Robustness:
         """Build from a ``[robustness]`` table."""
         known = {"load_inertia", "stiffness", "samples", "method", "seed", "min_stable_fraction",
                  "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth",
-                 "max_tracking_error", "max_peak_current"}
+                 "max_tracking_error", "max_peak_current", "min_yield"}
         unknown = sorted(set(f.table) - known)
         require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
 
@@ -197,31 +203,13 @@ class Robustness:
                 min_phase_margin=opt("min_phase_margin", "rad"),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
                 min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
+                min_yield=f.number("min_yield", rule="positive", bounds=(1e-6, 1.0)) if f.has("min_yield") else None,
                 **_tracking_error(f))
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
                 f.key("min_phase_margin"), "must be below 180 deg")
         return r
-
-
-def _tracking_error(f: Fields) -> dict:
-    """``max_tracking_error`` of a ``[robustness]`` table: an angle, a length (an output
-    travel) or a bare SI number, positive."""
-    if not f.has("max_tracking_error"):
-        return {}
-    if not isinstance(f.raw("max_tracking_error"), str):
-        return {"max_tracking_error": f.quantity("max_tracking_error", "rad", rule="positive")}
-    for unit, dimension in (("rad", "angle"), ("m", "length")):
-        try:
-            value = f.quantity("max_tracking_error", unit, rule="positive")
-        except SceneError as exc:
-            if "positive" in str(exc) or "finite" in str(exc):
-                raise
-            continue
-        return {"max_tracking_error": value, "tracking_error_dimension": dimension}
-    raise SceneError(f.key("max_tracking_error"), "expected an angle (e.g. '0.5 deg') or, for an output "
-                     "travel, a length (e.g. '0.2 mm')")
 
 
 @dataclass(frozen=True)
@@ -268,6 +256,9 @@ class Scene:
     display : DisplayUnits
         ``[display]``: the units a reader is shown for a stiffness and an inertia at the
         output (default SI); only tables, figures and text change, never the values.
+    tolerances : Tolerances or None
+        ``[tolerances]`` and the ``[robustness]`` ranges as distributions of scene keys
+        (:mod:`servo_toolkit.scene.tolerances`); None when the scene has neither.
     source : str or None
         File the scene was read from.
     """
@@ -287,6 +278,7 @@ class Scene:
     duty_cycle: object = None
     display: DisplayUnits = field(default_factory=DisplayUnits)
     source: str | None = None
+    tolerances: object = None
 
     def study(self, name: str) -> Study:
         """The study called ``name``; a SceneError lists the available ones."""
@@ -434,6 +426,9 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
             from .duty_cycle import check_positions
             dt = scene.drivetrain
             check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
+        if "tolerances" in data or robust is not None:
+            from .tolerances import tolerances_of
+            scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene, scene_from_dict))
         return scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
@@ -527,6 +522,17 @@ def _depth(obj, level: int = 0) -> int:
     return deepest
 
 
+def scene_keys(scene):
+    """The numeric keys of a scene read from a file (:class:`~.key_paths.SceneKeys`): its
+    tolerances' when it has them, else its file's."""
+    from .key_paths import SceneKeys
+    if scene.tolerances is not None:
+        return scene.tolerances.scene_keys()
+    if not scene.source:
+        raise SceneError("scene", "naming scene keys needs a scene read from a file (load_scene)")
+    return SceneKeys(tomllib.loads(read_scene_text(Path(scene.source))), scene.source, scene_from_dict)
+
+
 def replace_params(scene: Scene, **changes) -> Scene:
     """A copy of ``scene`` with top-level fields replaced (studies never edit scenes)."""
     from dataclasses import replace
@@ -534,4 +540,4 @@ def replace_params(scene: Scene, **changes) -> Scene:
 
 
 __all__ = ["Robustness", "Scene", "Sensors", "Requirements", "Study", "load_scene", "read_scene_text",
-           "scene_from_dict", "default_scene_path", "replace_params"]
+           "scene_from_dict", "scene_keys", "default_scene_path", "replace_params"]

@@ -44,8 +44,8 @@ class Reference:
     profile : MoveProfile or None
         A move's jerk-limited profile (:meth:`move`).
     samples : tuple of float
-        A table's values (relative to ``offset``), one every ``step`` seconds from ``t0``.
-    step : float
+        A table's values (relative to ``offset``), one every ``spacing`` seconds from ``t0``.
+    spacing : float
         A table's sample spacing (s).
     periodic : bool
         The table is one period of a command that repeats.
@@ -59,7 +59,7 @@ class Reference:
     swing: float = 0.0
     profile: MoveProfile | None = None
     samples: tuple = field(default=(), repr=False)
-    step: float = 0.0
+    spacing: float = 0.0
     periodic: bool = False
     _packed: tuple = field(default=(), init=False, repr=False, compare=False)
 
@@ -69,7 +69,7 @@ class Reference:
         if (self.kind == "move") != (self.profile is not None):
             raise ValueError("a move reference needs its profile (Reference.move), and only a move has one")
         if self.kind == "table":
-            times = self.t0 + self.step * np.arange(len(self.samples))
+            times = self.t0 + self.spacing * np.arange(len(self.samples))
             object.__setattr__(self, "_packed", pack_table(times, self.samples, periodic=self.periodic))
 
     @classmethod
@@ -124,7 +124,7 @@ class Reference:
         """
         from .reference_table import check_samples
         t0, step, v = check_samples(time_s, values, periodic=periodic)
-        return cls("table", 0.0, 0.0, offset, t0, samples=tuple(float(x) for x in v), step=step,
+        return cls("table", 0.0, 0.0, offset, t0, samples=tuple(float(x) for x in v), spacing=step,
                    periodic=bool(periodic))
 
     @classmethod
@@ -154,7 +154,7 @@ class Reference:
             span = f"{lo_ * scale:.3g} to {hi_ * scale:.3g} {unit}"
             what = (f"periodic table of {len(self.samples)} samples (period {self.duration:.4g} s)" if self.periodic
                     else f"table of {len(self.samples)} samples over {self.duration:.4g} s")
-            return f"{what} every {self.step:.3g} s, {span} about {off}"
+            return f"{what} every {self.spacing:.3g} s, {span} about {off}"
         return f"hold {off}"
 
     @property
@@ -162,7 +162,7 @@ class Reference:
         """A table's time span (s): its period, or first to last sample; 0 for other kinds."""
         if self.kind != "table":
             return 0.0
-        return duration_of(len(self.samples), self.step, self.periodic)
+        return duration_of(len(self.samples), self.spacing, self.periodic)
 
     def to_dict(self) -> dict:
         """JSON-ready description (SI); a table gives its sample count, spacing, period flag
@@ -175,7 +175,7 @@ class Reference:
             out["move"] = self.profile.to_dict()
         if self.kind == "table":
             lo_, hi_ = table_span(self._packed[2])
-            out.update(samples=len(self.samples), step_s=self.step, periodic=self.periodic, duration_s=self.duration,
+            out.update(samples=len(self.samples), step_s=self.spacing, periodic=self.periodic, duration_s=self.duration,
                        values_min=lo_, values_max=hi_)
         return out
 

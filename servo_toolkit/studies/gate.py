@@ -5,7 +5,9 @@ The rows come from the checks the design, its large-signal run, its robustness s
 the Monte Carlo time runs produce (:class:`servo_toolkit.loop.requirements.Check`), and, for
 a scene with a ``[duty_cycle]``, from the margins of its sizing
 (:func:`servo_toolkit.studies.sizing.size`: the motor's envelope, the winding's thermal
-margin and the L10 lives against ``required_life``); the ID
+margin and the L10 lives against ``required_life``) and, for a scene that requires a yield
+(``min_yield``), from its tolerance study (:mod:`.tolerances`: ``yield`` and
+``yield_<requirement>``, judged on the lower end of the yield's interval); the ID
 of a row is the name of its JUnit testcase (``bandwidth``, ``large_signal_gain``,
 ``closed_loop_stable``, ``robust_gain_margin``, ``robust_tracking_error``, ...), so a row
 of the report is found by the same name in a CI log.
@@ -48,6 +50,11 @@ LABELS = {
     "tracking_error": "worst tracking error",
     "peak_current": "worst peak current",
 }
+#: yield row name -> words (``yield_<name>``: the fraction of the tolerance variants meeting it)
+YIELD_LABELS = {"all": "every requirement", "stable": "closed loop stable", "gain_margin": "gain margin",
+                "phase_margin": "phase margin", "sensitivity_peak": "sensitivity peak Ms",
+                "bandwidth": "closed-loop bandwidth", "phase_lag_at_bandwidth": "phase lag at the bandwidth",
+                "tracking_error": "tracking error", "peak_current": "peak current"}
 #: sizing margin name -> (row ID, words of the requirement); L10 rows are ``life_<part>``
 SIZING_ROWS = {
     "peak torque": ("envelope_peak_torque", "motor envelope: peak torque along the duty cycle"),
@@ -162,6 +169,28 @@ def montecarlo_rows(checks, result) -> list[RequirementRow]:
     return rows
 
 
+def yield_rows(tolerances) -> list[RequirementRow]:
+    """Rows of a ToleranceResult's yields against the scene's ``min_yield``: ``yield`` (every
+    requirement at once) and ``yield_<name>`` per requirement, each met when the lower end
+    of its Clopper-Pearson interval reaches ``min_yield`` (none when the scene requires no
+    yield)."""
+    required = tolerances.tolerances.min_yield
+    if required is None:
+        return []
+    rows = []
+    for y in (tolerances.overall, *tolerances.yields[:-1]):
+        met = y.low >= required
+        words = YIELD_LABELS.get(y.name, y.name.replace("_", " "))
+        detail = (f"{100 * y.confidence:g} % Clopper-Pearson interval {fmt(100 * y.low, 4)}..{fmt(100 * y.high, 4)} %, "
+                  f"{y.passed} of {y.total} variants ({tolerances.settings.get('method', '')}) of the [tolerances]")
+        rows.append(RequirementRow("yield" if y.name == "all" else f"yield_{y.name}",
+                                   f"yield: built actuators meeting {words} (lower end of the interval)",
+                                   f">= {fmt(100 * required)} %", f"{fmt(100 * y.low, 4)} %",
+                                   "" if met else f"{fmt(100 * (required - y.low), 3)} %", "pass" if met else "fail",
+                                   detail))
+    return rows
+
+
 def _sizing_id(name: str) -> tuple:
     """(row ID, words) of a sizing margin's name."""
     if name in SIZING_ROWS:
@@ -218,6 +247,8 @@ class Gate:
         The Monte Carlo requirements' checks (empty when the scene sets none).
     sizing : SizingResult or None
         The sizing along the scene's ``[duty_cycle]`` (None without one).
+    tolerances : ToleranceResult or None
+        The yield over the scene's ``[tolerances]`` (None when it requires no yield).
     """
 
     result: object
@@ -227,6 +258,7 @@ class Gate:
     rows: tuple
     montecarlo_checks: tuple = ()
     sizing: object = None
+    tolerances: object = None
 
     @property
     def passed(self) -> bool:
@@ -243,7 +275,7 @@ class Gate:
 
 
 def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None,
-         executor=None) -> Gate:
+         executor=None, tolerances=None) -> Gate:
     """Judge ``result`` (a DesignResult of ``scene``) as ``servo-toolkit check`` does.
 
     Parameters
@@ -265,6 +297,9 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     executor : concurrent.futures.Executor, optional
         Runs the chunks of the variants (robustness and Monte Carlo), e.g. a dask
         ``Client.get_executor()``; the rows do not depend on it.
+    tolerances : ToleranceResult, optional
+        The tolerance study already computed (the report's); else it runs when the scene
+        requires a yield (``min_yield`` in ``[tolerances]`` or ``[robustness]``).
 
     Returns
     -------
@@ -302,7 +337,13 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         sizing = None
     elif sizing is not None:
         rows += sizing_rows(sizing)
-    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks), sizing)
+    tol = getattr(scene, "tolerances", None)
+    if tolerances is None and tol is not None and tol.min_yield is not None:
+        from .tolerances import tolerance_study
+        tolerances = tolerance_study(scene, result, executor=executor, progress=False)
+    if tolerances is not None:
+        rows += yield_rows(tolerances)
+    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks), sizing, tolerances)
 
 
 def failed_count(rows) -> int:
@@ -310,5 +351,5 @@ def failed_count(rows) -> int:
     return sum(not r.passed for r in rows)
 
 
-__all__ = ["Gate", "LABELS", "RequirementRow", "SIZING_ROWS", "STATUSES", "check_row", "design_rows", "failed_count",
-           "gate", "montecarlo_rows", "robust_rows", "sizing_rows", "unavailable_rows"]
+__all__ = ["Gate", "LABELS", "RequirementRow", "SIZING_ROWS", "STATUSES", "YIELD_LABELS", "check_row", "design_rows",
+           "failed_count", "gate", "montecarlo_rows", "robust_rows", "sizing_rows", "unavailable_rows", "yield_rows"]

@@ -1,0 +1,76 @@
+"""``servo-toolkit tolerances``: the yield of a design over the scene's ``[tolerances]`` and
+which tolerance drives each figure.
+
+Exit 0 when the required yield (``min_yield``) is met by the lower end of its confidence
+interval (or the scene requires none), 1 when it is not, 2 on bad input or a variant whose
+time run could not be carried out.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import SceneError
+from ..scene import load_scene
+from ..scene.tolerances import METHODS
+from .cmd_design import add_design_options, design_from_args
+from .common import add_json, add_scene, add_scheduler, bounded, emit, prepare_kernels, scheduler_of, study_executor
+
+
+def register(sub) -> None:
+    """Register the command."""
+    p = sub.add_parser("tolerances", help="yield over the scene's [tolerances] and which tolerance drives it")
+    add_scene(p)
+    add_design_options(p)
+    p.add_argument("--samples", type=bounded(int, 2, 1_000_000, what="a number of variants"), default=None,
+                   help="variants (default: the scene's [tolerances] samples, 1024)")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="sampling: Latin hypercube, scrambled Sobol or independent draws (default: the scene's, lhs)")
+    p.add_argument("--seed", type=bounded(int, 0, 2**63 - 1, what="a seed"), default=None,
+                   help="seed of the draws (default: the scene's, 0)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--nonlinear", dest="nonlinear", action="store_const", const=True, default=None,
+                      help="run every variant in time on the nonlinear model too (default: when the scene bounds "
+                           "the tracking error or the peak current)")
+    mode.add_argument("--linear-only", dest="nonlinear", action="store_const", const=False,
+                      help="margins only, no time runs (the time requirements are then not judged)")
+    p.add_argument("--sobol-runs", type=bounded(int, 0, 1_000_000, what="a number of runs"), default=0, metavar="N",
+                   help="base sample of Sobol indices of a time figure regression does not explain (N (d + 2) "
+                        "further time runs; default 0: ranked by regression, stated)")
+    p.add_argument("--duration", type=bounded(float, 0.0, 3600.0, low_open=True, what="seconds"), default=None,
+                   metavar="S", help="seconds of each time run (default: simulate's, 1 s)")
+    p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=None, metavar="N",
+                   help="worker processes for chunks of variants (default: this process)")
+    add_scheduler(p, what="chunks of variants (margins and time runs)")
+    add_json(p)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    """Run the command."""
+    from ..loop.requirements import parse_override
+    from ..studies.tolerances import tolerance_study
+    for text in args.require:
+        parse_override(text)
+    scheduler = scheduler_of(args)  # every option is checked before the scene is read
+    scene = load_scene(args.scene)
+    if scene.tolerances is None:
+        raise SceneError("tolerances", "the scene sets no [tolerances] (nor [robustness] ranges) to vary")
+    from ..scene.tolerances import check_ends
+    check_ends(scene.tolerances)
+    progress = not args.json and sys.stderr.isatty()
+    with study_executor(scheduler, args.workers) as (executor, _):
+        timed = args.nonlinear or (args.nonlinear is None and (scene.tolerances.max_tracking_error is not None
+                                                                 or scene.tolerances.max_peak_current is not None))
+        if timed:
+            prepare_kernels(scene, batch=True)
+        result = design_from_args(scene, args, executor=executor)
+        if args.nonlinear is False and (scene.tolerances.max_tracking_error is not None
+                                        or scene.tolerances.max_peak_current is not None):
+            print("servo-toolkit: note: --linear-only: the tracking-error and peak-current requirements are not "
+                  "judged", file=sys.stderr)
+        study = tolerance_study(scene, result, samples=args.samples, method=args.method, seed=args.seed,
+                                nonlinear=args.nonlinear, executor=executor, progress=progress,
+                                sobol_runs=args.sobol_runs, duration=args.duration)
+    emit(args, study, f"Tolerances of {scene.name}\n" + study.table())
+    return 0 if study.passed else 1

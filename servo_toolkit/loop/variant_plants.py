@@ -1,0 +1,416 @@
+"""The lumped linear plant of every parameter variant, as arrays, and its open loop.
+
+Variants are named two ways:
+
+- the robustness study's names (``check --vary``, ``[robustness]``): ``load_inertia``
+  replaces the load's inertia (added to the load side, J2) and ``stiffness`` multiplies the
+  series stiffness K, in closed form;
+- scene key paths (``motor.resistance``, ``drivetrain[3].stiffness``, ``load.inertia``, the
+  virtual ``drivetrain.stiffness_scale``: a factor on K), as a scene's ``[tolerances]`` draws
+  them. Motor keys enter the plant directly; drivetrain and load keys move the inertias,
+  stiffness, ratio and efficiency through the whole drivetrain. Building and reducing the
+  scene costs ~15 ms a variant, so every :class:`~servo_toolkit.plant.linear.PlantParameters`
+  field is mapped from the keys by :func:`servo_toolkit.core.separable.fit` (one-key exact
+  maps in the field's natural coordinate, pair terms where needed), verified against exact
+  builds of the farthest and of random variants; above :data:`SEPARABLE_RTOL` every variant
+  is built exactly instead. A key that moves no field (Coulomb friction, a voltage limit,
+  a backlash, an encoder) leaves every margin exactly as it is: it is listed as such, not
+  estimated.
+
+The controller is the design's, the same on every variant (its current loop and the
+feedthrough of an ideal current loop keep the nominal motor's R and Ke).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SceneError
+from ..core.separable import DEFAULT_RTOL
+from ..plant.linear import plant_matrices, plant_parameters, sample_delay, spring_damping
+from .assembly import _abcd
+from .closed_loop import DELAY_SAMPLES
+from .response import loop_response, mechanical_response, state_space_response
+
+#: the mapped fields of :class:`~servo_toolkit.plant.linear.PlantParameters` (c follows from
+#: J1, J2, K and the structural damping)
+FIELDS = ("J1", "J2", "K", "b1", "b2", "kh", "N", "eta", "Kt", "Ke", "R", "L")
+#: largest relative error of the separable maps, verified against exact builds, for which
+#: they replace building every variant: a relative error e in K moves the drivetrain mode by
+#: e/2, i.e. 5e-5 at this bound, far below the two-mass reduction's own approximation of the
+#: chain and the resolution of any figure the margins report
+SEPARABLE_RTOL = DEFAULT_RTOL
+#: the robustness study's variation names
+LEGACY = ("load_inertia", "stiffness")
+
+
+@dataclass(frozen=True)
+class VariantPlants:
+    """Plant parameters of ``n`` variants: one array per field.
+
+    Attributes
+    ----------
+    cols : dict of numpy.ndarray
+        :data:`FIELDS` and ``c``, each (n,).
+    rigid : bool
+    method : str
+        ``"closed form"``, ``"separable"`` (maps verified against exact builds) or
+        ``"exact"`` (every variant built).
+    error : float
+        Largest relative error of the maps on the verification variants (0 closed form or
+        exact).
+    inert : tuple of str
+        Keys that move no field: the linear loop does not depend on them.
+    evaluations : int
+        Exact scene builds spent.
+    mapper : callable or None
+        ``mapper(values)`` -> the VariantPlants of other variants of the same keys (by the
+        same verified maps; None when every variant was built exactly).
+    """
+
+    cols: dict
+    rigid: bool
+    method: str = "closed form"
+    error: float = 0.0
+    inert: tuple = ()
+    evaluations: int = 0
+    mapper: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def count(self) -> int:
+        return int(self.cols["J1"].size)
+
+    def rows(self, rows) -> dict:
+        """The fields of variants ``rows`` (any index array)."""
+        return {k: v[rows] for k, v in self.cols.items()}
+
+
+def _with_damping(cols: dict, zeta: float) -> dict:
+    cols["c"] = np.broadcast_to(spring_damping(cols["J1"], cols["J2"], cols["K"], zeta), cols["J1"].shape).copy()
+    return cols
+
+
+def _nominal(p, n: int) -> dict:
+    return {k: np.full(n, float(getattr(p, k))) for k in FIELDS}
+
+
+def closed_form_plants(p, load_inertia: float, values: dict, zeta: float) -> VariantPlants:
+    """Variants by the robustness study's names: ``load_inertia`` (the load's inertia,
+    replacing ``load_inertia``) and ``stiffness`` (a factor on K)."""
+    n = next(iter(values.values())).size
+    cols = _nominal(p, n)
+    if "load_inertia" in values:
+        delta = values["load_inertia"] - load_inertia
+        cols["J1" if p.rigid else "J2"] = cols["J1" if p.rigid else "J2"] + delta
+        if np.any(cols["J2"] < 0) if not p.rigid else np.any(cols["J1"] <= 0):
+            raise SceneError("vary.load_inertia", "gives a negative load-side inertia")
+    if "stiffness" in values:
+        cols["K"] = cols["K"] * values["stiffness"]
+    return VariantPlants(_with_damping(cols, zeta), p.rigid)
+
+
+def _exact_rows(keys, names, p, zeta):
+    """``evaluate(X)`` of the fields from built scenes (``names`` are the scene keys)."""
+    model = "rigid" if p.rigid else "two_mass"
+
+    def evaluate(X):
+        out = np.empty((X.shape[0], len(FIELDS)))
+        for r, x in enumerate(np.atleast_2d(X)):
+            scene = keys.scene(dict(zip(names, x)))
+            q = plant_parameters(scene, p.q0, model, zeta)
+            out[r] = [getattr(q, k) for k in FIELDS]
+        return out
+    return evaluate
+
+
+def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = SEPARABLE_RTOL,
+                 progress: bool = False) -> VariantPlants:
+    """Variants by scene key paths (see the module notes).
+
+    Parameters
+    ----------
+    scene : Scene
+    p : PlantParameters
+        The design's plant (its operating point and reduction).
+    values : dict
+        Key path -> values (n,), SI; ``drivetrain.stiffness_scale`` multiplies K.
+    zeta : float
+        Structural damping ratio.
+    keys : SceneKeys, optional
+        Default: the scene's tolerances' (or its file's).
+    rtol : float
+        Largest verified relative error of the maps (else every variant is built).
+    progress : bool
+    """
+    from ..core.separable import fit
+    from ..scene.tolerances import STIFFNESS_SCALE
+    n = next(iter(values.values())).size
+    names = [k for k in values if k != STIFFNESS_SCALE]
+    method, error, inert, spent, f = "closed form", 0.0, (), 0, None
+    if STIFFNESS_SCALE in values and p.rigid:
+        inert = (STIFFNESS_SCALE,)
+    Y = np.array([[getattr(p, k) for k in FIELDS]] * n, float)
+    if names:
+        if keys is None:
+            from ..scene.loader import scene_keys
+            keys = scene_keys(scene)
+        _refuse_inductance(p, names)
+        X = np.column_stack([np.asarray(values[k], float) for k in names])
+        x0 = np.array([keys.resolve(k).value for k in names])
+        evaluate = _exact_rows(keys, names, p, zeta)
+        log_keys = np.array([np.all(X[:, j] > 0) and X[:, j].max() > 10 * X[:, j].min() for j in range(len(names))])
+        integer = np.array([keys.resolve(k).integer for k in names])
+        f = fit(evaluate, x0, X, integer=integer, log_keys=log_keys, rtol=rtol)
+        spent, error = f.evaluations, f.error
+        inert += tuple(k for j, k in enumerate(names) if not np.any(f.moved[j]))
+        if error <= rtol:
+            Y, method = f(X), "separable"
+        else:
+            from ..core.progress import progress_bar
+            Y, f = np.empty((n, len(FIELDS))), None
+            with progress_bar(total=n, desc="plants", show=progress) as bar:
+                for i in range(n):
+                    Y[i] = evaluate(X[i:i + 1])[0]
+                    bar.update(1)
+            method, spent = "exact", spent + n
+    from dataclasses import replace
+    result = VariantPlants(_plants_of(Y, values, p, zeta), p.rigid, method, float(error), inert, spent)
+    if f is None and names:
+        return result
+
+    def mapper(other, _f=f, _names=tuple(names)):
+        m = next(iter(other.values())).size
+        Yo = (_f(np.column_stack([np.asarray(other[k], float) for k in _names])) if _names else
+              np.array([[getattr(p, k) for k in FIELDS]] * m, float))
+        return replace(result, cols=_plants_of(Yo, other, p, zeta))
+    return replace(result, mapper=mapper)
+
+
+def _plants_of(Y, values, p, zeta) -> dict:
+    """The field columns of mapped rows ``Y`` (K scaled by a stiffness factor, c derived)."""
+    from ..scene.tolerances import STIFFNESS_SCALE
+    cols = {k: Y[:, j].copy() for j, k in enumerate(FIELDS)}
+    if np.any(np.isfinite(cols["K"]) != np.isfinite(p.K)):
+        raise SceneError("tolerances", "some variants change whether the drivetrain is compliant")
+    if STIFFNESS_SCALE in values:
+        cols["K"] = cols["K"] * np.asarray(values[STIFFNESS_SCALE], float)
+    return _with_damping(cols, zeta)
+
+
+def _refuse_inductance(p, names) -> None:
+    if p.L <= 0 and "motor.inductance" in names:
+        raise SceneError("tolerances.motor.inductance", "the design's current loop is ideal (the motor has no "
+                         "inductance): give the motor an inductance to tolerance it")
+
+
+def variant_plants(scene, p, values: dict, zeta: float, **kw) -> VariantPlants:
+    """:func:`closed_form_plants` for the robustness study's names, :func:`keyed_plants`
+    for scene key paths (not both at once)."""
+    legacy = [k for k in values if k in LEGACY]
+    if legacy and len(legacy) != len(values):
+        other = next(k for k in values if k not in LEGACY)
+        raise SceneError(f"vary.{other}", f"use either {list(LEGACY)} or scene key paths, not both")
+    if legacy:
+        return closed_form_plants(p, scene.load.inertia, values, zeta)
+    return keyed_plants(scene, p, values, zeta, **kw)
+
+
+def batched_matrices(cols: dict, rigid: bool, inductance: bool = True):
+    """:func:`~servo_toolkit.plant.linear.plant_matrices` of every variant: (A, B, C, D)
+    with a leading batch axis, built from the field arrays."""
+    J1, J2, K, c, b1, b2, kh, N, eta, Kt, Ke, R, L = (np.asarray(cols[k], float) for k in
+                                                    ("J1", "J2", "K", "c", "b1", "b2", "kh", "N", "eta", "Kt",
+                                                     "Ke", "R", "L"))
+    n = J1.size
+    kt = eta * N * Kt
+    ind = inductance and bool(np.all(L > 0))
+    if rigid:
+        J = J1 + J2
+        nm, w1 = 2, 1
+        A = np.zeros((n, 2, 2))
+        A[:, 0, 1] = 1.0
+        A[:, 1, 0], A[:, 1, 1] = -kh / J, -(b1 + b2) / J
+        B = np.zeros((n, 2, 2))
+        B[:, 1, 1] = 1 / J
+        C = np.zeros((n, 4, 2))
+        C[:, 0, 0], C[:, 1, 1], C[:, 3, 1] = 1.0, N, 1.0
+        jm = J
+    else:
+        nm, w1 = 4, 1
+        A = np.zeros((n, 4, 4))
+        A[:, 0, 1] = A[:, 2, 3] = 1.0
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = -K / J1, -(c + b1) / J1, K / J1, c / J1
+        A[:, 3, 0], A[:, 3, 1], A[:, 3, 2], A[:, 3, 3] = K / J2, c / J2, -(K + kh) / J2, -(c + b2) / J2
+        B = np.zeros((n, 4, 2))
+        B[:, 3, 1] = 1 / J2
+        C = np.zeros((n, 4, 4))
+        C[:, 0, 2], C[:, 1, 1], C[:, 3, 3] = 1.0, N, 1.0
+        jm = J1
+    D = np.zeros((n, 4, 2))
+    if ind:
+        A = np.pad(A, ((0, 0), (0, 1), (0, 1)))
+        B = np.pad(B, ((0, 0), (0, 1), (0, 0)))
+        C = np.pad(C, ((0, 0), (0, 0), (0, 1)))
+        A[:, w1, nm] = kt / jm
+        A[:, nm, w1] = -Ke * N / L
+        A[:, nm, nm] = -R / L
+        B[:, nm, 0] = 1 / L
+        C[:, 2, nm] = 1.0
+    else:
+        A[:, w1, w1] -= kt * Ke * N / (R * jm)
+        B[:, w1, 0] += kt / (R * jm)
+        C[:, 2, w1] = -Ke * N / R
+        D[:, 2, 0] = 1 / R
+    return A, B, C, D
+
+
+def controller_blocks(ctrl):
+    """State-space matrices of the motion controller from [theta, omega_m] to i_ref and of
+    the sampling delay (Pade) from i_ref to i_cmd."""
+    Am, Bm, Cm, Dm = _abcd(ctrl.motion)
+    cols = [ctrl.motion.input_index[name] for name in ("theta", "omega_m")]
+    return (Am, Bm[:, cols], Cm, Dm[:, cols]), _abcd(sample_delay(ctrl.sample_time, DELAY_SAMPLES))
+
+
+def controller_response(blocks, s):
+    """Cy (from -theta), Cw (from -omega_m) and the delay at ``s``."""
+    h = state_space_response(*blocks[0], s)
+    d = state_space_response(*blocks[1], s)
+    return -h[..., 0, 0], -h[..., 0, 1], d[..., 0, 0]
+
+
+class ModalResponse:
+    """``C (s I - A)^-1 B + D`` of one state-space block at any ``s``, its modal form
+    computed once (:func:`.response.state_space_response` recomputes it per call); a block
+    without a well-conditioned eigenvector basis is evaluated by that function."""
+
+    def __init__(self, A, B, C, D):
+        from scipy.linalg import matrix_balance
+        from .response import MODAL_CONDITION
+        A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (A, B, C, D))
+        self.block, self.D, self.lam, self.residues = (A, B, C, D), D, None, None
+        if A.size == 0 or A.shape[0] == 0:
+            self.lam, self.residues = np.zeros(0), np.zeros((D.shape[0], 0, D.shape[1]))
+            return
+        Ab, T = matrix_balance(A)
+        lam, V = np.linalg.eig(Ab)
+        if np.linalg.cond(V) < MODAL_CONDITION:
+            self.lam = lam
+            self.residues = (C @ T @ V)[:, :, None] * np.linalg.solve(T @ V, B)[None, :, :]
+
+    def __call__(self, s):
+        s = np.asarray(s, complex)
+        if self.lam is None:
+            return state_space_response(*self.block, s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.einsum("...k,pkm->...pm", 1.0 / (s[..., None] - self.lam), self.residues) + self.D
+
+
+def _controller_gains(motion, delay, s):
+    """Cy, Cw and the delay at ``s`` from the cached modal forms."""
+    h, d = motion(s), delay(s)
+    return -h[..., 0, 0], -h[..., 0, 1], d[..., 0, 0]
+
+
+def current_gain(s, cols, g1, kp: float, ki: float):
+    """i / i_cmd of the analog current PI on each variant's winding; 1 without inductance."""
+    L = np.asarray(cols["L"], float)
+    if np.all(L <= 0):
+        return np.ones(np.broadcast(s, g1).shape, complex)
+    cpi = kp + ki / s
+    tg = cols["eta"] * cols["N"] * cols["Kt"]
+    return cpi / (L * s + cols["R"] + cpi + cols["Ke"] * cols["N"] * s * tg * g1)
+
+
+@dataclass(frozen=True)
+class VariantLoops:
+    """The open loop of every variant as a function of frequency, closed form (see
+    :mod:`.response`): ``self(rows, w)`` is ``L`` of variants ``rows`` at angular
+    frequencies ``w`` (arrays broadcasting together)."""
+
+    cols: dict
+    current_gains: tuple
+    blocks: tuple  # (motion A, B [theta, omega_m], C, D), (delay A, B, C, D)
+
+    def __post_init__(self):
+        object.__setattr__(self, "_modal", (ModalResponse(*self.blocks[0]), ModalResponse(*self.blocks[1])))
+
+    def __call__(self, rows, w):
+        s = 1j * np.asarray(w, float)
+        rows = np.asarray(rows)
+        f = {k: v[rows] for k, v in self.cols.items()}
+        g1, g2 = mechanical_response(s, f["J1"], f["J2"], f["K"], f["c"], f["b1"], f["b2"], f["kh"])
+        ic = current_gain(s, f, g1, *self.current_gains)
+        tg = f["eta"] * f["N"] * f["Kt"]
+        cy, cw, delay = _controller_gains(*self._modal, s)
+        return loop_response(s, tg * g1 * ic, tg * g2 * ic, delay, cy, cw, f["N"])
+
+
+#: points per decade of the variants' frequency grid away from lightly damped features, and
+#: over the bands of the drivetrain modes (of every variant) and of the controller's
+#: lightly damped poles and zeros: 1.5 % steps, finer than the uniform 600-point grid's
+#: 2.2 %; the refinement then solves every crossing to solver precision
+BASE_PER_DECADE, FINE_PER_DECADE = 30, 150
+#: a pole or zero with a damping ratio below this is a feature the grid resolves finely
+LIGHT_DAMPING = 0.3
+#: the fine band extends this factor beyond the features on either side
+BAND_FACTOR = 1.6
+
+
+def variant_grid(cols: dict, rigid: bool, blocks, f_req: float, f_min: float = 0.01, f_max: float = 5e3):
+    """Angular frequencies (rad/s) for the loops of every variant: :data:`BASE_PER_DECADE`
+    over ``f_min..f_max``, :data:`FINE_PER_DECADE` over the band of the drivetrain's
+    resonance and antiresonance of all variants and around each lightly damped pole and
+    zero of the controller (damping below :data:`LIGHT_DAMPING`), and ``f_req`` (Hz)."""
+    from scipy.signal import ss2zpk
+    bands = []
+    if not rigid:
+        J1, J2, K, kh = (np.asarray(cols[k], float) for k in ("J1", "J2", "K", "kh"))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            wr = np.sqrt(K * (1 / J1 + 1 / J2))
+            wa = np.sqrt(np.abs(K + kh) / J2)
+        both = np.concatenate([wr[np.isfinite(wr)], wa[np.isfinite(wa)]])
+        if both.size:
+            bands.append((both.min(), both.max()))
+    for A, B, C, D in blocks:
+        if np.size(A) == 0:
+            continue
+        roots = [np.linalg.eigvals(A)]
+        for j in range(B.shape[1]):
+            with np.errstate(all="ignore"):
+                roots.append(ss2zpk(A, B[:, j:j + 1], C, D[:, j:j + 1])[0].ravel())
+        for r in np.concatenate(roots):
+            mag = abs(r)
+            if np.isfinite(mag) and mag > 0 and abs(r.real) < LIGHT_DAMPING * mag:
+                bands.append((mag, mag))
+    lo, hi = np.log10(2 * np.pi * f_min), np.log10(2 * np.pi * f_max)
+    parts = [np.logspace(lo, hi, int(np.ceil((hi - lo) * BASE_PER_DECADE)) + 1)]
+    for a, b in bands:
+        a, b = max(np.log10(a / BAND_FACTOR), lo), min(np.log10(b * BAND_FACTOR), hi)
+        if b > a:
+            parts.append(np.logspace(a, b, int(np.ceil((b - a) * FINE_PER_DECADE)) + 1))
+    parts.append([2 * np.pi * f_req])
+    return np.unique(np.concatenate(parts))
+
+
+def reference_plant(cols: dict, i: int, q0: float = 0.0):
+    """PlantParameters of variant ``i`` (for python-control checks)."""
+    from ..plant.linear import PlantParameters
+    return PlantParameters(**{k: float(cols[k][i]) for k in FIELDS}, c=float(cols["c"][i]), q0=q0)
+
+
+def check_matrices(cols, rigid, i: int = 0) -> float:
+    """Largest difference between :func:`batched_matrices` and ``plant_matrices`` of
+    variant ``i`` (a self-check used by the tests)."""
+    batched = batched_matrices(cols, rigid)
+    single = plant_matrices(reference_plant(cols, i))
+    return max(float(np.max(np.abs(b[i] - s_))) if b[i].shape == s_.shape else math.inf
+               for b, s_ in zip(batched, single[:4]))
+
+
+__all__ = ["FIELDS", "LEGACY", "SEPARABLE_RTOL", "VariantLoops", "VariantPlants", "batched_matrices",
+           "closed_form_plants", "controller_blocks", "controller_response", "keyed_plants", "reference_plant",
+           "variant_grid", "variant_plants"]

@@ -1,0 +1,204 @@
+"""The result of the tolerance study: the yield of every requirement with its confidence
+interval, the ranking of the tolerances on each figure, and the worst corner run again."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..display.cards import RichDisplay, card, facts, svg, table
+from ..display.html import fmt
+
+
+@dataclass(frozen=True)
+class WorstCorner:
+    """The corner of the tolerance box (every tolerance at an end) with the smallest margin
+    to the requirements, run again on its own.
+
+    Attributes
+    ----------
+    values : dict
+        Key -> value (SI) at the corner (tolerances that enter no figure at their nominal
+        value).
+    score : float
+        Its smallest relative margin to a requirement (negative: short), over the linear
+        figures; -inf for an unstable loop.
+    figure : str
+        The requirement that margin belongs to.
+    corners : int
+        Corners evaluated (all of them up to 2**10; else the one the regression's signs
+        point to).
+    figures : dict
+        The vectorized study's figures at the corner.
+    reference : dict
+        python-control's ``stability_margins`` of the corner's plant built exactly
+        (``gain_margin_db``, ``phase_margin_deg``) and its closed-loop stability.
+    simulation : SimulationResult or None
+        The nonlinear closed-loop run of the corner's scene (``simulate``'s command).
+    """
+
+    values: dict
+    score: float
+    figure: str
+    corners: int
+    figures: dict
+    reference: dict = field(default_factory=dict)
+    simulation: object = None
+
+    def to_dict(self) -> dict:
+        """JSON-ready (the simulation as its two figures)."""
+        sim = self.simulation
+        out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
+               "corners_evaluated": self.corners, "figures": {k: float(v) for k, v in self.figures.items()},
+               "reference": self.reference}
+        if sim is not None:
+            out["simulation"] = {"max_tracking_error": float(np.max(np.abs(sim.output_angle - sim.reference_angle))),
+                                 "peak_current": float(np.max(np.abs(sim.motor_current)))}
+        return out
+
+
+@dataclass(frozen=True, repr=False)
+class ToleranceResult(RichDisplay):
+    """Yield and sensitivity of a design over a scene's tolerances.
+
+    Attributes
+    ----------
+    scene_name : str
+    tolerances : Tolerances
+    values : dict of numpy.ndarray
+        Key -> values per variant (SI).
+    figures : dict of numpy.ndarray
+        The linear loop's figures per variant (:func:`servo_toolkit.loop.robustness.variant_figures`).
+    runs : ToleranceRuns or None
+        The nonlinear time runs (when a time requirement is set or asked for).
+    requirements : tuple of Requirement
+        What each variant must achieve (display units).
+    passes : dict of numpy.ndarray
+        Requirement name (and ``"all"``) -> bool per variant.
+    yields : tuple of Yield
+        Per requirement, then ``all`` (every requirement at once).
+    sensitivities : tuple of Sensitivity
+        Per figure of a requirement.
+    worst : WorstCorner or None
+    settings : dict
+        ``samples``, ``method``, ``seed``, how the plants were mapped.
+    notes : tuple of str
+    """
+
+    scene_name: str
+    tolerances: object
+    values: dict
+    figures: dict
+    runs: object
+    requirements: tuple
+    passes: dict
+    yields: tuple
+    sensitivities: tuple
+    worst: object = None
+    settings: dict = field(default_factory=dict)
+    notes: tuple = ()
+
+    @property
+    def count(self) -> int:
+        """Number of variants."""
+        return int(next(iter(self.values.values())).size)
+
+    @property
+    def overall(self):
+        """The yield of every requirement at once."""
+        return self.yields[-1]
+
+    @property
+    def passed(self) -> bool:
+        """The required yield is met by the lower end of its interval (True when the scene
+        requires none)."""
+        return self.overall.met
+
+    def yield_of(self, name: str):
+        """The :class:`~servo_toolkit.core.yields.Yield` of requirement ``name``."""
+        return next(y for y in self.yields if y.name == name)
+
+    def sensitivity(self, figure: str):
+        """The :class:`~servo_toolkit.core.sensitivity.Sensitivity` on ``figure``."""
+        return next(s for s in self.sensitivities if s.figure == figure)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (yields, rankings, worst corner; not every variant)."""
+        return {"scene": self.scene_name, "variants": self.count, **self.settings,
+                "tolerances": [t.to_dict() for t in self.tolerances.items],
+                "min_yield": self.tolerances.min_yield, "passed": self.passed,
+                "yields": [y.to_dict() for y in self.yields],
+                "sensitivity": [s.to_dict() for s in self.sensitivities],
+                "worst_corner": None if self.worst is None else self.worst.to_dict(), "notes": list(self.notes)}
+
+    def table(self) -> str:
+        """Yields, rankings and the worst corner as text."""
+        req = self.tolerances.min_yield
+        lines = [f"  {self.count} variants ({self.settings.get('method', '')}) of {len(self.tolerances.items)} "
+                 f"tolerances" + (f"; required yield >= {100 * req:g} % (lower end of the "
+                                  f"{100 * self.overall.confidence:g} % interval)" if req is not None else "")]
+        for y in self.yields:
+            verdict = "" if y.required is None else ("  ok" if y.met else "  FAIL")
+            lines.append(f"  yield {y.name:<22}{y.text()}{verdict}")
+        for s in self.sensitivities:
+            if s.method == "none":
+                lines.append(f"  sensitivity of {s.label}: {s.reason}")
+                continue
+            top = ", ".join(f"{k} {100 * v:.3g} %" for k, v, _, _ in s.ranking()[:3])
+            lines.append(f"  sensitivity of {s.label} ({s.method}, R^2 {s.r2:.3f}): {top}")
+        if self.worst is not None:
+            w = self.worst
+            at = ", ".join(f"{k}={fmt(v, 4)}" for k, v in w.values.items())
+            lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at {at}")
+        return "\n".join(lines)
+
+    def plot(self, ax=None, figure: str | None = None):
+        """Bar chart of the tolerances' variance shares on ``figure`` (default: the first
+        figure with a ranking), with their intervals."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(figsize=(7, 3.6))
+        ranked = [s for s in self.sensitivities if s.method != "none"]
+        if not ranked:
+            ax.text(0.5, 0.5, "no figure varies over the variants", ha="center", va="center",
+                    transform=ax.transAxes)
+            return ax
+        s = ranked[0] if figure is None else self.sensitivity(figure)
+        order = s.ranking()
+        names = [k for k, *_ in order][::-1]
+        share = np.array([v for _, v, _, _ in order])[::-1]
+        lo = np.array([v for _, _, v, _ in order])[::-1]
+        hi = np.array([v for *_, v in order])[::-1]
+        err = np.vstack([np.clip(share - lo, 0, None), np.clip(hi - share, 0, None)])
+        ax.barh(names, 100 * share, xerr=100 * err, color="C0", ecolor="0.3", capsize=3)
+        ax.set_xlabel(f"share of the variance of the {s.label} [%]")
+        ax.set_title(f"{self.scene_name}: what drives the {s.label} ({s.method})")
+        ax.grid(True, axis="x", alpha=0.3)
+        return ax
+
+    def _repr_line(self) -> str:
+        y = self.overall
+        req = "" if y.required is None else f", required {100 * y.required:g} %: {'met' if y.met else 'NOT met'}"
+        return f"{self.scene_name}: {self.count} variants, yield {100 * y.fraction:.4g} % (lower {100 * y.low:.4g} %){req}"
+
+    def _repr_card(self) -> str:
+        rows = [(y.name, f"{100 * y.fraction:.4g} %", f"{100 * y.low:.4g}..{100 * y.high:.4g} %",
+                 f"{y.passed} / {y.total}", "" if y.required is None else ("met" if y.met else "NOT met"))
+                for y in self.yields]
+        ranked = [s for s in self.sensitivities if s.method != "none"]
+        parts = [facts((("variants", f"{self.count} ({self.settings.get('method', '')})"),
+                        ("tolerances", ", ".join(self.tolerances.keys)),
+                        ("required yield", "none" if self.tolerances.min_yield is None
+                         else f"{100 * self.tolerances.min_yield:g} % (lower end of the interval)"))),
+                 table(("requirement", "yield", "interval", "variants", ""), rows)]
+        if ranked:
+            parts.append(svg(lambda ax: self.plot(ax), size=(7.0, 0.5 + 0.35 * len(self.tolerances.items))))
+        notes = [f"{s.label}: {s.reason}" for s in self.sensitivities]
+        if self.worst is not None:
+            notes.append("worst corner: " + ", ".join(f"{k}={fmt(v, 4)}" for k, v in self.worst.values.items()))
+        return card(f"Tolerances of {self.scene_name}", status=self.passed if self.tolerances.min_yield is not None
+                    else None, parts=parts, notes=notes + list(self.notes))
+
+
+__all__ = ["ToleranceResult", "WorstCorner"]

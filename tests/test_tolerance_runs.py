@@ -1,0 +1,71 @@
+"""Nonlinear time runs of tolerance variants: every varied parameter reaches the compiled
+lanes, and each batched variant equals ``simulate`` of the scene built with its values."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from servo_toolkit.scene.loader import load_scene
+from servo_toolkit.sim import layout as lo
+
+from .conftest import SCENES
+
+DURATION = 0.1
+TABLE = """
+[tolerances]
+motor.resistance = "+-20 %"
+motor.voltage_limit = "25 V:60 V"
+motor.coulomb_friction = "x0.5:x3"
+"drivetrain[0].backlash" = "0.05 deg:0.3 deg"
+sensors.output_encoder_bits = "10:16"
+"""
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    from servo_toolkit.sim import controller_for
+    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    path = tmp_path_factory.mktemp("tol") / "scene.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + TABLE)
+    scene = load_scene(path)
+    controller, _ = controller_for(scene)
+    values = {k: np.array(v) for k, v in {
+        "motor.resistance": [0.5, 0.42, 0.58], "motor.voltage_limit": [60.0, 25.0, 40.0],
+        "motor.coulomb_friction": [0.02, 0.06, 0.01], "drivetrain[0].backlash": np.radians([0.1, 0.3, 0.05]),
+        "sensors.output_encoder_bits": [16.0, 10.0, 13.0]}.items()}
+    return scene, controller, values, tolerance_runs(scene, values, controller, duration=DURATION, progress=False)
+
+
+def test_every_varied_parameter_is_in_its_lane_row(runs):
+    scene, _, values, r = runs
+    rows = r.rows
+    assert rows.fitted is not None and rows.error < 1e-4 and not rows.inert
+    assert rows.options.backlash and any("backlash kept" in n for n in r.notes)  # the reduced model had left it out
+    X = np.column_stack([values[k] for k in rows.names])
+    P, _, _ = rows.rows(X)
+    np.testing.assert_allclose(P[:, lo.R], values["motor.resistance"], rtol=1e-12)
+    np.testing.assert_allclose(P[:, lo.VLIM], values["motor.voltage_limit"], rtol=1e-12)
+    np.testing.assert_allclose(P[:, lo.TC], values["motor.coulomb_friction"], rtol=1e-12)
+    np.testing.assert_allclose(P[:, lo.LSB], 2 * math.pi / 2 ** values["sensors.output_encoder_bits"], rtol=1e-12)
+    assert np.all(np.diff(P[[2, 0, 1], lo.HALF_PLAY]) > 0)  # more gear backlash, more lost motion
+    assert np.all(P[:, lo.KPI] == rows.P0[lo.KPI])  # the controller is the nominal one
+
+
+def test_each_batched_variant_equals_simulate_of_its_scene(runs):
+    from servo_toolkit.sim import simulate
+    scene, controller, values, r = runs
+    keys = scene.tolerances.scene_keys()
+    for i in range(3):
+        variant = keys.scene({k: v[i] for k, v in values.items()})
+        single = simulate(variant, controller, reference=r.rows.reference, duration=DURATION, method="rk4",
+                          dt=r.dt_s, options=r.rows.options, output_dt=r.dt_s)
+        err = float(np.max(np.abs(single.output_angle - single.reference_angle)))
+        cur = float(np.max(np.abs(single.motor_current)))
+        assert r.tracking_error[i] == pytest.approx(err, rel=1e-4)
+        assert r.peak_current[i] == pytest.approx(cur, rel=1e-4)
+    assert not r.failed.any()
+    # the 25 V supply limits the second variant: it saturates and tracks worse than the nominal one
+    assert r.saturated[1] and r.tracking_error[1] > 1.05 * r.tracking_error[0]
