@@ -3,20 +3,16 @@ against independent computations, plain words, and a typeset A4 PDF."""
 
 from __future__ import annotations
 
-import hashlib
 import html as html_lib
 import json
 import math
 import re
-import shutil
-import subprocess
 
 import numpy as np
 import pytest
 
 from servo_toolkit import load_scene
 from servo_toolkit.cli import main
-from servo_toolkit.core.version import __version__
 
 from .conftest import SCENES
 
@@ -24,11 +20,11 @@ EMA = SCENES / "ema_reference.toml"
 
 
 @pytest.fixture(scope="module")
-def report_dir(tmp_path_factory):
+def report_dir(scene_report):
     """The reference EMA's report, written once by the command line (light settings)."""
-    out = tmp_path_factory.mktemp("document") / "r"
-    assert main(["report", str(EMA), "-o", str(out), "--strict"]) == 0
-    return out
+    run = scene_report("ema_reference")
+    assert run.code == 0, run.err[-2000:]  # complete, and --strict: every requirement met
+    return run.folder
 
 
 @pytest.fixture(scope="module")
@@ -190,57 +186,7 @@ def test_plain_text_of_markup():
     assert plain(":func:`the sweep <servo_toolkit.studies.sweep>`") == "the sweep"
 
 
-# --- the PDF as a document -------------------------------------------------------------------
-
-
-def _typeset(pdf):
-    if shutil.which("pdftoppm") is None or shutil.which("pdftotext") is None:
-        pytest.skip("pdftoppm/pdftotext not found (Debian package poppler-utils; .ci/run installs it)")
-    from servo_toolkit.report.pdf_writer import paged_engine
-    if paged_engine() is None:
-        pytest.skip("WeasyPrint or Pango missing: the report writes the plain fallback PDF")
-    return pdf
-
-
-def _pages_text(pdf):
-    text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True,
-                          timeout=120).stdout
-    return text.split("\f")[:-1] if text.endswith("\f") else text.split("\f")
-
-
-def test_pdf_prints_as_a_document(report_dir, tmp_path, html):
-    pdf = _typeset(report_dir / "report.pdf")
-    subprocess.run(["pdftoppm", "-r", "20", "-png", str(pdf), str(tmp_path / "page")], check=True, timeout=300)
-    pngs = sorted(tmp_path.glob("page*.png"))
-    assert len(pngs) >= 10
-    sizes = set()
-    for png in pngs:  # width and height from the PNG header
-        data = png.read_bytes()[16:24]
-        sizes.add((int.from_bytes(data[:4], "big"), int.from_bytes(data[4:], "big")))
-    assert len(sizes) == 1, "every page has the same size"
-    (w, h), = sizes
-    assert w == pytest.approx(210 / 25.4 * 20, abs=1.5) and h == pytest.approx(297 / 25.4 * 20, abs=1.5)  # A4
-    pages = _pages_text(pdf)
-    assert len(pages) == len(pngs)
-    digest = hashlib.sha256(EMA.read_bytes()).hexdigest()
-    for i, page in enumerate(pages, 1):
-        assert f"page {i} of {len(pages)}" in page
-        assert "ema_reference" in page and digest in page and f"servo_toolkit {__version__}" in page
-    first = pages[0]
-    for words in ("Contents", "prepared", "checked", "approved", "signature"):
-        assert words in first
-    # numbered sections with their page in the contents, numbered figures
-    assert re.search(r"1\. Requirements \.+ ?2", " ".join(first.split()))
-    whole = " ".join(" ".join(pages).split())
-    assert "Figure 3.1." in whole and html.count('<img class="report-figure"') == len(re.findall(r"Figure \d+\.\d+\.", whole))
-
-
-def test_pdf_tables_are_real_tables_with_the_scene_headings(report_dir):
-    pdf = _typeset(report_dir / "report.pdf")
-    whole = " ".join(" ".join(_pages_text(pdf)).split())
-    for heading in ("Motor", "Stage 1: spur gear", "Stage 4", "Load", "Sensors"):
-        assert heading in whole
-    assert "bandwidth" in whole and "large_signal_gain" in whole
+# --- the PDF as a document: tests/test_report_pdf.py, for every shipped scene ------------------
 
 
 # --- timings -----------------------------------------------------------------------------------

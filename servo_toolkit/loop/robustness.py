@@ -26,29 +26,13 @@ from .metrics import grid_figures
 from .requirements import check
 from .response import loop_response, plant_responses, state_space_response
 from .sampling import sample_variants as _sample
+from .vary import PARAMETERS, parse_vary, ranges_text, variant_text
 from ..display.cards import RichDisplay
 from ..display.cards import card, facts, requirements_table, svg
 from ..display.html import fmt
 from ..display.units import DisplayUnits
 
-PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
-              "stiffness": "factor on the series stiffness"}
 DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
-
-
-def parse_vary(text: str):
-    """``"load_inertia=0:4"`` -> ``("load_inertia", (0.0, 4.0))``."""
-    name, _, rng = text.partition("=")
-    name = name.strip()
-    if name not in PARAMETERS:
-        raise SceneError(f"vary.{name}", f"unknown parameter; known: {sorted(PARAMETERS)}")
-    try:
-        lo, hi = (float(v) for v in rng.split(":"))
-    except ValueError:
-        raise SceneError(f"vary.{name}", f"expected LO:HI numbers, got {rng!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (name == "stiffness" and lo <= 0) or lo < 0:
-        raise SceneError(f"vary.{name}", f"need 0 <= LO <= HI (stiffness LO > 0), got {rng!r}")
-    return name, (lo, hi)
 
 
 def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0) -> dict:
@@ -185,6 +169,14 @@ class RobustnessResult(RichDisplay):
         """Checks that are not met."""
         return [c for c in self.requirements if not c.passed]
 
+    def ranges_text(self) -> str:
+        """The varied parameters' spans with their units (:func:`.vary.ranges_text`)."""
+        return ranges_text(self.values, self.display, OutputUnit(self.output_unit).linear)
+
+    def variant_text(self, values: dict) -> str:
+        """One variant's parameters (name -> SI value) with their units (:func:`.vary.variant_text`)."""
+        return variant_text(values, self.display, OutputUnit(self.output_unit).linear)
+
     def worst_variant(self, name: str) -> dict:
         """Parameter values of the variant that gives the worst ``name`` figure."""
         return dict(self.worst.get(name, {}))
@@ -199,14 +191,9 @@ class RobustnessResult(RichDisplay):
 
     def table(self) -> str:
         """Worst cases as text."""
-        linear = OutputUnit(self.output_unit).linear
-        show = {"load_inertia": lambda v: self.display.show("inertia", v, linear)}
-        unit = {"load_inertia": " " + self.display.inertia_unit(linear)}
-        rng = ", ".join(f"{k} {fmt(show.get(k, float)(v.min()), 3)}..{fmt(show.get(k, float)(v.max()), 3)}"
-                        f"{unit.get(k, '')}" for k, v in self.values.items())
-        lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
+        lines = [f"  robustness over {self.count} variants ({self.ranges_text()}): {self.unstable_count} unstable"]
         for c in self.requirements:
-            at = ", ".join(f"{k}={fmt(show.get(k, float)(v), 3)}" for k, v in self.worst.get(c.name, {}).items())
+            at = self.variant_text(self.worst.get(c.name, {}))
             short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
             lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
                          f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
@@ -396,8 +383,7 @@ def _card_line(r) -> str:
 
 def _card_html(r) -> str:
     """The Jupyter card (HTML) of a result of this module."""
-    ranges = ", ".join(f"{k} {np.min(v):.3g}..{np.max(v):.3g}" for k, v in r.values.items())
-    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", ranges))),
+    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", r.ranges_text()))),
              requirements_table(r.requirements)]
     if hasattr(r, "plot"):
         parts.append(svg(lambda ax: r.plot(ax), size=(7.0, 3.6)))

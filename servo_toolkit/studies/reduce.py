@@ -18,7 +18,6 @@ are outside that statement and are reported separately.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -56,8 +55,6 @@ class ReductionResult(RichDisplay):
     saturated : numpy.ndarray
         (n_a, n_f) bool: a limit was reached in either run (outside the linear statement).
     full_options, reduced_options : dict
-    full_wall_s, reduced_wall_s : float
-        Wall time of the study on each model.
     notes : tuple of str
     output_unit : {"rad", "m"}
         Unit of the output coordinate; amplitudes are shown in deg or mm after it.
@@ -73,8 +70,6 @@ class ReductionResult(RichDisplay):
     saturated: np.ndarray
     full_options: dict
     reduced_options: dict
-    full_wall_s: float
-    reduced_wall_s: float
     notes: tuple = field(default_factory=tuple)
     output_unit: str = "rad"
 
@@ -133,7 +128,6 @@ class ReductionResult(RichDisplay):
                             "saturated": bool(self.saturated[i, k])}
                            for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
                 "full_options": self.full_options, "reduced_options": self.reduced_options,
-                "full_wall_s": self.full_wall_s, "reduced_wall_s": self.reduced_wall_s,
                 "notes": list(self.notes)}
 
     def table(self) -> str:
@@ -165,7 +159,6 @@ class ReductionResult(RichDisplay):
         if np.any(self.saturated) and self.bound_applies:
             lines.append(f"points that reached a limit (outside the linear statement): largest difference "
                          f"{self.measured_saturated:.2e}")
-        lines.append(f"wall time: full {self.full_wall_s:.2f} s, reduced {self.reduced_wall_s:.2f} s")
         lines += [f"note: {n}" for n in p.notes + self.notes]
         return "\n".join(lines)
 
@@ -229,18 +222,16 @@ def _trace_case(case):
     before it (the start-up transient: the command starts with its full slope)."""
     from ..sim import Reference, run
     model, amp, freq, duration, limits, t_settle = case
-    start = time.perf_counter()
     try:
         # RK4 with the step it needs: shrunk where a mode stiffens along the run (an end stop)
         res = run(model, Reference.sine(amp, freq), duration, "auto")
     except SimulationError as exc:
-        return {"error": str(exc), "wall_s": time.perf_counter() - start}
+        return {"error": str(exc)}
     hit = ((np.abs(res.current_reference) >= limits[0] * (1 - 1e-9))
            | (np.abs(res.motor_voltage) >= limits[1] * (1 - 1e-9)))
     window = res.times >= t_settle
     return {"t": res.times, "q": res.output_angle - model.q0, "saturated": bool(np.any(hit[window])),
-            "startup_saturated": bool(np.any(hit[~window])), "error": None,
-            "wall_s": time.perf_counter() - start}
+            "startup_saturated": bool(np.any(hit[~window])), "error": None}
 
 
 def _trace_difference(full, red, t_settle):
@@ -320,7 +311,6 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         failed_one = np.isnan(s_full.response) ^ np.isnan(s_red.response)
         diff[failed_one] = math.inf
         sat = s_full.saturated | s_red.saturated | failed_one
-        walls = (s_full.wall_s, s_red.wall_s)
         if np.isnan(diff).any():
             notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
                          f"{next(e for e in s_full.errors if e)}); not compared")
@@ -330,13 +320,11 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         f = float(freqs[0])
         settle, est = dwell.cycles(f, decay)
         limits = (scene.motor.current_limit, scene.motor.voltage_limit)
-        walls, runs = [], {}
+        runs = {}
         for key, opts in (("full", full), ("reduced", reduced)):
-            start = time.perf_counter()
             model = build_model(scene, controller, opts)
             runs[key] = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits, settle / f) for a in amps],
                                   executor=executor, progress=progress, description=f"{key} model")
-            walls.append(time.perf_counter() - start)
         pairs = [_trace_difference(a, b, settle / f) for a, b in zip(runs["full"], runs["reduced"])]
         diff = np.array([[d] for d, _ in pairs])
         sat = np.array([[s] for _, s in pairs])
@@ -352,7 +340,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
-                           full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes),
+                           notes=tuple(notes),
                            output_unit=output_unit(scene).si)
 
 
@@ -402,8 +390,7 @@ def _card_html(r) -> str:
     rows = [(e.effect, num(e.estimate, 3), "left out" if e.omitted else "kept", e.reason) for e in r.plan.effects]
     parts = [table(("effect", "estimate (relative)", "decision", "why"), rows),
              facts((("a-priori bound", num(r.bound, 3)), ("measured difference", num(r.measured, 3)),
-                    ("verdict", r.verdict), ("wall time full / reduced",
-                                             f"{num(r.full_wall_s, 3)} s / {num(r.reduced_wall_s, 3)} s"))),
+                    ("verdict", r.verdict))),
              svg(lambda ax: r.plot(ax), size=(7.0, 3.4))]
     return card(f"Reduction of {r.scene}", status=r.within_bound if r.within_bound is not None else None,
                 parts=parts, notes=r.notes)
