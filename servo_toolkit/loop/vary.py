@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from ..core.ranges import CONDITIONED
+from ..core.ranges import VARIED
 from ..display.html import fmt
 from ..display.units import DisplayUnits
 from ..errors import SceneError
@@ -21,11 +21,8 @@ PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces 
               "stiffness": "factor on the series stiffness"}
 
 #: name -> (smallest nonzero value, largest value) a varied parameter's models are
-#: conditioned for: a load inertia as a scene's (:mod:`servo_toolkit.core.ranges`, 0 allowed),
-#: a stiffness factor that keeps the reference EMA's series stiffness within a stiffness's
-#: range (1e-2 .. 1e12 N*m/rad)
-VARY_RANGES = {"load_inertia": (CONDITIONED["kg*m^2"][0], CONDITIONED["kg*m^2"][1]),
-               "stiffness": (1e-3, 1e3)}
+#: conditioned for (:data:`servo_toolkit.core.ranges.VARIED`, as a scene's ``[robustness]``)
+VARY_RANGES = VARIED
 
 
 def parse_vary(text: str):
