@@ -65,17 +65,30 @@ def _response(sys, f_hz):
 # --- one requirement table -----------------------------------------------------------------
 
 
-def test_report_and_check_have_the_same_rows(html, capsys):
-    rows = _table(html, "requirements-table")
+@pytest.mark.parametrize("name, code", [("ema_reference", 0), ("ema_robust", 1)])
+def test_report_and_check_have_the_same_rows(name, code, scene_report, capsys):
+    """The same rows, IDs, requirements, achieved figures and verdicts: on the reference EMA
+    (every row met) and on the robust scene (failing rows, large-signal and robustness rows)."""
+    run = scene_report(name)
+    page = (run.folder / "index.html").read_text(encoding="utf-8")
+    rows = _table(page, "requirements-table")
+    section = re.search(r'<section id="requirements".*?</section>', page, re.S).group(0)
+    details = {k: html_lib.unescape(v) for k, v in re.findall(r"<li>([a-z0-9_]+): (.*?)</li>", section)}
     capsys.readouterr()
-    assert main(["check", str(EMA), "--json"]) == 0
+    assert main(["check", str(SCENES / f"{name}.toml"), "--json"]) == code
     checked = json.loads(capsys.readouterr().out)["scenes"][0]["rows"]
     assert [r["ID"] for r in rows] == [r["id"] for r in checked]
     for shown, row in zip(rows, checked):
-        assert (shown["required"], shown["status"]) == (row["required"], row["status"]), row["id"]
+        assert (shown["required"], shown["achieved"], shown["status"]) == (
+            row["required"], row["achieved"], row["status"]), row["id"]
+        assert details.get(row["id"], "") == row["detail"], row["id"]  # the worst variant named alike
     ids = {r["ID"] for r in rows}
     # the large-signal rows the report used to leave out are there
     assert {"large_signal_gain", "large_signal_phase", "closed_loop_stable", "bandwidth"} <= ids
+    assert (run.code == 1) == any(r["status"] == "fail" for r in checked)  # --strict: exit 1 on a failed row
+    if name == "ema_robust":
+        assert {"robust_gain_margin", "robust_stable_fraction"} <= ids
+        assert [r["id"] for r in checked if r["status"] == "fail"], "the robust scene fails some rows"
 
 
 def test_junit_testcases_are_the_row_ids(tmp_path, design):

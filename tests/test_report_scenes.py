@@ -18,17 +18,17 @@ from .conftest import SCENES
 
 
 @pytest.mark.parametrize("name", ["cam_follower", "deflection_platform", "roller_screw_two_stage"])
-def test_report_on_other_scenes_completes(name, tmp_path, capsys):
-    out = tmp_path / "r"
-    assert main(["report", str(SCENES / f"{name}.toml"), "-o", str(out)]) == 0
-    html = (out / "index.html").read_text(encoding="utf-8")
-    assert (out / "report.pdf").read_bytes().startswith(b"%PDF")
+def test_report_on_other_scenes_completes(name, scene_report):
+    run = scene_report(name)  # written once for the session (the PDF tests read it too)
+    assert run.code == 0, run.err[-2000:]
+    html = (run.folder / "index.html").read_text(encoding="utf-8")
+    assert (run.folder / "report.pdf").read_bytes().startswith(b"%PDF")
     assert "Scene summary" in html and name in html
     if name != "cam_follower":
         # no motor-driven drivetrain: the drivetrain sections say so, politely
         stiff = re.search(r'<section id="stiffness" data-status="([^"]+)">(.*?)</section>', html, re.S)
         assert stiff.group(1) == "n/a" and "needs a motor-driven drivetrain" in stiff.group(2)
-    assert "wrote" in capsys.readouterr().out
+    assert "wrote" in run.out
 
 
 def test_bad_scene_exits_2(tmp_path, capsys):

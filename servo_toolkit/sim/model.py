@@ -55,7 +55,7 @@ from ..core.output_units import OutputUnit
 from ..drivetrain.operating_point import operating_point
 from ..loop.controller import MOTION_INPUTS
 from . import speed_estimator as estimator, layout as lo
-from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, resolve as resolve_chain
+from .chain_model import CHAIN_CHOICES, chain_model, chain_state_names, held_inertia_error, resolve as resolve_chain
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .model_slots import FRICTION_CHOICES, drivetrain_slots, friction_slots, with_cam, with_full_chain, with_table_error
 
@@ -341,7 +341,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
         if np.any(j_row <= 0):
-            raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
+            raise held_inertia_error(drive, q, j_row)
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
         if full is not None:
