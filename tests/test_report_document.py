@@ -225,3 +225,37 @@ def test_accuracy_wall_times_are_the_best_of_repeats(monkeypatch):
     res = acc.accuracy_study(model, reference, 0.01, dts=[1e-3, 5e-4], progress=False, repeats=3)
     assert len(calls) == 3 * (1 + 2 * 2) and res.repeats == 3
     assert all(r["wall_s"] == 1.0 for r in res.runs) and res.reference_wall_s == 1.0
+
+
+# --- the typeset PDF is what an installation gives ------------------------------------------
+
+
+def test_weasyprint_is_a_dependency_of_the_toolkit():
+    """``python -m pip install .`` (the README's set-up) brings the paged-media engine."""
+    import tomllib
+    project = tomllib.loads((SCENES.parent / "pyproject.toml").read_text())["project"]
+    names = [re.split(r"[<>=!~ \[]", d, maxsplit=1)[0].lower() for d in project["dependencies"]]
+    assert "weasyprint" in names and "jinja2" in names
+
+
+def test_without_pango_the_fallback_pdf_says_why(monkeypatch, tmp_path, capsys):
+    """A system without Pango (WeasyPrint cannot load it) gets the plain PDF and one stderr
+    line naming what to install; the report is still complete."""
+    import servo_toolkit.report as report_pkg
+    import servo_toolkit.report.pdf_writer as pdf_writer
+    from servo_toolkit.report.builder import Report
+    from servo_toolkit.report.section import Section
+
+    def no_pango():
+        raise OSError("cannot load library 'libpango-1.0-0': libpango-1.0-0: cannot open shared object file")
+    monkeypatch.setattr(pdf_writer, "_weasyprint", no_pango)
+    fake = Report("x", "x", (Section("Requirements", "<p>none</p>", status="n/a", reason="nothing to check",
+                                     key="requirements"),), ())
+    monkeypatch.setattr(report_pkg, "build_report", lambda *a, **k: fake)
+    monkeypatch.setattr("servo_toolkit.cli.cmd_report.prepare_kernels", lambda *a, **k: None)
+    monkeypatch.setattr("servo_toolkit.cli.cmd_report._check_budget", lambda *a, **k: None)
+    out = tmp_path / "r"
+    assert main(["report", str(EMA), "-o", str(out)]) == 0
+    assert (out / "report.pdf").read_bytes().startswith(b"%PDF")
+    note = [ln for ln in capsys.readouterr().err.splitlines() if "fallback" in ln]
+    assert len(note) == 1 and "Pango" in note[0] and "apt-get install libpango-1.0-0" in note[0]
