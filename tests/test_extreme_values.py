@@ -126,6 +126,8 @@ def test_accepted_extremes_run_cleanly_through_the_commands(accepted, tmp_path):
     (("drivetrain", 0, "torsional_stiffness"), "1e-30 N*m/rad", "drivetrain[0].torsional_stiffness",
      "[0.01, 1e+12] N*m/rad"),
     (("sensors", "sample_time"), "0.1 ms / 0", "sensors.sample_time", "not an expression"),
+    # 1 nH on 0.5 ohm: L/R = 2 ns, where the reference solver stalls (3e6 evaluations)
+    (("motor", "inductance"), "1e-9 H", "motor.inductance", "L/R = 2e-09 s is below 1e-07 s"),
 ])
 def test_the_reported_extremes_are_refused_at_load_time(path, value, key, words):
     data = copy.deepcopy(EMA)
@@ -161,3 +163,161 @@ def test_a_quantity_is_a_number_and_a_unit(text):
 def test_exponents_and_reciprocals_are_still_units(text, unit, si):
     from servo_toolkit.core.units import parse_quantity
     assert parse_quantity(text, unit, "k") == pytest.approx(si, rel=1e-12)
+
+
+# --- in-range values at the ends of each key's conditioned range, through every command ------
+
+
+def _table_path(table: str, key: str) -> tuple:
+    """``("drivetrain", 1, "nut_mass")`` of the loader's ``drivetrain[1]`` and ``nut_mass``."""
+    parts = []
+    for piece in table.split("."):
+        head = re.match(r"^[^\[]*", piece).group(0)
+        if head:
+            parts.append(head)
+        parts += [int(i) for i in re.findall(r"\[(\d+)\]", piece)]
+    return tuple(parts) + (key,)
+
+
+def _edges():
+    """``(scene, key path, value)``: every numeric key the loader reads from a shipped scene
+    with a range, at both ends of it in SI (the smallest nonzero magnitude and the largest;
+    +-the largest for a signed key), as :mod:`servo_toolkit.core.ranges` and the components
+    state them. A list key has its first entry set."""
+    from servo_toolkit.core.fields import recording_reads
+    out = []
+    for name, data in sorted(SHIPPED.items()):
+        with recording_reads() as reads:
+            scene_from_dict(copy.deepcopy(data), name)
+        seen = set()
+        for r in reads:
+            if r.written is None or r.bounds is None or r.reader not in ("quantity", "number", "quantity list"):
+                continue
+            path = _table_path(r.table, r.key) + ((0,) if isinstance(r.written, list) else ())
+            try:
+                _get(data, path)
+            except (KeyError, IndexError, TypeError):
+                continue  # a key of a nested record the loader names differently (a pair of moments)
+            if path in seen:
+                continue
+            seen.add(path)
+            low, high = r.bounds
+            out += [(name, path, x) for x in ((high, -high) if r.rule == "finite" else (low, high))]
+    return out
+
+
+def _get(data, path):
+    for p in path:
+        data = data[p]
+    return data
+
+
+def _put(data, path, x):
+    data = copy.deepcopy(data)
+    target = data
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = x
+    return data
+
+
+EDGES = _edges()
+
+
+def test_every_range_end_loads_or_names_its_key():
+    """A value at an end of its key's range is inside the range: it loads, or a rule that
+    joins it to another key (a stroke the linkage cannot reach, a time constant, a duty cycle
+    past the stroke) refuses it in one line naming a key of the same scene."""
+    assert len(EDGES) > 400
+    accepted = 0
+    for name, path, x in EDGES:
+        try:
+            scene_from_dict(_put(SHIPPED[name], path, x), name)
+        except SceneError as exc:
+            assert "\n" not in str(exc) and exc.key, (name, path, x, str(exc))
+            assert "conditioned for (got" not in exc.rule or _key(path) not in exc.key, (name, path, x, str(exc))
+            continue
+        accepted += 1
+    assert accepted > 300
+
+
+#: command -> arguments that keep a run short ({tmp}: a fresh folder)
+EDGE_COMMANDS = {
+    "stiffness": [], "design": ["--linear-only"], "check": ["--nominal", "--samples", "8"],
+    "simulate": [], "sweep": ["--frequency", "8"], "kv": [], "reduce": ["--estimate-only"], "accuracy": [],
+    "export": ["-o", "{tmp}/export"], "montecarlo": ["--samples", "4", "--duration", "0.02"], "size": [],
+    "report": ["-o", "{tmp}/report"],
+}
+#: the mutations every command runs (a deterministic spread over the accepted range ends of the
+#: scenes with a loop, and one of a scene without, whose report is quick); report runs on the
+#: latter only (the others' reports are the same computations as the commands' own)
+EDGE_PICKS = ("ema_reference.toml", "ema_sizing.toml", "deflection_platform.toml")
+
+
+def _edge_runs():
+    runs = []
+    for k, scene in enumerate(EDGE_PICKS):
+        mine = []
+        for name, path, x in EDGES:
+            if name != scene:
+                continue
+            try:
+                scene_from_dict(_put(SHIPPED[name], path, x), name)
+            except SceneError:
+                continue
+            mine.append((name, path, x))
+        runs.append(mine[(7 * k + 3) % len(mine)])
+    return runs
+
+
+@pytest.fixture(scope="module")
+def memoized_design():
+    """The loop design once per mutation (it is deterministic): the commands share it."""
+    import functools
+    import importlib
+    module = importlib.import_module("servo_toolkit.loop.design")
+    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
+    original, saved = module.design, cmd.design
+    cache = {}
+
+    @functools.wraps(original)
+    def design(scene, *args, **kwargs):
+        key = repr((scene, args, sorted(kwargs.items())))
+        if key not in cache:
+            cache[key] = original(scene, *args, **kwargs)
+        return cache[key]
+    module.design = cmd.design = design
+    yield
+    module.design, cmd.design = original, saved
+
+
+@pytest.mark.parametrize("mutation", _edge_runs(), ids=lambda m: f"{m[0]}:{_key(m[1])}={m[2]:g}")
+def test_range_ends_run_cleanly_through_every_command(mutation, memoized_design, tmp_path):
+    name, path, x = mutation
+    scene = tmp_path / name
+    scene.write_text(dumps(_put(SHIPPED[name], path, x)))
+    for command, extra in EDGE_COMMANDS.items():
+        if command == "report" and name != EDGE_PICKS[-1]:
+            continue
+        argv = [command, str(scene), *(a.replace("{tmp}", str(tmp_path)) for a in extra)]
+        code, lines = run(argv)
+        assert code in (0, 1, 2) and not any("Traceback" in ln for ln in lines), (argv, code, lines)
+        if code == 2:
+            errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
+            assert len(errors) == 1, (argv, lines)
+
+
+@pytest.mark.parametrize("path, value, command, words", [
+    # a nut this heavy behind the rocker: its inertia's variation along the stroke exceeds the
+    # motor side's, which the model (load side held at q0) cannot take; the stage is named
+    (("drivetrain", 1, "nut_mass"), "1e6 kg", "simulate", "drivetrain[1]: the ball screw: nut's inertia"),
+    # no stable cascade for a load this heavy: the sweep says that it is the design's verdict
+    (("load", "inertia"), "1e6 kg*m^2", "sweep", "a physical verdict on the design"),
+])
+def test_the_reported_range_ends_are_one_line_naming_the_cause(path, value, command, words, tmp_path,
+                                                                memoized_design):
+    scene = tmp_path / "edge.toml"
+    scene.write_text(dumps(_put(EMA, path, value)))
+    code, lines = run([command, str(scene), *(["--frequency", "8"] if command == "sweep" else [])])
+    errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
+    assert code == 2 and len(errors) == 1 and words in errors[0], lines
