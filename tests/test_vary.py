@@ -4,8 +4,6 @@ parameters read with their units wherever they are shown."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -80,7 +78,6 @@ def test_a_variant_reads_with_its_units():
     assert variant_text({"load_inertia": 3.99}, cm) == f"load_inertia = {3.99e4 / 1e3:g}e3 kg*cm^2"
     assert variant_text({"load_inertia": 1.5}, linear=True) == "load_inertia = 1.5 kg"
     assert ranges_text(values, cm) == "load_inertia 0..39.9e3 kg*cm^2, stiffness 0.7..1.3 x nominal"
-    assert not math.isnan(VARY_RANGES["stiffness"][0])
 
 
 def test_report_and_gate_rows_name_the_variant_with_units():
