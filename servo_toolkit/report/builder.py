@@ -32,7 +32,7 @@ from .time_limit import time_limit as _time_limit
 #: default wall-time limit per section (s) with light settings; None with full settings
 LIGHT_SECTION_TIME_LIMIT = 20.0
 
-#: Section builders in report order (the requirements table is built last, shown first).
+#: Section builders in report order (the requirements table, REQUIREMENTS, is built and shown first).
 SECTIONS = (
     ("scene", "Scene summary", drv.scene_summary),
     ("stiffness", "Stiffness chain and compliance shares", drv.stiffness_chain),
