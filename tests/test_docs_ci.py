@@ -20,6 +20,13 @@ from .conftest import ROOT
 GETTING_STARTED = ROOT / "docs" / "getting_started.md"
 
 
+def _content(scene) -> str:
+    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
+    import hashlib
+    from pathlib import Path
+    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
+
+
 @pytest.fixture(scope="module", autouse=True)
 def memoized_design():
     """The loop design once per scene (it is deterministic): the two gates share their designs."""
@@ -30,7 +37,7 @@ def memoized_design():
 
     @functools.wraps(original)
     def design(scene, *args, **kwargs):
-        key = repr((scene, args, sorted(kwargs.items())))
+        key = repr((scene, _content(scene), args, sorted(kwargs.items())))
         if key not in cache:
             cache[key] = original(scene, *args, **kwargs)
         return cache[key]

@@ -75,6 +75,13 @@ def _accepted():
     return out
 
 
+def _content(scene) -> str:
+    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
+    import hashlib
+    from pathlib import Path
+    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
+
+
 @pytest.fixture(scope="module")
 def accepted():
     return _accepted()
@@ -282,7 +289,7 @@ def memoized_design():
 
     @functools.wraps(original)
     def design(scene, *args, **kwargs):
-        key = repr((scene, args, sorted(kwargs.items())))
+        key = repr((scene, _content(scene), args, sorted(kwargs.items())))
         if key not in cache:
             cache[key] = original(scene, *args, **kwargs)
         return cache[key]
