@@ -252,7 +252,7 @@ def test_every_range_end_loads_or_names_its_key():
 EDGE_COMMANDS = {
     "stiffness": [], "design": ["--linear-only"], "check": ["--nominal", "--samples", "8"],
     "simulate": [], "sweep": ["--frequency", "8"], "kv": [], "reduce": ["--estimate-only"], "accuracy": [],
-    "export": ["-o", "{tmp}/export"], "montecarlo": ["--samples", "4", "--duration", "0.02"], "size": [],
+    "export": ["-o", "{tmp}/export"], "montecarlo": ["--samples", "4", "--duration", "0.02"], "size": ["--no-sweep"],
     "report": ["-o", "{tmp}/report"],
 }
 #: the mutations every command runs (a deterministic spread over the accepted range ends of the
