@@ -64,17 +64,6 @@ def _load(name, path, x):
     return scene_from_dict(_set(SHIPPED[name], path, x), name)
 
 
-def _accepted():
-    out = []
-    for name, path, x in MUTATIONS:
-        try:
-            _load(name, path, x)
-        except SceneError:
-            continue
-        out.append((name, path, x))
-    return out
-
-
 def _content(scene) -> str:
     """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
     import hashlib
@@ -83,16 +72,29 @@ def _content(scene) -> str:
 
 
 @pytest.fixture(scope="module")
-def accepted():
-    return _accepted()
-
-
-def test_every_extreme_value_loads_or_names_its_key_and_range():
-    assert len(MUTATIONS) > 1000
+def mutation_loads():
+    """``(scene, key path, value, SceneError or None)`` of every mutation, each loaded once
+    (any other exception fails the tests that use it)."""
+    out = []
     for name, path, x in MUTATIONS:
         try:
             _load(name, path, x)
-        except SceneError as exc:  # any other exception fails the test
+        except SceneError as exc:
+            out.append((name, path, x, exc))
+            continue
+        out.append((name, path, x, None))
+    return out
+
+
+@pytest.fixture(scope="module")
+def accepted(mutation_loads):
+    return [(name, path, x) for name, path, x, exc in mutation_loads if exc is None]
+
+
+def test_every_extreme_value_loads_or_names_its_key_and_range(mutation_loads):
+    assert len(MUTATIONS) > 1000
+    for name, path, x, exc in mutation_loads:
+        if exc is not None:
             text = str(exc)
             assert "\n" not in text, (name, path, x, text)
             if abs(x) in (1e300, 1e30) and "integer" not in exc.rule:
@@ -231,21 +233,36 @@ def _put(data, path, x):
 EDGES = _edges()
 
 
-def test_every_range_end_loads_or_names_its_key():
-    """A value at an end of its key's range is inside the range: it loads, or a rule that
-    joins it to another key (a stroke the linkage cannot reach, a time constant, a duty cycle
-    past the stroke) refuses it in one line naming a key of the same scene."""
-    assert len(EDGES) > 400
-    accepted = 0
+@pytest.fixture(scope="module")
+def edge_loads():
+    """``(scene, key path, value, SceneError or None)`` of every range end of :data:`EDGES`."""
+    out = []
     for name, path, x in EDGES:
         try:
             scene_from_dict(_put(SHIPPED[name], path, x), name)
         except SceneError as exc:
+            out.append((name, path, x, exc))
+            continue
+        out.append((name, path, x, None))
+    return out
+
+
+@pytest.fixture(scope="module")
+def accepted_edges(edge_loads):
+    """Every range end of :data:`EDGES` that loads (a scene accepted with it)."""
+    return [(name, path, x) for name, path, x, exc in edge_loads if exc is None]
+
+
+def test_every_range_end_loads_or_names_its_key(edge_loads, accepted_edges):
+    """A value at an end of its key's range is inside the range: it loads, or a rule that
+    joins it to another key (a stroke the linkage cannot reach, a time constant, a duty cycle
+    past the stroke) refuses it in one line naming a key of the same scene."""
+    assert len(EDGES) > 400
+    for name, path, x, exc in edge_loads:
+        if exc is not None:
             assert "\n" not in str(exc) and exc.key, (name, path, x, str(exc))
             assert "conditioned for (got" not in exc.rule or _key(path) not in exc.key, (name, path, x, str(exc))
-            continue
-        accepted += 1
-    assert accepted > 300
+    assert len(accepted_edges) > 300
 
 
 #: command -> arguments that keep a run short ({tmp}: a fresh folder)
@@ -312,6 +329,35 @@ def test_range_ends_run_cleanly_through_every_command(mutation, memoized_design,
         if code == 2:
             errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
             assert len(errors) == 1, (argv, lines)
+
+
+#: the commands that need no loop design, run at every accepted range end of every shipped
+#: scene, ``size`` at every other one and ``kv`` at every eighth (its step responses are the
+#: costliest)
+STATIC_COMMANDS = {"stiffness": 1, "size": 2, "kv": 8}
+
+
+def test_every_accepted_range_end_runs_cleanly_through_the_static_commands(accepted_edges, tmp_path):
+    """Breadth: every key's range ends of every shipped scene through ``stiffness`` (and
+    ``size`` and ``kv`` at a deterministic spread): a clean run, or one line and exit 2 (a
+    scene without a motor-driven drivetrain or a duty cycle, a joint its friction locks);
+    never a traceback."""
+    assert len(accepted_edges) > 300
+    ran = {command: 0 for command in STATIC_COMMANDS}
+    for i, (name, path, x) in enumerate(accepted_edges):
+        scene = tmp_path / name
+        scene.write_text(dumps(_put(SHIPPED[name], path, x)))
+        for command, every in STATIC_COMMANDS.items():
+            if i % every:
+                continue
+            ran[command] += 1
+            code, lines = run([command, str(scene), *EDGE_COMMANDS[command]])
+            assert code in (0, 1, 2) and not any("Traceback" in ln for ln in lines), (
+                name, _key(path), x, command, code, lines)
+            if code == 2:
+                errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
+                assert len(errors) == 1, (name, _key(path), x, command, lines)
+    assert min(ran.values()) > 40, ran
 
 
 @pytest.mark.parametrize("path, value, command, words", [
