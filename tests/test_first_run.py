@@ -115,7 +115,7 @@ def test_first_report_on_an_empty_cache_is_complete(tmp_path):
 
 def test_a_command_says_it_compiles_the_monte_carlo_batch_when_only_it_is_missing(tmp_path, monkeypatch, capsys):
     """With the single-run kernels cached but not the batch, ``montecarlo`` and the report of
-    a scene with [robustness] still say on stderr that they compile (about half a minute)."""
+    a scene with [robustness] still say on stderr that they compile."""
     from servo_toolkit import load_scene
     from servo_toolkit.core import jit_cache
     from servo_toolkit.cli.common import prepare_kernels

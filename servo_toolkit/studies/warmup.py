@@ -1,8 +1,8 @@
 """Compile (or load from the on-disk cache) the simulation kernels before timed work.
 
-The first run after an installation or an update of the kernels compiles them (about half a
-minute on a 2-core machine; :mod:`servo_toolkit.core.jit_cache` says where they are cached);
-later runs load them in well under a second. Reports and benchmarks call
+The first run after an installation or an update of the kernels compiles them (about 75 s on
+an idle 2-core machine, ``benchmarks/bench_startup.py``; :mod:`servo_toolkit.core.jit_cache`
+says where they are cached); later runs load them in well under a second. Reports and benchmarks call
 :func:`compile_kernels` first, so that no section's time limit and no timing is charged
 with compilation. The compiled code depends on the argument types alone, never on the
 scene, so one short run of the built-in reference actuator compiles every kernel a
@@ -15,8 +15,10 @@ import time
 
 #: steps of the warm-up run
 WARM_STEPS = 4
-#: seconds a cold compilation takes on a 2-core machine, for the progress message
-TYPICAL_COMPILE_S = 30
+#: seconds a cold compilation of the RK4 loop takes on an idle 2-core machine, for the progress
+#: message (``benchmarks/bench_startup.py``: the empty-cache ``simulate`` minus a warm one,
+#: scaled to the share of the cores the run had)
+TYPICAL_COMPILE_S = 75
 
 
 def is_cached(paper: bool = False, batch: bool = False) -> bool:
