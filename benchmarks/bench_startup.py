@@ -4,7 +4,10 @@ against a warm one (at most 4x), and the first and a warm ``report``.
 
 Each figure is the wall time of a new process, as a user meets it; "empty cache" runs use a
 fresh ``NUMBA_CACHE_DIR``, "warm" ones run again on the same folder. Run it on an idle
-machine: ``python benchmarks/bench_startup.py`` (about 4 minutes on 2 cores).
+machine: ``python benchmarks/bench_startup.py`` (4 to 8 minutes on 2 cores). The machine's load
+(the 1-minute load average of ``os.getloadavg``, sampled every 5 s during the run, and its core
+count) is printed with the figures: a figure measured while other jobs run is slower than on an
+idle machine.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -35,8 +39,18 @@ def timed(args, cache, repeats: int = 1) -> float:
     return best
 
 
+def sample_load(samples: list, stop: threading.Event, every_s: float = 5.0) -> None:
+    """Append the 1-minute load average to ``samples`` every ``every_s`` until ``stop``."""
+    while not stop.is_set():
+        samples.append(os.getloadavg()[0])
+        stop.wait(every_s)
+
+
 def main():
     cli = ["-m", "servo_toolkit"]
+    loads, stop = [], threading.Event()
+    sampler = threading.Thread(target=sample_load, args=(loads, stop), daemon=True)
+    sampler.start()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         imp = timed(["-c", "import servo_toolkit"], tmp / "c0", repeats=5)
@@ -45,6 +59,8 @@ def main():
         sim_warm = timed([*cli, "simulate", SCENE, "--json"], tmp / "c1", repeats=3)
         rep_cold = timed([*cli, "report", "-o", str(tmp / "r1")], tmp / "c2")
         rep_warm = timed([*cli, "report", "-o", str(tmp / "r2")], tmp / "c2")
+    stop.set()
+    sampler.join()
     ratio = sim_cold / sim_warm
     rows = [("import servo_toolkit", imp, f"< {TARGET_HELP_S:g} s", imp < TARGET_HELP_S),
             ("servo-toolkit --help", hlp, f"< {TARGET_HELP_S:g} s", hlp < TARGET_HELP_S),
@@ -58,6 +74,8 @@ def main():
         unit = "x" if name.endswith("warm") and ":" in name else "s"
         verdict = "" if ok is None else ("PASS" if ok else "FAIL")
         print(f"{name:<26}{value:>9.2f}{unit}  {target:<10}{verdict}")
+    print(f"machine: {os.cpu_count()} cores, 1-minute load average during the run {min(loads):.2f} to "
+          f"{max(loads):.2f}, mean {sum(loads) / len(loads):.2f} (this benchmark's own process adds about 1)")
 
 
 if __name__ == "__main__":

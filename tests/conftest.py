@@ -4,8 +4,11 @@ processes (pytest-xdist), one compilation of the simulation kernels for all of t
 from __future__ import annotations
 
 import copy
+import io
 import os
 import tomllib
+from contextlib import redirect_stderr, redirect_stdout
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -41,6 +44,36 @@ def pytest_sessionstart(session):
 def scenes_dir() -> Path:
     """Folder of the reference scenes shipped with the repository."""
     return SCENES
+
+
+@dataclass(frozen=True)
+class ReportRun:
+    """One ``servo-toolkit report SCENE -o FOLDER --strict`` run: its folder, exit code and output."""
+
+    folder: Path
+    code: int
+    out: str
+    err: str
+
+
+@pytest.fixture(scope="session")
+def scene_report(tmp_path_factory):
+    """``scene_report(name)``: the report of ``scenes/NAME.toml`` written by the command line
+    (light settings, ``--strict``), once per scene for the whole session; a
+    :class:`ReportRun`. The report tests share these runs, so each scene's report is built
+    once however many tests read it."""
+    from servo_toolkit.cli import main
+    made = {}
+
+    def report(name: str) -> ReportRun:
+        if name not in made:
+            folder = tmp_path_factory.mktemp("report") / name
+            out, err = io.StringIO(), io.StringIO()
+            with redirect_stdout(out), redirect_stderr(err):
+                code = main(["report", str(SCENES / f"{name}.toml"), "-o", str(folder), "--strict"])
+            made[name] = ReportRun(folder, code, out.getvalue(), err.getvalue())
+        return made[name]
+    return report
 
 
 @pytest.fixture

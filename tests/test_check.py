@@ -69,7 +69,7 @@ def test_robustness_requirement_exit_1_and_junit(tmp_path, capsys):
     assert main(["check", ROBUST, "--nominal", "--junit", str(junit)]) == 1
     out = capsys.readouterr().out
     line = next(l for l in out.splitlines() if "worst stable_fraction" in l)
-    assert "FAIL" in line and "at load_inertia=" in line
+    assert "FAIL" in line and "at load_inertia = " in line and " kg*m^2, stiffness = " in line and "x nominal" in line
     suite = ET.parse(junit).getroot().find("testsuite")
     cases = {c.get("name"): c for c in suite.findall("testcase")}
     robust = {"robust_stable_fraction", "robust_gain_margin", "robust_phase_margin", "robust_sensitivity_peak"}

@@ -288,10 +288,10 @@ def test_robustness_and_monte_carlo_show_the_load_inertia_in_the_scene_unit():
     assert ax.get_xlabel() == "load inertia [kg*cm^2]" and max(ax.collections[0].get_offsets()[:, 0]) == 4e4
     mc = MonteCarloResult("x", values, np.array([1e-3, 2e-3]), np.array([1.0, 2.0]), np.array([False, False]),
                           np.array([False, False]), ("", ""), np.array([0.1, 0.1]), 0.1, 1e-4, 10, 1.0, display=cm)
-    assert mc.ranges_text() == "load_inertia 0..4e+04 kg*cm^2, stiffness 0.7..1.3"
-    assert mc.values["load_inertia"][1] == 4.0 and "load_inertia=4e+04" in mc.table()
+    assert mc.ranges_text() == "load_inertia 0..40e3 kg*cm^2, stiffness 0.7..1.3 x nominal"
+    assert mc.values["load_inertia"][1] == 4.0 and "load_inertia = 40e3 kg*cm^2, stiffness = 1.3 x nominal" in mc.table()
     axes = mc.plot(Figure().subplots(1, 2))
     assert axes[0].get_xlabel() == "load inertia [kg*cm^2]"
     si = MonteCarloResult("x", values, np.array([1e-3, 2e-3]), np.array([1.0, 2.0]), np.array([False, False]),
                           np.array([False, False]), ("", ""), np.array([0.1, 0.1]), 0.1, 1e-4, 10, 1.0)
-    assert si.ranges_text() == "load_inertia 0..4 kg*m^2, stiffness 0.7..1.3"
+    assert si.ranges_text() == "load_inertia 0..4 kg*m^2, stiffness 0.7..1.3 x nominal"

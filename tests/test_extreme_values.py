@@ -64,28 +64,37 @@ def _load(name, path, x):
     return scene_from_dict(_set(SHIPPED[name], path, x), name)
 
 
-def _accepted():
+def _content(scene) -> str:
+    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
+    import hashlib
+    from pathlib import Path
+    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
+
+
+@pytest.fixture(scope="module")
+def mutation_loads():
+    """``(scene, key path, value, SceneError or None)`` of every mutation, each loaded once
+    (any other exception fails the tests that use it)."""
     out = []
     for name, path, x in MUTATIONS:
         try:
             _load(name, path, x)
-        except SceneError:
+        except SceneError as exc:
+            out.append((name, path, x, exc))
             continue
-        out.append((name, path, x))
+        out.append((name, path, x, None))
     return out
 
 
 @pytest.fixture(scope="module")
-def accepted():
-    return _accepted()
+def accepted(mutation_loads):
+    return [(name, path, x) for name, path, x, exc in mutation_loads if exc is None]
 
 
-def test_every_extreme_value_loads_or_names_its_key_and_range():
+def test_every_extreme_value_loads_or_names_its_key_and_range(mutation_loads):
     assert len(MUTATIONS) > 1000
-    for name, path, x in MUTATIONS:
-        try:
-            _load(name, path, x)
-        except SceneError as exc:  # any other exception fails the test
+    for name, path, x, exc in mutation_loads:
+        if exc is not None:
             text = str(exc)
             assert "\n" not in text, (name, path, x, text)
             if abs(x) in (1e300, 1e30) and "integer" not in exc.rule:
@@ -126,6 +135,8 @@ def test_accepted_extremes_run_cleanly_through_the_commands(accepted, tmp_path):
     (("drivetrain", 0, "torsional_stiffness"), "1e-30 N*m/rad", "drivetrain[0].torsional_stiffness",
      "[0.01, 1e+12] N*m/rad"),
     (("sensors", "sample_time"), "0.1 ms / 0", "sensors.sample_time", "not an expression"),
+    # 1 nH on 0.5 ohm: L/R = 2 ns, where the reference solver stalls (3e6 evaluations)
+    (("motor", "inductance"), "1e-9 H", "motor.inductance", "L/R = 2e-09 s is below 1e-07 s"),
 ])
 def test_the_reported_extremes_are_refused_at_load_time(path, value, key, words):
     data = copy.deepcopy(EMA)
@@ -161,3 +172,228 @@ def test_a_quantity_is_a_number_and_a_unit(text):
 def test_exponents_and_reciprocals_are_still_units(text, unit, si):
     from servo_toolkit.core.units import parse_quantity
     assert parse_quantity(text, unit, "k") == pytest.approx(si, rel=1e-12)
+
+
+# --- in-range values at the ends of each key's conditioned range, through every command ------
+
+
+def _table_path(table: str, key: str) -> tuple:
+    """``("drivetrain", 1, "nut_mass")`` of the loader's ``drivetrain[1]`` and ``nut_mass``."""
+    parts = []
+    for piece in table.split("."):
+        head = re.match(r"^[^\[]*", piece).group(0)
+        if head:
+            parts.append(head)
+        parts += [int(i) for i in re.findall(r"\[(\d+)\]", piece)]
+    return tuple(parts) + (key,)
+
+
+def _edges():
+    """``(scene, key path, value)``: every numeric key the loader reads from a shipped scene
+    with a range, at both ends of it in SI (the smallest nonzero magnitude and the largest;
+    +-the largest for a signed key), as :mod:`servo_toolkit.core.ranges` and the components
+    state them. A list key has its first entry set."""
+    from servo_toolkit.core.fields import recording_reads
+    out = []
+    for name, data in sorted(SHIPPED.items()):
+        with recording_reads() as reads:
+            scene_from_dict(copy.deepcopy(data), name)
+        seen = set()
+        for r in reads:
+            if r.written is None or r.bounds is None or r.reader not in ("quantity", "number", "quantity list"):
+                continue
+            path = _table_path(r.table, r.key) + ((0,) if isinstance(r.written, list) else ())
+            try:
+                _get(data, path)
+            except (KeyError, IndexError, TypeError):
+                continue  # a key of a nested record the loader names differently (a pair of moments)
+            if path in seen:
+                continue
+            seen.add(path)
+            low, high = r.bounds
+            out += [(name, path, x) for x in ((high, -high) if r.rule == "finite" else (low, high))]
+    return out
+
+
+def _get(data, path):
+    for p in path:
+        data = data[p]
+    return data
+
+
+def _put(data, path, x):
+    data = copy.deepcopy(data)
+    target = data
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = x
+    return data
+
+
+EDGES = _edges()
+
+
+@pytest.fixture(scope="module")
+def edge_loads():
+    """``(scene, key path, value, SceneError or None)`` of every range end of :data:`EDGES`."""
+    out = []
+    for name, path, x in EDGES:
+        try:
+            scene_from_dict(_put(SHIPPED[name], path, x), name)
+        except SceneError as exc:
+            out.append((name, path, x, exc))
+            continue
+        out.append((name, path, x, None))
+    return out
+
+
+@pytest.fixture(scope="module")
+def accepted_edges(edge_loads):
+    """Every range end of :data:`EDGES` that loads (a scene accepted with it)."""
+    return [(name, path, x) for name, path, x, exc in edge_loads if exc is None]
+
+
+def test_every_range_end_loads_or_names_its_key(edge_loads, accepted_edges):
+    """A value at an end of its key's range is inside the range: it loads, or a rule that
+    joins it to another key (a stroke the linkage cannot reach, a time constant, a duty cycle
+    past the stroke) refuses it in one line naming a key of the same scene."""
+    assert len(EDGES) > 400
+    for name, path, x, exc in edge_loads:
+        if exc is not None:
+            assert "\n" not in str(exc) and exc.key, (name, path, x, str(exc))
+            assert "conditioned for (got" not in exc.rule or _key(path) not in exc.key, (name, path, x, str(exc))
+    assert len(accepted_edges) > 300
+
+
+def _errors(lines) -> list:
+    """The error lines of a run's stderr (``servo-toolkit: error:``, ``servo-toolkit:
+    simulation error:``)."""
+    return [ln for ln in lines if re.match(r"servo-toolkit: (\w+ )?error:", ln)]
+
+
+#: command -> arguments that keep a run short ({tmp}: a fresh folder)
+EDGE_COMMANDS = {
+    "stiffness": [], "design": ["--linear-only"], "check": ["--nominal", "--samples", "8"],
+    "simulate": [], "sweep": ["--frequency", "8"], "kv": [], "reduce": ["--estimate-only"], "accuracy": [],
+    "export": ["-o", "{tmp}/export"], "montecarlo": ["--samples", "4", "--duration", "0.02"], "size": ["--no-sweep"],
+    "report": ["-o", "{tmp}/report"],
+}
+#: the mutations every command runs (a deterministic spread over the accepted range ends of the
+#: scenes with a loop, and one of a scene without, whose report is quick); report runs on the
+#: latter only (the others' reports are the same computations as the commands' own)
+EDGE_PICKS = ("ema_sizing.toml", "deflection_platform.toml")
+
+
+def _edge_runs():
+    runs = []
+    for k, scene in enumerate(EDGE_PICKS):
+        mine = []
+        for name, path, x in EDGES:
+            if name != scene:
+                continue
+            try:
+                scene_from_dict(_put(SHIPPED[name], path, x), name)
+            except SceneError:
+                continue
+            mine.append((name, path, x))
+        runs.append(mine[(7 * k + 3) % len(mine)])
+    return runs
+
+
+@pytest.fixture(scope="module")
+def memoized_design():
+    """The loop design once per mutation (it is deterministic): the commands share it."""
+    import functools
+    import importlib
+    module = importlib.import_module("servo_toolkit.loop.design")
+    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
+    original, saved = module.design, cmd.design
+    cache = {}
+
+    @functools.wraps(original)
+    def design(scene, *args, **kwargs):
+        key = repr((scene, _content(scene), args, sorted(kwargs.items())))
+        if key not in cache:
+            cache[key] = original(scene, *args, **kwargs)
+        return cache[key]
+    module.design = cmd.design = design
+    yield
+    module.design, cmd.design = original, saved
+
+
+@pytest.mark.parametrize("mutation", _edge_runs(), ids=lambda m: f"{m[0]}:{_key(m[1])}={m[2]:g}")
+def test_range_ends_run_cleanly_through_every_command(mutation, memoized_design, tmp_path):
+    name, path, x = mutation
+    scene = tmp_path / name
+    scene.write_text(dumps(_put(SHIPPED[name], path, x)))
+    for command, extra in EDGE_COMMANDS.items():
+        if command == "report" and name != EDGE_PICKS[-1]:
+            continue
+        argv = [command, str(scene), *(a.replace("{tmp}", str(tmp_path)) for a in extra)]
+        code, lines = run(argv)
+        assert code in (0, 1, 2) and not any("Traceback" in ln for ln in lines), (argv, code, lines)
+        if code == 2:
+            assert len(_errors(lines)) == 1, (argv, lines)
+
+
+#: the commands that need no loop design, run at every accepted range end of every shipped
+#: scene, ``size`` at every other one and ``kv`` at every eighth (its step responses are the
+#: costliest)
+STATIC_COMMANDS = {"stiffness": 1, "size": 2, "kv": 8}
+
+
+def test_every_accepted_range_end_runs_cleanly_through_the_static_commands(accepted_edges, tmp_path):
+    """Breadth: every key's range ends of every shipped scene through ``stiffness`` (and
+    ``size`` and ``kv`` at a deterministic spread): a clean run, or one line and exit 2 (a
+    scene without a motor-driven drivetrain or a duty cycle, a joint its friction locks);
+    never a traceback."""
+    assert len(accepted_edges) > 300
+    ran = {command: 0 for command in STATIC_COMMANDS}
+    for i, (name, path, x) in enumerate(accepted_edges):
+        scene = tmp_path / name
+        scene.write_text(dumps(_put(SHIPPED[name], path, x)))
+        for command, every in STATIC_COMMANDS.items():
+            if i % every:
+                continue
+            ran[command] += 1
+            code, lines = run([command, str(scene), *EDGE_COMMANDS[command]])
+            assert code in (0, 1, 2) and not any("Traceback" in ln for ln in lines), (
+                name, _key(path), x, command, code, lines)
+            if code == 2:
+                assert len(_errors(lines)) == 1, (name, _key(path), x, command, lines)
+    assert min(ran.values()) > 40, ran
+
+
+@pytest.mark.parametrize("path, value, command, words", [
+    # a nut this heavy behind the rocker: its inertia's variation along the stroke exceeds the
+    # motor side's, which the model (load side held at q0) cannot take; the stage is named
+    (("drivetrain", 1, "nut_mass"), "1e6 kg", "simulate", "drivetrain[1]: the ball screw: nut's inertia"),
+])
+def test_the_reported_range_ends_are_one_line_naming_the_cause(path, value, command, words, tmp_path,
+                                                                memoized_design):
+    scene = tmp_path / "edge.toml"
+    scene.write_text(dumps(_put(EMA, path, value)))
+    code, lines = run([command, str(scene)])
+    errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
+    assert code == 2 and len(errors) == 1 and words in errors[0], lines
+
+
+def test_a_sweep_of_an_unstable_loop_says_it_is_the_designs_verdict():
+    """A load of 1e6 kg*m^2 (the end of its range): no cascade of the reference EMA holds it
+    (``design`` finds no stable one); a sweep of such a loop stops with the closed loop's
+    rightmost pole, a verdict on the design rather than a failed run."""
+    from servo_toolkit.drivetrain.operating_point import operating_point
+    from servo_toolkit.errors import SimulationError
+    from servo_toolkit.loop import linear_closed_loop
+    from servo_toolkit.sim import default_controller
+    from servo_toolkit.studies.sweep import linear_response
+    data = copy.deepcopy(EMA)
+    data["load"]["inertia"] = "1e6 kg*m^2"
+    scene = scene_from_dict(data, "ema.toml")
+    controller = default_controller(scene)
+    with pytest.raises(SimulationError, match="a physical verdict on the design") as err:
+        linear_response(scene, controller, [8.0])
+    # the pole it names is the closed loop's rightmost (python-control's poles of the loop)
+    q0 = operating_point(scene)[0]
+    worst = max(linear_closed_loop(scene, controller, q0=q0).poles(), key=lambda p: p.real)
+    assert worst.real > 0 and f"{worst.real:.4g} {worst.imag:+.4g}j 1/s" in str(err.value)

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from servo_toolkit import load_scene
-from servo_toolkit.cli import main
 from servo_toolkit.report import SECTIONS
 
 from .conftest import SCENES
@@ -24,11 +23,12 @@ CHROME_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-backgr
 
 
 @pytest.fixture(scope="module")
-def report_dir(tmp_path_factory):
-    """The reference EMA's report, written once by the command line (light settings)."""
-    out = tmp_path_factory.mktemp("report") / "servo_report"
-    assert main(["report", "-o", str(out)]) == 0
-    return out
+def report_dir(scene_report):
+    """The reference EMA's report (the built-in scene's file), written once for the session by
+    the command line (light settings; shared with the other report tests)."""
+    run = scene_report("ema_reference")
+    assert run.code == 0, run.err[-2000:]
+    return run.folder
 
 
 @pytest.fixture(scope="module")

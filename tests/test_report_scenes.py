@@ -18,17 +18,17 @@ from .conftest import SCENES
 
 
 @pytest.mark.parametrize("name", ["cam_follower", "deflection_platform", "roller_screw_two_stage"])
-def test_report_on_other_scenes_completes(name, tmp_path, capsys):
-    out = tmp_path / "r"
-    assert main(["report", str(SCENES / f"{name}.toml"), "-o", str(out)]) == 0
-    html = (out / "index.html").read_text(encoding="utf-8")
-    assert (out / "report.pdf").read_bytes().startswith(b"%PDF")
+def test_report_on_other_scenes_completes(name, scene_report):
+    run = scene_report(name)  # written once for the session (the PDF tests read it too)
+    assert run.code == 0, run.err[-2000:]
+    html = (run.folder / "index.html").read_text(encoding="utf-8")
+    assert (run.folder / "report.pdf").read_bytes().startswith(b"%PDF")
     assert "Scene summary" in html and name in html
     if name != "cam_follower":
         # no motor-driven drivetrain: the drivetrain sections say so, politely
         stiff = re.search(r'<section id="stiffness" data-status="([^"]+)">(.*?)</section>', html, re.S)
         assert stiff.group(1) == "n/a" and "needs a motor-driven drivetrain" in stiff.group(2)
-    assert "wrote" in capsys.readouterr().out
+    assert "wrote" in run.out
 
 
 def test_bad_scene_exits_2(tmp_path, capsys):
@@ -170,3 +170,80 @@ def test_a_travel_output_is_reported_in_mm_and_kg():
     plant = run_section("plant", "plant", plant_bode, ctx)
     # one stiffness unit with `design`: N/m for an output travel
     assert "<td>kg</td>" in plant.html and "kg*m^2" not in plant.html and "<td>N/m</td>" in plant.html
+
+
+def _legend_boxes(fig):
+    """(legend boxes, axes boxes) of a drawn figure, in display pixels."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    legends = [leg.get_window_extent(renderer) for leg in fig.legends]
+    legends += [ax.get_legend().get_window_extent(renderer) for ax in fig.axes if ax.get_legend() is not None]
+    return legends, [ax.get_window_extent(renderer) for ax in fig.axes]
+
+
+def test_legends_sit_outside_every_axes_and_cover_no_curve():
+    """Two panels filled by a sine (matplotlib's "best" place still covers it): one legend,
+    each label once, outside both axes."""
+    from servo_toolkit.report.figures import legends_outside, new_figure
+    fig, (a1, a2) = new_figure(1, 2)
+    t = np.linspace(0.0, 1.0, 400)
+    for ax in (a1, a2):
+        ax.plot(t, np.sin(40 * t), label="command")
+        ax.plot(t, np.cos(40 * t), label="response")
+        ax.legend()
+    a2.plot(t, t, label="limit")
+    a2.legend()
+    legends_outside(fig)
+    assert a1.get_legend() is None and a2.get_legend() is None and len(fig.legends) == 1
+    assert [x.get_text() for x in fig.legends[0].get_texts()] == ["command", "response", "limit"]
+    legends, boxes = _legend_boxes(fig)
+    assert legends and not any(leg.overlaps(box) for leg in legends for box in boxes)
+
+
+def test_report_figures_have_their_legend_outside_the_axes():
+    """Every figure passes through :func:`legends_outside` when its section is built: the
+    stiffness chain's figures (whose legend used to cover the stage curves)."""
+    from servo_toolkit.report.sections_drivetrain import stiffness_chain
+    section = run_section("stiffness", "Stiffness", stiffness_chain, Context(load_scene()))
+    assert section.status == "info" and section.figures
+    for spec in section.figures:
+        legends, boxes = _legend_boxes(spec.figure)
+        assert legends and not any(leg.overlaps(box) for leg in legends for box in boxes)
+
+
+def test_a_section_stopped_by_its_time_limit_leaves_no_verdict_behind(monkeypatch):
+    """A shared result that a section was computing when its time limit stopped it is not
+    cached: the requirements table (built first, without a limit) and a later caller compute
+    it in full, so the report's verdicts do not depend on the time limit."""
+    import time
+
+    import servo_toolkit.report.builder as builder
+
+    ctx = Context(load_scene(SCENES / "deflection_platform.toml"))
+    calls = []
+
+    def slow():
+        calls.append(1)
+        deadline = time.perf_counter() + 0.6
+        while time.perf_counter() < deadline:  # pure Python: the alarm interrupts it
+            pass
+        return "verdict"
+    stopped = run_section("s", "Slow", lambda c: Section("Slow", c.result("shared", slow)), ctx, time_limit=0.2)
+    assert stopped.status == "unavailable" and "stopped after 0.2 s" in stopped.reason
+    assert ctx.result("shared", slow) == "verdict" and len(calls) == 2
+
+    # the whole report: the requirement rows come first, so a limit that stops every section
+    # cannot stop what the rows are computed from
+    seen = []
+
+    def rows(c):
+        seen.append(c.result("shared", slow))
+        return ("row",)
+    monkeypatch.setattr(builder, "SECTIONS", (("a", "A", lambda c: Section("A", c.result("shared", slow))),))
+    monkeypatch.setattr(builder, "REQUIREMENTS", ("requirements", "Requirements",
+                                                  lambda c: Section("Requirements", str(rows(c)))))
+    monkeypatch.setattr(builder.loop, "requirement_rows", rows)
+    report = builder.build_report(ctx.scene, progress=False, section_time_limit=0.2)
+    assert report.section("requirements").status == "info" and report.requirements == ("row",)
+    assert report.section("a").status == "info" and seen == ["verdict", "verdict"]

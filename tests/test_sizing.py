@@ -98,6 +98,24 @@ def test_resistance_rising_with_temperature_heats_more_and_can_run_away():
     assert runaway.runaway and runaway.peak_winding == math.inf
 
 
+def test_a_runaway_that_overflows_is_a_runaway_without_warnings():
+    """A current so large that the winding's growth over one interval exceeds e^709 (a load
+    damping at the end of its range along a duty cycle): the cycle map overflows; that is a
+    runaway (alpha I^2 R0 > 1 / R_wh: the winding alone heats without bound), not an error."""
+    import warnings
+
+    from servo_toolkit.studies.sizing.thermal import periodic_peak
+    base = dict(r_wh=0.2, r_ha=0.5, tau_w=40.0, tau_h=900.0, ambient=30.0, resistance_temperature=30.0)
+    hot = ThermalNetwork(**base, alpha=0.004)
+    current = 1e5  # alpha I^2 R0 R_wh = 8e6; growth rate (alpha I^2 R0 - 1/R_wh) / C_w = 4e6 1/s
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = cycle_temperatures(hot, np.full(10, current), np.full(10, 0.1))
+        peaks = periodic_peak(hot, np.array([[1.0] * 8, [current] * 8]), 0.1)
+    assert res.runaway and res.peak_winding == math.inf
+    assert math.isfinite(peaks[0]) and peaks[1] == math.inf
+
+
 def test_l10_of_a_hand_built_spectrum():
     forces, revs = [10e3, -5e3, 2e3], [1e5, 3e5, 6e5]
     fm = ((10e3**3 * 1e5 + 5e3**3 * 3e5 + 2e3**3 * 6e5) / 1e6) ** (1 / 3)

@@ -1,12 +1,17 @@
-"""Work and memory budgets: a long run is estimated before it starts and refused beyond them.
+"""The work budget: a long run is estimated before it starts and refused beyond it.
 
 Every cost constant lives here, calibrated from the benchmarks (``docs/benchmarks.md``) and
 measurements on the 2-core reference machine; the estimates are deliberately simple
 (steps x states x variants x a per-unit cost) and err low, so that a refused run would
 really have taken longer than the budget. The command line checks the budget before any
 work (``--force`` lifts it); the library's study functions run what they are asked to run
-(a caller from Python has chosen the size), apart from the hard limits that protect memory
-(:data:`MAX_ARRAY_BYTES`), which no option lifts.
+(a caller from Python has chosen the size).
+
+Memory needs no budget of its own: no array grows with an input without a bound. A time run
+keeps at most ``sim.engine.MAX_RECORDS`` records, the Monte Carlo keeps figures (not traces)
+of at most 1,000,000 variants and steps them in chunks, the robustness margins evaluate their
+frequency grid chunk by chunk, and a sweep or Kv grid is refused by its run time long before
+its tables could fill the memory.
 """
 
 from __future__ import annotations
@@ -17,10 +22,6 @@ from ..errors import SceneError
 
 #: estimated run time a command may take without ``--force`` (s): 10 min on 2 cores
 TIME_BUDGET_S = 600.0
-#: memory one array sized by the input may take without ``--force`` (bytes)
-MEMORY_BUDGET_BYTES = 4 * 2 ** 30
-#: memory no option lets one array take: beyond it the allocation itself would fail
-MAX_ARRAY_BYTES = 64 * 2 ** 30
 
 #: one fixed RK4 step per state of the model (s): 5.7 M steps/s of the 12-state reference
 #: EMA on one core (bench_simulate), rounded down in cost
@@ -51,14 +52,6 @@ def minutes(seconds: float) -> str:
     return f"{hours:.1f} h" if hours < 1e4 else f"{hours:.2g} h"
 
 
-def size(nbytes: float) -> str:
-    """A memory size for a message (``"7.3 TiB"``)."""
-    for unit, scale in (("TiB", 2 ** 40), ("GiB", 2 ** 30), ("MiB", 2 ** 20)):
-        if nbytes >= scale:
-            return f"{nbytes / scale:.3g} {unit}"
-    return f"{nbytes:.0f} B"
-
-
 def check_time(seconds: float, knob: str, what: str, got, force: bool = False) -> None:
     """Refuse an estimated run time beyond :data:`TIME_BUDGET_S` unless ``force``.
 
@@ -84,17 +77,6 @@ def check_time(seconds: float, knob: str, what: str, got, force: bool = False) -
         return
     raise SceneError(knob, f"the run is estimated at {minutes(seconds)} ({what}), beyond the budget of "
                            f"{minutes(TIME_BUDGET_S)} on 2 cores; reduce it or give --force (got {got})")
-
-
-def check_memory(nbytes: float, knob: str, what: str, got, force: bool = False) -> None:
-    """Refuse an array beyond :data:`MEMORY_BUDGET_BYTES` unless ``force``, and beyond
-    :data:`MAX_ARRAY_BYTES` always (the same message, without the ``--force`` advice)."""
-    if nbytes > MAX_ARRAY_BYTES:
-        raise SceneError(knob, f"needs {size(nbytes)} of memory ({what}), more than the {size(MAX_ARRAY_BYTES)} "
-                               f"one run may take (got {got})")
-    if not force and nbytes > MEMORY_BUDGET_BYTES:
-        raise SceneError(knob, f"needs {size(nbytes)} of memory ({what}), beyond the budget of "
-                               f"{size(MEMORY_BUDGET_BYTES)}; reduce it or give --force (got {got})")
 
 
 def model_states(scene) -> int:

@@ -42,7 +42,7 @@ def register(sub) -> None:
     add_design_options(p)
     add_large_signal_option(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
-                   help="robustness: vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. "
+                   help="robustness: vary load_inertia (kg*m^2, kg for a travel output: 0 or 1e-12..1e6) or stiffness (a factor, 1e-3..1e3), e.g. "
                         "load_inertia=0:4 stiffness=0.7:1.3 (repeatable; replaces that range of the "
                         "scene's [robustness]; a positive range over a decade is sampled logarithmically, "
                         "and the corners of the ranges are always among the variants)")
@@ -288,7 +288,7 @@ def run(args) -> int:
     ``error`` testcase of the JUnit file; the other scenes are still checked and written,
     and the exit code is 2.
     """
-    from ..loop.robustness import parse_vary
+    from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     for text in args.require:
         parse_override(text)

@@ -23,7 +23,7 @@ def register(sub) -> None:
     p = sub.add_parser("montecarlo", help="nonlinear closed-loop variants (load inertia, stiffness), batched")
     add_scene(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
-                   help="vary load_inertia (kg*m^2; kg for a travel output) or stiffness (factor), e.g. load_inertia=0:4 "
+                   help="vary load_inertia (kg*m^2, kg for a travel output: 0 or 1e-12..1e6) or stiffness (a factor, 1e-3..1e3), e.g. load_inertia=0:4 "
                         "(repeatable; default: the scene's [robustness] ranges, else load_inertia=0:4 "
                         "stiffness=0.7:1.3; a positive range over a decade is sampled logarithmically, and the "
                         "corners of the ranges are always among the variants)")
@@ -45,7 +45,7 @@ def register(sub) -> None:
 
 
 def _check_args(args):
-    from ..loop.robustness import parse_vary
+    from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     if args.samples is not None and args.samples < 1:
         raise SceneError("samples", f"must be at least 1 (got {args.samples})")

@@ -26,8 +26,8 @@ def register(sub) -> None:
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
                         "20 with light settings, none with --full; 0: no limit)")
     p.add_argument("--strict", action="store_true",
-                   help="exit 1 when a requirement of the report's requirements table (the rows of "
-                        "servo-toolkit check) is not met; the report is still written")
+                   help="exit 1 when a row of the report's requirements table (the rows of servo-toolkit "
+                        "check) is not met or could not be evaluated; the report is still written")
     add_force(p)
     p.set_defaults(run=run)
 
@@ -71,8 +71,8 @@ def run(args) -> int:
     paths = write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()
     if paths["pdf_engine"] != "weasyprint":
-        print("servo-toolkit: WeasyPrint (or the system's Pango) is missing: report.pdf is the plain fallback "
-              "(pip install 'servo_toolkit[report]' for the typeset document)", file=sys.stderr)
+        from ..report.pdf_writer import engine_problem
+        print(f"servo-toolkit: report.pdf is the plain fallback: {engine_problem()}", file=sys.stderr)
     missing = [s for s in report.sections if s.status == "unavailable"]
     for s in report.sections:
         if s.status in ("unavailable", "n/a"):
@@ -83,7 +83,10 @@ def run(args) -> int:
               + ", ".join(s.title for s in missing), file=sys.stderr)
         return 1
     if args.strict and not report.passed:
-        failed = [r.id for r in report.requirements if not r.passed]
-        print(f"servo-toolkit: {len(failed)} requirement(s) not met: {', '.join(failed)}", file=sys.stderr)
+        failed = [r.id for r in report.requirements if r.status == "fail"]
+        missing = [r.id for r in report.requirements if r.status not in ("pass", "fail")]
+        print("servo-toolkit: " + "; ".join(
+            [f"{len(failed)} requirement(s) not met: {', '.join(failed)}"] * bool(failed)
+            + [f"{len(missing)} requirement(s) not evaluated: {', '.join(missing)}"] * bool(missing)), file=sys.stderr)
         return 1
     return 0

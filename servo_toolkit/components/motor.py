@@ -40,6 +40,12 @@ PLAUSIBLE_MAX = {"resistance": 1e15, "inductance": 10.0, "torque_constant": 1e4,
                  "rotor_inertia": 1e4, "viscous_friction": 1e6, "coulomb_friction": 1e6}
 
 
+#: shortest electrical time constant L/R a motor with inductance may have (s): the stiff
+#: reference solver stalls on the armature's mode below about 1e-8 s with the reference EMA's
+#: 0.1 ms controller sample; every electric motor's is above 1e-5 s
+MIN_ELECTRICAL_TIME_CONSTANT = 1e-7
+
+
 @dataclass(frozen=True)
 class DCMotor:
     """Armature-controlled DC motor, SI units.
@@ -155,6 +161,12 @@ class DCMotor:
         rule = kt_ke_rule(motor.torque_constant, motor.back_emf_constant)
         require(not rule, f.key("back_emf_constant"), rule)
         require(motor.resistance >= 1e-6, f.key("resistance"), f"must be at least 1e-06 ohm (got {motor.resistance:g})")
+        tau = motor.electrical_time_constant
+        require(motor.inductance == 0 or tau >= MIN_ELECTRICAL_TIME_CONSTANT, f.key("inductance"),
+                f"with the resistance {motor.resistance:g} ohm, L/R = {tau:.3g} s is below "
+                f"{MIN_ELECTRICAL_TIME_CONSTANT:g} s, the shortest electrical time constant the solvers are "
+                "conditioned for (a motor's is 1e-5 s or more); give 0 H to neglect the inductance "
+                f"(got {motor.inductance:g} H)")
         require(motor.breakaway_torque >= motor.coulomb_friction, f.key("static_friction"),
                 f"must be at least the coulomb_friction {motor.coulomb_friction:g} N*m (got {motor.breakaway_torque:g})")
         require(motor.breakaway_torque <= PLAUSIBLE_MAX["coulomb_friction"], f.key("static_friction"),

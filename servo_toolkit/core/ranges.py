@@ -47,6 +47,12 @@ CONDITIONED = {
 }
 
 
+#: a robustness study's varied parameter -> (smallest nonzero value, largest value): a load
+#: inertia as a scene's (0 allowed), a stiffness factor that keeps a stiffness of the
+#: reference class (1e3 .. 1e6 N*m/rad) within the stiffness range above
+VARIED = {"load_inertia": CONDITIONED["kg*m^2"], "stiffness": (1e-3, 1e3)}
+
+
 def conditioned_range(unit: str | None, bounds=None):
     """``(low, high)`` for a key in ``unit`` (``bounds`` overrides), or None when the unit
     has no range here."""
@@ -88,4 +94,4 @@ def range_rule(value: float, rule: str | None, unit: str | None, bounds=None) ->
     return f"must be in [{low:g}, {high:g}]{shown}, the range the model is conditioned for (got {value:g})"
 
 
-__all__ = ["CONDITIONED", "conditioned_range", "range_rule"]
+__all__ = ["CONDITIONED", "VARIED", "conditioned_range", "range_rule"]

@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from .controller import CascadeController
-from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
+from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant, plant_matrices,
                             plant_parameters)
 from .assembly import closed_loop_matrix, controller_matrices
@@ -374,9 +374,9 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
     """Robust design (cascade search), or a nominal design evaluated over the variants."""
     from .robust_design import confirm_worst_case, robust_search
     from .robustness import robustness
-    inertia = output_unit(scene).inertia
-    rng = ", ".join(f"{k} {lo:g}..{hi:g}" + (f" {inertia}" if k == "load_inertia" else "")
-                    for k, (lo, hi) in spec.ranges.items())
+    from .vary import ranges_text
+    rng = ranges_text({k: (lo, hi) for k, (lo, hi) in spec.ranges.items()}, scene.display,
+                      scene.drivetrain.output_is_linear)
     header = f"robust design over {rng} ({spec.samples} {spec.method.replace('_', ' ')} variants at q0)"
     if structure != "cascade" or resonance_filter != "auto":
         r = design(scene, q0, structure=structure, resonance_filter=resonance_filter,

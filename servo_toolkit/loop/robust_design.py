@@ -370,7 +370,7 @@ def confirm_worst_case(scene, result, structural_damping) -> str:
         _, loop = reference_margins(scene, result, load, factor, structural_damping)
         pms = np.atleast_1d(ct.stability_margins(loop, returnall=True)[1])
         stable = bool(np.all(ct.poles(ct.feedback(loop, 1)).real < 0))
-    where = ", ".join(f"{k}={v:.4g}" for k, v in at.items())
+    where = rb.variant_text(at)
     k = int(np.flatnonzero(np.all([rb.values[key] == v for key, v in at.items()], axis=0))[0])
     vec_stable = bool(rb.figures["stable"][k])
     pm_vec = float(rb.figures["phase_margin_deg"][k])

@@ -27,27 +27,11 @@ from .metrics import grid_figures
 from .requirements import check
 from .robustness_result import RobustnessResult
 from .sampling import sample_variants as _sample
+from .vary import PARAMETERS
 from .variant_plants import (VariantLoops, batched_matrices, controller_blocks as _controller_blocks,
                              controller_response as _controller_response, variant_grid, variant_plants)
 
-PARAMETERS = {"load_inertia": "kg*m^2 at the output (kg for a travel), replaces the scene's load inertia",
-              "stiffness": "factor on the series stiffness"}
 DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
-
-
-def parse_vary(text: str):
-    """``"load_inertia=0:4"`` -> ``("load_inertia", (0.0, 4.0))``."""
-    name, _, rng = text.partition("=")
-    name = name.strip()
-    if name not in PARAMETERS:
-        raise SceneError(f"vary.{name}", f"unknown parameter; known: {sorted(PARAMETERS)}")
-    try:
-        lo, hi = (float(v) for v in rng.split(":"))
-    except ValueError:
-        raise SceneError(f"vary.{name}", f"expected LO:HI numbers, got {rng!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (name == "stiffness" and lo <= 0) or lo < 0:
-        raise SceneError(f"vary.{name}", f"need 0 <= LO <= HI (stiffness LO > 0), got {rng!r}")
-    return name, (lo, hi)
 
 
 def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0) -> dict:

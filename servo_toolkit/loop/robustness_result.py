@@ -9,8 +9,8 @@ import numpy as np
 
 from ..core.output_units import OutputUnit
 from ..display.cards import RichDisplay, card, facts, requirements_table, svg
-from ..display.html import fmt
 from ..display.units import DisplayUnits
+from .vary import ranges_text, variant_text
 
 
 @dataclass(frozen=True, repr=False)
@@ -75,6 +75,14 @@ class RobustnessResult(RichDisplay):
         """Checks that are not met."""
         return [c for c in self.requirements if not c.passed]
 
+    def ranges_text(self) -> str:
+        """The varied parameters' spans with their units (:func:`.vary.ranges_text`)."""
+        return ranges_text(self.values, self.display, OutputUnit(self.output_unit).linear)
+
+    def variant_text(self, values: dict) -> str:
+        """One variant's parameters (name -> SI value) with their units (:func:`.vary.variant_text`)."""
+        return variant_text(values, self.display, OutputUnit(self.output_unit).linear)
+
     def worst_variant(self, name: str) -> dict:
         """Parameter values of the variant that gives the worst ``name`` figure."""
         return dict(self.worst.get(name, {}))
@@ -89,14 +97,9 @@ class RobustnessResult(RichDisplay):
 
     def table(self) -> str:
         """Worst cases as text."""
-        linear = OutputUnit(self.output_unit).linear
-        show = {"load_inertia": lambda v: self.display.show("inertia", v, linear)}
-        unit = {"load_inertia": " " + self.display.inertia_unit(linear)}
-        rng = ", ".join(f"{k} {fmt(show.get(k, float)(v.min()), 3)}..{fmt(show.get(k, float)(v.max()), 3)}"
-                        f"{unit.get(k, '')}" for k, v in self.values.items())
-        lines = [f"  robustness over {self.count} variants ({rng}): {self.unstable_count} unstable"]
+        lines = [f"  robustness over {self.count} variants ({self.ranges_text()}): {self.unstable_count} unstable"]
         for c in self.requirements:
-            at = ", ".join(f"{k}={fmt(show.get(k, float)(v), 3)}" for k, v in self.worst.get(c.name, {}).items())
+            at = self.variant_text(self.worst.get(c.name, {}))
             short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
             lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
                          f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
@@ -138,8 +141,7 @@ def _card_line(r) -> str:
 
 def _card_html(r) -> str:
     """The Jupyter card (HTML) of a result of this module."""
-    ranges = ", ".join(f"{k} {np.min(v):.3g}..{np.max(v):.3g}" for k, v in r.values.items())
-    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", ranges))),
+    parts = [facts((("variants", r.count), ("unstable variants", r.unstable_count), ("ranges", r.ranges_text()))),
              requirements_table(r.requirements)]
     if hasattr(r, "plot"):
         parts.append(svg(lambda ax: r.plot(ax), size=(7.0, 3.6)))

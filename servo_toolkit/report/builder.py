@@ -27,13 +27,14 @@ from . import sections_studies as studies
 from . import sections_time as timing
 from . import sections_tolerances as tolerances
 from .context import Context
+from .figures import legends_outside
 from .section import NotApplicable, NotAvailable, Section
 from .time_limit import time_limit as _time_limit
 
 #: default wall-time limit per section (s) with light settings; None with full settings
 LIGHT_SECTION_TIME_LIMIT = 20.0
 
-#: Section builders in report order (the requirements table is built last, shown first).
+#: Section builders in report order (the requirements table, REQUIREMENTS, is built and shown first).
 SECTIONS = (
     ("scene", "Scene summary", drv.scene_summary),
     ("stiffness", "Stiffness chain and compliance shares", drv.stiffness_chain),
@@ -138,6 +139,8 @@ def run_section(key: str, title: str, builder, ctx: Context, time_limit: float |
         return Section(title, status="unavailable", reason=f"{type(exc).__name__}: {exc}", key=key)
     if not section.key:
         section = Section(section.title, section.html, section.figures, section.status, section.reason, key)
+    for spec in section.figures:  # one legend placement for every figure: outside the axes
+        legends_outside(spec.figure)
     return section
 
 
@@ -177,14 +180,16 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         from ..studies.warmup import compile_kernels
         compile_kernels()
     built = []
-    steps = list(SECTIONS) + [REQUIREMENTS]
+    # the requirements table first: what the report is signed on is never stopped half-way,
+    # and the results it shares with the sections (the design, the large-signal run, the
+    # Monte Carlo runs, the sizing) are computed in full before any section's time limit
+    steps = [REQUIREMENTS] + list(SECTIONS)
     with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:
         for key, title, builder in bar:
             bar.set_postfix_str(title[:40])
-            # the requirement table is what the report is signed on: never stopped half-way
             limit = None if key == REQUIREMENTS[0] else section_time_limit
             built.append(run_section(key, title, builder, ctx, limit))
-    req_section = built.pop()
+    req_section = built.pop(0)
     try:
         rows = tuple(loop.requirement_rows(ctx))
     except Exception:  # noqa: BLE001 - the section already shows why

@@ -1,10 +1,12 @@
-"""Results shared between report sections, computed once and cached (errors included)."""
+"""Results shared between report sections, computed once and cached (errors included, apart
+from a section's time limit: the next caller computes the result again)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from .section import NotApplicable
+from .time_limit import SectionTimeout
 
 
 @dataclass
@@ -27,10 +29,17 @@ class Context:
     _cache: dict = field(default_factory=dict, repr=False)
 
     def result(self, key: str, compute):
-        """``compute()`` once per key; a failure is cached and re-raised to every caller."""
+        """``compute()`` once per key; a failure is cached and re-raised to every caller.
+
+        A :class:`~.time_limit.SectionTimeout` is not a property of the result but of the
+        section that happened to compute it first: it is re-raised to that section and not
+        cached, so a later caller (the requirements table, which has no time limit) computes
+        the result in full."""
         if key not in self._cache:
             try:
                 self._cache[key] = (True, compute())
+            except SectionTimeout:
+                raise
             except Exception as exc:  # noqa: BLE001 - re-raised below to each section
                 self._cache[key] = (False, exc)
         ok, value = self._cache[key]

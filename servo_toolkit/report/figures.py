@@ -20,6 +20,30 @@ def new_figure(nrows: int = 1, ncols: int = 1, size=(7.0, 3.4), **kwargs):
     return fig, axes
 
 
+def legends_outside(fig) -> None:
+    """One legend for ``fig``, outside its axes at the right edge, so that no legend covers a
+    curve: the entries of every axes legend (one per label, the first met) are gathered into
+    a figure legend placed by the constrained layout, and the axes legends removed. Every
+    report figure passes through here (:func:`servo_toolkit.report.builder.run_section`)."""
+    handles, labels, scale = [], [], 1.0
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is None:
+            continue
+        scale = max(scale, float(getattr(leg, "markerscale", 1.0)))
+        for handle, text in zip(leg.legend_handles, leg.get_texts()):
+            label = text.get_text()
+            if label and label not in labels:
+                handles.append(handle)
+                labels.append(label)
+        leg.remove()
+    if not labels:
+        return
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
+    fig.legend(handles, labels, loc="outside right upper", fontsize="small", markerscale=scale)
+
+
 def png_base64(fig, dpi: int = DPI) -> str:
     """The figure as a base64-encoded PNG."""
     buf = io.BytesIO()

@@ -46,11 +46,29 @@ def _title_page(report) -> Figure:
 
 def paged_engine():
     """The WeasyPrint module, or None when it (or the Pango library it loads) is missing."""
-    try:
-        import weasyprint
-    except (ImportError, OSError):
-        return None
+    return None if engine_problem() else _weasyprint()
+
+
+def _weasyprint():
+    import weasyprint
     return weasyprint
+
+
+def engine_problem() -> str | None:
+    """Why the typeset PDF cannot be written here (one sentence), or None when it can.
+
+    WeasyPrint is a dependency of the toolkit; it loads the system's Pango library when
+    imported, which a minimal system may lack."""
+    try:
+        _weasyprint()
+    except ImportError as exc:
+        return (f"WeasyPrint cannot be imported ({exc}); reinstall the toolkit "
+                "(python -m pip install servo_toolkit) to get it")
+    except OSError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        return (f"WeasyPrint cannot load the system's Pango library ({first}); install it "
+                "(Debian: apt-get install libpango-1.0-0 libpangoft2-1.0-0)")
+    return None
 
 
 def write_pdf(report, path, tick=None, engine="auto") -> str:
@@ -70,7 +88,7 @@ def write_pdf(report, path, tick=None, engine="auto") -> str:
         weasyprint.HTML(string=html, base_url=".").write_pdf(str(path))
         return "weasyprint"
     if engine == "weasyprint":
-        raise ImportError("WeasyPrint is not installed or cannot load Pango (pip install 'servo_toolkit[report]')")
+        raise ImportError(engine_problem())
     _write_matplotlib_pdf(report, path, tick)
     return "matplotlib"
 

@@ -35,8 +35,7 @@ def _traces(result, axes):
     """Tracking error and current of the worst variants over time."""
     for i in result.worst_indices(WORST):
         tr = result.trace(int(i))
-        at = ", ".join(f"{k} {v[i]:.3g}" for k, v in result.values.items())
-        axes[0].plot(tr.times, tr.unit.show(tr.output_angle - tr.reference_angle), lw=1, label=f"#{i}: {at}")
+        axes[0].plot(tr.times, tr.unit.show(tr.output_angle - tr.reference_angle), lw=1, label=f"#{i}")
         axes[1].plot(tr.times, tr.motor_current, lw=1, label=f"#{i}")
     unit = result.unit
     axes[0].set(xlabel="time [s]", ylabel=f"tracking error [{unit.shown}]",
@@ -63,7 +62,7 @@ def montecarlo_section(ctx) -> Section:
         f"Each runs the {reference.describe(unit.si)} for {result.duration_s:g} s with the reported design's "
         f"controller on the {result.settings['model']} nonlinear model that simulate runs for this command "
         f"(friction, current and voltage limits, the sampled controller; what it leaves out is noted below), "
-        f"{result.steps_per_variant} RK4 steps of {result.dt_s:.3g} s, in {result.wall_s:.2g} s of integration.",
+        f"{result.steps_per_variant} RK4 steps of {fmt(result.dt_s, 3)} s, in {fmt(result.wall_s, 2)} s of integration.",
         f"{int(np.sum(result.saturated))} variants reached a current or voltage limit; {failed} failed"
         + (" (" + "; ".join(sorted({result.reasons[i] for i in np.flatnonzero(result.failed)}))[:300] + ")"
            if failed else "") + ".")
@@ -71,7 +70,7 @@ def montecarlo_section(ctx) -> Section:
         text += para(*(f"Note: {n}" for n in result.notes))
     worst_rows = []
     for i in result.worst_indices(WORST):
-        worst_rows.append((f"#{i}", ", ".join(f"{k} {v[i]:.4g}" for k, v in result.values.items()),
+        worst_rows.append((f"#{i}", result.variant_text(i),
                            f"{fmt(result.error_display[i])} {result.error_unit}",
                            f"{fmt(result.peak_current[i])} A", "yes" if result.saturated[i] else "no"))
     body = table(("variant", "parameters", "max |tracking error|", "peak |current|", "at a limit"), worst_rows,
@@ -85,5 +84,5 @@ def montecarlo_section(ctx) -> Section:
     return Section("Nonlinear Monte Carlo over the parameter variants", text + body,
                    (FigureSpec(fig, "Top: each variant's largest tracking error and peak current against the load "
                                     "inertia (colour: stiffness factor; red x: failed). Bottom: the worst "
-                                    "variants run again with every step recorded."),),
+                                    "variants run again with every step recorded (#i: the variant of the table, its parameters there)."),),
                    status=status, key="montecarlo")

@@ -61,12 +61,12 @@ def robustness(ctx) -> Section:
     nom = {c.name: c for c in nominal.requirements}
     for c in robust.requirements:
         n = nom.get(c.name)
-        at = ", ".join(f"{k} = {v:.3g}" for k, v in robust.worst.get(c.name, {}).items())
+        at = robust.variant_text(robust.worst.get(c.name, {}))
         rows.append((_LABELS.get(c.name, c.name), f"{c.sense} {fmt(c.required)} {c.unit}",
                      f"{fmt(c.achieved)} {c.unit}", "pass" if c.passed else "FAIL", at,
                      f"{fmt(n.achieved)} {n.unit} ({'pass' if n.passed else 'FAIL'})" if n is not None else ""))
-    ranges = ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}" for k, v in robust.values.items())
-    text = para(f"Variants: {robust.count} ({robust.settings.get('method', '')}), {ranges}; the robust design has "
+    text = para(f"Variants: {robust.count} ({robust.settings.get('method', '').replace('_', ' ')}), "
+                f"{robust.ranges_text()}; the robust design has "
                 f"{robust.unstable_count} unstable variants, the nominal design {nominal.unstable_count}.",
                 "Worst case over the stable variants against the robustness requirements; the last column is "
                 "the nominal design (designed for the nominal plant alone) over the same variants.")

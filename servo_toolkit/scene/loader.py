@@ -18,6 +18,7 @@ from ..components.platform.geometry import CrossedArchPlatform
 from ..components.roller_screw.stages import RollerScrew, RollerScrewOperating, RollerScrewStage
 from ..errors import SceneError
 from ..core.fields import Fields, require
+from ..core.ranges import VARIED
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
 from .tracking import tracking_error as _tracking_error
@@ -182,7 +183,7 @@ class Robustness:
         def span(name, unit, positive):
             if not f.has(name):
                 return None
-            lo_hi = f.quantity_list(name, unit, rule="positive" if positive else "nonnegative")
+            lo_hi = f.quantity_list(name, unit, rule="positive" if positive else "nonnegative", bounds=VARIED[name])
             require(len(lo_hi) == 2, f.key(name), f"expected [lo, hi], got {len(lo_hi)} values")
             require(lo_hi[0] <= lo_hi[1], f.key(name), f"lo must not exceed hi (got {lo_hi[0]:g} > {lo_hi[1]:g})")
             return lo_hi

@@ -85,6 +85,26 @@ def segment_plays(drive, segs, q0: float, options) -> np.ndarray:
     return plays
 
 
+def held_inertia_error(drive, q, j_row) -> SceneError:
+    """The error of a model whose motor side would get a negative inertia somewhere along the
+    stroke: the load side is held at its q0 inertia and the chain's variation along the
+    stroke goes to the motor side (``j_row``), so a member whose inertia at the output varies
+    by more than the motor side has cannot be modelled. It names the stage of the member
+    that varies most (e.g. a nut of 1e4 kg behind a rocker)."""
+    chain = drive.chain
+    elem = chain.element_inertias(q)
+    k = max(range(len(chain.elements)), key=lambda i: float(np.ptp(elem[i])))
+    e = chain.elements[k]
+    n_stages = len(drive.stages)
+    key = f"drivetrain[{e.stage}]" if 0 <= e.stage < n_stages else ("load.inertia" if e.stage >= n_stages else "motor")
+    unit = "kg" if getattr(drive, "output_is_linear", False) else "kg*m^2"
+    return SceneError(key, f"the {e.label}'s inertia at the output varies by {np.ptp(elem[k]):.3g} {unit} along "
+                           "the stroke; the model holds a load-side member's inertia at its q0 value and moves the "
+                           f"variation to the motor side, which it leaves at {np.min(j_row):.3g} {unit}, not a "
+                           "positive inertia: a member this heavy for its place in the chain is outside what the "
+                           "model is conditioned for")
+
+
 def chain_model(drive, q, q0: float, options, j_tot, dj_tot, zeta: float):
     """Tables and parameters of the full chain.
 

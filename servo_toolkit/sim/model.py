@@ -70,6 +70,7 @@ from . import speed_estimator as estimator, layout as lo
 from ..plant.linear import two_mass_damping
 from .tables import frozen_tables
 from .chain_model import (CHAIN_CHOICES, chain_damping_facts, chain_model, chain_state_names, damping_note,
+                          held_inertia_error,
                           resolve as resolve_chain)
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
@@ -347,7 +348,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                          f"{np.ptp(moving) / jl:.1%} along the stroke; the rest moves with the motor side)")
         j_row = j_tot - jl
         if np.any(j_row <= 0):
-            raise SceneError("drivetrain", "motor-side inertia is not positive along the stroke")
+            raise held_inertia_error(drive, q, j_row)
         spline = CubicSpline(q, k_tot)
         k_row, dk_row = k_tot, spline(q, 1)
     table = np.vstack([j_row, dj_row, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]

@@ -152,7 +152,7 @@ def robust_rows(robust) -> list[RequirementRow]:
     """Rows of a RobustnessResult's checks (ID ``robust_<name>``, the worst variant named)."""
     rows = []
     for c in robust.requirements:
-        at = ", ".join(f"{k} = {v:.4g}" for k, v in robust.worst.get(c.name, {}).items())
+        at = robust.variant_text(robust.worst.get(c.name, {}))
         detail = f"worst case over {robust.count} variants ({robust.unstable_count} unstable)" + (f", at {at}" if at else "")
         rows.append(check_row(c, "robust_", "robust: ", detail))
     return rows
@@ -164,7 +164,7 @@ def montecarlo_rows(checks, result) -> list[RequirementRow]:
     rows = []
     for c in checks:
         i = result.worst_index(c.name)
-        at = "" if i is None else ", at " + ", ".join(f"{k} = {v[i]:.4g}" for k, v in result.values.items())
+        at = "" if i is None else ", at " + result.variant_text(i)
         rows.append(check_row(c, "robust_", "robust: ", f"worst case over {result.count} nonlinear time runs{at}"))
     return rows
 

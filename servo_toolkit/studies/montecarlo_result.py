@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.output_units import OutputUnit
+from ..display.html import fmt
 from ..display.units import DisplayUnits
 
 
@@ -83,9 +84,15 @@ class MonteCarloResult:
                 for k, v in self.values.items()}
 
     def ranges_text(self) -> str:
-        """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2``."""
-        unit = {"load_inertia": " " + self.display.inertia_unit(self.unit.linear)}
-        return ", ".join(f"{k} {v.min():.3g}..{v.max():.3g}{unit.get(k, '')}" for k, v in self.shown_values().items())
+        """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2,
+        stiffness 0.7..1.3 x nominal`` (:func:`servo_toolkit.loop.vary.ranges_text`)."""
+        from ..loop.vary import ranges_text
+        return ranges_text(self.values, self.display, self.unit.linear)
+
+    def variant_text(self, i: int) -> str:
+        """Variant ``i``'s parameters with their units (:func:`servo_toolkit.loop.vary.variant_text`)."""
+        from ..loop.vary import variant_text
+        return variant_text(self.values, self.display, self.unit.linear, index=int(i))
 
     @property
     def error_unit(self) -> str:
@@ -186,9 +193,9 @@ class MonteCarloResult:
         i = self.worst_index(figure)
         if i is None:
             return "every variant failed"
-        at = ", ".join(f"{k}={v[i]:.4g}" for k, v in self.shown_values().items())
-        value = (f"{self.error_display[i]:.4g} {self.error_unit}" if figure == "tracking_error"
-                 else f"{self.peak_current[i]:.4g} A")
+        at = self.variant_text(i)
+        value = (f"{fmt(self.error_display[i])} {self.error_unit}" if figure == "tracking_error"
+                 else f"{fmt(self.peak_current[i])} A")
         return f"{value} at {at}"
 
     def table(self) -> str:

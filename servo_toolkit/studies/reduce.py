@@ -22,7 +22,6 @@ are outside that statement and are reported separately.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -62,18 +61,16 @@ def _trace_case(case):
     before it (the start-up transient: the command starts with its full slope)."""
     from ..sim import Reference, run
     model, amp, freq, duration, limits, t_settle = case
-    start = time.perf_counter()
     try:
         # RK4 with the step it needs: shrunk where a mode stiffens along the run (an end stop)
         res = run(model, Reference.sine(amp, freq), duration, "auto")
     except SimulationError as exc:
-        return {"error": str(exc), "wall_s": time.perf_counter() - start}
+        return {"error": str(exc)}
     hit = ((np.abs(res.current_reference) >= limits[0] * (1 - 1e-9))
            | (np.abs(res.motor_voltage) >= limits[1] * (1 - 1e-9)))
     window = res.times >= t_settle
     return {"t": res.times, "q": res.output_angle - model.q0, "saturated": bool(np.any(hit[window])),
-            "startup_saturated": bool(np.any(hit[~window])), "error": None,
-            "wall_s": time.perf_counter() - start}
+            "startup_saturated": bool(np.any(hit[~window])), "error": None}
 
 
 def _trace_difference(full, red, t_settle):
@@ -161,15 +158,13 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         limits = (scene.motor.current_limit, scene.motor.voltage_limit)
 
         def study_on(options, label):
-            start = time.perf_counter()
             model = build_model(scene, controller, options)
             runs = run_cases(_trace_case, [(model, a, f, (settle + est) / f, limits, settle / f) for a in amps],
                              executor=executor, progress=progress, description=f"{label} model")
-            return _Traces(runs, settle / f, time.perf_counter() - start)
+            return _Traces(runs, settle / f)
     s_full = study_on(full, "full")
     s_red = study_on(reduced, "reduced")
     diff, sat = _difference(s_full, s_red)
-    walls = (s_full.wall_s, s_red.wall_s)
     if measure == "sweep" and np.isnan(diff).any():
         notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
                      f"{next(e for e in s_full.errors if e)}); not compared")
@@ -190,11 +185,11 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     for effect in alone if per_effect else []:
         alone = study_on(options_without(full, [effect]), f"without {effect.effect}")
         d, s_ = _difference(s_full, alone)
-        costs.append(EffectCost(effect.effect, effect.estimate, _largest(d, ~s_), _largest(d, s_), alone.wall_s))
+        costs.append(EffectCost(effect.effect, effect.estimate, _largest(d, ~s_), _largest(d, s_)))
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
-                           full_wall_s=float(walls[0]), reduced_wall_s=float(walls[1]), notes=tuple(notes),
+                           notes=tuple(notes),
                            output_unit=output_unit(scene).si, per_effect=tuple(costs))
 
 
@@ -204,7 +199,6 @@ class _Traces:
 
     runs: list
     t_settle: float
-    wall_s: float
 
 
 def _difference(a, b):

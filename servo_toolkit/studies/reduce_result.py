@@ -27,20 +27,17 @@ class EffectCost:
         (NaN: no such point).
     measured_saturated : float
         The same over the points that reached a limit (NaN: none).
-    wall_s : float
-        Wall time of its run.
     """
 
     effect: str
     estimate: float
     measured: float
     measured_saturated: float
-    wall_s: float
 
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"effect": self.effect, "estimate_relative": self.estimate, "measured_relative": self.measured,
-                "measured_saturated_relative": self.measured_saturated, "wall_s": self.wall_s}
+                "measured_saturated_relative": self.measured_saturated}
 
 
 @dataclass(frozen=True, repr=False)
@@ -63,8 +60,6 @@ class ReductionResult(RichDisplay):
     saturated : numpy.ndarray
         (n_a, n_f) bool: a limit was reached in either run (outside the linear statement).
     full_options, reduced_options : dict
-    full_wall_s, reduced_wall_s : float
-        Wall time of the study on each model.
     notes : tuple of str
     output_unit : {"rad", "m"}
         Unit of the output coordinate; amplitudes are shown in deg or mm after it.
@@ -83,8 +78,6 @@ class ReductionResult(RichDisplay):
     saturated: np.ndarray
     full_options: dict
     reduced_options: dict
-    full_wall_s: float
-    reduced_wall_s: float
     notes: tuple = field(default_factory=tuple)
     output_unit: str = "rad"
     per_effect: tuple = ()
@@ -144,7 +137,6 @@ class ReductionResult(RichDisplay):
                             "saturated": bool(self.saturated[i, k])}
                            for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
                 "full_options": self.full_options, "reduced_options": self.reduced_options,
-                "full_wall_s": self.full_wall_s, "reduced_wall_s": self.reduced_wall_s,
                 "per_effect": [c.to_dict() for c in self.per_effect],
                 "notes": list(self.notes)}
 
@@ -184,8 +176,6 @@ class ReductionResult(RichDisplay):
                        if math.isfinite(c.measured_saturated) else "")
                 lines.append(f"  {c.effect[:32]:32s} estimate {c.estimate:9.2e}  measured {c.measured:9.2e} = "
                              f"{_db(c.measured):.3f} dB / {_deg(c.measured):.2f} deg{sat}")
-        lines.append(f"wall time: full {self.full_wall_s:.2f} s, reduced {self.reduced_wall_s:.2f} s"
-                     + (f", each effect alone {sum(c.wall_s for c in self.per_effect):.2f} s" if self.per_effect else ""))
         lines += [f"note: {n}" for n in p.notes + self.notes]
         return "\n".join(lines)
 
@@ -240,8 +230,7 @@ def _card_html(r) -> str:
              "left out" if e.omitted else "kept", e.reason) for e in r.plan.effects]
     parts = [table(("effect", "estimate (relative)", "measured alone", "decision", "why"), rows),
              facts((("a-priori bound", num(r.bound, 3)), ("measured difference", num(r.measured, 3)),
-                    ("verdict", r.verdict), ("wall time full / reduced",
-                                             f"{num(r.full_wall_s, 3)} s / {num(r.reduced_wall_s, 3)} s"))),
+                    ("verdict", r.verdict))),
              svg(lambda ax: r.plot(ax), size=(7.0, 3.4))]
     return card(f"Reduction of {r.scene}", status=r.within_bound if r.within_bound is not None else None,
                 parts=parts, notes=r.notes)

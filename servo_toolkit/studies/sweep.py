@@ -308,7 +308,12 @@ def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAUL
     poles = cl.poles()
     decay = float(np.min(-poles.real)) if poles.size else math.inf
     if not decay > 0:
-        raise SimulationError(f"the linear closed loop is not stable (slowest pole real part {-decay:.4g} 1/s)")
+        worst = poles[np.argmax(poles.real)]
+        raise SimulationError(
+            f"the closed loop of this controller is not stable (its rightmost pole at {worst.real:.4g} "
+            f"{worst.imag:+.4g}j 1/s): a physical verdict on the design, not a failure of the run; a sine dwell "
+            "has no steady state to measure (servo-toolkit check fails the row closed_loop_stable, "
+            "servo-toolkit design says why)")
     return resp, decay
 
 

@@ -124,8 +124,10 @@ class SizingResult(RichDisplay):
                  f"peak power {self.peak_power:.4g} W, regenerated {self.regenerated_energy:.4g} J per cycle",
                  f"  {'quantity':<34}{'value':>12}{'limit':>12}  unit   margin"]
         for m in self.margins:
-            lines.append(f"  {m.name:<34}{m.value:>12.4g}{m.limit:>12.4g}  {m.unit:<6}{m.margin:>7.1%}  "
-                         f"{'ok' if m.passed else 'EXCEEDED'}")
+            margin = f"{m.margin:>7.1%}" if math.isfinite(m.margin) else f"{'none':>7}"
+            runaway = m.name == "winding temperature" and self.thermal is not None and self.thermal.runaway
+            lines.append(f"  {m.name:<34}{m.value:>12.4g}{m.limit:>12.4g}  {m.unit:<6}{margin}  "
+                         f"{'ok' if m.passed else 'EXCEEDED'}" + ("  (thermal runaway: no steady state)" * runaway))
         if self.sweep is not None:
             for i, name in enumerate(self.sweep.motors):
                 rng = self.sweep.feasible_range(i)

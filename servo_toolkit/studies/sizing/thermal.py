@@ -102,8 +102,9 @@ class ThermalNetwork:
             c1 = (f1 - f2) / (l1 - l2)
             return c0[..., None, None] * np.eye(2) + c1[..., None, None] * a
 
-        phi = apply(np.exp(l1 * h), np.exp(l2 * h))
-        gamma = np.einsum("...ij,...j->...i", apply(phi1(l1), phi1(l2)), b)
+        with np.errstate(over="ignore", invalid="ignore"):  # a runaway overflows: :func:`settles` says so
+            phi = apply(np.exp(l1 * h), np.exp(l2 * h))
+            gamma = np.einsum("...ij,...j->...i", apply(phi1(l1), phi1(l2)), b)
         return phi, gamma
 
 
@@ -157,17 +158,28 @@ def cycle_map(network: ThermalNetwork, i2, h: float) -> tuple[np.ndarray, np.nda
     phis, gammas = network.step_maps(i2, h)
     phi = np.broadcast_to(np.eye(2), i2.shape[:-1] + (2, 2)).copy()
     gamma = np.zeros(i2.shape[:-1] + (2,))
-    for k in range(i2.shape[-1]):
-        phi = phis[..., k, :, :] @ phi
-        gamma = np.einsum("...ij,...j->...i", phis[..., k, :, :], gamma) + gammas[..., k, :]
+    with np.errstate(over="ignore", invalid="ignore"):  # a runaway overflows: :func:`settles` says so
+        for k in range(i2.shape[-1]):
+            phi = phis[..., k, :, :] @ phi
+            gamma = np.einsum("...ij,...j->...i", phis[..., k, :, :], gamma) + gammas[..., k, :]
     return phi, gamma, phis, gammas
+
+
+def settles(phi, gamma) -> np.ndarray:
+    """True where the cycle map has a steady periodic state: every eigenvalue of ``Phi``
+    inside the unit circle. A map that overflowed (an interval whose winding heats by more
+    than e^709 over the coupling: the copper's resistance rise outruns the cooling) has
+    none: it runs away."""
+    finite = np.all(np.isfinite(phi), axis=(-2, -1)) & np.all(np.isfinite(gamma), axis=-1)
+    safe = np.where(finite[..., None, None], phi, 0.0)
+    return finite & (np.max(np.abs(np.linalg.eigvals(safe)), axis=-1) < 1 - 1e-12)
 
 
 def periodic_peak(network: ThermalNetwork, i2, h: float) -> np.ndarray:
     """Highest winding temperature (K) of the steady periodic cycle for each row of ``i2``
     (shape (..., steps)); inf where the network runs away. Vectorized over the rows."""
     phi, gamma, phis, gammas = cycle_map(network, i2, h)
-    stable = np.max(np.abs(np.linalg.eigvals(phi)), axis=-1) < 1 - 1e-12
+    stable = settles(phi, gamma)
     eye = np.eye(2)
     x = np.linalg.solve(np.where(stable[..., None, None], eye - phi, eye), gamma[..., None])[..., 0]
     peak = x[..., 0].copy()
@@ -183,7 +195,7 @@ def cycle_temperatures(network: ThermalNetwork, current, weight, steps: int = TH
     i2, h = interval_i2(current, weight, steps)
     phi, gamma, phis, gammas = cycle_map(network, i2, h)
     t = h * np.arange(1, steps + 1)
-    if not np.max(np.abs(np.linalg.eigvals(phi))) < 1 - 1e-12:
+    if not settles(phi, gamma):
         inf = np.full(steps, np.inf)
         return ThermalResult(t, inf, inf, np.zeros(0, int), np.zeros(0), math.inf, True)
     steady = np.linalg.solve(np.eye(2) - phi, gamma)
