@@ -435,7 +435,11 @@ def test_fixed_point_with_a_speed_estimator(ema, tmp_path):
     np.testing.assert_allclose(w, np.diff(np.r_[0.0, z]) / ts, rtol=1e-12, atol=1e-9)
     q = res.quantized
     counts = int(round(w[-1] / q.lsb["omega"]))
-    assert c.motion(0, 0, counts) == pytest.approx(-w[-1] * res.blocks.speed.b[0] / q.lsb["current"], abs=2)
+    # the step sees the speed rounded to counts: the current it gives is that speed's, to the
+    # coefficient's Q15 rounding (2^-15 of it) and the output's half count
+    fed = counts * q.lsb["omega"]
+    expected = -fed * res.blocks.speed.b[0] / q.lsb["current"]
+    assert c.motion(0, 0, counts) == pytest.approx(expected, abs=0.5 + abs(expected) * 2.0 ** -15 + 1e-9)
 
 
 def test_result_dataclass(ema):

@@ -34,8 +34,9 @@ COMMANDS = {
     "check": "check loop requirements (exit 0 met, 1 not met, 2 bad input)",
     "simulate": "time simulation (compiled RK4, paper scheme or stiff reference)",
     "accuracy": "error against run time: RK4 step ladder vs the stiff reference",
-    "sweep": "nonlinear closed-loop sine-dwell sweep against the linear loop",
-    "reduce": "what the scene's model leaves out for a study, why, and the measured cost",
+    "sweep": "nonlinear closed-loop frequency response (sine dwell or multisine) against the linear loop",
+    "reduce": ("what the scene's model leaves out for a study, why, and the measured cost "
+               "(of all together and of each effect on its own)"),
     "export": "controller.json and C99 sources of the designed controller",
     "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
     "tolerances": "yield over the scene's [tolerances] and which tolerance drives it",

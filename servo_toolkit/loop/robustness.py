@@ -28,7 +28,7 @@ from .requirements import check
 from .robustness_result import RobustnessResult
 from .sampling import sample_variants as _sample
 from .vary import PARAMETERS
-from .variant_plants import (VariantLoops, batched_matrices, controller_blocks as _controller_blocks,
+from .variant_plants import (VariantLoops, mode_damping, batched_matrices, controller_blocks as _controller_blocks,
                              controller_response as _controller_response, variant_grid, variant_plants)
 
 DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
@@ -206,7 +206,8 @@ def reference_margins(scene, design_result, load_inertia: float, stiffness: floa
     """python-control's ``stability_margins`` (gm, pm, sm, wpc, wgc, wms) of one variant,
     building the plant and the loop as python-control objects (the slow, independent path)."""
     values = {"load_inertia": np.array([load_inertia]), "stiffness": np.array([stiffness])}
-    p = varied_parameters(design_result.parameters, scene.load.inertia, values, 0, structural_damping)
+    p0 = design_result.parameters
+    p = varied_parameters(p0, scene.load.inertia, values, 0, mode_damping(scene, p0, structural_damping))
     A, B, C, D, states = plant_matrices(p)
     g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
     loop = open_loop_of(g, design_result.controller, scene.motor)

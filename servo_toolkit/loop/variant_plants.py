@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..core.separable import DEFAULT_RTOL
-from ..plant.linear import plant_matrices, plant_parameters, sample_delay, spring_damping
+from ..plant.linear import plant_matrices, plant_parameters, sample_delay, spring_damping, two_mass_damping
 from .assembly import _abcd
 from .closed_loop import DELAY_SAMPLES
 from .response import loop_response, mechanical_response, state_space_response
@@ -86,6 +86,14 @@ class VariantPlants:
     def rows(self, rows) -> dict:
         """The fields of variants ``rows`` (any index array)."""
         return {k: v[rows] for k, v in self.cols.items()}
+
+
+def mode_damping(scene, p, zeta: float) -> float:
+    """The damping ratio of the two-mass mode of ``p`` when each compliance whose stage gives
+    none has ``zeta``: the chain's lowest mode's (:func:`~servo_toolkit.plant.linear.two_mass_damping`,
+    as :func:`~servo_toolkit.plant.linear.plant_parameters` gives the design's plant); a
+    variant keeps it."""
+    return 0.0 if p.rigid or not np.isfinite(p.K) else two_mass_damping(scene.drivetrain.chain, p.q0, zeta)
 
 
 def _with_damping(cols: dict, zeta: float) -> dict:
@@ -177,7 +185,8 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
                     bar.update(1)
             method, spent = "exact", spent + n
     from dataclasses import replace
-    result = VariantPlants(_plants_of(Y, values, p, zeta), p.rigid, method, float(error), inert, spent)
+    ratio = mode_damping(scene, p, zeta)
+    result = VariantPlants(_plants_of(Y, values, p, ratio), p.rigid, method, float(error), inert, spent)
     if f is None and names:
         return result
 
@@ -185,7 +194,7 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
         m = next(iter(other.values())).size
         Yo = (_f(np.column_stack([np.asarray(other[k], float) for k in _names])) if _names else
               np.array([[getattr(p, k) for k in FIELDS]] * m, float))
-        return replace(result, cols=_plants_of(Yo, other, p, zeta))
+        return replace(result, cols=_plants_of(Yo, other, p, ratio))
     return replace(result, mapper=mapper)
 
 
@@ -214,7 +223,7 @@ def variant_plants(scene, p, values: dict, zeta: float, **kw) -> VariantPlants:
         other = next(k for k in values if k not in LEGACY)
         raise SceneError(f"vary.{other}", f"use either {list(LEGACY)} or scene key paths, not both")
     if legacy:
-        return closed_form_plants(p, scene.load.inertia, values, zeta)
+        return closed_form_plants(p, scene.load.inertia, values, mode_damping(scene, p, zeta))
     return keyed_plants(scene, p, values, zeta, **kw)
 
 

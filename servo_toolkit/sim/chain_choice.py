@@ -206,7 +206,7 @@ def choose_chain(scene, controller, q0: float, frequencies_hz, damping: float, w
     if lump:
         note = (f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction: RK4 step limit {dt_red:.3g} s "
                 f"against {dt_full:.3g} s for the full chain; {cost_text} (within {tolerance:g}); chain='full' keeps "
-                "them, `servo-toolkit reduce` measures the cost")
+                "them, servo-toolkit reduce measures the cost")
     else:
         note = (f"full drivetrain chain kept: RK4 step limit {dt_full:.3g} s against {dt_red:.3g} s for the "
                 f"two-mass reduction; {cost_text} (more than {tolerance:g})")
