@@ -276,7 +276,9 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
     across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
     controller and no cam: their code is left out there, so that loop is branch- and
-    call-free and vectorizes. Every other caller passes False.
+    call-free and vectorizes. Every other caller passes False. Friction that holds
+    (``STICK``) is in both: its stick and breakaway law are selects, and the lanes' caller
+    splits a lane's step at a speed reversal as the single run does.
     """
     kc, tc = cell(P, p)
     hc = P[TAB_H]
@@ -315,8 +317,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             di = 0.0
             dxi = 0.0
     tau = P[KT] * cur
-    # friction: exact stick (STICK, not in the vectorized lanes) or the smooth Coulomb model
-    stick = not lanes and P[STICK] > 0.0
+    # friction: exact stick (STICK; branch-free, so the lanes vectorize it) or the smooth Coulomb model
+    stick = P[STICK] > 0.0
     if stick:
         fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M])
     else:
