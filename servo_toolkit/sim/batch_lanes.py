@@ -134,9 +134,12 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds):
     """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
     U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
+    ``holds`` (a literal at each call: one compiled stage for blocks with friction that
+    holds, one without, so a block without it pays nothing for its selects) compiles in
+    friction that holds.
 
     The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
     gathers from, which it could not check at run time) and the results are copied out.
@@ -148,7 +151,7 @@ def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
         s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
             tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
             Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
-            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True)
+            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True, holds)
         out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
         out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
     for l in range(W):
@@ -238,12 +241,16 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN)
                 to_sample = sub
             to_sample -= 1
-        # one call site of the stage (its code compiles once): stage 0 also keeps the figures
+        # one call site of the stage per friction model (its code compiles once for each): stage 0
+        # also keeps the figures
         for stage in range(4):
             c, w = rk4_coefficients(stage, dt)
             if stage == 0:
                 S[:, :] = 0.0
-            _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy)
+            if stick:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True)
+            else:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False)
             if stage > 0:
                 continue
             for l in range(nl):

@@ -19,18 +19,18 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .vmath import TANH_ONE, exp_pos, inline  # noqa: E402
+from .vmath import TANH_ONE, exp_neg, inline  # noqa: E402
 
 
 @inline
 def slip_friction(v, tc, ts, inv_vs):
     """Sliding friction at speed v != 0, signed with v: Tc + (Ts - Tc) exp(-(v / v_st)^2).
 
-    The exponential is :func:`~.vmath.exp_pos`'s (no library call, so the batched lanes
+    The exponential is :func:`~.vmath.exp_neg`'s (no library call, so the batched lanes
     vectorize it; within 1 ulp), taken as 0 beyond (v / v_st)^2 = 44 (exp(-44) = 8e-20)."""
     y = v * inv_vs
     y2 = y * y
-    stribeck = 0.0 if y2 >= 2.0 * TANH_ONE else 1.0 / exp_pos(y2)
+    stribeck = 0.0 if y2 >= 2.0 * TANH_ONE else exp_neg(y2)
     mag = tc + (ts - tc) * stribeck
     return mag if v > 0.0 else -mag
 

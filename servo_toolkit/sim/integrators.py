@@ -269,7 +269,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
                     xs[j] = x[j] + c * kin[j]
             s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
                 t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                P, T, iref, x if stage == 0 else xs, kout, False)
+                P, T, iref, x if stage == 0 else xs, kout, False, True)
             if stage == 0:
                 g1, g3 = s1, s3  # the slopes at the step's start (speed reversals)
                 tau = abs(tau_)

@@ -264,7 +264,7 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
 
 
 @inline
-def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
+def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
 
     Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
@@ -276,9 +276,10 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
     across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
     controller and no cam: their code is left out there, so that loop is branch- and
-    call-free and vectorizes. Every other caller passes False. Friction that holds
-    (``STICK``) is in both: its stick and breakaway law are selects, and the lanes' caller
-    splits a lane's step at a speed reversal as the single run does.
+    call-free and vectorizes. Every other caller passes False. ``holds`` (also a
+    compile-time constant) compiles in friction that holds (``STICK``): every caller but the
+    lanes of a block without it passes True. In the lanes its stick and breakaway law are
+    selects, and the caller splits a lane's step at a speed reversal as the single run does.
     """
     kc, tc = cell(P, p)
     hc = P[TAB_H]
@@ -318,7 +319,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             dxi = 0.0
     tau = P[KT] * cur
     # friction: exact stick (STICK; branch-free, so the lanes vectorize it) or the smooth Coulomb model
-    stick = P[STICK] > 0.0
+    stick = holds and P[STICK] > 0.0
     if stick:
         fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M])
     else:
@@ -346,10 +347,13 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             oc = int(P[CAM])
             pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, nts + m_load, jd,
                                         0.5 * djd * pd * pd, n * P[WS])
+            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
+                pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
         else:
-            pdd = (nts - 0.5 * djd * pd * pd + m_load) / jd
-        if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
-            pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
+            m_p = nts - 0.5 * djd * pd * pd + m_load
+            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
+                m_p = stuck_or_breaking(m_p, n * P[TS_M] + P[TS_L])
+            pdd = m_p / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     if not lanes and P[NMID] > 0.0:
         pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx)
@@ -382,11 +386,11 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
     nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, -f - 0.5 * dk * z * z)
-    pdd = (nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
-    qdd = (f + m_load) * P[INV_JL]
+    m_p = nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z  # the moments on the motor side and the load
+    m_q = f + m_load
     if stick:
-        pdd, qdd = stick_nodes(pdd, qdd, pd, qd, jd, n, P)
-    return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
+        m_p, m_q = stick_moments(m_p, m_q, pd, qd, n, P)
+    return pd, m_p / jd, qd, m_q * P[INV_JL], di, dxi, cur, v, iref, tau
 
 
 @inline
@@ -401,13 +405,26 @@ def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
     return pdd, qdd
 
 
+@inline
+def stick_moments(m_p, m_q, pd, qd, n, P):
+    """:func:`stick_nodes` on the moments (their accelerations times the inertias): the
+    motor side and the load at rest stick while the moment on each stays within its
+    breakaway level, else break away against it (no division: the lanes evaluate it in
+    every variant)."""
+    if pd == 0.0:
+        m_p = stuck_or_breaking(m_p, n * P[TS_M])
+    if qd == 0.0 and P[TS_L] > 0.0:
+        m_q = stuck_or_breaking(m_q, P[TS_L])
+    return m_p, m_q
+
+
 @jit
 def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
     """:func:`rhs_phys` outside the vectorized lanes, compiled once as a function of its own:
     the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the
     cam paper's scheme, Jacobians, the stiff reference solver) call it instead of inlining
     their own copy, which would compile the whole right-hand side again for each."""
-    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False)
+    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False, True)
 
 
 @jit
