@@ -144,12 +144,11 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring(belt):
 
 def test_stick_slip_against_an_event_driven_solution(belt):
     """The same run against an independent event-driven solution (``solve_ivp`` between stick
-    and slip events at 1e-10, tests/test_hunting.stick_slip), rotor included. Each cycle
-    (breakaway to breakaway) and each slip (breakaway to stick) lasts the reference's to
-    within a step and a half: a breakaway starts at the step boundary after the breakaway
-    instant (up to one step late) and a reversal is placed within its step by a linear
-    estimate, so over the 11 cycles the events drift by a few steps (3 to 5 at 2e-5 s) and the
-    load's trace follows the reference to 1 % of the swing (0.37 % seen)."""
+    and slip events at 1e-10, tests/test_hunting.stick_slip), rotor included. RK4 locates each
+    breakaway and each stick within its step (:mod:`servo_toolkit.sim.split_step`): over the
+    11 cycles every one falls in the same step as the reference's event (no drift), and the
+    load's trace follows the reference to 1e-5 of the swing (1e-6 seen, the reference's own
+    dense output; with the switches at step boundaries and a linear estimate it was 4e-3)."""
     from .test_hunting import sample, stick_slip
     k, m, ts, tc = (BELT[key] for key in ("k", "m", "ts", "tc"))
     res, n, volts = belt
@@ -167,11 +166,12 @@ def test_stick_slip_against_an_event_driven_solution(belt):
     t_slip = res.times[np.flatnonzero(stuck[:-1] & ~stuck[1:])]  # last record stuck before each breakaway
     t_stick = res.times[np.flatnonzero(~stuck[:-1] & stuck[1:]) + 1]  # first record stuck
     assert len(slips) >= 10 and len(t_slip) == len(slips) and len(t_stick) == len(sticks) == len(slips)
-    np.testing.assert_array_less(np.abs(np.diff(t_slip) - np.diff(slips)), 1.5 * BELT_DT)
-    np.testing.assert_array_less(np.abs((t_stick - t_slip) - (sticks - slips)), 2.5 * BELT_DT)
+    eps = 1e-9 * BELT_DT  # the records' times
+    assert np.all((t_slip > slips - BELT_DT) & (t_slip <= slips + eps))  # the last record stuck
+    assert np.all((t_stick >= sticks - eps) & (t_stick < sticks + BELT_DT))  # the first record stuck
     ref = sample(pieces, res.times)
     swing = stick_slip_closed_form(k, m, BELT["v"], ts, tc)[2] / k
-    assert np.max(np.abs(res.states[:, 2] - ref[:, 0])) < 1e-2 * swing
+    assert np.max(np.abs(res.states[:, 2] - ref[:, 0])) < 1e-5 * swing
 
 
 def test_energy_balance_of_a_stick_slip_run(belt):
@@ -204,7 +204,7 @@ def test_friction_never_supplies_power(v, tc, extra, vs, applied):
     """Sliding, the friction opposes the speed and lies between Tc and Ts; at rest it takes at
     most the applied moment and never turns it around."""
     ts = tc + extra
-    f = slip_friction.py_func(v, tc, ts, 1.0 / vs)
+    f = slip_friction.py_func(v, tc, ts, 1.0 / vs, 0.0)
     assert f * v >= 0.0
     assert tc - 1e-12 <= abs(f) <= ts + 1e-12
     net = stuck_or_breaking.py_func(applied, ts)

@@ -53,7 +53,7 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW, DIR_M, DIR_L)
 from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 
@@ -321,7 +321,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     # friction: exact stick (STICK; branch-free, so the lanes vectorize it) or the smooth Coulomb model
     stick = holds and P[STICK] > 0.0
     if stick:
-        fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M])
+        fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M], P[DIR_M])
     else:
         fm = P[TC] * tanh(wm * P[WS])
     tau_shaft = tau - P[BM] * wm - fm
@@ -338,7 +338,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if stick and qld != 0.0 and P[TS_L] > 0.0:
-        m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L])
+        m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L], P[DIR_L])
     if P[RIGID] > 0.0:
         nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, m_load)
         if not lanes and P[CAM] > 0.0:
