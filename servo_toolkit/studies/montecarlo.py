@@ -32,7 +32,7 @@ from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smoo
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from .montecarlo_result import MonteCarloResult
-from .time_run import sine_run_options
+from .time_run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000
@@ -155,6 +155,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         Unknown variation, bad range, a variant without load-side inertia, a duration or
         step that is not positive.
     """
+    if friction is not None:
+        check_friction(friction)  # before any work
     spec = scene.robustness
     if variants is None:
         variants = spec.ranges if spec is not None else dict(DEFAULT_VARIATIONS)
