@@ -178,3 +178,32 @@ def test_a_block_of_controllers_of_different_structures_runs_variant_by_variant(
     P[2, lo.OFF_C] = 40.0
     assert block_kind(P, 0, 3)[0] is False
     assert block_kind(P, 0, 2) == (True, True)
+
+
+@pytest.mark.parametrize("compliance", [True, False])
+def test_lanes_with_friction_that_holds_equal_the_per_variant_loop(ema, compliance):
+    """Friction that holds in the lanes: the stick and breakaway law branch-free, a lane whose
+    node reverses its speed within a step split there as the single run splits it. Static
+    friction on the motor (every variant, at its own level), on the load (some), one lane with
+    the smooth model beside them: figures and states equal the per-variant loop, and the
+    stick changes what the smooth model gives."""
+    from servo_toolkit.sim.batch_lanes import block_kind
+    scene, controller = ema
+    options = ModelOptions(**{**sine_run_options(scene, controller, REF)[0].__dict__, "friction": "stick",
+                              "compliance": compliance})
+    P, T, tix, X0, sub = _rows(scene, controller, W + 3, options)
+    assert np.all(P[:, lo.STICK] == 1.0)
+    P[:, lo.TS_M] = np.linspace(0.03, 0.3, len(P))  # above the motor's Coulomb level, 0.02 N*m
+    P[::2, lo.TC_L], P[::2, lo.TS_L], P[::2, lo.INV_VS_L] = 5.0, 8.0, 1.0 / 0.05
+    P[3, lo.STICK] = 0.0  # the smooth model beside friction that holds, in one block
+    assert block_kind(np.ascontiguousarray(P), 0, W) == (True, True)
+    one, lanes = _both(P, T, tix, X0, sub)
+    assert np.all(one[1][:, F_STATUS] == lo.OK)
+    _assert_equal(one, lanes)
+    smooth = P.copy()
+    smooth[:, lo.STICK] = 0.0
+    slid = _both(smooth, T, tix, X0, sub)[1]
+    # friction that holds changes where the output ends (by 1e-7 to 1e-3 rad here), the
+    # smooth lane not at all
+    moved = np.abs(slid[0][:, 2] - lanes[0][:, 2])
+    assert np.all(np.delete(moved, 3) > 1e-8) and moved[3] == 0.0

@@ -1,6 +1,6 @@
 """Friction that holds: exact stick below breakaway, breakaway above it, the Stribeck law while
-sliding, the classic stick-slip cycle against its closed form, and friction that never
-supplies power."""
+sliding, the classic stick-slip cycle against its closed form and an event-driven solution,
+its energy balance, and friction that never supplies power."""
 
 import math
 from dataclasses import replace
@@ -90,12 +90,19 @@ def stick_slip_closed_form(k, m, v, ts, tc):
     return t_slip + t_stick, t_stick, k * amp
 
 
-def test_stick_slip_of_a_mass_pulled_through_a_spring():
-    """The classic stick-slip: the motor side (a huge inertia) turns at constant speed v and
-    pulls the load through a spring; the load's static and Coulomb friction give a cycle whose
-    period, stick time and force extremes are the closed form's."""
-    k, m, v, ts, tc = 400.0, 0.2, 0.05, 2.0, 1.2
-    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=5e3,
+#: the mass-spring-belt: spring (N*m/rad), load inertia, belt speed (rad/s), static and Coulomb
+#: friction (N*m); the belt is the motor side, a huge rotor driven at the speed's voltage
+BELT = dict(k=400.0, m=0.2, v=0.05, ts=2.0, tc=1.2)
+BELT_ROTOR = 5e3
+BELT_DT = 2e-5
+
+
+@pytest.fixture(scope="module")
+def belt():
+    """The classic stick-slip run: the motor side (a huge inertia) turns at about constant
+    speed v and pulls the load through a spring; the load has static and Coulomb friction."""
+    k, m, v, ts, tc = (BELT[key] for key in ("k", "m", "v", "ts", "tc"))
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=BELT_ROTOR,
                     viscous_friction=0.0, coulomb_friction=0.0, voltage_limit=100.0, current_limit=50.0)
     sc = Scene("stick-slip", motor=motor, stages=(Compliance("spring", k),),
                load=Load(inertia=m, coulomb_friction=tc, static_friction=ts))
@@ -105,8 +112,15 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring():
     x0[0] = x0[2] = model.q0
     x0[1] = v
     n = abs(float(sc.drivetrain.ratio([model.q0])[0][0]))
-    dt = 2e-5
-    res = run(model, Reference.voltage(KT * n * v), 2.0, method="rk4", dt=dt, x0=x0, output_dt=dt)
+    volts = KT * n * v
+    res = run(model, Reference.voltage(volts), 2.0, method="rk4", dt=BELT_DT, x0=x0, output_dt=BELT_DT)
+    return res, n, volts
+
+
+def test_stick_slip_of_a_mass_pulled_through_a_spring(belt):
+    """The cycle's period, stick time and force extremes are the closed form's."""
+    k, m, v, ts, tc = (BELT[key] for key in ("k", "m", "v", "ts", "tc"))
+    res = belt[0]
     force = k * (res.states[:, 0] - res.states[:, 2])
     stuck = res.states[:, 3] == 0.0
     starts = np.flatnonzero(stuck[:-1] & ~stuck[1:])  # breakaways
@@ -128,6 +142,61 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring():
     assert stick_time == pytest.approx(t_stick, rel=5e-3)
 
 
+def test_stick_slip_against_an_event_driven_solution(belt):
+    """The same run against an independent event-driven solution (``solve_ivp`` between stick
+    and slip events at 1e-10, tests/test_hunting.stick_slip), rotor included. RK4 locates each
+    breakaway and each stick within its step (:mod:`servo_toolkit.sim.split_step`): over the
+    11 cycles every one falls in the same step as the reference's event (no drift), and the
+    load's trace follows the reference to 1e-5 of the swing (1e-6 seen, the reference's own
+    dense output; with the switches at step boundaries and a linear estimate it was 4e-3)."""
+    from .test_hunting import sample, stick_slip
+    k, m, ts, tc = (BELT[key] for key in ("k", "m", "ts", "tc"))
+    res, n, volts = belt
+
+    def applied(t, y):  # the spring's moment on the load; y = [q, q', p, p']
+        return k * (y[2] - y[0])
+
+    def rotor(t, y):  # the motor side at the output (p, ratio n): N Kt i, i = (V - Ke N p') / R, the spring
+        return [y[3], (n * KT * (volts - KT * n * y[3]) / R - k * (y[2] - y[0])) / (BELT_ROTOR * n**2)]
+    y0 = [res.states[0, 2], 0.0, res.states[0, 0], res.states[0, 1]]
+    pieces = stick_slip(res.t_final, y0, applied, rotor, m, tc, ts)
+    slips = np.array([a for a, _, stuck, _ in pieces if not stuck and a > 0.0])
+    sticks = np.array([a for a, _, stuck, _ in pieces if stuck and a > 0.0])
+    stuck = res.states[:, 3] == 0.0
+    t_slip = res.times[np.flatnonzero(stuck[:-1] & ~stuck[1:])]  # last record stuck before each breakaway
+    t_stick = res.times[np.flatnonzero(~stuck[:-1] & stuck[1:]) + 1]  # first record stuck
+    assert len(slips) >= 10 and len(t_slip) == len(slips) and len(t_stick) == len(sticks) == len(slips)
+    eps = 1e-9 * BELT_DT  # the records' times
+    assert np.all((t_slip > slips - BELT_DT) & (t_slip <= slips + eps))  # the last record stuck
+    assert np.all((t_stick >= sticks - eps) & (t_stick < sticks + BELT_DT))  # the first record stuck
+    ref = sample(pieces, res.times)
+    swing = stick_slip_closed_form(k, m, BELT["v"], ts, tc)[2] / k
+    assert np.max(np.abs(res.states[:, 2] - ref[:, 0])) < 1e-5 * swing
+
+
+def test_energy_balance_of_a_stick_slip_run(belt):
+    """Along the stick-slip run the friction's work on the load, from the trajectory alone (the
+    load's kinetic energy less the spring's work on it), never grows (friction never supplies
+    energy, at a stick or a breakaway neither) and equals the Coulomb law's dissipation
+    Tc int |q'| dt; the motor's work Kt i p' is the stored energy plus that dissipation."""
+    k, m, tc = BELT["k"], BELT["m"], BELT["tc"]
+    res, n, _ = belt
+    p, pd, q, qd = (res.states[:, j] for j in range(4))
+    t = res.times
+
+    def integral(y):
+        return np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))])
+    spring_on_load = integral(k * (p - q) * qd)
+    friction_work = 0.5 * m * qd**2 - spring_on_load  # q' = 0 at the start
+    dissipated = integral(tc * np.abs(qd))
+    assert dissipated[-1] > 0.05  # J: the run slides for most of its 2 s
+    assert np.all(np.diff(friction_work) <= 1e-6 * dissipated[-1])
+    np.testing.assert_allclose(friction_work, -dissipated, atol=1e-5 * dissipated[-1])
+    stored = 0.5 * BELT_ROTOR * (n * pd)**2 + 0.5 * m * qd**2 + 0.5 * k * (p - q)**2
+    motor_work = integral(res.motor_torque * n * pd)
+    np.testing.assert_allclose(motor_work, stored - stored[0] + dissipated, atol=1e-5 * dissipated[-1])
+
+
 @settings(max_examples=200, deadline=None)
 @given(v=st.floats(-1e3, 1e3).filter(lambda x: x != 0), tc=st.floats(0, 10), extra=st.floats(0, 10),
        vs=st.floats(1e-6, 1e3), applied=st.floats(-50, 50))
@@ -135,7 +204,7 @@ def test_friction_never_supplies_power(v, tc, extra, vs, applied):
     """Sliding, the friction opposes the speed and lies between Tc and Ts; at rest it takes at
     most the applied moment and never turns it around."""
     ts = tc + extra
-    f = slip_friction.py_func(v, tc, ts, 1.0 / vs)
+    f = slip_friction.py_func(v, tc, ts, 1.0 / vs, 0.0)
     assert f * v >= 0.0
     assert tc - 1e-12 <= abs(f) <= ts + 1e-12
     net = stuck_or_breaking.py_func(applied, ts)

@@ -11,7 +11,7 @@ import sys
 
 from ..errors import SceneError
 from ..scene import load_scene
-from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, emit,
+from .common import (add_force, add_friction, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, emit,
                      prepare_kernels, scheduler_of, study_executor)
 
 #: most variants of one run (as ``check --samples`` and a scene's ``[robustness] samples``)
@@ -36,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--feedforward", choices=("off", "gains", "model"), default="off",
                    help="feedforward from the command, as simulate's (default off); a variant's feedforward keeps "
                         "the nominal scene's load inertia, as a drive's would")
+    add_friction(p)
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process, every core)")
     add_scheduler(p, what="chunks of variants")
@@ -95,7 +96,8 @@ def run(args) -> int:
         variants = {**base, **varies}
     progress = not args.json and sys.stderr.isatty()
     kwargs = dict(samples=args.samples, seed=args.seed, duration=args.duration, full=args.full, progress=progress,
-                  reference=reference, feedforward=None if args.feedforward == "off" else args.feedforward)
+                  reference=reference, feedforward=None if args.feedforward == "off" else args.feedforward,
+                  friction=args.friction)
     n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     with study_executor(scheduler, args.workers) as (executor, slots):  # a cluster that is not there: before any work
         prepare_kernels(scene)  # after every input check; the first run after an install says it compiles

@@ -7,7 +7,7 @@ import sys
 from ..errors import SceneError
 from ..scene import load_scene
 from ..studies.run import default_study, is_mechanism_study, run_study
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
+from .common import add_force, add_friction, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
 
 
 def register(sub) -> None:
@@ -31,6 +31,7 @@ def register(sub) -> None:
                    help="command shaper on the drivetrain mode the command excites (the closed loop's pole pair "
                         "of the mode): ZV delays the command by half its damped period, ZVD by a whole one "
                         "(default off)")
+    add_friction(p)
     p.add_argument("--schedule", action="store_true",
                    help="schedule the loop's gains along the stroke (speed gains with the motor-side inertia, "
                         "position gain with the ratio), interpolated at the measured output angle each sample")
@@ -55,7 +56,8 @@ def _mechanism_dispatch(scene, args):
         return None
     given = [opt for opt, value in (("--amplitude", args.amplitude), ("--frequency", args.frequency),
                                     ("--full", args.full), ("--feedforward", args.feedforward != "off"),
-                                    ("--shaper", args.shaper != "off"), ("--schedule", args.schedule))
+                                    ("--shaper", args.shaper != "off"), ("--schedule", args.schedule),
+                                    ("--friction", args.friction))
              if value]
     if given:
         raise SceneError(f"studies.{name}", f"is a seed-mechanism study; "
@@ -103,7 +105,8 @@ def run(args) -> int:
         check_budget(scene, args, amplitude)
         prepare_kernels(scene)
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
-                       feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None)
+                       feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None,
+                       friction=args.friction)
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()

@@ -31,6 +31,15 @@ def add_force(parser) -> None:
                              "naming the option or scene key that sets its size")
 
 
+def add_friction(parser) -> None:
+    """Add ``--friction``: the friction model of the nonlinear runs (``ModelOptions.friction``)."""
+    parser.add_argument("--friction", choices=("stick", "smooth", "off"), default=None,
+                        help="friction model (default smooth): 'stick' holds exactly at rest below the breakaway "
+                             "(static) level and breaks away above it (the scene's static_friction, Stribeck speed "
+                             "and Coulomb level on the motor and the load); 'smooth' the motor's Coulomb friction as "
+                             "Tc tanh(w / 1 rad/s), never sticking; 'off' viscous friction only")
+
+
 def check_robustness_budget(scene, spec, robust_design: bool, samples_option, force: bool) -> None:
     """Refuse a ``[robustness]`` study (``spec``, a Robustness or None) estimated beyond the
     work budget unless ``force``; the knob named is ``--samples`` when the command line set

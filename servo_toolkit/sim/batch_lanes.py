@@ -10,7 +10,11 @@ measurements by :func:`kernel.controller_inputs`, then the state-space update of
 reference r(t) the block shares) and the same RK4 stage arithmetic
 (:func:`integrators.rk4_coefficients`). Per variant the block keeps the
 figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
-stroke end) is masked out while its block-mates go on. A block holding a continuous
+stroke end) is masked out while its block-mates go on. Friction that holds (``STICK``) runs
+in the lanes: its stick and breakaway law is branch-free in the right-hand side, and a lane
+whose node reverses its speed or breaks away within a step has that step redone by the
+single run's split step (:func:`split_step.switched_step`, from the same first-stage slopes
+and results) while its block-mates take the plain update. A block holding a continuous
 controller, a cam, a feedforward or controllers of different structures falls back to
 :func:`batch.variant_run` per variant.
 """
@@ -26,6 +30,7 @@ from numba.np.arrayobj import make_array, populate_array
 from . import layout as lo
 from .batch import variant_run
 from .integrators import rk4_coefficients, snapshot as _snap, step_status
+from .split_step import stage_turns, switch_ahead, switched_step
 from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
 from .kernel import FASTMATH, clip, controller_inputs, motion_columns, reference, rhs_phys
 
@@ -46,15 +51,14 @@ CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)
 @jit
 def block_kind(P, v0, nl):
     """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
-    sampled or open-loop controller of one structure, no cam, the two-mass (or rigid) chain,
-    no friction that sticks (its speed reversals split a variant's step) and no feedforward
-    (it runs variant by variant, :func:`batch.variant_run`, whose controller sample adds it)
-    in every variant."""
+    sampled or open-loop controller of one structure, no cam, the two-mass (or rigid) chain
+    and no feedforward (it runs variant by variant, :func:`batch.variant_run`, whose
+    controller sample adds it) in every variant."""
     lanes = True
     shared = True
     for v in range(v0, v0 + nl):
         if (int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0 or P[v, lo.NMID] > 0.0
-                or P[v, lo.STICK] > 0.0 or P[v, lo.FF_ON] > 0.0):
+                or P[v, lo.FF_ON] > 0.0):
             lanes = False
         for j in CONTROLLER_SLOTS:
             if P[v, j] != P[v0, j]:
@@ -131,9 +135,13 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN):
     """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
     U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
+    ``holds`` (a literal at each call: one compiled stage for blocks with friction that
+    holds, one without, so a block without it pays nothing for its selects) compiles in
+    friction that holds; then ``TURN`` marks a lane whose stage speeds left a node's
+    direction at the step's start (:func:`split_step.stage_turns`).
 
     The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
     gathers from, which it could not check at run time) and the results are copied out.
@@ -145,10 +153,12 @@ def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy):
         s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
             tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
             Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
-            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True)
+            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True, holds)
         out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
         out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
     for l in range(W):
+        if holds and stage > 0 and stage_turns(Y[1, l], Y[1, l] + c * S[1, l], Y[3, l], Y[3, l] + c * S[3, l]):
+            TURN[l] = 1.0
         for k in range(6):
             S[k, l] = out[k, l]
             U[k, l] = w * out[k, l] if stage == 0 else U[k, l] + w * out[k, l]
@@ -215,6 +225,14 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
         fig[l, 4] = -1.0
     dummy = np.zeros(max(nx, 1))
     XN = np.empty((max(nx - lo.NX_PHYS, 1), W))  # the controller's next states
+    G = np.zeros((2, W))  # the first stage's slopes of the node speeds (speed reversals)
+    SPLIT = np.zeros(W)  # 1.0 for a lane whose step was split at a switch
+    TURN = np.zeros(W)  # 1.0 for a lane one of whose stages left a node's direction
+    stick = False
+    for v in range(v0, v0 + nl):
+        stick = stick or P[v, lo.STICK] > 0.0
+    xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
+    k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
     to_sample = 0
     sixth = dt / 6.0
     running = nl
@@ -228,15 +246,20 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN)
                 to_sample = sub
             to_sample -= 1
-        # one call site of the stage (its code compiles once): stage 0 also keeps the figures
+        # one call site of the stage per friction model (its code compiles once for each): stage 0
+        # also keeps the figures
         for stage in range(4):
             c, w = rk4_coefficients(stage, dt)
             if stage == 0:
                 S[:, :] = 0.0
-            _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy)
+            if stick:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN)
+            else:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN)
             if stage > 0:
                 continue
             for l in range(nl):
+                G[0, l], G[1, l] = S[1, l], S[3, l]
                 if ACT[l] == 0.0:
                     continue
                 v = v0 + l
@@ -275,9 +298,39 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 break
         if running == 0:
             break
-        for l in range(W):  # stopped lanes keep the state they stopped in
+        if stick:
+            _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4)
+        for l in range(W):  # stopped lanes keep the state they stopped in, split ones their split step's
             for j in range(6):
-                Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 else Y[j, l]
+                Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 and SPLIT[l] == 0.0 else Y[j, l]
+            SPLIT[l] = 0.0
+            TURN[l] = 0.0
+
+
+@jit
+def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4):
+    """Friction that holds, per lane: a running lane whose node carrying friction reverses its
+    speed or breaks away within the step (:func:`split_step.switch_ahead`, from the step's
+    result and its first stage's slopes ``G``, as the single run decides) has its step redone
+    by :func:`split_step.switched_step`; its new state goes into ``Y`` and ``SPLIT`` marks it,
+    so the plain update leaves it alone."""
+    sixth = dt / 6.0
+    nx = xw.size
+    for l in range(nl):
+        v = v0 + l
+        if ACT[l] == 0.0 or P[v, lo.STICK] <= 0.0:
+            continue
+        rigid = P[v, lo.RIGID] > 0.0
+        pd, qd = Y[1, l], Y[3, l]
+        pd_new, pd_lin = pd + sixth * U[1, l], pd + dt * G[0, l]
+        qd_new, qd_lin = qd + sixth * U[3, l], qd + dt * G[1, l]
+        if TURN[l] > 0.0 or switch_ahead(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P[v], rigid):
+            for j in range(nx):
+                xw[j] = Y[j, l]
+            Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l] = switched_step(
+                t, dt, Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l], P[v], T[TI[l]], IREF[l],
+                False, rigid, xw, xs, k1, k2, k3, k4, pd_new, qd_new)
+            SPLIT[l] = 1.0
 
 
 @nb.njit(parallel=True, cache=True, fastmath=LANE_MATH, error_model="numpy")

@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from .kernel import controller_sample, inline, jit, reference, rhs, rhs_phys, rhs_phys_serial
+from .kernel import controller_sample, inline, jit, reference, rhs, rhs_phys
+from .split_step import rk4_coefficients, stage_turns, switch_ahead, switched_step
 from .tables import frozen_tables
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, F_ERR, F_SAT, F_STATUS,
                      F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
@@ -103,99 +104,6 @@ def step_status(p, pd, q, qd, cur, xi, s, x, tau, P, err_mode, rigid):
     return OK
 
 
-@inline
-def rk4_coefficients(stage, dt):
-    """Classical RK4's stage k = 0..3: it evaluates at t + c_k from the state advanced by c_k
-    times the previous stage's slopes, which enter the update with weight w_k (of dt / 6).
-    Returns (c_k, w_k)."""
-    c = 0.0 if stage == 0 else (dt if stage == 3 else 0.5 * dt)
-    w = 2.0 if stage == 1 or stage == 2 else 1.0
-    return c, w
-
-
-@jit  # called at a speed reversal only: compiled once, outside the step loop
-def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
-    """One classical RK4 step of length h from the physical state given as scalars (a
-    continuous controller's and the full chain's states x[7:] are advanced in place).
-    Returns the advanced ``(p, pd, q, qd, cur, xi)``.
-
-    Its right-hand side is :func:`kernel.rhs_phys_serial`, called rather than inlined: this
-    step runs only where a step is split, and a call compiles in a fraction of the time of
-    another inlined copy of the whole right-hand side.
-    """
-    nx = x.size
-    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-    u0 = u1 = u2 = u3 = u4 = u5 = 0.0
-    for stage in range(4):
-        c, w = rk4_coefficients(stage, h)
-        kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
-        if cont and stage > 0:
-            kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + c * kin[j]
-        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
-            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-            P, T, iref, x if stage == 0 else xs, kout)
-        u0 += w * s0
-        u1 += w * s1
-        u2 += w * s2
-        u3 += w * s3
-        u4 += w * s4
-        u5 += w * s5
-    sixth = h / 6.0
-    if cont:
-        for j in range(NX_PHYS, nx):
-            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-    return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
-
-
-@inline
-def _crossing(v, v_new, v_lin):
-    """Fraction of the step where a speed v reaches 0: from the first stage's slope (its
-    linear prediction v_lin at the step's end), else from the step's result v_new; 1.0 for
-    none. RK4's later stages straddle the friction's jump and may hide a reversal from the
-    result (the stages on the far side push the speed back), so the slope at the step's start
-    decides first."""
-    if v * v_lin < 0.0:
-        return v / (v - v_lin)
-    if v * v_new < 0.0:
-        return v / (v - v_new)
-    return 1.0
-
-
-@inline
-def reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
-    """Where within the step a node carrying friction reverses its speed: the fraction of the
-    step (1.0: no reversal, :func:`_crossing`) and the node (0 the motor side, 1 the load).
-    ``*_new`` are the step's results, ``*_lin`` the speeds its first stage's slopes predict. A
-    speed landing exactly on 0 is no reversal: the next step starts at rest."""
-    frac, node = 1.0, -1
-    if P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0):
-        frac = _crossing(pd, pd_new, pd_lin)
-        node = 0 if frac < 1.0 else -1
-    if not rigid and P[TS_L] > 0.0:
-        f = _crossing(qd, qd_new, qd_lin)
-        if f < frac:
-            frac, node = f, 1
-    return frac, node
-
-
-@jit  # called at a speed reversal only
-def split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
-                      k1, k2, k3, k4):
-    """The step of a reversal in two: RK4 to the reversal, the node's speed set to 0 there
-    (where the friction decides between stick and slip), RK4 for the rest of the step."""
-    h = frac * dt
-    p, pd, q, qd, cur, xi = rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
-    if node == 0:
-        pd = 0.0
-        if rigid:
-            qd = 0.0
-    else:
-        qd = 0.0
-    return rk4_step(t + h, dt - h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
-
-
 @jit
 def snapshot(snap, k, p, pd, q, qd, cur, xi, s, x, t, iref):
     """Row ``k`` of a run's snapshots: the physical state, x[7:], the time and the held i_ref."""
@@ -260,6 +168,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
         s0 = s1 = s2 = s3 = s4 = s5 = 0.0
         u0 = u1 = u2 = u3 = u4 = u5 = 0.0
         done = False
+        turned = False  # a stage's speed left a node's direction (friction that holds)
         for stage in range(4):
             c, w = rk4_coefficients(stage, dt)
             kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
@@ -267,9 +176,11 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
                 kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
                 for j in range(NX_PHYS, nx):
                     xs[j] = x[j] + c * kin[j]
+            if stick and stage > 0:
+                turned = turned or stage_turns(pd, pd + c * s1, qd, qd + c * s3)
             s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
                 t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                P, T, iref, x if stage == 0 else xs, kout, False)
+                P, T, iref, x if stage == 0 else xs, kout, False, True)
             if stage == 0:
                 g1, g3 = s1, s3  # the slopes at the step's start (speed reversals)
                 tau = abs(tau_)
@@ -314,12 +225,12 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
             u5 += w * s5
         if done:
             break
-        if stick:
-            frac, node = reversal(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3, qd + dt * g3, P, rigid)
-            if frac < 1.0:  # a node carrying friction reverses within the step: split it there
-                p, pd, q, qd, cur, xi = split_at_reversal(t, dt, frac, node, p, pd, q, qd, cur, xi, s, P, T,
-                                                          iref, cont, rigid, x, xs, k1, k2, k3, k4)
-                continue
+        if stick and (turned or switch_ahead(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3,
+                                             qd + dt * g3, P, rigid)):
+            # a node carrying friction may reverse or break away within the step: split it there
+            p, pd, q, qd, cur, xi = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
+                                                  k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3)
+            continue
         if cont:
             for j in range(NX_PHYS, nx):
                 x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])

@@ -53,7 +53,7 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW, DIR_M, DIR_L)
 from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 from .table_kernel import table_rates  # noqa: E402
@@ -267,7 +267,7 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
 
 
 @inline
-def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
+def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     """dx/dt of the physical states (x[0:7] passed as scalars), returned as scalars.
 
     Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
@@ -279,7 +279,10 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
     ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
     across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
     controller and no cam: their code is left out there, so that loop is branch- and
-    call-free and vectorizes. Every other caller passes False.
+    call-free and vectorizes. Every other caller passes False. ``holds`` (also a
+    compile-time constant) compiles in friction that holds (``STICK``): every caller but the
+    lanes of a block without it passes True. In the lanes its stick and breakaway law are
+    selects, and the caller splits a lane's step at a speed reversal as the single run does.
     """
     kc, tc = cell(P, p)
     hc = P[TAB_H]
@@ -318,10 +321,10 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             di = 0.0
             dxi = 0.0
     tau = P[KT] * cur
-    # friction: exact stick (STICK, not in the vectorized lanes) or the smooth Coulomb model
-    stick = not lanes and P[STICK] > 0.0
+    # friction: exact stick (STICK; branch-free, so the lanes vectorize it) or the smooth Coulomb model
+    stick = holds and P[STICK] > 0.0
     if stick:
-        fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M])
+        fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M], P[DIR_M])
     else:
         fm = P[TC] * tanh(wm * P[WS])
     tau_shaft = tau - P[BM] * wm - fm
@@ -338,7 +341,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
         elif ql < P[STROKE_LO]:
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if stick and qld != 0.0 and P[TS_L] > 0.0:
-        m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L])
+        m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L], P[DIR_L])
     if P[RIGID] > 0.0:
         nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, m_load)
         if not lanes and P[CAM] > 0.0:
@@ -347,10 +350,13 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             oc = int(P[CAM])
             pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, nts + m_load, jd,
                                         0.5 * djd * pd * pd, n * P[WS])
+            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
+                pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
         else:
-            pdd = (nts - 0.5 * djd * pd * pd + m_load) / jd
-        if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
-            pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
+            m_p = nts - 0.5 * djd * pd * pd + m_load
+            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
+                m_p = stuck_or_breaking(m_p, n * P[TS_M] + P[TS_L])
+            pdd = m_p / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     if not lanes and P[NMID] > 0.0:
         pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx)
@@ -383,11 +389,11 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes):
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
     nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, -f - 0.5 * dk * z * z)
-    pdd = (nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z) / jd
-    qdd = (f + m_load) * P[INV_JL]
+    m_p = nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z  # the moments on the motor side and the load
+    m_q = f + m_load
     if stick:
-        pdd, qdd = stick_nodes(pdd, qdd, pd, qd, jd, n, P)
-    return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
+        m_p, m_q = stick_moments(m_p, m_q, pd, qd, n, P)
+    return pd, m_p / jd, qd, m_q * P[INV_JL], di, dxi, cur, v, iref, tau
 
 
 @inline
@@ -402,13 +408,26 @@ def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
     return pdd, qdd
 
 
+@inline
+def stick_moments(m_p, m_q, pd, qd, n, P):
+    """:func:`stick_nodes` on the moments (their accelerations times the inertias): the
+    motor side and the load at rest stick while the moment on each stays within its
+    breakaway level, else break away against it (no division: the lanes evaluate it in
+    every variant)."""
+    if pd == 0.0:
+        m_p = stuck_or_breaking(m_p, n * P[TS_M])
+    if qd == 0.0 and P[TS_L] > 0.0:
+        m_q = stuck_or_breaking(m_q, P[TS_L])
+    return m_p, m_q
+
+
 @jit
 def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
     """:func:`rhs_phys` outside the vectorized lanes, compiled once as a function of its own:
     the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the
     cam paper's scheme, Jacobians, the stiff reference solver) call it instead of inlining
     their own copy, which would compile the whole right-hand side again for each."""
-    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False)
+    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False, True)
 
 
 @jit

@@ -95,7 +95,12 @@ FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
 # position p (each segment's damper is in the segment block, SEG_BETA); 76..81 free
 ROW_JW0, ROW_NODE = 74, 75
 NODE_ROWS = 4
-# 82..89: friction at the chain's nodes
+# 82..89: friction at the chain's nodes. DIR_M, DIR_L: the direction the motor side's and the
+# load's sliding friction is held at (+-1; 0, the default: the sign of the node's speed), set
+# only in the scratch parameter copy with which :mod:`servo_toolkit.sim.split_step` locates a
+# speed reversal within the step (the motion before it continued smoothly past the zero)
+DIR_M, DIR_L = 82, 83
+# 84..89 free
 # 90..97: a sampled position command (REF_KIND = REF_TABLE, :mod:`servo_toolkit.sim.table_kernel`):
 # index in P of its data (values y_0..y_{n-1}, then the slopes m_0..m_{n-1} of the cubic
 # Hermite interpolant through them, rad/s or m/s), the number of samples n, the time of the first

@@ -4,9 +4,11 @@ tight-tolerance reference, with the observed order of convergence.
 With friction that holds (``ModelOptions(friction="stick")``) the right-hand side switches
 where a node carrying friction sticks, breaks away or reverses. The study finds these
 switching instants in the reference run (a speed entering or leaving exactly 0, or changing
-sign, between two records) and measures RK4's order twice: on the window before the first
-of them, where the right-hand side is smooth, and over the whole run, where the errors made
-at the switching instants carry on (:func:`switching_note` says what it sees there).
+sign, between two records) and measures RK4's order on the window before the first of them,
+where the right-hand side is smooth, on the window after the last (where the errors made at
+every switch have carried on) and over the whole run (:func:`switching_note` says what it
+sees). RK4 locates the switches within its steps to high order
+(:mod:`servo_toolkit.sim.split_step`), so all three read about 4.
 """
 
 from __future__ import annotations
@@ -55,7 +57,10 @@ class AccuracyResult:
         With friction that holds: ``instants`` (how many switching instants the reference
         run has), ``first_s`` (the first), ``smooth_window_s`` (the window before it, where
         the order ``order_smooth`` is measured), ``errors_smooth`` (RK4's errors there, per
-        step); empty without friction that holds.
+        step), and after the last: ``last_s``, ``after_window_s``, ``errors_after`` (against
+        the reference, which carries its own event-location errors there) and ``order_after``
+        (RK4's own, from successive halvings of the step); empty without friction that
+        holds.
     notes : tuple of str
     """
 
@@ -215,14 +220,29 @@ def switching_instants(result, load_friction: bool = False) -> np.ndarray:
 
 def _smooth_window(ref, instants, dts, q_runs, q_ref, amp, out_dt) -> dict:
     """RK4's errors and order on the records before the first switching instant (one record
-    spacing before it: the step meeting it starts no earlier)."""
+    spacing before it: the step meeting it starts no earlier), and on those after the last
+    one (two record spacings after it), where the errors made at the switches have carried
+    on into a smooth stretch."""
     first = float(instants[0]) if instants.size else math.inf
-    window = np.asarray(ref.times) < first - out_dt * (1 - 1e-9)
-    errors = [float(np.max(np.abs(q[window] - q_ref[window])) / abs(amp)) if q is not None and window.any()
-              else math.nan for q in q_runs]
+    last = float(instants[-1]) if instants.size else math.inf
+    times = np.asarray(ref.times)
+
+    def errors_on(window):
+        return [float(np.max(np.abs(q[window] - q_ref[window])) / abs(amp)) if q is not None and window.any()
+                else math.nan for q in q_runs]
+    window = times < first - out_dt * (1 - 1e-9)
+    after = times > last + 2.0 * out_dt * (1 - 1e-9)
+    errors, errors_after = errors_on(window), errors_on(after)
+    # after the last switch the reference carries its own event-location errors (about 1e-9 of
+    # the amplitude after a few switches): the order there is RK4's own, from the differences
+    # between successive halvings of the step
+    own = [None if q is None else q[after] for q in q_runs] if after.any() else []
     return {"instants": int(instants.size), "first_s": first,
             "smooth_window_s": float(ref.times[window][-1]) if window.any() else 0.0,
-            "errors_smooth": errors, "order_smooth": _order(dts, errors)}
+            "errors_smooth": errors, "order_smooth": _order(dts, errors),
+            "last_s": last, "after_window_s": float(times[-1] - times[after][0]) if after.any() else 0.0,
+            "errors_after": errors_after,
+            "order_after": _self_order(np.asarray(dts), own, amp) if own else math.nan}
 
 
 def switching_note(switching: dict, order: float) -> str:
@@ -235,12 +255,14 @@ def switching_note(switching: dict, order: float) -> str:
               "before the first the order is not measurable (nothing moves there, or the errors are at the "
               "reference's own accuracy)")
     across = f"{order:.2f}" if math.isfinite(order) else "no order (the errors do not fall steadily with the step)"
+    after = switching.get("order_after", math.nan)
+    tail = (f", and {after:.2f} over the {switching['after_window_s']:.4g} s after the last (at "
+            f"{switching['last_s']:.4g} s; from successive halvings of the step)" if math.isfinite(after) else "")
     return (f"friction that holds: {switching['instants']} switching instants (a node sticking, breaking away or "
             f"reversing) in the reference run, the first at {switching['first_s']:.4g} s; {before}; over the whole "
-            f"run {across}: a breakaway starts at a step boundary with the breakaway level in the first stage "
-            "and a reversal is placed within its step by a linear estimate of the speed's zero, so the steps "
-            "meeting a switching instant are of low order and their errors carry on (the error then depends "
-            "on where each instant falls between two steps, not smoothly on the step)")
+            f"run {across}{tail}: RK4 locates each switch within its step to high order (a reversal at the zero of "
+            "the speed continued past it, a breakaway where the moment on the held node reaches its level) and "
+            "restarts there, so the smooth stretches between switches keep its order")
 
 
 def _self_order(dts, qs, amp):

@@ -32,7 +32,7 @@ from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smoo
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from .montecarlo_result import MonteCarloResult
-from .time_run import sine_run_options
+from .time_run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000
@@ -106,7 +106,8 @@ def _reason(status, step, dt, stable, lam_dt):
 def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
                grid: bool | None = None, duration: float | None = None, full: bool = False,
                controller=None, reference=None, dt: float | None = None, executor=None,
-               chunk_size: int = CHUNK_SIZE, progress: bool = True, feedforward=None) -> MonteCarloResult:
+               chunk_size: int = CHUNK_SIZE, progress: bool = True, feedforward=None,
+               friction: str | None = None) -> MonteCarloResult:
     """Closed-loop time runs of parameter variants of ``scene``, batched.
 
     Parameters
@@ -139,6 +140,10 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         Replaces the controller's feedforward. A model-based feedforward keeps the nominal
         scene's load inertia in every variant (``Feedforward.load_inertia``, unless it sets
         its own), as a drive's does: it does not know a variant's true inertia.
+    friction : {"stick", "smooth", "off"}, optional
+        The friction model (``ModelOptions.friction``; None: simulate's, smooth). Friction
+        that holds runs in the SIMD lanes as in the single run (a lane's step split at its
+        speed reversals).
 
     Returns
     -------
@@ -150,6 +155,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         Unknown variation, bad range, a variant without load-side inertia, a duration or
         step that is not positive.
     """
+    if friction is not None:
+        check_friction(friction)  # before any work
     spec = scene.robustness
     if variants is None:
         variants = spec.ranges if spec is not None else dict(DEFAULT_VARIATIONS)
@@ -169,7 +176,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         controller, source = controller_for(scene)
         source = f"controller from {source}"
     controller = nominal_feedforward(with_feedforward(controller, feedforward, scene), scene)
-    options, notes = sine_run_options(scene, controller, reference, full)
+    options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
     notes.insert(0, f"{source}, the same on every variant")
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
     if builder.fast and not builder.self_check(values):

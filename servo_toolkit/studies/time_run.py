@@ -12,14 +12,16 @@ from __future__ import annotations
 from dataclasses import replace
 
 from ..core.output_units import output_unit
+from ..errors import SceneError
 from ..sim import ModelOptions, controller_for, simulate
+from ..sim.model_slots import FRICTION_CHOICES
 from ..sim.simulate import with_feedforward
 from .time_reference import run_spec
 
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
                    full: bool = False, amplitude: float | None = None, frequency: float | None = None,
-                   feedforward=None, shaper=None, schedule=None):
+                   feedforward=None, shaper=None, schedule=None, friction: str | None = None):
     """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
 
     Parameters
@@ -44,6 +46,8 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         Command shaper on the sine (None: none).
     schedule : bool or GainSchedule, optional
         Gains scheduled along the stroke (None: none).
+    friction : {"stick", "smooth", "off"}, optional
+        The friction model (``ModelOptions.friction``); None: the default, smooth.
 
     Returns
     -------
@@ -55,10 +59,11 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     method, dt = resolve_method(method, study_method, dt, study_dt)
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage,
-                        feedforward=feedforward, shaper=shaper, schedule=schedule)
+                        feedforward=feedforward, shaper=shaper, schedule=schedule,
+                        options=None if friction is None else ModelOptions(friction=check_friction(friction)))
     controller, source = controller_for(scene)
     controller = with_feedforward(controller, feedforward, scene, shaper=shaper, schedule=schedule)
-    options, notes = sine_run_options(scene, controller, reference, full)
+    options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
     notes.insert(0, f"controller from {source}")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
                       options=options)
@@ -90,9 +95,19 @@ def resolve_method(method, study_method, dt, study_dt, key: str = "dt"):
     return method, dt
 
 
-def sine_run_options(scene, controller, reference, full: bool = False):
+def check_friction(friction: str) -> str:
+    """``friction`` when it names a friction model (``ModelOptions.friction``), else a
+    SceneError naming the option."""
+    if friction not in FRICTION_CHOICES:
+        raise SceneError("friction", f"must be one of {', '.join(FRICTION_CHOICES)} (got {friction!r})")
+    return friction
+
+
+def sine_run_options(scene, controller, reference, full: bool = False, friction: str | None = None):
     """Model options of a closed-loop sine run: the reduced model for its frequency and
-    amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one.
+    amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one. A ``friction``
+    model given (``"stick"``, ``"smooth"``, ``"off"``) is kept in either: the reduction
+    judges the other effects.
 
     Returns
     -------
@@ -104,8 +119,10 @@ def sine_run_options(scene, controller, reference, full: bool = False):
     from .reduce_estimates import plan_reduction
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
+    chosen = [] if friction is None else [f"friction model {check_friction(friction)} (as asked)"]
     if full:
-        return replace(options, chain="full"), ["full model (every modelled effect kept, every drivetrain mode)"]
+        options = replace(options, chain="full", friction=friction or options.friction)
+        return options, ["full model (every modelled effect kept, every drivetrain mode)"] + chosen
     plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
@@ -115,4 +132,6 @@ def sine_run_options(scene, controller, reference, full: bool = False):
              "the reasoning, --full for the full model)"]
     if plan.chain_choice is not None and plan.options.compliance:
         notes.append(plan.chain_choice.note)  # simulate's rule: the steps and the cost
+    if friction is not None:
+        return replace(plan.options, friction=friction), notes + chosen
     return plan.options, notes

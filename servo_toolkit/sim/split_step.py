@@ -1,0 +1,283 @@
+"""RK4 steps split at friction's switches, located to high order within the step.
+
+Friction that holds (:mod:`.friction_kernel`) switches where a node carrying it reverses its
+speed (it stops: stick or slide on the other way) and where a stuck node breaks away (the
+moment on it reaches the breakaway level). The right-hand side jumps there, so a step across
+a switch is of low order; the fixed-step loops (:func:`.integrators._rk4`, the Monte Carlo
+lanes) hand such a step to :func:`switched_step`, which finds the switch's instant tau
+within the step and integrates RK4 to it and from it:
+
+- a reversal: tau is the zero of the node's speed along the motion continued smoothly past
+  it (its sliding friction held at its direction before the zero: ``DIR_M``, ``DIR_L`` in a
+  scratch copy of the parameters), found by the Illinois method on RK4 trial steps from the
+  step's start, each of RK4's own order on that smooth motion; the node restarts at rest
+  exactly at tau, where the friction decides between stick and slip;
+- a breakaway: tau is where the moment on the held node reaches its breakaway level, along
+  the motion with the node held (its breakaway level out of reach in the scratch copy), the
+  moment read with the level at 0; the node stays at rest exactly up to tau.
+
+A node breaking away at tau (or at a reversal whose moment exceeds the breakaway level)
+leaves rest with the speed :data:`SEED` in the moment's direction, so the rest of the step
+integrates the sliding law from 0+ (its friction jumps from the law at rest to the sliding
+one at tau, not somewhere among the stages).
+
+The iteration stops when the bracket is within :data:`TAU_TOL` of the step, so the switch's
+instant costs no more than RK4's own error; the smooth stretches between switches keep RK4's
+fourth order. Where the continued motion does not switch within the step (a reversal the
+first stage's slope predicted, a stage that crossed a speed's zero or broke away from its
+estimate of the state, when the continued motion does not) that motion is the step.
+
+Everything here is compiled once as functions of their own (called at switches only), with
+the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .kernel import inline, jit, rhs_phys_serial
+from .layout import DIR_L, DIR_M, NX_PHYS, TS_L, TS_M
+
+#: the switch's instant is located to this fraction of the step (the Illinois bracket's width)
+TAU_TOL = 1e-12
+#: most Illinois iterations per switch (about 6 to 10 are taken)
+MAX_ITER = 60
+#: a breakaway level out of reach: the node held at rest
+HELD = 1e300
+#: the speed (rad/s, m/s) a node breaking away leaves rest with: its direction only
+SEED = 1e-290
+
+
+@inline
+def rk4_coefficients(stage, dt):
+    """Classical RK4's stage k = 0..3: it evaluates at t + c_k from the state advanced by c_k
+    times the previous stage's slopes, which enter the update with weight w_k (of dt / 6).
+    Returns (c_k, w_k)."""
+    c = 0.0 if stage == 0 else (dt if stage == 3 else 0.5 * dt)
+    w = 2.0 if stage == 1 or stage == 2 else 1.0
+    return c, w
+
+
+@jit  # called at a speed reversal only: compiled once, outside the step loop
+def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
+    """One classical RK4 step of length h from the physical state given as scalars (a
+    continuous controller's and the full chain's states x[7:] are advanced in place).
+    Returns the advanced ``(p, pd, q, qd, cur, xi)``.
+
+    Its right-hand side is :func:`kernel.rhs_phys_serial`, called rather than inlined: this
+    step runs only where a step is split, and a call compiles in a fraction of the time of
+    another inlined copy of the whole right-hand side.
+    """
+    nx = x.size
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    u0 = u1 = u2 = u3 = u4 = u5 = 0.0
+    for stage in range(4):
+        c, w = rk4_coefficients(stage, h)
+        kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
+        if cont and stage > 0:
+            kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + c * kin[j]
+        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
+            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+            P, T, iref, x if stage == 0 else xs, kout)
+        u0 += w * s0
+        u1 += w * s1
+        u2 += w * s2
+        u3 += w * s3
+        u4 += w * s4
+        u5 += w * s5
+    sixth = h / 6.0
+    if cont:
+        for j in range(NX_PHYS, nx):
+            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
+
+
+@inline
+def _crossing(v, v_new, v_lin):
+    """Fraction of the step where a speed v reaches 0: from the first stage's slope (its
+    linear prediction v_lin at the step's end), else from the step's result v_new; 1.0 for
+    none. RK4's later stages straddle the friction's jump and may hide a reversal from the
+    result (the stages on the far side push the speed back), so the slope at the step's start
+    decides first."""
+    if v * v_lin < 0.0:
+        return v / (v - v_lin)
+    if v * v_new < 0.0:
+        return v / (v - v_new)
+    return 1.0
+
+
+@inline
+def reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
+    """Where within the step a node carrying friction reverses its speed: the fraction of the
+    step (1.0: no reversal, :func:`_crossing`) and the node (0 the motor side, 1 the load).
+    ``*_new`` are the step's results, ``*_lin`` the speeds its first stage's slopes predict. A
+    speed landing exactly on 0 is no reversal: the next step starts at rest."""
+    frac, node = 1.0, -1
+    if P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0):
+        frac = _crossing(pd, pd_new, pd_lin)
+        node = 0 if frac < 1.0 else -1
+    if not rigid and P[TS_L] > 0.0:
+        f = _crossing(qd, qd_new, qd_lin)
+        if f < frac:
+            frac, node = f, 1
+    return frac, node
+
+
+@inline
+def switch_ahead(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
+    """Whether a node carrying friction may switch within the step: reverses
+    (:func:`reversal`) or, at rest at the step's start, moves at its end (a breakaway).
+    Cheap, inlined in the step loop (which also hands over a step one of whose stages left
+    a node's direction: :func:`stage_turns`); :func:`switched_step` then decides and does
+    the work."""
+    frac, _ = reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid)
+    if frac < 1.0:
+        return True
+    if pd == 0.0 and pd_new != 0.0 and (P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0)):
+        return True
+    return not rigid and qd == 0.0 and qd_new != 0.0 and P[TS_L] > 0.0
+
+
+@inline
+def stage_turns(pd, pd_stage, qd, qd_stage):
+    """Whether an RK4 stage's speeds left a node's direction at the step's start (its
+    friction then jumped within the step)."""
+    return pd * pd_stage < 0.0 or qd * qd_stage < 0.0
+
+
+@jit
+def _trial(t, h, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, k3, k4):
+    """An RK4 step of length h from the step's start with the parameters W (x[7:] restored
+    from x0 first when they move)."""
+    if cont:
+        for j in range(NX_PHYS, x.size):
+            x[j] = x0[j]
+    return rk4_step(t, h, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, xs, k1, k2, k3, k4)
+
+
+@jit
+def _held_moment(t, h, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node):
+    """The acceleration the moment on the held node would give it (its breakaway level at 0)
+    after a step of length h with the node held at rest."""
+    r = _trial(t, h, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+    d = rhs_phys_serial(t + h, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
+    return d[1] if node == 0 else d[3]
+
+
+@jit
+def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
+              node, breakaway, cap):
+    """The zero of g on [a, b] (g(a) g(b) < 0) by the Illinois method: g the node's speed
+    after a trial step with W (a reversal), else |held moment| - cap (a breakaway)."""
+    side = 0
+    for _ in range(MAX_ITER):
+        if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
+            break
+        c = b - gb * (b - a) / (gb - ga)
+        if not (a < c < b):
+            c = 0.5 * (a + b)
+        if breakaway:
+            gc = abs(_held_moment(t, c, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
+                                  node)) - cap
+        else:
+            r = _trial(t, c, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+            gc = r[1] if node == 0 else r[3]
+        if gc == 0.0:
+            return c
+        if (gc > 0.0) == (gb > 0.0):
+            b, gb = c, gc
+            if side == 1:
+                ga *= 0.5
+            side = 1
+        else:
+            a, ga = c, gc
+            if side == -1:
+                gb *= 0.5
+            side = -1
+    return a if breakaway else b  # a breakaway: still held at a; a reversal: just past the zero
+
+
+@jit  # called at a switch only
+def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new):
+    """The step from t of a node that may switch within it (:func:`switch_ahead`, or a stage
+    whose speed left the node's direction), split at the switch located within the step
+    (module doc): RK4 to tau, the node at rest there, RK4 for the rest; without a switch
+    along the continued motion, one RK4 step. Returns the step's new ``(p, pd, q, qd, cur,
+    xi)`` (x[7:] advanced in place when they move)."""
+    x0 = x.copy()
+    load = not rigid and P[TS_L] > 0.0  # the load carries friction of its own
+    motor = P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0)
+    node = -1
+    if motor and pd == 0.0 and pd_new != 0.0:
+        node = 0
+    elif load and qd == 0.0 and qd_new != 0.0:
+        node = 1
+    breakaway = node >= 0
+    W = P.copy()  # the trial parameters: a reversing node's friction held at its direction
+    H = P.copy()  # a breakaway: the node held at rest
+    Z = P.copy()  # a breakaway: the moment on the node, read with its level at 0
+    tau = 0.0
+    if not breakaway:
+        W[DIR_M] = 0.0 if pd == 0.0 else (1.0 if pd > 0.0 else -1.0)
+        W[DIR_L] = 0.0 if (rigid or qd == 0.0) else (1.0 if qd > 0.0 else -1.0)
+        r = _trial(t, dt, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+        if motor and pd * r[1] < 0.0:
+            node, g0, g1 = 0, pd, r[1]
+        elif load and qd * r[3] < 0.0:
+            node, g0, g1 = 1, qd, r[3]
+        else:  # the continued motion does not reverse within the step: it is the step (a stage of
+            # the plain step that crossed a speed's zero made the friction jump there)
+            return r
+        tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
+                        k1, k2, k3, k4, node, False, 0.0)
+    else:
+        if node == 0:
+            H[TS_M] = HELD
+            Z[TS_M] = 0.0
+            if rigid:
+                Z[TS_L] = 0.0
+        else:
+            H[TS_L] = HELD
+            Z[TS_L] = 0.0
+        r = _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+        d = rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
+        a1 = d[1] if node == 0 else d[3]
+        d = rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, P, T, iref, x, k1)
+        broken = d[1] if node == 0 else d[3]
+        cap = abs(a1 - broken)  # the breakaway level as an acceleration (the node's inertia is fixed at rest)
+        a0 = _held_moment(t, 0.0, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
+                          node)
+        if broken == 0.0:  # held at the step's end: at rest all through it (a stage of the plain
+            # step, from its estimate of the state, broke away too early)
+            return _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+        if abs(a0) < cap:
+            tau = _illinois(0.0, dt, abs(a0) - cap, abs(a1) - cap, t, p, pd, q, qd, cur, xi, s, W, H, Z, T,
+                            iref, cont, x, x0, xs, k1, k2, k3, k4, node, True, cap)
+    # RK4 to tau (the continued motion, or held at rest), the node at rest there, RK4 on
+    r = _trial(t, tau, p, pd, q, qd, cur, xi, s, H if breakaway else W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+    p, pd, q, qd, cur, xi = r
+    if node == 0:
+        pd = 0.0
+        if rigid:
+            qd = 0.0
+    else:
+        qd = 0.0
+    if breakaway:
+        slide = a1
+    else:  # at rest at the reversal: stuck, or breaking away the other way at once
+        d = rhs_phys_serial(t + tau, p, pd, q, qd, cur, xi, s, P, T, iref, x, k1)
+        slide = d[1] if node == 0 else d[3]
+    if slide != 0.0:
+        # breaking away: the node leaves rest sliding (SEED in the moment's direction), so every
+        # stage of the rest of the step sees the sliding friction at 0+ (Ts on the Stribeck
+        # curve, Tc at once without a Stribeck speed), not the law at rest
+        v = SEED if slide > 0.0 else -SEED
+        if node == 0:
+            pd = v
+            if rigid:
+                qd = v
+        else:
+            qd = v
+    return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
