@@ -211,7 +211,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         ``None``: robust when the scene has ``[robustness]``; ``False``: nominal design;
         ``True``: robust over the scene's ``[robustness]`` or, when it has none, the default
         ranges (load inertia 0..4 kg*m^2, stiffness 0.7..1.3, 1000 Monte Carlo variants);
-        a :class:`~servo_toolkit.scene.loader.Robustness`: robust over it.
+        a :class:`~servo_toolkit.scene.tables.Robustness`: robust over it.
     progress : bool
         Progress bars for the robust search.
     over_stroke : bool
@@ -355,7 +355,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
 
 
 def robust_spec(scene, robust):
-    """The :class:`~servo_toolkit.scene.loader.Robustness` a design must meet, or None (nominal)."""
+    """The :class:`~servo_toolkit.scene.tables.Robustness` a design must meet, or None (nominal)."""
     from ..scene.loader import Robustness
     if robust is None:
         return scene.robustness

@@ -133,7 +133,7 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
         ``samples``, ``grid`` and ``seed`` are then taken from it).
     requirements : list of Requirement, optional
         What the variants must achieve; default :func:`robust_requirements` of ``spec``
-        (or of the default :class:`~servo_toolkit.scene.loader.Robustness`) and the design's
+        (or of the default :class:`~servo_toolkit.scene.tables.Robustness`) and the design's
         nominal requirements.
     executor : concurrent.futures.Executor, optional
         Runs the chunks (e.g. a dask ``Client.get_executor()``).

@@ -218,7 +218,7 @@ class ToleranceRows:
         j0, jl, k0, play, eta, eta_b = prim
         if P[lo.NMID] == 0:
             drivetrain_slots(P, rigid=self.model.rigid, j0_tot=j0, jl=0.0 if self.model.rigid else jl, k0=k0,
-                             options=options, play=play)
+                             options=options, play=play, zeta=self.model.damping.get("two_mass_ratio"))
         P[lo.INV_L] = 1.0 / P[lo.L] if P[lo.L] > 0 else 0.0
         if self.P0[lo.ETA_MEAN] != 0 or self.P0[lo.ETA_HALF] != 0:
             c_drive, c_back = 1.0 - eta, 1.0 / max(eta_b, MIN_BACKDRIVE) - 1.0

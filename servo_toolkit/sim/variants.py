@@ -133,7 +133,7 @@ class VariantBuilder:
         P = P0.copy()
         drivetrain_slots(P, rigid=m.rigid, j0_tot=self.j0 + delta * self.d_j0, jl=jl, k0=self.k0,
                          options=self._options(1.0 if stiffness is None else stiffness),
-                         play=2.0 * float(m.P[lo.HALF_PLAY]))
+                         play=2.0 * float(m.P[lo.HALF_PLAY]), zeta=m.damping.get("two_mass_ratio"))
         P[lo.FF_DJ] = P0[lo.FF_DJ] + delta * self.d_ff
         return P, (None if self.d_table is None or delta == 0.0 else delta * self.d_table)
 

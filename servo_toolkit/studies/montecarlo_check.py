@@ -21,7 +21,7 @@ from ..loop.requirements import Requirement, check
 
 
 def montecarlo_requirements(scene, spec) -> list[Requirement]:
-    """The Monte Carlo requirements ``spec`` (a :class:`~servo_toolkit.scene.loader.Robustness`)
+    """The Monte Carlo requirements ``spec`` (a :class:`~servo_toolkit.scene.tables.Robustness`)
     sets, in display units (deg or mm, A); empty when it sets none.
 
     Raises
@@ -66,7 +66,7 @@ def montecarlo_checks(scene, spec, controller, *, progress: bool = False, execut
 
 def spec_montecarlo(scene, spec, controller, *, executor=None, progress: bool = False):
     """The nonlinear time runs (:func:`~.montecarlo.montecarlo`) of the variants ``spec`` (a
-    :class:`~servo_toolkit.scene.loader.Robustness`) samples, with ``controller``."""
+    :class:`~servo_toolkit.scene.tables.Robustness`) samples, with ``controller``."""
     from .montecarlo import montecarlo
     return montecarlo(scene, spec.ranges, samples=spec.samples, seed=spec.seed, grid=spec.method == "grid",
                       controller=controller, executor=executor, progress=progress)

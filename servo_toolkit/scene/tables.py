@@ -1,0 +1,216 @@
+"""The scene's tables that are no component: ``[sensors]``, ``[requirements]``,
+``[robustness]`` and each ``[studies.NAME]``, read and validated into frozen descriptions
+(:mod:`servo_toolkit.scene.loader` assembles the scene from them)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from ..core.fields import Fields, require
+from ..core.ranges import VARIED
+from ..errors import SceneError
+from .tracking import tracking_error as _tracking_error
+
+#: speed signals the speed loop can use (``[sensors] speed_estimator``)
+SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
+#: ``[robustness] method`` values
+ROBUSTNESS_METHODS = ("monte_carlo", "grid")
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """Position sensing and sampling.
+
+    Parameters
+    ----------
+    output_encoder_bits : int
+        Output encoder resolution, counts per revolution = 2**bits (0 = ideal).
+    motor_encoder_counts : int
+        Motor encoder counts per revolution (0 = ideal).
+    sample_time : float
+        Controller sample time (s); 0 = continuous.
+    speed_estimator : str
+        Motor speed fed to the speed loop: ``"ideal"`` (the true speed, a tachometer-grade
+        signal), ``"difference"`` (backward difference of the motor encoder counts over one
+        sample) or ``"kalman"`` (a Kalman filter on the motor encoder counts, see
+        :mod:`servo_toolkit.loop.encoder_estimators`). The last two need a motor encoder and a sample time.
+    """
+
+    output_encoder_bits: int = 0
+    motor_encoder_counts: int = 0
+    sample_time: float = 0.0
+    speed_estimator: str = "ideal"
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Sensors":
+        """Build from a ``[sensors]`` table."""
+        s = cls(output_encoder_bits=f.integer("output_encoder_bits", 0, minimum=0),
+                motor_encoder_counts=f.integer("motor_encoder_counts", 0, minimum=0),
+                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"),
+                speed_estimator=f.text("speed_estimator", "ideal", choices=SPEED_ESTIMATORS))
+        f.check_unknown()
+        require(s.output_encoder_bits <= 64, f.key("output_encoder_bits"),
+                f"must be at most 64 (got {s.output_encoder_bits}): counts per turn are 2**bits")
+        require(s.motor_encoder_counts <= 2**40, f.key("motor_encoder_counts"),
+                f"must be at most 2**40 (got {s.motor_encoder_counts})")
+        require(s.sample_time <= 1.0, f.key("sample_time"), f"must be at most 1 s (got {s.sample_time:g} s)")
+        if s.speed_estimator != "ideal" and (s.motor_encoder_counts == 0 or s.sample_time == 0):
+            raise SceneError(f.key("speed_estimator"), f"{s.speed_estimator!r} estimates the speed "
+                             "from motor encoder counts: it needs motor_encoder_counts > 0 and "
+                             "sample_time > 0")
+        return s
+
+
+@dataclass(frozen=True)
+class Requirements:
+    """Loop requirements; ``None`` where the scene sets none.
+
+    Bandwidth in Hz, angles in rad, levels in dB.
+    """
+
+    bandwidth: float | None = None
+    max_phase_lag_at_bandwidth: float | None = None
+    min_gain_margin: float | None = None
+    min_phase_margin: float | None = None
+    max_sensitivity_peak: float | None = None
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Requirements":
+        """Build from a ``[requirements]`` table."""
+        def opt(name, unit, rule="positive"):
+            return f.quantity(name, unit, rule=rule) if f.has(name) else None
+        r = cls(bandwidth=opt("bandwidth", "Hz"),
+                max_phase_lag_at_bandwidth=opt("max_phase_lag_at_bandwidth", "rad"),
+                min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
+                min_phase_margin=opt("min_phase_margin", "rad"),
+                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"))
+        f.check_unknown()
+        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
+                f.key("min_phase_margin"), "must be below 180 deg: a phase margin lies in [-180, 180) deg")
+        return r
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """Parameter variations the loop must tolerate, and what it must achieve over them.
+
+    Variations are at the design operating point: ``load_inertia`` replaces the load's
+    inertia (kg*m^2 at the output), ``stiffness`` multiplies the drivetrain's series
+    stiffness. A margin left ``None`` defaults to the nominal ``[requirements]`` one (see
+    :func:`servo_toolkit.loop.requirements.robust_requirements`).
+
+    Parameters
+    ----------
+    load_inertia : tuple of float or None
+        (lo, hi) in kg*m^2, 0 <= lo <= hi.
+    stiffness : tuple of float or None
+        (lo, hi) factors, 0 < lo <= hi.
+    samples : int
+        Variants in total (Monte Carlo draws, or grid points spread over the axes).
+    method : str
+        ``"monte_carlo"`` (uniform, seeded) or ``"grid"`` (corners included).
+    seed : int
+    min_stable_fraction : float
+        Fraction of the variants whose closed loop must be stable, 0..1.
+    min_gain_margin, max_sensitivity_peak : float or None
+        Worst case over the stable variants (dB).
+    min_phase_margin : float or None
+        Worst case (rad).
+    min_bandwidth : float or None
+        Worst-case closed-loop bandwidth (Hz); not checked when ``None``.
+    max_tracking_error : float or None
+        Worst |output - command| over the nonlinear time runs of the variants
+        (``servo-toolkit montecarlo``; rad, or m for an output travel); not checked when
+        ``None``.
+    tracking_error_dimension : str or None
+        ``"angle"`` or ``"length"`` as the scene gave it (None for a bare SI number).
+    max_peak_current : float or None
+        Worst peak motor current over those runs (A); not checked when ``None``.
+    min_yield : float or None
+        Fraction of the built actuators (the ranges drawn as tolerances,
+        :mod:`servo_toolkit.scene.tolerances`) that must meet every requirement; ``check``
+        gates on the lower end of its confidence interval. Not checked when ``None``.
+    """
+
+    load_inertia: tuple | None = (0.0, 4.0)
+    stiffness: tuple | None = (0.7, 1.3)
+    samples: int = 1000
+    method: str = "monte_carlo"
+    seed: int = 0
+    min_stable_fraction: float = 1.0
+    min_gain_margin: float | None = None
+    min_phase_margin: float | None = None
+    max_sensitivity_peak: float | None = None
+    min_bandwidth: float | None = None
+    max_tracking_error: float | None = None
+    tracking_error_dimension: str | None = None
+    max_peak_current: float | None = None
+    min_yield: float | None = None
+
+    @property
+    def ranges(self) -> dict:
+        """name -> (lo, hi) of the parameters that vary."""
+        return {k: v for k, v in (("load_inertia", self.load_inertia), ("stiffness", self.stiffness))
+                if v is not None}
+
+    @classmethod
+    def from_table(cls, f: Fields) -> "Robustness":
+        """Build from a ``[robustness]`` table."""
+        known = {"load_inertia", "stiffness", "samples", "method", "seed", "min_stable_fraction",
+                 "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth",
+                 "max_tracking_error", "max_peak_current", "min_yield"}
+        unknown = sorted(set(f.table) - known)
+        require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
+
+        def span(name, unit, positive):
+            if not f.has(name):
+                return None
+            lo_hi = f.quantity_list(name, unit, rule="positive" if positive else "nonnegative", bounds=VARIED[name])
+            require(len(lo_hi) == 2, f.key(name), f"expected [lo, hi], got {len(lo_hi)} values")
+            require(lo_hi[0] <= lo_hi[1], f.key(name), f"lo must not exceed hi (got {lo_hi[0]:g} > {lo_hi[1]:g})")
+            return lo_hi
+
+        def opt(name, unit, rule="positive"):
+            return f.quantity(name, unit, rule=rule) if f.has(name) else None
+
+        load, stiff = span("load_inertia", "kg*m^2", False), span("stiffness", "dimensionless", True)
+        require(load is not None or stiff is not None, f.key("load_inertia"),
+                "missing key: give load_inertia and/or stiffness, the ranges to vary")
+        samples = f.integer("samples", 1000, minimum=1)
+        require(samples <= 1_000_000, f.key("samples"), f"at most 1000000 variants (got {samples})")
+        r = cls(load_inertia=load, stiffness=stiff, samples=samples,
+                method=f.text("method", "monte_carlo", choices=ROBUSTNESS_METHODS),
+                seed=f.integer("seed", 0, minimum=0),
+                min_stable_fraction=f.number("min_stable_fraction", 1.0, rule="nonnegative"),
+                min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
+                min_phase_margin=opt("min_phase_margin", "rad"),
+                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
+                min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
+                min_yield=f.number("min_yield", rule="positive", bounds=(1e-6, 1.0)) if f.has("min_yield") else None,
+                **_tracking_error(f))
+        require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
+                f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
+        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
+                f.key("min_phase_margin"), "must be below 180 deg")
+        return r
+
+
+@dataclass(frozen=True)
+class Study:
+    """A named study of the scene: its kind and parameters in SI (angles rad, Hz for frequency)."""
+
+    name: str
+    kind: str
+    params: MappingProxyType
+
+    def get(self, key: str, default=None):
+        """A parameter or ``default``."""
+        return self.params.get(key, default)
+
+    def key(self, name: str) -> str:
+        """Key path of a parameter, for error messages."""
+        return f"studies.{self.name}.{name}"
+
+
+__all__ = ["ROBUSTNESS_METHODS", "SPEED_ESTIMATORS", "Requirements", "Robustness", "Sensors", "Study"]
