@@ -98,3 +98,17 @@ def test_report_and_gate_rows_name_the_variant_with_units():
                           np.array([False, False]), ("", ""), np.array([0.1, 0.1]), 0.1, 1e-4, 10, 1.0, display=cm)
     row, = montecarlo_rows([Check("tracking_error", 1e-3, 2e-3, False, "deg", "<=", "robustness", 1e-3)], mc)
     assert row.detail.endswith("at load_inertia = 40e3 kg*cm^2, stiffness = 1.3 x nominal")
+
+
+def test_a_variant_that_changes_the_models_form_is_one_line(tmp_path, capsys):
+    """A rod of 1e6 kg (in its range) behind a rocker: with no load inertia the variant's
+    drivetrain has another form (fewer nodes), which the batch cannot run beside the others."""
+    text = (SCENES / "ema_sizing.toml").read_text()
+    assert 'rod_mass = "' in text
+    import re
+    path = tmp_path / "heavy_rod.toml"
+    path.write_text(re.sub(r'(?m)^rod_mass = .*$', 'rod_mass = "1e6 kg"', text))
+    code = main(["montecarlo", str(path), "--samples", "4", "--duration", "0.02"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].startswith("servo-toolkit: error: vary.load_inertia: a variant changes the model's")
+    assert not any("Traceback" in line for line in err)

@@ -169,6 +169,12 @@ class VariantBuilder:
         args = [(None if load is None else load[i], None if stiff is None else stiff[i]) for i in range(n)]
         if not self.fast:
             models = [self.exact(*a) for a in args]
+            for m, a in zip(models, args):
+                if m.P.size != self.model.P.size or m.T.shape != self.model.T.shape or m.rigid != self.model.rigid:
+                    key = "vary.load_inertia" if a[0] is not None else "vary.stiffness"
+                    raise SceneError(key, "a variant changes the model's structure (its nodes, compliances or "
+                                          f"lost motion) at load_inertia={a[0]}, stiffness={a[1]}: vary within a "
+                                          "range where the drivetrain keeps its form")
             return (np.stack([fill(m) for m in models]), np.stack([m.T for m in models]), np.arange(n))
         P = np.empty((n, P0.size))
         tables, tix = [self.model.T], np.zeros(n, dtype=np.int64)
