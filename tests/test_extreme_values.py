@@ -13,7 +13,7 @@ import tomllib
 import pytest
 
 from servo_toolkit.errors import SceneError
-from servo_toolkit.scene.loader import scene_from_dict
+from servo_toolkit.scene.loader import load_scene, scene_from_dict
 
 from .conftest import SCENE_FILES, SCENES
 from .test_bad_input import dumps, run
@@ -364,18 +364,20 @@ def test_every_accepted_range_end_runs_cleanly_through_the_static_commands(accep
     assert min(ran.values()) > 40, ran
 
 
-@pytest.mark.parametrize("path, value, command, words", [
-    # a nut this heavy behind the rocker: its inertia's variation along the stroke exceeds the
-    # motor side's, which the model (load side held at q0) cannot take; the stage is named
-    (("drivetrain", 1, "nut_mass"), "1e6 kg", "simulate", "drivetrain[1]: the ball screw: nut's inertia"),
-])
-def test_the_reported_range_ends_are_one_line_naming_the_cause(path, value, command, words, tmp_path,
-                                                                memoized_design):
+def test_a_nut_too_heavy_for_the_two_mass_model_is_named_and_the_full_chain_runs_it(tmp_path, memoized_design):
+    """A nut of 1e6 kg behind the rocker: its inertia's variation along the stroke exceeds the
+    motor side's. The two-mass model (load side held at q0) cannot take it and names the stage;
+    the full chain tabulates each node's inertia along the stroke, so ``simulate`` runs it."""
+    from servo_toolkit.sim import ModelOptions, build_model, controller_for
     scene = tmp_path / "edge.toml"
-    scene.write_text(dumps(_put(EMA, path, value)))
-    code, lines = run([command, str(scene)])
-    errors = [ln for ln in lines if ln.startswith("servo-toolkit: error:")]
-    assert code == 2 and len(errors) == 1 and words in errors[0], lines
+    scene.write_text(dumps(_put(EMA, ("drivetrain", 1, "nut_mass"), "1e6 kg")))
+    loaded = load_scene(scene)
+    controller, _ = controller_for(loaded)
+    with pytest.raises(SceneError) as exc:
+        build_model(loaded, controller, ModelOptions(chain="two_mass"))
+    assert exc.value.key == "drivetrain[1]" and "the ball screw: nut's inertia" in str(exc.value)
+    code, lines = run(["simulate", str(scene)])
+    assert code == 0 and not _errors(lines), lines
 
 
 def test_a_sweep_of_an_unstable_loop_says_it_is_the_designs_verdict():

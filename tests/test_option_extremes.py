@@ -27,6 +27,7 @@ from .conftest import SCENES
 
 EMA = str(SCENES / "ema_reference.toml")
 PLATFORM = str(SCENES / "deflection_platform.toml")
+TOLERANCES = str(SCENES / "examples" / "ema_tolerances.toml")
 
 #: extreme finite values, infinities and NaN, as a user types them
 EXTREMES = ("1e-300", "-1e-300", "1e300", "-1e300", "inf", "-inf", "nan",
@@ -47,6 +48,7 @@ BASE = {
     "reduce": [EMA, "--estimate-only"],
     "export": [EMA, "-o", "{tmp}/export", "--nominal"],
     "montecarlo": [EMA, "--samples", "8", "--duration", "0.02"],
+    "tolerances": [TOLERANCES, "--linear-only", "--samples", "64"],
     "fit": None,  # no numeric option
     "frf": None,  # needs a log file; its --segment bounds are tested in test_identify_frf.py
     "size": None,  # no numeric option (the duty cycle's numbers are scene keys, tested in test_sizing*.py)
@@ -54,7 +56,8 @@ BASE = {
 #: options whose base argument the case replaces
 REPLACES = {("kv", "--frequency"): ["--study", "kv_8hz"], ("kv", "--amplitude"): ["--study", "kv_8hz"],
             ("sweep", "--frequency"): ["--frequency", "20"], ("check", "--samples"): ["--samples", "8"],
-            ("montecarlo", "--samples"): ["--samples", "8"], ("montecarlo", "--duration"): ["--duration", "0.02"]}
+            ("montecarlo", "--samples"): ["--samples", "8"], ("montecarlo", "--duration"): ["--duration", "0.02"],
+            ("tolerances", "--samples"): ["--samples", "64"]}
 #: numeric pieces of string options: option -> templates of the value ({x} the number)
 PIECES = {
     "--require": ["bandwidth={x} Hz", "phase_margin={x} deg", "gain_margin={x} dB", "sensitivity_peak={x} dB",

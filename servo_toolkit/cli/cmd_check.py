@@ -244,7 +244,7 @@ def _check_all(args, scenes, varies, executor):
         if reason is not None:
             skipped += 1
             entries.append((scene.name, Skipped(reason)))
-            out.append({"source": str(path), "name": scene.name, "skipped": True, "reason": reason,
+            out.append({"source": str(path), "scene": scene.name, "name": scene.name, "skipped": True, "reason": reason,
                         "passed": None})
             if not args.json:
                 print(f"{scene.name} ({path}): SKIPPED: {reason}")

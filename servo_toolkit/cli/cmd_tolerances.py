@@ -63,7 +63,7 @@ def run(args) -> int:
         timed = args.nonlinear or (args.nonlinear is None and (scene.tolerances.max_tracking_error is not None
                                                                  or scene.tolerances.max_peak_current is not None))
         if timed:
-            prepare_kernels(scene, batch=True)
+            prepare_kernels(scene)
         result = design_from_args(scene, args, executor=executor)
         if args.nonlinear is False and (scene.tolerances.max_tracking_error is not None
                                         or scene.tolerances.max_peak_current is not None):

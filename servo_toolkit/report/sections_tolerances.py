@@ -35,7 +35,7 @@ def _yield_axes(result, ax) -> None:
     if result.tolerances.min_yield is not None:
         ax.axvline(100 * result.tolerances.min_yield, color="C3", ls="--", lw=1, label="required yield")
         ax.legend(fontsize="x-small")
-    ax.set(xlabel=f"yield [%] ({100 * ys[-1].confidence:g} % Clopper-Pearson interval)",
+    ax.set(xlabel=f"yield, {100 * ys[-1].confidence:g} % Clopper-Pearson interval [%]",
            title="fraction of the variants meeting each requirement")
     ax.grid(True, axis="x", alpha=0.3)
 
