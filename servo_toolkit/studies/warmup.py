@@ -1,7 +1,7 @@
 """Compile (or load from the on-disk cache) every simulation kernel before timed work.
 
 The first run after an installation or an update of the kernels compiles them (about a
-minute on a 2-core machine; :mod:`servo_toolkit.core.jit_cache` says where they are cached);
+minute and a half on a 2-core machine; :mod:`servo_toolkit.core.jit_cache` says where they are cached);
 later runs load them in well under a second. Commands, reports and benchmarks call
 :func:`compile_kernels` first, so that no section's time limit and no timing is charged
 with compilation, and so that one warm-up serves every command a user meets next: the
@@ -26,7 +26,8 @@ import time
 #: steps of the warm-up runs
 WARM_STEPS = 4
 #: seconds a cold compilation of every kernel takes on a 2-core machine, for the message
-TYPICAL_COMPILE_S = 60
+#: (``benchmarks/bench_startup.py``: the empty-cache ``simulate`` less a warm one, about 90 s)
+TYPICAL_COMPILE_S = 90
 #: the entry points whose cached code means the warm-up has nothing to compile
 ENTRY_POINTS = ("integrators._rk4", "integrators._paper", "batch_lanes.run_lanes")
 
