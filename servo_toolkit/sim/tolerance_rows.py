@@ -89,7 +89,8 @@ def _primaries(model, scene) -> np.ndarray:
     j0 = float(np.interp(model.q0, grid, T[lo.T_J] + P[lo.JL]))
     k0 = 0.0 if model.rigid else float(np.interp(model.q0, grid, T[lo.T_K]))
     dt = scene.drivetrain
-    return np.array([j0, P[lo.JL], k0, 2.0 * P[lo.HALF_PLAY], dt.efficiency, dt.backdrive_efficiency])
+    zeta = float(model.damping.get("two_mass_ratio", model.options.damping_ratio))  # the chain's lowest mode's
+    return np.array([j0, P[lo.JL], k0, 2.0 * P[lo.HALF_PLAY], dt.efficiency, dt.backdrive_efficiency, zeta])
 
 
 @dataclass(frozen=True)
@@ -215,10 +216,10 @@ class ToleranceRows:
     def _derived(self, P, prim, x) -> None:
         """The slots that follow from the primaries, by the model's own code."""
         _, options = self._split(x)
-        j0, jl, k0, play, eta, eta_b = prim
+        j0, jl, k0, play, eta, eta_b, zeta = prim
         if P[lo.NMID] == 0:
             drivetrain_slots(P, rigid=self.model.rigid, j0_tot=j0, jl=0.0 if self.model.rigid else jl, k0=k0,
-                             options=options, play=play, zeta=self.model.damping.get("two_mass_ratio"))
+                             options=options, play=play, zeta=zeta)
         P[lo.INV_L] = 1.0 / P[lo.L] if P[lo.L] > 0 else 0.0
         if self.P0[lo.ETA_MEAN] != 0 or self.P0[lo.ETA_HALF] != 0:
             c_drive, c_back = 1.0 - eta, 1.0 / max(eta_b, MIN_BACKDRIVE) - 1.0
