@@ -69,3 +69,24 @@ def test_each_batched_variant_equals_simulate_of_its_scene(runs):
     assert not r.failed.any()
     # the 25 V supply limits the second variant: it saturates and tracks worse than the nominal one
     assert r.saturated[1] and r.tracking_error[1] > 1.05 * r.tracking_error[0]
+
+
+def test_stiffness_and_inertia_tolerances_keep_the_fitted_rows(tmp_path):
+    """A stage stiffness moves the two-mass mode's damping (the chain's lowest mode's, with a
+    damper per compliance): the rows fit it like the inertias and stiffness, verified against
+    exact builds, so the batch keeps its fast path."""
+    from servo_toolkit.sim import controller_for
+    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    path = tmp_path / "scene.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\n"drivetrain[3].stiffness" = "+-30 %"\nload.inertia = "+-40 %"\n')
+    scene = load_scene(path)
+    controller, _ = controller_for(scene)
+    k0 = scene.tolerances.scene_keys().resolve("drivetrain[3].stiffness").value
+    j0 = scene.load.inertia
+    values = {"drivetrain[3].stiffness": k0 * np.array([1.0, 0.7, 1.3, 0.85]),
+              "load.inertia": j0 * np.array([1.0, 1.4, 0.6, 1.2])}
+    r = tolerance_runs(scene, values, controller, duration=0.02, progress=False)
+    assert r.rows.fitted is not None and r.rows.error < 1e-4, r.rows.error
+    betas = r.rows.rows(np.column_stack([values[k] for k in r.rows.names]))[0][:, lo.BETA]
+    assert np.ptp(betas) > 0  # the damper follows the mode
