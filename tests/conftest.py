@@ -7,7 +7,7 @@ import copy
 import io
 import os
 import tomllib
-from contextlib import redirect_stderr, redirect_stdout
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -117,3 +117,34 @@ def open_circuit_run(model, P, x0, dt: float, n_steps: int, every: int = 1):
     status, _, got, _, _ = integrate(x, P, model.T, 0.0, dt, n_steps, 0, 0.0, False, every, out_t, out_x, aux)
     assert status == 0, status
     return out_x[:got]
+
+
+def _scene_content(scene) -> str:
+    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
+    import hashlib
+    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
+
+
+@contextmanager
+def memoized_designs():
+    """Within the block, the loop design runs once per set of inputs (it is deterministic):
+    ``servo_toolkit.loop.design.design`` and the ``design`` command's reference to it answer
+    from a cache keyed on the scene, its file's bytes and the arguments."""
+    import functools
+    import importlib
+    module = importlib.import_module("servo_toolkit.loop.design")
+    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
+    original, saved = module.design, cmd.design
+    cache = {}
+
+    @functools.wraps(original)
+    def design(scene, *args, **kwargs):
+        key = repr((scene, _scene_content(scene), args, sorted(kwargs.items())))
+        if key not in cache:
+            cache[key] = original(scene, *args, **kwargs)
+        return cache[key]
+    module.design = cmd.design = design
+    try:
+        yield
+    finally:
+        module.design, cmd.design = original, saved

@@ -4,9 +4,7 @@ a demonstration of a failing robust design (and on no other)."""
 
 from __future__ import annotations
 
-import functools
 import glob
-import importlib
 import json
 import re
 import shlex
@@ -15,35 +13,16 @@ import pytest
 
 from servo_toolkit.cli import main
 
-from .conftest import ROOT
+from .conftest import ROOT, memoized_designs
 
 GETTING_STARTED = ROOT / "docs" / "getting_started.md"
-
-
-def _content(scene) -> str:
-    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
-    import hashlib
-    from pathlib import Path
-    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
 
 
 @pytest.fixture(scope="module", autouse=True)
 def memoized_design():
     """The loop design once per scene (it is deterministic): the two gates share their designs."""
-    module = importlib.import_module("servo_toolkit.loop.design")
-    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
-    original, saved = module.design, cmd.design
-    cache = {}
-
-    @functools.wraps(original)
-    def design(scene, *args, **kwargs):
-        key = repr((scene, _content(scene), args, sorted(kwargs.items())))
-        if key not in cache:
-            cache[key] = original(scene, *args, **kwargs)
-        return cache[key]
-    module.design = cmd.design = design
-    yield
-    module.design, cmd.design = original, saved
+    with memoized_designs():
+        yield
 
 
 def _documented_gate() -> list[str]:

@@ -15,7 +15,7 @@ import pytest
 from servo_toolkit.errors import SceneError
 from servo_toolkit.scene.loader import load_scene, scene_from_dict
 
-from .conftest import SCENE_FILES, SCENES
+from .conftest import SCENE_FILES, SCENES, memoized_designs
 from .test_bad_input import dumps, run
 
 EMA = tomllib.loads((SCENES / "ema_reference.toml").read_text())
@@ -62,13 +62,6 @@ MUTATIONS = [(name, path, x) for name, data in sorted(SHIPPED.items()) for path 
 
 def _load(name, path, x):
     return scene_from_dict(_set(SHIPPED[name], path, x), name)
-
-
-def _content(scene) -> str:
-    """The scene file's bytes (the design's input; a scene's repr is only a summary)."""
-    import hashlib
-    from pathlib import Path
-    return hashlib.sha256(Path(scene.source).read_bytes()).hexdigest() if scene.source else str(id(scene))
 
 
 @pytest.fixture(scope="module")
@@ -303,22 +296,8 @@ def _edge_runs():
 @pytest.fixture(scope="module")
 def memoized_design():
     """The loop design once per mutation (it is deterministic): the commands share it."""
-    import functools
-    import importlib
-    module = importlib.import_module("servo_toolkit.loop.design")
-    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
-    original, saved = module.design, cmd.design
-    cache = {}
-
-    @functools.wraps(original)
-    def design(scene, *args, **kwargs):
-        key = repr((scene, _content(scene), args, sorted(kwargs.items())))
-        if key not in cache:
-            cache[key] = original(scene, *args, **kwargs)
-        return cache[key]
-    module.design = cmd.design = design
-    yield
-    module.design, cmd.design = original, saved
+    with memoized_designs():
+        yield
 
 
 @pytest.mark.parametrize("mutation", _edge_runs(), ids=lambda m: f"{m[0]}:{_key(m[1])}={m[2]:g}")

@@ -13,8 +13,6 @@ same inputs give the same design).
 from __future__ import annotations
 
 import argparse
-import functools
-import importlib
 import signal
 
 import pytest
@@ -23,7 +21,7 @@ from hypothesis import strategies as st
 
 from servo_toolkit.cli import build_parser, main
 
-from .conftest import SCENES
+from .conftest import SCENES, memoized_designs
 
 EMA = str(SCENES / "ema_reference.toml")
 PLATFORM = str(SCENES / "deflection_platform.toml")
@@ -107,21 +105,8 @@ def test_every_command_with_a_numeric_option_is_covered():
 @pytest.fixture(scope="module", autouse=True)
 def memoized_design():
     """The loop design once per set of inputs (it is deterministic): keeps each run short."""
-    module = importlib.import_module("servo_toolkit.loop.design")
-    cmd = importlib.import_module("servo_toolkit.cli.cmd_design")
-    original = module.design
-
-    @functools.wraps(original)
-    def design(scene, *args, **kwargs):
-        key = repr((scene, args, sorted(kwargs.items())))
-        if key not in cache:
-            cache[key] = original(scene, *args, **kwargs)
-        return cache[key]
-    cache = {}
-    saved = cmd.design
-    module.design = cmd.design = design
-    yield
-    module.design, cmd.design = original, saved
+    with memoized_designs():
+        yield
 
 
 def _alarm(signum, frame):
