@@ -23,7 +23,6 @@ Every figure is wall time on this machine as it is: the load average is printed 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 import time
@@ -37,7 +36,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout
 
 import servo_toolkit as st  # noqa: E402
-from servo_toolkit.core.cluster import SchedulerAddress, open_cluster, scheduler_address  # noqa: E402
+from servo_toolkit.core.cluster import open_cluster  # noqa: E402
+from bench_cluster import _scheduler  # noqa: E402 - the option, the environment, else a local cluster
 from servo_toolkit.core.parallel import process_pool  # noqa: E402
 from servo_toolkit.loop.robustness import variant_figures  # noqa: E402
 from servo_toolkit.loop.sampling import sample_tolerances  # noqa: E402
@@ -51,18 +51,6 @@ SCENE = ROOT / "scenes" / "examples" / "ema_tolerances.toml"
 KEYS = ("motor.resistance", "motor.torque_constant", "motor.coulomb_friction", "drivetrain[1].efficiency",
         "drivetrain[3].stiffness", "load.inertia")
 REPEATS = 3
-
-
-@contextlib.contextmanager
-def _scheduler(option):
-    given = scheduler_address(option)
-    if given is not None:
-        yield given
-        return
-    import distributed
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        yield SchedulerAddress(cluster.scheduler_address, "local cluster")
 
 
 def _load() -> str:
