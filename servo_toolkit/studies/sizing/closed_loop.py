@@ -25,8 +25,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-#: segment kinds the closed loop runs (every kind of :mod:`servo_toolkit.scene.duty_cycle`)
-RUN_KINDS = ("dwell", "sine", "ramp", "step", "points")
 #: largest spacing of a sampled command (s), and the fewest samples over its segment and over
 #: the shortest phase of its motion (a ramp's acceleration, a step's rise)
 TABLE_SPACING, TABLE_MIN_SAMPLES, PHASE_MIN_SAMPLES = 1e-3, 200, 40
@@ -129,34 +127,30 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
     current = torque / kt
     voltage = np.full(torque.size, np.nan)
     simulated = np.zeros(torque.size, bool)
-    if controller is None and any(seg.kind in RUN_KINDS for seg in duty.segments):
+    if controller is None:
         controller, _ = controller_for(scene)
     hot = hot_scene(scene)
     v_lim = scene.motor.voltage_limit
     q0 = scene.drivetrain.mid_stroke if duty.start is None else duty.start
     t_start, peak_i, peak_u, clamp, error = 0.0, 0.0, 0.0, 0.0, 0.0
-    kept = []
     for i, seg in progress_bar(list(enumerate(duty.segments)), show=progress, desc="closed-loop segments"):
-        if seg.kind in RUN_KINDS:
-            idx = np.flatnonzero(motion.segment == i)
-            load = scene.load.hinge_moment if seg.load is None else seg.load
-            run_scene = replace(hot, load=replace(hot.load, hinge_moment=load))
-            res = simulate(run_scene, controller, reference=_reference(seg, q0), duration=seg.duration,
-                           method="auto", options=ModelOptions(stroke_end="stop"))
-            local = motion.t[idx] - t_start
-            current[idx] = np.interp(local, res.times, res.motor_current)
-            torque[idx] = kt * current[idx]
-            speed[idx] = np.interp(local, res.times, res.motor_speed)
-            voltage[idx] = np.interp(local, res.times, res.motor_voltage)
-            simulated[idx] = True
-            peak_i = max(peak_i, float(np.abs(res.motor_current).max()))
-            peak_u = max(peak_u, float(np.abs(res.motor_voltage).max()))
-            error = max(error, float(np.abs(res.output_angle - res.reference_angle).max()))
-            if math.isfinite(v_lim):
-                at = np.abs(res.motor_voltage) >= v_lim * (1 - CLAMP_TOLERANCE)
-                clamp += seg.duration * float(at.mean())
-        else:
-            kept.append(f"{i} ({seg.kind})")
+        idx = np.flatnonzero(motion.segment == i)
+        load = scene.load.hinge_moment if seg.load is None else seg.load
+        run_scene = replace(hot, load=replace(hot.load, hinge_moment=load))
+        res = simulate(run_scene, controller, reference=_reference(seg, q0), duration=seg.duration,
+                       method="auto", options=ModelOptions(stroke_end="stop"))
+        local = motion.t[idx] - t_start
+        current[idx] = np.interp(local, res.times, res.motor_current)
+        torque[idx] = kt * current[idx]
+        speed[idx] = np.interp(local, res.times, res.motor_speed)
+        voltage[idx] = np.interp(local, res.times, res.motor_voltage)
+        simulated[idx] = True
+        peak_i = max(peak_i, float(np.abs(res.motor_current).max()))
+        peak_u = max(peak_u, float(np.abs(res.motor_voltage).max()))
+        error = max(error, float(np.abs(res.output_angle - res.reference_angle).max()))
+        if math.isfinite(v_lim):
+            at = np.abs(res.motor_voltage) >= v_lim * (1 - CLAMP_TOLERANCE)
+            clamp += seg.duration * float(at.mean())
         t_start += seg.duration
         q0 = segment_end(seg, q0)
     notes = [f"simulated with the winding hot ({hot.motor.resistance:.4g} ohm at "
@@ -170,8 +164,6 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
     if tabled:
         notes.append("segments " + ", ".join(tabled) + " run their prescribed motion as a sampled command (a cubic "
                      "spline through it, the compiled loop's table command)")
-    if kept:
-        notes.append("segments " + ", ".join(kept) + " keep the inverse dynamics")
     if clamp > 0:
         notes.append(f"the voltage sits at the supply's {v_lim:.4g} V for {clamp:.4g} s of the cycle "
                      f"({clamp / motion.duration:.1%}): the loop asks more than the supply gives there")
@@ -179,4 +171,4 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
                            hot.motor.resistance, tuple(notes))
 
 
-__all__ = ["ClosedLoopLoads", "closed_loop_loads", "hot_scene", "table_spacing", "RUN_KINDS"]
+__all__ = ["ClosedLoopLoads", "closed_loop_loads", "hot_scene", "table_spacing"]
