@@ -61,17 +61,32 @@ def scene_report(tmp_path_factory):
     """``scene_report(name)``: the report of ``scenes/NAME.toml`` written by the command line
     (light settings, ``--strict``), once per scene for the whole session; a
     :class:`ReportRun`. The report tests share these runs, so each scene's report is built
-    once however many tests read it."""
+    once however many tests read it; under pytest-xdist the workers share them too (the
+    first to ask writes it under a lock, the others read what it wrote)."""
+    import fcntl
+    import json
+
     from servo_toolkit.cli import main
+    base = tmp_path_factory.getbasetemp()
+    shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "scene-reports"
+    shared.mkdir(exist_ok=True)
     made = {}
 
     def report(name: str) -> ReportRun:
         if name not in made:
-            folder = tmp_path_factory.mktemp("report") / name
-            out, err = io.StringIO(), io.StringIO()
-            with redirect_stdout(out), redirect_stderr(err):
-                code = main(["report", str(SCENES / f"{name}.toml"), "-o", str(folder), "--strict"])
-            made[name] = ReportRun(folder, code, out.getvalue(), err.getvalue())
+            folder, record = shared / name, shared / f"{name}.json"
+            with open(shared / f"{name}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)
+                try:
+                    if not record.exists():
+                        out, err = io.StringIO(), io.StringIO()
+                        with redirect_stdout(out), redirect_stderr(err):
+                            code = main(["report", str(SCENES / f"{name}.toml"), "-o", str(folder), "--strict"])
+                        record.write_text(json.dumps({"code": code, "out": out.getvalue(), "err": err.getvalue()}))
+                finally:
+                    fcntl.flock(lock, fcntl.LOCK_UN)
+            run = json.loads(record.read_text())
+            made[name] = ReportRun(folder, run["code"], run["out"], run["err"])
         return made[name]
     return report
 

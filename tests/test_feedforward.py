@@ -17,6 +17,7 @@ from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.batch import NFIG, NSNAP, run_variants
 from servo_toolkit.sim.batch_lanes import block_kind, run_lanes
 from servo_toolkit.sim.reference import fill, initial_state
+from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.studies.time_run import simulate_study
 
 from .conftest import SCENES
@@ -153,7 +154,7 @@ def test_lanes_run_a_feedforward_variant_by_variant(ema):
             X = np.array([initial_state(model, p) for p in P])
             figs = np.zeros((3, NFIG))
             snaps = np.zeros((3, NSNAP, X.shape[1] + 2))
-            fn(X, P, model.T[None].copy(), np.zeros(3, dtype=np.int64), 1e-4, 200,
+            fn(X, P, frozen_tables(model.T[None]), np.zeros(3, dtype=np.int64), 1e-4, 200,
                int(round(model.sample_time / 1e-4)), figs, snaps)
             runs.append(X)
         # the lanes' fast-math flags differ from the single run's in the last bit (test_batch_lanes)

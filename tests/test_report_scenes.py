@@ -14,7 +14,7 @@ from servo_toolkit.report import NotAvailable, Section, build_report, run_sectio
 from servo_toolkit.report.context import Context
 from servo_toolkit.report.sections_limits import leaves_out
 
-from .conftest import SCENES
+from .conftest import SCENE_FILES, SCENES
 
 
 @pytest.mark.parametrize("name", ["cam_follower", "deflection_platform", "roller_screw_two_stage"])
@@ -29,6 +29,16 @@ def test_report_on_other_scenes_completes(name, scene_report):
         stiff = re.search(r'<section id="stiffness" data-status="([^"]+)">(.*?)</section>', html, re.S)
         assert stiff.group(1) == "n/a" and "needs a motor-driven drivetrain" in stiff.group(2)
     assert "wrote" in run.out
+
+
+@pytest.mark.parametrize("name", [p.stem for p in SCENE_FILES])
+def test_every_shipped_scene_reports_every_section(name, scene_report):
+    """No section of a shipped scene's report is unavailable (a study that cannot run on a
+    scene says n/a and why; unavailable means it failed)."""
+    run = scene_report(name)
+    html = (run.folder / "index.html").read_text(encoding="utf-8")
+    failed = re.findall(r'<section id="([^"]+)" data-status="unavailable">', html)
+    assert not failed, (failed, run.err[-2000:])
 
 
 def test_bad_scene_exits_2(tmp_path, capsys):

@@ -214,6 +214,25 @@ def test_mapped_plants_equal_plants_built_from_the_varied_scene(scene, designed)
     assert check_matrices(plants.cols, plants.rigid, 5) < 1e-9
 
 
+def test_a_range_end_beyond_the_sampled_box_is_built_exactly():
+    """The maps are verified over the sampled box: the robust scene's load-inertia range
+    starts at 0, where a map in log(J) has no value; the worst-corner search asks for that
+    end, and gets the plant of the scene built with it."""
+    from servo_toolkit.loop.variant_plants import FIELDS, keyed_plants
+    from servo_toolkit.plant.linear import plant_parameters
+    from servo_toolkit.scene.loader import scene_keys
+    robust = load_scene(SCENES / "ema_robust.toml")
+    p = plant_parameters(robust, 0.0, "two_mass", 0.05)
+    values = {"load.inertia": np.geomspace(0.01, 4.0, 24)}
+    plants = keyed_plants(robust, p, values, 0.05)
+    assert plants.method == "separable" and plants.mapper is not None
+    ends = plants.mapper({"load.inertia": np.array([0.0, 4.0])})
+    for i, J in enumerate((0.0, 4.0)):
+        q = plant_parameters(scene_keys(robust).scene({"load.inertia": J}), p.q0, "two_mass", 0.05)
+        for f in FIELDS:
+            assert np.isfinite(ends.cols[f][i]) and ends.cols[f][i] == pytest.approx(getattr(q, f), rel=1e-4), f
+
+
 def test_the_variant_grid_gives_the_figures_of_the_uniform_grid(scene, designed):
     from servo_toolkit.loop.robustness import variant_figures
     values = sample_tolerances(scene.tolerances, 48, seed=2)

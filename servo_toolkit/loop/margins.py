@@ -10,7 +10,7 @@ import control as ct
 import numpy as np
 
 from ..core.output_units import REQUIREMENT_SINE_HZ
-from .crossings import crossings
+from .crossings import crossings, response_of
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ def _scale(poles, zeros) -> float:
 def _evaluate(loop, s):
     """L at complex frequencies ``s`` (SISO)."""
     with np.errstate(all="ignore"):
-        return np.asarray(loop(np.asarray(s, complex)), complex).reshape(-1)
+        return response_of(loop)(s)
 
 
 def nyquist_count(loop, rhp_poles: int) -> int:

@@ -190,10 +190,20 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
     if f is None and names:
         return result
 
+    box = (X.min(axis=0), X.max(axis=0)) if names else None
+
     def mapper(other, _f=f, _names=tuple(names)):
         m = next(iter(other.values())).size
-        Yo = (_f(np.column_stack([np.asarray(other[k], float) for k in _names])) if _names else
-              np.array([[getattr(p, k) for k in FIELDS]] * m, float))
+        if not _names:
+            return replace(result, cols=_plants_of(np.array([[getattr(p, k) for k in FIELDS]] * m, float),
+                                                   other, p, ratio))
+        Xo = np.column_stack([np.asarray(other[k], float) for k in _names])
+        Yo = _f(Xo)
+        # the maps are verified over the sampled box only: a point beyond it (a range's end that
+        # no sample reached, a corner) or one the maps cannot place is built exactly
+        beyond = np.any((Xo < box[0]) | (Xo > box[1]), axis=1) | ~np.all(np.isfinite(Yo), axis=1)
+        if np.any(beyond):
+            Yo[beyond] = evaluate(Xo[beyond])
         return replace(result, cols=_plants_of(Yo, other, p, ratio))
     return replace(result, mapper=mapper)
 

@@ -15,7 +15,6 @@ SIMD lanes.
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
 from . import layout as lo
@@ -41,12 +40,14 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     _rk4(x, P, T, 0.0, dt, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, fig, snap)
 
 
-@nb.njit(parallel=True, cache=True, fastmath=FASTMATH, error_model="numpy")
 def run_variants(X, P, T, tix, dt, n_steps, sub, figs, snaps):
     """:func:`variant_run` for every row of ``X`` (states, advanced in place) and ``P``, with
-    tables ``T[tix[v]]``, in parallel across variants."""
-    for v in nb.prange(X.shape[0]):
-        variant_run(X[v], P[v], T[tix[v]], dt, n_steps, sub, figs[v], snaps[v])
+    tables ``T[tix[v]]``, one variant after another: the reference that the SIMD lanes
+    (:func:`.batch_lanes.run_lanes`) are checked against. It calls the compiled
+    :func:`variant_run` that the lanes compile for their per-variant fallback, so it adds no
+    kernel of its own to compile."""
+    for v in range(X.shape[0]):
+        variant_run(X[v], P[v], T[tix[v]], float(dt), int(n_steps), int(sub), figs[v], snaps[v])
 
 
 @jit
