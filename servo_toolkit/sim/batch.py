@@ -19,7 +19,7 @@ import numpy as np
 
 from . import layout as lo
 from .integrators import _rk4
-from .kernel import FASTMATH, jit, rhs
+from .kernel import jit, rhs
 from .layout import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_DEFLECTION,  # noqa: F401 - re-exported
                      S_END, S_PEAK)
 
