@@ -24,7 +24,7 @@ def register(sub) -> None:
                         "instead of designing one")
     p.add_argument("--section-time-limit", type=bounded(float, 0.0, 86400.0, what="seconds"), default=None, metavar="S",
                    help="stop a section that runs longer than S seconds and say so in the report (default: "
-                        "20 with light settings, none with --full; 0: no limit)")
+                        "60 with light settings, none with --full; 0: no limit)")
     p.add_argument("--strict", action="store_true",
                    help="exit 1 when a row of the report's requirements table (the rows of servo-toolkit "
                         "check) is not met or could not be evaluated; the report is still written")

@@ -32,7 +32,7 @@ from .section import NotApplicable, NotAvailable, Section
 from .time_limit import time_limit as _time_limit
 
 #: default wall-time limit per section (s) with light settings; None with full settings
-LIGHT_SECTION_TIME_LIMIT = 20.0
+LIGHT_SECTION_TIME_LIMIT = 60.0
 
 #: Section builders in report order (the requirements table, REQUIREMENTS, is built and shown first).
 SECTIONS = (

@@ -27,13 +27,20 @@ def environment():
 
 
 def figure_src(fig, target: str) -> str:
-    """A figure as a data URI: PNG for the HTML page, SVG (vector) for the PDF."""
+    """A figure as a data URI: PNG for the HTML page, SVG (vector) for the PDF.
+
+    The first save lays the figure out (constrained layout); the layout is then kept, so the
+    other document's copy draws the same axes without solving it again."""
     buf = io.BytesIO()
     if target == "pdf":
         fig.savefig(buf, format="svg")
-        return "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-    fig.savefig(buf, format="png", dpi=DPI)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+        uri = "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    else:
+        fig.savefig(buf, format="png", dpi=DPI)
+        uri = "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    if fig.get_layout_engine() is not None:
+        fig.set_layout_engine("none")
+    return uri
 
 
 def _verdict(report) -> dict:
