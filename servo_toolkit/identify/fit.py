@@ -31,7 +31,7 @@ from .model import RESPONSES
 from .params import SceneTemplate
 from .residuals import PHASE_DB_PER_DEG, wrap_deg
 from .result import FitResult
-from .profile import ParameterProfile, noise_variance, profile, threshold
+from .profile import LOWER_BY, ParameterProfile, noise_variance, profile, threshold
 from .search import Search, global_least_squares, refine
 from .verdict import MISS_FLOORS, bands, judge
 
@@ -248,7 +248,10 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         profiled = _to_profile(corr, singular, at_limit)
         s2 = noise_variance(sol.fun, dof)
         rss = float(sol.fun @ sol.fun)
-        profiles = [profile(residuals, z, coords.lower, coords.upper, j, s2, level, half[j], rss) for j in profiled]
+        # a drop in RSS that matters is one against the data's noise (an exact fit's s^2 is no measure of it)
+        lower_by = LOWER_BY * max(s2, floor ** 2 if floor is not None else 0.0)
+        profiles = [profile(residuals, z, coords.lower, coords.upper, j, s2, level, half[j], rss, lower_by)
+                    for j in profiled]
         nfev += sum(p.evaluations for p in profiles)
         lows = [p for p in profiles if p.lower is not None]
         if not lows or attempt == MAX_RESTARTS:

@@ -110,7 +110,7 @@ def noise_variance(resid, dof: int) -> float:
 
 
 def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: float, half: float | None = None,
-            rss: float | None = None) -> Profile:
+            rss: float | None = None, lower_by: float | None = None) -> Profile:
     """The profile of parameter ``j`` about the optimum ``z``.
 
     Parameters
@@ -131,6 +131,10 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
         Wald half-width of ``z[j]``: sets the grid's first step.
     rss : float, optional
         RSS at ``z`` (default: evaluated).
+    lower_by : float, optional
+        A point whose RSS is below the optimum's by more than this is reported in
+        ``Profile.lower`` (default :data:`LOWER_BY` s^2; an exact fit, whose s^2 is no
+        measure of the noise, passes the data's noise variance).
 
     Returns
     -------
@@ -243,7 +247,8 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
     rises = np.array([p[2] for p in points])
     path = np.array([p[1] for p in points])
     k = int(np.argmin(rises))
-    lower_point = path[k].copy() if rises[k] < -LOWER_BY else None
+    drop = LOWER_BY * s2 if lower_by is None else lower_by
+    lower_point = path[k].copy() if rises[k] * s2 < -drop else None
     partner = None
     if any(unbounded) and free.size and partner_move.max() > 0:
         partner = int(np.argmax(partner_move))

@@ -159,6 +159,9 @@ class FitResult:
             if pairs:
                 c, a, b = max(pairs)
                 lines.append(f"  largest correlation: {self.keys[a]} / {self.keys[b]} {self.correlation[a, b]:+.3f}")
+        if self.profiles:
+            lines.append("  intervals from the profile of the cost (the Fisher matrix is ill-conditioned): "
+                         + ", ".join(p.key for p in self.profiles))
         lines += [f"  warning: {w}" for w in self.warnings]
         lines.append(f"  verdict: {self.verdict_text()}")
         return "\n".join(lines)
