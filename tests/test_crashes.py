@@ -161,9 +161,9 @@ def test_two_stiffnesses_in_series_fit_and_say_why_not_identified(tmp_path, caps
         values, rise = np.array(p["values"]), np.array(p["rise"])
         assert rise.min() > -0.01  # no point below the optimum's cost
         for end, open_ in zip(p["interval"], p["unbounded"]):
-            if not open_:
-                k = np.argmin(np.abs(np.log(values / end)))
-                assert rise[k] == pytest.approx(p["threshold"], rel=0.02)
+            if not open_:  # points below and past the threshold within 0.1 % of the end
+                near = rise[np.abs(np.log(values / end)) < 1e-3]
+                assert near.min() < p["threshold"] <= near.max() + 1e-6 * p["threshold"]
 
 
 def test_exact_fit_has_a_correlation(tmp_path):

@@ -180,25 +180,25 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
                 best = trial
         return best
 
-    def crossing(side, inner, outer, start):
+    def crossing(side, inner, inner_rise, outer, start):
         """Distance from the optimum where the rise reaches the threshold, between ``inner``
         (below it) and ``outer`` (above): regula falsi (Illinois) on the square root of the
-        rise, which is linear in the distance where the profile is a parabola."""
+        rise, which is linear in the distance where the profile is a parabola. ``(x, rise)``
+        instead when the outer point, fitted again from the inner one, is below after all."""
         target = math.sqrt(level_threshold)
-        ends = []
-        for d in (inner, outer):
-            x, c = (z.copy(), base) if d == 0 else refit(z[j] + side * d, start)
-            ends.append([d, math.sqrt(max((c - base) / s2, 0.0)) - target])
-        (a, fa), (b, fb) = ends
-        if fb <= 0:  # re-fitted from the inner point the outer one is below: the grid's point stands
-            return float(outer)
+        x, c = refit(z[j] + side * outer, start)
+        points.append((x[j], x, (c - base) / s2))
+        a, fa = inner, math.sqrt(max(inner_rise, 0.0)) - target
+        b, fb = outer, math.sqrt(max((c - base) / s2, 0.0)) - target
+        if fb < 0:
+            return x, (c - base) / s2
         keep = 0
         for _ in range(CROSSING_ITERATIONS):
             c_ = b - fb * (b - a) / (fb - fa)
             x, c = refit(z[j] + side * c_, start)
             points.append((x[j], x, (c - base) / s2))
             fc = math.sqrt(max((c - base) / s2, 0.0)) - target
-            if abs(fc) < 1e-6 * target or abs(b - a) < CROSSING_TOL * outer:
+            if abs(fc) < 1e-6 * target:
                 return float(c_)
             if fc > 0:
                 b, fb = c_, fc
@@ -208,38 +208,45 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
                 a, fa = c_, fc
                 fb = fb / 2 if keep == -1 else fb
                 keep = -1
-        return float(0.5 * (a + b))
+            if abs(b - a) < CROSSING_TOL * outer:
+                break
+        return float(b)  # the rise jumps across the threshold here (a kink), or it converged: b is past it
 
     step = max(FIRST_STEP * half if half is not None and math.isfinite(half) else 0.0, MIN_STEP)
     points = [(z[j], z.copy(), 0.0)]
     ends, unbounded, partner_move = [], [], np.zeros(z.size)
-    for side, bound in ((-1.0, lower[j]), (1.0, upper[j])):
-        span = abs(bound - z[j])
-        walk = [(0.0, z.copy(), 0.0)]  # (distance, coordinates, rise) along this side
-        d = min(step, span)
-        while span > 0:
+    def extend(walk, side, span):
+        """Walk on from the walk's last point, steps growing by GROWTH: past the threshold too (a
+        kink or a second valley can bring the cost back down), until the rise exceeds
+        STOP_RISE thresholds (the cost has left the valley for good) or the bound."""
+        while walk[-1][0] < span and walk[-1][2] < STOP_RISE * level_threshold:
             (prev_d, prev_x, _), back = walk[-1], walk[-2] if len(walk) > 1 else None
+            d = min(step if prev_d == 0 else prev_d * GROWTH, span)
             predicted = None if back is None else prev_x + (prev_x - back[1]) * (d - prev_d) / (prev_d - back[0])
             x, c = refit(z[j] + side * d, prev_x, predicted)
             walk.append((d, x, (c - base) / s2))
             points.append((x[j], x, (c - base) / s2))
-            # past the threshold the walk goes on (a kink or a second valley can bring the cost back down)
-            # until the cost has left the valley for good, or the bound
-            if (c - base) / s2 >= STOP_RISE * level_threshold or d >= span:
+
+    for side, bound in ((-1.0, lower[j]), (1.0, upper[j])):
+        span = abs(bound - z[j])
+        walk = [(0.0, z.copy(), 0.0)]  # (distance, coordinates, rise) along this side
+        end, open_side = bound, True
+        while span > 0:
+            extend(walk, side, span)
+            last = [k for k, w in enumerate(walk) if w[2] < level_threshold][-1]
+            if last == len(walk) - 1:  # below the threshold out to the bound
                 break
-            d = min(d * GROWTH, span)
-        below = [k for k, w in enumerate(walk) if w[2] < level_threshold]
-        last = below[-1]
-        open_side = last == len(walk) - 1 and walk[last][0] >= span
-        if open_side:
-            end = bound
-            if free.size:
-                moved = np.abs(walk[-1][1][free] - z[free]) / np.maximum(upper[free] - lower[free], 1e-12)
-                partner_move[free] = np.maximum(partner_move[free], moved)
-        elif span > 0:
-            end = z[j] + side * crossing(side, walk[last][0], walk[last + 1][0], walk[last][1])
-        else:
-            end = bound
+            found = crossing(side, walk[last][0], walk[last][2], walk[last + 1][0], walk[last][1])
+            if not isinstance(found, tuple):
+                end, open_side = z[j] + side * found, False
+                break
+            # the walk's point past the threshold was a re-fit that lost the valley: go on from there
+            outer = walk[last + 1][0]
+            del walk[last + 1:]
+            walk.append((outer, *found))
+        if open_side and span > 0 and free.size:
+            moved = np.abs(walk[-1][1][free] - z[free]) / np.maximum(upper[free] - lower[free], 1e-12)
+            partner_move[free] = np.maximum(partner_move[free], moved)
         ends.append(end)
         unbounded.append(bool(open_side))
     points.sort(key=lambda p: p[0])
