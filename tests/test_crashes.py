@@ -161,9 +161,9 @@ def test_two_stiffnesses_in_series_fit_and_say_why_not_identified(tmp_path, caps
         values, rise = np.array(p["values"]), np.array(p["rise"])
         assert rise.min() > -0.01  # no point below the optimum's cost
         for end, open_ in zip(p["interval"], p["unbounded"]):
-            if not open_:  # points below and past the threshold within 0.1 % of the end
-                near = rise[np.abs(np.log(values / end)) < 1e-3]
-                assert near.min() < p["threshold"] <= near.max() + 1e-6 * p["threshold"]
+            if not open_:  # points at or below and at or past the threshold within 0.1 % of the end
+                near = rise[np.abs(np.log(values / end)) < 1e-3] / p["threshold"]
+                assert near.min() < 1 + 1e-5 and near.max() > 1 - 1e-5
 
 
 def test_exact_fit_has_a_correlation(tmp_path):

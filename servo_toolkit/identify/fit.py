@@ -13,7 +13,12 @@ verdict compares the residual with the noise floor the data show (:mod:`.verdict
 
 The 95 % intervals come from the Jacobian at the solution: cov = s^2 (J^T J)^-1 in the
 search's coordinates with s^2 the residual variance, a Student t quantile for the degrees of
-freedom, mapped back to values (so the intervals of a logarithm are not symmetric).
+freedom, mapped back to values (so the intervals of a logarithm are not symmetric). Where the
+correlation matrix says those are not to be trusted (a pair correlated beyond
+:data:`MAX_CORRELATION`, a condition number beyond :data:`MAX_CONDITION`), the intervals of
+the parameters concerned come from the profile of the cost (:mod:`.profile`): bounded where
+the cost rises past the threshold, unbounded (not identifiable) where it stays below it out to
+a bound of the range; a profile point below the optimum's cost restarts the local fit there.
 """
 
 from __future__ import annotations
@@ -293,7 +298,9 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         elif judged and unbounded[j]:
             warnings.append(_unbounded_warning(template, profiles, j, coords))
         elif judged and wide[j]:
-            warnings.append(f"{key}: the data cannot identify it (95 % interval wider than "
+            source = (f" from the profile of the cost, [{ci[j, 0]:.4g}, {ci[j, 1]:.4g}] {template.parameters[j].unit},"
+                      if j in profiled else "")
+            warnings.append(f"{key}: the data cannot identify it (95 % interval{source} wider than "
                             f"+-{100 * MAX_RELATIVE_INTERVAL:.0f} % of the value)")
         if z[j] <= coords.lower[j] + 1e-3 or z[j] >= coords.upper[j] - 1e-3:
             warnings.append(f"{key}: ended at the bound of its physical range [{lower[j]:.4g}, {upper[j]:.4g}] "

@@ -42,8 +42,10 @@ MIN_STEP = 0.02
 GROWTH = 2.0
 #: most residual evaluations of one re-fit of the other parameters, per parameter
 NFEV_PER_PARAMETER = 20
-#: most regula falsi steps locating an interval's end
-CROSSING_ITERATIONS = 12
+#: most steps locating an interval's end ...
+CROSSING_ITERATIONS = 24
+#: ... the first of them by regula falsi, the others by halving
+FALSE_POSITION_STEPS = 6
 #: an interval's end is located to this share of its distance from the optimum
 CROSSING_TOL = 1e-4
 #: the walk along a side stops where the rise exceeds this many thresholds (the cost has left the valley)
@@ -183,7 +185,7 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
     def crossing(side, inner, inner_rise, outer, start):
         """Distance from the optimum where the rise reaches the threshold, between ``inner``
         (below it) and ``outer`` (above): regula falsi (Illinois) on the square root of the
-        rise, which is linear in the distance where the profile is a parabola. ``(x, rise)``
+        rise, which is linear in the distance where the profile is a parabola, then halving. ``(x, rise)``
         instead when the outer point, fitted again from the inner one, is below after all."""
         target = math.sqrt(level_threshold)
         x, c = refit(z[j] + side * outer, start)
@@ -193,8 +195,9 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
         if fb < 0:
             return x, (c - base) / s2
         keep = 0
-        for _ in range(CROSSING_ITERATIONS):
-            c_ = b - fb * (b - a) / (fb - fa)
+        for it in range(CROSSING_ITERATIONS):
+            # regula falsi first (exact for a parabola); halving after (a jump of the rise at a kink)
+            c_ = b - fb * (b - a) / (fb - fa) if it < FALSE_POSITION_STEPS else 0.5 * (a + b)
             x, c = refit(z[j] + side * c_, start)
             points.append((x[j], x, (c - base) / s2))
             fc = math.sqrt(max((c - base) / s2, 0.0)) - target
