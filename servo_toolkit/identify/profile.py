@@ -39,7 +39,7 @@ FIRST_STEP = 0.5
 #: the smallest first step (coordinates: log of the value; the Wald half-width of a ridge is no guide)
 MIN_STEP = 0.02
 #: the grid's steps grow by this factor toward the bound
-GROWTH = 2.0
+GROWTH = 3.0
 #: most residual evaluations of one re-fit of the other parameters, per parameter
 NFEV_PER_PARAMETER = 20
 #: most steps locating an interval's end ...
@@ -47,7 +47,7 @@ CROSSING_ITERATIONS = 24
 #: ... the first of them by regula falsi, the others by halving
 FALSE_POSITION_STEPS = 6
 #: an interval's end is located to this share of its distance from the optimum
-CROSSING_TOL = 1e-4
+CROSSING_TOL = 1e-3
 #: the walk along a side stops where the rise exceeds this many thresholds (the cost has left the valley)
 STOP_RISE = 10.0
 #: a grid point lower than the optimum by this much (RSS over s^2) means the optimum was not the lowest
