@@ -78,9 +78,10 @@ def test_two_parameters_entering_as_their_product_have_a_flat_profile():
 
 def test_a_lower_valley_on_the_profile_is_reported():
     """A cost with its lowest valley at z0 = 2 (the other parameter following z1 = z0), and a
-    shallower one at z0 = 0 where the profile starts: the profile finds the lower one."""
+    shallower one at z0 = 0 where the profile starts: the profile finds the lower one (a valley
+    about as wide as the grid's step at its distance; a narrower one can fall between points)."""
     def residuals(z):
-        dip = 1.0 - 0.9 * np.exp(-(z[0] - 2.0) ** 2 / 0.1)
+        dip = 1.0 - 0.9 * np.exp(-(z[0] - 2.0) ** 2 / 1.0)
         return np.array([dip * (1.0 + z[0] ** 2) ** 0.5, 10.0 * (z[1] - z[0]), 0.1])
     start = np.array([0.0, 0.0])
     p = profile(residuals, start, [-4.0, -4.0], [4.0, 4.0], 0, 1.0, threshold(20))
