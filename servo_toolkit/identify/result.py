@@ -115,8 +115,8 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """JSON-ready summary: ``parameters`` [{key, value, unit, ci95, initial}],
-        ``residual_db_rms``, ``correlation``, ``warnings``, ``profiles`` (see
-        :meth:`ParameterProfile.to_dict <servo_toolkit.identify.profile.ParameterProfile.to_dict>`)."""
+        ``residual_db_rms``, ``correlation``, ``warnings``, ``profiles`` (each
+        profile's ``to_dict``)."""
         corr = [[None if not math.isfinite(c) else float(c) for c in row] for row in self.correlation]
         return {"scene": self.scene, "response": self.response,
                 "parameters": [{"key": k, "value": float(v), "unit": u, "ci95": [float(lo), float(hi) if math.isfinite(hi) else None],
