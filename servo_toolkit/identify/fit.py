@@ -16,9 +16,10 @@ search's coordinates with s^2 the residual variance, a Student t quantile for th
 freedom, mapped back to values (so the intervals of a logarithm are not symmetric). Where the
 correlation matrix says those are not to be trusted (a pair correlated beyond
 :data:`MAX_CORRELATION`, a condition number beyond :data:`MAX_CONDITION`), the intervals of
-the parameters concerned come from the profile of the cost (:mod:`.profile`): bounded where
-the cost rises past the threshold, unbounded (not identifiable) where it stays below it out to
-a bound of the range; a profile point below the optimum's cost restarts the local fit there.
+the parameters concerned come from the profile of the cost
+(:mod:`servo_toolkit.identify.profile`): bounded where the cost rises past the threshold,
+unbounded (not identifiable) where it stays below it out to a bound of the range; a profile
+point below the optimum's cost restarts the local fit there.
 """
 
 from __future__ import annotations
