@@ -13,7 +13,13 @@ verdict compares the residual with the noise floor the data show (:mod:`.verdict
 
 The 95 % intervals come from the Jacobian at the solution: cov = s^2 (J^T J)^-1 in the
 search's coordinates with s^2 the residual variance, a Student t quantile for the degrees of
-freedom, mapped back to values (so the intervals of a logarithm are not symmetric).
+freedom, mapped back to values (so the intervals of a logarithm are not symmetric). Where the
+correlation matrix says those are not to be trusted (a pair correlated beyond
+:data:`MAX_CORRELATION`, a condition number beyond :data:`MAX_CONDITION`), the intervals of
+the parameters concerned come from the profile of the cost
+(:mod:`servo_toolkit.identify.profile`): bounded where the cost rises past the threshold,
+unbounded (not identifiable) where it stays below it out to a bound of the range; a profile
+point below the optimum's cost restarts the local fit there.
 """
 
 from __future__ import annotations
@@ -31,7 +37,8 @@ from .model import RESPONSES
 from .params import SceneTemplate
 from .residuals import PHASE_DB_PER_DEG, wrap_deg
 from .result import FitResult
-from .search import global_least_squares
+from .profile import LOWER_BY, ParameterProfile, noise_variance, profile, threshold
+from .search import Search, global_least_squares, refine
 from .verdict import MISS_FLOORS, bands, judge
 
 __all__ = ["PHASE_DB_PER_DEG", "fit", "wrap_deg"]
@@ -41,6 +48,10 @@ MAX_RELATIVE_INTERVAL = 1.0
 STOP_RATIO = 1.2
 #: |correlation| above which two parameters are called not separable
 MAX_CORRELATION = 0.99
+#: condition number of the estimates' correlation matrix above which every parameter is profiled
+MAX_CONDITION = 1e3
+#: local fits restarted from a profile point below the optimum's cost
+MAX_RESTARTS = 2
 
 
 def _misses(comparison, resid, floor) -> tuple:
@@ -76,6 +87,56 @@ def _intervals(jac, resid, dof):
             # the correlation does not depend on s^2 (an exact fit has s^2 = 0)
             corr[np.ix_(idx, idx)] = np.clip(inv / np.outer(d, d), -1.0, 1.0)
     return half, corr, singular
+
+
+def _assess(sol, coords, template, dof):
+    """The solution's values, the parameters held by the scene's rules, and the Wald intervals."""
+    norms = np.linalg.norm(sol.jac, axis=0)
+    # a parameter without influence keeps the scene's value (the search moved it for nothing)
+    z = np.where(norms > 1e-9 * max(float(norms.max()), 1e-300), sol.z, 0.0)
+    values = coords.values(z)
+    at_limit = _at_scene_limit(template, values)
+    jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
+    half, corr, singular = _intervals(jac, sol.fun, dof)
+    return z, values, at_limit, jac, half, corr, singular
+
+
+def _to_profile(corr, singular, at_limit) -> list:
+    """The parameters whose Wald interval is not to be trusted: those in a pair correlated
+    beyond :data:`MAX_CORRELATION`, or all (estimated) ones when the correlation matrix is
+    ill-conditioned beyond :data:`MAX_CONDITION`."""
+    idx = [j for j in range(len(singular)) if not singular[j] and not at_limit[j]]
+    if len(idx) < 2:
+        return []
+    c = corr[np.ix_(idx, idx)]
+    if not np.all(np.isfinite(c)):
+        return []
+    if np.linalg.cond(c) > MAX_CONDITION:
+        return idx
+    return [j for j in idx if any(abs(corr[j, k]) > MAX_CORRELATION for k in idx if k != j)]
+
+
+def _unbounded_warning(template, profiles, j, coords) -> str:
+    """One line: parameter j's profile stays below the threshold out to a bound of its range."""
+    p = next(p for p in profiles if p.index == j)
+    par = template.parameters[j]
+    lower, upper = coords.values(coords.lower)[j], coords.values(coords.upper)[j]
+    sides = [f"{name} bound {b:.4g} {par.unit}" for name, b, open_ in
+             (("lower", lower, p.unbounded[0]), ("upper", upper, p.unbounded[1])) if open_]
+    partner = f"; it trades against {template.parameters[p.partner].key}" if p.partner is not None else ""
+    return (f"{par.key}: the data cannot identify it (its profile stays within the 95 % threshold out to the "
+            f"{' and the '.join(sides)} of its range{partner})")
+
+
+def _in_units(p, template, coords, z, values) -> ParameterProfile:
+    """A profile in the parameter's own units."""
+    def value(c):
+        return float(coords.values(np.where(np.arange(z.size) == p.index, c, z))[p.index])
+    par = template.parameters[p.index]
+    return ParameterProfile(key=par.key, unit=par.unit, value=float(values[p.index]),
+                            values=np.array([value(c) for c in p.z]), rise=p.rise, threshold=p.threshold,
+                            interval=(value(p.interval[0]), value(p.interval[1])), unbounded=p.unbounded,
+                            partner=None if p.partner is None else template.parameters[p.partner].key)
 
 
 def _at_scene_limit(template, values) -> np.ndarray:
@@ -186,21 +247,45 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
                                progress=progress)
     m = sol.fun.size
     dof = max(m - npar, 1)
-    norms = np.linalg.norm(sol.jac, axis=0)
-    # a parameter without influence keeps the scene's value (the search moved it for nothing)
-    z = np.where(norms > 1e-9 * max(float(norms.max()), 1e-300), sol.z, 0.0)
-    values = coords.values(z)
-    at_limit = _at_scene_limit(template, values)
-    jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
-    half, corr, singular = _intervals(jac, sol.fun, dof)
+    level = threshold(dof)
+    nfev, refined_from = int(sol.nfev), []
+    for attempt in range(MAX_RESTARTS + 1):
+        z, values, at_limit, jac, half, corr, singular = _assess(sol, coords, template, dof)
+        profiled = _to_profile(corr, singular, at_limit)
+        s2 = noise_variance(sol.fun, dof)
+        rss = float(sol.fun @ sol.fun)
+        # a drop in RSS that matters is one against the data's noise (an exact fit's s^2 is no measure of it)
+        lower_by = LOWER_BY * max(s2, floor ** 2 if floor is not None else 0.0)
+        profiles = [profile(residuals, z, coords.lower, coords.upper, j, s2, level, half[j], rss, lower_by)
+                    for j in profiled]
+        nfev += sum(p.evaluations for p in profiles)
+        lows = [p for p in profiles if p.lower is not None]
+        if not lows or attempt == MAX_RESTARTS:
+            break
+        low = min(lows, key=lambda p: float(np.min(p.rise)))
+        new = refine(residuals, low.lower, coords.lower, coords.upper)
+        nfev += int(new.nfev) + int(new.njev) * npar
+        if not new.cost < 0.5 * rss:
+            break
+        if np.max(np.abs(new.x - sol.z)) > 1e-6:
+            refined_from.append(template.parameters[low.index].key)
+        sol = Search(z=new.x, fun=new.fun, jac=new.jac, nfev=nfev, feature_start=sol.feature_start, ends=sol.ends)
     ci = coords.intervals(values, half)
     ci[singular] = [0.0, math.inf]
     wide = coords.relative_half(values, half) > MAX_RELATIVE_INTERVAL
+    unbounded = np.zeros(npar, bool)
+    for p in profiles:  # the profile's interval where it was computed: the cost, not its curvature at one point
+        lo, hi = p.interval
+        ci[p.index] = coords.values(np.where(np.arange(npar) == p.index, lo, z))[p.index], \
+            coords.values(np.where(np.arange(npar) == p.index, hi, z))[p.index]
+        unbounded[p.index] = any(p.unbounded)
+        wide[p.index] = coords.relative_half(values, np.full(npar, max(hi - z[p.index], z[p.index] - lo)))[p.index] \
+            > MAX_RELATIVE_INTERVAL
     keys = [p.key for p in template.parameters]
     residual_rms = float(np.sqrt(np.mean(sol.fun ** 2)))
-    unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or wide[j])]
+    unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or wide[j] or unbounded[j])]
     inseparable = [(a, b) for a in range(npar) for b in range(a + 1, npar) if abs(corr[a, b]) > MAX_CORRELATION]
-    # a strong correlation alone is no verdict: the intervals (from the same information) allow for it
+    # a strong correlation alone is no verdict: the intervals (from the same information, or the profile) allow for it
     verdict = judge(residual_rms, floor, dof, m, not unidentified)
     judged = verdict != "model mismatch"  # at a mismatch the intervals mean nothing
     warnings = []
@@ -211,8 +296,12 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         elif singular[j] and (judged or not np.any(jac[:, j])):
             warnings.append(f"{key}: the data cannot identify it (no independent influence on the response); "
                             "kept near its initial value")
+        elif judged and unbounded[j]:
+            warnings.append(_unbounded_warning(template, profiles, j, coords))
         elif judged and wide[j]:
-            warnings.append(f"{key}: the data cannot identify it (95 % interval wider than "
+            source = (f" from the profile of the cost, [{ci[j, 0]:.4g}, {ci[j, 1]:.4g}] {template.parameters[j].unit},"
+                      if j in profiled else "")
+            warnings.append(f"{key}: the data cannot identify it (95 % interval{source} wider than "
                             f"+-{100 * MAX_RELATIVE_INTERVAL:.0f} % of the value)")
         if z[j] <= coords.lower[j] + 1e-3 or z[j] >= coords.upper[j] - 1e-3:
             warnings.append(f"{key}: ended at the bound of its physical range [{lower[j]:.4g}, {upper[j]:.4g}] "
@@ -222,6 +311,15 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
             if a in unidentified or b in unidentified:
                 warnings.append(f"{keys[a]} and {keys[b]}: correlation {corr[a, b]:+.3f}; the data identify "
                                 "only a combination of them")
+        for p in profiles:  # the pair the profile found trading along the ridge
+            pair = tuple(sorted((p.index, p.partner))) if p.partner is not None else None
+            if pair and any(p.unbounded) and pair not in inseparable:
+                inseparable.append(pair)
+                warnings.append(f"{keys[pair[0]]} and {keys[pair[1]]}: they trade along the profile of "
+                                f"{keys[p.index]}; the data identify only a combination of them")
+    for key in refined_from:
+        warnings.append(f"the profile of {key} found a lower residual than the search's optimum; the fit was "
+                        "refined from there")
     try:
         fitted_scene = template.scene(values)
         fitted_model = comparison.evaluate(fitted_scene)[0]
@@ -243,5 +341,6 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
                      initial_residual_rms=float(np.sqrt(np.mean(r0 ** 2))), warnings=tuple(warnings),
                      data=data, initial_model=initial_model, fitted_model=fitted_model,
                      calibrated=fitted_scene, written=tuple(p.written for p in template.parameters),
-                     evaluations=int(sol.nfev), dof=int(dof), verdict=verdict, noise_floor=floor, misses=misses,
-                     noise_basis=comparison.noise)
+                     evaluations=int(nfev), dof=int(dof), verdict=verdict, noise_floor=floor, misses=misses,
+                     noise_basis=comparison.noise,
+                     profiles=tuple(_in_units(p, template, coords, z, values) for p in profiles))

@@ -61,6 +61,10 @@ class FitResult:
     noise_basis : str
         Where the noise floor comes from (the coherence, the scatter of the data), or why it
         is unknown.
+    profiles : tuple of ParameterProfile
+        The profile of each parameter whose Wald interval is not trusted (a pair correlated
+        beyond 0.99, or an ill-conditioned Fisher matrix; :mod:`servo_toolkit.identify.profile`):
+        its ``ci95`` is the profile's.
     """
 
     scene: str
@@ -88,6 +92,7 @@ class FitResult:
     noise_floor: float | None = None
     misses: tuple = ()
     noise_basis: str = ""
+    profiles: tuple = ()
 
     @property
     def mismatch(self) -> bool:
@@ -110,7 +115,8 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """JSON-ready summary: ``parameters`` [{key, value, unit, ci95, initial}],
-        ``residual_db_rms``, ``correlation``, ``warnings``."""
+        ``residual_db_rms``, ``correlation``, ``warnings``, ``profiles`` (each
+        profile's ``to_dict``)."""
         corr = [[None if not math.isfinite(c) else float(c) for c in row] for row in self.correlation]
         return {"scene": self.scene, "response": self.response,
                 "parameters": [{"key": k, "value": float(v), "unit": u, "ci95": [float(lo), float(hi) if math.isfinite(hi) else None],
@@ -122,7 +128,7 @@ class FitResult:
                 "correlation": {"keys": list(self.keys), "matrix": corr},
                 "warnings": list(self.warnings), "points": int(self.data.points), "dof": self.dof,
                 "verdict": self.verdict, "noise_floor": self.noise_floor, "noise_basis": self.noise_basis,
-                "misses": list(self.misses),
+                "misses": list(self.misses), "profiles": [p.to_dict() for p in self.profiles],
                 "evaluations": self.evaluations}
 
     def value(self, key: str) -> float:
@@ -153,6 +159,9 @@ class FitResult:
             if pairs:
                 c, a, b = max(pairs)
                 lines.append(f"  largest correlation: {self.keys[a]} / {self.keys[b]} {self.correlation[a, b]:+.3f}")
+        if self.profiles:
+            lines.append("  intervals from the profile of the cost (the Fisher matrix is ill-conditioned): "
+                         + ", ".join(p.key for p in self.profiles))
         lines += [f"  warning: {w}" for w in self.warnings]
         lines.append(f"  verdict: {self.verdict_text()}")
         return "\n".join(lines)
@@ -171,6 +180,19 @@ class FitResult:
                else f"normalised residual {self.residual_rms:.3g}")
         return (f"<p><b>Fit of {html.escape(self.scene)}</b> to {html.escape(_RESPONSE_LABEL[self.response])}: "
                 f"{res}; <b>{html.escape(self.verdict_text())}</b></p><table><tr>{head}</tr>{body}</table>" + (f"<ul>{warn}</ul>" if warn else ""))
+
+    def plot_profiles(self, axes=None):
+        """The profile of each parameter profiled: the cost rise against the value, with the
+        threshold of the 95 % interval. Returns the axes (empty without profiles)."""
+        import matplotlib.pyplot as plt
+        if not self.profiles:
+            return []
+        if axes is None:
+            _, axes = plt.subplots(len(self.profiles), 1, figsize=(6.5, 3.2 * len(self.profiles)), squeeze=False)
+            axes = list(axes[:, 0])
+        for ax, p in zip(axes, self.profiles):
+            p.plot(ax)
+        return axes
 
     def plot(self, axes=None):
         """Measured vs initial vs fitted: Bode (gain, phase) of a frequency response, or

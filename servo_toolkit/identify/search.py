@@ -82,6 +82,15 @@ def _distinct(points, tol=SAME_START):
     return out
 
 
+def refine(residuals, start, lower, upper):
+    """Local least squares (trust region within the box) from ``start``: scipy's
+    ``OptimizeResult`` (``x``, ``cost``, ``fun``, ``jac``, ``nfev``, ``njev``)."""
+    lower = np.asarray(lower, float)
+    return optimize.least_squares(residuals, np.clip(start, lower, upper), bounds=(lower, upper), diff_step=1e-6,
+                                  x_scale=1.0, method="trf", ftol=1e-10, xtol=1e-10, gtol=1e-10,
+                                  max_nfev=MAX_NFEV_PER_PARAMETER * lower.size)
+
+
 def global_least_squares(residuals, lower, upper, initial, *, probe=None, starts: int | None = None,
                          seed: int = 0, enough: float = 0.0, progress: bool = False) -> Search:
     """Minimize ``sum(residuals(z)**2)`` over the box, from many starts.
@@ -144,9 +153,7 @@ def global_least_squares(residuals, lower, upper, initial, *, probe=None, starts
         ends = []
         best_sol = None
         for start in _distinct(chosen):
-            sol = optimize.least_squares(residuals, start, bounds=(lower, upper), diff_step=1e-6, x_scale=1.0,
-                                         method="trf", ftol=1e-10, xtol=1e-10, gtol=1e-10,
-                                         max_nfev=MAX_NFEV_PER_PARAMETER * npar)
+            sol = refine(residuals, start, lower, upper)
             nfev += sol.nfev + sol.njev * npar
             ends.append(float(sol.cost))
             if best_sol is None or sol.cost < best_sol.cost:

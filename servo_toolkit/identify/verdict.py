@@ -19,8 +19,10 @@ reversal) is left out.
     mean nothing then, and are not judged.
 ``not identifiable``
     The fit reaches the noise, yet the Fisher information (the Jacobian at the optimum)
-    leaves a parameter without an independent influence or with an interval wider than
-    its value.
+    leaves a parameter without an independent influence, or its interval (from the profile
+    of the cost where the Fisher matrix is ill-conditioned,
+    :mod:`servo_toolkit.identify.profile`) is wider than its value or unbounded to a bound of
+    its physical range.
 ``noise floor unknown``
     Too few points, or a frequency grid too coarse, to estimate the floor; the fit is
     reported as it is.
