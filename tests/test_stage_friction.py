@@ -98,3 +98,13 @@ def test_a_stage_beyond_the_split_joins_the_load_friction():
     assert model.P[lo.TC_L] == pytest.approx(0.6) and model.P[lo.TS_L] == pytest.approx(0.9)
     assert model.P[lo.INV_VS_L] == pytest.approx(1 / 0.01)
     assert any("drivetrain[1]" in n and "load" in n for n in model.notes)
+
+
+def test_the_linear_plant_keeps_a_stage_viscous_friction_and_says_it_drops_the_rest():
+    """The rigid plant's damping at the output is b_m N^2 + B_g (gear output = output), and its
+    notes name the stage's Coulomb friction as left out."""
+    from servo_toolkit.plant.linear import friction_note, plant_parameters
+    sc = replace(geared(tc=0.0), stage_friction=(StageFriction(0.3, 0.5, 0.0, 2e-2),))
+    p = plant_parameters(sc, model="rigid")
+    assert p.b1 == pytest.approx(1e-4 * N**2 + 2e-2, rel=1e-12)
+    assert "drivetrain[0]'s Coulomb friction 0.3 N*m, static 0.5 N*m" in friction_note(sc)[0]
