@@ -44,8 +44,6 @@ class StageFriction:
         """The friction keys of a ``[[drivetrain]]`` table (None when it gives none);
         ``travel``: the stage's output is a travel (N, m/s, N*s/m), else a shaft angle."""
         units = ("N", "m/s", "N*s/m") if travel else ("N*m", "rad/s", "N*m*s/rad")
-        if not any(f.has(k) for k in KEYS):
-            return None
         fr = cls(coulomb_friction=f.quantity("coulomb_friction", units[0], 0.0, rule="nonnegative"),
                  static_friction=(f.quantity("static_friction", units[0], rule="nonnegative")
                                   if f.has("static_friction") else None),
@@ -55,7 +53,7 @@ class StageFriction:
             require(math.isfinite(getattr(fr, key)), f.key(key), "must be finite")
         require(math.isfinite(fr.breakaway) and fr.breakaway >= fr.coulomb_friction, f.key("static_friction"),
                 f"must be finite and at least the coulomb_friction {fr.coulomb_friction:g} (got {fr.breakaway:g})")
-        return fr
+        return None if fr == cls() else fr
 
 
 __all__ = ["KEYS", "StageFriction"]
