@@ -54,7 +54,7 @@ def test_a_bad_stage_friction_names_its_key(keys, bad):
 def test_a_stage_friction_reflected_to_the_motor_is_the_same_friction_at_the_motor():
     """Rigid chain: friction (Tc, Ts, v_st, B) at the gear's output runs as Tc/N, Ts/N,
     N v_st, B/N^2 added at the motor shaft (the Stribeck speeds reflected alike), to the last
-    bits of a run through breakaway, sliding and a stop."""
+    bits of a run through breakaway and sliding, in RK4 and in the reference solver."""
     tc, ts, vs = 0.02, 0.05, 0.5
     fr = StageFriction(coulomb_friction=0.3, static_friction=0.6, stribeck_speed=vs / N, viscous_friction=2e-2)
     at_stage = replace(geared(tc=tc, ts=ts, vs=vs), stage_friction=(fr,))
@@ -65,6 +65,9 @@ def test_a_stage_friction_reflected_to_the_motor_is_the_same_friction_at_the_mot
     volts = Reference.voltage(1.5 * R * (ts + 0.06) / KT)
     ra, rb = (run(m, volts, 0.2, method="rk4", dt=1e-4) for m in (a, b))
     assert ra.motor_speed.max() > 1.0
+    assert np.allclose(ra.states, rb.states, rtol=1e-12, atol=1e-12)
+    # the reference solver (its events at the breakaway) reads the same slots
+    ra, rb = (run(m, volts, 0.2, method="reference", output_dt=1e-3) for m in (a, b))
     assert np.allclose(ra.states, rb.states, rtol=1e-12, atol=1e-12)
 
 
