@@ -111,3 +111,18 @@ def test_the_linear_plant_keeps_a_stage_viscous_friction_and_says_it_drops_the_r
     p = plant_parameters(sc, model="rigid")
     assert p.b1 == pytest.approx(1e-4 * N**2 + 2e-2, rel=1e-12)
     assert "drivetrain[0]'s Coulomb friction 0.3 N*m, static 0.5 N*m" in friction_note(sc)[0]
+
+
+def test_the_dead_band_counts_a_stage_friction_reflected_to_the_motor():
+    """The proportional path's dead band (hunting.dead_band) with the gear output's breakaway
+    Ts_g is the one with Ts_m + Ts_g / N at the motor, the closed form (Ts_m + Ts_g / N) / (Kt Kp)."""
+    from servo_toolkit.studies.hunting import dead_band
+
+    from .test_hunting import controller, gains, scene
+    sc = scene()
+    j, kp, _, kd = gains(sc, integral=0.0)
+    ctrl = controller(kp, 0.0, kd)
+    ts_g = 0.4
+    with_stage = replace(sc, stage_friction=(StageFriction(0.2, ts_g),) + (None,) * (len(sc.stages) - 1))
+    n = abs(float(sc.drivetrain.ratio([0.0])[0][0]))
+    assert dead_band(with_stage, ctrl) == pytest.approx(dead_band(sc, ctrl) + ts_g / n / (KT * kp), rel=1e-9)
