@@ -183,6 +183,9 @@ def scene_markdown(reads=None) -> str:
 
     for (pattern, kind), keys in sorted(groups.items(), key=order):
         desc = descriptions(_component(pattern, kind))
+        if pattern == "drivetrain[]" and kind != "cam":  # every stage's output friction
+            from servo_toolkit.components.stage_friction import StageFriction
+            desc = {**descriptions(StageFriction), **desc}
         out += [f"## {_title(pattern, kind)}", "",
                 "| key | type | default | rule | example | meaning |", "| --- | --- | --- | --- | --- | --- |"]
         for key, d in keys.items():

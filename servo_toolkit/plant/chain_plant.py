@@ -21,6 +21,7 @@ import control as ct
 import numpy as np
 
 from ..drivetrain.chain_damping import chain_damping, segment_stiffness
+from ..drivetrain.stage_friction import lumped_friction
 from ..errors import SceneError
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
@@ -58,7 +59,7 @@ def chain_plant(scene, q0=None, inductance: bool = True,
     n_n = m.size
     damping = chain_damping(chain, q0, structural_damping)
     C = damping.matrix(segment_stiffness(chain, [q0], damping.segments, driving=True)[:, 0])
-    motor, load = scene.motor, scene.load
+    motor, load = lumped_friction(scene, q0, False, [])  # the stages' viscous friction at the motor or the load
     n = abs(float(dt.ratio([q0])[0][0]))
     gain = chain.efficiency * n * motor.torque_constant
     Kx, Cx = K.copy(), C.copy()

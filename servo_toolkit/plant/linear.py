@@ -35,6 +35,8 @@ import control as ct
 import numpy as np
 
 from ..drivetrain.chain_damping import chain_damping
+from ..drivetrain.elements import stage_units
+from ..drivetrain.stage_friction import lumped_friction
 from ..errors import SceneError
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
@@ -158,9 +160,16 @@ def friction_note(scene) -> tuple:
              for who, tc, ts, unit in (("motor", motor.coulomb_friction, motor.breakaway_torque, "N*m"),
                                        ("load", load.coulomb_friction, load.breakaway, output_unit(scene).moment))
              if max(tc, ts) > 0]
+    outs = stage_units(scene.stages)[0] if scene.stage_friction else ()
+    for k, fr in enumerate(scene.stage_friction):
+        unit = "N" if outs[k] == "m" else "N*m"
+        if fr is not None and max(fr.coulomb_friction, fr.breakaway) > 0:
+            parts.append(f"drivetrain[{k}]'s Coulomb friction {fr.coulomb_friction:.4g} {unit}"
+                         + (f", static {fr.breakaway:.4g} {unit}" if fr.breakaway > fr.coulomb_friction else ""))
     if not parts:
         return ()
-    return ("linear plant: viscous friction only (the motor's b N^2, the load's damping); left out, having no "
+    return ("linear plant: viscous friction only (the motor's b N^2, the stages' viscous friction reflected, the "
+            "load's damping); left out, having no "
             "linearization at rest: " + "; ".join(parts) + ". A loop may stop short of its command inside the "
             "dead band of static friction or hunt against it with integral action (the report's time section "
             "runs the step with friction that holds)",)
@@ -196,6 +205,7 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:
         J1, J2, K = float(dt.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
     zeta = two_mass_damping(dt.chain, q0, structural_damping) if math.isfinite(K) else 0.0
+    motor, load = lumped_friction(scene, q0, not math.isfinite(K), [])  # the stages' viscous friction
     return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, zeta)),
                            b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
                            N=abs(n), eta=dt.efficiency, Kt=motor.torque_constant,

@@ -16,6 +16,7 @@ from ..components.linkage import RockerLinkage
 from ..components.motor import DCMotor
 from ..components.platform.geometry import CrossedArchPlatform
 from ..components.roller_screw.stages import RollerScrew, RollerScrewOperating, RollerScrewStage
+from ..components.stage_friction import StageFriction
 from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import stage_units
@@ -38,6 +39,9 @@ class Scene:
     motor : DCMotor or None
     stages : tuple
         Drivetrain stages from the motor to the load.
+    stage_friction : tuple of StageFriction or None
+        Friction at each stage's output (:class:`~servo_toolkit.components.stage_friction.StageFriction`,
+        one per stage, None where a stage gives none); empty when no stage gives any.
     load : Load
     sensors : Sensors
     requirements : Requirements
@@ -66,6 +70,7 @@ class Scene:
     description: str = ""
     motor: DCMotor | None = None
     stages: tuple = ()
+    stage_friction: tuple = ()
     load: Load = field(default_factory=Load)
     sensors: Sensors = field(default_factory=Sensors)
     requirements: Requirements = field(default_factory=Requirements)
@@ -121,12 +126,26 @@ def _built(path: str, build):
         raise SceneError(path, f"invalid value ({type(exc).__name__}: {exc})") from None
 
 
-def _stage(table, i: int):
+def _stage(table, i: int, travel: bool):
+    """The stage of ``drivetrain[i]`` and its output friction (None: none given; a cam's
+    follower friction is the cam's own ``guide_friction_coefficient``); ``travel``: the
+    stage's output is a travel."""
     f = Fields(table, f"drivetrain[{i}]")
     kind = f.text("kind")
     cls = STAGE_KINDS.get(kind)
     require(cls is not None, f.key("kind"), f"unknown stage kind {kind!r}; known: {sorted(STAGE_KINDS)}")
-    return _built(f.path, lambda: cls.from_table(f))
+    friction = None if kind == "cam" else _built(f.path, lambda: StageFriction.from_fields(f, travel))
+    return _built(f.path, lambda: cls.from_table(f)), friction
+
+
+def _stage_outputs_travel(raw_stages) -> list:
+    """Per stage: True when its output is a travel (what :data:`STAGE_IO` says it delivers)."""
+    have, out = "rotary", []
+    for table in raw_stages:
+        give = STAGE_IO.get(table.get("kind") if isinstance(table, dict) else None, (None, None))[1]
+        have = give or have
+        out.append(have == "travel")
+    return out
 
 
 def _output_is_travel(raw_stages) -> bool:
@@ -178,7 +197,9 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
         motor = DCMotor.from_table(Fields(data["motor"], "motor")) if "motor" in data else None
         raw_stages = data.get("drivetrain", [])
         require(isinstance(raw_stages, list), "drivetrain", "must be an array of tables [[drivetrain]]")
-        stages = tuple(_stage(t, i) for i, t in enumerate(raw_stages))
+        built = [_stage(t, i, travel) for i, (t, travel) in enumerate(zip(raw_stages, _stage_outputs_travel(raw_stages)))]
+        stages = tuple(b[0] for b in built)
+        stage_friction = tuple(b[1] for b in built) if any(b[1] is not None for b in built) else ()
         check_stage_order(raw_stages)
         forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
         require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
@@ -211,7 +232,7 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
                 "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
         unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
         scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
-                      stages=stages, load=load, sensors=sensors, requirements=req,
+                      stages=stages, stage_friction=stage_friction, load=load, sensors=sensors, requirements=req,
                       studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
                       mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
                       duty_cycle=_duty_cycle(data, stages, unit, source),

@@ -72,6 +72,7 @@ from .tables import frozen_tables
 from .chain_model import (CHAIN_CHOICES, chain_damping_facts, chain_model, chain_state_names, damping_note,
                           held_inertia_error,
                           resolve as resolve_chain)
+from ..drivetrain.stage_friction import lumped_friction
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
 from .model_slots import (FRICTION_CHOICES, drivetrain_slots, friction_slots, pack_controller,
@@ -354,6 +355,10 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     table = np.vstack([j_row, dj_row, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
                       + ([] if full is None else [full["k_rows"][2:], full["node_rows"]])).astype(float)
 
+    motor, load = lumped_friction(scene, q0, rigid, notes)
+    if full is not None and scene.stage_friction:
+        notes.append("the full chain's intermediate nodes carry no friction of their own: a stage's friction "
+                     "acts at the motor side or the load, by the two-mass split")
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
                                              motor.back_emf_constant, motor.viscous_friction,

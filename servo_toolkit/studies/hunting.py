@@ -26,6 +26,7 @@ import numpy as np
 
 from ..core.output_units import OutputUnit, output_unit
 from ..display.cards import RichDisplay, card, facts, num, svg
+from ..drivetrain.stage_friction import lumped_friction
 
 #: a step-to-rest run is this fraction of the output's default command amplitude (1 deg, 0.5 mm)
 STEP_FRACTION = 0.5
@@ -179,8 +180,8 @@ def dead_band(scene, controller, q0: float | None = None) -> float | None:
     moment per unit of position error, before any integral action winds up, is its
     proportional stiffness Kt Kp with Kp the real part of the motion controller's response
     from the output angle to the current command at a low frequency (an integrator adds a
-    purely imaginary part there). With the motor's breakaway Ts and the load's Ts_L reflected
-    to the motor (the chain at rest taken as rigid),
+    purely imaginary part there). With the motor's breakaway Ts (a stage's reflected to the
+    motor added) and the load's Ts_L reflected to the motor (the chain at rest taken as rigid),
 
         |e| <= (Ts + Ts_L / N) / (Kt Kp).
 
@@ -206,8 +207,8 @@ def dead_band(scene, controller, q0: float | None = None) -> float | None:
     if not gain > 0:
         return None
     n = abs(float(scene.drivetrain.ratio([q0])[0][0]))
-    motor = scene.motor
-    return (motor.breakaway_torque + scene.load.breakaway / n) / (motor.torque_constant * gain)
+    motor, load = lumped_friction(scene, q0, True, [])  # a stage's friction reflected to the motor
+    return (motor.breakaway_torque + load.breakaway / n) / (motor.torque_constant * gain)
 
 
 def stick_mask(result, load_friction: bool = False) -> np.ndarray:
@@ -312,7 +313,10 @@ def rest_study(scene, controller=None, *, step: float | None = None, duration: f
     size = STEP_FRACTION * u.default_amplitude if step is None else float(step)
     run = simulate(scene, controller, reference=Reference.step(size), duration=duration, method=method, dt=dt,
                    options=options)
-    res = analyse(run, load_friction=scene.load.breakaway > 0)
+    # the load carries friction of its own (a stage's beyond the two-mass split joins it)
+    from ..drivetrain.operating_point import operating_point
+    load = lumped_friction(scene, operating_point(scene)[0], False, [])[1] if scene.stage_friction else scene.load
+    res = analyse(run, load_friction=load.breakaway > 0)
     ts = scene.motor.breakaway_torque
     head = (f"{u.text(size, 3)} step, {duration:g} s, {run.method}"
             + (f" at {run.dt_s:.3g} s" if run.dt_s else "")

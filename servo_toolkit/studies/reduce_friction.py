@@ -29,6 +29,7 @@ from dataclasses import replace
 import control as ct
 import numpy as np
 
+from ..drivetrain.stage_friction import lumped_friction
 from ..plant.linear import PLANT_OUTPUTS, current_controller, plant_matrices, sample_delay
 
 def disturbance_response(p, controller, motor, w) -> np.ndarray:
@@ -73,7 +74,7 @@ def friction_effect(scene, controller, p, w, t_full, amplitudes, base):
         The quantity compared, in words, and the estimate.
     """
     from ..core.output_units import output_unit
-    motor, load = scene.motor, scene.load
+    motor, load = lumped_friction(scene, p.q0, True, [])  # a stage's friction reflected to the motor
     ts_m, ts_l = motor.breakaway_torque, load.breakaway
     if base.friction != "stick" or max(motor.coulomb_friction, ts_m, load.coulomb_friction, ts_l) == 0:
         return None
