@@ -10,8 +10,13 @@ its designed controller, prints:
   builds and verified error) and the vectorized figures, in this process and on two worker
   processes; target < 10 s on this 2-core machine;
 - the nonlinear time runs of N_TIME variants (default 1000): the batched integration time per
-  variant on one core against one single run of the nominal model (``sim.run``), target
-  <= 1/3, and the end-to-end time with the rows' fit;
+  variant on one core (``integrate_variants`` on up to 500 variants, best of 3) against one
+  single run of the nominal model, target <= 1/3, then with each variant's parameter row and
+  stroke tables (CPU time per variant), and the end-to-end time with the rows' fit. The
+  single run is ``sim.run`` of the rows' nominal model (the same reduced model, command,
+  duration and dt as the variants), RK4, warm: its ``wall_s``, the compiled integration
+  alone (compilation, the stability probe and the result's traces excluded, as the batch's
+  figure excludes its own setup), best of 4;
 - the same N margins and N_TIME time runs in chunks on a dask cluster (ADDRESS, or
   ``DASK_SCHEDULER_ADDRESS``, else a local cluster of two worker processes of one thread),
   and whether every figure of every variant is bit for bit the one of the run in one
@@ -97,6 +102,12 @@ def main(n: int = 100_000, n_time: int = 1000, scheduler=None) -> None:
                  for _ in range(REPEATS + 1))
     X = np.column_stack([values[k] for k in rows.names])[:min(n_time, 500)]
     P, T, tix = rows.rows(X)
+    made = []
+    for _ in range(REPEATS):  # the variants' parameter rows and stroke tables, CPU time per variant
+        cpu = time.process_time()
+        rows.rows(X)
+        made.append((time.process_time() - cpu) / len(X))
+    made = min(made)
     X0 = np.array([initial_state(replace(rows.model, T=T[t]), p) for p, t in zip(P, tix)])
     sub = int(round(rows.model.sample_time / runs.dt_s))
     cores = numba.config.NUMBA_NUM_THREADS
@@ -105,7 +116,8 @@ def main(n: int = 100_000, n_time: int = 1000, scheduler=None) -> None:
               for _ in range(REPEATS)) / len(X)
     numba.set_num_threads(cores)
     print(f"time runs: single run {single * 1e3:.2f} ms; batched on one core {per * 1e3:.2f} ms per variant = "
-          f"{per / single:.2f} x (target <= 0.33: {'met' if per <= single / 3 else 'NOT met'}); {n_time} variants "
+          f"{per / single:.2f} x (target <= 0.33: {'met' if per <= single / 3 else 'NOT met'}); with its row and "
+          f"tables ({made * 1e3:.2f} ms) {(per + made) / single:.2f} x; {n_time} variants "
           f"end to end {total:.1f} s (rows fitted from {rows.evaluations} exact models, verified to "
           f"{rows.error:.2g}); {_load()}")
 

@@ -111,14 +111,18 @@ class SeparableFit:
         T = self._coordinate(X)
         n, m = X.shape[0], self.y0.size
         out = np.broadcast_to(self.y0, (n, m)).copy()
-        for code in range(len(COORDINATES)):
-            cols = np.flatnonzero(self.codes == code)
-            if cols.size == 0:
-                continue
-            z = np.broadcast_to(_forward(self.y0[cols], code), (n, cols.size)).copy()
-            for k, spline in enumerate(self.splines):
+        groups = [(code, np.flatnonzero(self.codes == code)) for code in range(len(COORDINATES))]
+        groups = [(code, cols) for code, cols in groups if cols.size]
+        Z = [np.broadcast_to(_forward(self.y0[cols], code), (n, cols.size)).copy() for code, cols in groups]
+        # each key's interpolant evaluated once for every output, then read by each coordinate's
+        # outputs (each output's sum in the same order as one coordinate at a time)
+        for k, spline in enumerate(self.splines):
+            s = None
+            for (code, cols), z in zip(groups, Z):
                 if spline is not None and np.any(self.moved[k, cols]):
-                    z += spline(T[:, k])[:, cols]
+                    s = spline(T[:, k]) if s is None else s
+                    z += s[:, cols]
+        for (code, cols), z in zip(groups, Z):
             for (k, l), c in self.pairs.items():
                 z += np.outer((X[:, k] - self.x0[k]) * (X[:, l] - self.x0[l]), c[cols])
             out[:, cols] = _inverse(z, code)
@@ -287,15 +291,25 @@ class _Merged:
 
     def __init__(self, per, choice):
         self.per, self.choice = per, choice
+        # each coordinate's interpolant on the outputs that read it only (a B-spline's columns
+        # are independent: the same values for a fraction of the work)
+        self.parts = tuple((cols, _columns(spline, cols)) for cols, spline in
+                           ((np.flatnonzero(choice == code), spline) for code, spline in enumerate(per))
+                           if spline is not None and cols.size)
 
     def __call__(self, t):
         t = np.asarray(t, float)
         out = np.zeros((t.size, self.choice.size))
-        for code, spline in enumerate(self.per):
-            cols = self.choice == code
-            if spline is not None and np.any(cols):
-                out[:, cols] = spline(t)[:, cols]
+        for cols, spline in self.parts:
+            out[:, cols] = spline(t)
         return out
+
+
+def _columns(spline, cols):
+    """The B-spline ``spline`` (values along axis 0) restricted to the output columns ``cols``."""
+    from scipy.interpolate import BSpline
+    return BSpline.construct_fast(spline.t, np.ascontiguousarray(spline.c[:, cols]), spline.k,
+                                  extrapolate=spline.extrapolate, axis=spline.axis)
 
 
 def _merge(splines, choice, d):
