@@ -8,12 +8,9 @@ single run's: the same right-hand side, the same controller sample (each lane's
 measurements by :func:`kernel.controller_inputs`, then the state-space update of
 :func:`kernel.controller_update` across the lanes by :func:`kernel.motion_columns`, at the
 reference r(t) the block shares) and the same RK4 stage arithmetic
-(:func:`integrators.rk4_coefficients`); an open-loop lane's command (a sine) is evaluated
-outside the vectorized loop, which would evaluate it in every lane. Per variant the block
-keeps the figures and snapshots of :func:`batch.variant_run`: the running maxima across the
-lanes at every step, the scalar bookkeeping (snapshots, the status check, the stop) only for
-a lane with a new peak current or deflection, a state that may stop it, or its last step; a
-variant that stops (non-finite state, stroke end) is masked out while its block-mates go on. Friction that holds (``STICK``) runs
+(:func:`integrators.rk4_coefficients`). Per variant the block keeps the
+figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
+stroke end) is masked out while its block-mates go on. Friction that holds (``STICK``) runs
 in the lanes: its stick and breakaway law is branch-free in the right-hand side, and a lane
 whose node reverses its speed or breaks away within a step has that step redone by the
 single run's split step (:func:`split_step.switched_step`, from the same first-stage slopes
