@@ -21,8 +21,6 @@ controller, a cam, a feedforward or controllers of different structures falls ba
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 from numba.core import cgutils, types
@@ -137,15 +135,13 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stages(t, dt, first, last, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN, open_loop):
-    """RK4 stages ``first`` .. ``last - 1`` across the lanes (:func:`integrators.rk4_coefficients`:
-    stage k at t + c_k from the states Y + c_k S, weight w_k): slopes S, accumulated into U
-    (the first stage also keeps current, voltage, i_ref and torque in A). ``holds`` (a
-    literal at each call: one compiled stage for blocks with friction that holds, one
-    without, so a block without it pays nothing for its selects) compiles in friction that
-    holds; then ``TURN`` marks a lane whose stage speeds left a node's direction at the
-    step's start (:func:`split_step.stage_turns`). ``open_loop``: some lane runs open loop
-    (its command is evaluated here, outside the vectorized loop).
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN, open_loop):
+    """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
+    U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
+    ``holds`` (a literal at each call: one compiled stage for blocks with friction that
+    holds, one without, so a block without it pays nothing for its selects) compiles in
+    friction that holds; then ``TURN`` marks a lane whose stage speeds left a node's
+    direction at the step's start (:func:`split_step.stage_turns`).
 
     The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
     gathers from, which it could not check at run time) and the results are copied out.
@@ -154,32 +150,28 @@ def _stages(t, dt, first, last, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN,
     Y, S, U, A, PT, T, TI, IREF = (_packed(Y), _packed(S), _packed(U), _packed(A), _packed(PT), _packed(T),
                                    _packed(TI), _packed(IREF))
     H = _stack_matrix(1, W)[0]  # the held i_ref, or an open-loop lane's command part
-    for stage in range(first, last):
-        c, w = rk4_coefficients(stage, dt)
-        tc = t + c
+    for l in range(W):
+        H[l] = IREF[l]
+    if open_loop:
         for l in range(W):
-            H[l] = IREF[l]
-        if open_loop:
-            for l in range(W):
-                if int(PT[lo.CMODE, l]) == lo.OPEN_LOOP:
-                    H[l] = command(tc, _column(PT, l)) - PT[lo.REF_OFF, l]
-        for l in range(W):
-            s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
-                tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
-                Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
-                _column(PT, l), T[TI[l]], H[l], dummy, dummy, True, holds)
-            out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
-            out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
-        for l in range(W):
-            if holds and stage > 0 and stage_turns(Y[1, l], Y[1, l] + c * S[1, l], Y[3, l],
-                                                   Y[3, l] + c * S[3, l]):
-                TURN[l] = 1.0
-            for k in range(6):
-                S[k, l] = out[k, l]
-                U[k, l] = w * out[k, l] if stage == 0 else U[k, l] + w * out[k, l]
-            if stage == 0:
-                for k in range(4):
-                    A[k, l] = out[6 + k, l]
+            if int(PT[lo.CMODE, l]) == lo.OPEN_LOOP:
+                H[l] = command(tc, _column(PT, l)) - PT[lo.REF_OFF, l]
+    for l in range(W):
+        s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
+            tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
+            Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
+            _column(PT, l), T[TI[l]], H[l], dummy, dummy, True, holds)
+        out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
+        out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
+    for l in range(W):
+        if holds and stage > 0 and stage_turns(Y[1, l], Y[1, l] + c * S[1, l], Y[3, l], Y[3, l] + c * S[3, l]):
+            TURN[l] = 1.0
+        for k in range(6):
+            S[k, l] = out[k, l]
+            U[k, l] = w * out[k, l] if stage == 0 else U[k, l] + w * out[k, l]
+        if stage == 0:
+            for k in range(4):
+                A[k, l] = out[6 + k, l]
 
 
 @_lane_jit
@@ -234,12 +226,10 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     ACT = np.zeros(W)  # 1.0 while the lane runs
     for l in range(nl):
         ACT[l] = 1.0
-    fig = np.zeros((6, W))  # per lane: max |err|, max |i|, sat, max |tau|, max |p - q|
+    fig = np.zeros((W, 6))  # max |err|, max |i|, sat, max |tau|, max |p - q|, status
     for l in range(W):
-        fig[1, l] = -1.0
-        fig[4, l] = -1.0
-    RL = np.zeros(W)  # each lane's reference when the block does not share one
-    NEW = np.zeros(W)  # a lane's new peak current (1), deflection (2), a state to check (4)
+        fig[l, 1] = -1.0
+        fig[l, 4] = -1.0
     dummy = np.zeros(max(nx, 1))
     XN = np.empty((max(nx - lo.NX_PHYS, 1), W))  # the controller's next states
     G = np.zeros((2, W))  # the first stage's slopes of the node speeds (speed reversals)
@@ -265,70 +255,58 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN)
                 to_sample = sub
             to_sample -= 1
-        # the first stage, the figures, then the other three stages in one call (one call site
-        # per friction model: the stage loop compiles once for each)
-        S[:, :] = 0.0
-        if stick:
-            _stages(t, dt, 0, 1, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN, open_loop)
-        else:
-            _stages(t, dt, 0, 1, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN, open_loop)
-        if not shared:
-            for l in range(nl):
-                RL[l] = reference(t, P[v0 + l]) if ACT[l] > 0.0 else 0.0
-        # the figures every lane keeps, across the lanes (a stopped lane's are no longer read),
-        # and which lanes need more: a new peak current or deflection (a snapshot), a state
-        # that may stop the run (:func:`integrators.step_status` decides)
-        for l in range(W):
-            G[0, l], G[1, l] = S[1, l], S[3, l]
-            err = abs(Y[2, l] - (r if shared else RL[l]))
-            fig[0, l] = err if err > fig[0, l] else fig[0, l]
-            tau = abs(A[3, l])
-            fig[3, l] = tau if tau > fig[3, l] else fig[3, l]
-            if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
-                fig[2, l] = 1.0
-            acc = Y[0, l] + Y[1, l] + Y[2, l] + Y[3, l] + Y[4, l] + Y[5, l] + Y[6, l]
-            for j in range(lo.NX_PHYS, nx):
-                acc += Y[j, l]
-            qo = Y[0, l] if PT[lo.RIGID, l] > 0.0 else Y[2, l]
-            alarm = not (math.isfinite(acc) and math.isfinite(tau)) or (
-                PT[lo.STROKE_MODE, l] == 0.0 and (qo > PT[lo.STROKE_HI, l] or qo < PT[lo.STROKE_LO, l]))
-            NEW[l] = (1.0 if abs(A[0, l]) > fig[1, l] else 0.0) + (2.0 if abs(Y[0, l] - Y[2, l]) > fig[4, l] else 0.0) \
-                + (4.0 if alarm else 0.0)
-        for l in range(nl):
-            if ACT[l] == 0.0 or (NEW[l] == 0.0 and step < n_steps):
+        # one call site of the stage per friction model (its code compiles once for each): stage 0
+        # also keeps the figures
+        for stage in range(4):
+            c, w = rk4_coefficients(stage, dt)
+            if stage == 0:
+                S[:, :] = 0.0
+            if stick:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN, open_loop)
+            else:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN, open_loop)
+            if stage > 0:
                 continue
-            v = v0 + l
-            x = Y[:, l]
-            p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
-            if abs(A[0, l]) > fig[1, l]:
-                fig[1, l] = abs(A[0, l])
-                _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
-            defl = abs(p - q)
-            if defl > fig[4, l]:
-                fig[4, l] = defl
-                _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
-            status = lo.OK
-            if NEW[l] >= 4.0:
-                status = step_status(p, pd, q, qd, cur, xi, s, x, abs(A[3, l]), P[v], P[v, lo.STROKE_MODE] == 0.0,
+            for l in range(nl):
+                G[0, l], G[1, l] = S[1, l], S[3, l]
+                if ACT[l] == 0.0:
+                    continue
+                v = v0 + l
+                x = Y[:, l]
+                p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
+                err = abs(q - (r if shared else reference(t, P[v])))
+                if err > fig[l, 0]:
+                    fig[l, 0] = err
+                tau = abs(A[3, l])
+                if tau > fig[l, 3]:
+                    fig[l, 3] = tau
+                if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
+                    fig[l, 2] = 1.0
+                if abs(A[0, l]) > fig[l, 1]:
+                    fig[l, 1] = abs(A[0, l])
+                    _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
+                defl = abs(p - q)
+                if defl > fig[l, 4]:
+                    fig[l, 4] = defl
+                    _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+                status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P[v], P[v, lo.STROKE_MODE] == 0.0,
                                      P[v, lo.RIGID] > 0.0)
-            if status != lo.OK or step == n_steps:
-                ACT[l] = 0.0
-                running -= 1
-                for j in range(nx):
-                    X[v, j] = Y[j, l]
-                _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
-                figs[v, F_STATUS] = status
-                figs[v, F_STEP] = step
-                figs[v, F_ERR] = fig[0, l]
-                figs[v, F_CUR] = fig[1, l]
-                figs[v, F_SAT] = fig[2, l]
-                figs[v, F_TAU] = fig[3, l]
+                if status != lo.OK or step == n_steps:
+                    ACT[l] = 0.0
+                    running -= 1
+                    for j in range(nx):
+                        X[v, j] = Y[j, l]
+                    _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
+                    figs[v, F_STATUS] = status
+                    figs[v, F_STEP] = step
+                    figs[v, F_ERR] = fig[l, 0]
+                    figs[v, F_CUR] = fig[l, 1]
+                    figs[v, F_SAT] = fig[l, 2]
+                    figs[v, F_TAU] = fig[l, 3]
+            if running == 0:
+                break
         if running == 0:
             break
-        if stick:
-            _stages(t, dt, 1, 4, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN, open_loop)
-        else:
-            _stages(t, dt, 1, 4, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN, open_loop)
         if stick:
             _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4)
         for l in range(W):  # stopped lanes keep the state they stopped in, split ones their split step's
