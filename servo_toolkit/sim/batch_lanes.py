@@ -32,7 +32,7 @@ from .batch import variant_run
 from .integrators import rk4_coefficients, snapshot as _snap, step_status
 from .split_step import stage_turns, switch_ahead, switched_step
 from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
-from .kernel import FASTMATH, clip, command, controller_inputs, motion_columns, reference, rhs_phys
+from .kernel import FASTMATH, clip, controller_inputs, motion_columns, reference, rhs_phys
 
 #: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
 #: LLVM applied differently to the same code compiled here and loaded from the cache (the
@@ -135,7 +135,7 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN, open_loop):
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN):
     """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
     U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
     ``holds`` (a literal at each call: one compiled stage for blocks with friction that
@@ -149,18 +149,11 @@ def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN, ope
     out = _stack_matrix(10, W)
     Y, S, U, A, PT, T, TI, IREF = (_packed(Y), _packed(S), _packed(U), _packed(A), _packed(PT), _packed(T),
                                    _packed(TI), _packed(IREF))
-    H = _stack_matrix(1, W)[0]  # the held i_ref, or an open-loop lane's command part
-    for l in range(W):
-        H[l] = IREF[l]
-    if open_loop:
-        for l in range(W):
-            if int(PT[lo.CMODE, l]) == lo.OPEN_LOOP:
-                H[l] = command(tc, _column(PT, l)) - PT[lo.REF_OFF, l]
     for l in range(W):
         s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
             tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
             Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
-            _column(PT, l), T[TI[l]], H[l], dummy, dummy, True, holds)
+            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True, holds)
         out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
         out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
     for l in range(W):
@@ -236,10 +229,8 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     SPLIT = np.zeros(W)  # 1.0 for a lane whose step was split at a switch
     TURN = np.zeros(W)  # 1.0 for a lane one of whose stages left a node's direction
     stick = False
-    open_loop = False  # a lane runs open loop: its command is evaluated outside the lanes' loop
     for v in range(v0, v0 + nl):
         stick = stick or P[v, lo.STICK] > 0.0
-        open_loop = open_loop or int(P[v, lo.CMODE]) == lo.OPEN_LOOP
     xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
     k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
     to_sample = 0
@@ -262,9 +253,9 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             if stage == 0:
                 S[:, :] = 0.0
             if stick:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN, open_loop)
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN)
             else:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN, open_loop)
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN)
             if stage > 0:
                 continue
             for l in range(nl):
