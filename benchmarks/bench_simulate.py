@@ -126,8 +126,11 @@ def stick_case(scene, controller, ref):
                    key=lambda r: r.wall_s)
         rows.append(("toolkit RK4", f"dt={best.dt_s:.4g}", best.wall_s, err(best.output_angle), best.steps))
     for tol in (1e-5, 1e-7, 1e-9):
-        res, wall = best_of(lambda: run(model, ref, DURATION, "reference", output_dt=1e-3, rtol=tol, atol=tol))
-        rows.append(("solve_ivp LSODA + events", f"tol={tol:g}", wall, err(res.output_angle), 0))
+        # the solver's own time (``wall_s``), as for RK4: the model fill, stability probe and
+        # result traces that ``run`` adds around either are left out of both
+        res = min((run(model, ref, DURATION, "reference", output_dt=1e-3, rtol=tol, atol=tol)
+                   for _ in range(REPEATS)), key=lambda r: r.wall_s)
+        rows.append(("solve_ivp LSODA + events", f"tol={tol:g}", res.wall_s, err(res.output_angle), 0))
     P = fill(model, ref)
     x0 = initial_state(model, P)
     dx, aux = np.empty(model.nx), np.empty(lo.NAUX)
