@@ -101,6 +101,20 @@ def _assess(sol, coords, template, dof):
     return z, values, at_limit, jac, half, corr, singular
 
 
+def _profiles(residuals, z, coords, profiled, s2, level, half, rss, lower_by, progress: bool) -> list:
+    """The profile of each parameter in ``profiled`` (:func:`servo_toolkit.identify.profile.profile`),
+    with a bar counting the model evaluations (each profile re-fits the other parameters)."""
+    from ..core.progress import progress_bar
+    if not profiled:
+        return []
+    with progress_bar(total=None, desc="profiles", unit="model", show=progress) as bar:
+        def counted(x):
+            bar.update(1)
+            return residuals(x)
+        return [profile(counted, z, coords.lower, coords.upper, j, s2, level, half[j], rss, lower_by)
+                for j in profiled]
+
+
 def _to_profile(corr, singular, at_limit) -> list:
     """The parameters whose Wald interval is not to be trusted: those in a pair correlated
     beyond :data:`MAX_CORRELATION`, or all (estimated) ones when the correlation matrix is
@@ -256,8 +270,7 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         rss = float(sol.fun @ sol.fun)
         # a drop in RSS that matters is one against the data's noise (an exact fit's s^2 is no measure of it)
         lower_by = LOWER_BY * max(s2, floor ** 2 if floor is not None else 0.0)
-        profiles = [profile(residuals, z, coords.lower, coords.upper, j, s2, level, half[j], rss, lower_by)
-                    for j in profiled]
+        profiles = _profiles(residuals, z, coords, profiled, s2, level, half, rss, lower_by, progress)
         nfev += sum(p.evaluations for p in profiles)
         lows = [p for p in profiles if p.lower is not None]
         if not lows or attempt == MAX_RESTARTS:
