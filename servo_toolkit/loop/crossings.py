@@ -16,6 +16,8 @@ import control as ct
 import numpy as np
 from scipy.optimize import brentq
 
+from .response import solved_response
+
 #: a phase crossing's ``|Im L| / |L|`` and a gain crossing's ``| |L| - 1 |`` at most this
 CROSSING_TOL = 1e-6
 #: the search spans this factor below the smallest and above the largest pole or zero
@@ -41,24 +43,10 @@ def response_of(loop):
             with np.errstate(all="ignore"):
                 return np.asarray(loop(np.asarray(s, complex)), complex).reshape(-1)
         return call
-    A, B, C = (np.asarray(m, float) for m in (loop.A, loop.B, loop.C))
-    d = float(np.asarray(loop.D, float).reshape(-1)[0])
-    n, eye = A.shape[0], np.eye(A.shape[0])
+    A, B, C, D = (np.asarray(m, float) for m in (loop.A, loop.B, loop.C, loop.D))
 
     def solve(s):
-        s = np.atleast_1d(np.asarray(s, complex)).reshape(-1)
-        M = s[:, None, None] * eye - A
-        try:
-            x = np.linalg.solve(M, np.broadcast_to(B, (s.size, n, 1)))
-        except np.linalg.LinAlgError:  # a point on a pole: the others one by one
-            out = np.empty(s.size, complex)
-            for k in range(s.size):
-                try:
-                    out[k] = (C @ np.linalg.solve(M[k], B))[0, 0] + d
-                except np.linalg.LinAlgError:
-                    out[k] = complex(np.inf, np.nan)
-            return out
-        return (C @ x)[:, 0, 0] + d
+        return solved_response(A, B, C, D, np.atleast_1d(np.asarray(s, complex)).reshape(-1))[:, 0, 0]
     return solve
 
 

@@ -93,6 +93,25 @@ def state_space_response(A, B, C, D, s):
         residues = (C @ T @ V)[:, :, None] * np.linalg.solve(T @ V, B)[None, :, :]  # (p, n, m)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.einsum("...k,pkm->...pm", 1.0 / (s[..., None] - lam), residues) + D
+    return solved_response(A, B, C, D, s)
+
+
+def solved_response(A, B, C, D, s):
+    """``C (s I - A)^-1 B + D`` at every ``s`` by one batched linear solve (as python-control
+    evaluates a state-space system without Slycot): shape ``s.shape + (outputs, inputs)``.
+    Where a point lies on a pole, the points are solved one by one and that point is
+    ``inf`` (as python-control)."""
+    s = np.asarray(s, complex)
+    n = A.shape[0]
     M = s[..., None, None] * np.eye(n) - A
-    X = np.linalg.solve(M, np.broadcast_to(B, M.shape[:-1] + B.shape[-1:]))
+    try:
+        X = np.linalg.solve(M, np.broadcast_to(B, M.shape[:-1] + B.shape[-1:]))
+    except np.linalg.LinAlgError:
+        out = np.empty(s.shape + D.shape, complex)
+        for k in np.ndindex(s.shape):
+            try:
+                out[k] = C @ np.linalg.solve(M[k], B) + D
+            except np.linalg.LinAlgError:
+                out[k] = complex(np.inf, np.nan)
+        return out
     return C @ X + D
