@@ -100,8 +100,7 @@ def max_stable_dt(eigs) -> float:
     hi_s = grid[k]
     for _ in range(40):
         mid = 0.5 * (lo_s + hi_s)
-        z = ray * mid
-        out = np.abs(1.0 + z * (1.0 + z * (0.5 + z * (1.0 / 6.0 + z / 24.0)))) > 1 + 1e-12
+        out = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
         hi_s = np.where(out, mid, hi_s)
         lo_s = np.where(out, lo_s, mid)
     limit = np.where(inside, 3.0, lo_s) / mag
