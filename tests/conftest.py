@@ -26,16 +26,22 @@ def pytest_sessionstart(session):
     each worker would compile the same kernels at once."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         return
-    import fcntl
-
     from servo_toolkit.core.jit_cache import cache_dir
     from servo_toolkit.studies.warmup import compile_kernels
     folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / "warm-up.lock", "w") as lock:
+    with _file_lock(folder / "warm-up.lock"):
+        compile_kernels()
+
+
+@contextmanager
+def _file_lock(path: Path):
+    """Hold an exclusive lock on ``path`` (shared by the pytest-xdist workers) for the block."""
+    import fcntl
+    with open(path, "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
-            compile_kernels()
+            yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
@@ -63,7 +69,6 @@ def scene_report(tmp_path_factory):
     :class:`ReportRun`. The report tests share these runs, so each scene's report is built
     once however many tests read it; under pytest-xdist the workers share them too (the
     first to ask writes it under a lock, the others read what it wrote)."""
-    import fcntl
     import json
 
     from servo_toolkit.cli import main
@@ -75,16 +80,12 @@ def scene_report(tmp_path_factory):
     def report(name: str) -> ReportRun:
         if name not in made:
             folder, record = shared / name, shared / f"{name}.json"
-            with open(shared / f"{name}.lock", "w") as lock:
-                fcntl.flock(lock, fcntl.LOCK_EX)
-                try:
-                    if not record.exists():
-                        out, err = io.StringIO(), io.StringIO()
-                        with redirect_stdout(out), redirect_stderr(err):
-                            code = main(["report", str(SCENES / f"{name}.toml"), "-o", str(folder), "--strict"])
-                        record.write_text(json.dumps({"code": code, "out": out.getvalue(), "err": err.getvalue()}))
-                finally:
-                    fcntl.flock(lock, fcntl.LOCK_UN)
+            with _file_lock(shared / f"{name}.lock"):
+                if not record.exists():
+                    out, err = io.StringIO(), io.StringIO()
+                    with redirect_stdout(out), redirect_stderr(err):
+                        code = main(["report", str(SCENES / f"{name}.toml"), "-o", str(folder), "--strict"])
+                    record.write_text(json.dumps({"code": code, "out": out.getvalue(), "err": err.getvalue()}))
             run = json.loads(record.read_text())
             made[name] = ReportRun(folder, run["code"], run["out"], run["err"])
         return made[name]
