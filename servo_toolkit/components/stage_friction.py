@@ -52,7 +52,8 @@ class StageFriction:
         for key in ("coulomb_friction", "stribeck_speed", "viscous_friction"):
             require(math.isfinite(getattr(fr, key)), f.key(key), "must be finite")
         require(math.isfinite(fr.breakaway) and fr.breakaway >= fr.coulomb_friction, f.key("static_friction"),
-                f"must be finite and at least the coulomb_friction {fr.coulomb_friction:g} (got {fr.breakaway:g})")
+                f"must be finite and at least the coulomb_friction {fr.coulomb_friction:g} {units[0]} "
+                f"(got {fr.breakaway:g} {units[0]})")
         return None if fr == cls() else fr
 
 
