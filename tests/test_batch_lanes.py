@@ -207,3 +207,28 @@ def test_lanes_with_friction_that_holds_equal_the_per_variant_loop(ema, complian
     # smooth lane not at all
     moved = np.abs(slid[0][:, 2] - lanes[0][:, 2])
     assert np.all(np.delete(moved, 3) > 1e-8) and moved[3] == 0.0
+
+
+def test_open_loop_lanes_equal_the_per_variant_loop(ema):
+    """Open loop (a constant voltage plus a sine swing): the lanes take each lane's command
+    from outside their vectorized loop, the per-variant loop evaluates it in the right-hand
+    side; the same runs, and a lane's own swing frequency reaches its lane."""
+    from servo_toolkit.sim.batch_lanes import block_kind
+    scene, _ = ema
+    model = build_model(scene, None)
+    ref = Reference.voltage(2.0, swing=3.0, frequency=40.0)
+    P = np.array([fill(model, ref)] * (W + 2))
+    assert P[0, lo.CMODE] == lo.OPEN_LOOP
+    P[:, lo.KSCALE] = np.linspace(0.7, 1.3, len(P))
+    P[1, lo.REF_F] = 25.0
+    X0 = np.array([initial_state(model, p) for p in P])
+    assert block_kind(np.ascontiguousarray(P), 0, W)[0]
+    one, lanes = _both(P, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 0, steps=600)
+    assert np.all(one[1][:, F_STATUS] == lo.OK)
+    _assert_equal(one, lanes)
+    # the swing moves the motor: a lane without it ends elsewhere
+    still = P.copy()
+    still[:, lo.REF_A] = 0.0
+    flat = _both(still, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 0, steps=600)[1]
+    assert np.all(np.abs(flat[0][:, 1] - lanes[0][:, 1]) > 1e-3)
+    assert abs(lanes[0][1, 1] - lanes[0][0, 1]) > 1e-3

@@ -10,7 +10,11 @@ measurements by :func:`kernel.controller_inputs`, then the state-space update of
 reference r(t) the block shares) and the same RK4 stage arithmetic
 (:func:`integrators.rk4_coefficients`). Per variant the block keeps the
 figures and snapshots of :func:`batch.variant_run`; a variant that stops (non-finite state,
-stroke end) is masked out while its block-mates go on. Friction that holds (``STICK``) runs
+stroke end) is masked out while its block-mates go on. An open-loop lane's command is evaluated
+once per stage outside the vectorized loop (inside it, LLVM would evaluate its sine in every
+lane, closed-loop ones included), and the per-step figures are kept across the lanes, with a
+scalar pass only for a lane with a new peak, a state that may stop it, or its last step.
+Friction that holds (``STICK``) runs
 in the lanes: its stick and breakaway law is branch-free in the right-hand side, and a lane
 whose node reverses its speed or breaks away within a step has that step redone by the
 single run's split step (:func:`split_step.switched_step`, from the same first-stage slopes
@@ -20,6 +24,8 @@ controller, a cam, a feedforward or controllers of different structures falls ba
 """
 
 from __future__ import annotations
+
+import math
 
 import numba as nb
 import numpy as np
@@ -32,7 +38,7 @@ from .batch import variant_run
 from .integrators import rk4_coefficients, snapshot as _snap, step_status
 from .split_step import stage_turns, switch_ahead, switched_step
 from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
-from .kernel import FASTMATH, clip, controller_inputs, motion_columns, reference, rhs_phys
+from .kernel import FASTMATH, clip, command, controller_inputs, motion_columns, reference, rhs_phys
 
 #: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
 #: LLVM applied differently to the same code compiled here and loaded from the cache (the
@@ -219,18 +225,25 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     ACT = np.zeros(W)  # 1.0 while the lane runs
     for l in range(nl):
         ACT[l] = 1.0
-    fig = np.zeros((W, 6))  # max |err|, max |i|, sat, max |tau|, max |p - q|, status
+    fig = np.zeros((6, W))  # per lane: max |err|, max |i|, sat, max |tau|, max |p - q|
     for l in range(W):
-        fig[l, 1] = -1.0
-        fig[l, 4] = -1.0
+        fig[1, l] = -1.0
+        fig[4, l] = -1.0
+    RL = np.zeros(W)  # each lane's reference when the block does not share one
+    NEW = np.zeros(W)  # 1.0: a lane with a new peak current or deflection, or a state to check
     dummy = np.zeros(max(nx, 1))
     XN = np.empty((max(nx - lo.NX_PHYS, 1), W))  # the controller's next states
     G = np.zeros((2, W))  # the first stage's slopes of the node speeds (speed reversals)
     SPLIT = np.zeros(W)  # 1.0 for a lane whose step was split at a switch
     TURN = np.zeros(W)  # 1.0 for a lane one of whose stages left a node's direction
     stick = False
+    open_loop = False
     for v in range(v0, v0 + nl):
         stick = stick or P[v, lo.STICK] > 0.0
+        open_loop = open_loop or int(P[v, lo.CMODE]) == lo.OPEN_LOOP
+    # what the right-hand side takes as the held i_ref: the controller's, or for an open-loop
+    # lane its command's part (evaluated here, once per lane and stage, not in the lanes' loop)
+    H = np.zeros(W) if open_loop else IREF
     xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
     k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
     to_sample = 0
@@ -252,35 +265,51 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
             c, w = rk4_coefficients(stage, dt)
             if stage == 0:
                 S[:, :] = 0.0
+            if open_loop:
+                for l in range(nl):
+                    pv = P[v0 + l]
+                    H[l] = command(t + c, pv) - pv[lo.REF_OFF] if int(pv[lo.CMODE]) == lo.OPEN_LOOP else IREF[l]
             if stick:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, True, TURN)
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, True, TURN)
             else:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, False, TURN)
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, False, TURN)
             if stage > 0:
                 continue
-            for l in range(nl):
+            if not shared:
+                for l in range(nl):
+                    RL[l] = reference(t, P[v0 + l]) if ACT[l] > 0.0 else 0.0
+            # the figures every lane keeps, across the lanes (a stopped lane's are no longer
+            # read), and which lanes need more: a new peak current or deflection (a snapshot),
+            # or a state that may stop the run (the test of :func:`integrators.step_status`)
+            for l in range(W):
                 G[0, l], G[1, l] = S[1, l], S[3, l]
-                if ACT[l] == 0.0:
+                err = abs(Y[2, l] - (r if shared else RL[l]))
+                fig[0, l] = err if err > fig[0, l] else fig[0, l]
+                tau = abs(A[3, l])
+                fig[3, l] = tau if tau > fig[3, l] else fig[3, l]
+                if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
+                    fig[2, l] = 1.0
+                acc = Y[0, l] + Y[1, l] + Y[2, l] + Y[3, l] + Y[4, l] + Y[5, l] + Y[6, l]
+                for j in range(lo.NX_PHYS, nx):
+                    acc += Y[j, l]
+                qo = Y[0, l] if PT[lo.RIGID, l] > 0.0 else Y[2, l]
+                alarm = not (math.isfinite(acc) and math.isfinite(tau)) or (
+                    PT[lo.STROKE_MODE, l] == 0.0 and (qo > PT[lo.STROKE_HI, l] or qo < PT[lo.STROKE_LO, l]))
+                NEW[l] = 1.0 if alarm or abs(A[0, l]) > fig[1, l] or abs(Y[0, l] - Y[2, l]) > fig[4, l] else 0.0
+            for l in range(nl):
+                if ACT[l] == 0.0 or (NEW[l] == 0.0 and step < n_steps):
                     continue
                 v = v0 + l
                 x = Y[:, l]
                 p, pd, q, qd, cur, xi, s = Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l]
-                err = abs(q - (r if shared else reference(t, P[v])))
-                if err > fig[l, 0]:
-                    fig[l, 0] = err
-                tau = abs(A[3, l])
-                if tau > fig[l, 3]:
-                    fig[l, 3] = tau
-                if abs(A[2, l]) >= PT[lo.ILIM, l] or abs(A[1, l]) >= PT[lo.VLIM, l]:
-                    fig[l, 2] = 1.0
-                if abs(A[0, l]) > fig[l, 1]:
-                    fig[l, 1] = abs(A[0, l])
+                if abs(A[0, l]) > fig[1, l]:
+                    fig[1, l] = abs(A[0, l])
                     _snap(snaps[v], S_PEAK, p, pd, q, qd, A[0, l], xi, s, x, t, IREF[l])
                 defl = abs(p - q)
-                if defl > fig[l, 4]:
-                    fig[l, 4] = defl
+                if defl > fig[4, l]:
+                    fig[4, l] = defl
                     _snap(snaps[v], S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
-                status = step_status(p, pd, q, qd, cur, xi, s, x, tau, P[v], P[v, lo.STROKE_MODE] == 0.0,
+                status = step_status(p, pd, q, qd, cur, xi, s, x, abs(A[3, l]), P[v], P[v, lo.STROKE_MODE] == 0.0,
                                      P[v, lo.RIGID] > 0.0)
                 if status != lo.OK or step == n_steps:
                     ACT[l] = 0.0
@@ -290,10 +319,10 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                     _snap(snaps[v], S_END, p, pd, q, qd, cur, xi, s, x, t, IREF[l])
                     figs[v, F_STATUS] = status
                     figs[v, F_STEP] = step
-                    figs[v, F_ERR] = fig[l, 0]
-                    figs[v, F_CUR] = fig[l, 1]
-                    figs[v, F_SAT] = fig[l, 2]
-                    figs[v, F_TAU] = fig[l, 3]
+                    figs[v, F_ERR] = fig[0, l]
+                    figs[v, F_CUR] = fig[1, l]
+                    figs[v, F_SAT] = fig[2, l]
+                    figs[v, F_TAU] = fig[3, l]
             if running == 0:
                 break
         if running == 0:

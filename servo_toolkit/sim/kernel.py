@@ -295,7 +295,9 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     if mode == OPEN_LOOP:
         iref = 0.0
         # a constant voltage, plus a sine (its kernel command about REF_OFF, never shaped) for a dwell
-        v = clip(P[V_OPEN] + (command(t, P) - P[REF_OFF]), P[VLIM])
+        # (the lanes pass the command's part in ``iref_held``: evaluated once per lane outside
+        # their vectorized loop, which would otherwise evaluate its sine in every lane)
+        v = clip(P[V_OPEN] + (iref_held if lanes else command(t, P) - P[REF_OFF]), P[VLIM])
         if P[L] > 0.0:
             di = (v - P[R] * cur - P[KE] * wm) * P[INV_L]
         else:
