@@ -246,6 +246,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     H = np.zeros(W) if open_loop else IREF
     xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
     k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
+    x0, PW = np.empty(nx), np.empty((3, n_par))  # the split step's scratch
     to_sample = 0
     sixth = dt / 6.0
     running = nl
@@ -328,7 +329,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
         if running == 0:
             break
         if stick:
-            _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4)
+            _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4, x0, PW)
         for l in range(W):  # stopped lanes keep the state they stopped in, split ones their split step's
             for j in range(6):
                 Y[j, l] = Y[j, l] + sixth * U[j, l] if ACT[l] > 0.0 and SPLIT[l] == 0.0 else Y[j, l]
@@ -337,7 +338,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
 
 
 @jit
-def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4):
+def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, xw, xs, k1, k2, k3, k4, x0, PW):
     """Friction that holds, per lane: a running lane whose node carrying friction reverses its
     speed or breaks away within the step (:func:`split_step.switch_ahead`, from the step's
     result and its first stage's slopes ``G``, as the single run decides) has its step redone
@@ -358,7 +359,7 @@ def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, x
                 xw[j] = Y[j, l]
             Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l] = switched_step(
                 t, dt, Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l], P[v], T[TI[l]], IREF[l],
-                False, rigid, xw, xs, k1, k2, k3, k4, pd_new, qd_new)
+                False, rigid, xw, xs, k1, k2, k3, k4, pd_new, qd_new, x0, PW)
             SPLIT[l] = 1.0
 
 

@@ -19,14 +19,21 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
-from .kernel import controller_sample, inline, jit, reference, rhs, rhs_phys
+from .kernel import FASTMATH, controller_sample, inline, jit, reference, rhs, rhs_phys
 from .split_step import rk4_coefficients, stage_turns, switch_ahead, switched_step
 from .tables import frozen_tables
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, F_ERR, F_SAT, F_STATUS,
                      F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
                      S_PEAK, STICK, TS_M, TS_L, RIGID, STROKE_END, STROKE_HI, STROKE_LO, STROKE_MODE, VLIM)
+
+
+#: the fixed-step loop's compilation: without the runtime's reference counting, whose atomic
+#: increments and decrements (of the arrays bound by every inlined helper, at every step) took
+#: most of a step's time; the loop allocates nothing (:func:`scratch` is its caller's)
+loop_jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 
 
 @jit
@@ -72,7 +79,14 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     if snap is None:
         snap = np.zeros((NSNAP, x.size + 2))
     return _rk4(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), int(rec_every),
-                out_t, out_x, out_aux, fig, snap)
+                out_t, out_x, out_aux, fig, snap, *scratch(x.size, P.size))
+
+
+def scratch(nx: int, n_par: int):
+    """The scratch arrays of :func:`_rk4` for nx states and n_par parameters: the stages'
+    slopes and state (zeros), the controller's work vector and the split step's state and
+    parameter copies."""
+    return np.zeros((5, nx)), np.empty(max(nx, 1)), np.empty(nx), np.empty((3, n_par))
 
 
 @inline
@@ -116,8 +130,8 @@ def snapshot(snap, k, p, pd, q, qd, cur, xi, s, x, t, iref):
     snap[k, nx + 1] = iref
 
 
-@jit
-def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, fig, snap):
+@loop_jit
+def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, fig, snap, K, work, x0, PW):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
 
     Same arithmetic as the array form (:func:`kernel.rhs`); x[0:7] is written back before
@@ -129,12 +143,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     on the record interval.
     """
     nx = x.size
-    k1 = np.zeros(nx)
-    k2 = np.zeros(nx)
-    k3 = np.zeros(nx)
-    k4 = np.zeros(nx)
-    xs = np.zeros(nx)
-    work = np.empty(max(nx, 1))
+    k1, k2, k3, k4, xs = K[0], K[1], K[2], K[3], K[4]  # the stages' slopes and state: zeros
     n_rec = 0
     max_tau = 0.0
     max_err = 0.0
@@ -229,7 +238,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
                                              qd + dt * g3, P, rigid)):
             # a node carrying friction may reverse or break away within the step: split it there
             p, pd, q, qd, cur, xi = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
-                                                  k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3)
+                                                  k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW)
             continue
         if cont:
             for j in range(NX_PHYS, nx):

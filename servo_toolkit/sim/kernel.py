@@ -423,7 +423,13 @@ def stick_moments(m_p, m_q, pd, qd, n, P):
     return m_p, m_q
 
 
-@jit
+#: the serial right-hand side's compilation: without the runtime's reference counting (it
+#: allocates nothing), whose atomic increments and decrements of the arrays it binds took
+#: most of a step's time when inlined into a loop
+serial_jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
+
+
+@serial_jit
 def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
     """:func:`rhs_phys` outside the vectorized lanes, compiled once as a function of its own:
     the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the

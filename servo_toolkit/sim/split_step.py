@@ -33,7 +33,6 @@ the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
 
 from __future__ import annotations
 
-import numpy as np
 
 from .kernel import inline, jit, rhs_phys_serial
 from .layout import DIR_L, DIR_M, NX_PHYS, TS_L, TS_M
@@ -200,13 +199,16 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
 
 
 @jit  # called at a switch only
-def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new):
+def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
+                  x0, PW):
     """The step from t of a node that may switch within it (:func:`switch_ahead`, or a stage
     whose speed left the node's direction), split at the switch located within the step
     (module doc): RK4 to tau, the node at rest there, RK4 for the rest; without a switch
     along the continued motion, one RK4 step. Returns the step's new ``(p, pd, q, qd, cur,
-    xi)`` (x[7:] advanced in place when they move)."""
-    x0 = x.copy()
+    xi)`` (x[7:] advanced in place when they move). ``x0`` (the size of x) and ``PW`` (3 rows
+    the size of P) are scratch: the step allocates nothing."""
+    for j in range(x.size):
+        x0[j] = x[j]
     load = not rigid and P[TS_L] > 0.0  # the load carries friction of its own
     motor = P[TS_M] > 0.0 or (rigid and P[TS_L] > 0.0)
     node = -1
@@ -215,9 +217,11 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
     elif load and qd == 0.0 and qd_new != 0.0:
         node = 1
     breakaway = node >= 0
-    W = P.copy()  # the trial parameters: a reversing node's friction held at its direction
-    H = P.copy()  # a breakaway: the node held at rest
-    Z = P.copy()  # a breakaway: the moment on the node, read with its level at 0
+    W, H, Z = PW[0], PW[1], PW[2]
+    for j in range(P.size):
+        # the trial parameters: a reversing node's friction held at its direction (W); a
+        # breakaway: the node held at rest (H), the moment on the node read with its level at 0 (Z)
+        W[j] = H[j] = Z[j] = P[j]
     tau = 0.0
     if not breakaway:
         W[DIR_M] = 0.0 if pd == 0.0 else (1.0 if pd > 0.0 else -1.0)
