@@ -65,6 +65,11 @@ def loss_slots(P, drive, motor, q0: float, options, notes: list,
     P[lo.JW] = float(drive.chain.loss_inertia([q0], last_motor_node)[0]) / n0**2
     notes.append(f"drivetrain efficiency {eta:.3g} driving, {eta_b:.3g} back-driven (LossyGear-like loss "
                  "on the torque transmitted past the rotor and the members before the losses)")
+    if P[lo.STICK] > 0:  # friction that holds (filled before the losses)
+        eta_rest = drive.backdrive_efficiency
+        notes.append("at rest the drivetrain holds within the band of its efficiencies (LossyGear's stuck mode, "
+                     + ("self-locking: the load cannot drive the motor" if eta_rest <= 0 else
+                        f"back-driven at {eta_rest:.3g}") + ")")
 
 
 def hold_slots(P, eta: float, eta_b: float) -> None:

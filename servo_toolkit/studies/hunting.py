@@ -2,8 +2,8 @@
 
 With friction that holds (``ModelOptions(friction="stick")``) a position loop stops where the
 moment it applies no longer breaks the static friction: without integral action anywhere in
-the loop, inside the dead band |e| <= Ts / K (Ts the breakaway level, K the loop's stiffness
-at rest); with integral action and a breakaway level above the Coulomb level, the integral
+the loop, inside the dead band |e| <= Ts / K (Ts the breakaway level, widened by a lossy
+chain's band at rest, :func:`holding_band`; K the loop's stiffness at rest); with integral action and a breakaway level above the Coulomb level, the integral
 winds up while the shaft sticks, breaks it away, and the shaft overshoots and sticks on the
 other side: a limit cycle (hunting) whose amplitude and period this study measures.
 
