@@ -53,6 +53,7 @@ def loss_slots(P, drive, motor, q0: float, options, notes: list,
         if eta < 1.0:
             notes.append(f"drivetrain efficiency {eta:.3g} left out (lossless transmission)")
         return
+    hold_slots(P, eta, eta_b)
     if eta_b < MIN_BACKDRIVE:
         notes.append(f"the chain is self-locking (back-drive efficiency {eta_b:.3g}); modelled with "
                      f"back-drive efficiency {MIN_BACKDRIVE:g}")
@@ -64,6 +65,20 @@ def loss_slots(P, drive, motor, q0: float, options, notes: list,
     P[lo.JW] = float(drive.chain.loss_inertia([q0], last_motor_node)[0]) / n0**2
     notes.append(f"drivetrain efficiency {eta:.3g} driving, {eta_b:.3g} back-driven (LossyGear-like loss "
                  "on the torque transmitted past the rotor and the members before the losses)")
+    if P[lo.STICK] > 0:  # friction that holds (filled before the losses)
+        eta_rest = drive.backdrive_efficiency
+        notes.append("at rest the drivetrain holds within the band of its efficiencies (LossyGear's stuck mode, "
+                     + ("self-locking: the load cannot drive the motor" if eta_rest <= 0 else
+                        f"back-driven at {eta_rest:.3g}") + ")")
+
+
+def hold_slots(P, eta: float, eta_b: float) -> None:
+    """Fill the loss-at-rest slots (``HOLD_FWD`` = 1/eta - 1, ``HOLD_BACK`` = 1 - max(eta_b, 0)):
+    the band within which a gear at rest holds (:func:`~.friction_kernel.gear_at_rest`), with
+    the back-drive efficiency as it is (0 or less: self-locking, the load cannot drive the
+    motor), not the moving loss's :data:`MIN_BACKDRIVE`."""
+    P[lo.HOLD_FWD] = 1.0 / eta - 1.0
+    P[lo.HOLD_BACK] = 1.0 - max(eta_b, 0.0)
 
 
 def refuse_rigid_lash(lashes, options) -> None:
@@ -77,4 +92,4 @@ def refuse_rigid_lash(lashes, options) -> None:
                          f"to 0 (got a total play of {lashes[0].shown})")
 
 
-__all__ = ["LOSS_TORQUE_SCALE", "MIN_BACKDRIVE", "load_split", "loss_slots", "refuse_rigid_lash"]
+__all__ = ["LOSS_TORQUE_SCALE", "MIN_BACKDRIVE", "hold_slots", "load_split", "loss_slots", "refuse_rigid_lash"]

@@ -49,4 +49,44 @@ def stuck_or_breaking(applied, cap):
     return 0.0
 
 
-__all__ = ["slip_friction", "stuck_or_breaking"]
+@inline
+def gear_at_rest(torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge):
+    """The net moment on a node at rest behind a lossy gear (LossyGear's stuck mode): 0 while
+    it holds, else the applied moment less the breakaway levels against it.
+
+    ``torque`` is the motor side's torque at the gear's output (N tau at rest), ``moment`` the
+    moment on the far side (the load's, or a compliance's on the motor side), ``cap_t`` and
+    ``cap_m`` their breakaway levels (N Ts_m; Ts_L or 0), ``fwd_loss`` = 1/eta - 1 and
+    ``back_loss`` = 1 - max(eta_b, 0) (both 0: a lossless gear). The gear passes eta T on
+    while the motor side drives and T / eta_b while the far side drives it back; for motion
+    forward, with T = torque - cap_t and M = moment - cap_m, the node breaks away where
+
+        h(T) + M > 0,   h(T) = eta T (T > 0), T / eta_b (T < 0, -inf for eta_b <= 0),
+
+    computed at the motor side as the distance T + g(M) > 0, g(M) = eta_b M (M > 0: the far
+    side drives through the gear), M / eta (M < 0): the same sign, finite for a self-locking
+    gear, and continuous. Backward mirrored (T = torque + cap_t, M = moment + cap_m). Both
+    cannot hold at once, and where one does the lossless net moment applied -+ (cap_t +
+    cap_m) has its sign (h(T) <= T forward), so the moment returned is the sliding law's at
+    0+, where the loss's smooth speed sign is 0.
+
+    ``gauge`` (:data:`~.layout.HOLD_GAUGE`): 0, the net moment; 1, the signed breakaway
+    distance max(forward, backward) (> 0 beyond the band: the zero the breakaway's location
+    finds); 2, forward less backward (> 0: it would break away forward). Selects only, so
+    the batched lanes vectorize it.
+    """
+    tf = torque - cap_t
+    mf = moment - cap_m
+    fwd = tf + (mf - back_loss * mf if mf > 0.0 else mf + fwd_loss * mf)
+    tb = torque + cap_t
+    mb = moment + cap_m
+    bwd = -tb - (mb - back_loss * mb if mb < 0.0 else mb + fwd_loss * mb)
+    applied = torque + moment
+    cap = cap_t + cap_m
+    net = applied - cap if fwd > 0.0 else (applied + cap if bwd > 0.0 else 0.0)
+    if gauge > 0.0:
+        return max(fwd, bwd) if gauge < 1.5 else fwd - bwd
+    return net
+
+
+__all__ = ["gear_at_rest", "slip_friction", "stuck_or_breaking"]

@@ -44,7 +44,7 @@ from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 from .tables import cell, hermite, interp  # noqa: E402,F401 - hermite: the tables' interpolation for callers
 from .compliance_kernel import B_EPS, chain_accelerations, contact, lossy  # noqa: E402,F401
-from .friction_kernel import slip_friction, stuck_or_breaking  # noqa: E402
+from .friction_kernel import gear_at_rest, slip_friction  # noqa: E402
 
 from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX_I, AUX_IREF,
                      AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
@@ -53,7 +53,8 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW, DIR_M, DIR_L)
+                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW, DIR_M, DIR_L, HOLD_FWD, HOLD_BACK,
+                     HOLD_GAUGE)
 from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
 from .table_kernel import table_rates  # noqa: E402
@@ -352,12 +353,13 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             oc = int(P[CAM])
             pdd, _ = shaft_acceleration(P[oc:oc + NCAM], p, pd, nts + m_load, jd,
                                         0.5 * djd * pd * pd, n * P[WS])
-            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
-                pdd = stuck_or_breaking(pdd * jd, n * P[TS_M] + P[TS_L]) / jd
+            if stick and pd == 0.0:  # motor and load at rest on one node: held by the gear's band, or breaking away
+                pdd = gear_at_rest(nts, pdd * jd - nts, n * P[TS_M], P[TS_L], P[HOLD_FWD], P[HOLD_BACK],
+                                   P[HOLD_GAUGE]) / jd
         else:
             m_p = nts - 0.5 * djd * pd * pd + m_load
-            if stick and pd == 0.0:  # motor and load at rest on one node: stuck, or breaking away
-                m_p = stuck_or_breaking(m_p, n * P[TS_M] + P[TS_L])
+            if stick and pd == 0.0:  # motor and load at rest on one node: held by the gear's band, or breaking away
+                m_p = gear_at_rest(nts, m_load, n * P[TS_M], P[TS_L], P[HOLD_FWD], P[HOLD_BACK], P[HOLD_GAUGE])
             pdd = m_p / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     if not lanes and P[NMID] > 0.0:
@@ -394,32 +396,35 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     m_p = nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z  # the moments on the motor side and the load
     m_q = f + m_load
     if stick:
-        m_p, m_q = stick_moments(m_p, m_q, pd, qd, n, P)
+        m_p, m_q = stick_moments(m_p, m_q, pd, qd, n, nts, -f - 0.5 * dk * z * z, P)
     return pd, m_p / jd, qd, m_q * P[INV_JL], di, dxi, cur, v, iref, tau
 
 
 @inline
 def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
-    """The motor side and the load of a compliant chain at rest: each sticks while the moment
-    on it (its acceleration without friction times its inertia; no loss at rest) stays within
-    its breakaway level, else breaks away against it."""
+    """The motor side and the load of the full chain at rest: each sticks while the moment
+    on it (its acceleration without friction times its inertia) stays within its breakaway
+    level, else breaks away against it (the chain's loss, spread over its segments, is left
+    out at rest here: :func:`~.friction_kernel.gear_at_rest` of a lossless gear)."""
     if pd == 0.0:
-        pdd = stuck_or_breaking(pdd * jd, n * P[TS_M]) / jd
+        pdd = gear_at_rest(pdd * jd, 0.0, n * P[TS_M], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) / jd
     if qd == 0.0 and P[TS_L] > 0.0:
-        qdd = stuck_or_breaking(qdd / P[INV_JL], P[TS_L]) * P[INV_JL]
+        qdd = gear_at_rest(qdd / P[INV_JL], 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) * P[INV_JL]
     return pdd, qdd
 
 
 @inline
-def stick_moments(m_p, m_q, pd, qd, n, P):
-    """:func:`stick_nodes` on the moments (their accelerations times the inertias): the
-    motor side and the load at rest stick while the moment on each stays within its
-    breakaway level, else break away against it (no division: the lanes evaluate it in
-    every variant)."""
+def stick_moments(m_p, m_q, pd, qd, n, nts, spring, P):
+    """The two-mass chain's motor side and load at rest, on their moments (accelerations
+    times inertias; no division: the lanes evaluate it in every variant). The motor side
+    (motor torque at the gear's output ``nts``, the compliance's moment on it ``spring``)
+    is held while the torques on the gear stay within its band
+    (:func:`~.friction_kernel.gear_at_rest`), the load while the moment on it stays within
+    its breakaway level; else each breaks away against its level."""
     if pd == 0.0:
-        m_p = stuck_or_breaking(m_p, n * P[TS_M])
+        m_p = gear_at_rest(nts, spring, n * P[TS_M], 0.0, P[HOLD_FWD], P[HOLD_BACK], P[HOLD_GAUGE])
     if qd == 0.0 and P[TS_L] > 0.0:
-        m_q = stuck_or_breaking(m_q, P[TS_L])
+        m_q = gear_at_rest(m_q, 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE])
     return m_p, m_q
 
 

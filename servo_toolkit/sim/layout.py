@@ -100,7 +100,14 @@ NODE_ROWS = 4
 # only in the scratch parameter copy with which :mod:`servo_toolkit.sim.split_step` locates a
 # speed reversal within the step (the motion before it continued smoothly past the zero)
 DIR_M, DIR_L = 82, 83
-# 84..89 free
+# 84..86: the drivetrain's loss at rest (friction that holds, :func:`servo_toolkit.sim.friction_kernel.
+# gear_at_rest`): 1 / eta - 1 (eta the forward efficiency; 0: lossless) and 1 - max(eta_b, 0)
+# (eta_b the back-drive efficiency, 0 or less for a self-locking chain; 0: lossless, 1:
+# self-locking), and HOLD_GAUGE, set only in the scratch parameter copies with which
+# :mod:`servo_toolkit.sim.split_step` and :mod:`servo_toolkit.sim.ivp` locate a breakaway: 1, a
+# node at rest reports its signed breakaway distance (> 0 beyond the band) in place of its
+# acceleration times its inertia; 2, the side it would break away to (> 0 forward); 87..89 free
+HOLD_FWD, HOLD_BACK, HOLD_GAUGE = 84, 85, 86
 # 90..97: a sampled position command (REF_KIND = REF_TABLE, :mod:`servo_toolkit.sim.table_kernel`):
 # index in P of its data (values y_0..y_{n-1}, then the slopes m_0..m_{n-1} of the cubic
 # Hermite interpolant through them, rad/s or m/s), the number of samples n, the time of the first

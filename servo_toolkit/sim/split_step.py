@@ -12,12 +12,15 @@ within the step and integrates RK4 to it and from it:
   scratch copy of the parameters), found by the Illinois method on RK4 trial steps from the
   step's start, each of RK4's own order on that smooth motion; the node restarts at rest
   exactly at tau, where the friction decides between stick and slip;
-- a breakaway: tau is where the moment on the held node reaches its breakaway level, along
-  the motion with the node held (its breakaway level out of reach in the scratch copy), the
-  moment read with the level at 0; the node stays at rest exactly up to tau.
+- a breakaway: tau is where the node's signed breakaway distance crosses 0, along the motion
+  with the node held (its breakaway level out of reach in the scratch copy), the distance
+  read by the right-hand side with ``HOLD_GAUGE`` = 1 in another
+  (:func:`.friction_kernel.gear_at_rest`: for the motor side of a lossy gear, how far the
+  torques on the gear are beyond its band, asymmetric with the efficiencies; for a node
+  without one, |moment| less its level); the node stays at rest exactly up to tau.
 
 A node breaking away at tau (or at a reversal whose moment exceeds the breakaway level)
-leaves rest with the speed :data:`SEED` in the moment's direction, so the rest of the step
+leaves rest with the speed :data:`SEED` in the direction it breaks away to, so the rest of the step
 integrates the sliding law from 0+ (its friction jumps from the law at rest to the sliding
 one at tau, not somewhere among the stages).
 
@@ -33,9 +36,8 @@ the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
 
 from __future__ import annotations
 
-
 from .kernel import inline, jit, rhs_phys_serial
-from .layout import DIR_L, DIR_M, NX_PHYS, TS_L, TS_M
+from .layout import DIR_L, DIR_M, HOLD_GAUGE, NX_PHYS, TS_L, TS_M
 
 #: the switch's instant is located to this fraction of the step (the Illinois bracket's width)
 TAU_TOL = 1e-12
@@ -158,7 +160,7 @@ def _trial(t, h, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, 
 
 @jit
 def _held_moment(t, h, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node):
-    """The acceleration the moment on the held node would give it (its breakaway level at 0)
+    """The held node's signed breakaway distance over its inertia (Z: ``HOLD_GAUGE`` = 1)
     after a step of length h with the node held at rest."""
     r = _trial(t, h, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
     d = rhs_phys_serial(t + h, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
@@ -167,9 +169,10 @@ def _held_moment(t, h, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs,
 
 @jit
 def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
-              node, breakaway, cap):
+              node, breakaway):
     """The zero of g on [a, b] (g(a) g(b) < 0) by the Illinois method: g the node's speed
-    after a trial step with W (a reversal), else |held moment| - cap (a breakaway)."""
+    after a trial step with W (a reversal), else the held node's breakaway distance (a
+    breakaway, :func:`_held_moment`)."""
     side = 0
     for _ in range(MAX_ITER):
         if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
@@ -178,8 +181,7 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
         if not (a < c < b):
             c = 0.5 * (a + b)
         if breakaway:
-            gc = abs(_held_moment(t, c, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
-                                  node)) - cap
+            gc = _held_moment(t, c, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node)
         else:
             r = _trial(t, c, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
             gc = r[1] if node == 0 else r[3]
@@ -220,8 +222,10 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
     W, H, Z = PW[0], PW[1], PW[2]
     for j in range(P.size):
         # the trial parameters: a reversing node's friction held at its direction (W); a
-        # breakaway: the node held at rest (H), the moment on the node read with its level at 0 (Z)
+        # breakaway: the node held at rest (H), the node's breakaway distance (then its side)
+        # in place of its acceleration (Z)
         W[j] = H[j] = Z[j] = P[j]
+    Z[HOLD_GAUGE] = 1.0
     tau = 0.0
     if not breakaway:
         W[DIR_M] = 0.0 if pd == 0.0 else (1.0 if pd > 0.0 else -1.0)
@@ -235,30 +239,21 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
             # the plain step that crossed a speed's zero made the friction jump there)
             return r
         tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
-                        k1, k2, k3, k4, node, False, 0.0)
+                        k1, k2, k3, k4, node, False)
     else:
         if node == 0:
             H[TS_M] = HELD
-            Z[TS_M] = 0.0
-            if rigid:
-                Z[TS_L] = 0.0
         else:
             H[TS_L] = HELD
-            Z[TS_L] = 0.0
-        r = _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
-        d = rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
-        a1 = d[1] if node == 0 else d[3]
-        d = rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, P, T, iref, x, k1)
-        broken = d[1] if node == 0 else d[3]
-        cap = abs(a1 - broken)  # the breakaway level as an acceleration (the node's inertia is fixed at rest)
-        a0 = _held_moment(t, 0.0, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
-                          node)
-        if broken == 0.0:  # held at the step's end: at rest all through it (a stage of the plain
+        g1 = _held_moment(t, dt, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node)
+        if g1 <= 0.0:  # held at the step's end: at rest all through it (a stage of the plain
             # step, from its estimate of the state, broke away too early)
             return _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
-        if abs(a0) < cap:
-            tau = _illinois(0.0, dt, abs(a0) - cap, abs(a1) - cap, t, p, pd, q, qd, cur, xi, s, W, H, Z, T,
-                            iref, cont, x, x0, xs, k1, k2, k3, k4, node, True, cap)
+        g0 = _held_moment(t, 0.0, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
+                          node)
+        if g0 < 0.0:
+            tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T,
+                            iref, cont, x, x0, xs, k1, k2, k3, k4, node, True)
     # RK4 to tau (the continued motion, or held at rest), the node at rest there, RK4 on
     r = _trial(t, tau, p, pd, q, qd, cur, xi, s, H if breakaway else W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
     p, pd, q, qd, cur, xi = r
@@ -268,8 +263,10 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
             qd = 0.0
     else:
         qd = 0.0
-    if breakaway:
-        slide = a1
+    if breakaway:  # the side it breaks away to, at tau
+        Z[HOLD_GAUGE] = 2.0
+        d = rhs_phys_serial(t + tau, p, pd, q, qd, cur, xi, s, Z, T, iref, x, k1)
+        slide = d[1] if node == 0 else d[3]
     else:  # at rest at the reversal: stuck, or breaking away the other way at once
         d = rhs_phys_serial(t + tau, p, pd, q, qd, cur, xi, s, P, T, iref, x, k1)
         slide = d[1] if node == 0 else d[3]

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import SceneError
 from ..core.separable import DEFAULT_RTOL, fit
 from . import layout as lo
-from .chain_split import MIN_BACKDRIVE
+from .chain_split import MIN_BACKDRIVE, hold_slots
 from .model import build_model
 from .model_slots import drivetrain_slots
 from .reference import fill
@@ -142,7 +142,7 @@ class ToleranceRows:
         x0 = np.array([base._nominal(k) for k in names])
         nP, nT = P0.size, model.T.size
 
-        derived = list(CONTROLLER_SLOTS) + ([lo.INV_L, lo.ETA_MEAN, lo.ETA_HALF] +
+        derived = list(CONTROLLER_SLOTS) + ([lo.INV_L, lo.ETA_MEAN, lo.ETA_HALF, lo.HOLD_FWD, lo.HOLD_BACK] +
                                             (list(DERIVED_SLOTS) if P0[lo.NMID] == 0 else []))
 
         def scale(Y):  # a slot's own magnitude; a table entry's row's; recomputed slots not judged
@@ -224,6 +224,7 @@ class ToleranceRows:
         if self.P0[lo.ETA_MEAN] != 0 or self.P0[lo.ETA_HALF] != 0:
             c_drive, c_back = 1.0 - eta, 1.0 / max(eta_b, MIN_BACKDRIVE) - 1.0
             P[lo.ETA_MEAN], P[lo.ETA_HALF] = 0.5 * (c_drive + c_back), 0.5 * (c_drive - c_back)
+            hold_slots(P, eta, eta_b)
 
     def verify(self, X, seed: int = 1, random: int = 2) -> float:
         """Largest relative difference between :meth:`rows` and :func:`build_model` on the

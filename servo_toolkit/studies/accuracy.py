@@ -199,10 +199,28 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
     if model.P[lo.STICK] > 0.0:
         switching = _smooth_window(ref, switching_instants(ref, model.P[lo.TS_L] > 0.0), dts, qs["rk4"], q_ref,
                                    amp, out_dt)
+        floor = switched_floor(switching.get("errors_after", []))
+        if floor > REFERENCE_FLOOR:  # the reference's own error after its switches bounds the whole run's
+            order = _order([r["dt_s"] for r in runs if r["method"] == "rk4"],
+                           [r["error"] for r in runs if r["method"] == "rk4"], floor)
+            switching["reference_floor"] = floor
         notes = (switching_note(switching, order),)
     return AccuracyResult(tuple(runs), order, porder, ref_wall, float(abs(amp)), duration,
                           f"{model.name}: {reference.describe(model.output_unit)}, {duration:g} s, controller {model.controller}",
                           rk4_self, repeats, switching, notes)
+
+
+def switched_floor(errors_after) -> float:
+    """The errors the reference's own accuracy hides after its friction switches: twice the
+    level where RK4's errors after the last switch stop falling (a halving that shrinks them
+    by less than :data:`PLATEAU_RATIO`: the reference's event locations and restarts, not the
+    step); :data:`REFERENCE_FLOOR` when they fall to the end."""
+    e = np.asarray(errors_after, dtype=float)
+    e = e[np.isfinite(e)]
+    for a, b in zip(e, e[1:]):
+        if a < PLATEAU_RATIO * b:
+            return max(REFERENCE_FLOOR, 2.0 * float(b))
+    return REFERENCE_FLOOR
 
 
 def switching_instants(result, load_friction: bool = False) -> np.ndarray:
@@ -255,6 +273,9 @@ def switching_note(switching: dict, order: float) -> str:
               "before the first the order is not measurable (nothing moves there, or the errors are at the "
               "reference's own accuracy)")
     across = f"{order:.2f}" if math.isfinite(order) else "no order (the errors do not fall steadily with the step)"
+    if "reference_floor" in switching:
+        across += (f" (errors below {switching['reference_floor']:.2g}, twice the reference's own after its "
+                   "switches, left out)")
     after = switching.get("order_after", math.nan)
     tail = (f", and {after:.2f} over the {switching['after_window_s']:.4g} s after the last (at "
             f"{switching['last_s']:.4g} s; from successive halvings of the step)" if math.isfinite(after) else "")

@@ -2,8 +2,8 @@
 
 With friction that holds (``ModelOptions(friction="stick")``) a position loop stops where the
 moment it applies no longer breaks the static friction: without integral action anywhere in
-the loop, inside the dead band |e| <= Ts / K (Ts the breakaway level, K the loop's stiffness
-at rest); with integral action and a breakaway level above the Coulomb level, the integral
+the loop, inside the dead band |e| <= Ts / K (Ts the breakaway level, widened by a lossy
+chain's band at rest, :func:`holding_band`; K the loop's stiffness at rest); with integral action and a breakaway level above the Coulomb level, the integral
 winds up while the shaft sticks, breaks it away, and the shaft overshoots and sticks on the
 other side: a limit cycle (hunting) whose amplitude and period this study measures.
 
@@ -173,7 +173,41 @@ def show_dead_band(ax, centre: float, half_width: float, label: str = "dead band
     ax.axhspan(centre - half_width, centre + half_width, color="C2", alpha=0.15, lw=0, label=label)
 
 
-def dead_band(scene, controller, q0: float | None = None) -> float | None:
+def holding_band(scene, q0: float, efficiency: bool = True) -> float:
+    """Half the width of the band of motor torques (N*m at the motor shaft) that hold the
+    drive at rest at the output angle q0, with friction that holds.
+
+    A node at rest holds while the motor torque tau stays within the breakaway levels: with the
+    lossless chain taken as rigid, Ts + Ts_L / N either side of the torque the load needs. A
+    lossy chain at rest holds more (:func:`~servo_toolkit.sim.friction_kernel.gear_at_rest`):
+    with M = -(M_h + k q0) the load's moment at the output, eta and eta_b the chain's
+    efficiencies (eta_b <= 0: self-locking, taken as 0) and g(m) = eta_b m where the load
+    drives the gear, m / eta where it is driven,
+
+        tau_hi = Ts - g(M - Ts_L) / N,    tau_lo = -Ts - g(M + Ts_L) / N,
+
+    and the band's half width is (tau_hi - tau_lo) / 2: Ts + Ts_L / N without losses, plus
+    about (1/eta - eta_b) |M| / (2 N) with them (``efficiency=False``: without).
+    """
+    n = abs(float(scene.drivetrain.ratio([q0])[0][0]))
+    motor, load = lumped_friction(scene, q0, True, [])  # a stage's friction reflected to the motor
+    ts, ts_l = motor.breakaway_torque, load.breakaway
+    eta, eta_b = 1.0, 1.0
+    if efficiency:
+        eta, eta_b = scene.drivetrain.efficiency, max(scene.drivetrain.backdrive_efficiency, 0.0)
+    moment = -(load.hinge_moment + load.hinge_stiffness * q0)
+
+    def forward(m):  # the far side's moment seen at the gear's input, moving forward
+        return eta_b * m if m > 0 else m / eta
+
+    def backward(m):
+        return eta_b * m if m < 0 else m / eta
+    hi = ts - forward(moment - ts_l) / n
+    lo = -ts - backward(moment + ts_l) / n
+    return 0.5 * (hi - lo)
+
+
+def dead_band(scene, controller, q0: float | None = None, efficiency: bool = True) -> float | None:
     """Half-width of the dead band of a loop's proportional path at the output (rad, or m).
 
     A node at rest sticks while the moment on it stays within its breakaway level; the loop's
@@ -183,7 +217,10 @@ def dead_band(scene, controller, q0: float | None = None) -> float | None:
     purely imaginary part there). With the motor's breakaway Ts (a stage's reflected to the
     motor added) and the load's Ts_L reflected to the motor (the chain at rest taken as rigid),
 
-        |e| <= (Ts + Ts_L / N) / (Kt Kp).
+        |e| <= (Ts + Ts_L / N) / (Kt Kp)
+
+    for a lossless chain; a lossy one at rest holds more, within the half-width of
+    :func:`holding_band` in place of Ts + Ts_L / N (``efficiency=False``: without the loss).
 
     Parameters
     ----------
@@ -206,9 +243,7 @@ def dead_band(scene, controller, q0: float | None = None) -> float | None:
     gain = -complex(np.asarray(ct.frequency_response(path, [LOW_FREQUENCY]).complex).ravel()[0]).real
     if not gain > 0:
         return None
-    n = abs(float(scene.drivetrain.ratio([q0])[0][0]))
-    motor, load = lumped_friction(scene, q0, True, [])  # a stage's friction reflected to the motor
-    return (motor.breakaway_torque + load.breakaway / n) / (motor.torque_constant * gain)
+    return holding_band(scene, q0, efficiency) / (scene.motor.torque_constant * gain)
 
 
 def stick_mask(result, load_friction: bool = False) -> np.ndarray:
@@ -321,8 +356,8 @@ def rest_study(scene, controller=None, *, step: float | None = None, duration: f
     head = (f"{u.text(size, 3)} step, {duration:g} s, {run.method}"
             + (f" at {run.dt_s:.3g} s" if run.dt_s else "")
             + f"; friction that holds (motor breakaway {ts:.4g} N*m, Coulomb {scene.motor.coulomb_friction:.4g} N*m)")
-    return replace(res, notes=(head, *res.notes, *run.notes), dead_band=dead_band(scene, controller))
+    return replace(res, notes=(head, *res.notes, *run.notes), dead_band=dead_band(scene, controller, efficiency=options.efficiency))
 
 
 __all__ = ["Hunting", "LOW_FREQUENCY", "MIN_STICK_RECORDS", "RestResult", "STEP_FRACTION", "analyse", "dead_band",
-           "hunting_text", "rest_study", "shade_stick_phases", "show_dead_band", "stick_mask", "summary_line"]
+           "holding_band", "hunting_text", "rest_study", "shade_stick_phases", "show_dead_band", "stick_mask", "summary_line"]
