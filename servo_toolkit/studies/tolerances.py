@@ -206,8 +206,6 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
     cache = {}
 
     def margin_sobol(name):
-        fig = FIGURES[name][0]
-
         def run(live):
             if plants.mapper is None:
                 return None
