@@ -51,7 +51,9 @@ CHUNK_SIZE = 2000
 TABLE_CHUNK_SIZE = 500
 #: exact models along each varied key for the fitted rows: a reduction's stiffness and split
 #: move steeply near zero load (over the inertia the drivetrain keeps on its load side)
-ROW_POINTS = (25,)
+ROW_POINTS = (41,)
+#: exact models a fit needs besides its grids (nominal, verification variants)
+FIT_OVERHEAD = 8
 #: the Monte Carlo's variations -> the scene keys the fitted rows vary
 KEYS = {"load_inertia": "load.inertia", "stiffness": STIFFNESS_SCALE}
 
@@ -253,13 +255,16 @@ def fitted_rows(scene, builder, P0, values, reference):
     The load inertia's points are graded over the inertia the drivetrain keeps on its load
     side at zero load (where the two-mass reduction's stiffness and split move steeply). The
     fit's nominal row must equal ``P0``: a scene changed after it was read from its file is
-    built exactly.
+    built exactly, and so are fewer variants than the fit would build exact models.
     """
     one_by_one = "variants built one by one with build_model (their parameters move beyond the drivetrain slots"
     inner = float(builder.model.P[lo.JL]) - builder.d_jl * float(scene.load.inertia)
     grade = {KEYS["load_inertia"]: inner} if builder.d_jl > 0 and inner > 0 else {}
     if not set(values) <= set(KEYS):
         return None, f"{one_by_one})"
+    n = next(iter(values.values())).size
+    if n <= len(values) * max(ROW_POINTS) + FIT_OVERHEAD:
+        return None, f"{one_by_one}; fewer than a fit's exact models)"
     try:
         keyed = {KEYS[k]: np.asarray(v, float) for k, v in values.items()}
         rows = ToleranceRows.create(scene, scene_keys(scene), keyed, builder.controller, builder.options, reference,
@@ -291,7 +296,8 @@ def _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size, rows=No
     if rows is not None:
         X = np.column_stack([values[k] for k in values])  # KEYS keep the order: rows.names
         size = min(int(chunk_size), TABLE_CHUNK_SIZE) if rows.table_moves else int(chunk_size)
-        return [dict(common, rows=rows, X=X[idx]) for idx in chunks(np.arange(n), max(1, size))]
+        mapper = replace(rows, keys=None, controller=None, reference=None)  # what rows() reads: picklable
+        return [dict(common, rows=mapper, X=X[idx]) for idx in chunks(np.arange(n), max(1, size))]
     out = []
     for idx in chunks(np.arange(n), max(1, int(chunk_size))):
         part = {k: v[idx] for k, v in values.items()}
