@@ -88,7 +88,7 @@ def main(n: int = 10_000, n_one: int = 1000, n_exact: int = 0) -> None:
     print(f"  {[note for note in result.notes if 'variant' in note and 'rows' in note or 'one by one' in note]}")
     if n_exact > 0:
         import servo_toolkit.studies.montecarlo as mc
-        default = mc.FIT_OVERHEAD
+        default, runs = mc.FIT_OVERHEAD, []
         for label, overhead in (("fitted rows", -10**9), ("build_model per variant", 10**9)):
             mc.FIT_OVERHEAD = overhead  # fit even a few variants / never fit
             start = time.perf_counter()
@@ -96,7 +96,14 @@ def main(n: int = 10_000, n_one: int = 1000, n_exact: int = 0) -> None:
             total = time.perf_counter() - start
             print(f"montecarlo(), {n_exact} variants, {label}: integration {r.wall_s:.2f} s, end to end "
                   f"{total:.2f} s; load average {os.getloadavg()[0]:.2f}")
+            runs.append(r)
         mc.FIT_OVERHEAD = default
+        fitted, exact = runs
+        ok = ~exact.failed
+        print(f"  fitted against exact: the same failed variants {np.array_equal(fitted.failed, exact.failed)} "
+              f"({int(np.sum(exact.failed))}); largest relative difference of the others' tracking error "
+              f"{np.max(np.abs(fitted.tracking_error - exact.tracking_error)[ok] / exact.tracking_error[ok]):.2g}, "
+              f"peak current {np.max(np.abs(fitted.peak_current - exact.peak_current)[ok] / exact.peak_current[ok]):.2g}")
     if not math.isfinite(result.wall_s):
         raise SystemExit(1)
 
