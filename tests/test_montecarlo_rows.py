@@ -60,7 +60,8 @@ def test_fitted_rows_give_the_exact_models_figures(ema, monkeypatch):
 
     monkeypatch.setattr(mc, "fitted_rows", spy)
     monkeypatch.setattr(mc, "FIT_OVERHEAD", -100)  # fit four variants (a fit costs more than their exact models)
-    r = mc.montecarlo(scene, VARIANTS, controller=controller, duration=DURATION, reference=REF, progress=False)
+    r = mc.montecarlo(scene, VARIANTS, controller=controller, duration=DURATION, reference=REF, progress=False,
+                      feedforward="model")
     rows = made[0]
     assert isinstance(rows, ToleranceRows) and rows.fitted is not None
     assert any(n.startswith(f"variant rows fitted from {rows.evaluations} exact models, verified to a relative")
@@ -79,9 +80,13 @@ def test_fitted_rows_give_the_exact_models_figures(ema, monkeypatch):
     np.testing.assert_allclose(r.tracking_error, figs[:, mc.F_ERR], rtol=tol)
     # the variants differ far more than that: the comparison can fail
     assert np.ptp(r.peak_current) > 10 * tol * np.max(r.peak_current)
-    # the nominal controller on every variant: the feedforward's load and the firmware slots
-    for slot in (lo.FF_DJ, lo.KPI, lo.KII, lo.KAW):
+    # the nominal controller on every variant: the firmware slots, and a model-based
+    # feedforward assuming the nominal load (its inertia offset: nominal - variant)
+    for slot in (lo.KPI, lo.KII, lo.KAW, lo.FF_MODEL, lo.FF_JSCALE):
         np.testing.assert_array_equal(P_fit[:, slot], P_exact[:, slot])
+    assert np.all(P_fit[:, lo.FF_MODEL] == 1.0)
+    np.testing.assert_allclose(P_fit[:, lo.FF_DJ], scene.load.inertia - VARIANTS["load_inertia"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(P_exact[:, lo.FF_DJ], scene.load.inertia - VARIANTS["load_inertia"], rtol=0, atol=1e-12)
     # the chunks carry the rows to a worker as they are
     cases = mc._cases(r.runner[0], r.runner[1], VARIANTS, REF, r.dt_s, r.steps_per_variant, 0, 3, rows)
     again = pickle.loads(pickle.dumps(cases))
