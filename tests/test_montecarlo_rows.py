@@ -40,7 +40,7 @@ def ema():
 def _exact_figures(r):
     """The variants of result ``r`` built one by one by ``build_model`` (the exact path),
     run through the same batched kernel and step check."""
-    builder, P0, reference = r.runner
+    builder, P0, reference, _ = r.runner
     assert not builder.fast  # the linear map does not serve this chain
     P, T, tix = builder.rows(P0, r.values, lambda m: fill(m, reference))
     sub = int(round(builder.model.sample_time / r.dt_s)) if P0[lo.CMODE] == lo.SAMPLED else 0
@@ -87,6 +87,9 @@ def test_fitted_rows_give_the_exact_models_figures(ema, monkeypatch):
     assert np.all(P_fit[:, lo.FF_MODEL] == 1.0)
     np.testing.assert_allclose(P_fit[:, lo.FF_DJ], scene.load.inertia - VARIANTS["load_inertia"], rtol=0, atol=1e-12)
     np.testing.assert_allclose(P_exact[:, lo.FF_DJ], scene.load.inertia - VARIANTS["load_inertia"], rtol=0, atol=1e-12)
+    # a variant run again (its traces) runs the row the batch ran
+    tr = r.trace(1)
+    np.testing.assert_allclose(np.max(np.abs(tr.motor_current)), r.peak_current[1], rtol=1e-9)
     # the chunks carry the rows to a worker as they are
     cases = mc._cases(r.runner[0], r.runner[1], VARIANTS, REF, r.dt_s, r.steps_per_variant, 0, 3, rows)
     again = pickle.loads(pickle.dumps(cases))

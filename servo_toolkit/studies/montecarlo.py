@@ -244,7 +244,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
-        notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference))
+        notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference, rows))
 
 
 def fitted_rows(scene, builder, P0, values, reference):
