@@ -1,6 +1,6 @@
 """Nonlinear Monte Carlo timing against its two targets.
 
-Run: python3 benchmarks/bench_montecarlo.py [N [N_ONE_CORE]]   (default 10000 and 1000 variants)
+Run: python3 benchmarks/bench_montecarlo.py [N [N_ONE_CORE [N_EXACT]]]   (default 10000, 1000 and 0 variants)
 
 On the reference EMA (scenes/ema_reference.toml), its designed controller and simulate's
 default command (8 Hz, 2 deg sine for 1 s, reduced model), prints:
@@ -13,6 +13,10 @@ default command (8 Hz, 2 deg sine for 1 s, reduced model), prints:
   ``montecarlo()`` (variant rows, initial states, step checks; the design excluded):
   target < 10 s for 10,000 variants. A short call before it loads the kernels (or, on an
   empty compiled-code cache, compiles them: its time is printed apart).
+
+- N_EXACT > 0: ``montecarlo()`` of N_EXACT variants with every variant built by
+  ``build_model`` (the path taken when the fitted rows do not verify), and of the same
+  variants with the fitted rows, for the cost per variant of each.
 
 Every figure is wall time on this machine as it is: the load average is printed with them
 (other jobs on a shared machine slow every figure).
@@ -45,7 +49,7 @@ REPEATS = 5
 RANGES = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
 
 
-def main(n: int = 10_000, n_one: int = 1000) -> None:
+def main(n: int = 10_000, n_one: int = 1000, n_exact: int = 0) -> None:
     scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "ema_reference.toml")
     controller, _ = controller_for(scene)
     reference, duration, *_ = run_spec(scene, None)
@@ -81,9 +85,28 @@ def main(n: int = 10_000, n_one: int = 1000) -> None:
           f"(target < 10 s for 10000: {'met' if total < 10 * n / 10_000 else 'NOT met'}); load average "
           f"{os.getloadavg()[0]:.2f}")
     print(f"  {result.summary()}")
+    print(f"  {[note for note in result.notes if 'variant' in note and 'rows' in note or 'one by one' in note]}")
+    if n_exact > 0:
+        import servo_toolkit.studies.montecarlo as mc
+        default, runs = mc.FIT_OVERHEAD, []
+        for label, overhead in (("fitted rows", -10**9), ("build_model per variant", 10**9)):
+            mc.FIT_OVERHEAD = overhead  # fit even a few variants / never fit
+            start = time.perf_counter()
+            r = montecarlo(scene, RANGES, samples=n_exact, controller=controller, progress=False)
+            total = time.perf_counter() - start
+            print(f"montecarlo(), {n_exact} variants, {label}: integration {r.wall_s:.2f} s, end to end "
+                  f"{total:.2f} s; load average {os.getloadavg()[0]:.2f}")
+            runs.append(r)
+        mc.FIT_OVERHEAD = default
+        fitted, exact = runs
+        ok = ~exact.failed
+        print(f"  fitted against exact: the same failed variants {np.array_equal(fitted.failed, exact.failed)} "
+              f"({int(np.sum(exact.failed))}); largest relative difference of the others' tracking error "
+              f"{np.max(np.abs(fitted.tracking_error - exact.tracking_error)[ok] / exact.tracking_error[ok]):.2g}, "
+              f"peak current {np.max(np.abs(fitted.peak_current - exact.peak_current)[ok] / exact.peak_current[ok]):.2g}")
     if not math.isfinite(result.wall_s):
         raise SystemExit(1)
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:3]))
+    main(*(int(a) for a in sys.argv[1:4]))

@@ -129,11 +129,17 @@ class SeparableFit:
         return out
 
 
-def _grid(lo, hi, x0, points, integer, log):
+def _grid(lo, hi, x0, points, integer, log, grade=0.0):
     if integer:
         values = np.arange(np.ceil(min(lo, x0)), np.floor(max(hi, x0)) + 1.0)
         if values.size <= MAX_INTEGER_POINTS:
             return values
+    if grade > 0 and not log:  # spacing growing as (x - lo + grade): dense where the map bends
+        a, b = min(lo, x0), max(hi, x0)
+        values = a - grade + np.geomspace(grade, b - a + grade, points)
+        values[0], values[-1] = a, b
+        values = np.sort(np.unique(np.concatenate([values, [x0]])))
+        return np.round(values) if integer else values
     a, b = (np.log(v) for v in (min(lo, x0), max(hi, x0))) if log else (min(lo, x0), max(hi, x0))
     t = np.linspace(a, b, points)
     t = np.sort(np.unique(np.concatenate([t, [np.log(x0) if log else x0]])))
@@ -159,7 +165,7 @@ def _splines(grids, Ylist, y0, codes_try, log_keys):
 
 
 def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEFAULT_RTOL, seed: int = 0,
-        pairs: bool = True, scale=None) -> SeparableFit:
+        pairs: bool = True, scale=None, points=GRID_POINTS, grade=None) -> SeparableFit:
     """Fit and verify the separable approximation of ``evaluate`` over ``samples``.
 
     Parameters
@@ -183,6 +189,12 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
         ``scale(Y)`` -> the magnitude each output's error is relative to, from the exact
         outputs ``Y`` (rows: nominal and verification variants); default each output's
         largest magnitude.
+    points : tuple of int
+        Points along each key on successive attempts (default :data:`GRID_POINTS`).
+    grade : array_like of float, optional
+        Per key (not mapped in log(x)), a length: its points are spaced in proportion to
+        ``x - low + grade`` (geometrically from the low end of its range, dense where a map
+        changes over a scale ``grade`` there); 0: evenly.
 
     Returns
     -------
@@ -194,6 +206,7 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
     d = x0.size
     integer = np.zeros(d, bool) if integer is None else np.asarray(integer, bool)
     log_keys = np.zeros(d, bool) if log_keys is None else np.asarray(log_keys, bool)
+    grade = np.zeros(d) if grade is None else np.asarray(grade, float)
     lo, hi = S.min(axis=0), S.max(axis=0)
     y0 = np.asarray(evaluate(x0[None]), float)[0]
     spent = 1
@@ -209,9 +222,9 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
              else np.asarray(scale(both), float))
     scale = np.where(scale > 0, scale, 1.0)
     best, grids, Ylist = None, [None] * d, [None] * d
-    for points in GRID_POINTS:
+    for count in points:
         for k in range(d):
-            xs = _grid(lo[k], hi[k], x0[k], points, integer[k], log_keys[k])
+            xs = _grid(lo[k], hi[k], x0[k], count, integer[k], log_keys[k], grade[k])
             if grids[k] is not None and np.array_equal(xs, grids[k]):
                 continue  # an integer key: already every value
             X = np.repeat(x0[None], xs.size, axis=0)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import SceneError
-from ..core.separable import DEFAULT_RTOL, fit
+from ..core.separable import DEFAULT_RTOL, GRID_POINTS, fit
 from . import layout as lo
 from .chain_split import MIN_BACKDRIVE, hold_slots
 from .model import build_model
@@ -131,9 +131,11 @@ class ToleranceRows:
 
     @classmethod
     def create(cls, scene, keys, values: dict, controller, options, reference, *, rtol: float = DEFAULT_RTOL,
-               seed: int = 0) -> "ToleranceRows":
+               seed: int = 0, points=GRID_POINTS, grade: dict | None = None) -> "ToleranceRows":
         """Build the nominal model, fit the rows over ``values`` (key -> array) and verify
-        them; ``keys`` is the scene's :class:`~servo_toolkit.scene.key_paths.SceneKeys`."""
+        them; ``keys`` is the scene's :class:`~servo_toolkit.scene.key_paths.SceneKeys`.
+        ``points`` and ``grade`` (key -> length) set the exact evaluations along each key
+        (:func:`~servo_toolkit.core.separable.fit`)."""
         names = tuple(values)
         model = build_model(scene, controller, options)
         P0 = fill(model, reference)
@@ -154,12 +156,17 @@ class ToleranceRows:
 
         integer = np.array([k in keys.known() and keys.resolve(k).integer for k in names])
         log_keys = np.array([np.all(X[:, j] > 0) and X[:, j].max() > 10 * X[:, j].min() for j in range(len(names))])
-        f = fit(base._outputs, x0, X, integer=integer, log_keys=log_keys, rtol=rtol, seed=seed, scale=scale)
+        grades = np.array([float((grade or {}).get(k, 0.0)) for k in names])
+        f = fit(base._outputs, x0, X, integer=integer, log_keys=log_keys, rtol=rtol, seed=seed, scale=scale,
+                points=points, grade=grades)
         moved = f.moved
         inert = tuple(k for j, k in enumerate(names) if not np.any(moved[j]))
         table_moves = bool(np.any(moved[:, nP:nP + nT]))
         rows = replace(base, fitted=f, inert=inert, table_moves=table_moves, evaluations=f.evaluations)
-        error = rows.verify(X, seed=seed + 1)
+        try:
+            error = rows.verify(X, seed=seed + 1)
+        except (ValueError, ZeroDivisionError):  # fitted primaries out of their domain (a negative stiffness)
+            error = float("inf")
         if not error <= rtol:
             return replace(rows, fitted=None, error=error, evaluations=rows.evaluations + 3)
         return replace(rows, error=error, evaluations=rows.evaluations + 3)

@@ -9,6 +9,14 @@ through the batched kernel (:mod:`servo_toolkit.sim.batch`), and is step-checked
 own parameters (the RK4 stability region at its start, peak current, largest drivetrain
 deflection and end). Chunks of variants go to an optional executor (a process pool, a dask
 ``Client.get_executor()``).
+
+A variant's parameter row comes from :class:`~servo_toolkit.sim.variants.VariantBuilder`'s
+linear map of the drivetrain slots when that map is exact (checked against
+:func:`~servo_toolkit.sim.model.build_model` at the farthest variant); otherwise (a chain whose
+two-mass reduction moves nonlinearly with the load inertia, the full chain) from
+:class:`~servo_toolkit.sim.tolerance_rows.ToleranceRows`' separable fit over the keys
+``load.inertia`` and ``drivetrain.stiffness_scale``, verified against exact models; every
+variant is built with ``build_model`` only when that fit does not verify.
 """
 
 from __future__ import annotations
@@ -19,6 +27,8 @@ import numpy as np
 
 from ..errors import SceneError
 from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
+from ..scene.loader import scene_keys
+from ..scene.tolerances import STIFFNESS_SCALE
 from ..core.parallel import chunks, run_cases
 from ..sim import controller_for
 from ..sim.simulate import with_feedforward
@@ -31,11 +41,21 @@ from ..sim.tables import frozen_tables
 from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
+from ..sim.tolerance_rows import ToleranceRows
 from .montecarlo_result import MonteCarloResult
 from .time_run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000
+#: variants per chunk at most when every variant carries its own stroke tables (fitted rows)
+TABLE_CHUNK_SIZE = 500
+#: exact models along each varied key for the fitted rows: a reduction's stiffness and split
+#: move steeply near zero load (over the inertia the drivetrain keeps on its load side)
+ROW_POINTS = (41,)
+#: exact models a fit needs besides its grids (nominal, verification variants)
+FIT_OVERHEAD = 8
+#: the Monte Carlo's variations -> the scene keys the fitted rows vary
+KEYS = {"load_inertia": "load.inertia", "stiffness": STIFFNESS_SCALE}
 
 
 def _step_check(model, P, T, tix, X0, snaps, dt):
@@ -72,6 +92,11 @@ def _step_check(model, P, T, tix, X0, snaps, dt):
 
 def _chunk(case):
     """Run one chunk of variants (module level: picklable for process pools and dask)."""
+    rows = case.get("rows")
+    if rows is not None:  # fitted rows: mapped from the chunk's key values here (in the worker)
+        P, T, tix = rows.rows(case["X"])
+        moved = {"deltas": np.zeros(len(P)), "d_table": None} if T.shape[0] == 1 and not np.any(tix) else {"T": T[tix]}
+        case = dict(case, model=rows.model, P=P, **moved)
     model, P, dt, n_steps, sub = case["model"], case["P"], case["dt"], case["n_steps"], case["sub"]
     T = case.get("T")
     if T is None:
@@ -181,10 +206,12 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
     if builder.fast and not builder.self_check(values):
         builder = replace(builder, fast=False)
-    if not builder.fast:
-        notes.append("variants built one by one with build_model (their parameters move beyond the drivetrain slots)")
     model = builder.model
     P0 = fill(model, reference)
+    rows = None
+    if not builder.fast:
+        rows, note = fitted_rows(scene, builder, P0, values, reference)
+        notes.append(note)
     x0 = initial_state(model, P0)
     probe = _stability_probe(model, P0, x0)
     if dt is None:
@@ -198,7 +225,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     if n_steps > MAX_STEPS:
         raise SceneError("duration", f"{n_steps} RK4 steps of {dt:.3g} s exceed {MAX_STEPS}")
     sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
-    cases = _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size)
+    cases = _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size, rows)
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="montecarlo")
     figs = np.concatenate([p["figs"] for p in parts])
     lam_dt = np.concatenate([p["lam_dt"] for p in parts])
@@ -217,7 +244,39 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
-        notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference))
+        notes=tuple(notes) + tuple(model.notes), runner=(builder, P0, reference, rows))
+
+
+def fitted_rows(scene, builder, P0, values, reference):
+    """The variants' rows fitted by :class:`~servo_toolkit.sim.tolerance_rows.ToleranceRows`
+    (None when they cannot be verified: every variant is then built with ``build_model``),
+    and the note saying how the rows are made.
+
+    The load inertia's points are graded over the inertia the drivetrain keeps on its load
+    side at zero load (where the two-mass reduction's stiffness and split move steeply). The
+    fit's nominal row must equal ``P0``: a scene changed after it was read from its file is
+    built exactly, and so are fewer variants than the fit would build exact models.
+    """
+    one_by_one = "variants built one by one with build_model (their parameters move beyond the drivetrain slots"
+    inner = float(builder.model.P[lo.JL]) - builder.d_jl * float(scene.load.inertia)
+    grade = {KEYS["load_inertia"]: inner} if builder.d_jl > 0 and inner > 0 else {}
+    if not set(values) <= set(KEYS):
+        return None, f"{one_by_one})"
+    n = next(iter(values.values())).size
+    if n <= len(values) * max(ROW_POINTS) + FIT_OVERHEAD:
+        return None, f"{one_by_one}; fewer than a fit's exact models)"
+    try:
+        keyed = {KEYS[k]: np.asarray(v, float) for k, v in values.items()}
+        rows = ToleranceRows.create(scene, scene_keys(scene), keyed, builder.controller, builder.options, reference,
+                                    points=ROW_POINTS, grade=grade)
+    except SceneError as exc:
+        return None, f"{one_by_one}; fitted rows not available: {exc})"
+    if rows.P0.shape != P0.shape or not np.array_equal(rows.P0, P0, equal_nan=True):
+        return None, f"{one_by_one}; the scene differs from its file)"
+    if rows.fitted is None:
+        return None, f"{one_by_one}; the fitted rows verified only to a relative {rows.error:.2g})"
+    return rows, (f"variant rows fitted from {rows.evaluations} exact models, verified to a relative "
+                  f"{rows.error:.2g} (the linear map of the drivetrain slots is not exact here)")
 
 
 def nominal_feedforward(controller, scene):
@@ -229,10 +288,16 @@ def nominal_feedforward(controller, scene):
     return replace(controller, feedforward=replace(ff, load_inertia=float(scene.load.inertia)))
 
 
-def _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size):
-    """Chunks of variant rows (picklable dicts)."""
+def _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size, rows=None):
+    """Chunks of variant rows (picklable dicts); with fitted ``rows``, the chunk's variants'
+    key values (mapped to rows in the chunk)."""
     n = next(iter(values.values())).size
     common = {"model": builder.model, "dt": dt, "n_steps": n_steps, "sub": sub}
+    if rows is not None:
+        X = np.column_stack([values[k] for k in values])  # KEYS keep the order: rows.names
+        size = min(int(chunk_size), TABLE_CHUNK_SIZE) if rows.table_moves else int(chunk_size)
+        mapper = replace(rows, keys=None, controller=None, reference=None)  # what rows() reads: picklable
+        return [dict(common, rows=mapper, X=X[idx]) for idx in chunks(np.arange(n), max(1, size))]
     out = []
     for idx in chunks(np.arange(n), max(1, int(chunk_size))):
         part = {k: v[idx] for k, v in values.items()}

@@ -146,10 +146,14 @@ class MonteCarloResult:
         from dataclasses import replace
 
         from ..sim import run
-        builder, P0, reference = self.runner
+        builder, P0, reference, *fitted = self.runner
         load = self.values["load_inertia"][i] if "load_inertia" in self.values else None
         stiff = self.values["stiffness"][i] if "stiffness" in self.values else None
-        if builder.fast:
+        rows = fitted[0] if fitted else None
+        if rows is not None:  # the fitted row the batch ran
+            P, T, tix = rows.rows(np.array([[self.values[k][i] for k in self.values]]))
+            model = replace(rows.model, P=P[0], T=T[tix[0]])
+        elif builder.fast:
             P, dT = builder.row(P0, load, stiff)
             model = replace(builder.model, P=P, T=builder.model.T if dT is None else builder.model.T + dT)
         else:
