@@ -19,6 +19,8 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
+from .layout import (NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS, NF_VISC, NMID, NODE_FRIC,  # noqa: E402
+                     NX_PHYS, OFF_NODE, STICK)
 from .vmath import TANH_ONE, exp_neg, inline  # noqa: E402
 
 
@@ -49,4 +51,46 @@ def stuck_or_breaking(applied, cap):
     return 0.0
 
 
-__all__ = ["slip_friction", "stuck_or_breaking"]
+@inline
+def node_moment(P, j, v, applied):
+    """The net moment on the full chain's intermediate node j (1..NMID) moving at v, from the
+    ``applied`` moment (every other moment on it: the segments on either side, the velocity
+    terms), with the node's own friction (``NODE_FRIC``; none when 0): its viscous part, and
+    with friction that holds (``STICK``) its sliding law (:func:`slip_friction`) or, at
+    exactly v = 0, the stick law (:func:`stuck_or_breaking`) against its breakaway level. The
+    chain's mass matrix is diagonal in the node coordinates, so the decision is the node's
+    alone."""
+    o = int(P[NODE_FRIC])
+    if o == 0:
+        return applied
+    b = o + NF_STRIDE * (j - 1)
+    applied -= P[b + NF_VISC] * v
+    ts = P[b + NF_TS]
+    if ts > 0.0 and P[STICK] > 0.0:
+        if v == 0.0:
+            return stuck_or_breaking(applied, ts)
+        return applied - slip_friction(v, P[b + NF_TC], ts, P[b + NF_INV_VS], P[b + NF_DIR])
+    return applied
+
+
+@inline
+def advance_moving_states(x, k1, k2, k3, k4, sixth, P, lands):
+    """RK4's update of the states in x[NX_PHYS:] that move between samples (a continuous
+    controller's, the full chain's nodes). With ``lands`` (friction that holds at an
+    intermediate node, ``NODE_FRIC``) a node carrying it whose speed changed sign over the
+    step ends the step at rest, where its stick law decides between stick and slip (the
+    Karnopp landing of the cam paper's scheme: the reversal is not located within the step,
+    so the step across it is of first order)."""
+    o = int(P[NODE_FRIC]) if lands else 0
+    first = int(P[OFF_NODE])
+    nm = int(P[NMID])
+    for j in range(NX_PHYS, x.size):
+        v0 = x[j]
+        x[j] = v0 + sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        if o > 0 and x[j] * v0 < 0.0:
+            m = j - first
+            if m >= 0 and m < 2 * nm and m % 2 == 1 and P[o + NF_STRIDE * (m // 2) + NF_TS] > 0.0:
+                x[j] = 0.0
+
+
+__all__ = ["advance_moving_states", "node_moment", "slip_friction", "stuck_or_breaking"]

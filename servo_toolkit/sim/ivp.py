@@ -83,6 +83,9 @@ def friction_nodes(model, P) -> list:
         nodes.append(1)
     if not model.rigid and P[lo.TS_L] > 0.0:
         nodes.append(3)
+    f, first = int(P[lo.NODE_FRIC]), int(P[lo.OFF_NODE])
+    if f > 0:  # the full chain's intermediate nodes with friction of their own
+        nodes += [first + 2 * j + 1 for j in range(int(P[lo.NMID])) if P[f + lo.NF_STRIDE * j + lo.NF_TS] > 0.0]
     return nodes
 
 
