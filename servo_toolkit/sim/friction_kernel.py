@@ -77,20 +77,26 @@ def node_moment(P, j, v, applied):
 def advance_moving_states(x, k1, k2, k3, k4, sixth, P, lands):
     """RK4's update of the states in x[NX_PHYS:] that move between samples (a continuous
     controller's, the full chain's nodes). With ``lands`` (friction that holds at an
-    intermediate node, ``NODE_FRIC``) a node carrying it whose speed changed sign over the
-    step ends the step at rest, where its stick law decides between stick and slip (the
-    Karnopp landing of the cam paper's scheme: the reversal is not located within the step,
-    so the step across it is of first order)."""
+    intermediate node, ``NODE_FRIC``) a node carrying it whose speed leaves its direction
+    within the step ends the step at rest, where its stick law decides between stick and
+    slip (the Karnopp landing of the cam paper's scheme; the reversal is not located within
+    the step, so the step across it is of first order). Leaving its direction: at the step's
+    end, or at any of RK4's stages, or along the first stage's slope (the later stages
+    straddle the friction's jump and may push the speed back: a result on the same side can
+    hide the reversal)."""
     o = int(P[NODE_FRIC]) if lands else 0
     first = int(P[OFF_NODE])
     nm = int(P[NMID])
     for j in range(NX_PHYS, x.size):
         v0 = x[j]
         x[j] = v0 + sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if o > 0 and x[j] * v0 < 0.0:
+        if o > 0 and v0 != 0.0:
             m = j - first
             if m >= 0 and m < 2 * nm and m % 2 == 1 and P[o + NF_STRIDE * (m // 2) + NF_TS] > 0.0:
-                x[j] = 0.0
+                h = 6.0 * sixth
+                if (x[j] * v0 <= 0.0 or (v0 + h * k1[j]) * v0 < 0.0 or (v0 + 0.5 * h * k2[j]) * v0 < 0.0
+                        or (v0 + h * k3[j]) * v0 < 0.0):
+                    x[j] = 0.0
 
 
 __all__ = ["advance_moving_states", "node_moment", "slip_friction", "stuck_or_breaking"]

@@ -16,6 +16,7 @@ from ..core.progress import progress_bar
 
 from ..errors import SimulationError
 from . import layout as lo
+from .ivp_friction import FrictionModes, friction_nodes  # noqa: F401 - friction_nodes: re-exported
 from .kernel import controller_sample, rhs
 
 
@@ -74,44 +75,6 @@ def _events(model, P):
 MAX_FRICTION_RESTARTS = 10_000
 
 
-def friction_nodes(model, P) -> list:
-    """Indices in x of the speeds of the nodes carrying friction that holds."""
-    if P[lo.STICK] <= 0.0:
-        return []
-    nodes = []
-    if P[lo.TS_M] > 0.0 or (model.rigid and P[lo.TS_L] > 0.0):
-        nodes.append(1)
-    if not model.rigid and P[lo.TS_L] > 0.0:
-        nodes.append(3)
-    f, first = int(P[lo.NODE_FRIC]), int(P[lo.OFF_NODE])
-    if f > 0:  # the full chain's intermediate nodes with friction of their own
-        nodes += [first + 2 * j + 1 for j in range(int(P[lo.NMID])) if P[f + lo.NF_STRIDE * j + lo.NF_TS] > 0.0]
-    return nodes
-
-
-def _friction_events(nodes, x, scale):
-    """Terminal events of the nodes carrying friction: a sliding node's speed reaching 0 (the
-    reversal, where the solve restarts at exactly 0 and the friction decides between stick
-    and slip), a resting node's speed leaving a band of ``scale`` (its breakaway, after which
-    its reversal is watched)."""
-    events = []
-    for i in nodes:
-        if x[i] != 0.0:
-            def ev(t, y, i=i):
-                return y[i]
-            ev.direction = -1.0 if x[i] > 0 else 1.0
-            ev.reversal = True
-        else:
-            def ev(t, y, i=i):
-                return abs(y[i]) - scale
-            ev.direction = 1.0
-            ev.reversal = False
-        ev.terminal = True
-        ev.node = i
-        events.append(ev)
-    return events
-
-
 def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10, progress=None,
                     max_rhs_evals=MAX_RHS_EVALS, time_limit_s=None):
     """Integrate to every time in ``t_out`` (starting at ``t_out[0]``).
@@ -138,9 +101,10 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
     x = np.array(x0, dtype=float)
     box = [0.0]
     deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
+    P = np.array(P, dtype=float)  # its friction directions are set along the solve
     fun = make_fun(model, P, box, max_rhs_evals, deadline)
     events = _events(model, P)
-    nodes = friction_nodes(model, P)
+    modes = FrictionModes(model, P, fun, lambda Z: make_fun(model, Z, box))
     out = np.full((t_out.size, model.nx), np.nan)
     irefs = np.zeros(t_out.size)
     ts = model.sample_time if P[lo.CMODE] == lo.SAMPLED else 0.0
@@ -168,7 +132,7 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
         want = t_out[k_out:stop]
         t_eval = want if (want.size and want[-1] == b) else np.append(want, b)
         try:
-            sol, x = _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, model.rigid)
+            sol, x = _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes)
         except _Budget as why:
             spent = (f"{fun.count - 1} right-hand-side evaluations" if str(why) == "evaluations"
                      else f"the time limit of {time_limit_s:g} s")
@@ -196,18 +160,17 @@ class _Joined:
         self.status, self.message, self.t_events = status, message, t_events
 
 
-def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigid=False):
+def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
     """One controller sample: ``solve_ivp`` from a to b, restarted at every friction event
-    (:func:`_friction_events`) with the reversing node's speed set to exactly 0. Returns the
-    joined result and the state at b."""
-    if not nodes:
+    (:class:`~.ivp_friction.FrictionModes`: a reversal, a breakaway) with the node at rest.
+    Returns the joined result and the state at b."""
+    if not modes.nodes:
         sol = solve_ivp(fun, (a, b), x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol, events=events)
         return sol, sol.y[:, -1].copy()
     ts, ys = [], []
     t0, x = a, np.array(x, dtype=float)
-    scale = 1e-9 * max(1.0, float(np.max(np.abs(x[nodes]))))
     for _ in range(MAX_FRICTION_RESTARTS):
-        ev_f = _friction_events(nodes, x, scale)
+        ev_f = modes.events(t0, x)
         evs = (events or []) + ev_f
         te = t_eval[t_eval >= t0]
         sol = solve_ivp(fun, (t0, b), x, method=solver, t_eval=te, rtol=rtol, atol=atol, events=evs)
@@ -226,11 +189,7 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigi
         ts.append(sol.t[keep])
         ys.append(sol.y[:, keep])
         x = np.array(sol.y_events[k][0], dtype=float)
-        hit = ev_f[k - n_stroke]
-        if hit.reversal:  # restart at rest: the friction decides between stick and slip
-            x[hit.node] = 0.0
-            if hit.node == 1 and rigid:
-                x[3] = 0.0  # a rigid model's output speed is the motor side's
+        modes.restart(ev_f[k - n_stroke], t_hit, x)  # at rest: the friction decides between stick and slip
         t0 = t_hit
         if t0 >= b:
             ts.append(np.array([b]))
