@@ -113,29 +113,28 @@ def test_the_wheel_holds_below_its_breakaway_and_breaks_away_above(fraction, met
 
 
 def test_rk4_follows_the_event_driven_reference_through_the_wheels_stick_slip(model, reference_run):
-    """The sine voltage sticks the wheel twice (two reversals, two breakaways). RK4 sticks it
-    over the same records as the reference (which locates every switch by events); before the
-    first switch its error is the reference's own (fourth order: 1.8e-10, 1.2e-11 at 1e-4,
-    5e-5 s), across the switches (where RK4 lands the wheel at rest at the end of the step its
-    speed leaves its direction, not within it) it converges at least at first order."""
+    """The sine voltage sticks the wheel twice (two reversals, two breakaways). RK4, which
+    locates each switch of the wheel within its step, sticks it over the same records as the
+    reference (which stops on every switch as an event) and keeps its fourth order through
+    them: against the reference 7.2e-10 and 7.3e-11 of the output's swing at 1e-4 and 5e-5 s,
+    before the first switch 1.8e-10 and 1.2e-11; between successive halvings of its step
+    6.4e-10 and 4.2e-11 (order 3.95)."""
     rr = reference_run
     o = int(model.P[lo.OFF_NODE])
-    yd = rr.states[:, o + 1]
-    stuck = yd == 0.0
+    stuck = rr.states[:, o + 1] == 0.0
     assert 10 < stuck.sum() < 40
-    moving = np.flatnonzero(~stuck)
     first = rr.times[np.flatnonzero(stuck)[0]] - 1e-3  # before the first reversal
     amp = np.ptp(rr.states[:, 2])
-    errors = []
-    for dt in (1e-4, 5e-5, 2.5e-5):
+    cols = [0, 2, o]
+    runs = []
+    for dt, bound in ((1e-4, 2e-9), (5e-5, 2e-10), (2.5e-5, 1e-10)):
         r = run(model, STICK_SLIP, 0.3, method="rk4", dt=dt, output_dt=5e-4, x0=rolling_start(model))
         np.testing.assert_array_equal(r.states[:, o + 1] == 0.0, stuck)
-        e = np.abs(r.states[:, [0, 2, o]] - rr.states[:, [0, 2, o]]) / amp
-        errors.append(e.max())
-        assert e[r.times < first].max() < 2e-9
-        assert moving.size and np.all(np.isfinite(r.states))
-    order = np.polyfit(np.log([1e-4, 5e-5, 2.5e-5]), np.log(errors), 1)[0]
-    assert order > 1.0 and errors[-1] < 1e-6, errors
+        e = np.abs(r.states[:, cols] - rr.states[:, cols]) / amp
+        assert e.max() < bound and e[r.times < first].max() < bound, (dt, e.max())
+        runs.append(r.states[:, cols])
+    d = [np.abs(a - b).max() / amp for a, b in zip(runs[:-1], runs[1:])]
+    assert math.log2(d[0] / d[1]) > 3.5, d
 
 
 def test_friction_at_the_wheel_never_supplies_power(model, reference_run):

@@ -19,8 +19,7 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import (NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS, NF_VISC, NMID, NODE_FRIC,  # noqa: E402
-                     NX_PHYS, OFF_NODE, STICK)
+from .layout import NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS, NF_VISC, NODE_FRIC, STICK  # noqa: E402
 from .vmath import TANH_ONE, exp_neg, inline  # noqa: E402
 
 
@@ -73,30 +72,4 @@ def node_moment(P, j, v, applied):
     return applied
 
 
-@inline
-def advance_moving_states(x, k1, k2, k3, k4, sixth, P, lands):
-    """RK4's update of the states in x[NX_PHYS:] that move between samples (a continuous
-    controller's, the full chain's nodes). With ``lands`` (friction that holds at an
-    intermediate node, ``NODE_FRIC``) a node carrying it whose speed leaves its direction
-    within the step ends the step at rest, where its stick law decides between stick and
-    slip (the Karnopp landing of the cam paper's scheme; the reversal is not located within
-    the step, so the step across it is of first order). Leaving its direction: at the step's
-    end, or at any of RK4's stages, or along the first stage's slope (the later stages
-    straddle the friction's jump and may push the speed back: a result on the same side can
-    hide the reversal)."""
-    o = int(P[NODE_FRIC]) if lands else 0
-    first = int(P[OFF_NODE])
-    nm = int(P[NMID])
-    for j in range(NX_PHYS, x.size):
-        v0 = x[j]
-        x[j] = v0 + sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if o > 0 and v0 != 0.0:
-            m = j - first
-            if m >= 0 and m < 2 * nm and m % 2 == 1 and P[o + NF_STRIDE * (m // 2) + NF_TS] > 0.0:
-                h = 6.0 * sixth
-                if (x[j] * v0 <= 0.0 or (v0 + h * k1[j]) * v0 < 0.0 or (v0 + 0.5 * h * k2[j]) * v0 < 0.0
-                        or (v0 + h * k3[j]) * v0 < 0.0):
-                    x[j] = 0.0
-
-
-__all__ = ["advance_moving_states", "node_moment", "slip_friction", "stuck_or_breaking"]
+__all__ = ["node_moment", "slip_friction", "stuck_or_breaking"]
