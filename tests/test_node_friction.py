@@ -213,3 +213,13 @@ def test_reduce_measures_leaving_the_wheels_stick_out():
     cost = {c.effect: c for c in res.per_effect}
     assert 0.1 * stick.estimate < cost["static friction (stick)"].measured < stick.estimate
     assert cost["drivetrain modes above the first"].measured > 0
+
+
+def test_the_accuracy_study_sees_the_wheels_switching_instants(model, reference_run):
+    """The accuracy study's switching instants count the intermediate nodes carrying
+    friction: the wheel's two sticks and two breakaways besides the motor's two reversals."""
+    from servo_toolkit.studies.accuracy import switching_instants
+    motor = switching_instants(reference_run)
+    hits = switching_instants(reference_run, False, ["node[1]_rate"])
+    wheel = np.setdiff1d(hits, motor)
+    assert motor.size == 2 and wheel.size == 4 and np.all((wheel > 0.15) & (wheel < 0.22))
