@@ -136,6 +136,8 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     k4 = np.zeros(nx)
     xs = np.zeros(nx)
     work = np.empty(max(nx, 1))
+    x0 = np.empty(nx)  # the intermediate nodes' split step's scratch
+    PW = np.empty((2, P.size))
     n_rec = 0
     max_tau = 0.0
     max_err = 0.0
@@ -236,7 +238,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
         if lands and node_switch_ahead(x, k1, k2, k3, k4, sixth, P):
             # an intermediate node carrying friction may reverse or break away within the step
             p, pd, q, qd, cur, xi = node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs,
-                                                       k1, k2, k3, k4)
+                                                       k1, k2, k3, k4, x0, PW)
             continue
         if cont:
             for j in range(NX_PHYS, nx):

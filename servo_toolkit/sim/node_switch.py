@@ -101,11 +101,14 @@ def _node_illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, 
 
 
 @jit  # called at an intermediate node's switch only
-def node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs, k1, k2, k3, k4):
+def node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs, k1, k2, k3, k4, x0, PW):
     """The step from t of an intermediate node that may switch within it
     (:func:`node_switch_ahead`), split at the switch located within the step (module doc).
-    Returns the step's new ``(p, pd, q, qd, cur, xi)``; x[7:] is advanced in place."""
-    x0 = x.copy()
+    Returns the step's new ``(p, pd, q, qd, cur, xi)``; x[7:] is advanced in place. ``x0``
+    (the size of x) and ``PW`` (at least 2 rows the size of P) are scratch: the step
+    allocates nothing (as :func:`.split_step.switched_step`)."""
+    for j in range(x.size):
+        x0[j] = x[j]
     o = int(P[NODE_FRIC])
     first = int(P[OFF_NODE])
     sixth = dt / 6.0
@@ -125,8 +128,11 @@ def node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs, k1, k
             break
     v0 = x0[i]
     breakaway = v0 == 0.0
-    W = P.copy()  # a reversal: the node's friction held at its direction; a breakaway: the node held
-    Z = P.copy()  # a breakaway: the moment on the node, read with its level at 0
+    # a reversal: the node's friction held at its direction (W); a breakaway: the node held (W),
+    # the moment on the node read with its level at 0 (Z)
+    W, Z = PW[0], PW[1]
+    for j in range(P.size):
+        W[j] = Z[j] = P[j]
     tau, cap, a1 = 0.0, 0.0, 0.0
     if not breakaway:
         W[slot + NF_DIR] = 1.0 if v0 > 0.0 else -1.0
@@ -163,7 +169,8 @@ def node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs, k1, k
         return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, P, T, iref, True, x, xs, k1, k2, k3, k4)
     # breaking away: the node leaves rest sliding (SEED in the moment's direction, its friction held
     # at that direction for the rest of the step), so every stage sees the sliding law from 0+
-    W[:] = P
+    for j in range(P.size):
+        W[j] = P[j]
     W[slot + NF_DIR] = 1.0 if slide > 0.0 else -1.0
     x[i] = SEED if slide > 0.0 else -SEED
     return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, xs, k1, k2, k3, k4)
