@@ -223,3 +223,26 @@ def test_the_accuracy_study_sees_the_wheels_switching_instants(model, reference_
     hits = switching_instants(reference_run, False, ["node[1]_rate"])
     wheel = np.setdiff1d(hits, motor)
     assert motor.size == 2 and wheel.size == 4 and np.all((wheel > 0.15) & (wheel < 0.22))
+
+
+def test_a_condensed_nodes_friction_stays_lumped():
+    """Gear A's wheel without inertia: its node is condensed (the meshes on either side act in
+    series), so gear A's friction is lumped by the two-mass split's rule (its node is on the
+    motor side of the split at the shaft, the most compliant spring: Ts / 2 at the motor), while
+    gear B's wheel, a kept node between two compliances, carries gear B's friction at the
+    output's coordinate (its shaft turns with the output: u' = 1)."""
+    from servo_toolkit.components.compliance import Compliance
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=J_ROTOR,
+                    current_limit=50.0, voltage_limit=100.0)
+    stages = (GearTrain("gear A", ratio=N_A, inertias=(0.0, 0.0), torsional_stiffness=K_A),
+              GearTrain("gear B", ratio=N_B, inertias=(0.0, 4e-3), torsional_stiffness=K_B * 10),
+              Compliance("shaft", 100.0))
+    sc = Scene("condensed", motor=motor, stages=stages, load=Load(inertia=J_LOAD),
+               stage_friction=(StageFriction(TC, TS), StageFriction(0.2, 0.3), None))
+    m = build_model(sc, None, FULL)
+    assert m.P[lo.NMID] == 1
+    f = int(m.P[lo.NODE_FRIC])
+    assert (m.P[f + lo.NF_TC], m.P[f + lo.NF_TS]) == (pytest.approx(0.2), pytest.approx(0.3))
+    assert m.P[lo.TS_M] == pytest.approx(TS / N_A, rel=1e-12) and m.P[lo.TS_L] == 0.0
+    assert any(n.startswith("friction of drivetrain[0] reflected to the motor shaft") for n in m.notes)
+    assert any("drivetrain[1] at chain node 2" in n for n in m.notes)
