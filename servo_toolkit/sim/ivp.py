@@ -169,6 +169,7 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
         return sol, sol.y[:, -1].copy()
     ts, ys = [], []
     t0, x = a, np.array(x, dtype=float)
+    modes.start(x)
     for _ in range(MAX_FRICTION_RESTARTS):
         ev_f = modes.events(t0, x)
         evs = (events or []) + ev_f

@@ -1,9 +1,12 @@
 """Friction that holds in the reference solver: the nodes carrying it and their modes between
 events.
 
-Between two events each node carrying friction that holds is in one mode: sliding in a held
-direction (its friction's sign held there, ``DIR_M``, ``DIR_L`` or the intermediate node's
-``NF_DIR`` in the solver's copy of the parameters, so that the right-hand side is smooth
+The motor side and the load are watched as they always were: a sliding node's speed reaching
+0 (restart at rest), a resting node's speed leaving a band of 1e-9 (then its reversal is
+watched), their friction's sign left to the speed. The full chain's intermediate nodes are
+solved in modes: between two events each is in one mode, sliding in a held direction (its
+friction's sign held there, its ``NF_DIR`` in the solver's copy of the parameters, so that
+the right-hand side is smooth
 across the speed's zero and the solver's Jacobian never sees the friction's jump), or stuck
 at rest (exactly zero speed and acceleration by the stick law). The events end a mode: a
 sliding node's speed reaching 0 against its direction (the reversal: the solve restarts with
@@ -12,7 +15,9 @@ node's acceleration leaving 0 (the breakaway's instant: the solve restarts with 
 rest, sliding in the direction of the moment on it, read with its breakaway level at 0).
 Restarting at the breakaway matters for a stiff solver: a Jacobian taken while the node
 sticks carries the friction's jump as a huge stiffness and, reused past the breakaway,
-would hold the node near rest long after it breaks away.
+would hold the node near rest long after it breaks away (the band's watch let LSODA hold an
+intermediate node for over a millisecond; on the motor side and the load it keeps the
+reference of the existing checks, whose LSODA error near a breakaway is about 1e-11 rad).
 """
 
 from __future__ import annotations
@@ -69,26 +74,59 @@ class FrictionModes:
         self.nodes = friction_nodes(model, P)
         self.slots = {i: _slots(model, P, i) for i in self.nodes}
         self.dirs = dict.fromkeys(self.nodes, 0.0)
+        self.rest = {}  # a stuck node's position (and a rigid model's output) where it stuck
 
     def _hold(self, i):
         for s in self.slots[i][0]:
             self.P[s] = self.dirs[i]
 
+    def start(self, x) -> None:
+        """A controller sample's solve begins at x: the band of the motor side's and the load's
+        breakaway watch (1e-9 of the largest speed, at least 1e-9)."""
+        self.scale = 1e-9 * max(1.0, float(np.max(np.abs(x[self.nodes]))))
+
+    def _watch(self, i, x):
+        """The motor side's and the load's event (their speed reaching 0 from its side, or,
+        at rest, leaving a band of ``scale``), their friction's sign left to the speed."""
+        if x[i] != 0.0:
+            def ev(t, y, i=i):
+                return y[i]
+            ev.direction = -1.0 if x[i] > 0 else 1.0
+            ev.reversal = True
+        else:
+            def ev(t, y, i=i):
+                return abs(y[i]) - self.scale
+            ev.direction = 1.0
+            ev.reversal = False
+        ev.terminal = True
+        ev.node = i
+        return ev
+
     def events(self, t0, x) -> list:
         """Each node's mode at (t0, x), its direction set in P, and the terminal events that
-        end the modes (each with ``node``)."""
+        end the modes (each with ``node``). The motor side and the load (x[1], x[3]) keep
+        their own watch (:meth:`_watch`); the modes are the intermediate nodes'."""
         for i in self.nodes:  # sliding nodes first: the moments on the resting ones depend on them
+            if i <= 3:
+                continue
             if x[i] != 0.0:
                 self.dirs[i] = 1.0 if x[i] > 0.0 else -1.0
             self._hold(i)
         d0 = None
         for i in self.nodes:
+            if i <= 3:
+                continue
             if x[i] == 0.0 and self.dirs[i] == 0.0:
                 d0 = self.fun(t0, x) if d0 is None else d0
                 self.dirs[i] = float(np.sign(d0[i]))  # 0: stuck
                 self._hold(i)
+                if self.dirs[i] == 0.0:
+                    self.rest[i] = (x[i - 1], x[2])
         events = []
         for i in self.nodes:
+            if i <= 3:
+                events.append(self._watch(i, x))
+                continue
             if self.dirs[i] != 0.0:
                 def ev(t, y, i=i):
                     return y[i]
@@ -109,12 +147,20 @@ class FrictionModes:
         a reversal its mode is decided at the restart, after a breakaway it slides in the
         direction of the moment on it."""
         i = ev.node
+        if i <= 3 and not ev.reversal:  # the motor side or the load left its band: watch its reversal
+            return
         x[i] = 0.0
-        if i == 1 and self.model.rigid:
+        rigid = i == 1 and self.model.rigid
+        if rigid:
             x[3] = 0.0  # a rigid model's output speed is the motor side's
-        if self.dirs[i] != 0.0:  # a reversal
+        if i <= 3 or self.dirs[i] != 0.0:  # a reversal
             self.dirs[i] = 0.0
             return
+        # a breakaway: the node has not moved since it stuck (the event's state is the solver's
+        # interpolant, which a step across the breakaway bends)
+        x[i - 1] = self.rest[i][0]
+        if rigid:
+            x[2] = self.rest[i][1]
         Z = self.P.copy()
         Z[self.slots[i][1]] = 0.0
         self.dirs[i] = float(np.sign(self.make(Z)(t, x)[i])) or 1.0
