@@ -14,6 +14,11 @@ v / u_k' (u_k' = du_k/dq, N = d(motor angle)/dq, both at q0). The levels add up;
 Stribeck speed of a sum is exact when the parts that drop share it (at the motor: the same
 speed once reflected), else the drops' weighted mean (said in the notes). The losses of the
 stages between the motor and the node do not scale the lumped friction.
+
+The full chain keeps its intermediate nodes with inertia: a stage whose output node is one
+of them keeps its friction there (:func:`node_friction`, reflected to the node's coordinate
+by u_k' as the load's is); only a stage whose node is condensed (no inertia), the motor's or
+the load's is lumped as above.
 """
 
 from __future__ import annotations
@@ -56,7 +61,38 @@ def _combine(parts):
     return tc, ts, vs, b, exact
 
 
-def lumped_friction(scene, q0: float, rigid: bool, notes: list):
+def node_friction(scene, q0: float, nodes) -> dict:
+    """The friction of the stages whose output node is one of ``nodes`` (the full chain's
+    intermediate nodes, chain node indices), reflected to the node's coordinate (referred to
+    the output, as the full chain's node states are): a level F at the stage's output u_k is
+    F u_k' there, a viscous coefficient B u_k'^2, a Stribeck speed v / u_k' (u_k' = du_k/dq
+    at q0, the factor by which the chain reflects the stage's output members' inertia,
+    squared). Several stages on one node add up as :func:`lumped_friction`'s do.
+
+    Returns
+    -------
+    dict
+        Chain node -> ``(Tc, Ts, v_st, B, exact, stages)``: the levels, the Stribeck speed
+        (0: none), the viscous coefficient, whether the Stribeck speed is exact (else the
+        drops' weighted mean) and the scene keys of the stages.
+    """
+    frictions = scene.stage_friction
+    if not frictions:
+        return {}
+    drive = scene.drivetrain
+    at = stage_nodes(drive.chain)
+    parts, keys = {}, {}
+    for k, fr in enumerate(frictions):
+        if fr is None or at[k] not in nodes:
+            continue
+        u = abs(stage_output_slope(drive, k, q0))
+        parts.setdefault(at[k], []).append((fr.coulomb_friction * u, fr.breakaway * u, fr.stribeck_speed / u,
+                                            fr.viscous_friction * u * u))
+        keys.setdefault(at[k], []).append(f"drivetrain[{k}]")
+    return {node: _combine(p) + (tuple(keys[node]),) for node, p in parts.items()}
+
+
+def lumped_friction(scene, q0: float, rigid: bool, notes: list, own=()):
     """The scene's motor and load with every stage's friction lumped onto them.
 
     Parameters
@@ -68,6 +104,9 @@ def lumped_friction(scene, q0: float, rigid: bool, notes: list):
         The model is a rigid chain (everything on the motor side).
     notes : list of str
         Receives one line per side that gets a stage's friction.
+    own : collection of int
+        Chain nodes that carry their stages' friction themselves (the full chain's
+        intermediate nodes, :func:`node_friction`): not lumped.
 
     Returns
     -------
@@ -89,7 +128,7 @@ def lumped_friction(scene, q0: float, rigid: bool, notes: list):
     l_parts = [(load.coulomb_friction, load.breakaway, load.stribeck_speed, load.damping)]
     m_from, l_from = [], []
     for k, fr in enumerate(frictions):
-        if fr is None:
+        if fr is None or nodes[k] in own:
             continue
         u = abs(stage_output_slope(drive, k, q0))
         if rigid or nodes[k] <= last:
@@ -115,4 +154,4 @@ def lumped_friction(scene, q0: float, rigid: bool, notes: list):
     return motor, load
 
 
-__all__ = ["lumped_friction", "stage_nodes", "stage_output_slope"]
+__all__ = ["lumped_friction", "node_friction", "stage_nodes", "stage_output_slope"]

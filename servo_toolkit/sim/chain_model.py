@@ -15,6 +15,11 @@ has them: node j's inertia before the losses J_w,j(p) (tabulated like J_j) and s
 loss fraction l_s = (1 - eta / Pi_s) / (1 - eta), scaled in the kernel by one loss
 coefficient c for the whole chain (:func:`servo_toolkit.sim.kernel.chain_accelerations`):
 driving, the model is the chain's driving-mode form and its Jacobian is the chain plant's.
+A stage's friction acts at its node: an intermediate node carries the friction of the stages
+whose output members it holds (:mod:`.node_friction`: reflected to the node's coordinate,
+sliding with the motor's law, sticking by its own breakaway level), the motor side and the
+load theirs and those of stages on condensed nodes (lumped by the two-mass split's rule,
+:mod:`servo_toolkit.drivetrain.stage_friction`); the notes say which sits where.
 
 Which one a run uses (``ModelOptions.chain``): ``"full"``, ``"two_mass"``, or ``"auto"``,
 decided by :func:`~servo_toolkit.sim.chain_choice.choose_chain` (the cost of lumping the upper

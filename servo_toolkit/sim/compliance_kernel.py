@@ -12,6 +12,7 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 from .layout import (ETA_HALF, ETA_MEAN, INV_H, INV_JD0, INV_TAU_S, JL, JW, KSCALE, NMID,  # noqa: E402
                      NODE_ROWS, OFF_NODE, OFF_SEG, ROW_JW0, ROW_NODE, SEG_BETA, SEG_LOSS, SEG_PLAY,
                      SEG_STRIDE, T_K, T_KS, TAB_H, WS)
+from .friction_kernel import node_moment  # noqa: E402
 from .tables import interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
 
@@ -141,7 +142,9 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
     losses, tabulated like J_j), the motor torque (1 - c) N tau and segment s weighted by
     1 - c l_s, l_s = (1 - eta / Pi_s) / (1 - eta) (driving: eta / Pi, the chain's
     driving-mode form). The power the losses take is then c times the power transmitted
-    past the members before them.
+    past the members before them. An intermediate node carrying a stage's friction
+    (``NODE_FRIC``) slides against it and sticks at rest by its own breakaway level
+    (:func:`~.friction_kernel.node_moment`).
     """
     nm = int(P[NMID])
     o = int(P[OFF_NODE])
@@ -174,7 +177,7 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
         wj = 1.0 - c * P[gj + SEG_LOSS]
         pot -= 0.5 * wj * dkj * zj * zj
         dx[a] = yd
-        dx[a + 1] = (f_in - wj * fj - dj * pd * yd) / jj
+        dx[a + 1] = node_moment(P, j, yd, f_in - wj * fj - dj * pd * yd) / jj
         f_in = wj * fj
     jl, djl = node_inertia(P, T, nm + 1, c, kc, tc, hc, ih)  # the load
     kin += 0.5 * djl * qd * qd

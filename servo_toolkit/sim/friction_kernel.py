@@ -19,6 +19,7 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
+from .layout import NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS, NF_VISC, NODE_FRIC, STICK  # noqa: E402
 from .vmath import TANH_ONE, exp_neg, inline  # noqa: E402
 
 
@@ -89,4 +90,26 @@ def gear_at_rest(torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge):
     return net
 
 
-__all__ = ["gear_at_rest", "slip_friction", "stuck_or_breaking"]
+
+def node_moment(P, j, v, applied):
+    """The net moment on the full chain's intermediate node j (1..NMID) moving at v, from the
+    ``applied`` moment (every other moment on it: the segments on either side, the velocity
+    terms), with the node's own friction (``NODE_FRIC``; none when 0): its viscous part, and
+    with friction that holds (``STICK``) its sliding law (:func:`slip_friction`) or, at
+    exactly v = 0, the stick law (:func:`stuck_or_breaking`) against its breakaway level. The
+    chain's mass matrix is diagonal in the node coordinates, so the decision is the node's
+    alone."""
+    o = int(P[NODE_FRIC])
+    if o == 0:
+        return applied
+    b = o + NF_STRIDE * (j - 1)
+    applied -= P[b + NF_VISC] * v
+    ts = P[b + NF_TS]
+    if ts > 0.0 and P[STICK] > 0.0:
+        if v == 0.0:
+            return stuck_or_breaking(applied, ts)
+        return applied - slip_friction(v, P[b + NF_TC], ts, P[b + NF_INV_VS], P[b + NF_DIR])
+    return applied
+
+
+__all__ = ["gear_at_rest", "node_moment", "slip_friction", "stuck_or_breaking"]

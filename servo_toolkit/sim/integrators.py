@@ -23,10 +23,11 @@ import numba as nb
 import numpy as np
 
 from .kernel import FASTMATH, controller_sample, inline, jit, reference, rhs, rhs_phys
+from .node_switch import node_switch_ahead, node_switched_step
 from .split_step import rk4_coefficients, stage_turns, switch_ahead, switched_step
 from .tables import frozen_tables
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, F_ERR, F_SAT, F_STATUS,
-                     F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
+                     F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NODE_FRIC, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
                      S_PEAK, STICK, TS_M, TS_L, RIGID, STROKE_END, STROKE_HI, STROKE_LO, STROKE_MODE, VLIM)
 
 
@@ -157,6 +158,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     # states in x[7:] that move between samples: a continuous controller's, the full chain's nodes
     cont = int(P[CMODE]) == CONTINUOUS or P[NMID] > 0.0
     stick = P[STICK] > 0.0  # friction that holds: speed reversals are located within the step
+    lands = stick and P[NODE_FRIC] > 0.0  # ... at the full chain's intermediate nodes too
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
     to_sample = 0
     to_record = 0
@@ -239,6 +241,11 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
             # a node carrying friction may reverse or break away within the step: split it there
             p, pd, q, qd, cur, xi = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
                                                   k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW)
+            continue
+        if lands and node_switch_ahead(x, k1, k2, k3, k4, sixth, P):
+            # an intermediate node carrying friction may reverse or break away within the step
+            p, pd, q, qd, cur, xi = node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs,
+                                                       k1, k2, k3, k4, x0, PW)
             continue
         if cont:
             for j in range(NX_PHYS, nx):

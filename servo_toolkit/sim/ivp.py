@@ -16,8 +16,8 @@ from ..core.progress import progress_bar
 
 from ..errors import SimulationError
 from . import layout as lo
+from .ivp_friction import FrictionModes, breakaway_gauge, friction_nodes  # noqa: F401 - friction_nodes: re-exported
 from .kernel import controller_sample, rhs
-from .split_step import SEED
 
 
 #: default budget of right-hand-side evaluations for one reference solve
@@ -75,75 +75,6 @@ def _events(model, P):
 MAX_FRICTION_RESTARTS = 10_000
 
 
-def friction_nodes(model, P) -> list:
-    """Indices in x of the speeds of the nodes carrying friction that holds."""
-    if P[lo.STICK] <= 0.0:
-        return []
-    nodes = []
-    if P[lo.TS_M] > 0.0 or (model.rigid and P[lo.TS_L] > 0.0):
-        nodes.append(1)
-    if not model.rigid and P[lo.TS_L] > 0.0:
-        nodes.append(3)
-    return nodes
-
-
-def breakaway_gauge(model, P, iref_box):
-    """``g(t, y, i, side=False)``: the breakaway distance of node i (x's index of its speed)
-    held at rest at (t, y), over its inertia, from the right-hand side with ``HOLD_GAUGE`` set
-    (:func:`~.friction_kernel.gear_at_rest`: > 0 beyond its band, the band the right-hand
-    side holds the node in; with ``side``, > 0 where it would break away forward)."""
-    Z = {False: P.copy(), True: P.copy()}
-    Z[False][lo.HOLD_GAUGE], Z[True][lo.HOLD_GAUGE] = 1.0, 2.0
-    aux = np.empty(lo.NAUX)
-    d = np.empty(model.nx)
-
-    def gauge(t, y, i, side=False):
-        x = np.array(y, dtype=float)
-        x[i] = 0.0
-        if model.rigid:
-            x[3] = 0.0
-        rhs(t, x, Z[side], model.T, iref_box[0], d, aux)
-        return float(d[i])
-
-    return gauge
-
-
-def _friction_events(nodes, x, scale, gauge=None):
-    """Terminal events of the nodes carrying friction: a sliding node's speed reaching 0 (the
-    reversal, where the solve restarts at exactly 0 and the friction decides between stick
-    and slip); for a resting node its breakaway distance crossing 0 (``gauge``,
-    :func:`breakaway_gauge`: where it leaves rest, the same band as the right-hand side's)
-    and, as a safeguard, its speed leaving a band of ``scale`` (after either its reversal is
-    watched)."""
-    events = []
-    for i in nodes:
-        if x[i] == 0.0 and gauge is not None:
-            def br(t, y, i=i):
-                return gauge(t, y, i)
-            br.direction = 1.0
-            br.reversal = False
-            br.breakaway = True
-            br.terminal = True
-            br.node = i
-            events.append(br)
-        if x[i] != 0.0:
-            def ev(t, y, i=i):
-                return y[i]
-            ev.direction = -1.0 if x[i] > 0 else 1.0
-            ev.reversal = True
-            ev.breakaway = False
-        else:
-            def ev(t, y, i=i):
-                return abs(y[i]) - scale
-            ev.direction = 1.0
-            ev.reversal = False
-            ev.breakaway = False
-        ev.terminal = True
-        ev.node = i
-        events.append(ev)
-    return events
-
-
 def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10, progress=None,
                     max_rhs_evals=MAX_RHS_EVALS, time_limit_s=None):
     """Integrate to every time in ``t_out`` (starting at ``t_out[0]``).
@@ -170,10 +101,10 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
     x = np.array(x0, dtype=float)
     box = [0.0]
     deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
+    P = np.array(P, dtype=float)  # its friction directions are set along the solve
     fun = make_fun(model, P, box, max_rhs_evals, deadline)
     events = _events(model, P)
-    nodes = friction_nodes(model, P)
-    gauge = breakaway_gauge(model, P, box) if nodes else None
+    modes = FrictionModes(model, P, fun, lambda Z: make_fun(model, Z, box), breakaway_gauge(model, P, box))
     out = np.full((t_out.size, model.nx), np.nan)
     irefs = np.zeros(t_out.size)
     ts = model.sample_time if P[lo.CMODE] == lo.SAMPLED else 0.0
@@ -201,7 +132,7 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
         want = t_out[k_out:stop]
         t_eval = want if (want.size and want[-1] == b) else np.append(want, b)
         try:
-            sol, x = _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, model.rigid, gauge)
+            sol, x = _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes)
         except _Budget as why:
             spent = (f"{fun.count - 1} right-hand-side evaluations" if str(why) == "evaluations"
                      else f"the time limit of {time_limit_s:g} s")
@@ -229,31 +160,18 @@ class _Joined:
         self.status, self.message, self.t_events = status, message, t_events
 
 
-def _leave_rest(x, t, nodes, gauge, rigid, only=None):
-    """Seed every resting node (or ``only``) that is beyond its band at (t, x): its speed
-    :data:`~.split_step.SEED` towards the side it breaks away to, so that the solve integrates
-    the sliding law from 0+ (as the fixed-step split step does)."""
-    for i in nodes if only is None else [only]:
-        if x[i] == 0.0 and (only is not None or gauge(t, x, i) > 0.0):
-            x[i] = SEED if gauge(t, x, i, side=True) > 0.0 else -SEED
-            if rigid:
-                x[3] = x[1]
-
-
-def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigid=False, gauge=None):
+def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
     """One controller sample: ``solve_ivp`` from a to b, restarted at every friction event
-    (:func:`_friction_events`): a reversing node's speed set to exactly 0, a node breaking away
-    seeded (:func:`_leave_rest`). Returns the joined result and the state at b."""
-    if not nodes:
+    (:class:`~.ivp_friction.FrictionModes`: a reversal, a breakaway) with the node at rest.
+    Returns the joined result and the state at b."""
+    if not modes.nodes:
         sol = solve_ivp(fun, (a, b), x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol, events=events)
         return sol, sol.y[:, -1].copy()
     ts, ys = [], []
     t0, x = a, np.array(x, dtype=float)
-    scale = 1e-9 * max(1.0, float(np.max(np.abs(x[nodes]))))
+    modes.start(x)
     for _ in range(MAX_FRICTION_RESTARTS):
-        if gauge is not None:
-            _leave_rest(x, t0, nodes, gauge, rigid)
-        ev_f = _friction_events(nodes, x, scale, gauge)
+        ev_f = modes.events(t0, x)
         evs = (events or []) + ev_f
         te = t_eval[t_eval >= t0]
         sol = solve_ivp(fun, (t0, b), x, method=solver, t_eval=te, rtol=rtol, atol=atol, events=evs)
@@ -272,14 +190,7 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, nodes, rigi
         ts.append(sol.t[keep])
         ys.append(sol.y[:, keep])
         x = np.array(sol.y_events[k][0], dtype=float)
-        hit = ev_f[k - n_stroke]
-        if hit.reversal:  # restart at rest: the friction decides between stick and slip
-            x[hit.node] = 0.0
-            if hit.node == 1 and rigid:
-                x[3] = 0.0  # a rigid model's output speed is the motor side's
-        elif hit.breakaway:  # leaves rest here, towards the side beyond its band
-            x[hit.node] = 0.0
-            _leave_rest(x, t_hit, nodes, gauge, rigid, only=hit.node)
+        modes.restart(ev_f[k - n_stroke], t_hit, x)  # at rest: the friction decides between stick and slip
         t0 = t_hit
         if t0 >= b:
             ts.append(np.array([b]))

@@ -132,7 +132,16 @@ SCHED, FF_DJ, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2, AW = range(98, 1
 #: constant-acceleration time, constant-speed time]
 REF_MOVE = 6
 # 106..113: toleranced parameters
-# 114..117: free
+# 114..117: friction at the full chain's intermediate nodes (:mod:`servo_toolkit.sim.node_friction`):
+# the index in P of their block (0: none), NF_STRIDE values per intermediate node j = 1..NMID
+# from NODE_FRIC + NF_STRIDE (j - 1): its Coulomb and breakaway levels (N*m; N for an output
+# travel), 1 / its Stribeck speed (s/rad; s/m; inf: the drop at once) and its viscous
+# coefficient, every one at the node's coordinate (referred to the output like q), and the
+# direction its sliding friction is held at (+-1; 0, the default: the sign of its speed; as
+# DIR_M for the motor side); the levels are 0 unless the friction holds (``STICK``); 115..117 free
+NODE_FRIC = 114
+NF_STRIDE = 5
+NF_TC, NF_TS, NF_INV_VS, NF_VISC, NF_DIR = range(5)
 NP_HEADER = 118
 #: length of the packed cam parameters
 NCAM = 14

@@ -74,6 +74,7 @@ from .chain_model import (chain_damping_facts, chain_model, chain_state_names, d
                           held_inertia_error,
                           resolve as resolve_chain)
 from ..drivetrain.stage_friction import lumped_friction
+from .node_friction import with_node_friction
 from .chain_split import load_split, loss_slots, refuse_rigid_lash
 from .command_slots import pack_feedforward, pack_shaper, with_back_calculation, with_schedule
 from .model_options import ModelOptions  # noqa: F401 - re-exported
@@ -251,10 +252,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
     table = np.vstack([j_row, dj_row, n_tab, dn_tab, k_row, dk_row, m_tab, n_tab]
                       + ([] if full is None else [full["k_rows"][2:], full["node_rows"]])).astype(float)
 
-    motor, load = lumped_friction(scene, q0, rigid, notes)
-    if full is not None and scene.stage_friction:
-        notes.append("the full chain's intermediate nodes carry no friction of their own: a stage's friction "
-                     "acts at the motor side or the load, by the two-mass split")
+    motor, load = lumped_friction(scene, q0, rigid, notes, own=() if full is None else full["nodes"][1:-1])
     P = np.zeros(lo.NP_HEADER)
     P[[lo.R, lo.KT, lo.KE, lo.BM, lo.TC]] = (motor.resistance, motor.torque_constant,
                                              motor.back_emf_constant, motor.viscous_friction,
@@ -284,6 +282,8 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
                      zeta=damping.get("two_mass_ratio"))
     if full is not None:
         P = with_full_chain(P, full, options)
+        P = with_node_friction(P, scene, q0, full["nodes"], options,
+                               "N" if drive.output_unit == "m" else "N*m", notes)
 
     P = with_cam(P, drive, rigid, notes)
     names = list(lo.STATE_NAMES)

@@ -22,6 +22,7 @@ from ..core.progress import progress_bar
 from ..errors import SimulationError
 from ..sim import layout as lo
 from ..sim.engine import run
+from ..sim.ivp_friction import friction_nodes
 from ..sim.reference import Reference
 
 
@@ -197,7 +198,8 @@ def accuracy_study(model, reference: Reference, duration: float, dts=None, progr
     rk4_self, porder = (_self_order(dts, qs[m], amp) for m in ("rk4", "paper"))
     switching, notes = {}, ()
     if model.P[lo.STICK] > 0.0:
-        switching = _smooth_window(ref, switching_instants(ref, model.P[lo.TS_L] > 0.0), dts, qs["rk4"], q_ref,
+        rates = [model.state_names[i] for i in friction_nodes(model, model.P) if i > 3]  # intermediate nodes
+        switching = _smooth_window(ref, switching_instants(ref, model.P[lo.TS_L] > 0.0, rates), dts, qs["rk4"], q_ref,
                                    amp, out_dt)
         floor = switched_floor(switching.get("errors_after", []))
         if floor > REFERENCE_FLOOR:  # the reference's own error after its switches bounds the whole run's
@@ -223,12 +225,15 @@ def switched_floor(errors_after) -> float:
     return REFERENCE_FLOOR
 
 
-def switching_instants(result, load_friction: bool = False) -> np.ndarray:
+def switching_instants(result, load_friction: bool = False, rates=()) -> np.ndarray:
     """Record times (s) just before a node carrying friction sticks, breaks away or reverses
-    in ``result``: its speed enters or leaves exactly 0, or changes sign, by the next record."""
+    in ``result``: its speed enters or leaves exactly 0, or changes sign, by the next record
+    (the motor's; the load's with ``load_friction``; the states named in ``rates``: the full
+    chain's intermediate nodes carrying friction)."""
     speeds = [np.asarray(result.motor_speed)]
     if load_friction:
         speeds.append(result.trace("output_rate_rad_s"))
+    speeds += [result.trace(name) for name in rates]
     hits = np.zeros(len(result.times) - 1, dtype=bool)
     for v in speeds:
         stuck = v == 0.0

@@ -1,0 +1,227 @@
+"""Friction that holds in the reference solver: the nodes carrying it and their modes between
+events.
+
+The motor side and the load are watched as they always were: a sliding node's speed reaching
+0 (restart at rest), a resting node's speed leaving a band of 1e-9 (then its reversal is
+watched), their friction's sign left to the speed. The full chain's intermediate nodes are
+solved in modes: between two events each is in one mode, sliding in a held direction (its
+friction's sign held there, its ``NF_DIR`` in the solver's copy of the parameters, so that
+the right-hand side is smooth
+across the speed's zero and the solver's Jacobian never sees the friction's jump), or stuck
+at rest (exactly zero speed and acceleration by the stick law). The events end a mode: a
+sliding node's speed reaching 0 against its direction (the reversal: the solve restarts with
+the node at rest, where the stick law decides between stick and breaking away), a stuck
+node's acceleration leaving 0 (the breakaway's instant: the solve restarts with the node at
+rest, sliding in the direction of the moment on it, read with its breakaway level at 0).
+Restarting at the breakaway matters for a stiff solver: a Jacobian taken while the node
+sticks carries the friction's jump as a huge stiffness and, reused past the breakaway,
+would hold the node near rest long after it breaks away (the band's watch let LSODA hold an
+intermediate node for over a millisecond; on the motor side and the load it keeps the
+reference of the existing checks, whose LSODA error near a breakaway is about 1e-11 rad).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import layout as lo
+from .kernel import rhs
+from .split_step import SEED
+
+
+def friction_nodes(model, P) -> list:
+    """Indices in x of the speeds of the nodes carrying friction that holds: the motor side,
+    the load, the full chain's intermediate nodes with friction of their own."""
+    if P[lo.STICK] <= 0.0:
+        return []
+    nodes = []
+    if P[lo.TS_M] > 0.0 or (model.rigid and P[lo.TS_L] > 0.0):
+        nodes.append(1)
+    if not model.rigid and P[lo.TS_L] > 0.0:
+        nodes.append(3)
+    f, first = int(P[lo.NODE_FRIC]), int(P[lo.OFF_NODE])
+    if f > 0:
+        nodes += [first + 2 * j + 1 for j in range(int(P[lo.NMID])) if P[f + lo.NF_STRIDE * j + lo.NF_TS] > 0.0]
+    return nodes
+
+
+def _slots(model, P, i):
+    """The direction slots and the breakaway slots in P of the node whose speed is x[i]."""
+    if i == 1:
+        return ([lo.DIR_M, lo.DIR_L], [lo.TS_M, lo.TS_L]) if model.rigid else ([lo.DIR_M], [lo.TS_M])
+    if i == 3:
+        return [lo.DIR_L], [lo.TS_L]
+    b = int(P[lo.NODE_FRIC]) + lo.NF_STRIDE * ((i - int(P[lo.OFF_NODE]) - 1) // 2)
+    return [b + lo.NF_DIR], [b + lo.NF_TS]
+
+
+def breakaway_gauge(model, P, iref_box):
+    """``g(t, y, i, side=False)``: the breakaway distance of node i (x's index of its speed)
+    held at rest at (t, y), over its inertia, from the right-hand side with ``HOLD_GAUGE`` set
+    (:func:`~.friction_kernel.gear_at_rest`: > 0 beyond its band, the band the right-hand
+    side holds the node in; with ``side``, > 0 where it would break away forward)."""
+    Z = {False: P.copy(), True: P.copy()}
+    Z[False][lo.HOLD_GAUGE], Z[True][lo.HOLD_GAUGE] = 1.0, 2.0
+    aux = np.empty(lo.NAUX)
+    d = np.empty(model.nx)
+
+    def gauge(t, y, i, side=False):
+        x = np.array(y, dtype=float)
+        x[i] = 0.0
+        if model.rigid:
+            x[3] = 0.0
+        rhs(t, x, Z[side], model.T, iref_box[0], d, aux)
+        return float(d[i])
+
+    return gauge
+
+
+class FrictionModes:
+    """The modes of the nodes carrying friction along one reference solve (module doc).
+
+    Parameters
+    ----------
+    model : Model
+    P : numpy.ndarray
+        The solver's own copy of the parameters, read by ``fun``: its direction slots are
+        set here.
+    fun : callable
+        ``f(t, x)`` on ``P`` (:func:`servo_toolkit.sim.ivp.make_fun`).
+    make : callable
+        ``make(P)``: such a function on other parameters (the moment read with a node's
+        breakaway level at 0).
+    gauge : callable, optional
+        :func:`breakaway_gauge`: the motor side's and the load's breakaway distance at rest
+        (the band a lossy gear holds in), whose zero ends their rest.
+    """
+
+    def __init__(self, model, P, fun, make, gauge=None):
+        self.model, self.P, self.fun, self.make, self.gauge = model, P, fun, make, gauge
+        self.nodes = friction_nodes(model, P)
+        self.slots = {i: _slots(model, P, i) for i in self.nodes}
+        self.dirs = dict.fromkeys(self.nodes, 0.0)
+        self.rest = {}  # a stuck node's position (and a rigid model's output) where it stuck
+
+    def _hold(self, i):
+        for s in self.slots[i][0]:
+            self.P[s] = self.dirs[i]
+
+    def start(self, x) -> None:
+        """A controller sample's solve begins at x: the band of the motor side's and the load's
+        breakaway watch (1e-9 of the largest speed, at least 1e-9)."""
+        self.scale = 1e-9 * max(1.0, float(np.max(np.abs(x[self.nodes]))))
+
+    def _leave_rest(self, t, x, only=None) -> None:
+        """Seed the motor side or the load at rest (or ``only``) that is beyond its band at
+        (t, x): its speed :data:`~.split_step.SEED` towards the side it breaks away to, so
+        that the solve integrates the sliding law from 0+ (as the fixed-step split step does)."""
+        for i in [n for n in self.nodes if n <= 3] if only is None else [only]:
+            if x[i] == 0.0 and (only is not None or self.gauge(t, x, i) > 0.0):
+                x[i] = SEED if self.gauge(t, x, i, side=True) > 0.0 else -SEED
+                if self.model.rigid:
+                    x[3] = x[1]
+
+    def _breakaway(self, i):
+        """A resting motor side's or load's breakaway distance crossing 0 (:func:`breakaway_gauge`)."""
+        def br(t, y, i=i):
+            return self.gauge(t, y, i)
+        br.direction = 1.0
+        br.reversal = False
+        br.breakaway = True
+        br.terminal = True
+        br.node = i
+        return br
+
+    def _watch(self, i, x):
+        """The motor side's and the load's event (their speed reaching 0 from its side, or,
+        at rest, leaving a band of ``scale`` as a safeguard beside their breakaway's event),
+        their friction's sign left to the speed."""
+        if x[i] != 0.0:
+            def ev(t, y, i=i):
+                return y[i]
+            ev.direction = -1.0 if x[i] > 0 else 1.0
+            ev.reversal = True
+        else:
+            def ev(t, y, i=i):
+                return abs(y[i]) - self.scale
+            ev.direction = 1.0
+            ev.reversal = False
+        ev.breakaway = False
+        ev.terminal = True
+        ev.node = i
+        return ev
+
+    def events(self, t0, x) -> list:
+        """Each node's mode at (t0, x), its direction set in P, and the terminal events that
+        end the modes (each with ``node``). The motor side and the load (x[1], x[3]) keep
+        their own watch (:meth:`_watch`); the modes are the intermediate nodes'."""
+        for i in self.nodes:  # sliding nodes first: the moments on the resting ones depend on them
+            if i <= 3:
+                continue
+            if x[i] != 0.0:
+                self.dirs[i] = 1.0 if x[i] > 0.0 else -1.0
+            self._hold(i)
+        d0 = None
+        for i in self.nodes:
+            if i <= 3:
+                continue
+            if x[i] == 0.0 and self.dirs[i] == 0.0:
+                d0 = self.fun(t0, x) if d0 is None else d0
+                self.dirs[i] = float(np.sign(d0[i]))  # 0: stuck
+                self._hold(i)
+                if self.dirs[i] == 0.0:
+                    self.rest[i] = (x[i - 1], x[2])
+        if self.gauge is not None:
+            self._leave_rest(t0, x)
+        events = []
+        for i in self.nodes:
+            if i <= 3:
+                if x[i] == 0.0 and self.gauge is not None:
+                    events.append(self._breakaway(i))
+                events.append(self._watch(i, x))
+                continue
+            if self.dirs[i] != 0.0:
+                def ev(t, y, i=i):
+                    return y[i]
+                ev.direction = -self.dirs[i]
+            else:
+                def ev(t, y, i=i):  # read at rest (an interpolant may not hold the speed at 0)
+                    y = np.array(y, dtype=float)
+                    y[i] = 0.0
+                    return abs(self.fun(t, y)[i]) - 1e-300
+                ev.direction = 1.0
+            ev.breakaway = False
+            ev.terminal = True
+            ev.node = i
+            events.append(ev)
+        return events
+
+    def restart(self, ev, t, x) -> None:
+        """The state after the event ``ev`` at t (x changed in place): the node at rest; after
+        a reversal its mode is decided at the restart, after a breakaway it slides in the
+        direction of the moment on it."""
+        i = ev.node
+        if i <= 3 and ev.breakaway:  # leaves rest here, towards the side beyond its band
+            x[i] = 0.0
+            self._leave_rest(t, x, only=i)
+            return
+        if i <= 3 and not ev.reversal:  # the motor side or the load left its band: watch its reversal
+            return
+        x[i] = 0.0
+        rigid = i == 1 and self.model.rigid
+        if rigid:
+            x[3] = 0.0  # a rigid model's output speed is the motor side's
+        if i <= 3 or self.dirs[i] != 0.0:  # a reversal
+            self.dirs[i] = 0.0
+            return
+        # a breakaway: the node has not moved since it stuck (the event's state is the solver's
+        # interpolant, which a step across the breakaway bends)
+        x[i - 1] = self.rest[i][0]
+        if rigid:
+            x[2] = self.rest[i][1]
+        Z = self.P.copy()
+        Z[self.slots[i][1]] = 0.0
+        self.dirs[i] = float(np.sign(self.make(Z)(t, x)[i])) or 1.0
+
+
+__all__ = ["FrictionModes", "breakaway_gauge", "friction_nodes"]

@@ -1,0 +1,179 @@
+"""RK4 steps split at the switches of the full chain's intermediate nodes' friction.
+
+An intermediate node carrying a stage's friction (``NODE_FRIC``, :mod:`.node_friction`)
+switches where it reverses its speed and where, stuck, the moment on it reaches its breakaway
+level, as the motor side and the load do (:mod:`.split_step`, whose RK4 trial steps this
+module calls). The fixed-step loop (:func:`.integrators._rk4`) hands a step to
+:func:`node_switched_step` when :func:`node_switch_ahead` sees a node carrying friction leave
+its direction within the step (at its end, at one of RK4's stages, or along the first
+stage's slope) or leave rest; it finds the switch's instant tau within the step and
+integrates RK4 to it and from it:
+
+- a reversal: tau is the zero of the node's speed along the motion continued past it (its
+  sliding friction held at its direction before the zero: the node's ``NF_DIR`` in a scratch
+  copy of the parameters), by the Illinois method on RK4 trial steps from the step's start;
+  the node restarts at rest exactly at tau, where its stick law decides;
+- a breakaway: tau is where the moment on the node held at rest (its breakaway level out of
+  reach) reaches its breakaway level, the moment read with the level at 0.
+
+A node leaving rest at tau does so with the speed :data:`~.split_step.SEED` in the moment's
+direction, its friction held at that direction for the rest of the step, so the rest of the
+step integrates its sliding law from 0+ (the breakaway's instant is the first past the level,
+so the moment there drives the node the way it leaves). The bracket is closed
+to :data:`~.split_step.TAU_TOL` of the step, so the smooth stretches between switches keep
+RK4's fourth order. One switch per step: a second node switching in the same step, or the
+motor side or the load (whose split, :func:`.split_step.switched_step`, comes first), is
+integrated across by that step's RK4. Compiled once, called at switches only, with the
+right-hand side :func:`.kernel.rhs_phys_serial` (no inlined copy).
+"""
+
+from __future__ import annotations
+
+from .kernel import jit, rhs_phys_serial
+from .layout import NF_DIR, NF_STRIDE, NF_TS, NMID, NODE_FRIC, OFF_NODE
+from .split_step import HELD, MAX_ITER, SEED, TAU_TOL, _trial, rk4_step
+from .vmath import inline
+
+
+@inline
+def node_switch_ahead(x, k1, k2, k3, k4, sixth, P):
+    """Whether an intermediate node carrying friction may switch within the step whose
+    stages' slopes are k1..k4 (x[7:] still at the step's start): its speed leaves its
+    direction at the step's end, at a stage or along the first stage's slope, or leaves
+    rest."""
+    o = int(P[NODE_FRIC])
+    first = int(P[OFF_NODE])
+    h = 6.0 * sixth
+    for j in range(int(P[NMID])):
+        if P[o + NF_STRIDE * j + NF_TS] <= 0.0:
+            continue
+        i = first + 2 * j + 1
+        v0 = x[i]
+        v1 = v0 + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        if v0 == 0.0:
+            if v1 != 0.0:
+                return True
+        elif (v1 * v0 <= 0.0 or (v0 + h * k1[i]) * v0 < 0.0 or (v0 + 0.5 * h * k2[i]) * v0 < 0.0
+              or (v0 + h * k3[i]) * v0 < 0.0):
+            return True
+    return False
+
+
+@jit
+def _node_g(tau, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i, breakaway, cap):
+    """The switch function at tau: the node's speed after a trial step of length tau with W
+    (a reversal), or |its held moment| - cap after a trial step with the node held (W = H; a
+    breakaway: the moment as an acceleration, read with Z)."""
+    r = _trial(t, tau, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, x0, xs, k1, k2, k3, k4)
+    if not breakaway:
+        return x[i]
+    rhs_phys_serial(t + tau, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
+    return abs(k1[i]) - cap
+
+
+@jit
+def _node_illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i,
+                   breakaway, cap):
+    """The zero of :func:`_node_g` on [a, b] (ga gb < 0) by the Illinois method: the first
+    instant past it (a breakaway: the moment beyond the level, so the node leaves rest in its
+    direction; a reversal: just past the speed's zero)."""
+    side = 0
+    for _ in range(MAX_ITER):
+        if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
+            break
+        c = b - gb * (b - a) / (gb - ga)
+        if not (a < c < b):
+            c = 0.5 * (a + b)
+        gc = _node_g(c, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i, breakaway, cap)
+        if gc == 0.0:
+            return c
+        if (gc > 0.0) == (gb > 0.0):
+            b, gb = c, gc
+            if side == 1:
+                ga *= 0.5
+            side = 1
+        else:
+            a, ga = c, gc
+            if side == -1:
+                gb *= 0.5
+            side = -1
+    return b  # a breakaway: the first instant beyond the level; a reversal: just past the zero
+
+
+@jit  # called at an intermediate node's switch only
+def node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs, k1, k2, k3, k4, x0, PW):
+    """The step from t of an intermediate node that may switch within it
+    (:func:`node_switch_ahead`), split at the switch located within the step (module doc).
+    Returns the step's new ``(p, pd, q, qd, cur, xi)``; x[7:] is advanced in place. ``x0``
+    (the size of x) and ``PW`` (at least 2 rows the size of P) are scratch: the step
+    allocates nothing (as :func:`.split_step.switched_step`)."""
+    for j in range(x.size):
+        x0[j] = x[j]
+    o = int(P[NODE_FRIC])
+    first = int(P[OFF_NODE])
+    sixth = dt / 6.0
+    # the first node carrying friction that switches (the slopes k1..k4 of the plain step)
+    i, slot = -1, -1
+    for j in range(int(P[NMID])):
+        b = o + NF_STRIDE * j
+        if P[b + NF_TS] <= 0.0:
+            continue
+        m = first + 2 * j + 1
+        v0 = x0[m]
+        v1 = v0 + sixth * (k1[m] + 2.0 * k2[m] + 2.0 * k3[m] + k4[m])
+        if (v0 == 0.0 and v1 != 0.0) or (v0 != 0.0 and (v1 * v0 <= 0.0 or (v0 + dt * k1[m]) * v0 < 0.0
+                                                        or (v0 + 0.5 * dt * k2[m]) * v0 < 0.0
+                                                        or (v0 + dt * k3[m]) * v0 < 0.0)):
+            i, slot = m, b
+            break
+    v0 = x0[i]
+    breakaway = v0 == 0.0
+    # a reversal: the node's friction held at its direction (W); a breakaway: the node held (W),
+    # the moment on the node read with its level at 0 (Z)
+    W, Z = PW[0], PW[1]
+    for j in range(P.size):
+        W[j] = Z[j] = P[j]
+    tau, cap, a1 = 0.0, 0.0, 0.0
+    if not breakaway:
+        W[slot + NF_DIR] = 1.0 if v0 > 0.0 else -1.0
+        r = _trial(t, dt, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, x0, xs, k1, k2, k3, k4)
+        if x[i] * v0 >= 0.0:  # the continued motion does not reverse within the step: it is the step
+            return r
+        tau = _node_illinois(0.0, dt, v0, x[i], t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs,
+                             k1, k2, k3, k4, i, False, 0.0)
+    else:
+        W[slot + NF_TS] = HELD
+        Z[slot + NF_TS] = 0.0
+        r = _trial(t, dt, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, x0, xs, k1, k2, k3, k4)
+        rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, Z, T, iref, x, k1)
+        a1 = k1[i]
+        rhs_phys_serial(t + dt, r[0], r[1], r[2], r[3], r[4], r[5], s, P, T, iref, x, k1)
+        broken = k1[i]
+        if broken == 0.0:  # held at the step's end: at rest all through it
+            return r
+        cap = abs(a1 - broken)  # the breakaway level as an acceleration
+        g0 = _node_g(0.0, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i, True, cap)
+        if g0 < 0.0:
+            tau = _node_illinois(0.0, dt, g0, abs(a1) - cap, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0,
+                                 xs, k1, k2, k3, k4, i, True, cap)
+    # RK4 to tau (the continued motion, or held at rest), the node at rest there, RK4 on
+    r = _trial(t, tau, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, x0, xs, k1, k2, k3, k4)
+    p, pd, q, qd, cur, xi = r
+    x[i] = 0.0
+    if breakaway:
+        slide = a1
+    else:  # at rest at the reversal: stuck, or breaking away the other way at once
+        rhs_phys_serial(t + tau, p, pd, q, qd, cur, xi, s, P, T, iref, x, k1)
+        slide = k1[i]
+    if slide == 0.0:  # stuck
+        return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, P, T, iref, True, x, xs, k1, k2, k3, k4)
+    # breaking away: the node leaves rest sliding (SEED in the moment's direction, its friction held
+    # at that direction for the rest of the step), so every stage sees the sliding law from 0+
+    for j in range(P.size):
+        W[j] = P[j]
+    W[slot + NF_DIR] = 1.0 if slide > 0.0 else -1.0
+    x[i] = SEED if slide > 0.0 else -SEED
+    return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, W, T, iref, True, x, xs, k1, k2, k3, k4)
+
+
+__all__ = ["node_switch_ahead", "node_switched_step"]
