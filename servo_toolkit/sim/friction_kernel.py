@@ -90,7 +90,7 @@ def gear_at_rest(torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge):
     return net
 
 
-
+@inline
 def node_moment(P, j, v, applied):
     """The net moment on the full chain's intermediate node j (1..NMID) moving at v, from the
     ``applied`` moment (every other moment on it: the segments on either side, the velocity
