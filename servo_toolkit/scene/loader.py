@@ -142,7 +142,9 @@ def _stage_outputs_travel(raw_stages) -> list:
     """Per stage: True when its output is a travel (what :data:`STAGE_IO` says it delivers)."""
     have, out = "rotary", []
     for table in raw_stages:
-        give = STAGE_IO.get(table.get("kind") if isinstance(table, dict) else None, (None, None))[1]
+        kind = table.get("kind") if isinstance(table, dict) else None
+        # a kind that is not a string is reported by the stage's own check, not here
+        give = STAGE_IO.get(kind, (None, None))[1] if isinstance(kind, str) else None
         have = give or have
         out.append(have == "travel")
     return out
