@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from .kernel import jit, rhs_phys_serial
 from .layout import NF_DIR, NF_STRIDE, NF_TS, NMID, NODE_FRIC, OFF_NODE
-from .split_step import HELD, MAX_ITER, SEED, TAU_TOL, _trial, rk4_step
+from .split_step import HELD, MAX_ITER, SEED, TAU_TOL, _trial, illinois_next, rk4_step
 from .vmath import inline
 
 
@@ -87,16 +87,7 @@ def _node_illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, 
         gc = _node_g(c, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i, breakaway, cap)
         if gc == 0.0:
             return c
-        if (gc > 0.0) == (gb > 0.0):
-            b, gb = c, gc
-            if side == 1:
-                ga *= 0.5
-            side = 1
-        else:
-            a, ga = c, gc
-            if side == -1:
-                gb *= 0.5
-            side = -1
+        a, b, ga, gb, side = illinois_next(a, b, ga, gb, c, gc, side)
     return b  # a breakaway: the first instant beyond the level; a reversal: just past the zero
 
 

@@ -167,6 +167,17 @@ def _held_moment(t, h, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs,
     return d[1] if node == 0 else d[3]
 
 
+@inline
+def illinois_next(a, b, ga, gb, c, gc, side):
+    """The Illinois method's bracket after a trial c with value gc: c replaces the end whose
+    value has gc's sign, and the other end's value is halved when the same end is replaced
+    twice running (``side``: the end replaced last, 1 for b, -1 for a, 0 before any).
+    Returns ``(a, b, ga, gb, side)``."""
+    if (gc > 0.0) == (gb > 0.0):
+        return a, c, (0.5 * ga if side == 1 else ga), gc, 1
+    return c, b, gc, (0.5 * gb if side == -1 else gb), -1
+
+
 @jit
 def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
               node, breakaway):
@@ -187,16 +198,7 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
             gc = r[1] if node == 0 else r[3]
         if gc == 0.0:
             return c
-        if (gc > 0.0) == (gb > 0.0):
-            b, gb = c, gc
-            if side == 1:
-                ga *= 0.5
-            side = 1
-        else:
-            a, ga = c, gc
-            if side == -1:
-                gb *= 0.5
-            side = -1
+        a, b, ga, gb, side = illinois_next(a, b, ga, gb, c, gc, side)
     return a if breakaway else b  # a breakaway: still held at a; a reversal: just past the zero
 
 
