@@ -296,6 +296,9 @@ def run(args) -> int:
         raise SceneError("samples", f"must be at least 1 (got {args.samples})")
     if args.junit:
         check_writable(args.junit, args.scenes)
+    if getattr(args, "design", None):  # the one design file every scene is checked with: read before any work
+        from ..loop.tuning import read_design_text
+        read_design_text(args.design)
     scheduler = scheduler_of(args)
     scenes = []
     for path in args.scenes:  # every file is read before any design runs

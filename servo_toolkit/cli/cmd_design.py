@@ -79,12 +79,12 @@ def run(args) -> int:
         from ..loop.design import robust_spec
         spec = robust_spec(scene, args.robust)
         check_robustness_budget(scene, spec, spec is not None, None, args.force)
-    if not getattr(args, "linear_only", False):
-        prepare_kernels(scene)  # the large-signal rows simulate
     try:
-        result = design_from_args(scene, args)
+        result = design_from_args(scene, args)  # reads and checks a --design file first
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)
         raise (exc if exc.source or exc.key.startswith("--") else exc.with_source(str(args.scene))) from None
+    if not getattr(args, "linear_only", False):
+        prepare_kernels(scene)  # the large-signal rows simulate: after every input is read
     result, ls = gate_result(scene, args, result)
     data = result.to_dict()
     if ls is not None:

@@ -62,9 +62,9 @@ def run(args) -> int:
     with study_executor(scheduler, args.workers) as (executor, _):
         timed = args.nonlinear or (args.nonlinear is None and (scene.tolerances.max_tracking_error is not None
                                                                  or scene.tolerances.max_peak_current is not None))
+        result = design_from_args(scene, args, executor=executor)  # reads and checks a --design file first
         if timed:
             prepare_kernels(scene)
-        result = design_from_args(scene, args, executor=executor)
         if args.nonlinear is False and (scene.tolerances.max_tracking_error is not None
                                         or scene.tolerances.max_peak_current is not None):
             print("servo-toolkit: note: --linear-only: the tracking-error and peak-current requirements are not "

@@ -213,6 +213,20 @@ def save_design(result, path, inputs=()) -> Path:
 MAX_DESIGN_BYTES = 1024 * 1024
 
 
+def read_design_text(path) -> str:
+    """The text of the design file ``path`` (a regular UTF-8 file of at most
+    :data:`MAX_DESIGN_BYTES`; a FIFO or device is refused without blocking): a command checks
+    it before any long work.
+
+    Raises
+    ------
+    SceneError
+        ``--design``: not a readable design file.
+    """
+    from ..core.inputs import read_input_text
+    return read_input_text(path, "--design", MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
+
+
 def load_design(scene, path, require=None):
     """The design saved in ``path``, evaluated on ``scene`` (margins, requirements, stroke).
 
@@ -223,8 +237,7 @@ def load_design(scene, path, require=None):
         key, see :func:`.design_file.design_fields`).
     """
     key = "--design"
-    from ..core.inputs import read_input_text
-    text = read_input_text(path, key, MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
+    text = read_design_text(path)
     try:
         data = json.loads(text)
     except (json.JSONDecodeError, ValueError) as exc:
