@@ -13,7 +13,7 @@ from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_f
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_END,
                                      S_PEAK, run_variants)
-from servo_toolkit.sim.batch_lanes import W, run_lanes
+from servo_toolkit.sim.batch_lanes import W, block_kind, run_lanes
 from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.sim.variants import VariantBuilder
@@ -87,6 +87,20 @@ def test_lanes_equal_the_per_variant_loop_with_variants_failing_mid_block(ema):
     # a block-mate of a stopped variant is the same as when it runs without it
     alone = _both(P[W + 4:W + 5], T, tix[W + 4:W + 5], X0[W + 4:W + 5], sub)[1]
     np.testing.assert_array_equal(alone[1][0], lanes[1][W + 4])
+
+
+def test_a_block_with_a_variant_outside_the_two_mass_lanes_takes_the_general_ones(ema):
+    """The two-mass lanes leave out the branches a sampled two-mass loop with an inductance
+    never takes: a block holding one variant without an inductance (algebraic current) takes
+    the general lanes, its neighbour block the two-mass ones, and both equal the per-variant
+    loop (the two-mass lanes would give the variant the inductance's current law)."""
+    scene, controller = ema
+    P, T, tix, X0, sub = _rows(scene, controller, 2 * W)
+    P[1, lo.L] = 0.0
+    assert not block_kind(P, 0, W)[2] and block_kind(P, W, W)[2]
+    one, lanes = _both(P, T, tix, X0, sub, steps=400)
+    assert not np.allclose(one[0][1], one[0][0], rtol=1e-3)  # the variant does differ
+    _assert_equal(one, lanes)
 
 
 def test_lanes_with_own_tables_and_references(ema):
@@ -171,13 +185,13 @@ def test_a_block_of_controllers_of_different_structures_runs_variant_by_variant(
     from servo_toolkit.sim.batch_lanes import block_kind
     P = np.zeros((3, lo.NP_HEADER))  # every header slot (the kernels read them unchecked)
     P[:, lo.CMODE] = 1.0
-    assert block_kind(P, 0, 3) == (True, True)
+    assert block_kind(P, 0, 3) == (True, True, False)  # no inductance: not the two-mass lanes
     P[1, lo.NC] = 2.0
     assert block_kind(P, 0, 3)[0] is False
     P[1, lo.NC] = 0.0
     P[2, lo.OFF_C] = 40.0
     assert block_kind(P, 0, 3)[0] is False
-    assert block_kind(P, 0, 2) == (True, True)
+    assert block_kind(P, 0, 2) == (True, True, False)
 
 
 @pytest.mark.parametrize("compliance", [True, False])
@@ -196,7 +210,7 @@ def test_lanes_with_friction_that_holds_equal_the_per_variant_loop(ema, complian
     P[:, lo.TS_M] = np.linspace(0.03, 0.3, len(P))  # above the motor's Coulomb level, 0.02 N*m
     P[::2, lo.TC_L], P[::2, lo.TS_L], P[::2, lo.INV_VS_L] = 5.0, 8.0, 1.0 / 0.05
     P[3, lo.STICK] = 0.0  # the smooth model beside friction that holds, in one block
-    assert block_kind(np.ascontiguousarray(P), 0, W) == (True, True)
+    assert block_kind(np.ascontiguousarray(P), 0, W) == (True, True, compliance)  # two-mass lanes: the compliant chain
     one, lanes = _both(P, T, tix, X0, sub)
     assert np.all(one[1][:, F_STATUS] == lo.OK)
     _assert_equal(one, lanes)

@@ -11,7 +11,7 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 
 from .layout import (ETA_HALF, ETA_MEAN, INV_H, INV_JD0, INV_TAU_S, JL, JW, KSCALE, NMID,  # noqa: E402
                      NODE_ROWS, OFF_NODE, OFF_SEG, ROW_JW0, ROW_NODE, SEG_BETA, SEG_LOSS, SEG_PLAY,
-                     SEG_STRIDE, T_K, T_KS, TAB_H, WS)
+                     SEG_STRIDE, T_K, T_KS, TAB_H)
 from .friction_kernel import node_moment  # noqa: E402
 from .tables import interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
@@ -41,10 +41,12 @@ def contact(tau_c, tau_d):
 
 
 @inline
-def loss_coefficient(P, nts, jd, pd, n, rest):
+def loss_coefficient(P, nts, jd, n, rest, sw):
     """The drivetrain's loss coefficient c at this state: 1 - eta driving, 1 - 1/eta_b
     back-driven (negative), blended by the smooth signs of the transmitted torque and of the
-    speed (c T p' >= 0: the loss never supplies power); 0 for a lossless chain.
+    speed (c T p' >= 0: the loss never supplies power); 0 for a lossless chain. ``sw`` is the
+    speed's smooth sign tanh(|N| p' / w_s) (:func:`speed_sign`: the Coulomb friction's
+    tanh(omega_m / w_s) times the sign of N, one evaluation for both).
 
     The sign of the transmitted torque T is that of the lossless torque passed on past the
     members before the losses (rotor, pinion: inertia J_w = JW n^2 at the output),
@@ -56,12 +58,19 @@ def loss_coefficient(P, nts, jd, pd, n, rest):
         return 0.0
     jw = P[JW] * n * n
     t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
-    sg = tanh(t_free * P[INV_TAU_S]) * tanh(abs(n) * pd * P[WS])
+    sg = tanh(t_free * P[INV_TAU_S]) * sw
     return (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
 
 
 @inline
-def lossy(P, nts, jd, djd, pd, n, dn, rest):
+def speed_sign(n, tw):
+    """The output speed's smooth sign tanh(|N| p' / w_s) from the motor speed's
+    ``tw`` = tanh(N p' / w_s) (tanh is odd: the same value)."""
+    return tw if n >= 0.0 else -tw
+
+
+@inline
+def lossy(P, nts, jd, djd, n, dn, rest, sw):
     """The drivetrain's loss (LossyGear-like) folded into the motor side's equation
     ``jd p'' = nts - djd p'^2 / 2 + rest``: returns its ``(nts, jd, djd)`` with the loss.
 
@@ -72,7 +81,7 @@ def lossy(P, nts, jd, djd, pd, n, dn, rest):
     """
     if P[ETA_MEAN] <= 0.0:
         return nts, jd, djd
-    c = loss_coefficient(P, nts, jd, pd, n, rest)
+    c = loss_coefficient(P, nts, jd, n, rest, sw)
     return nts - c * nts, jd - c * P[JW] * n * n, djd - c * 2.0 * P[JW] * n * dn
 
 
@@ -122,7 +131,7 @@ def inertia_beyond_motor(P, T, kc, tc, hc, ih):
 
 
 @inline
-def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx):
+def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx, sw):
     """The full chain (``P[NMID]`` intermediate nodes, :mod:`servo_toolkit.sim.chain_model`):
     writes the intermediate nodes' derivatives into dx and returns ``(p'', q'')``.
 
@@ -155,7 +164,7 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
     k0 *= ks
     dk0 *= ks
     f0, z0 = segment_force(k0, p - x[o], pd - x[o + 1], P[g + SEG_PLAY], P[g + SEG_BETA])
-    c = loss_coefficient(P, nts, jd, pd, n, -f0 - 0.5 * dk0 * z0 * z0)
+    c = loss_coefficient(P, nts, jd, n, -f0 - 0.5 * dk0 * z0 * z0, sw)
     w0 = 1.0 - c * P[g + SEG_LOSS]
     pot = -0.5 * w0 * dk0 * z0 * z0  # -sum_s w_s k_s' z_s^2 / 2 on the motor side
     kin = 0.0  # sum_{j>0} J_j' y_j'^2 / 2 on the motor side
@@ -189,5 +198,5 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
     return pdd, qdd
 
 
-__all__ = ["B_EPS", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy",
+__all__ = ["B_EPS", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy", "speed_sign",
            "node_inertia", "segment_force"]

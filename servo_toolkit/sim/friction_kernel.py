@@ -19,7 +19,8 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS, NF_VISC, NODE_FRIC, STICK  # noqa: E402
+from .layout import (HOLD_BACK, HOLD_FWD, HOLD_GAUGE, INV_JL, NF_DIR, NF_INV_VS, NF_STRIDE, NF_TC, NF_TS,  # noqa: E402
+                     NF_VISC, NODE_FRIC, STICK, TS_L, TS_M)
 from .vmath import TANH_ONE, exp_neg, inline  # noqa: E402
 
 
@@ -112,4 +113,34 @@ def node_moment(P, j, v, applied):
     return applied
 
 
-__all__ = ["gear_at_rest", "node_moment", "slip_friction", "stuck_or_breaking"]
+
+
+@inline
+def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
+    """The motor side and the load of the full chain at rest: each sticks while the moment
+    on it (its acceleration without friction times its inertia) stays within its breakaway
+    level, else breaks away against it (the chain's loss, spread over its segments, is left
+    out at rest here: :func:`~.friction_kernel.gear_at_rest` of a lossless gear)."""
+    if pd == 0.0:
+        pdd = gear_at_rest(pdd * jd, 0.0, n * P[TS_M], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) / jd
+    if qd == 0.0 and P[TS_L] > 0.0:
+        qdd = gear_at_rest(qdd / P[INV_JL], 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) * P[INV_JL]
+    return pdd, qdd
+
+
+@inline
+def stick_moments(m_p, m_q, pd, qd, n, nts, spring, P):
+    """The two-mass chain's motor side and load at rest, on their moments (accelerations
+    times inertias; no division: the lanes evaluate it in every variant). The motor side
+    (motor torque at the gear's output ``nts``, the compliance's moment on it ``spring``)
+    is held while the torques on the gear stay within its band
+    (:func:`~.friction_kernel.gear_at_rest`), the load while the moment on it stays within
+    its breakaway level; else each breaks away against its level."""
+    if pd == 0.0:
+        m_p = gear_at_rest(nts, spring, n * P[TS_M], 0.0, P[HOLD_FWD], P[HOLD_BACK], P[HOLD_GAUGE])
+    if qd == 0.0 and P[TS_L] > 0.0:
+        m_q = gear_at_rest(m_q, 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE])
+    return m_p, m_q
+
+
+__all__ = ["gear_at_rest", "node_moment", "slip_friction", "stick_moments", "stick_nodes", "stuck_or_breaking"]

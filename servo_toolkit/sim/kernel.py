@@ -43,8 +43,8 @@ _install_cache()  # noqa: E402 - before any kernel below is decorated
 from ..components.cam.kernels import shaft_acceleration  # noqa: E402
 from .vmath import FASTMATH, inline, tanh  # noqa: E402 - the flags, and the friction's branch-free tanh
 from .tables import cell, hermite, interp  # noqa: E402,F401 - hermite: the tables' interpolation for callers
-from .compliance_kernel import B_EPS, chain_accelerations, contact, lossy  # noqa: E402,F401
-from .friction_kernel import gear_at_rest, slip_friction  # noqa: E402
+from .compliance_kernel import B_EPS, chain_accelerations, contact, lossy, speed_sign  # noqa: E402,F401
+from .friction_kernel import gear_at_rest, slip_friction, stick_moments, stick_nodes  # noqa: E402
 
 from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX_I, AUX_IREF,
                      AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
@@ -60,6 +60,11 @@ from .feedforward_kernel import feedforward  # noqa: E402
 from .table_kernel import table_rates  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+
+#: what a caller of :func:`rhs_phys` is (its ``lanes`` argument, a compile-time constant): the
+#: serial right-hand side, the vectorized lanes, and lanes whose every variant is a sampled
+#: two-mass loop with an inductance and the elasto-backlash law
+SERIAL, LANES, LANES_TWO_MASS = 0, 1, 2
 
 
 @inline
@@ -277,14 +282,19 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     (nothing else is written). Scalars in and out let the
     fixed-step loop keep the physical state in registers.
 
-    ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
-    across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
+    ``lanes`` (a compile-time constant at each call) is :data:`LANES` in the batched kernel's
+    loop across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
     controller and no cam: their code is left out there, so that loop is branch- and
-    call-free and vectorizes. Every other caller passes False. ``holds`` (also a
+    call-free and vectorizes. :data:`LANES_TWO_MASS` also leaves out what a block of sampled
+    two-mass loops with an inductance and the elasto-backlash law never takes (the open-loop
+    and L = 0 electrics, the rigid chain, the play operator): a vectorized loop evaluates
+    every branch and selects, so a branch left out is time saved. Every other caller passes
+    :data:`SERIAL`. ``holds`` (also a
     compile-time constant) compiles in friction that holds (``STICK``): every caller but the
     lanes of a block without it passes True. In the lanes its stick and breakaway law are
     selects, and the caller splits a lane's step at a speed reversal as the single run does.
     """
+    uniform = lanes == LANES_TWO_MASS
     kc, tc = cell(P, p)
     hc = P[TAB_H]
     ih = P[INV_H]
@@ -293,7 +303,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     wm = n * pd
     mode = int(P[CMODE])
     # --- controller and electrics
-    if mode == OPEN_LOOP:
+    if not uniform and mode == OPEN_LOOP:
         iref = 0.0
         # a constant voltage, plus a sine (its kernel command about REF_OFF, never shaped) for a dwell
         # (the lanes pass the command's part in ``iref_held``: evaluated once per lane outside
@@ -311,7 +321,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
         else:
             iref = iref_held
-        if P[L] > 0.0:
+        if uniform or P[L] > 0.0:
             e = iref - cur
             vc = P[KPI] * e + xi
             v = clip(vc, P[VLIM])
@@ -326,14 +336,16 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     tau = P[KT] * cur
     # friction: exact stick (STICK; branch-free, so the lanes vectorize it) or the smooth Coulomb model
     stick = holds and P[STICK] > 0.0
+    tw = tanh(wm * P[WS])  # the motor speed's smooth sign: the smooth Coulomb friction's and the loss's
     if stick:
         fm = 0.0 if pd == 0.0 else slip_friction(wm, P[TC], P[TS_M], P[INV_VS_M], P[DIR_M])
     else:
-        fm = P[TC] * tanh(wm * P[WS])
+        fm = P[TC] * tw
+    sw = speed_sign(n, tw)
     tau_shaft = tau - P[BM] * wm - fm
     nts = n * tau_shaft
     # --- load side: hinge moment, stroke-end stop, the load's friction while it slides
-    if P[RIGID] > 0.0:
+    if not uniform and P[RIGID] > 0.0:
         ql, qld = p, pd
     else:
         ql, qld = q, qd
@@ -345,8 +357,8 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if stick and qld != 0.0 and P[TS_L] > 0.0:
         m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L], P[DIR_L])
-    if P[RIGID] > 0.0:
-        nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, m_load)
+    if not uniform and P[RIGID] > 0.0:
+        nts, jd, djd = lossy(P, nts, jd, djd, n, dn, m_load, sw)
         if not lanes and P[CAM] > 0.0:
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
             # M_g = (sigma f - G_x) ds/dq (seed 002 eq 3; its m a part is in J and J')
@@ -363,7 +375,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             pdd = m_p / jd
         return pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau
     if not lanes and P[NMID] > 0.0:
-        pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx)
+        pdd, qdd = chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx, sw)
         if stick:
             pdd, qdd = stick_nodes(pdd, qdd, pd, qd, jd, n, P)
         return pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau
@@ -373,7 +385,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     dk *= P[KSCALE]
     c = P[HALF_PLAY]
     dd = pd - qd
-    if P[PAPER] > 0.0:
+    if not uniform and P[PAPER] > 0.0:
         # the cam paper's play operator: the spring acts on s - q, s held inside the play
         z = s - q
         f = k * z
@@ -392,40 +404,12 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
         else:
             z = 0.0
         f = contact(k * z, P[BETA] * k * dd)
-    nts, jd, djd = lossy(P, nts, jd, djd, pd, n, dn, -f - 0.5 * dk * z * z)
+    nts, jd, djd = lossy(P, nts, jd, djd, n, dn, -f - 0.5 * dk * z * z, sw)
     m_p = nts - 0.5 * djd * pd * pd - f - 0.5 * dk * z * z  # the moments on the motor side and the load
     m_q = f + m_load
     if stick:
         m_p, m_q = stick_moments(m_p, m_q, pd, qd, n, nts, -f - 0.5 * dk * z * z, P)
     return pd, m_p / jd, qd, m_q * P[INV_JL], di, dxi, cur, v, iref, tau
-
-
-@inline
-def stick_nodes(pdd, qdd, pd, qd, jd, n, P):
-    """The motor side and the load of the full chain at rest: each sticks while the moment
-    on it (its acceleration without friction times its inertia) stays within its breakaway
-    level, else breaks away against it (the chain's loss, spread over its segments, is left
-    out at rest here: :func:`~.friction_kernel.gear_at_rest` of a lossless gear)."""
-    if pd == 0.0:
-        pdd = gear_at_rest(pdd * jd, 0.0, n * P[TS_M], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) / jd
-    if qd == 0.0 and P[TS_L] > 0.0:
-        qdd = gear_at_rest(qdd / P[INV_JL], 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE]) * P[INV_JL]
-    return pdd, qdd
-
-
-@inline
-def stick_moments(m_p, m_q, pd, qd, n, nts, spring, P):
-    """The two-mass chain's motor side and load at rest, on their moments (accelerations
-    times inertias; no division: the lanes evaluate it in every variant). The motor side
-    (motor torque at the gear's output ``nts``, the compliance's moment on it ``spring``)
-    is held while the torques on the gear stay within its band
-    (:func:`~.friction_kernel.gear_at_rest`), the load while the moment on it stays within
-    its breakaway level; else each breaks away against its level."""
-    if pd == 0.0:
-        m_p = gear_at_rest(nts, spring, n * P[TS_M], 0.0, P[HOLD_FWD], P[HOLD_BACK], P[HOLD_GAUGE])
-    if qd == 0.0 and P[TS_L] > 0.0:
-        m_q = gear_at_rest(m_q, 0.0, P[TS_L], 0.0, 0.0, 0.0, P[HOLD_GAUGE])
-    return m_p, m_q
 
 
 #: the serial right-hand side's compilation: without the runtime's reference counting (it
@@ -440,7 +424,7 @@ def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
     the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the
     cam paper's scheme, Jacobians, the stiff reference solver) call it instead of inlining
     their own copy, which would compile the whole right-hand side again for each."""
-    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False, True)
+    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, SERIAL, True)
 
 
 @jit
