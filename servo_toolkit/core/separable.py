@@ -16,8 +16,10 @@ pair terms (exact for a multilinear dependence, e.g. a rotor inertia weighted by
 efficiency) are added only when the separable sum alone does not verify.
 
 :func:`fit` verifies the result against exact evaluations at the variant farthest from the
-nominal one and at randomly chosen variants, and reports the largest relative error: the
-caller keeps the fit only below its tolerance and evaluates every variant exactly otherwise.
+nominal one, at randomly chosen variants and at any further inputs the caller names (a box's
+corners, where the keys' interactions add up), refines until all of them verify, and reports
+the largest relative error: the caller keeps the fit only below its tolerance and evaluates
+every variant exactly otherwise.
 An output that no key moves is held at its nominal value, bit for bit.
 """
 
@@ -165,7 +167,7 @@ def _splines(grids, Ylist, y0, codes_try, log_keys):
 
 
 def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEFAULT_RTOL, seed: int = 0,
-        pairs: bool = True, scale=None, points=GRID_POINTS, grade=None) -> SeparableFit:
+        pairs: bool = True, scale=None, points=GRID_POINTS, grade=None, checks=None) -> SeparableFit:
     """Fit and verify the separable approximation of ``evaluate`` over ``samples``.
 
     Parameters
@@ -195,6 +197,9 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
         Per key (not mapped in log(x)), a length: its points are spaced in proportion to
         ``x - low + grade`` (geometrically from the low end of its range, dense where a map
         changes over a scale ``grade`` there); 0: evenly.
+    checks : array_like, optional
+        Further inputs (k, d) within the samples' box to verify at, besides the farthest and
+        the random samples (e.g. the box's corners, which few samples come near).
 
     Returns
     -------
@@ -215,6 +220,8 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
     rng = np.random.default_rng(seed)
     picks = [far] + [int(i) for i in rng.choice(S.shape[0], size=min(CHECK_RANDOM, S.shape[0]), replace=False)]
     Xc = S[sorted(set(picks))]
+    if checks is not None:
+        Xc = np.unique(np.vstack([Xc, np.atleast_2d(np.asarray(checks, float))]), axis=0)
     Yc = np.asarray(evaluate(Xc), float)
     spent += Xc.shape[0]
     both = np.vstack([y0[None], Yc])

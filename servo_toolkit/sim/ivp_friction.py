@@ -55,6 +55,20 @@ def _slots(model, P, i):
     return [b + lo.NF_DIR], [b + lo.NF_TS]
 
 
+def _terminal(event, node, direction, reversal=False, breakaway=False):
+    """``event`` marked as a terminal solve_ivp event of the node whose speed is x[node],
+    crossing 0 in ``direction``, with what it ends: a sliding node's ``reversal``, a resting
+    node's ``breakaway`` (neither: the motor side or the load leaving its band).
+    :meth:`FrictionModes.restart` reads the markers of the motor side and the load; an
+    intermediate node's mode at the event is its held direction."""
+    event.terminal = True
+    event.direction = direction
+    event.node = node
+    event.reversal = reversal
+    event.breakaway = breakaway
+    return event
+
+
 def breakaway_gauge(model, P, iref_box):
     """``g(t, y, i, side=False)``: the breakaway distance of node i (x's index of its speed)
     held at rest at (t, y), over its inertia, from the right-hand side with ``HOLD_GAUGE`` set
@@ -125,12 +139,7 @@ class FrictionModes:
         """A resting motor side's or load's breakaway distance crossing 0 (:func:`breakaway_gauge`)."""
         def br(t, y, i=i):
             return self.gauge(t, y, i)
-        br.direction = 1.0
-        br.reversal = False
-        br.breakaway = True
-        br.terminal = True
-        br.node = i
-        return br
+        return _terminal(br, i, 1.0, breakaway=True)
 
     def _watch(self, i, x):
         """The motor side's and the load's event (their speed reaching 0 from its side, or,
@@ -139,17 +148,11 @@ class FrictionModes:
         if x[i] != 0.0:
             def ev(t, y, i=i):
                 return y[i]
-            ev.direction = -1.0 if x[i] > 0 else 1.0
-            ev.reversal = True
-        else:
-            def ev(t, y, i=i):
-                return abs(y[i]) - self.scale
-            ev.direction = 1.0
-            ev.reversal = False
-        ev.breakaway = False
-        ev.terminal = True
-        ev.node = i
-        return ev
+            return _terminal(ev, i, -1.0 if x[i] > 0 else 1.0, reversal=True)
+
+        def ev(t, y, i=i):
+            return abs(y[i]) - self.scale
+        return _terminal(ev, i, 1.0)
 
     def events(self, t0, x) -> list:
         """Each node's mode at (t0, x), its direction set in P, and the terminal events that
@@ -180,20 +183,16 @@ class FrictionModes:
                     events.append(self._breakaway(i))
                 events.append(self._watch(i, x))
                 continue
-            if self.dirs[i] != 0.0:
+            if self.dirs[i] != 0.0:  # sliding: its speed reaching 0 against its direction
                 def ev(t, y, i=i):
                     return y[i]
-                ev.direction = -self.dirs[i]
-            else:
+                events.append(_terminal(ev, i, -self.dirs[i], reversal=True))
+            else:  # stuck: its acceleration leaving 0
                 def ev(t, y, i=i):  # read at rest (an interpolant may not hold the speed at 0)
                     y = np.array(y, dtype=float)
                     y[i] = 0.0
                     return abs(self.fun(t, y)[i]) - 1e-300
-                ev.direction = 1.0
-            ev.breakaway = False
-            ev.terminal = True
-            ev.node = i
-            events.append(ev)
+                events.append(_terminal(ev, i, 1.0, breakaway=True))
         return events
 
     def restart(self, ev, t, x) -> None:

@@ -11,7 +11,10 @@ are mapped from the keys by :func:`servo_toolkit.core.separable.fit`, and the sl
 follow from those primaries are then recomputed by the model's own code
 (:func:`~.model_slots.drivetrain_slots`: load inertia, damping, end stop; the loss
 coefficients, 1/L). The rows are verified against :func:`build_model` on the farthest and on
-random variants (relative to each slot's and each table row's magnitude); above
+random variants and on corners of the box the variants span (:func:`box_corners`: every pair
+of keys at its four combinations of ends, so the steep ends of a map, such as a light load's
+two-mass stiffness, meet the other keys' extremes; the fit refines on them too), relative to
+each slot's and each table row's magnitude; above
 :data:`~servo_toolkit.core.separable.DEFAULT_RTOL` every variant is built exactly (in the
 chunk that runs it).
 
@@ -22,6 +25,8 @@ model's values; only the plant and the sensors vary.
 
 from __future__ import annotations
 
+import itertools
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -81,6 +86,60 @@ def _controller_copy(P, P0) -> None:
     if int(P0[lo.EST]) == lo.EST_KALMAN:
         k = int(P0[lo.OFF_KF])
         P[k:k + KALMAN_VALUES] = P0[k:k + KALMAN_VALUES]
+
+
+def box_corners(d: int) -> np.ndarray:
+    """Corners of a box of ``d`` keys (rows of 0, a key's lowest value, and 1, its highest) in
+    which every pair of keys takes its four combinations: all four corners for two keys, four
+    rows up to three keys, five for four, six up to ten, seven up to fifteen.
+
+    Rows ``n`` of a binary covering array of strength 2: the first row all 0, each key's column
+    a distinct choice of ``ceil(n/2)`` of the other ``n - 1`` rows set to 1 (two such choices
+    differ both ways, and meet, as ``2 ceil(n/2) > n - 1``), with the smallest ``n`` giving
+    ``d`` choices.
+    """
+    if d < 1:
+        return np.zeros((1, 0), dtype=np.int64)
+    n = 2
+    while math.comb(n - 1, (n + 1) // 2) < d:
+        n += 1
+    out = np.zeros((n, d), dtype=np.int64)
+    for k, ones in zip(range(d), itertools.combinations(range(1, n), (n + 1) // 2)):
+        out[list(ones), k] = 1
+    return out
+
+
+def _box(X) -> np.ndarray:
+    """The :func:`box_corners` of the box the variants ``X`` (n, keys) span, as variants."""
+    return np.where(box_corners(X.shape[1]) > 0, X.max(axis=0), X.min(axis=0))
+
+
+class _Builds:
+    """:meth:`ToleranceRows._outputs` of variants, each built once (the fit, its checks and
+    the rows' verification share them)."""
+
+    def __init__(self, rows):
+        self.rows, self.done = rows, {}
+
+    def __call__(self, X) -> np.ndarray:
+        out = []
+        for x in np.atleast_2d(np.asarray(X, float)):
+            key = x.tobytes()
+            if key not in self.done:
+                self.done[key] = self.rows._outputs(x[None])[0]
+            out.append(self.done[key])
+        return np.array(out)
+
+    def buildable(self, C) -> np.ndarray:
+        """The variants of ``C`` that make a model of the nominal one's structure (built here)."""
+        keep = []
+        for x in C:
+            try:
+                self(x[None])
+            except SceneError:
+                continue
+            keep.append(x)
+        return np.array(keep, float).reshape(-1, C.shape[1])
 
 
 def _primaries(model, scene) -> np.ndarray:
@@ -157,19 +216,20 @@ class ToleranceRows:
         integer = np.array([k in keys.known() and keys.resolve(k).integer for k in names])
         log_keys = np.array([np.all(X[:, j] > 0) and X[:, j].max() > 10 * X[:, j].min() for j in range(len(names))])
         grades = np.array([float((grade or {}).get(k, 0.0)) for k in names])
-        f = fit(base._outputs, x0, X, integer=integer, log_keys=log_keys, rtol=rtol, seed=seed, scale=scale,
-                points=points, grade=grades)
+        exact = _Builds(base)
+        f = fit(exact, x0, X, integer=integer, log_keys=log_keys, rtol=rtol, seed=seed, scale=scale,
+                points=points, grade=grades, checks=exact.buildable(_box(X)))
         moved = f.moved
         inert = tuple(k for j, k in enumerate(names) if not np.any(moved[j]))
         table_moves = bool(np.any(moved[:, nP:nP + nT]))
-        rows = replace(base, fitted=f, inert=inert, table_moves=table_moves, evaluations=f.evaluations)
+        rows = replace(base, fitted=f, inert=inert, table_moves=table_moves)
         try:
-            error = rows.verify(X, seed=seed + 1)
+            error = rows.verify(X, seed=seed + 1, exact=exact)
         except (ValueError, ZeroDivisionError):  # fitted primaries out of their domain (a negative stiffness)
             error = float("inf")
         if not error <= rtol:
-            return replace(rows, fitted=None, error=error, evaluations=rows.evaluations + 3)
-        return replace(rows, error=error, evaluations=rows.evaluations + 3)
+            return replace(rows, fitted=None, error=error, evaluations=len(exact.done))
+        return replace(rows, error=error, evaluations=len(exact.done))
 
     def _nominal(self, key: str) -> float:
         from ..scene.tolerances import STIFFNESS_SCALE
@@ -233,21 +293,40 @@ class ToleranceRows:
             P[lo.ETA_MEAN], P[lo.ETA_HALF] = 0.5 * (c_drive + c_back), 0.5 * (c_drive - c_back)
             hold_slots(P, eta, eta_b)
 
-    def verify(self, X, seed: int = 1, random: int = 2) -> float:
-        """Largest relative difference between :meth:`rows` and :func:`build_model` on the
-        variant farthest from the nominal one and ``random`` random ones (each slot relative
-        to its magnitude, each table entry to its row's)."""
+    def check_variants(self, X, seed: int = 1, random: int = 2) -> np.ndarray:
+        """The variants :meth:`verify` builds exactly: of ``X`` (n, keys) the one farthest from
+        the nominal one and ``random`` random ones, and the corners of the box ``X`` spans
+        (:func:`box_corners`), each once."""
         X = np.atleast_2d(np.asarray(X, float))
         x0 = np.array([self._nominal(k) for k in self.names])
         span = np.ptp(X, axis=0)
         far = int(np.argmax(np.sum(np.abs(X - x0) / np.where(span > 0, span, 1.0), axis=1)))
         picks = sorted({far, *np.random.default_rng(seed).choice(X.shape[0], size=min(random, X.shape[0]),
                                                                   replace=False).tolist()})
-        P, T, tix = self.rows(X[picks])
+        return np.unique(np.vstack([X[picks], _box(X)]), axis=0)
+
+    def verify(self, X, seed: int = 1, random: int = 2, exact=None) -> float:
+        """Largest relative difference between :meth:`rows` and :func:`build_model` on
+        :meth:`check_variants` (each slot relative to its magnitude, each table entry to its
+        row's). A corner that is no variant of ``X`` and makes no model of the nominal one's
+        structure (keys whose rules bind each other at their ends, such as a static friction
+        below a Coulomb friction) is left out; ``exact``: the exact outputs of variants
+        (default :meth:`_outputs`: built here)."""
+        X = np.atleast_2d(np.asarray(X, float))
+        exact = self._outputs if exact is None else exact
+        C = self.check_variants(X, seed, random)
+        P, T, tix = self.rows(C)
+        nP, shape = self.P0.size, self.model.T.shape
         worst = 0.0
-        for r, i in enumerate(picks):
-            m, Pe, _ = self.exact_model(X[i])
-            worst = max(worst, _relative(P[r], Pe), _relative(T[tix[r]], m.T, rows=True))
+        for r, x in enumerate(C):
+            try:
+                y = exact(x[None])[0]
+            except SceneError:
+                if np.any(np.all(X == x, axis=1)):
+                    raise
+                continue
+            Pe, Te = y[:nP], y[nP:nP + int(np.prod(shape))].reshape(shape)
+            worst = max(worst, _relative(P[r], Pe), _relative(T[tix[r]], Te, rows=True))
         return worst
 
 
@@ -265,4 +344,4 @@ def _relative(a, b, rows: bool = False) -> float:
     return float(np.nanmax(np.where(np.isfinite(rel), rel, np.inf)))
 
 
-__all__ = ["CONTROLLER_SLOTS", "PRIMARIES", "ToleranceRows", "keep_effects"]
+__all__ = ["CONTROLLER_SLOTS", "PRIMARIES", "ToleranceRows", "box_corners", "keep_effects"]

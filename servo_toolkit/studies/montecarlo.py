@@ -52,8 +52,9 @@ TABLE_CHUNK_SIZE = 500
 #: exact models along each varied key for the fitted rows: a reduction's stiffness and split
 #: move steeply near zero load (over the inertia the drivetrain keeps on its load side)
 ROW_POINTS = (41,)
-#: exact models a fit needs besides its grids (nominal, verification variants)
-FIT_OVERHEAD = 8
+#: exact models a fit needs besides its grids: the nominal one (the model's and the fit's), the
+#: fit's four checks and the four corners of the sampled box, two more variants verifying the rows
+FIT_OVERHEAD = 12
 #: the Monte Carlo's variations -> the scene keys the fitted rows vary
 KEYS = {"load_inertia": "load.inertia", "stiffness": STIFFNESS_SCALE}
 
