@@ -98,7 +98,7 @@ def test_fitted_rows_give_the_exact_models_figures(ema, monkeypatch):
 
 def test_rows_that_do_not_verify_are_built_exactly(ema, monkeypatch):
     scene, controller = ema
-    monkeypatch.setattr(mc, "ROW_POINTS", (3,))  # a cheap fit ...
+    monkeypatch.setattr(mc, "ROW_POINTS", {"load_inertia": 3, "stiffness": 3})  # a cheap fit ...
     monkeypatch.setattr(mc, "FIT_OVERHEAD", -100)
     monkeypatch.setattr(ToleranceRows, "verify", lambda self, X, **kw: 1.0)  # ... that does not verify
     r = mc.montecarlo(scene, VARIANTS, controller=controller, duration=DURATION, reference=REF, progress=False)

@@ -32,3 +32,14 @@ def test_a_named_corner_is_verified_where_the_samples_miss_it():
     gap = float(np.max(np.abs(checked(CORNER) - _exact(CORNER)) / 2.4))
     assert checked.error >= gap * (1 - 1e-12) and gap > 10 * DEFAULT_RTOL
     assert checked.evaluations > plain.evaluations  # the corner's evaluation and the refinement
+
+
+def test_points_per_key_set_each_key_s_grid():
+    """A smooth key needs fewer exact evaluations than a steep one: one count per key."""
+    def exact(X):
+        X = np.atleast_2d(X)
+        return np.column_stack([np.exp(3.0 * X[:, 0]) + 2.0 * X[:, 1]])
+    one = fit(exact, X0, SAMPLES, points=((9, 3),))
+    assert [g.size for g in one.grids] == [9, 3]
+    assert one.evaluations == 1 + 4 + 9 + 3  # nominal, farthest and random checks, the grids
+    np.testing.assert_allclose(one(SAMPLES), exact(SAMPLES), rtol=1e-3)

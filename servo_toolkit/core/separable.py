@@ -191,8 +191,9 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
         ``scale(Y)`` -> the magnitude each output's error is relative to, from the exact
         outputs ``Y`` (rows: nominal and verification variants); default each output's
         largest magnitude.
-    points : tuple of int
-        Points along each key on successive attempts (default :data:`GRID_POINTS`).
+    points : tuple
+        Points along each key on successive attempts (default :data:`GRID_POINTS`): per
+        attempt an int for every key, or a sequence of one count per key.
     grade : array_like of float, optional
         Per key (not mapped in log(x)), a length: its points are spaced in proportion to
         ``x - low + grade`` (geometrically from the low end of its range, dense where a map
@@ -231,7 +232,8 @@ def fit(evaluate, x0, samples, *, integer=None, log_keys=None, rtol: float = DEF
     best, grids, Ylist = None, [None] * d, [None] * d
     for count in points:
         for k in range(d):
-            xs = _grid(lo[k], hi[k], x0[k], count, integer[k], log_keys[k], grade[k])
+            xs = _grid(lo[k], hi[k], x0[k], count if np.ndim(count) == 0 else int(count[k]), integer[k], log_keys[k],
+                       grade[k])
             if grids[k] is not None and np.array_equal(xs, grids[k]):
                 continue  # an integer key: already every value
             X = np.repeat(x0[None], xs.size, axis=0)

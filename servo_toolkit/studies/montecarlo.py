@@ -50,8 +50,10 @@ CHUNK_SIZE = 2000
 #: variants per chunk at most when every variant carries its own stroke tables (fitted rows)
 TABLE_CHUNK_SIZE = 500
 #: exact models along each varied key for the fitted rows: a reduction's stiffness and split
-#: move steeply near zero load (over the inertia the drivetrain keeps on its load side)
-ROW_POINTS = (41,)
+#: move steeply near zero load (over the inertia the drivetrain keeps on its load side); the
+#: stiffness factor moves the rows smoothly (on the reference EMA nine points verify as well as
+#: 41: 5.4e-6, the load inertia's share)
+ROW_POINTS = {"load_inertia": 41, "stiffness": 9}
 #: exact models a fit needs besides its grids: the nominal one (the model's and the fit's), the
 #: fit's four checks and the four corners of the sampled box, two more variants verifying the rows
 FIT_OVERHEAD = 12
@@ -264,12 +266,13 @@ def fitted_rows(scene, builder, P0, values, reference):
     if not set(values) <= set(KEYS):
         return None, f"{one_by_one})"
     n = next(iter(values.values())).size
-    if n <= len(values) * max(ROW_POINTS) + FIT_OVERHEAD:
+    points = tuple(ROW_POINTS[k] for k in values)
+    if n <= sum(points) + FIT_OVERHEAD:
         return None, f"{one_by_one}; fewer than a fit's exact models)"
     try:
         keyed = {KEYS[k]: np.asarray(v, float) for k, v in values.items()}
         rows = ToleranceRows.create(scene, scene_keys(scene), keyed, builder.controller, builder.options, reference,
-                                    points=ROW_POINTS, grade=grade)
+                                    points=(points,), grade=grade)
     except SceneError as exc:
         return None, f"{one_by_one}; fitted rows not available: {exc})"
     if rows.P0.shape != P0.shape or not np.array_equal(rows.P0, P0, equal_nan=True):
