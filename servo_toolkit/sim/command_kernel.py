@@ -1,5 +1,6 @@
-"""Commands and gain schedule inside the compiled kernels: the jerk-limited move, the
-command shaper's impulses and the gain schedule along the stroke (slots in
+"""Commands and gain schedule inside the compiled kernels: the position reference r(t) and
+its command (sine, step, ramp, table), the jerk-limited move, the command shaper's impulses
+and the gain schedule along the stroke (slots in
 :mod:`servo_toolkit.sim.layout`; the host side in :mod:`servo_toolkit.loop.profile`,
 :mod:`servo_toolkit.loop.shaper` and :mod:`servo_toolkit.loop.schedule`)."""
 
@@ -9,7 +10,11 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import REF_F, REF_OFF, REF_T0, SCHED, SHAPE_A0, SHAPE_T1  # noqa: E402
+import math  # noqa: E402
+
+from .layout import (REF_A, REF_F, REF_KIND, REF_MOVE, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0,  # noqa: E402
+                     REF_TABLE, SCHED, SHAPE_A0, SHAPE_T1)
+from .table_kernel import table_rates  # noqa: E402
 from .vmath import inline  # noqa: E402
 
 
@@ -86,4 +91,34 @@ def schedule_factors(P, q):
     return P[e] + f * (P[e + 1] - P[e]), P[w] + f * (P[w + 1] - P[w])
 
 
-__all__ = ["impulse", "impulses", "move_rates", "schedule_factors"]
+@inline
+def reference(t, P):
+    """The position reference at time t (evaluated inside the kernel): the command
+    (:func:`command`, or the jerk-limited move of ``REF_MOVE``), through the command shaper
+    when one is set (``SHAPE_A0`` > 0): sum_i A_i r(t - t_i) over its impulses
+    (:mod:`servo_toolkit.loop.shaper`)."""
+    move = int(P[REF_KIND]) == REF_MOVE
+    r = 0.0
+    for i in range(impulses(P)):  # one inlined command in the loop: the code stays small
+        a, d = impulse(P, i)
+        r += a * (move_rates(t - d, P)[0] if move else command(t - d, P))
+    return r
+
+
+@inline
+def command(t, P):
+    """The position command at time t, before the command shaper (the move,
+    :func:`~.command_kernel.move_rates`, is a closed-loop command: :func:`reference`)."""
+    kind = int(P[REF_KIND])
+    if kind == REF_SINE:
+        return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
+    if kind == REF_STEP:
+        return P[REF_OFF] + (P[REF_A] if t >= P[REF_T0] else 0.0)
+    if kind == REF_RAMP:
+        return P[REF_OFF] + P[REF_A] * max(t - P[REF_T0], 0.0)
+    if kind == REF_TABLE:
+        return table_rates(t, P)[0]
+    return P[REF_OFF]
+
+
+__all__ = ["command", "impulse", "impulses", "move_rates", "reference", "schedule_factors"]

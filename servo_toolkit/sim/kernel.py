@@ -50,14 +50,14 @@ from .layout import (EST, EST_DIFFERENCE, INV_TS, LSB_M, OFF_E, OFF_KF, T_M, AUX
                      AUX_TAU, AUX_V, BETA, BM, CMODE, CONTINUOUS, DSTOP, HALF_PLAY, HINGE_D,
                      HINGE_K, HINGE_M, ILIM, KE, KII, KPI, KSCALE, KSTOP, KT, KAW, L, CAM, NCAM,
                      LSB, NC, NX_PHYS, OFF_A, OFF_B, OFF_C, OFF_D, OPEN_LOOP, PAPER, PERIODIC, R,
-                     REF_A, REF_F, REF_KIND, REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, RIGID,
+                     REF_OFF, RIGID,
                      STROKE_HI, STROKE_LO, STROKE_MODE, STROKE_STOP, T_J, T_K, T_N, TAB_H, TAB_LO,
                      TAB_N, TC, V_OPEN, VLIM, WS, INV_H, INV_L, INV_JL, STICK, TS_M, INV_VS_M, TC_L,
-                     TS_L, INV_VS_L, NMID, FF_ON, REF_MOVE, AW, DIR_M, DIR_L, HOLD_FWD, HOLD_BACK,
+                     TS_L, INV_VS_L, NMID, FF_ON, AW, DIR_M, DIR_L, HOLD_FWD, HOLD_BACK,
                      HOLD_GAUGE)
-from .command_kernel import impulse, impulses, move_rates, schedule_factors  # noqa: E402
+# the reference r(t) and its command: the controller's and the lanes' (which import them from here)
+from .command_kernel import command, reference, schedule_factors  # noqa: E402
 from .feedforward_kernel import feedforward  # noqa: E402
-from .table_kernel import table_rates  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
@@ -65,36 +65,6 @@ jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 #: serial right-hand side, the vectorized lanes, and lanes whose every variant is a sampled
 #: two-mass loop with an inductance and the elasto-backlash law
 SERIAL, LANES, LANES_TWO_MASS = 0, 1, 2
-
-
-@inline
-def reference(t, P):
-    """The position reference at time t (evaluated inside the kernel): the command
-    (:func:`command`, or the jerk-limited move of ``REF_MOVE``), through the command shaper
-    when one is set (``SHAPE_A0`` > 0): sum_i A_i r(t - t_i) over its impulses
-    (:mod:`servo_toolkit.loop.shaper`)."""
-    move = int(P[REF_KIND]) == REF_MOVE
-    r = 0.0
-    for i in range(impulses(P)):  # one inlined command in the loop: the code stays small
-        a, d = impulse(P, i)
-        r += a * (move_rates(t - d, P)[0] if move else command(t - d, P))
-    return r
-
-
-@inline
-def command(t, P):
-    """The position command at time t, before the command shaper (the move,
-    :func:`~.command_kernel.move_rates`, is a closed-loop command: :func:`reference`)."""
-    kind = int(P[REF_KIND])
-    if kind == REF_SINE:
-        return P[REF_OFF] + P[REF_A] * math.sin(2.0 * math.pi * P[REF_F] * (t - P[REF_T0]))
-    if kind == REF_STEP:
-        return P[REF_OFF] + (P[REF_A] if t >= P[REF_T0] else 0.0)
-    if kind == REF_RAMP:
-        return P[REF_OFF] + P[REF_A] * max(t - P[REF_T0], 0.0)
-    if kind == REF_TABLE:
-        return table_rates(t, P)[0]
-    return P[REF_OFF]
 
 
 @inline
