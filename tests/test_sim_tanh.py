@@ -72,3 +72,14 @@ def test_exp_neg_within_one_ulp_of_the_exact_value():
             exact = float((-Decimal(float(y))).exp())
             assert abs(exp_neg(float(y)) - exact) <= math.ulp(exact), y
     assert math.isnan(exp_neg(math.nan))
+
+
+def test_the_loss_reads_the_friction_s_smooth_sign_for_either_sign_of_the_ratio():
+    """The loss's smooth sign of the output speed, tanh(|N| p' / w_s), is taken from the
+    friction's tanh(N p' / w_s) (tanh is odd): the same value for a ratio of either sign."""
+    from servo_toolkit.sim.compliance_kernel import speed_sign
+    rng = np.random.default_rng(2)
+    for n, pd, ws in zip(rng.uniform(-80.0, 80.0, 400), rng.normal(0.0, 2.0, 400), 10.0 ** rng.uniform(-1, 3, 400)):
+        n, pd, ws = float(n), float(pd), float(ws)
+        assert speed_sign(n, tanh(n * pd * ws)) == tanh(abs(n) * pd * ws)
+    assert speed_sign(-3.0, tanh(-3.0 * 0.5)) > 0.0  # a negative ratio, a positive output speed
