@@ -89,29 +89,41 @@ def test_lanes_equal_the_per_variant_loop_with_variants_failing_mid_block(ema):
     np.testing.assert_array_equal(alone[1][0], lanes[1][W + 4])
 
 
-def test_a_block_with_a_variant_outside_the_two_mass_lanes_takes_the_general_ones(ema):
-    """The two-mass lanes leave out the branches a sampled two-mass loop with an inductance
-    never takes: a block holding one variant without an inductance (algebraic current) takes
-    the general lanes, its neighbour block the two-mass ones, and both equal the per-variant
-    loop (the two-mass lanes would give the variant the inductance's current law)."""
+def test_a_block_with_a_rigid_variant_runs_variant_by_variant(ema):
+    """The lanes leave out the rigid chain's branch: a block holding one variant flagged rigid
+    runs variant by variant, its neighbour block in lanes, and both equal the per-variant
+    loop (in lanes the variant would get the two-mass chain's law); a variant without an
+    inductance (algebraic current) stays in lanes."""
     scene, controller = ema
     P, T, tix, X0, sub = _rows(scene, controller, 2 * W)
-    P[1, lo.L] = 0.0
-    assert not block_kind(P, 0, W)[2] and block_kind(P, W, W)[2]
+    P[1, lo.RIGID] = 1.0
+    P[W + 1, lo.L] = 0.0
+    assert not block_kind(P, 0, W)[0] and block_kind(P, W, W)[0]
     one, lanes = _both(P, T, tix, X0, sub, steps=400)
-    assert not np.allclose(one[0][1], one[0][0], rtol=1e-3)  # the variant does differ
+    assert not np.allclose(one[0][1], one[0][0], rtol=1e-3)  # the variants do differ
+    assert not np.allclose(one[0][W + 1], one[0][W], rtol=1e-3)
     _assert_equal(one, lanes)
 
 
 def test_lanes_with_own_tables_and_references(ema):
-    """A rigid chain's variants carry their own tables; a block whose references differ
-    evaluates each variant's own."""
+    """Variants with their own stroke tables (here a stiffness table 20 % up in every other
+    variant) read their own in lanes; a block whose references differ evaluates each
+    variant's own; a rigid chain's variants (their own inertia tables) run variant by
+    variant."""
     scene, controller = ema
-    rigid = ModelOptions(**{**sine_run_options(scene, controller, REF)[0].__dict__, "compliance": False})
-    P, T, tix, X0, sub = _rows(scene, controller, W + 2, rigid)
-    assert len(T) > 1 and len(set(tix)) > 1
+    P, T, tix, X0, sub = _rows(scene, controller, W + 2)
+    stiffer = T[tix[0]].copy()
+    stiffer[lo.T_K:lo.T_K + 2] *= 1.2
+    T = np.concatenate([T, stiffer[None]])
+    tix = np.where(np.arange(len(P)) % 2 == 1, len(T) - 1, tix)
     P[1, lo.REF_A] *= 0.5
-    _assert_equal(*_both(P, T, tix, X0, sub))
+    one, lanes = _both(P, T, tix, X0, sub)
+    assert not np.allclose(one[0][3], one[0][2], rtol=1e-3)
+    _assert_equal(one, lanes)
+    rigid = ModelOptions(**{**sine_run_options(scene, controller, REF)[0].__dict__, "compliance": False})
+    P, T, tix, X0, sub = _rows(scene, controller, 3, rigid)
+    assert len(T) > 1 and len(set(tix)) > 1 and not block_kind(P, 0, 3)[0]
+    _assert_equal(*_both(P, T, tix, X0, sub, steps=300))
 
 
 def test_a_block_with_a_continuous_controller_runs_variant_by_variant(ema):
@@ -185,13 +197,13 @@ def test_a_block_of_controllers_of_different_structures_runs_variant_by_variant(
     from servo_toolkit.sim.batch_lanes import block_kind
     P = np.zeros((3, lo.NP_HEADER))  # every header slot (the kernels read them unchecked)
     P[:, lo.CMODE] = 1.0
-    assert block_kind(P, 0, 3) == (True, True, False)  # no inductance: not the two-mass lanes
+    assert block_kind(P, 0, 3) == (True, True)
     P[1, lo.NC] = 2.0
     assert block_kind(P, 0, 3)[0] is False
     P[1, lo.NC] = 0.0
     P[2, lo.OFF_C] = 40.0
     assert block_kind(P, 0, 3)[0] is False
-    assert block_kind(P, 0, 2) == (True, True, False)
+    assert block_kind(P, 0, 2) == (True, True)
 
 
 @pytest.mark.parametrize("compliance", [True, False])
@@ -210,7 +222,7 @@ def test_lanes_with_friction_that_holds_equal_the_per_variant_loop(ema, complian
     P[:, lo.TS_M] = np.linspace(0.03, 0.3, len(P))  # above the motor's Coulomb level, 0.02 N*m
     P[::2, lo.TC_L], P[::2, lo.TS_L], P[::2, lo.INV_VS_L] = 5.0, 8.0, 1.0 / 0.05
     P[3, lo.STICK] = 0.0  # the smooth model beside friction that holds, in one block
-    assert block_kind(np.ascontiguousarray(P), 0, W) == (True, True, compliance)  # two-mass lanes: the compliant chain
+    assert block_kind(np.ascontiguousarray(P), 0, W) == (compliance, True)  # a rigid chain: variant by variant
     one, lanes = _both(P, T, tix, X0, sub)
     assert np.all(one[1][:, F_STATUS] == lo.OK)
     _assert_equal(one, lanes)

@@ -2,10 +2,9 @@
 
 A block keeps its variants' physical states in structure-of-arrays form (one row per state,
 one column per lane) and evaluates each RK4 stage as one loop across the lanes around the
-inlined right-hand side (:func:`kernel.rhs_phys` with ``lanes`` :data:`kernel.LANES`, or
-:data:`kernel.LANES_TWO_MASS` for a block of sampled two-mass loops, which leaves out the
-branches such a block never takes), which LLVM vectorizes (AVX-512: the whole block in one
-register per quantity). The physics is the single run's: the same right-hand side, the same controller sample (each lane's
+inlined right-hand side (:func:`kernel.rhs_phys` with ``lanes=True``, which leaves out the
+branches a block in lanes never takes), which LLVM vectorizes (AVX-512: the whole block in
+one register per quantity). The physics is the single run's: the same right-hand side, the same controller sample (each lane's
 measurements by :func:`kernel.controller_inputs`, then the state-space update of
 :func:`kernel.controller_update` across the lanes by :func:`kernel.motion_columns`, at the
 reference r(t) the block shares) and the same RK4 stage arithmetic
@@ -39,8 +38,7 @@ from .batch import variant_run
 from .integrators import rk4_coefficients, snapshot as _snap, step_status
 from .split_step import stage_turns, switch_ahead, switched_step
 from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
-from .kernel import (FASTMATH, LANES, LANES_TWO_MASS, clip, command, controller_inputs, motion_columns, reference,
-                     rhs_phys)
+from .kernel import FASTMATH, clip, command, controller_inputs, motion_columns, reference, rhs_phys
 
 #: the lanes' fast-math flags: the kernel's without reassociation and contraction, which
 #: LLVM applied differently to the same code compiled here and loaded from the cache (the
@@ -58,29 +56,25 @@ CONTROLLER_SLOTS = (lo.NC, lo.OFF_A, lo.OFF_B, lo.OFF_C, lo.OFF_D)
 
 @jit
 def block_kind(P, v0, nl):
-    """(lanes allowed, reference shared, two-mass) for the variants v0 .. v0 + nl - 1: lanes
-    need a sampled or open-loop controller of one structure, no cam, the two-mass (or rigid)
-    chain and no feedforward (it runs variant by variant, :func:`batch.variant_run`, whose
-    controller sample adds it) in every variant; two-mass: every variant is a sampled
-    two-mass loop with an inductance and the elasto-backlash law (the lanes then compile
-    without the other branches: :data:`kernel.LANES_TWO_MASS`)."""
+    """(lanes allowed, reference shared) for the variants v0 .. v0 + nl - 1: lanes need a
+    sampled or open-loop controller of one structure, no cam, the two-mass chain and no
+    feedforward (it runs variant by variant, :func:`batch.variant_run`, whose controller
+    sample adds it) in every variant. A rigid chain runs variant by variant too: in lanes its
+    branch, with its own losses, cost every two-mass block its selects (and a block kind of
+    its own, a compiled copy of the stage; one variant at a time is within 10 % of the lanes)."""
     lanes = True
     shared = True
-    two_mass = True
     for v in range(v0, v0 + nl):
         if (int(P[v, lo.CMODE]) == lo.CONTINUOUS or P[v, lo.CAM] > 0.0 or P[v, lo.NMID] > 0.0
-                or P[v, lo.FF_ON] > 0.0):
+                or P[v, lo.FF_ON] > 0.0 or P[v, lo.RIGID] > 0.0):
             lanes = False
-        if (int(P[v, lo.CMODE]) == lo.OPEN_LOOP or P[v, lo.RIGID] > 0.0 or P[v, lo.PAPER] > 0.0
-                or not P[v, lo.L] > 0.0):
-            two_mass = False
         for j in CONTROLLER_SLOTS:
             if P[v, j] != P[v0, j]:
                 lanes = False
         for j in REF_SLOTS:
             if P[v, j] != P[v0, j]:
                 shared = False
-    return lanes, shared, two_mass
+    return lanes, shared
 
 
 #: the stage loop is compiled without reference counting: a lane's parameter column and
@@ -149,15 +143,13 @@ def _column(typingctx, arr, lane):
 
 
 @_lane_jit
-def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, kind, holds, TURN):
+def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, holds, TURN):
     """RK4 stage ``stage`` across the lanes: slopes S from the states Y + c S, accumulated into
     U with weight w (the first stage also keeps current, voltage, i_ref and torque in A).
-    ``kind`` and ``holds`` are literals at each call, one compiled stage for each pair: a
-    block pays only for the selects of what it can take. ``kind`` is the right-hand side's
-    ``lanes`` (:data:`kernel.LANES`, or :data:`kernel.LANES_TWO_MASS` for a block of sampled
-    two-mass loops); ``holds`` compiles in friction that holds; then ``TURN`` marks a lane
-    whose stage speeds left a node's direction at the step's start
-    (:func:`split_step.stage_turns`).
+    ``holds`` (a literal at each call: one compiled stage for blocks with friction that
+    holds, one without, so a block without it pays nothing for its selects) compiles in
+    friction that holds; then ``TURN`` marks a lane whose stage speeds left a node's
+    direction at the step's start (:func:`split_step.stage_turns`).
 
     The lane loop writes to the stack only (LLVM then knows no store can alias the tables it
     gathers from, which it could not check at run time) and the results are copied out.
@@ -169,7 +161,7 @@ def _stage(tc, c, w, stage, Y, S, U, A, PT, T, TI, IREF, dummy, kind, holds, TUR
         s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
             tc, Y[0, l] + c * S[0, l], Y[1, l] + c * S[1, l], Y[2, l] + c * S[2, l],
             Y[3, l] + c * S[3, l], Y[4, l] + c * S[4, l], Y[5, l] + c * S[5, l], Y[6, l],
-            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, kind, holds)
+            _column(PT, l), T[TI[l]], IREF[l], dummy, dummy, True, holds)
         out[0, l], out[1, l], out[2, l], out[3, l], out[4, l], out[5, l] = s0, s1, s2, s3, s4, s5
         out[6, l], out[7, l], out[8, l], out[9, l] = i_, v_, r_, tau_
     for l in range(W):
@@ -212,10 +204,10 @@ def _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN):
 
 
 @jit
-def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, two_mass, figs, snaps):
+def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     """Variants v0 .. v0 + nl - 1 (nl <= W) in lanes: as :func:`batch.variant_run` for each
     (same arguments, rows of the batch), with the reference computed once per step when
-    ``shared``, and the two-mass lanes' stage when ``two_mass`` (:func:`block_kind`)."""
+    ``shared``."""
     nx = X.shape[1]
     n_par = P.shape[1]
     PT = np.empty((n_par, W))  # parameters, a column per lane (unused lanes repeat the last)
@@ -280,14 +272,10 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, two_mass, figs, sn
                 for l in range(nl):
                     pv = P[v0 + l]
                     H[l] = command(t + c, pv) - pv[lo.REF_OFF] if int(pv[lo.CMODE]) == lo.OPEN_LOOP else IREF[l]
-            if stick and two_mass:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, LANES_TWO_MASS, True, TURN)
-            elif stick:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, LANES, True, TURN)
-            elif two_mass:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, LANES_TWO_MASS, False, TURN)
+            if stick:
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, True, TURN)
             else:
-                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, LANES, False, TURN)
+                _stage(t + c, c, w, stage, Y, S, U, A, PT, T, TI, H, dummy, False, TURN)
             if stage > 0:
                 continue
             if not shared:
@@ -385,9 +373,9 @@ def run_lanes(X, P, T, tix, dt, n_steps, sub, figs, snaps):
     for b in nb.prange((nv + W - 1) // W):
         v0 = b * W
         nl = min(W, nv - v0)
-        lanes, shared, two_mass = block_kind(P, v0, nl)
+        lanes, shared = block_kind(P, v0, nl)
         if lanes:
-            block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, two_mass, figs, snaps)
+            block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps)
         else:
             for v in range(v0, v0 + nl):
                 variant_run(X[v], P[v], T[tix[v]], dt, n_steps, sub, figs[v], snaps[v])

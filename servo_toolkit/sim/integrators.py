@@ -22,7 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .kernel import FASTMATH, SERIAL, controller_sample, inline, jit, reference, rhs, rhs_phys
+from .kernel import FASTMATH, controller_sample, inline, jit, reference, rhs, rhs_phys
 from .node_switch import node_switch_ahead, node_switched_step
 from .split_step import rk4_coefficients, stage_turns, switch_ahead, switched_step
 from .tables import frozen_tables
@@ -191,7 +191,7 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
                 turned = turned or stage_turns(pd, pd + c * s1, qd, qd + c * s3)
             s0, s1, s2, s3, s4, s5, i_, v_, r_, tau_ = rhs_phys(
                 t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                P, T, iref, x if stage == 0 else xs, kout, SERIAL, True)
+                P, T, iref, x if stage == 0 else xs, kout, False, True)
             if stage == 0:
                 g1, g3 = s1, s3  # the slopes at the step's start (speed reversals)
                 tau = abs(tau_)

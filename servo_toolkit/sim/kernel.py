@@ -61,11 +61,6 @@ from .feedforward_kernel import feedforward  # noqa: E402
 
 jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 
-#: what a caller of :func:`rhs_phys` is (its ``lanes`` argument, a compile-time constant): the
-#: serial right-hand side, the vectorized lanes, and lanes whose every variant is a sampled
-#: two-mass loop with an inductance and the elasto-backlash law
-SERIAL, LANES, LANES_TWO_MASS = 0, 1, 2
-
 
 @inline
 def clip(v, lim):
@@ -252,19 +247,15 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     (nothing else is written). Scalars in and out let the
     fixed-step loop keep the physical state in registers.
 
-    ``lanes`` (a compile-time constant at each call) is :data:`LANES` in the batched kernel's
-    loop across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
-    controller and no cam: their code is left out there, so that loop is branch- and
-    call-free and vectorizes. :data:`LANES_TWO_MASS` also leaves out what a block of sampled
-    two-mass loops with an inductance and the elasto-backlash law never takes (the open-loop
-    and L = 0 electrics, the rigid chain, the play operator): a vectorized loop evaluates
-    every branch and selects, so a branch left out is time saved. Every other caller passes
-    :data:`SERIAL`. ``holds`` (also a
+    ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
+    across variants (:mod:`.batch_lanes`), whose caller guarantees a sampled or open-loop
+    controller, the two-mass chain and no cam: the other code is left out there (a vectorized
+    loop evaluates every branch and selects, so a branch left out is time saved), and that
+    loop is branch- and call-free and vectorizes. Every other caller passes False. ``holds`` (also a
     compile-time constant) compiles in friction that holds (``STICK``): every caller but the
     lanes of a block without it passes True. In the lanes its stick and breakaway law are
     selects, and the caller splits a lane's step at a speed reversal as the single run does.
     """
-    uniform = lanes == LANES_TWO_MASS
     kc, tc = cell(P, p)
     hc = P[TAB_H]
     ih = P[INV_H]
@@ -273,7 +264,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     wm = n * pd
     mode = int(P[CMODE])
     # --- controller and electrics
-    if not uniform and mode == OPEN_LOOP:
+    if mode == OPEN_LOOP:
         iref = 0.0
         # a constant voltage, plus a sine (its kernel command about REF_OFF, never shaped) for a dwell
         # (the lanes pass the command's part in ``iref_held``: evaluated once per lane outside
@@ -291,7 +282,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
         else:
             iref = iref_held
-        if uniform or P[L] > 0.0:
+        if P[L] > 0.0:
             e = iref - cur
             vc = P[KPI] * e + xi
             v = clip(vc, P[VLIM])
@@ -315,7 +306,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     tau_shaft = tau - P[BM] * wm - fm
     nts = n * tau_shaft
     # --- load side: hinge moment, stroke-end stop, the load's friction while it slides
-    if not uniform and P[RIGID] > 0.0:
+    if not lanes and P[RIGID] > 0.0:
         ql, qld = p, pd
     else:
         ql, qld = q, qd
@@ -327,7 +318,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
             m_load += max(-P[KSTOP] * (ql - P[STROKE_LO]) - P[DSTOP] * qld, 0.0)
     if stick and qld != 0.0 and P[TS_L] > 0.0:
         m_load -= slip_friction(qld, P[TC_L], P[TS_L], P[INV_VS_L], P[DIR_L])
-    if not uniform and P[RIGID] > 0.0:
+    if not lanes and P[RIGID] > 0.0:
         nts, jd, djd = lossy(P, nts, jd, djd, n, dn, m_load, sw)
         if not lanes and P[CAM] > 0.0:
             # chain ends in a cam: the follower's weight and guide friction load the shaft,
@@ -355,7 +346,7 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     dk *= P[KSCALE]
     c = P[HALF_PLAY]
     dd = pd - qd
-    if not uniform and P[PAPER] > 0.0:
+    if P[PAPER] > 0.0:
         # the cam paper's play operator: the spring acts on s - q, s held inside the play
         z = s - q
         f = k * z
@@ -394,7 +385,7 @@ def rhs_phys_serial(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx):
     the kernels that are not the fixed-step loop's hot path (the array form :func:`rhs`, the
     cam paper's scheme, Jacobians, the stiff reference solver) call it instead of inlining
     their own copy, which would compile the whole right-hand side again for each."""
-    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, SERIAL, True)
+    return rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, False, True)
 
 
 @jit
