@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from .kernel import jit, rhs_phys_serial
 from .layout import NF_DIR, NF_STRIDE, NF_TS, NMID, NODE_FRIC, OFF_NODE
-from .split_step import HELD, MAX_ITER, SEED, TAU_TOL, _trial, illinois_next, rk4_step
+from .split_step import HELD, MAX_ITER, SEED, _trial, illinois_next, illinois_trial, rk4_step
 from .vmath import inline
 
 
@@ -79,11 +79,9 @@ def _node_illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, 
     direction; a reversal: just past the speed's zero)."""
     side = 0
     for _ in range(MAX_ITER):
-        if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
+        closed, c = illinois_trial(a, b, ga, gb)
+        if closed:
             break
-        c = b - gb * (b - a) / (gb - ga)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
         gc = _node_g(c, t, p, pd, q, qd, cur, xi, s, W, Z, T, iref, x, x0, xs, k1, k2, k3, k4, i, breakaway, cap)
         if gc == 0.0:
             return c

@@ -168,6 +168,19 @@ def _held_moment(t, h, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs,
 
 
 @inline
+def illinois_trial(a, b, ga, gb):
+    """The Illinois method's next trial on [a, b] (g(a) g(b) < 0): ``(closed, c)``, closed
+    once the bracket is within TAU_TOL of b (the search ends there), else c the secant's zero
+    (the midpoint when it falls outside the bracket)."""
+    if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
+        return True, b
+    c = b - gb * (b - a) / (gb - ga)
+    if not (a < c < b):
+        c = 0.5 * (a + b)
+    return False, c
+
+
+@inline
 def illinois_next(a, b, ga, gb, c, gc, side):
     """The Illinois method's bracket after a trial c with value gc: c replaces the end whose
     value has gc's sign, and the other end's value is halved when the same end is replaced
@@ -186,11 +199,9 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
     breakaway, :func:`_held_moment`)."""
     side = 0
     for _ in range(MAX_ITER):
-        if b - a <= TAU_TOL * (b if b > 0.0 else 1.0):
+        closed, c = illinois_trial(a, b, ga, gb)
+        if closed:
             break
-        c = b - gb * (b - a) / (gb - ga)
-        if not (a < c < b):
-            c = 0.5 * (a + b)
         if breakaway:
             gc = _held_moment(t, c, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node)
         else:
