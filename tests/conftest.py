@@ -63,6 +63,17 @@ class ReportRun:
 
 
 @pytest.fixture(scope="session")
+def ema():
+    """``(scene, controller)``: the reference EMA and its designed controller (a test module
+    that needs another ``ema`` defines its own, which takes precedence)."""
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.sim import controller_for
+    scene = load_scene(SCENES / "ema_reference.toml")
+    controller, _ = controller_for(scene)
+    return scene, controller
+
+
+@pytest.fixture(scope="session")
 def scene_report(tmp_path_factory):
     """``scene_report(name)``: the report of ``scenes/NAME.toml`` written by the command line
     (light settings, ``--strict``), once per scene for the whole session; a

@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for
+from servo_toolkit.sim import ModelOptions, Reference, build_model
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_END,
                                      S_PEAK, run_variants)
@@ -19,18 +18,10 @@ from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.sim.variants import VariantBuilder
 from servo_toolkit.studies.time_run import sine_run_options
 
-from .conftest import SCENES
 
 REF = Reference.sine(math.radians(2.0), 8.0)
 DT = 1e-4
 STEPS = 1500
-
-
-@pytest.fixture(scope="module")
-def ema():
-    scene = load_scene(SCENES / "ema_reference.toml")
-    controller, _ = controller_for(scene)
-    return scene, controller
 
 
 def _both(P, T, tix, X0, sub, steps=STEPS):

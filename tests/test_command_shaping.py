@@ -12,10 +12,8 @@ import pytest
 
 from servo_toolkit.loop.shaper import drivetrain_modes, shaper_for
 from servo_toolkit.plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.sim import ModelOptions, Reference, controller_for, simulate
+from servo_toolkit.sim import ModelOptions, Reference, simulate
 
-from .conftest import SCENES
 
 #: the two-mass chain with what would blur a mode left out: no lash, no Coulomb friction, no
 #: loss switching with the power flow, J(q0) along the stroke, no encoder quantization
@@ -25,13 +23,6 @@ LINEAR = ModelOptions(chain="two_mass", play=0.0, friction="off", efficiency=Fal
 MOVE = Reference.move(math.radians(0.5), math.radians(100), math.radians(2e4), math.radians(1e7), at=0.01)
 DURATION = 0.4
 REC = 5e-4
-
-
-@pytest.fixture(scope="module")
-def ema():
-    scene = load_scene(SCENES / "ema_reference.toml")
-    controller, _ = controller_for(scene)
-    return scene, controller
 
 
 def _pencil(y, order):

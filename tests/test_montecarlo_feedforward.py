@@ -10,22 +10,13 @@ import numpy as np
 import pytest
 
 from servo_toolkit.loop.controller import Feedforward
-from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.sim import controller_for, simulate
+from servo_toolkit.sim import simulate
 from servo_toolkit.sim.variants import with_load_inertia
 from servo_toolkit.studies.montecarlo import montecarlo
 from servo_toolkit.studies.time_run import sine_run_options
 
-from .conftest import SCENES
 
 DURATION = 0.5
-
-
-@pytest.fixture(scope="module")
-def ema():
-    scene = load_scene(SCENES / "ema_reference.toml")
-    controller, _ = controller_for(scene)
-    return scene, controller
 
 
 @pytest.fixture(scope="module")

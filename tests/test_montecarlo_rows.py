@@ -8,16 +8,13 @@ import math
 import pickle
 
 import numpy as np
-import pytest
 
-from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.sim import Reference, controller_for
+from servo_toolkit.sim import Reference
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.reference import fill
 from servo_toolkit.sim.tolerance_rows import PRIMARIES, ToleranceRows, _relative
 from servo_toolkit.studies import montecarlo as mc
 
-from .conftest import SCENES
 
 DURATION = 0.1
 REF = Reference.sine(math.radians(2.0), 8.0)
@@ -28,13 +25,6 @@ VARIANTS = {"load_inertia": np.array([0.0, 0.004, 1.7, 4.0]), "stiffness": np.ar
 #: figures are smooth in the parameters: peak current ~ inertia x acceleration, tracking error
 #: ~ inverse loop gain, each of order one per slot; some ten slots and table rows move)
 SENSITIVITY = 100.0
-
-
-@pytest.fixture(scope="module")
-def ema():
-    scene = load_scene(SCENES / "ema_reference.toml")
-    controller, _ = controller_for(scene)
-    return scene, controller
 
 
 def _exact_figures(r):
