@@ -295,7 +295,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
                 acc = Y[0, l] + Y[1, l] + Y[2, l] + Y[3, l] + Y[4, l] + Y[5, l] + Y[6, l]
                 for j in range(lo.NX_PHYS, nx):
                     acc += Y[j, l]
-                qo = Y[0, l] if PT[lo.RIGID, l] > 0.0 else Y[2, l]
+                qo = Y[2, l]  # the load's angle: a block in lanes holds two-mass chains only
                 alarm = not (math.isfinite(acc) and math.isfinite(tau)) or (
                     PT[lo.STROKE_MODE, l] == 0.0 and (qo > PT[lo.STROKE_HI, l] or qo < PT[lo.STROKE_LO, l]))
                 NEW[l] = 1.0 if alarm or abs(A[0, l]) > fig[1, l] or abs(Y[0, l] - Y[2, l]) > fig[4, l] else 0.0
