@@ -90,6 +90,27 @@ def test_design_file_round_trip_and_the_cli(ema, base, tmp_path, capsys):
         save_design(d, EMA.with_suffix(".json") if EMA.with_suffix(".json").exists() else path, inputs=[path])
 
 
+def test_check_reads_one_design_file_once_for_every_scene(base, tmp_path, capsys, monkeypatch):
+    """``check --design`` checks every scene against the file as it was read before any
+    work: it is read once, so a file rewritten between two scenes' designs changes
+    neither verdict."""
+    import servo_toolkit.loop.tuning as tuning
+    path = save_design(base, tmp_path / "base.json")
+    reads = []
+    read = tuning.read_design_text
+
+    def counting(p):
+        reads.append(p)
+        text = read(p)
+        path.write_text("{}")  # rewritten after the one read: a second read would fail the check
+        return text
+    monkeypatch.setattr(tuning, "read_design_text", counting)
+    code = main(["check", str(EMA), str(EMA), "--design", str(path), "--linear-only", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert len(reads) == 1 and code == (0 if base.passed else 1)
+    assert [s["gain_margin_db"] for s in out["scenes"]] == [pytest.approx(base.margins.gain_margin_db, rel=1e-9)] * 2
+
+
 def test_tuner_driven_from_code(ema, base):
     pytest.importorskip("ipywidgets")
     from servo_toolkit.tuner import tune

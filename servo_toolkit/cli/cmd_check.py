@@ -180,16 +180,17 @@ def _tagged(exc: SceneError, path) -> SceneError:
     return exc if exc.source else exc.with_source(str(path))
 
 
-def _check_scene(path, scene, args, varies, executor=None):
+def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     """Design and check one scene: (suite name, cases, JSON dict); ``executor`` runs the
-    chunks of its variants."""
+    chunks of its variants; ``design_text`` is the ``--design`` file's text (read once for
+    every scene)."""
     from ..studies.gate import SIZING_ROWS, gate
     sizing_ids = {rid for rid, _ in SIZING_ROWS.values()}
     spec = robustness_spec(scene, varies, args.samples)
     if not getattr(args, "design", None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
         check_robustness_budget(scene, spec, robust, args.samples, args.force)
-    g = gate(scene, design_from_args(scene, args, spec, executor=executor), spec,
+    g = gate(scene, design_from_args(scene, args, spec, executor=executor, design_text=design_text), spec,
              linear_only=getattr(args, "linear_only", False), executor=executor)
     result, ls, robust = g.result, g.large_signal, g.robustness
     cases = _cases(g.rows)
@@ -236,7 +237,7 @@ def _executor(scheduler, scenes, paths):
     return study_executor(scheduler)
 
 
-def _check_all(args, scenes, varies, executor):
+def _check_all(args, scenes, varies, executor, design_text=None):
     """Check every scene: (JUnit entries, errors, skipped, all met, JSON list)."""
     entries, out, all_ok, errors, skipped = [], [], True, 0, 0
     for path, scene in zip(args.scenes, scenes):
@@ -252,7 +253,7 @@ def _check_all(args, scenes, varies, executor):
         try:
             if isinstance(scene, SceneError):
                 raise scene
-            name, cases, d = _check_scene(path, scene, args, varies, executor)
+            name, cases, d = _check_scene(path, scene, args, varies, executor, design_text)
         except SimulationError as exc:  # its own nonlinear run could not run: no verdict, exit 2
             print(f"servo-toolkit: simulation error: {path}: {exc}", file=sys.stderr)
             errors += 1
@@ -296,9 +297,10 @@ def run(args) -> int:
         raise SceneError("samples", f"must be at least 1 (got {args.samples})")
     if args.junit:
         check_writable(args.junit, args.scenes)
-    if getattr(args, "design", None):  # the one design file every scene is checked with: read before any work
+    design_text = None
+    if getattr(args, "design", None):  # the one design file every scene is checked with: read once, before any work
         from ..loop.tuning import read_design_text
-        read_design_text(args.design)
+        design_text = read_design_text(args.design)
     scheduler = scheduler_of(args)
     scenes = []
     for path in args.scenes:  # every file is read before any design runs
@@ -312,7 +314,7 @@ def run(args) -> int:
         if loops:
             prepare_kernels(loops[0])  # one warm-up for every scene's nonlinear rows
     with _executor(scheduler, scenes, args.scenes) as (executor, _):
-        entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor)
+        entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor, design_text)
     if args.junit:
         write_junit(args.junit, entries)
     if args.json:

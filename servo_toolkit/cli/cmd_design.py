@@ -43,14 +43,15 @@ def gate_result(scene, args, result):
     return with_large_signal(scene, result)
 
 
-def design_from_args(scene, args, spec=None, executor=None):
+def design_from_args(scene, args, spec=None, executor=None, design_text=None):
     """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
     scene's ``[robustness]`` for a robust design (``check --vary``); ``executor`` runs the
-    chunks of its variants (``check --scheduler``)."""
+    chunks of its variants (``check --scheduler``); ``design_text``, the ``--design`` file's
+    text already read, is not read again."""
     require = dict(parse_override(text) for text in args.require)
     if getattr(args, "design", None):
         from ..loop.tuning import load_design
-        return load_design(scene, args.design, require=require or None)
+        return load_design(scene, args.design, require=require or None, text=design_text)
     robust = args.robust
     if spec is not None and (robust is True or (robust is None and scene.robustness is not None)):
         robust = spec

@@ -17,7 +17,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..components.base import Element, Jet, Lash, Spring
+from ..components.base import Element, Jet, Lash
 from ..errors import SceneError
 from .chain import Chain
 from .elements import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, neglect_criterion, reflect_elements,
@@ -205,12 +205,10 @@ class Drivetrain:
                 local[i] = z
                 z = stage.map(z.value).compose(z)
         output = z
-        z = Jet.linear(q, 1.0)
-        for i in reversed(range(len(self.stages))):
-            if self.stages[i].direction == "backward":
-                local[i] = z
-                z = self.stages[i].map(z.value).compose(z)
-        motor = z
+        sides, motor = self.output_sides(q)
+        for i, stage in enumerate(self.stages):
+            if stage.direction == "backward":
+                local[i] = sides[i]
         elements, springs, lashes = [], [], []
         element_stage, spring_stage = [], []
         for i, stage in enumerate(self.stages):  # listed from the motor to the load
@@ -225,6 +223,20 @@ class Drivetrain:
             element_stage.append(len(self.stages))
         return Kinematics(q, motor, output, tuple(elements), tuple(springs), tuple(lashes),
                           tuple(element_stage), tuple(spring_stage))
+
+    def output_sides(self, q) -> tuple[list[Jet], Jet]:
+        """The backward pass of :meth:`kinematics`: for each stage (listed from the motor to
+        the load) the jet in q of its output side's coordinate (the input of the stage after
+        it; q for the last), composed from the backward stages after it, and the motor
+        angle's jet (every backward stage composed)."""
+        q = np.atleast_1d(np.asarray(q, dtype=float))
+        sides = [None] * len(self.stages)
+        z = Jet.linear(q, 1.0)
+        for i in reversed(range(len(self.stages))):
+            sides[i] = z
+            if self.stages[i].direction == "backward":
+                z = self.stages[i].map(z.value).compose(z)
+        return sides, z
 
     @staticmethod
     def _collect(stage, z: Jet, elements, springs, lashes) -> None:

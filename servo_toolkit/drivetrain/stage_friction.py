@@ -25,21 +25,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
-
-from ..components.base import Jet
-
 
 def stage_output_slope(drive, k: int, q0: float) -> float:
     """du_k/dq at q0: stage k's output coordinate (the input of the stage after it; the
     output q for the last) per output unit. Only the backward stages before a cam."""
-    z = Jet.linear(np.array([q0]), 1.0)
-    for i in reversed(range(len(drive.stages))):
-        if i == k:
-            return float(z.d1[0])
-        if drive.stages[i].direction == "backward":
-            z = drive.stages[i].map(z.value).compose(z)
-    raise IndexError(k)
+    sides, _ = drive.output_sides([q0])
+    return float(sides[k].d1[0])
 
 
 def stage_nodes(chain) -> list[int]:

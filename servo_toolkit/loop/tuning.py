@@ -227,8 +227,11 @@ def read_design_text(path) -> str:
     return read_input_text(path, "--design", MAX_DESIGN_BYTES, what=f"the design file {str(path)!r}")
 
 
-def load_design(scene, path, require=None):
+def load_design(scene, path, require=None, text=None):
     """The design saved in ``path``, evaluated on ``scene`` (margins, requirements, stroke).
+    ``text``, the file's text read before (:func:`read_design_text`), is used instead of
+    reading it again: a command that checks several scenes with one design file reads it
+    once, so every scene is checked against the same design.
 
     Raises
     ------
@@ -237,7 +240,8 @@ def load_design(scene, path, require=None):
         key, see :func:`.design_file.design_fields`).
     """
     key = "--design"
-    text = read_design_text(path)
+    if text is None:
+        text = read_design_text(path)
     try:
         data = json.loads(text)
     except (json.JSONDecodeError, ValueError) as exc:
