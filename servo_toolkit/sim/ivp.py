@@ -197,4 +197,5 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
             ys.append(x[:, None])
             return _Joined(ts, ys, 0, "event at the segment's end", sol.t_events), x
     raise SimulationError(f"the reference solver met more than {MAX_FRICTION_RESTARTS} friction events "
-                          f"(stick and slip) within one controller sample at t = {a:.6g} s")
+                          f"(stick and slip) in one solve from t = {a:.6g} s, the last at t = {t0:.9g} s; "
+                          f"try another solver (solver='LSODA') or method='rk4'")

@@ -18,6 +18,15 @@ sticks carries the friction's jump as a huge stiffness and, reused past the brea
 would hold the node near rest long after it breaks away (the band's watch let LSODA hold an
 intermediate node for over a millisecond; on the motor side and the load it keeps the
 reference of the existing checks, whose LSODA error near a breakaway is about 1e-11 rad).
+
+Right after a breakaway a node leaves rest tangentially: its moment has just reached the
+breakaway level, which the sliding friction at 0+ equals, so its speed grows as the square
+of the time and lies within the solver's error for a while. A reversal watched at exactly 0
+there fires on that error (Radau at rtol = atol = 1e-12 stuck and broke the wheel away
+10,000 times at one instant), so until the next event the node that broke away is watched
+for a reversal beyond the band of the motor side's and the load's watch (1e-9 of the largest
+speed; the node restarts at rest either way). The motor side and the load, whose friction
+takes the speed's sign, keep the watch at 0: within a band their friction would chatter.
 """
 
 from __future__ import annotations
@@ -115,6 +124,7 @@ class FrictionModes:
         self.slots = {i: _slots(model, P, i) for i in self.nodes}
         self.dirs = dict.fromkeys(self.nodes, 0.0)
         self.rest = {}  # a stuck node's position (and a rigid model's output) where it stuck
+        self.fresh = None  # the node that broke away at the last restart (its reversal is banded)
 
     def _hold(self, i):
         for s in self.slots[i][0]:
@@ -146,13 +156,21 @@ class FrictionModes:
         at rest, leaving a band of ``scale`` as a safeguard beside their breakaway's event),
         their friction's sign left to the speed."""
         if x[i] != 0.0:
-            def ev(t, y, i=i):
-                return y[i]
-            return _terminal(ev, i, -1.0 if x[i] > 0 else 1.0, reversal=True)
+            return self._reversal(i, 1.0 if x[i] > 0 else -1.0)
 
         def ev(t, y, i=i):
             return abs(y[i]) - self.scale
         return _terminal(ev, i, 1.0)
+
+    def _reversal(self, i, direction):
+        """Node i, sliding in ``direction``, reversing: its speed reaching 0 against it, or,
+        for the node that has just broken away, passing the band of :attr:`scale` against it
+        (module docstring)."""
+        band = self.scale * direction if i == self.fresh else 0.0
+
+        def ev(t, y, i=i):
+            return y[i] + band
+        return _terminal(ev, i, -direction, reversal=True)
 
     def events(self, t0, x) -> list:
         """Each node's mode at (t0, x), its direction set in P, and the terminal events that
@@ -184,9 +202,7 @@ class FrictionModes:
                 events.append(self._watch(i, x))
                 continue
             if self.dirs[i] != 0.0:  # sliding: its speed reaching 0 against its direction
-                def ev(t, y, i=i):
-                    return y[i]
-                events.append(_terminal(ev, i, -self.dirs[i], reversal=True))
+                events.append(self._reversal(i, self.dirs[i]))
             else:  # stuck: its acceleration leaving 0
                 def ev(t, y, i=i):  # read at rest (an interpolant may not hold the speed at 0)
                     y = np.array(y, dtype=float)
@@ -200,6 +216,7 @@ class FrictionModes:
         a reversal its mode is decided at the restart, after a breakaway it slides in the
         direction of the moment on it."""
         i = ev.node
+        self.fresh = i if ev.breakaway and i > 3 else None  # a held direction: not the motor side's or the load's
         if i <= 3 and ev.breakaway:  # leaves rest here, towards the side beyond its band
             x[i] = 0.0
             self._leave_rest(t, x, only=i)
