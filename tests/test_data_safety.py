@@ -152,7 +152,7 @@ def test_junit_onto_a_special_file_is_refused_and_left_as_it_is(tmp_path, capsys
     fifo = tmp_path / "loop.xml"
     os.mkfifo(fifo)
     assert main(["check", str(EMA), "--junit", str(fifo)]) == 2
-    assert "regular file" in _one_line(capsys, "junit")
+    assert "regular file" in _one_line(capsys, "--junit")
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
 
 

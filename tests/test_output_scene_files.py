@@ -1,6 +1,7 @@
 """Every file a scene is read from is an input of the command: the points file of a
 ``[duty_cycle]`` is never replaced by an output, and a calibrated scene written elsewhere
-never loses it; two figures of one run never share a file."""
+never loses it; two figures of one run never share a file. An option's error names the
+option as it is typed (``--samples``, not the scene's ``robustness.samples``)."""
 
 from __future__ import annotations
 
@@ -72,3 +73,13 @@ def test_size_refuses_one_file_for_both_figures(tmp_path, capsys, monkeypatch):
     assert main(["size", str(SCENES / "ema_sizing.toml"), "--plot", str(fig), "--sweep-plot", str(fig)]) == 2
     assert "another file than --plot" in _one_line(capsys, "--sweep-plot")
     assert not fig.exists()
+
+
+@pytest.mark.parametrize("argv, key", [
+    (["montecarlo", str(EMA), "--samples", "99999999"], "--samples"),
+    (["montecarlo", str(EMA), "--seed", "-1"], "--seed"),
+    (["check", str(EMA), "--linear-only", "--junit", str(SCENES)], "--junit"),
+])
+def test_an_option_s_error_names_the_option(argv, key, capsys):
+    assert main(argv) == 2
+    _one_line(capsys, key)

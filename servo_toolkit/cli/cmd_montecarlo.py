@@ -49,11 +49,11 @@ def _check_args(args):
     from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     if args.samples is not None and args.samples < 1:
-        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+        raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.samples is not None and args.samples > MAX_SAMPLES:
-        raise SceneError("samples", f"must be at most {MAX_SAMPLES} (got {args.samples})")
+        raise SceneError("--samples", f"must be at most {MAX_SAMPLES} (got {args.samples})")
     if args.seed is not None and args.seed < 0:
-        raise SceneError("seed", f"must not be negative (got {args.seed})")
+        raise SceneError("--seed", f"must not be negative (got {args.seed})")
     if args.duration is not None and not args.duration > 0:
         raise SceneError("duration", f"must be positive (got {args.duration:g} s)")
     if args.duration is not None and not math.isfinite(args.duration):
