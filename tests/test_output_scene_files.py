@@ -1,7 +1,8 @@
 """Every file a scene is read from is an input of the command: the points file of a
 ``[duty_cycle]`` is never replaced by an output, and a calibrated scene written elsewhere
 never loses it; two figures of one run never share a file. An option's error names the
-option as it is typed (``--samples``, not the scene's ``robustness.samples``)."""
+option as it is typed (``--samples``, not the scene's ``robustness.samples``). Inputs saved
+as UTF-8 with a byte-order mark read as UTF-8."""
 
 from __future__ import annotations
 
@@ -83,3 +84,14 @@ def test_size_refuses_one_file_for_both_figures(tmp_path, capsys, monkeypatch):
 def test_an_option_s_error_names_the_option(argv, key, capsys):
     assert main(argv) == 2
     _one_line(capsys, key)
+
+
+def test_a_utf8_byte_order_mark_is_read_as_utf8(tmp_path, capsys):
+    """Spreadsheet programs and some editors start UTF-8 files with a byte-order mark."""
+    scene = tmp_path / "ema.toml"
+    scene.write_bytes(b"\xef\xbb\xbf" + EMA.read_bytes())
+    assert load_scene(scene).name == load_scene(EMA).name
+    from servo_toolkit.identify import read_data
+    data = tmp_path / "frf.csv"
+    data.write_bytes(b"\xef\xbb\xbf" + FRF.encode())
+    assert list(read_data(data).frequency_hz) == [1, 2, 4, 8, 16]
