@@ -1,8 +1,9 @@
-"""Every file a scene is read from is an input of the command: the points file of a
-``[duty_cycle]`` is never replaced by an output, and a calibrated scene written elsewhere
-never loses it; two figures of one run never share a file. An option's error names the
-option as it is typed (``--samples``, not the scene's ``robustness.samples``). Inputs saved
-as UTF-8 with a byte-order mark read as UTF-8."""
+"""What the command line reads and writes: every file a scene is read from is an input of
+the command (the points file of a ``[duty_cycle]`` is never replaced by an output, and a
+calibrated scene written elsewhere never loses it); two figures of one run never share a
+file; an option's error names the option as typed (``--samples``, not the scene's
+``robustness.samples``); inputs saved as UTF-8 with a byte-order mark read as UTF-8; a
+misspelt key's error lists the key it meant."""
 
 from __future__ import annotations
 
@@ -95,3 +96,13 @@ def test_a_utf8_byte_order_mark_is_read_as_utf8(tmp_path, capsys):
     data = tmp_path / "frf.csv"
     data.write_bytes(b"\xef\xbb\xbf" + FRF.encode())
     assert list(read_data(data).frequency_hz) == [1, 2, 4, 8, 16]
+
+
+def test_a_misspelt_optional_key_is_told_the_key_it_meant(tmp_path, capsys):
+    """An optional key the scene leaves out (read only when present) is among the known keys
+    the error lists, so the typo's correction is in the message."""
+    scene = tmp_path / "typo.toml"
+    scene.write_text(EMA.read_text().replace('bandwidth = "8 Hz"', 'bandwdth = "8 Hz"', 1))
+    assert main(["stiffness", str(scene)]) == 2
+    line = _one_line(capsys, f"{scene}: requirements.bandwdth")
+    assert "unknown key" in line and "'bandwidth'" in line
