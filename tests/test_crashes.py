@@ -202,12 +202,12 @@ def test_forced_picosecond_reference_run_is_one_line_not_7_tib(tmp_path, capsys)
     assert line.startswith("servo-toolkit: simulation error: the reference solver restarts at every controller sample")
 
 
-@pytest.mark.parametrize("args, key", [(["--duration", "inf"], "duration: must be finite"),
-                                       (["--duration", "nan"], "duration: must be positive"),
-                                       (["--samples", "1000000000"], "samples: must be at most 1000000"),
-                                       (["--samples", "1000000"], "samples: the run is estimated at"),
-                                       (["--duration", "1e6"], "duration: the run is estimated at"),
-                                       (["--workers", "100000"], "workers: must be at most 256")])
+@pytest.mark.parametrize("args, key", [(["--duration", "inf"], "--duration: must be finite"),
+                                       (["--duration", "nan"], "--duration: must be positive"),
+                                       (["--samples", "1000000000"], "--samples: must be at most 1000000"),
+                                       (["--samples", "1000000"], "--samples: the run is estimated at"),
+                                       (["--duration", "1e6"], "--duration: the run is estimated at"),
+                                       (["--workers", "100000"], "--workers: must be at most 256")])
 def test_montecarlo_extremes_are_one_line(args, key, capsys):
     assert main(["montecarlo", EMA, *args]) == 2
     assert _one_error_line(capsys.readouterr().err).startswith(f"servo-toolkit: error: {key}")
