@@ -3,7 +3,8 @@ the command (the points file of a ``[duty_cycle]`` is never replaced by an outpu
 calibrated scene written elsewhere never loses it); two figures of one run never share a
 file; an option's error names the option as typed (``--samples``, not the scene's
 ``robustness.samples``); inputs saved as UTF-8 with a byte-order mark read as UTF-8; a
-misspelt key's error lists the key it meant."""
+misspelt key's error lists the key it meant; a folder holding the user's own file of an
+output's name (index.html, controller.json) is not taken for an earlier output."""
 
 from __future__ import annotations
 
@@ -106,3 +107,28 @@ def test_a_misspelt_optional_key_is_told_the_key_it_meant(tmp_path, capsys):
     assert main(["stiffness", str(scene)]) == 2
     line = _one_line(capsys, f"{scene}: requirements.bandwdth")
     assert "unknown key" in line and "'bandwidth'" in line
+
+
+def test_report_never_replaces_a_folder_holding_the_user_s_own_index_html(tmp_path, capsys, monkeypatch):
+    import servo_toolkit.report as report
+    _forbid(monkeypatch, report, "build_report")
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "index.html").write_text("<html>my own page</html>\n")
+    assert main(["report", str(EMA), "-o", str(site)]) == 2
+    assert "index.html not written by this command" in _one_line(capsys, "--output")
+    assert [p.name for p in site.iterdir()] == ["index.html"]
+    assert (site / "index.html").read_text() == "<html>my own page</html>\n"
+
+
+def test_export_never_replaces_a_folder_holding_the_user_s_own_controller_json(tmp_path, capsys):
+    out = tmp_path / "ctl"
+    out.mkdir()
+    (out / "controller.json").write_text('{"mine": 1}\n')
+    assert main(["export", str(EMA), "-o", str(out)]) == 2
+    assert "controller.json not written by this command" in _one_line(capsys, "-o")
+    assert [p.name for p in out.iterdir()] == ["controller.json"]
+    assert (out / "controller.json").read_text() == '{"mine": 1}\n'
+    again = tmp_path / "again"  # an earlier export carries its marks: it is replaced
+    assert main(["export", str(EMA), "-o", str(again)]) == 0
+    assert main(["export", str(EMA), "-o", str(again)]) == 0
