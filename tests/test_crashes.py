@@ -36,7 +36,8 @@ def _one_error_line(err: str) -> str:
 def test_sigterm_during_report_exits_143_and_keeps_the_earlier_report(tmp_path):
     out = tmp_path / "rep"
     out.mkdir()
-    (out / "index.html").write_text("earlier report")
+    earlier = '<meta name="generator" content="servo_toolkit 0">earlier report'
+    (out / "index.html").write_text(earlier)
     proc = subprocess.Popen([sys.executable, "-m", "servo_toolkit", "report",
                              str(SCENES / "deflection_platform.toml"), "-o", str(out)],
                             cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -54,7 +55,7 @@ def test_sigterm_during_report_exits_143_and_keeps_the_earlier_report(tmp_path):
     assert proc.returncode == 143, err
     assert _one_error_line(err) == "servo-toolkit: terminated"
     assert [p.name for p in tmp_path.iterdir()] == ["rep"]  # no temporary folder left
-    assert (out / "index.html").read_text() == "earlier report"
+    assert (out / "index.html").read_text() == earlier
 
 
 def test_sigterm_in_process_is_an_interrupt(monkeypatch, capsys):
@@ -202,12 +203,12 @@ def test_forced_picosecond_reference_run_is_one_line_not_7_tib(tmp_path, capsys)
     assert line.startswith("servo-toolkit: simulation error: the reference solver restarts at every controller sample")
 
 
-@pytest.mark.parametrize("args, key", [(["--duration", "inf"], "duration: must be finite"),
-                                       (["--duration", "nan"], "duration: must be positive"),
-                                       (["--samples", "1000000000"], "samples: must be at most 1000000"),
-                                       (["--samples", "1000000"], "samples: the run is estimated at"),
-                                       (["--duration", "1e6"], "duration: the run is estimated at"),
-                                       (["--workers", "100000"], "workers: must be at most 256")])
+@pytest.mark.parametrize("args, key", [(["--duration", "inf"], "--duration: must be finite"),
+                                       (["--duration", "nan"], "--duration: must be positive"),
+                                       (["--samples", "1000000000"], "--samples: must be at most 1000000"),
+                                       (["--samples", "1000000"], "--samples: the run is estimated at"),
+                                       (["--duration", "1e6"], "--duration: the run is estimated at"),
+                                       (["--workers", "100000"], "--workers: must be at most 256")])
 def test_montecarlo_extremes_are_one_line(args, key, capsys):
     assert main(["montecarlo", EMA, *args]) == 2
     assert _one_error_line(capsys.readouterr().err).startswith(f"servo-toolkit: error: {key}")

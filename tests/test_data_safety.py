@@ -152,7 +152,7 @@ def test_junit_onto_a_special_file_is_refused_and_left_as_it_is(tmp_path, capsys
     fifo = tmp_path / "loop.xml"
     os.mkfifo(fifo)
     assert main(["check", str(EMA), "--junit", str(fifo)]) == 2
-    assert "regular file" in _one_line(capsys, "junit")
+    assert "regular file" in _one_line(capsys, "--junit")
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
 
 
@@ -251,9 +251,10 @@ def _tiny_report():
 
 
 def _earlier_report(folder: Path) -> dict:
+    """A folder as an earlier report leaves it (the marks it is told by, dummy content)."""
     folder.mkdir()
-    (folder / "index.html").write_text("old html")
-    (folder / "report.pdf").write_text("old pdf")
+    (folder / "index.html").write_text('<meta name="generator" content="servo_toolkit 0">old html')
+    (folder / "report.pdf").write_text("%PDF- old pdf")
     return {p.name: p.read_text() for p in folder.iterdir()}
 
 
@@ -312,6 +313,12 @@ def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypat
     assert os.listdir(tmp_path) == ["rep"]
 
 
+def _export_set(text) -> dict:
+    """An export's files as an earlier export leaves them (its marks), each ending in ``text``."""
+    from servo_toolkit.export.writer import FILES, MARKS
+    return {name: f"{MARKS[name].decode()} {text}" for name in FILES}
+
+
 @pytest.mark.parametrize("exchange", [True, False], ids=["renameat2", "two-renames"])
 def test_two_writers_leave_one_complete_set(tmp_path, monkeypatch, exchange):
     from servo_toolkit.export.writer import FILES, write_files
@@ -325,7 +332,7 @@ def test_two_writers_leave_one_complete_set(tmp_path, monkeypatch, exchange):
         try:
             start.wait()
             for _ in range(5):
-                write_files(out, {name: f"{n}" for name in FILES})
+                write_files(out, _export_set(n))
         except BaseException as exc:  # noqa: BLE001 - the test reports it
             errors.append(exc)
     threads = [threading.Thread(target=writer, args=(n,)) for n in range(6)]
@@ -335,28 +342,28 @@ def test_two_writers_leave_one_complete_set(tmp_path, monkeypatch, exchange):
         t.join()
     assert errors == []
     contents = {p.name: p.read_text() for p in out.iterdir()}
-    assert sorted(contents) == sorted(FILES) and len(set(contents.values())) == 1
+    assert sorted(contents) == sorted(FILES) and len({c.split()[-1] for c in contents.values()}) == 1
     assert os.listdir(tmp_path) == ["ctrl"]
 
 
 def test_a_failed_export_into_an_existing_folder_keeps_the_old_set(tmp_path):
     from servo_toolkit.export.writer import FILES, write_files
     out = tmp_path / "ctrl"
-    write_files(out, {name: "old" for name in FILES})
-    bad = {FILES[0]: "new", FILES[1]: None, FILES[2]: "new"}  # the second file cannot be written
+    write_files(out, _export_set("old"))
+    bad = {**_export_set("new"), FILES[1]: None}  # the second file cannot be written
     with pytest.raises(TypeError):
         write_files(out, bad)
-    assert {p.name: p.read_text() for p in out.iterdir()} == {name: "old" for name in FILES}
+    assert {p.name: p.read_text() for p in out.iterdir()} == _export_set("old")
     assert os.listdir(tmp_path) == ["ctrl"]
-    write_files(out, {name: "new" for name in FILES})  # a complete new set, no mix
-    assert {p.read_text() for p in out.iterdir()} == {"new"}
+    write_files(out, _export_set("new"))  # a complete new set, no mix
+    assert {p.name: p.read_text() for p in out.iterdir()} == _export_set("new")
 
 
 def test_a_failure_while_publishing_an_export_keeps_the_old_set(tmp_path, monkeypatch):
     """The second rename (or replace) of the publication fails: the old set stays whole."""
-    from servo_toolkit.export.writer import FILES, write_files
+    from servo_toolkit.export.writer import write_files
     out = tmp_path / "ctrl"
-    write_files(out, {name: "old" for name in FILES})
+    write_files(out, _export_set("old"))
     monkeypatch.setattr(folders, "_exchange", lambda a, b: "unsupported")
     calls = []
 
@@ -370,9 +377,10 @@ def test_a_failure_while_publishing_an_export_keeps_the_old_set(tmp_path, monkey
     monkeypatch.setattr(os, "rename", failing(os.rename))
     monkeypatch.setattr(os, "replace", failing(os.replace))
     with pytest.raises((SceneError, OSError)):
-        write_files(out, {name: "new" for name in FILES})
+        write_files(out, _export_set("new"))
     monkeypatch.undo()
-    assert {p.name: p.read_text() for p in out.iterdir()} == {name: "old" for name in FILES}
+    assert len(calls) == 2  # the publication ran and failed at its second rename
+    assert {p.name: p.read_text() for p in out.iterdir()} == _export_set("old")
     assert os.listdir(tmp_path) == ["ctrl"]
 
 

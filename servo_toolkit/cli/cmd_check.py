@@ -74,7 +74,7 @@ def robustness_spec(scene, varies: dict, samples):
     spec = replace(spec, **varies)
     if samples is not None:
         if samples < 1:
-            raise SceneError("samples", f"must be at least 1 (got {samples})")
+            raise SceneError("--samples", f"must be at least 1 (got {samples})")
         spec = replace(spec, samples=samples)
     return spec
 
@@ -128,7 +128,7 @@ def write_junit(path, entries) -> None:
             else:
                 ET.SubElement(case, "failure", message=message, type="RequirementNotMet").text = message
     _xml_safe(root)  # a scene name or message with control characters still parses
-    with atomic_file(path, "junit") as tmp:  # never a half-written report
+    with atomic_file(path, "--junit") as tmp:  # never a half-written report
         ET.ElementTree(root).write(tmp, encoding="utf-8", xml_declaration=True)
 
 
@@ -166,13 +166,13 @@ def _is_junit(path: Path) -> bool:
 
 
 def check_writable(path, inputs=()) -> None:
-    """SceneError (key ``junit``) unless a JUnit file may be written at ``path``: its folder
+    """SceneError (key ``--junit``) unless a JUnit file may be written at ``path``: its folder
     must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
     existing file that is not a JUnit report (nothing a user has is overwritten). Checked
     before any design runs."""
-    p = check_output_file(path, "junit", inputs=inputs)
+    p = check_output_file(path, "--junit", inputs=inputs)
     if p.is_file() and not _is_junit(p):
-        raise SceneError("junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
+        raise SceneError("--junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
 
 
 def _tagged(exc: SceneError, path) -> SceneError:
@@ -294,7 +294,7 @@ def run(args) -> int:
     for text in args.require:
         parse_override(text)
     if args.samples is not None and args.samples < 1:
-        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+        raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.junit:
         check_writable(args.junit, args.scenes)
     design_text = None

@@ -65,8 +65,9 @@ def run(args) -> int:
         raise SceneError("--sample-time", f"must lie in [0.1 us, 1 s] (got {args.sample_time!r})")
     if ts_i is not None and not ts_i >= 1e-7:  # the upper limit (the motion sample time) is the export's
         raise SceneError("--current-sample-time", f"must be at least 0.1 us (got {args.current_sample_time!r})")
-    check_directory(args.output, inputs=[args.scene, args.design])  # before any work
     scene = load_scene(args.scene)
+    inputs = [args.scene, args.design, *scene.input_files]
+    check_directory(args.output, inputs=inputs)  # before any work
     if ts is not None:
         from dataclasses import replace
         scene = replace(scene, sensors=replace(scene.sensors, sample_time=ts))
@@ -78,7 +79,7 @@ def run(args) -> int:
                                                              schedule=True if args.schedule else None,
                                                              shaper=args.shaper))
         result = export(result, scene, args.output, fixed_point=args.fixed_point, current_sample_time=ts_i,
-                        inputs=[args.scene, args.design])
+                        inputs=inputs)
     except SceneError as exc:
         if exc.key in OPTION_KEYS:  # an option, not the scene: name the option
             raise SceneError(OPTION_KEYS[exc.key], exc.rule) from None

@@ -57,12 +57,25 @@ def _check_written(keys, values):
     return check
 
 
+def _check_points_files(scene, output) -> None:
+    """SceneError naming ``-o`` when the calibrated scene, written at ``output``, would not
+    find a points file the scene names by a path relative to its own folder."""
+    from ..core.files import _same_file
+    folder = Path(output).absolute().parent
+    for i, seg in enumerate(getattr(scene.duty_cycle, "segments", ())):
+        if seg.path and not Path(seg.file).is_absolute() and not _same_file(folder / seg.file, seg.path):
+            raise SceneError("-o", f"the scene's duty_cycle.segments[{i}].file {seg.file!r} is relative to the "
+                                   f"scene's folder, and the calibrated scene in {str(folder)!r} would not read it: "
+                                   f"write it beside the scene, or give the points file's absolute path")
+
+
 def run(args) -> int:
     """Run the command."""
     from ..identify import calibrated_text, fit, read_data
-    if args.output is not None:
-        check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data))
     scene = load_scene(args.scene)
+    if args.output is not None:  # checked before any work
+        check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data, *scene.input_files))
+        _check_points_files(scene, args.output)
     data = read_data(args.data)
     result = fit(scene, data, args.response, args.param, progress=not args.json and sys.stderr.isatty())
     if args.output is not None:

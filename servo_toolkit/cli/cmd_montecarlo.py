@@ -49,19 +49,19 @@ def _check_args(args):
     from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     if args.samples is not None and args.samples < 1:
-        raise SceneError("samples", f"must be at least 1 (got {args.samples})")
+        raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.samples is not None and args.samples > MAX_SAMPLES:
-        raise SceneError("samples", f"must be at most {MAX_SAMPLES} (got {args.samples})")
+        raise SceneError("--samples", f"must be at most {MAX_SAMPLES} (got {args.samples})")
     if args.seed is not None and args.seed < 0:
-        raise SceneError("seed", f"must not be negative (got {args.seed})")
+        raise SceneError("--seed", f"must not be negative (got {args.seed})")
     if args.duration is not None and not args.duration > 0:
-        raise SceneError("duration", f"must be positive (got {args.duration:g} s)")
+        raise SceneError("--duration", f"must be positive (got {args.duration:g} s)")
     if args.duration is not None and not math.isfinite(args.duration):
-        raise SceneError("duration", f"must be finite (got {args.duration:g} s)")
+        raise SceneError("--duration", f"must be finite (got {args.duration:g} s)")
     if args.workers is not None and args.workers > 256:
-        raise SceneError("workers", f"must be at most 256 (got {args.workers})")
+        raise SceneError("--workers", f"must be at most 256 (got {args.workers})")
     if args.workers is not None and args.workers < 1:
-        raise SceneError("workers", f"must be at least 1 (got {args.workers})")
+        raise SceneError("--workers", f"must be at least 1 (got {args.workers})")
     return varies, scheduler_of(args)
 
 
@@ -73,9 +73,9 @@ def _check_budget(scene, args) -> None:
     duration = args.duration if args.duration is not None else run_spec(scene, None)[1]
     seconds, what = batch_seconds(scene, samples, duration)
     if args.duration is not None and args.duration > LONG_RUN_S:
-        knob, got = "duration", f"{args.duration:g} s"
+        knob, got = "--duration", f"{args.duration:g} s"
     else:
-        knob, got = ("samples" if args.samples is not None else "robustness.samples"), samples
+        knob, got = ("--samples" if args.samples is not None else "robustness.samples"), samples
     check_time(seconds, knob, what, got, args.force)
 
 

@@ -57,7 +57,7 @@ def run(args) -> int:
         raise SceneError("--frequency", "must be positive and finite")
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
     _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
     if args.estimate_only:

@@ -58,7 +58,7 @@ def run(args) -> int:
     from ..report.builder import check_report_folder
     start = time.perf_counter()
     scene = load_scene(args.scene)
-    out_dir = check_report_folder(args.output, "--output", inputs=[args.scene, args.design])  # before any work
+    out_dir = check_report_folder(args.output, "--output", inputs=[args.scene, args.design, *scene.input_files])  # before any work
     given = None
     if args.design:
         from ..loop.tuning import load_design

@@ -93,7 +93,7 @@ def run(args) -> int:
     from ..studies.time_run import simulate_study
 
     scene = load_scene(args.scene)
-    check_trace_path(args.output, inputs=[args.scene])  # a bad -o fails before the run, exit 2
+    check_trace_path(args.output, inputs=[args.scene, *scene.input_files])  # a bad -o fails before the run, exit 2
     amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
@@ -121,7 +121,7 @@ def run(args) -> int:
         if not hasattr(result, "save"):
             print("servo-toolkit: this study writes no traces", file=sys.stderr)
             return 2
-        path = result.save(args.output, inputs=[args.scene])
+        path = result.save(args.output, inputs=[args.scene, *scene.input_files])
         print(f"traces written to {path}", file=sys.stderr)
     if "UNSTABLE" in str(getattr(result, "controller", "")):
         print("servo-toolkit: warning: no stable controller was found for this scene; the run shows the "

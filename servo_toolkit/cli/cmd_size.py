@@ -8,6 +8,7 @@ cycle, a bad segment: one line naming the key).
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 from ..errors import SceneError
@@ -45,7 +46,9 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     for key, path in (("--plot", args.plot), ("--sweep-plot", args.sweep_plot)):   # checked before any work
         if path:
-            check_output_file(path, key, FIGURE_SUFFIXES, inputs=[args.scene])
+            check_output_file(path, key, FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
+    if args.plot and args.sweep_plot and Path(args.plot).resolve() == Path(args.sweep_plot).resolve():
+        raise SceneError("--sweep-plot", f"must be another file than --plot (got {args.sweep_plot!r} for both)")
     if args.closed_loop:
         prepare_kernels(scene)
     result = size(scene, closed_loop=args.closed_loop, losses=args.losses, sweep=not args.no_sweep,

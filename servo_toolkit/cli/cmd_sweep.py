@@ -84,7 +84,7 @@ def run(args) -> int:
     sweep_multisine.check_options(args)
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene])
+        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
     name = args.study or default_study(scene)
     if name:
         if not args.study:

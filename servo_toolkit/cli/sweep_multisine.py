@@ -61,7 +61,7 @@ def run(args, scene, amps, scheduler) -> int:
     from .budget import check_time, time_run_seconds
     for option, path, suffixes in (("-o", args.out, (".csv",)), ("--log", args.log, (".csv",))):
         if path is not None:
-            check_output_file(path, option, suffixes, inputs=[args.scene])
+            check_output_file(path, option, suffixes, inputs=[args.scene, *scene.input_files])
     if args.out and args.log and Path(args.out).resolve() == Path(args.log).resolve():
         raise SceneError("--log", "must be another file than -o")
     if (args.out or args.log) and amps is not None and len(amps) > 1:

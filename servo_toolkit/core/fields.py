@@ -120,8 +120,10 @@ class Fields:
         return f"{self.path}.{name}" if self.path else name
 
     def has(self, name: str) -> bool:
-        """True when the table defines ``name``."""
+        """True when the table defines ``name`` (a key of the table: an unknown key's error
+        lists it among the known ones)."""
         self._note(name, "optional", None)
+        self._used.add(name)
         return name in self.table
 
     def raw(self, name: str, default=_MISSING):

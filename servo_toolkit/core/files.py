@@ -124,7 +124,23 @@ def _regular_or_gone(path: Path) -> bool:
         return True
 
 
-def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False) -> Path:
+def _lacks_mark(path: Path, mark: bytes) -> bool:
+    """True for a file whose first :data:`MARK_BYTES` do not hold ``mark`` (not one the
+    command wrote); an entry another writer's swap removed since the listing is not judged."""
+    try:
+        with open(path, "rb") as fh:
+            return mark not in fh.read(MARK_BYTES)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return True
+
+
+#: how far into a file of an earlier output its mark is looked for
+MARK_BYTES = 64 * 1024
+
+
+def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False, marks=None) -> Path:
     """Check, before any work, that a folder output may be (re)written at ``path``.
 
     Parameters
@@ -139,6 +155,10 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
         Files the command reads: none may lie in the folder.
     parents : bool
         Missing parent folders will be created (else the parent must exist).
+    marks : mapping of str to bytes, optional
+        Bytes each of these files of an earlier output holds near its start (e.g. the
+        generator's name): a file of that name without them is the user's, and the folder
+        is refused.
 
     Returns
     -------
@@ -177,6 +197,10 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
             raise SceneError(key, f"{_q(path)} holds other files ({', '.join(others[:3])}"
                              f"{', ...' if len(others) > 3 else ''}); give an empty or new folder, or an "
                              f"earlier output of this command")
+        foreign = sorted(e for e in entries if e in (marks or {}) and _lacks_mark(p / e, marks[e]))
+        if foreign:
+            raise SceneError(key, f"{_q(path)} holds {', '.join(foreign)} not written by this command; give an "
+                             f"empty or new folder, or an earlier output of this command")
     parent = p.absolute().parent
     if parents:
         while not parent.exists() and parent != parent.parent:

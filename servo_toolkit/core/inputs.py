@@ -69,10 +69,11 @@ def read_input_bytes(path, key: str, limit: int, source: str | None = None, what
 
 
 def read_input_text(path, key: str, limit: int, source: str | None = None, what: str | None = None) -> str:
-    """:func:`read_input_bytes` decoded as UTF-8 (bad bytes: one SceneError naming the offset)."""
+    """:func:`read_input_bytes` decoded as UTF-8 (bad bytes: one SceneError naming the offset).
+    A leading byte-order mark (as spreadsheet programs and some editors write UTF-8) is dropped."""
     raw = read_input_bytes(path, key, limit, source, what)
     try:
-        return raw.decode("utf-8")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise SceneError(key, f"cannot read {what or _q(path)}: the bytes at offset {exc.start} are not UTF-8 "
                          "text (save the file as UTF-8)", source) from None

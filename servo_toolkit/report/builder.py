@@ -214,6 +214,9 @@ def scene_identity(scene, date: str, light: bool = True) -> dict:
 
 #: the files of a report folder (a folder holding only these is an earlier report)
 REPORT_FILES = ("index.html", "report.pdf")
+#: what each file of an earlier report holds near its start: a file of that name without it
+#: is the user's, and the folder is not replaced
+REPORT_MARKS = {"index.html": b'<meta name="generator" content="servo_toolkit', "report.pdf": b"%PDF-"}
 
 
 def check_report_folder(out_dir, key: str = "--output", parents: bool = False, inputs=()):
@@ -221,7 +224,7 @@ def check_report_folder(out_dir, key: str = "--output", parents: bool = False, i
     empty or an earlier report holding none of ``inputs``, in a writable folder (see
     :func:`servo_toolkit.core.files.check_output_folder`)."""
     from ..core.files import check_output_folder
-    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents)
+    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents, marks=REPORT_MARKS)
 
 
 def write_report(report: Report, out_dir, progress: bool = False, key: str = "out_dir") -> dict:

@@ -89,9 +89,13 @@ class Segment:
         A sine segment's frequency (Hz), or its period (s; the scene gives one of them).
     cycles : float or None
         Periods of a sine segment (default 1).
-    file : str
-        A points segment's CSV file (relative to the scene file): a header naming two
-        columns with units, e.g. ``t [s], position [deg]``, then rows of numbers.
+    file : str or None
+        A points segment's CSV file as the scene gives it (relative to the scene file): a
+        header naming two columns with units, e.g. ``t [s], position [deg]``, then rows of
+        numbers.
+    path : str or None
+        A points segment's CSV file as read (resolved against the scene's folder): an input
+        of every command on the scene, never overwritten by one of its outputs.
     times, positions : tuple of float
         A points segment: sample times from 0 (s) and positions (rad or m).
     """
@@ -107,6 +111,8 @@ class Segment:
     cycles: float | None = None
     times: tuple = ()
     positions: tuple = ()
+    file: str | None = None
+    path: str | None = None
 
 
 @dataclass(frozen=True)
@@ -204,7 +210,8 @@ def _segment(table, i: int, output_unit: str, folder: Path, source) -> Segment:
         path = Path(need("file"))
         path = path if path.is_absolute() else folder / path
         times, positions = _csv_points(path, f.key("file"), output_unit, source)
-        return Segment(kind, times[-1], values.get("load"), times=times, positions=positions)
+        return Segment(kind, times[-1], values.get("load"), times=times, positions=positions, file=values["file"],
+                       path=str(path))
     duration = need("duration")
     if kind == "ramp":
         accel = values.get("accel_time", duration / 4)

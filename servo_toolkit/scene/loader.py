@@ -95,6 +95,13 @@ class Scene:
         return [s for s in self.studies.values() if s.kind == kind]
 
     @property
+    def input_files(self) -> tuple:
+        """The files the scene was read from: its TOML file (when it has one) and the points
+        files of its ``[duty_cycle]`` (as read). A command's outputs never replace one of them."""
+        points = tuple(s.path for s in getattr(self.duty_cycle, "segments", ()) if getattr(s, "path", None))
+        return ((self.source,) if self.source else ()) + points
+
+    @property
     def drivetrain(self):
         """The reflected drivetrain (motor, stages, load); see :mod:`servo_toolkit.drivetrain.reflected`."""
         from ..drivetrain.reflected import Drivetrain
