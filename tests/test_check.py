@@ -31,6 +31,10 @@ def test_impossible_bandwidth_exits_1_with_a_table(tmp_path, capsys):
     line = next(l for l in out.splitlines() if l.strip().startswith("bandwidth"))
     assert ">= 200 Hz" in line and "FAIL" in line and "(override)" in line
     assert "some requirements NOT met" in out
+    # the stability row is a row of the table: its verdict in the column of the others'
+    rows = out.split("requirement", 1)[1].splitlines()[1:]
+    rows = rows[:next(k for k, r in enumerate(rows) if r.strip().startswith("closed_loop_stable")) + 1]
+    assert len({r.index(" ok") if " ok" in r else r.index(" FAIL") for r in rows}) == 1, rows
     failures = ET.parse(junit).getroot().findall(".//testcase[failure]")
     assert "bandwidth" in [f.get("name") for f in failures]
 

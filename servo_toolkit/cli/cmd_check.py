@@ -213,10 +213,7 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
         d["tolerances"] = g.tolerances.to_dict()
     if not args.json:
         print(f"{scene.name} ({path}): {'PASS' if ok else 'FAIL'}")
-        print(requirements_table(result.requirements))
-        stable = result.margins.closed_loop_stable
-        print(f"  {'closed_loop_stable':<24}{'yes':>14}{'yes' if stable else 'NO':>12}  "
-              f"{'ok' if stable else 'FAIL'}")
+        print(requirements_table(result.requirements, stable=bool(result.margins.closed_loop_stable)))
         if robust is not None:
             print(robust.table())
         for r in g.rows:

@@ -196,8 +196,9 @@ def command_fields(controller) -> dict:
             for name in ("feedforward", "schedule", "shaper")}
 
 
-def requirements_table(checks) -> str:
-    """Text table: requirement, required, achieved, pass/fail and shortfall."""
+def requirements_table(checks, stable=None) -> str:
+    """Text table: requirement, required, achieved, pass/fail and shortfall; ``stable`` (a
+    bool) adds the closed loop's stability as a row of the same columns."""
     width = max([24] + [len(c.name) + 2 for c in checks])
     rows = [f"  {'requirement':<{width}}{'required':>14}{'achieved':>12}  {'':6}{'short by':>10}"]
     for c in checks:
@@ -205,6 +206,9 @@ def requirements_table(checks) -> str:
         rows.append(f"  {c.name:<{width}}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
                     f"{c.achieved:>9.3g} {c.unit:<3}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
                     + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))
+    if stable is not None:
+        rows.append(f"  {'closed_loop_stable':<{width}}{'yes':>14}{'yes' if stable else 'no':>9}{'':4}  "
+                    f"{'ok' if stable else 'FAIL'}")
     return "\n".join(rows)
 
 
