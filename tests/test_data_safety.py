@@ -313,6 +313,24 @@ def test_ctrl_c_while_publishing_is_delivered_after_the_swap(tmp_path, monkeypat
     assert os.listdir(tmp_path) == ["rep"]
 
 
+def test_a_failed_output_leaves_no_folder_it_made_above_it(tmp_path):
+    """An output into missing folders (``export -o a/b/c``) makes them; when it fails they go
+    again, those another writer has put something in stay."""
+    with pytest.raises(RuntimeError):
+        with folders.atomic_folder(tmp_path / "a" / "b" / "c", parents=True) as tmp:
+            (tmp / "controller.json").write_text("{}")
+            raise RuntimeError("the export failed")
+    assert os.listdir(tmp_path) == []
+    with pytest.raises(RuntimeError):
+        with folders.atomic_folder(tmp_path / "a" / "b" / "c", parents=True) as tmp:
+            (tmp_path / "a" / "theirs.txt").write_text("kept")
+            raise RuntimeError("the export failed")
+    assert sorted(os.listdir(tmp_path / "a")) == ["theirs.txt"]
+    with folders.atomic_folder(tmp_path / "x" / "y", parents=True) as tmp:
+        (tmp / "controller.json").write_text("{}")
+    assert (tmp_path / "x" / "y" / "controller.json").read_text() == "{}"
+
+
 def _export_set(text) -> dict:
     """An export's files as an earlier export leaves them (its marks), each ending in ``text``."""
     from servo_toolkit.export.writer import FILES, MARKS

@@ -137,7 +137,8 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
     else two renames with Ctrl-C held between them), and the old output is removed. On any
     failure the temporary is removed and ``path`` is untouched. Two concurrent writers
     never fail on each other: one complete output stays. The new folder's mode follows
-    the umask.
+    the umask. With ``parents`` the missing folders above ``path`` are made, and removed
+    again (those still empty) when the output fails.
 
     Raises
     ------
@@ -146,9 +147,14 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
     """
     target = Path(path).absolute()
     tmp = None
+    made = []  # the folders above the output made here, deepest first
     try:
         try:
             if parents:
+                above = target.parent
+                while not above.exists():
+                    made.append(above)
+                    above = above.parent
                 target.parent.mkdir(parents=True, exist_ok=True)
             while True:
                 tmp = _temp_name(target.parent, f".{target.name}.")  # named before it exists: a signal
@@ -170,6 +176,11 @@ def atomic_folder(path, key: str = "--output", parents: bool = False):
     except BaseException as exc:
         if tmp is not None:
             _remove(tmp)
+        for folder in made:  # a concurrent writer's folder is not empty: left as it is
+            try:
+                os.rmdir(folder)
+            except OSError:
+                break
         if isinstance(exc, OSError):
             raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
         raise
