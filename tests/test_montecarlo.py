@@ -157,8 +157,8 @@ def test_cli_json_shape(capsys):
 
 @pytest.mark.parametrize("args, key", [(["--vary", "mass=0:1"], "vary.mass"),
                                        (["--vary", "load_inertia=2:1"], "vary.load_inertia"),
-                                       (["--samples", "0"], "samples"), (["--duration", "-1"], "duration"),
-                                       (["--workers", "0"], "workers")])
+                                       (["--samples", "0"], "--samples"), (["--duration", "-1"], "--duration"),
+                                       (["--workers", "0"], "--workers")])
 def test_cli_bad_input_exits_2_with_one_line(args, key, capsys):
     assert main(["montecarlo", EMA, *args]) == 2
     captured = capsys.readouterr()
