@@ -92,6 +92,8 @@ def test_current_saturation_held_for_the_whole_run(path):
     ilim = scene.motor.current_limit
     assert np.all(np.abs(b.current_reference[1:]) == pytest.approx(ilim))
     assert np.all(np.abs(a.current_reference[1:]) == pytest.approx(ilim))
+    for res in (a, b):  # both runs state that they were saturated
+        assert any(f"its current limit {ilim:g} A for" in s for s in res.notes), res.notes
 
 
 def test_stroke_end_raises_or_stops():
@@ -105,3 +107,27 @@ def test_stroke_end_raises_or_stops():
     a, b = _compare(scene, ramp, 0.3, 1e-3, stroke_end="stop")
     assert b.output_angle.max() > math.radians(30.0)          # it did hit the stop
     assert b.output_angle.max() < math.radians(31.0)          # and the stop held
+
+
+def test_a_run_at_the_motor_limits_says_so():
+    # 1 V cannot hold the 700 N*m hinge moment: at stall that takes R M / (N Kt) = 12.6 V
+    # (N = 52/24 * 2 pi r / lead = 138.9 at q = 0 for the rod parallel to the screw; still
+    # 10.9 V with the back-driven efficiency 0.862), so the voltage is pinned at its limit for
+    # the whole run, which the result must state
+    scene = build(variant(BASE, motor__voltage_limit="1 V"))
+    motor = scene.motor
+    n = 52 / 24 * 2 * math.pi * 0.051 / 0.005
+    assert 0.8 * motor.resistance * 700.0 / (n * motor.torque_constant) > 10 * motor.voltage_limit
+    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous"))
+    res = run(model, Reference.sine(AMP, 8.0), 0.05, "rk4", output_dt=1e-3)
+    assert np.all(np.abs(res.motor_voltage[1:]) == pytest.approx(motor.voltage_limit))
+    note = [s for s in res.notes if "voltage limit" in s]
+    assert len(note) == 1 and "1 V for 50 ms of the 50 ms run" in note[0], res.notes
+    assert res.to_dict()["notes"] == list(res.notes)
+    # within its limits a run carries no such note
+    base = build(BASE)
+    quiet = run(build_model(base, default_controller(base), ModelOptions(controller_mode="continuous")),
+                Reference.sine(AMP, 8.0), 0.05, "rk4", output_dt=1e-3)
+    assert np.max(np.abs(quiet.motor_voltage)) < base.motor.voltage_limit
+    assert np.max(np.abs(quiet.motor_current)) < base.motor.current_limit
+    assert not [s for s in quiet.notes if "the motor was at" in s], quiet.notes

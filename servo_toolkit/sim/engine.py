@@ -284,6 +284,7 @@ def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, s
     stab = {k: v for k, v in probe.items()}
     if dt is not None:
         stab["abs_lambda_dt"] = probe["max_abs_lambda"] * dt
+    notes = [*notes, *limit_notes(model, times, aux)]
     return SimulationResult(times=times, states=states, state_names=model.state_names,
                             reference_angle=refs, motor_speed=speed, motor_current=aux[:, lo.AUX_I],
                             motor_voltage=aux[:, lo.AUX_V], current_reference=aux[:, lo.AUX_IREF],
@@ -292,3 +293,27 @@ def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, s
                             choice=choice, stability=stab, reference=reference.to_dict(),
                             controller=model.controller, notes=tuple(notes),
                             output_unit=getattr(model, "output_unit", "rad"), peaks=peaks or {})
+
+
+def limit_notes(model, times, aux) -> list:
+    """A note of the time the motor spent at its voltage and current limits over the
+    recorded samples (within 1e-3 of the limit, as the large-signal check counts it; the
+    current or the loop's clamped current command), so a saturated run says so; none for a
+    run that never reached a limit."""
+    if times.size == 0:
+        return []
+    dt = np.diff(times, append=times[-1])
+    parts = []
+    current = np.maximum(np.abs(aux[:, lo.AUX_I]), np.abs(aux[:, lo.AUX_IREF]))  # the command clamped, or the current
+    for what, level, lim, unit in (("voltage", np.abs(aux[:, lo.AUX_V]), model.P[lo.VLIM], "V"),
+                                   ("current", current, model.P[lo.ILIM], "A")):
+        if math.isfinite(lim):
+            at = level >= lim * (1.0 - 1e-3)
+            if at.any():
+                parts.append(f"its {what} limit {lim:.4g} {unit} for {float(np.sum(dt[at])) * 1e3:.4g} ms")
+    if not parts:
+        return []
+    tail = ": the loop was saturated there, not linear" if model.closed_loop else ""
+    return [f"the motor was at {' and at '.join(parts)} of the {float(times[-1] - times[0]) * 1e3:.4g} ms run "
+            f"(recorded samples){tail}"]
+
