@@ -131,3 +131,17 @@ def test_a_run_at_the_motor_limits_says_so():
     assert np.max(np.abs(quiet.motor_voltage)) < base.motor.voltage_limit
     assert np.max(np.abs(quiet.motor_current)) < base.motor.current_limit
     assert not [s for s in quiet.notes if "the motor was at" in s], quiet.notes
+
+
+@pytest.mark.parametrize("chain", ["two_mass", "full"])
+def test_a_start_deflected_beyond_the_stroke_is_refused(chain):
+    # a housing 1e3 times softer carries the 700 N*m hinge moment only wound up by
+    # 700 / 1.6968 = 412.5 deg: the members before it would start far outside the stroke
+    # (+-30 deg), where the drivetrain's kinematics are not known; the run refuses to start
+    scene = build(variant(BASE, drivetrain__3__stiffness="1.6968 N*m/deg"))
+    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous", chain=chain))
+    with pytest.raises(SimulationError, match=r"outside the stroke.*load.hinge_moment") as err:
+        run(model, Reference.sine(AMP, 8.0), 0.01, "rk4")
+    assert "\n" not in str(err.value)
+    deflection = float(str(err.value).split("deflected by ")[1].split(" deg")[0])
+    assert deflection == pytest.approx(700.0 / 1.6968, rel=0.02)
