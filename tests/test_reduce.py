@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import numpy as np
@@ -145,6 +146,14 @@ def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
     assert "no point stayed within the current and voltage limits" in text
     assert "does not apply" in text and "NOT within" not in text and not re.search(r"\bnan\b", text)
     assert f"{res.measured_saturated:.2e}" in text
+    # an effect measured on its own has no figure within the limits either: its line says so
+    # rather than printing NaN as "inf dB / inf deg"
+    from dataclasses import replace
+    from servo_toolkit.studies.reduce_result import EffectCost
+    alone = replace(res, per_effect=(EffectCost("backlash", 0.0, math.nan, 2.12e-4),)).table()
+    line = next(s for s in alone.splitlines() if s.lstrip().startswith("backlash") and "measured" in s)
+    assert "inf" not in line and not re.search(r"\bnan\b", line), line
+    assert "no point within the limits" in line and "2.12e-04 where a limit was reached" in line
 
 
 def test_each_effect_left_out_is_measured_on_its_own_with_the_chain_s_modes():

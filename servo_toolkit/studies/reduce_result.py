@@ -174,8 +174,9 @@ class ReductionResult(RichDisplay):
             for c in self.per_effect:
                 sat = (f"; {c.measured_saturated:.2e} where a limit was reached"
                        if math.isfinite(c.measured_saturated) else "")
-                lines.append(f"  {c.effect[:32]:32s} estimate {c.estimate:9.2e}  measured {c.measured:9.2e} = "
-                             f"{_db(c.measured):.3f} dB / {_deg(c.measured):.2f} deg{sat}")
+                got = (f"{c.measured:9.2e} = {_db(c.measured):.3f} dB / {_deg(c.measured):.2f} deg"
+                       if not math.isnan(c.measured) else "n/a (no point within the limits)")
+                lines.append(f"  {c.effect[:32]:32s} estimate {c.estimate:9.2e}  measured {got}{sat}")
         lines += [f"note: {n}" for n in p.notes + self.notes]
         return "\n".join(lines)
 
