@@ -19,6 +19,7 @@ import pytest
 
 from servo_toolkit import SimulationError
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run
+from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.simulate import controller_for
 
 from .conftest import SCENES, build, variant
@@ -145,3 +146,6 @@ def test_a_start_deflected_beyond_the_stroke_is_refused(chain):
     assert "\n" not in str(err.value)
     deflection = float(str(err.value).split("deflected by ")[1].split(" deg")[0])
     assert deflection == pytest.approx(700.0 / 1.6968, rel=0.02)
+    # the batched Monte Carlo and the tolerance runs start from the same equilibrium
+    with pytest.raises(SimulationError, match="outside the stroke"):
+        initial_state(model, fill(model, Reference.sine(AMP, 8.0)))

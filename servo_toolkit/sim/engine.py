@@ -12,7 +12,7 @@ from . import layout as lo
 from .integrators import integrate
 from .ivp import MAX_RHS_EVALS, solve_reference
 from .kernel import hermite, reference as ref_at, rhs
-from .reference import Reference, fill, initial_state
+from .reference import Reference, check_start_on_tables, fill, initial_state
 from .result import SimulationResult
 from .stability import fastest
 
@@ -192,8 +192,11 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         raise SimulationError("the cam paper's scheme integrates a two-mass or rigid model; this one is the "
                               "full drivetrain chain: use method 'rk4' or build it with chain='two_mass'")
     P = fill(model, reference)
-    x0 = initial_state(model, P, at_rest) if x0 is None else np.asarray(x0, dtype=float).copy()
-    _check_start_on_tables(model, P, x0)
+    if x0 is None:
+        x0 = initial_state(model, P, at_rest)
+    else:
+        x0 = np.asarray(x0, dtype=float).copy()
+        check_start_on_tables(model, P, x0)
     notes = list(model.notes)
     probe = _stability_probe(model, P, x0)
     limit = probe["dt_limit_s"]
@@ -278,30 +281,6 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
     choice = choice or f"scipy solve_ivp {solver}, rtol {rtol:g}, atol {atol:g}"
     return _result(model, t_out, states, aux, speed, refs, float(np.max(np.abs(aux[:, lo.AUX_TAU]))),
                    wall, f"reference:{solver}", None, 0, requested, choice, probe, reference, notes)
-
-
-def _check_start_on_tables(model, P, x0):
-    """Refuse a start whose motor side or intermediate nodes lie beyond the stroke tables
-    (the stroke and 10 % on each side), where the kinematics are held at the tables' ends
-    rather than known: a compliance wound up by the load moment far past the stroke."""
-    if model.rigid or P[lo.PERIODIC] > 0.0:
-        return
-    lo_t = P[lo.TAB_LO]
-    hi_t = lo_t + (P[lo.TAB_N] - 1.0) * P[lo.TAB_H]
-    nm, o = int(P[lo.NMID]), int(P[lo.OFF_NODE])
-    nodes = [x0[0], *x0[o:o + 2 * nm:2]]
-    worst = max(nodes, key=lambda v: max(v - hi_t, lo_t - v))
-    if lo_t <= worst <= hi_t:
-        return
-    travel = getattr(model, "output_unit", "rad") == "m"
-    scale, unit, moment = (1e3, "mm", "N") if travel else (math.degrees(1.0), "deg", "N*m")
-    f = P[lo.HINGE_M] + P[lo.HINGE_K] * x0[2]
-    raise SimulationError(
-        f"the start puts the drivetrain's motor side at {worst * scale:.4g} {unit} (deflected by "
-        f"{(worst - x0[2]) * scale:.4g} {unit} from the output at {x0[2] * scale:.4g} {unit}), outside the stroke "
-        f"[{model.stroke[0] * scale:.4g}, {model.stroke[1] * scale:.4g}] {unit} and its tables' 10 % margin: the "
-        f"compliances cannot carry the load's moment ({f:.4g} {moment}, load.hinge_moment) within the stroke; "
-        f"stiffen them or lighten the load")
 
 
 def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps, requested,

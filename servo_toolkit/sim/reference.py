@@ -9,8 +9,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 
+from ..errors import SimulationError
 from ..loop.profile import MoveProfile
 from . import layout as lo
 from .kernel import hermite, measured_angle, measured_motor_angle, reference as reference_at
@@ -238,6 +241,7 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
             x[0] = q + z + (c if f > 0 else -c)
         x[6] = q + z
         motor_side = f + 0.5 * dk * P[lo.KSCALE] * z * z
+    check_start_on_tables(model, P, x)
     n = hermite(model.T, lo.T_N, P, x[0])[0]
     cur = motor_side / (n * P[lo.KT])
     if not model.closed_loop:
@@ -256,6 +260,30 @@ def initial_state(model, P: np.ndarray, at_rest: bool = False) -> np.ndarray:
         rhs_ = np.concatenate([b @ u, [held - float(d @ u)]])
         x[lo.NX_PHYS:lo.NX_PHYS + nc] = np.linalg.lstsq(mat, rhs_, rcond=None)[0]
     return _estimator_at_rest(model, P, x)
+
+
+def check_start_on_tables(model, P, x0):
+    """Refuse a start whose motor side or intermediate nodes lie beyond the stroke tables
+    (the stroke and 10 % on each side), where the kinematics are held at the tables' ends
+    rather than known: a compliance wound up by the load moment far past the stroke."""
+    if model.rigid or P[lo.PERIODIC] > 0.0:
+        return
+    lo_t = P[lo.TAB_LO]
+    hi_t = lo_t + (P[lo.TAB_N] - 1.0) * P[lo.TAB_H]
+    nm, o = int(P[lo.NMID]), int(P[lo.OFF_NODE])
+    nodes = [x0[0], *x0[o:o + 2 * nm:2]]
+    worst = max(nodes, key=lambda v: max(v - hi_t, lo_t - v))
+    if lo_t <= worst <= hi_t:
+        return
+    travel = getattr(model, "output_unit", "rad") == "m"
+    scale, unit, moment = (1e3, "mm", "N") if travel else (math.degrees(1.0), "deg", "N*m")
+    f = P[lo.HINGE_M] + P[lo.HINGE_K] * x0[2]
+    raise SimulationError(
+        f"the start puts the drivetrain's motor side at {worst * scale:.4g} {unit} (deflected by "
+        f"{(worst - x0[2]) * scale:.4g} {unit} from the output at {x0[2] * scale:.4g} {unit}), outside the stroke "
+        f"[{model.stroke[0] * scale:.4g}, {model.stroke[1] * scale:.4g}] {unit} and its tables' 10 % margin: the "
+        f"compliances cannot carry the load's moment ({f:.4g} {moment}, load.hinge_moment) within the stroke; "
+        f"stiffen them or lighten the load")
 
 
 def _chain_equilibrium(model, P, x, q, f):
