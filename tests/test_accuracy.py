@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 from servo_toolkit import load_scene
 from servo_toolkit.cli import main
@@ -123,3 +124,18 @@ def test_with_friction_that_holds_the_order_stays_four_away_from_the_switching_i
     smooth = accuracy_study(build_model(scene, None, ModelOptions(efficiency=False)), Reference.voltage(1.0), 0.05,
                             dts=[4e-4, 2e-4], progress=False, repeats=1)
     assert smooth.switching == {} and smooth.notes == ()
+
+
+def test_failed_rungs_are_named_in_the_table_not_printed_as_nan():
+    """A step that left RK4's stability region is a failed rung: the table says so with its
+    reason, and an order that could not be measured reads as such, never 'nan'."""
+    from servo_toolkit.studies.accuracy import AccuracyResult
+    why = "RK4 step 0.0001 s left the stability region along the run: |lambda| = 1.6e+08 1/s"
+    runs = tuple({"method": m, "dt_s": dt, "wall_s": math.nan, "error": math.nan, "failed": why}
+                 for m in ("rk4", "paper") for dt in (1e-4, 5e-5)) + (
+        {"method": "reference:LSODA", "dt_s": None, "wall_s": 2.0, "error": 0.0},)
+    res = AccuracyResult(runs, math.nan, math.nan, 2.0, 0.035, 0.2, "study", self_order=math.nan)
+    text = res.table()
+    assert not re.search(r"\bnan\b", text), text
+    assert text.count("failed: " + why) == 4
+    assert "RK4 not measured (no step ran), self-convergence not measured; paper scheme not measured" in text

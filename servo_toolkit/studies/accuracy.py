@@ -90,7 +90,10 @@ class AccuracyResult:
         lines = [f"{self.description}", f"{'method':10s} {'dt [s]':>10s} {'wall [ms]':>10s} {'error':>10s}"]
         for r in self.runs:
             dt = "adaptive" if r["dt_s"] is None else f"{r['dt_s']:.3g}"
-            lines.append(f"{r['method']:10s} {dt:>10s} {r['wall_s'] * 1e3:10.2f} {r['error']:10.3g}")
+            if r.get("failed"):  # a rung that could not run: its reason, no figures
+                lines.append(f"{r['method']:10s} {dt:>10s} {'-':>10s} {'-':>10s}  failed: {r['failed']}")
+            else:
+                lines.append(f"{r['method']:10s} {dt:>10s} {r['wall_s'] * 1e3:10.2f} {r['error']:10.3g}")
         lines.append(f"observed order: {self.order_text()}")
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
@@ -106,8 +109,11 @@ class AccuracyResult:
                    f"{max(errors):.2g}: friction's switching instants, see the note)" if self.switching.get("instants")
                    else f"RK4 not measurable against the reference (its errors stay at {min(errors):.2g}, the "
                    "reference's own accuracy)")
-        return (f"{rk4}, {self.self_order:.2f} by self-convergence; paper scheme {self.paper_order:.2f} by "
-                "self-convergence")
+        own = (f"{self.self_order:.2f} by self-convergence" if math.isfinite(self.self_order)
+               else "self-convergence not measured")
+        paper = (f"{self.paper_order:.2f} by self-convergence" if math.isfinite(self.paper_order)
+                 else "not measured")
+        return f"{rk4}, {own}; paper scheme {paper}"
 
     def plot(self, ax=None):
         """Error against wall time, one line per method."""
