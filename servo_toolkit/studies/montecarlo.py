@@ -25,7 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import SceneError, SimulationError
 from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
 from ..scene.loader import scene_keys
 from ..scene.tolerances import STIFFNESS_SCALE
@@ -113,10 +113,38 @@ def _chunk(case):
         tix = np.arange(len(P))
     T = frozen_tables(T)  # as a single run's: its compiled kernels serve the variants too
     models = [model] * len(P) if case.get("T") is None else [replace(model, T=t) for t in T]
-    X0 = np.array([initial_state(m, p) for m, p in zip(models, P)])
+    X0, refused = _starts(models, P)
     _, figs, snaps, wall = integrate_variants(P, T, tix, X0, dt, n_steps, sub)
     lam_dt, stable = _step_check(model, P, T, tix, X0, snaps, dt)
-    return {"figs": figs, "lam_dt": lam_dt, "stable": stable, "wall": wall}
+    none = np.array([bool(r) for r in refused], dtype=bool)
+    figs[none, F_ERR] = figs[none, F_CUR] = np.nan  # never run: no figures
+    return {"figs": figs, "lam_dt": lam_dt, "stable": stable, "wall": wall, "refused": refused}
+
+
+def _starts(models, P):
+    """Each variant's start (:func:`~servo_toolkit.sim.reference.initial_state`) and, per
+    variant, why it has none ("" where it has one): a variant whose compliances cannot carry
+    the load within the stroke tables is a failed variant with that reason, not the end of
+    the study. Its start is NaN, so its run stops at once."""
+    X0, refused = [], []
+    for m, p in zip(models, P):
+        try:
+            X0.append(initial_state(m, p))
+            refused.append("")
+        except SimulationError as exc:
+            X0.append(None)
+            refused.append(f"no start: {exc}")
+    nx = next((len(x) for x in X0 if x is not None), models[0].nx if models else 0)
+    return np.array([np.full(nx, np.nan) if x is None else x for x in X0]).reshape(len(X0), nx), refused
+
+
+def variant_reasons(parts, figs, dt, stable, lam_dt):
+    """Why each variant of the chunks' results ``parts`` failed ("" if it did not): its start
+    refused (:func:`_starts`), else :func:`_reason`."""
+    refused = [r for p in parts for r in p.get("refused", [""] * len(p["figs"]))]
+    status = figs[:, F_STATUS].astype(int)
+    return tuple(no or _reason(s, st, dt, ok, ld) for no, s, st, ok, ld in
+                 zip(refused, status, figs[:, F_STEP], stable, lam_dt))
 
 
 def _reason(status, step, dt, stable, lam_dt):
@@ -236,8 +264,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     status = figs[:, F_STATUS].astype(int)
     failed = (status != lo.OK) | ~stable
     linear = bool(scene.drivetrain.output_is_linear)
-    reasons = tuple(_reason(s, st, dt, ok, ld) for s, st, ok, ld in
-                    zip(status, figs[:, F_STEP], stable, lam_dt))
+    reasons = variant_reasons(parts, figs, dt, stable, lam_dt)
+    failed |= np.array([bool(r) for r in reasons], dtype=bool)
     return MonteCarloResult(
         scene_name=scene.name, values=values, tracking_error=figs[:, F_ERR], peak_current=figs[:, F_CUR],
         saturated=figs[:, F_SAT] > 0, failed=failed, reasons=reasons, abs_lambda_dt=lam_dt,

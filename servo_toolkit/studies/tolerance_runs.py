@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import SceneError
 from ..core.parallel import chunks, run_cases
 from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP
+from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS
 from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import initial_state
 from ..sim.tolerance_rows import ToleranceRows, keep_effects
@@ -148,9 +148,10 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     lam_dt = np.concatenate([p["lam_dt"] for p in parts])
     stable = np.concatenate([p["stable"] for p in parts])
     status = figs[:, F_STATUS].astype(int)
-    from .montecarlo import _reason
-    reasons = tuple(_reason(s, st, dt, ok, ld) for s, st, ok, ld in zip(status, figs[:, F_STEP], stable, lam_dt))
-    return ToleranceRuns(figs[:, F_ERR], figs[:, F_CUR], figs[:, F_SAT] > 0, (status != lo.OK) | ~stable, reasons,
+    from .montecarlo import variant_reasons
+    reasons = variant_reasons(parts, figs, dt, stable, lam_dt)
+    failed = (status != lo.OK) | ~stable | np.array([bool(r) for r in reasons], dtype=bool)
+    return ToleranceRuns(figs[:, F_ERR], figs[:, F_CUR], figs[:, F_SAT] > 0, failed, reasons,
                          float(dt), duration, n_steps, float(sum(p["wall"] for p in parts)), rows,
                          tuple(notes) + tuple(model.notes))
 
