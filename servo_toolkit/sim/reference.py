@@ -7,9 +7,8 @@ sweep is a loop over ``run(model, Reference.sine(a, f), ...)``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
