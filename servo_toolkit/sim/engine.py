@@ -320,4 +320,3 @@ def limit_notes(model, times, aux) -> list:
     tail = ": the loop was saturated there, not linear" if model.closed_loop else ""
     return [f"the motor was at {' and at '.join(parts)} of the {float(times[-1] - times[0]) * 1e3:.4g} ms run "
             f"(recorded samples){tail}"]
-

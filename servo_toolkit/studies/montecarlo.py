@@ -126,25 +126,28 @@ def _starts(models, P):
     variant, why it has none ("" where it has one): a variant whose compliances cannot carry
     the load within the stroke tables is a failed variant with that reason, not the end of
     the study. Its start is NaN, so its run stops at once."""
-    X0, refused = [], []
-    for m, p in zip(models, P):
+    X0 = np.full((len(P), models[0].nx if models else 0), np.nan)
+    refused = [""] * len(P)
+    for i, (m, p) in enumerate(zip(models, P)):
         try:
-            X0.append(initial_state(m, p))
-            refused.append("")
+            X0[i] = initial_state(m, p)
         except SimulationError as exc:
-            X0.append(None)
-            refused.append(f"no start: {exc}")
-    nx = next((len(x) for x in X0 if x is not None), models[0].nx if models else 0)
-    return np.array([np.full(nx, np.nan) if x is None else x for x in X0]).reshape(len(X0), nx), refused
+            refused[i] = f"no start: {exc}"
+    return X0, refused
 
 
-def variant_reasons(parts, figs, dt, stable, lam_dt):
-    """Why each variant of the chunks' results ``parts`` failed ("" if it did not): its start
-    refused (:func:`_starts`), else :func:`_reason`."""
-    refused = [r for p in parts for r in p.get("refused", [""] * len(p["figs"]))]
+def joined(parts, dt):
+    """The chunks' results ``parts`` of :func:`_chunk` as one: ``(figs, lam_dt, stable,
+    reasons, failed)``, each variant's reason for failing ("" if it did not: its start
+    refused, else :func:`_reason`) and whether it failed (it has a reason)."""
+    figs = np.concatenate([p["figs"] for p in parts])
+    lam_dt = np.concatenate([p["lam_dt"] for p in parts])
+    stable = np.concatenate([p["stable"] for p in parts])
+    refused = [r for p in parts for r in p["refused"]]
     status = figs[:, F_STATUS].astype(int)
-    return tuple(no or _reason(s, st, dt, ok, ld) for no, s, st, ok, ld in
-                 zip(refused, status, figs[:, F_STEP], stable, lam_dt))
+    reasons = tuple(no or _reason(s, st, dt, ok, ld) for no, s, st, ok, ld in
+                    zip(refused, status, figs[:, F_STEP], stable, lam_dt))
+    return figs, lam_dt, stable, reasons, np.array([bool(r) for r in reasons], dtype=bool)
 
 
 def _reason(status, step, dt, stable, lam_dt):
@@ -258,14 +261,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
     cases = _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size, rows)
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="montecarlo")
-    figs = np.concatenate([p["figs"] for p in parts])
-    lam_dt = np.concatenate([p["lam_dt"] for p in parts])
-    stable = np.concatenate([p["stable"] for p in parts])
-    status = figs[:, F_STATUS].astype(int)
-    failed = (status != lo.OK) | ~stable
+    figs, lam_dt, _, reasons, failed = joined(parts, dt)
     linear = bool(scene.drivetrain.output_is_linear)
-    reasons = variant_reasons(parts, figs, dt, stable, lam_dt)
-    failed |= np.array([bool(r) for r in reasons], dtype=bool)
     return MonteCarloResult(
         scene_name=scene.name, values=values, tracking_error=figs[:, F_ERR], peak_current=figs[:, F_CUR],
         saturated=figs[:, F_SAT] > 0, failed=failed, reasons=reasons, abs_lambda_dt=lam_dt,

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import SceneError
 from ..core.parallel import chunks, run_cases
 from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS
+from ..sim.batch import F_CUR, F_ERR, F_SAT
 from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import initial_state
 from ..sim.tolerance_rows import ToleranceRows, keep_effects
@@ -144,13 +144,8 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     cases = [{"rows": rows, "X": X[idx], "dt": dt, "n_steps": n_steps, "sub": sub}
              for idx in chunks(np.arange(X.shape[0]), max(1, int(size)))]
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="tolerance runs")
-    figs = np.concatenate([p["figs"] for p in parts])
-    lam_dt = np.concatenate([p["lam_dt"] for p in parts])
-    stable = np.concatenate([p["stable"] for p in parts])
-    status = figs[:, F_STATUS].astype(int)
-    from .montecarlo import variant_reasons
-    reasons = variant_reasons(parts, figs, dt, stable, lam_dt)
-    failed = (status != lo.OK) | ~stable | np.array([bool(r) for r in reasons], dtype=bool)
+    from .montecarlo import joined
+    figs, _, _, reasons, failed = joined(parts, dt)
     return ToleranceRuns(figs[:, F_ERR], figs[:, F_CUR], figs[:, F_SAT] > 0, failed, reasons,
                          float(dt), duration, n_steps, float(sum(p["wall"] for p in parts)), rows,
                          tuple(notes) + tuple(model.notes))
