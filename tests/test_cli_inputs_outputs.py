@@ -121,6 +121,19 @@ def test_report_never_replaces_a_folder_holding_the_user_s_own_index_html(tmp_pa
     assert (site / "index.html").read_text() == "<html>my own page</html>\n"
 
 
+def test_report_never_replaces_a_folder_holding_only_the_user_s_own_report_pdf(tmp_path, capsys, monkeypatch):
+    import servo_toolkit.report as report
+    _forbid(monkeypatch, report, "build_report")
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    mine = b"%PDF-1.7\n%my own paper\n"
+    (docs / "report.pdf").write_bytes(mine)
+    assert main(["report", str(EMA), "-o", str(docs)]) == 2
+    assert "without the index.html" in _one_line(capsys, "--output")
+    assert [p.name for p in docs.iterdir()] == ["report.pdf"]
+    assert (docs / "report.pdf").read_bytes() == mine
+
+
 def test_export_never_replaces_a_folder_holding_the_user_s_own_controller_json(tmp_path, capsys):
     out = tmp_path / "ctl"
     out.mkdir()

@@ -60,10 +60,10 @@ def _check_written(keys, values):
 def _check_points_files(scene, output) -> None:
     """SceneError naming ``-o`` when the calibrated scene, written at ``output``, would not
     find a points file the scene names by a path relative to its own folder."""
-    from ..core.files import _same_file
+    from ..core.files import same_file
     folder = Path(output).absolute().parent
     for i, seg in enumerate(getattr(scene.duty_cycle, "segments", ())):
-        if seg.path and not Path(seg.file).is_absolute() and not _same_file(folder / seg.file, seg.path):
+        if seg.path and not Path(seg.file).is_absolute() and not same_file(folder / seg.file, seg.path):
             raise SceneError("-o", f"the scene's duty_cycle.segments[{i}].file {seg.file!r} is relative to the "
                                    f"scene's folder, and the calibrated scene in {str(folder)!r} would not read it: "
                                    f"write it beside the scene, or give the points file's absolute path")

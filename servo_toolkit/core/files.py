@@ -35,8 +35,7 @@ def _q(path) -> str:
     return repr(str(path))
 
 
-
-def _same_file(a, b) -> bool:
+def same_file(a, b) -> bool:
     """True when ``a`` and ``b`` name one file (after links; same device and inode)."""
     with contextlib.suppress(OSError, ValueError):
         if Path(a).resolve() == Path(b).resolve():
@@ -94,7 +93,7 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
     if suffixes and p.suffix.lower() not in suffixes:
         raise SceneError(key, f"{p.name!r} must end in one of {', '.join(suffixes)}")
     for name in inputs:
-        if name is not None and _same_file(p, name):
+        if name is not None and same_file(p, name):
             raise SceneError(key, f"refusing to overwrite the input {_q(name)} with {_q(path)}")
     st = _lstat(p)
     if isinstance(st, OSError):
@@ -140,7 +139,8 @@ def _lacks_mark(path: Path, mark: bytes) -> bool:
 MARK_BYTES = 64 * 1024
 
 
-def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False, marks=None) -> Path:
+def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = False, marks=None,
+                        anchors=()) -> Path:
     """Check, before any work, that a folder output may be (re)written at ``path``.
 
     Parameters
@@ -159,6 +159,11 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
         Bytes each of these files of an earlier output holds near its start (e.g. the
         generator's name): a file of that name without them is the user's, and the folder
         is refused.
+    anchors : collection of str
+        Files of which an earlier output holds at least one (each with its mark): a
+        non-empty folder holding none of them is not an earlier output and is refused (a
+        user's own ``report.pdf`` carries no mark of the command; the report's
+        ``index.html`` beside it does).
 
     Returns
     -------
@@ -185,7 +190,7 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
         inside = False
         with contextlib.suppress(OSError, ValueError):
             inside = p.resolve() in Path(name).resolve().parents
-        if inside or any(_same_file(p / entry, name) for entry in allowed):
+        if inside or any(same_file(p / entry, name) for entry in allowed):
             raise SceneError(key, f"the output would overwrite its input {_q(name)}")
     if st is not None:
         try:
@@ -201,6 +206,10 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
         if foreign:
             raise SceneError(key, f"{_q(path)} holds {', '.join(foreign)} not written by this command; give an "
                              f"empty or new folder, or an earlier output of this command")
+        if anchors and entries and not any(e in entries for e in anchors):
+            raise SceneError(key, f"{_q(path)} holds {', '.join(sorted(entries))} without the "
+                             f"{' or '.join(sorted(anchors))} an earlier output of this command has beside it; "
+                             f"give an empty or new folder, or an earlier output of this command")
     parent = p.absolute().parent
     if parents:
         while not parent.exists() and parent != parent.parent:
@@ -288,4 +297,5 @@ def save_figure(fig, path, key: str = "--plot") -> Path:
     return Path(path)
 
 
-__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_output_file", "check_output_folder", "save_figure", "write_text"]
+__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_output_file", "check_output_folder", "same_file", "save_figure",
+           "write_text"]

@@ -217,6 +217,9 @@ REPORT_FILES = ("index.html", "report.pdf")
 #: what each file of an earlier report holds near its start: a file of that name without it
 #: is the user's, and the folder is not replaced
 REPORT_MARKS = {"index.html": b'<meta name="generator" content="servo_toolkit', "report.pdf": b"%PDF-"}
+#: the file that vouches for an earlier report: a PDF carries no mark of the toolkit near its
+#: start, so a ``report.pdf`` without the report's ``index.html`` beside it is the user's
+REPORT_ANCHORS = ("index.html",)
 
 
 def check_report_folder(out_dir, key: str = "--output", parents: bool = False, inputs=()):
@@ -224,7 +227,8 @@ def check_report_folder(out_dir, key: str = "--output", parents: bool = False, i
     empty or an earlier report holding none of ``inputs``, in a writable folder (see
     :func:`servo_toolkit.core.files.check_output_folder`)."""
     from ..core.files import check_output_folder
-    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents, marks=REPORT_MARKS)
+    return check_output_folder(out_dir, key, allowed=REPORT_FILES, inputs=inputs, parents=parents, marks=REPORT_MARKS,
+                               anchors=REPORT_ANCHORS)
 
 
 def write_report(report: Report, out_dir, progress: bool = False, key: str = "out_dir") -> dict:
