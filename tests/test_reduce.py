@@ -233,6 +233,7 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     labels = [line.get_label() for line in res.plot().get_lines()]
     assert "run failed (not compared)" in labels
     assert "1 point(s) failed" in repr(res)
+    assert res.failed_text().startswith("8 Hz, 3 deg: reduced model: the state became non-finite")
 
 
 def test_a_failed_dwell_is_not_a_saturated_point():

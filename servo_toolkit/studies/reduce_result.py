@@ -179,6 +179,13 @@ class ReductionResult(RichDisplay):
         rest = [f"{sat} reached a limit"] * bool(sat) + [f"{fail} failed"] * bool(fail)
         return f"{int(self.compared.sum())} of {n} point(s)" + (f" ({', '.join(rest)})" if rest else "")
 
+    def failed_text(self) -> str:
+        """The failed points with their reasons, ``"8 Hz, 3 deg: reduced model: ..."``, joined by ``"; "``."""
+        u = OutputUnit(self.output_unit)
+        return "; ".join(f"{f:.4g} Hz, {u.text(a, 3)}: {self._failure(i, k)}"
+                         for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)
+                         if self.failed[i, k])
+
     def table(self) -> str:
         """Plain-text report: effects, estimates, choice, bound and measured difference."""
         p = self.plan
