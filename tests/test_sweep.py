@@ -206,3 +206,27 @@ def test_summary_is_over_valid_points_and_the_phase_never_jumps_a_turn():
             "(excluded: 1 saturated, 1 unsettled, 1 failed)") in summary
     assert "9 valid point(s), 1 saturated, 1 unsettled, 1 failed" in repr(res)
     assert res.to_dict()["points"][10]["unsettled"] is True
+
+
+def test_multisine_phase_never_jumps_a_turn_and_its_summary_names_the_flags():
+    """The same moved resonance as lines of a multisine run at two amplitudes, the larger
+    saturated, plus a failed third: the phase difference is the closed form's unwrapped one
+    (no 360 deg step between lines), and the summary names each amplitude's flag."""
+    from servo_toolkit.studies.multisine_result import MultisineResult
+    f = np.array([5, 10, 20, 24, 26, 27, 28, 29, 31, 35, 40.0])
+    lin = _second_order(f, 30.0, 0.05)
+    h = _second_order(f, 25.0, 0.05) * np.exp(-2j * np.pi * f * 0.006)
+    resp = np.vstack([h, h, np.full(f.size, complex(math.nan, math.nan))])
+    n = np.ones(3)
+    res = MultisineResult(scene="moved", study=None, response_kind="closed_loop", frequency_hz=f,
+                          amplitudes=np.radians([1.0, 2.0, 3.0]), response=resp, coherence=np.ones(resp.shape),
+                          linear_response=lin, distortion_db=-60 * n, saturated=np.array([False, True, False]),
+                          peak_current_A=n, peak_voltage_V=n, errors=(None, None, "non-finite at t = 1 s"),
+                          logs=(None,) * 3, periods=4, settle=2, period_s=1.0, lines_asked=f.size)
+    dp = res.phase_deg[0] - res.linear_phase_deg
+    np.testing.assert_allclose(dp, np.degrees(np.unwrap(np.angle(h / lin))), atol=1e-9)
+    assert np.all(np.abs(np.diff(res.phase_deg[0])) < 90)
+    summary = res.table().splitlines()[-1]
+    assert "1 deg: " in summary and "2 deg: " in summary and "(saturated: the current or voltage limit" in summary
+    assert summary.endswith("3 deg: FAILED, no estimate")
+    assert summary.count("saturated") == 1
