@@ -313,4 +313,4 @@ def _card_html(s) -> str:
                 notes=s.notes)
 
 
-__all__ = ["UNSETTLED", "SweepResult"]
+__all__ = ["UNSETTLED", "SweepResult", "phase_along_frequency"]
