@@ -234,6 +234,12 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     assert "run failed (not compared)" in labels
     assert "1 point(s) failed" in repr(res)
     assert res.failed_text().startswith("8 Hz, 3 deg: reduced model: the state became non-finite")
+    # an effect measured on its own counts its failed points too
+    from dataclasses import replace
+    from servo_toolkit.studies.reduce_result import EffectCost
+    alone = replace(res, per_effect=(EffectCost("backlash", 1e-3, 2e-4, math.nan, failed=1),))
+    assert "1 point(s) failed, not compared" in alone.table()
+    assert alone.to_dict()["per_effect"][0]["failed_points"] == 1
 
 
 def test_a_failed_dwell_is_not_a_saturated_point():
