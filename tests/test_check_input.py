@@ -37,7 +37,7 @@ BAD = [("bandwidth=-5Hz", "bandwidth", "must be positive"),
 def test_parse_override_applies_the_scene_rules(text, name, rule):
     with pytest.raises(SceneError) as err:
         parse_override(text)
-    assert err.value.key == f"require.{name}" and rule in err.value.rule
+    assert err.value.key == f"--require {text}" and rule in err.value.rule
 
 
 @pytest.mark.parametrize("text, expected", [("bandwidth=200Hz", ("bandwidth", 200.0)),
@@ -75,7 +75,7 @@ def test_cli_bad_require_exits_2_with_one_line(command, text, name, capsys):
     assert main([command, EMA, "--require", text]) == 2
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"servo-toolkit: error: require.{name}: ")
+    assert len(lines) == 1 and lines[0].startswith(f"servo-toolkit: error: --require {text}: ")
     assert captured.out == ""
 
 

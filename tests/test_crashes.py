@@ -115,7 +115,7 @@ def test_process_pool_spawns():
 def test_bandwidth_requirement_below_the_design_grid_is_one_line(capsys):
     assert main(["design", EMA, "--require", "bandwidth=1e-300 Hz", "--linear-only"]) == 2
     line = _one_error_line(capsys.readouterr().err)
-    assert line.startswith("servo-toolkit: error: require.bandwidth: must lie in [0.01, 5000] Hz")
+    assert line.startswith("servo-toolkit: error: --require bandwidth=1e-300 Hz: must lie in [0.01, 5000] Hz")
 
 
 def test_two_stiffnesses_in_series_fit_and_say_why_not_identified(tmp_path, capsys):

@@ -228,3 +228,65 @@ def test_the_period_of_a_log_is_found_or_refused(tmp_path, capsys):
     assert main(["frf", str(log), "--window", "periodic"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--window" in err and "repeats" in err
+
+
+def test_frf_reads_what_simulate_writes(tmp_path, capsys):
+    """``simulate -o`` then ``frf`` on that file: the time column t_s is recognised, the run's
+    last, shorter step (0.8105 s is not a whole number of 0.2 ms records) is left out with a
+    note, and the closed loop's response at the 8 Hz command equals the sine-dwell
+    correlation of the same trace over the same whole periods (read independently)."""
+    from servo_toolkit.studies.sine_dwell import fundamental
+    scene = tmp_path / "ema.toml"
+    scene.write_text((SCENES / "ema_reference.toml").read_text() + '\n[studies.short]\nkind = "simulate"\n'
+                     'frequency = "8 Hz"\namplitude = "2 deg"\nduration = "0.8105 s"\n')
+    trace = tmp_path / "trace.csv"
+    assert main(["simulate", str(scene), "--study", "short", "-o", str(trace)]) == 0
+    capsys.readouterr()
+    data = np.genfromtxt(trace, delimiter=",", names=True)
+    t = data["t_s"]
+    steps = np.diff(t)
+    assert 0 < steps[-1] < 0.99 * steps[0]  # the case: a last, shorter step
+    # the default output column is a rig's: the error names the option, its role and the columns there are
+    assert main(["frf", str(trace)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--output motor_angle_rad" in err and "output (response) signal's column" in err
+    assert "output_angle_rad, output_rate_rad_s" in err
+    period = round(3 / 8 / steps[0])  # 3 periods of 8 Hz, a whole number of records
+    assert main(["frf", str(trace), "--input", "reference_angle_rad", "--output", "output_angle_rad",
+                 "--period", str(period), "--settle", "1", "--json"]) == 0
+    captured = capsys.readouterr()
+    out = json.loads(captured.out)
+    assert out["time_column"] == "t_s" and "left out the last sample" in captured.err
+    assert len(out["log_notes"]) == 1 and f"t = {t[-1]:.6g} s" in out["log_notes"][0]
+    k = out["frequency_hz"].index(pytest.approx(8.0, rel=1e-3))
+    window = period * steps[0]
+    h = (fundamental(t, data["output_angle_rad"], 8.0, window, 3)
+         / fundamental(t, data["reference_angle_rad"], 8.0, window, 3))
+    assert out["gain_db"][k] == pytest.approx(20 * np.log10(abs(h)), abs=0.01)
+    assert out["phase_deg"][k] == pytest.approx(np.degrees(np.angle(h)), abs=0.1)
+    assert out["coherence"][k] > 0.99
+
+
+@pytest.mark.parametrize("last, uneven_row, kept", [(0.4e-3, None, 99), (1e-3, None, 100), (1.6e-3, 101, None)])
+def test_only_a_last_shorter_step_is_left_out(tmp_path, last, uneven_row, kept):
+    """A log whose every step is 1 ms but the last: a shorter last step (a run stopping at its
+    final time) loses that sample with a note; an even one is kept whole; a longer one, or an
+    uneven step anywhere else, is refused naming the row, the time column and the rule."""
+    from servo_toolkit import SceneError
+    from servo_toolkit.identify.frf import read_time_log
+    t = np.append(np.arange(99) * 1e-3, 98e-3 + last)
+    log = tmp_path / "trace.csv"
+    np.savetxt(log, np.column_stack([t, np.sin(50 * t), np.cos(50 * t)]), delimiter=",",
+               header="t_s,reference_angle_rad,output_angle_rad", comments="", fmt="%.10g")
+    if kept is None:
+        with pytest.raises(SceneError, match=rf"row {uneven_row}: t_s must increase equally spaced"):
+            read_time_log(log)
+    else:
+        got = read_time_log(log)
+        assert got.time_column == "t_s" and got.time_s.size == kept and got.columns["output_angle_rad"].size == kept
+        assert len(got.notes) == (kept == 99)
+    t[50] += 0.3e-3  # one uneven step in the middle: refused whatever the last step
+    np.savetxt(log, np.column_stack([t, np.sin(50 * t), np.cos(50 * t)]), delimiter=",",
+               header="t_s,reference_angle_rad,output_angle_rad", comments="", fmt="%.10g")
+    with pytest.raises(SceneError, match=r"row 52: t_s must increase equally spaced, every step within 1%"):
+        read_time_log(log)

@@ -155,8 +155,8 @@ def test_cli_json_shape(capsys):
     assert worst["max_abs_tracking_error_deg"] == max(x["max_abs_tracking_error_deg"] for x in d["variants"])
 
 
-@pytest.mark.parametrize("args, key", [(["--vary", "mass=0:1"], "vary.mass"),
-                                       (["--vary", "load_inertia=2:1"], "vary.load_inertia"),
+@pytest.mark.parametrize("args, key", [(["--vary", "mass=0:1"], "--vary mass=0:1"),
+                                       (["--vary", "load_inertia=2:1"], "--vary load_inertia=2:1"),
                                        (["--samples", "0"], "--samples"), (["--duration", "-1"], "--duration"),
                                        (["--workers", "0"], "--workers")])
 def test_cli_bad_input_exits_2_with_one_line(args, key, capsys):

@@ -200,3 +200,61 @@ def test_the_backlash_estimate_takes_the_two_mass_reduction_s_load_side():
     dynamic = float(np.max(np.abs(-j_load * w**2 * t))) * math.radians(1.0)
     assert f"{dynamic:.4g} N*m dynamic" in lash.quantity
     assert f"{float(np.max(np.abs(-(j_load + j_wheel) * w**2 * t))) * math.radians(1.0):.4g}" not in lash.quantity
+
+
+def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
+    """A point whose run fails on the reduced model (here the 3 deg run, its result replaced
+    by a failure as a non-finite state gives one) has no difference: it is reported as
+    failed with its reason in the table, the JSON and the plot, is not counted as saturated,
+    and the measured difference and the verdict are over the one point that ran on both."""
+    import servo_toolkit.studies.reduce as reduce_module
+    true_case, seen = reduce_module._trace_case, []
+
+    def failing_case(case):
+        model, amp = case[0], case[1]
+        seen.append(model.options)
+        if model.options != seen[0] and amp > np.radians(2.5):  # the reduced model, 3 deg
+            return {"error": "the state became non-finite at t = 0.3 s"}
+        return true_case(case)
+    monkeypatch.setattr(reduce_module, "_trace_case", failing_case)
+    res = reduce(load_scene(), "kv_8hz", amplitudes=np.radians([2.0, 3.0]), progress=False, per_effect=False)
+    assert res.failed.tolist() == [[False], [True]] and not res.saturated.any()
+    assert np.isnan(res.difference[1, 0]) and np.isfinite(res.difference[0, 0])
+    assert res.measured == res.difference[0, 0] and res.within_bound is True
+    text = res.table()
+    assert "over 1 of 2 point(s) (1 failed)" in text
+    assert "FAILED at 8 Hz, 3 deg (not compared): reduced model: the state became non-finite" in text
+    assert "inf" not in text and "reached a limit" not in text
+    d = res.to_dict()
+    assert (d["points_failed"], d["points_compared"], d["points_saturated"]) == (1, 1, 0)
+    assert d["points"][1]["failed"] and not d["points"][1]["saturated"]
+    assert d["points"][1]["error"].startswith("reduced model: the state became non-finite")
+    assert d["points"][0]["error"] is None and not math.isinf(d["measured_relative"])
+    labels = [line.get_label() for line in res.plot().get_lines()]
+    assert "run failed (not compared)" in labels
+    assert "1 point(s) failed" in repr(res)
+    assert res.failed_text().startswith("8 Hz, 3 deg: reduced model: the state became non-finite")
+    # an effect measured on its own counts its failed points too
+    from dataclasses import replace
+    from servo_toolkit.studies.reduce_result import EffectCost
+    alone = replace(res, per_effect=(EffectCost("backlash", 1e-3, 2e-4, math.nan, failed=1),))
+    assert "1 point(s) failed, not compared" in alone.table()
+    assert alone.to_dict()["per_effect"][0]["failed_points"] == 1
+
+
+def test_a_failed_dwell_is_not_a_saturated_point():
+    """The sweep measure: a dwell that failed on one model (saturated before failing) or on
+    both is failed, with the models' reasons, and neither saturated nor infinite."""
+    from types import SimpleNamespace
+
+    from servo_toolkit.studies.reduce import _difference
+    nan = complex(math.nan, math.nan)
+    full = SimpleNamespace(response=np.array([[1.0 + 0j, 0.5j, nan]]), saturated=np.array([[False, False, True]]),
+                           errors=(None, None, "left its domain at t = 1 s"))
+    red = SimpleNamespace(response=np.array([[1.01 + 0j, nan, nan]]), saturated=np.array([[False, True, True]]),
+                          errors=(None, "non-finite at t = 2 s", "non-finite at t = 1 s"))
+    diff, sat, why = _difference(full, red, ("full", "reduced"))
+    assert diff[0, 0] == pytest.approx(0.01) and np.isnan(diff[0, 1:]).all()
+    assert not sat.any()
+    assert why == (None, "reduced model: non-finite at t = 2 s",
+                   "full model: left its domain at t = 1 s; reduced model: non-finite at t = 1 s")

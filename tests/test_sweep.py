@@ -152,3 +152,81 @@ def test_a_point_that_fails_after_reaching_a_limit_is_flagged_saturated():
     assert point["failed"] is True and point["saturated"] is True
     assert "saturated before failing" in fast.table()
     assert "saturated" not in slow.table().split("amplitude 31 deg")[1].split("FAILED")[0]
+
+
+def _second_order(f, fn, zeta):
+    s, wn = 2j * np.pi * np.asarray(f, dtype=float), 2 * np.pi * fn
+    return wn**2 / (s**2 + 2 * zeta * wn * s + wn**2)
+
+
+def test_summary_is_over_valid_points_and_the_phase_never_jumps_a_turn():
+    """A loop whose resonance moved from 30 Hz (linear) to 25 Hz with 6 ms more delay
+    (closed forms): its phase falls more than 180 deg behind the linear loop's between
+    27 and 29 Hz. The phase and the difference are unwrapped along frequency (no 360 deg
+    step between rows; the difference at each row is the closed form's unwrapped one), and
+    the summary's largest difference is over the points that ran within the limits and
+    settled, naming how many were saturated, unsettled or failed (a saturated row with a
+    20 dB error, an unsettled row and a failed one would otherwise dominate it)."""
+    from servo_toolkit.studies.sweep import SweepResult
+    f = np.array([5, 10, 20, 24, 26, 27, 28, 29, 31, 35, 40, 45.0])
+    lin = _second_order(f, 30.0, 0.05)
+    resp = (_second_order(f, 25.0, 0.05) * np.exp(-2j * np.pi * f * 0.006))[None, :]
+    expected_dp = np.degrees(np.unwrap(np.angle(resp[0] / lin)))
+    assert expected_dp.min() < -180  # the case the wrapped phase got wrong
+    resp[0, 9] *= 10  # 35 Hz: saturated
+    resp[0, 11] = complex(math.nan, math.nan)  # 45 Hz: failed
+    change = np.zeros((1, f.size))
+    change[0, 10] = 0.05  # 40 Hz: unsettled
+    saturated = np.zeros((1, f.size), bool)
+    saturated[0, 9] = True
+    grid = np.unique(np.concatenate([np.geomspace(3.0, 70.0, 300), f]))  # as sweep() builds it
+    res = SweepResult(scene="moved", study=None, frequencies_hz=f, amplitudes_rad=np.radians([1.0]), response=resp,
+                      linear_response=lin, linear_grid_hz=grid, linear_grid_response=_second_order(grid, 30.0, 0.05),
+                      settling_change=change, saturated=saturated, peak_current_A=np.ones((1, f.size)),
+                      peak_voltage_V=np.ones((1, f.size)), errors=(None,) * 11 + ("non-finite at t = 1 s",),
+                      reduced=False, left_out=(), options={}, plan=DwellPlan(), decay_rate=10.0)
+    dp = res.phase_deg[0] - res.linear_phase_deg
+    np.testing.assert_allclose(dp[:11], expected_dp[:11], atol=1e-9)
+    table = res.table()
+    rows = [line.split() for line in table.splitlines() if line[:9].strip().replace(".", "").isdigit()]
+    phase = np.array([float(r[2]) for r in rows[:11]])
+    assert np.all(np.abs(np.diff(phase)) < 90), phase
+    assert all(abs(float(r[6])) < 270 for r in rows[:11])
+    ok = np.ones(f.size, bool)
+    ok[9:] = False
+    gain_dev = np.abs(20 * np.log10(np.abs(resp[0] / lin)))
+    dev = res.deviation()
+    assert dev["max_gain_difference_dB"][0] == pytest.approx(gain_dev[ok].max(), rel=1e-9)
+    assert dev["max_phase_difference_deg"][0] == pytest.approx(np.abs(expected_dp[ok]).max(), rel=1e-9)
+    assert (dev["points_compared"], dev["points_saturated"], dev["points_unsettled"], dev["points_failed"]) == \
+        ([9], [1], [1], [1])
+    summary = table.splitlines()[-1]
+    assert summary.startswith("largest difference from the linear loop, over the points that ran within the limits")
+    assert (f"1 deg: {gain_dev[ok].max():.3f} dB / {np.abs(expected_dp[ok]).max():.2f} deg over 9 of 12 points "
+            "(excluded: 1 saturated, 1 unsettled, 1 failed)") in summary
+    assert "9 valid point(s), 1 saturated, 1 unsettled, 1 failed" in repr(res)
+    assert res.to_dict()["points"][10]["unsettled"] is True
+
+
+def test_multisine_phase_never_jumps_a_turn_and_its_summary_names_the_flags():
+    """The same moved resonance as lines of a multisine run at two amplitudes, the larger
+    saturated, plus a failed third: the phase difference is the closed form's unwrapped one
+    (no 360 deg step between lines), and the summary names each amplitude's flag."""
+    from servo_toolkit.studies.multisine_result import MultisineResult
+    f = np.array([5, 10, 20, 24, 26, 27, 28, 29, 31, 35, 40.0])
+    lin = _second_order(f, 30.0, 0.05)
+    h = _second_order(f, 25.0, 0.05) * np.exp(-2j * np.pi * f * 0.006)
+    resp = np.vstack([h, h, np.full(f.size, complex(math.nan, math.nan))])
+    n = np.ones(3)
+    res = MultisineResult(scene="moved", study=None, response_kind="closed_loop", frequency_hz=f,
+                          amplitudes=np.radians([1.0, 2.0, 3.0]), response=resp, coherence=np.ones(resp.shape),
+                          linear_response=lin, distortion_db=-60 * n, saturated=np.array([False, True, False]),
+                          peak_current_A=n, peak_voltage_V=n, errors=(None, None, "non-finite at t = 1 s"),
+                          logs=(None,) * 3, periods=4, settle=2, period_s=1.0, lines_asked=f.size)
+    dp = res.phase_deg[0] - res.linear_phase_deg
+    np.testing.assert_allclose(dp, np.degrees(np.unwrap(np.angle(h / lin))), atol=1e-9)
+    assert np.all(np.abs(np.diff(res.phase_deg[0])) < 90)
+    summary = res.table().splitlines()[-1]
+    assert "1 deg: " in summary and "2 deg: " in summary and "(saturated: the current or voltage limit" in summary
+    assert summary.endswith("3 deg: FAILED, no estimate")
+    assert summary.count("saturated") == 1

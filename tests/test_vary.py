@@ -1,6 +1,7 @@
 """``--vary NAME=LO:HI`` (``check``, ``montecarlo``): bounded by the range the model is
-conditioned for, refused at parse time with one line naming ``vary.NAME``; and a variant's
-parameters read with their units wherever they are shown."""
+conditioned for, refused at parse time with one line naming the option as typed
+(``--vary NAME=LO:HI``); and a variant's parameters read with their units wherever they
+are shown."""
 
 from __future__ import annotations
 
@@ -38,7 +39,7 @@ def test_every_form_at_every_extreme_is_refused_or_within_the_conditioned_range(
         try:
             _, (lo, hi) = parse_vary(text)
         except SceneError as exc:
-            assert exc.key == f"vary.{name}" and "\n" not in str(exc), (text, str(exc))
+            assert exc.key == f"--vary {text}" and "\n" not in str(exc), (text, str(exc))
             continue
         low, high = VARY_RANGES[name]
         assert all(v == 0 or low <= v <= high for v in (lo, hi)), text
@@ -60,7 +61,7 @@ def test_the_command_line_refuses_before_any_work(command, capsys):
         assert main([command, EMA, "--vary", text, "--samples", "2"]) == 2, text
         out, err = capsys.readouterr()
         line, = err.strip().splitlines()
-        assert line.startswith(f"servo-toolkit: error: vary.{text.split('=')[0]}:") and out == "", (text, err)
+        assert line.startswith(f"servo-toolkit: error: --vary {text}:") and out == "", (text, err)
 
 
 def test_montecarlo_at_the_ends_of_the_conditioned_ranges_runs_cleanly(capsys):

@@ -1,8 +1,11 @@
 """``servo-toolkit frf``: frequency response and coherence from a rig's time log.
 
-LOG.csv has a ``time_s`` column (equally spaced) and one column per signal; ``--input`` and
-``--output`` name the excitation and the response (default ``current_A`` and
-``motor_angle_rad``). The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole
+LOG.csv has a ``time_s`` column (equally spaced) and one column per signal; the traces
+``simulate -o`` writes (time column ``t_s``) read as they are, their last sample left out
+when the run's final step is shorter than the others. ``--input`` and ``--output`` name the
+columns of the excitation and of the response (default ``current_A`` and
+``motor_angle_rad``); ``--output`` is a column of the log, not a file (``-o`` is the file
+written). The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole
 periods of a periodic excitation in rectangular windows, or Welch averaging of Hann
 windows) gives the response at every excited frequency with its coherence and the number of
 spectra averaged; ``--derivative`` turns an angle's response into the speed's (what ``fit
@@ -19,11 +22,13 @@ from ..errors import SceneError
 def register(sub) -> None:
     """Register the command."""
     p = sub.add_parser("frf", help="frequency response and coherence from a time log (H1, Welch)")
-    p.add_argument("log", metavar="LOG.csv", help="time log: time_s,SIGNAL,... (equally spaced times)")
+    p.add_argument("log", metavar="LOG.csv",
+                   help="time log: time_s,SIGNAL,... (equally spaced times), or a trace simulate -o wrote (t_s,...)")
     p.add_argument("--input", default="current_A", metavar="COLUMN",
-                   help="the excitation's column (default current_A)")
+                   help="the log's column holding the input (excitation) signal (default current_A)")
     p.add_argument("--output", default="motor_angle_rad", metavar="COLUMN",
-                   help="the response's column (default motor_angle_rad)")
+                   help="the log's column holding the output (response) signal, not a file: -o names the file "
+                        "written (default motor_angle_rad)")
     p.add_argument("--derivative", action="store_true",
                    help="the response of the output's time derivative (an angle log gives the speed response, "
                         "as fit --response plant compares)")
@@ -65,22 +70,42 @@ def _table(data) -> str:
     return "\n".join(lines)
 
 
+#: a trace of simulate -o: the columns of the closed loop's command and response
+_SIMULATE_HINT = "--input reference_angle_rad --output output_angle_rad"
+
+
+def _check_columns(args, log) -> None:
+    """The input and output signals' columns are in the log, else one line naming the
+    option, what it names and the columns there are."""
+    for option, name, what in (("--input", args.input, "input (excitation)"),
+                               ("--output", args.output, "output (response)")):
+        if name not in log.columns:
+            hint = (f" (a trace of simulate -o: e.g. {_SIMULATE_HINT} for the closed loop)"
+                    if log.time_column == "t_s" and _SIMULATE_HINT.split()[1] in log.columns else "")
+            raise SceneError(f"{option} {name}", f"{args.log} has no such column; {option} names the {what} "
+                             f"signal's column, one of: {', '.join(log.columns)}{hint}")
+
+
 def run(args) -> int:
     """Run the command."""
-    from ..identify.frf import estimate_frf, frf_csv, read_log
+    import sys
+
+    from ..identify.frf import estimate_frf, frf_csv, read_time_log
     band = parse_band(args.band)
     if args.out is not None:
         check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
-    t, columns = read_log(args.log)
-    for option, name in (("--input", args.input), ("--output", args.output)):
-        if name not in columns:
-            raise SceneError(option, f"no column {name!r} in {args.log}; it has {', '.join(columns)}")
+    log = read_time_log(args.log)
+    _check_columns(args, log)
+    for note in log.notes:
+        print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
+    t, columns = log.time_s, log.columns
     data = estimate_frf(t, columns[args.input], columns[args.output], window=args.window, segment=args.segment,
                         period=args.period, settle=args.settle, band=band, derivative=args.derivative,
                         source=str(args.log))
     if args.out is not None:
         write_text(args.out, frf_csv(data), "-o")
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
+           "time_column": log.time_column, "log_notes": list(log.notes),
            "window": data.window, "averages": data.averages,
            "points": data.points, "frequency_hz": data.frequency_hz.tolist(), "gain_db": data.gain_db.tolist(),
            "phase_deg": data.phase_deg.tolist(), "coherence": data.coherence.tolist()}

@@ -18,7 +18,8 @@ The number of spectra averaged (periods or segments) goes with the estimate: the
 coherence's random error depends on it.
 
 A log is a CSV with a ``time_s`` column (equally spaced) and one column per signal, e.g.
-``time_s,current_A,motor_angle_rad``. The response of an angle's derivative (a speed, as the
+``time_s,current_A,motor_angle_rad``; the traces ``simulate -o`` writes (time column
+``t_s``, the run's last step possibly shorter: that sample is left out) read as logs too. The response of an angle's derivative (a speed, as the
 ``plant`` fit compares) is the angle's response times ``j 2 pi f``.
 """
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,25 +40,57 @@ from .data import MAX_DATA_BYTES, FrequencyData
 DEFAULT_AVERAGES = 8
 #: largest deviation of a time step from the mean step (relative)
 SPACING_TOLERANCE = 0.01
+#: the time column of a log: a rig's, or the traces ``simulate -o`` writes
+TIME_COLUMNS = ("time_s", "t_s")
 #: the windows ``estimate_frf`` offers
 WINDOWS = ("auto", "periodic", "hann")
 #: a periodic log with at least this many periods leaves its first one out as settling
 SETTLE_FROM = 3
 
 
-def read_log(path) -> tuple[np.ndarray, dict]:
-    """Time and signals of a log CSV (header ``time_s,NAME,...``).
+@dataclass(frozen=True)
+class TimeLog:
+    """A time log as :func:`read_time_log` reads it.
 
-    Returns
-    -------
+    Attributes
+    ----------
     time_s : numpy.ndarray
+        Equally spaced sample times (s).
     columns : dict of str to numpy.ndarray
+        Every signal by its column name (the time column left out).
+    time_column : str
+        ``time_s``, or ``t_s`` (the traces ``simulate -o`` writes).
+    notes : tuple of str
+        What was done to the log (a run's last, shorter step left out).
+    """
+
+    time_s: np.ndarray
+    columns: dict
+    time_column: str = "time_s"
+    notes: tuple = ()
+
+
+def _uneven(t) -> np.ndarray:
+    """Indices of the steps of ``t`` that are not positive or depart from the mean step by
+    more than :data:`SPACING_TOLERANCE` (times written with few digits)."""
+    step = np.diff(t)
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    return np.flatnonzero((step <= 0) | (np.abs(step - dt) > SPACING_TOLERANCE * dt))
+
+
+def read_time_log(path) -> TimeLog:
+    """Time and signals of a log CSV (header ``time_s,NAME,...``, or ``t_s,NAME,...`` as
+    ``simulate -o`` writes its traces).
+
+    A run stops at its final time, so its last step may be shorter than the others: that one
+    last sample is left out, with a note; any other uneven step is refused.
 
     Raises
     ------
     SceneError
-        Naming the file and the header or row: no ``time_s`` column, a value that is not a
-        finite number, times not increasing equally spaced, fewer than 2 * MIN_SEGMENT rows.
+        Naming the file and the header or row: no time column (``time_s`` or ``t_s``), a
+        value that is not a finite number, times not increasing equally spaced, fewer than
+        2 * MIN_SEGMENT rows.
     """
     src = str(path)
     text = read_input_text(path, "(file)", MAX_DATA_BYTES, source=src, what="log")
@@ -67,9 +101,10 @@ def read_log(path) -> tuple[np.ndarray, dict]:
     if not rows:
         raise SceneError("header", "empty file; expected a header time_s,SIGNAL,...", src)
     header = [c.strip() for c in rows[0]]
-    if "time_s" not in header or len(header) < 3 or len(set(header)) != len(header):
-        raise SceneError("header", f"expected time_s and at least two distinct signal names, got {','.join(header)!r}",
-                         src)
+    times = [c for c in TIME_COLUMNS if c in header]
+    if len(times) != 1 or len(header) < 3 or len(set(header)) != len(header):
+        raise SceneError("header", "expected one time column (time_s, or t_s as simulate -o writes) and at least "
+                         f"two distinct signal names, got {','.join(header)!r}", src)
     values = []
     for n, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):
@@ -85,13 +120,32 @@ def read_log(path) -> tuple[np.ndarray, dict]:
         raise SceneError("(data)", f"{len(values)} rows; a spectrum needs at least {2 * MIN_SEGMENT}", src)
     cols = np.array(values, float).T
     columns = dict(zip(header, cols))
-    t = columns.pop("time_s")
-    step = np.diff(t)
-    dt = (t[-1] - t[0]) / (t.size - 1)  # times written with few digits: each step within 1 % of the mean
-    bad = np.flatnonzero((step <= 0) | (np.abs(step - dt) > SPACING_TOLERANCE * dt))
+    column = times[0]
+    t = columns.pop(column)
+    notes = []
+    bad = _uneven(t)
+    if bad.size and t.size > 2 * MIN_SEGMENT and not _uneven(t[:-1]).size:
+        rest = (t[-2] - t[0]) / (t.size - 2)
+        last = t[-1] - t[-2]
+        if 0 < last < rest:  # every step but the last even, the last shorter: a run's final step
+            notes.append(f"left out the last sample (t = {t[-1]:.6g} s): its step {last:.4g} s is shorter than the "
+                         f"log's {rest:.4g} s (a run stopping at its final time)")
+            t = t[:-1]
+            columns = {k: v[:-1] for k, v in columns.items()}
+            bad = bad[:0]
     if bad.size:
-        raise SceneError(f"row {bad[0] + 3}", "time_s must increase equally spaced", src)
-    return t, columns
+        step = np.diff(t)
+        dt = (t[-1] - t[0]) / (t.size - 1)
+        raise SceneError(f"row {bad[0] + 3}", f"{column} must increase equally spaced, every step within "
+                         f"{SPACING_TOLERANCE:.0%} of the mean {dt:.4g} s (step {step[bad[0]]:.4g} s; only a last, "
+                         "shorter step is left out)", src)
+    return TimeLog(t, columns, column, tuple(notes))
+
+
+def read_log(path) -> tuple[np.ndarray, dict]:
+    """Time and signals of a log CSV: ``(time_s, columns)`` of :func:`read_time_log`."""
+    log = read_time_log(path)
+    return log.time_s, log.columns
 
 
 def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,

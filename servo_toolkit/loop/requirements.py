@@ -179,15 +179,20 @@ def parse_override(text: str) -> tuple[str, float]:
 
     A bare number is in the display unit (Hz, deg, dB). The value obeys the scene's
     ``[requirements]`` rules (:func:`validate`): every requirement positive, a gain margin
-    may be 0 dB, a phase margin below 180 deg. Raises SceneError(``require.<name>``, rule).
+    may be 0 dB, a phase margin below 180 deg. Raises SceneError naming the option as typed
+    (``--require bandwith=8Hz``) and the rule.
     """
+    option = f"--require {text}"
     if "=" not in text:
-        raise SceneError(f"require.{text}", "expected NAME=VALUE, e.g. bandwidth=200Hz")
+        raise SceneError(option, "expected NAME=VALUE, e.g. bandwidth=200Hz")
     name, value = (part.strip() for part in text.split("=", 1))
-    name = canonical_name(name)
-    if not value:
-        raise SceneError(f"require.{name}", f"missing value, e.g. {name}=... {SPECS[name][2]}")
-    return name, override_value(name, value)
+    try:
+        name = canonical_name(name)
+        if not value:
+            raise SceneError(option, f"missing value, e.g. {name}=... {SPECS[name][2]}")
+        return name, override_value(name, value)
+    except SceneError as exc:
+        raise SceneError(option, exc.rule) from None
 
 
 def check(requirements, achieved: dict) -> list[Check]:

@@ -31,26 +31,27 @@ def parse_vary(text: str):
     Raises
     ------
     SceneError
-        Naming ``vary.NAME``: an unknown name, a range that is not ``LO:HI`` numbers with
+        Naming the option as typed (``--vary NAME=LO:HI``): an unknown name, a range that is not ``LO:HI`` numbers with
         ``LO <= HI``, a negative load inertia, a stiffness factor that is not positive, or
         an end outside :data:`VARY_RANGES`.
     """
+    option = f"--vary {text}"
     name, _, rng = text.partition("=")
     name = name.strip()
     if name not in PARAMETERS:
-        raise SceneError(f"vary.{name}", f"unknown parameter; known: {sorted(PARAMETERS)}")
+        raise SceneError(option, f"unknown parameter; known: {sorted(PARAMETERS)}")
     try:
         lo, hi = (float(v) for v in rng.split(":"))
     except ValueError:
-        raise SceneError(f"vary.{name}", f"expected LO:HI numbers, got {rng!r}") from None
+        raise SceneError(option, f"expected LO:HI numbers, got {rng!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi)) or hi < lo or (name == "stiffness" and lo <= 0) or lo < 0:
-        raise SceneError(f"vary.{name}", f"need 0 <= LO <= HI (stiffness LO > 0), got {rng!r}")
+        raise SceneError(option, f"need 0 <= LO <= HI (stiffness LO > 0), got {rng!r}")
     low, high = VARY_RANGES[name]
     for end in (lo, hi):
         if end != 0 and not low <= end <= high:
             what = "a load inertia in kg*m^2 (kg for a travel) of 0 or" if name == "load_inertia" else "a factor"
-            raise SceneError(f"vary.{name}", f"{what} in [{low:g}, {high:g}], the range the model is "
-                                             f"conditioned for (got {rng})")
+            raise SceneError(option, f"{what} in [{low:g}, {high:g}], the range the model is "
+                                     f"conditioned for (got {rng})")
     return name, (lo, hi)
 
 

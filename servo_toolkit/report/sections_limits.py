@@ -129,13 +129,15 @@ def _reduction(ctx):
             f"The reduced model leaves out: {left}. Sum of the estimates of what is left out "
             f"{fmt(plan.predicted, 3)}; a-priori bound (tolerance) {fmt(bound, 3)} = {fmt(_db(bound), 3)} dB / "
             f"{fmt(_deg(bound), 3)} deg.",
-            f"Measured full against reduced (sine dwell): largest relative difference {fmt(measured, 3)} = "
+            f"Measured full against reduced (sine dwell, over {res.counts()}): largest relative difference {fmt(measured, 3)} = "
             f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound (run times are not "
             "compared here: one sweep of each model is too noisy a timing; servo-toolkit accuracy times the solvers "
             "from the best of repeated runs)."]
     if np.any(res.saturated):
         text.append(f"Points where a run reached the current or voltage limit are outside the linear statement; "
                     f"their largest difference is {fmt(res.measured_saturated, 3)}.")
+    if res.failed.any():
+        text.append(f"Points whose run failed are not compared: {res.failed_text()}.")
     text += [n[:1].upper() + n[1:] + "." for n in tuple(plan.notes) + tuple(res.notes)]
     fig, ax = figures.new_figure(size=(7.0, 3.4))
     res.plot(ax=ax)

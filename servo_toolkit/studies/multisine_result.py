@@ -13,14 +13,10 @@ import numpy as np
 from ..core.output_units import OutputUnit
 from ..core.spectra import response_csv
 from ..display.cards import RichDisplay, card, num, svg, table
+from .sweep_result import phase_along_frequency
 
 _LABELS = {"closed_loop": ("position command -> output position", "gain [dB]"),
            "plant": ("motor current -> motor speed", "gain [dB re 1 (rad/s)/A]")}
-
-
-def _wrap_near(phase, ref):
-    """``phase`` shifted by whole turns to lie within 180 deg of ``ref`` (radians)."""
-    return ref + (phase - ref + np.pi) % (2 * np.pi) - np.pi
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -110,8 +106,10 @@ class MultisineResult(RichDisplay):
 
     @property
     def phase_deg(self) -> np.ndarray:
-        """(n_a, n_l) phase (deg), on the branch nearest the linear model's unwrapped phase."""
-        return np.degrees(_wrap_near(np.angle(self.response), np.radians(self.linear_phase_deg)[None, :]))
+        """(n_a, n_l) phase (deg): the difference from the linear model's unwrapped phase,
+        unwrapped along frequency (:func:`.sweep_result.phase_along_frequency`), so no line
+        jumps by a turn."""
+        return np.degrees(phase_along_frequency(self.response, np.radians(self.linear_phase_deg)))
 
     def deviation(self) -> dict:
         """Largest |gain difference| (dB) and |phase difference| (deg) from the linear model
@@ -194,9 +192,12 @@ class MultisineResult(RichDisplay):
             sat = "; current or voltage limit reached" if self.saturated[a] else ""
             lines.append(f"  distortion at the lines not excited: {self.distortion_db[a]:.1f} dB{sat}")
         dev = self.deviation()
-        lines.append("\nlargest difference from the linear model: " + ", ".join(
-            f"{self.unit.text(a, 3)}: {dg:.3f} dB / {dp:.2f} deg" for a, dg, dp in
-            zip(self.amplitudes, dev["max_gain_difference_dB"], dev["max_phase_difference_deg"])))
+        lines.append("\nlargest difference from the linear model: " + "; ".join(
+            f"{self.unit.text(a, 3)}: " + ("FAILED, no estimate" if err else
+                                          f"{dg:.3f} dB / {dp:.2f} deg" + (" (saturated: the current or voltage "
+                                                                            "limit was reached)" if sat else ""))
+            for a, dg, dp, sat, err in zip(self.amplitudes, dev["max_gain_difference_dB"],
+                                           dev["max_phase_difference_deg"], self.saturated, self.errors)))
         return "\n".join(lines)
 
     def plot(self, axes=None):

@@ -16,7 +16,9 @@ chain's modes above the first are measured so whether ``simulate``'s rule lumps 
 
 The a-priori bound is the reduction's tolerance (module :mod:`.reduce_estimates` explains
 why it holds in the linear range); points where a run reached the current or voltage limit
-are outside that statement and are reported separately.
+are outside that statement and are reported separately. A point whose run failed on either
+model (non-finite, out of its domain...) has no difference: it is reported as failed with
+the run's reason, and the measured difference is over the points that ran on both models.
 """
 
 from __future__ import annotations
@@ -74,8 +76,10 @@ def _trace_case(case):
 
 
 def _trace_difference(full, red, t_settle):
+    """``(difference, saturated)`` of two runs' output traces over the compared window
+    (NaN, False when either run failed: :func:`_difference` names why)."""
     if full["error"] or red["error"]:
-        return (math.nan if full["error"] and red["error"] else math.inf), True
+        return math.nan, False
     keep = full["t"] >= t_settle
     q_red = np.interp(full["t"][keep], red["t"], red["q"])
     q_full = full["q"][keep]
@@ -164,10 +168,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
             return _Traces(runs, settle / f)
     s_full = study_on(full, "full")
     s_red = study_on(reduced, "reduced")
-    diff, sat = _difference(s_full, s_red)
-    if measure == "sweep" and np.isnan(diff).any():
-        notes.append(f"{int(np.isnan(diff).sum())} point(s) failed on both models (e.g. "
-                     f"{next(e for e in s_full.errors if e)}); not compared")
+    diff, sat, failures = _difference(s_full, s_red, ("full", "reduced"))
     if measure == "trace":
         notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "
                      f"(settling: {dwell.settling_time_constants:g} time constants of the slowest loop mode); "
@@ -184,10 +185,13 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         alone = [e for e in alone if e.effect in set(per_effect)]
     for effect in alone if per_effect else []:
         alone = study_on(options_without(full, [effect]), f"without {effect.effect}")
-        d, s_ = _difference(s_full, alone)
-        costs.append(EffectCost(effect.effect, effect.estimate, _largest(d, ~s_), _largest(d, s_)))
+        d, s_, why = _difference(s_full, alone, ("full", f"without {effect.effect}"))
+        failed = np.array([w is not None for w in why], dtype=bool).reshape(d.shape)
+        costs.append(EffectCost(effect.effect, effect.estimate, _largest(d, ~s_ & ~failed), _largest(d, s_),
+                                int(failed.sum())))
     return ReductionResult(scene=scene.name, study=name, measure=measure, plan=rplan, frequencies_hz=freqs,
                            amplitudes_rad=np.asarray(amps, dtype=float), difference=diff, saturated=sat,
+                           failures=failures,
                            full_options=dict(full.__dict__), reduced_options=dict(reduced.__dict__),
                            notes=tuple(notes),
                            output_unit=output_unit(scene).si, per_effect=tuple(costs))
@@ -201,18 +205,29 @@ class _Traces:
     t_settle: float
 
 
-def _difference(a, b):
-    """``(difference, saturated)``, each (n_a, n_f), of a study run on two models: sine-dwell
-    responses ``|H_b / H_a - 1|`` or the output traces' RMS difference; inf where one model's
-    run failed (and counted as saturated), NaN where both did."""
+def _difference(a, b, names):
+    """``(difference, saturated, failures)`` of a study run on two models named ``names``:
+    difference and saturated (n_a, n_f), the sine-dwell responses' ``|H_b / H_a - 1|`` or the
+    output traces' RMS difference; failures row-major, None or why a point's run failed on
+    either model. A failed point has no difference (NaN) and is not counted as saturated."""
     if isinstance(a, _Traces):
         pairs = [_trace_difference(x, y, a.t_settle) for x, y in zip(a.runs, b.runs)]
-        return np.array([[d] for d, _ in pairs]), np.array([[s] for _, s in pairs])
-    with np.errstate(invalid="ignore"):
-        diff = np.abs(b.response / a.response - 1.0)
-    failed_one = np.isnan(a.response) ^ np.isnan(b.response)
-    diff[failed_one] = math.inf
-    return diff, a.saturated | b.saturated | failed_one
+        diff = np.array([[d] for d, _ in pairs], dtype=float)
+        sat = np.array([[s] for _, s in pairs], dtype=bool)
+        errors = zip((x["error"] for x in a.runs), (y["error"] for y in b.runs))
+    else:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            diff = np.abs(b.response / a.response - 1.0)
+        sat = a.saturated | b.saturated
+        errors = zip(a.errors, b.errors)
+    failures = []
+    for (err_a, err_b), d in zip(errors, diff.ravel()):
+        why = "; ".join(f"{n} model: {e}" for n, e in zip(names, (err_a, err_b)) if e)
+        if not why and not math.isfinite(d):
+            why = f"no finite difference between the {names[0]} and the {names[1]} model"
+        failures.append(why or None)
+    failed = np.array([f is not None for f in failures], dtype=bool).reshape(diff.shape)
+    return np.where(failed, math.nan, diff), sat & ~failed, tuple(failures)
 
 
 def _largest(diff, where) -> float:
