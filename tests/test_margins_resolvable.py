@@ -19,6 +19,8 @@ from scipy.optimize import brentq
 from servo_toolkit.loop.crossings import CROSSING_TOL, EPS, RESOLVABLE_DB, crossings, response_of, rounding_bound
 from servo_toolkit.loop.margins import loop_margins
 
+from .conftest import SCENES
+
 warnings.filterwarnings("ignore", module="control")
 
 
@@ -114,12 +116,12 @@ def test_resolvable_range_is_the_crossing_tolerance_over_epsilon():
     assert 190 < RESOLVABLE_DB < 196
 
 
-def test_shipped_cam_scene_lists_no_crossing_in_the_rounding(scenes_dir):
+def test_shipped_cam_scene_lists_no_crossing_in_the_rounding():
     """The cam follower's lead-lag loop: its phase touches -180 deg only on the integrators'
     asymptote at 9 nHz, where |L| = 6.6e17 (a "gain margin" of -356 dB that 1 + L, rounding
     to L, cannot see); it used to be listed. The real crossings are unchanged."""
     import servo_toolkit as st
-    cam = st.load_scene(scenes_dir / "cam_follower.toml")
+    cam = st.load_scene(SCENES / "cam_follower.toml")
     r = st.design(cam, structure="lead_lag", robust=False, progress=False)
     m = r.margins
     assert all(abs(g) <= RESOLVABLE_DB for g in m.gain_margins_db)
