@@ -362,9 +362,9 @@ def loop_margins(ctx) -> Section:
                      zip(m.phase_crossover_hz, m.gain_margins_db)]
         crossings += [("gain crossing", fmt(fc), f"phase of L {fmt(p - 180)} deg (not a margin)")
                       for fc, p in zip(m.gain_crossover_hz, m.phase_margins_deg)]
-        intro = (f"The {m.unstable_reason}: it has no gain, phase or delay margin, no disk margin, Ms or "
-                 "bandwidth (a margin measures how far a stable loop is from instability); the crossings of L are "
-                 "listed")
+        intro = (f"The closed loop is unstable ({m.instability}): it has no gain, phase or delay margin, no disk "
+                 "margin, Ms or bandwidth (a margin measures how far a stable loop is from instability), so these "
+                 "are n/a; the crossings of L are listed")
     return Section("Loop Bode and Nyquist with margins",
                    para(f"{intro}; the plots span {fmt(F_MIN)} to {fmt(f_hi)} Hz, so every crossing listed is "
                         "marked on them.")
