@@ -113,10 +113,8 @@ def test_an_unstable_stroke_point_fails_every_margin_row():
     r = st.design(cam, q0=math.pi, over_stroke=False)  # the dwell's gains: unstable on the rise
     assert not r.stroke.all_stable
     rows = _rows(r)
-    assert rows["gain_margin_over_stroke"].achieved == 0.0
-    assert rows["phase_margin_over_stroke"].achieved == -math.inf
-    assert rows["sensitivity_peak_over_stroke"].achieved == math.inf
-    assert not any(c.passed for c in rows.values())
+    for c in rows.values():  # no placeholder figure: each row fails with the reason
+        assert not c.passed and math.isnan(c.achieved) and "unstable at" in c.reason
     fixed = st.design(cam, q0=math.pi)  # designed over the turn: stable at every cam angle
     assert fixed.stroke.all_stable and all(c.passed for c in _rows(fixed).values())
 

@@ -152,11 +152,20 @@ def test_every_crossing_delay_is_where_stability_changes():
     assert _max_pole_real_with_delay(L, 1.03 * (falling + 2 * np.pi / wc[2]), 20) > 0
 
 
-def test_unstable_closed_loop_has_zero_delay_margin():
-    # L = 3 / (s (s + 1)^2): unstable for k > 2; every delay margin is 0
+def test_unstable_closed_loop_has_no_margins():
+    # L = 3 / (s (s + 1)^2): unstable for k > 2 (two closed-loop poles in the right half-plane,
+    # Routh: s^3 + 2 s^2 + s + 3 has two sign changes in its first column 1, 2, -0.5, 3);
+    # no margin of any kind, while the phase crossing is still where L is -3/2
     m = _margins(ct.tf([3], [1, 2, 1, 0]))
-    assert not m.closed_loop_stable
-    assert m.delay_margin_s == 0.0 and all(d == 0.0 for d in m.delay_margins_s)
+    assert not m.closed_loop_stable and m.unstable_closed_loop_poles == 2
+    for x in (m.gain_margin_db, m.phase_margin_deg, m.delay_margin_s, m.lower_gain_margin_db,
+              m.upper_gain_margin_db, m.disk_margin, m.sensitivity_peak_db, m.bandwidth_hz):
+        assert math.isnan(x)
+    assert all(math.isnan(d) for d in m.delay_margins_s)
+    np.testing.assert_allclose(m.gain_margins_db, [20 * math.log10(2 / 3)], atol=1e-9)
+    assert "2 closed-loop poles in the right half-plane" in m.unstable_reason
+    d = m.to_dict()
+    assert d["gain_margin_db"] is None and d["delay_margins_s"] == [None] and d["unstable_reason"]
 
 
 def test_delay_margin_of_a_designed_loop_with_a_resonant_crossing():

@@ -77,8 +77,10 @@ def card(title: str, *, status: bool | None = None, parts=(), notes=()) -> str:
 
 def requirement_rows(checks):
     """Rows (name, required, achieved, badge, shortfall) of requirement checks."""
-    return [(c.name, f"{c.sense} {num(c.required)} {c.unit}", f"{num(c.achieved)} {c.unit}",
-             badge(c.passed), "" if c.passed else f"{num(c.shortfall, 3)} {c.unit}") for c in checks]
+    return [(c.name, f"{c.sense} {num(c.required)} {c.unit}",
+             f"unstable ({c.reason})" if getattr(c, "reason", "") else f"{num(c.achieved)} {c.unit}",
+             badge(c.passed), "" if c.passed or getattr(c, "reason", "") else f"{num(c.shortfall, 3)} {c.unit}")
+            for c in checks]
 
 
 def requirements_table(checks) -> str:

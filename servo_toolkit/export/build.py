@@ -60,8 +60,11 @@ def evaluate_quantized(scene, design_result, controller):
             margins = replace(loop_margins(open_loop(scene, controller, design_result.q0), cl,
                                            phase_hz=design_result.margins.phase_at_hz), bandwidth_hz=math.nan)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            poles = ct.poles(cl)
             margins = replace(design_result.margins, gain_margin_db=math.nan, phase_margin_deg=math.nan,
-                              closed_loop_stable=bool(np.all(ct.poles(cl).real < 0)), bandwidth_hz=math.nan)
+                              closed_loop_stable=bool(np.all(poles.real < 0)), bandwidth_hz=math.nan,
+                              max_closed_loop_pole_real=float(np.max(poles.real)),
+                              unstable_closed_loop_poles=int(np.sum(poles.real >= 0)))
     checks = [replace(c, achieved=math.nan, passed=False) for c in design_result.requirements]
     return replace(design_result, controller=controller, margins=margins, requirements=checks,
                    closed_loop=cl, motion=None, notes=(reason,)), reason
@@ -74,11 +77,11 @@ def _failures(design_result, qdesign, reason=None) -> tuple:
     that fails them)."""
     out = [reason] if reason else []
     if not qdesign.margins.closed_loop_stable:
-        out.append("the closed loop with the quantized controller is unstable")
+        out.append(f"the closed loop with the quantized controller is unstable ({qdesign.margins.instability})")
     designed = {c.name: c for c in design_result.requirements}
     for c in qdesign.requirements:
-        if c.passed or (reason and math.isnan(c.achieved)):
-            continue
+        if c.passed or (reason and math.isnan(c.achieved)) or getattr(c, "reason", ""):
+            continue  # no figure: the loop's instability (or the reason) already says why
         d = designed.get(c.name)
         why = ("quantization costs it" if d is None or d.passed else
                f"the design without quantization already misses it ({d.achieved:.4g} {d.unit})")

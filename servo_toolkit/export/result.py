@@ -126,10 +126,11 @@ class ExportResult:
                          f"a = [1, {', '.join(f'{v:.8g}' for v in s.a)}]  ({s.input_unit} -> {s.output_unit})")
         if self.quantized is not None:
             m, d = self.quantized_design.margins, self.design.margins
-            lines.append(f"  quantized: GM {m.gain_margin_db:.2f} dB (design {d.gain_margin_db:.2f}), "
-                         f"PM {m.phase_margin_deg:.1f} deg (design {d.phase_margin_deg:.1f}), closed loop "
-                         f"{'stable' if m.closed_loop_stable else 'UNSTABLE'}; i_ref rounding bound "
-                         f"{self.error_bound:.3g} A over {self.bound_horizon_s:g} s")
+            loop = (f"GM {m.gain_margin_db:.2f} dB (design {d.gain_margin_db:.2f}), PM {m.phase_margin_deg:.1f} deg "
+                    f"(design {d.phase_margin_deg:.1f}), closed loop stable" if m.closed_loop_stable else
+                    f"closed loop UNSTABLE, {m.instability}: no margins")
+            lines.append(f"  quantized: {loop}; i_ref rounding bound {self.error_bound:.3g} A over "
+                         f"{self.bound_horizon_s:g} s")
             for f in self.filters:
                 if math.isnan(f["quantized_hz"]):
                     lines.append(f"  {f['section']} {f['what']}s: {f['design_hz']:.4g} Hz -> real pair (filter lost)")

@@ -67,7 +67,8 @@ class ChainMargins:
         m = self.margins
         return {"modes_hz": list(self.modes_hz), "gain_margin_db": m.gain_margin_db,
                 "phase_margin_deg": m.phase_margin_deg, "sensitivity_peak_db": m.sensitivity_peak_db,
-                "closed_loop_stable": m.closed_loop_stable, "gain_change_db": self.gain_change_db,
+                "closed_loop_stable": m.closed_loop_stable, "unstable_reason": m.unstable_reason or None,
+                "gain_change_db": self.gain_change_db,
                 "phase_change_deg": self.phase_change_deg, "peak_change_db": self.peak_change_db,
                 "near_modes_hz": list(self.near), "note": self.note}
 
@@ -110,11 +111,14 @@ def chain_margins(scene, controller, q0: float, damping: float, two_mass: Margin
     if near or changed:
         where = (f"{_hz(near)} within {MODE_FACTOR:g}x the loop's crossover {crossover:.3g} Hz" if near else
                  f"{_hz(modes)}")
-        note = (f"the drivetrain modes above the first, lumped in the design plant ({where}), checked on the "
-                f"n-mass plant: gain margin {mg.gain_margin_db:.3g} dB (two-mass {two_mass.gain_margin_db:.3g}), "
-                f"phase margin {mg.phase_margin_deg:.3g} deg ({two_mass.phase_margin_deg:.3g}), sensitivity peak "
-                f"{mg.sensitivity_peak_db:.3g} dB ({two_mass.sensitivity_peak_db:.3g})"
-                + ("" if mg.closed_loop_stable else "; the closed loop is UNSTABLE on the n-mass plant"))
+        head = f"the drivetrain modes above the first, lumped in the design plant ({where}), checked on the n-mass plant"
+        if not mg.closed_loop_stable:
+            note = (f"{head}: the closed loop is UNSTABLE on the n-mass plant ({mg.instability}; "
+                    + ("as on the two-mass plant)" if not two_mass.closed_loop_stable else "stable on the two-mass plant)"))
+        else:
+            note = (f"{head}: gain margin {mg.gain_margin_db:.3g} dB (two-mass {two_mass.gain_margin_db:.3g}), "
+                    f"phase margin {mg.phase_margin_deg:.3g} deg ({two_mass.phase_margin_deg:.3g}), sensitivity peak "
+                    f"{mg.sensitivity_peak_db:.3g} dB ({two_mass.sensitivity_peak_db:.3g})")
     return ChainMargins(modes, mg, d_gain, d_phase, d_peak, near, note)
 
 

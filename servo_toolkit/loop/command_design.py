@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from ..display.cards import RichDisplay, card, facts, num
 from .feedforward import feedforward_gains
 from .schedule import gain_schedule
@@ -67,7 +69,12 @@ class CommandDesign(RichDisplay):
                f"{g['acceleration']:.4g} A*s^2/{u} (J {g['inertia']:.4g}, N {g['ratio']:.4g})"]
         if self.schedule is not None:
             out.append(f"  {self.schedule.describe()}")
-            if self.stroke_fixed is not None and self.stroke_scheduled is not None:
+            if self.stroke_fixed is not None and self.stroke_scheduled is not None \
+                    and not (self.stroke_fixed.all_stable and self.stroke_scheduled.all_stable):
+                out.append("  over the stroke, fixed -> scheduled gains: no margin spread, the closed loop is "
+                           f"unstable at {int(np.sum(~self.stroke_fixed.stable))} -> "
+                           f"{int(np.sum(~self.stroke_scheduled.stable))} of {self.stroke_fixed.q.size} points")
+            elif self.stroke_fixed is not None and self.stroke_scheduled is not None:
                 a, b = self.stroke_fixed.spread(), self.stroke_scheduled.spread()
                 out.append(f"  over the stroke, fixed -> scheduled gains: crossover spread "
                            f"{100 * a.get('crossover', math.nan):.3g} % -> {100 * b.get('crossover', math.nan):.3g} %, "

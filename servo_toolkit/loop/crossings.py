@@ -8,6 +8,13 @@ those coefficients yields roots that are no crossings of the loop at all (a gain
 turns ``L`` by more than 30 deg, refined by Brent's method, and kept only when ``L`` itself,
 evaluated there, is real and negative (phase crossing) or of unit magnitude (gain crossing).
 python-control's roots are used as extra grid points, never as crossings on their own word.
+
+A crossing is also kept only when double precision resolves it (:func:`resolvable`): the
+margin speaks of ``1 + L(jw)``, which rounds to 1 when ``|L|`` is far below machine epsilon
+and to ``L`` when ``|L|`` is far above its inverse, and the computed ``L(jw)`` itself carries
+a rounding error (:func:`rounding_bound`) that must stay below the crossing tolerance. A
+phase crossing at ``|L| = 1e-22`` (a "gain margin" of 427 dB at 6.5 kHz) or one where the
+phase of ``L`` only wanders in the rounding of an ill-conditioned evaluation is no crossing.
 """
 
 from __future__ import annotations
@@ -26,6 +33,12 @@ SPAN = 1e4
 SEED_NEAR = 1e-4
 #: grid refinement: no step of the grid turns ``L`` by more than this (rad)
 MAX_TURN = np.pi / 6
+#: machine epsilon of the float64 evaluation
+EPS = float(np.finfo(float).eps)
+#: ``|L|`` range (dB) in which both terms of ``1 + L`` are resolved to :data:`CROSSING_TOL`:
+#: ``EPS / CROSSING_TOL <= |L| <= CROSSING_TOL / EPS`` (about +-193 dB); a gain margin beyond
+#: it is no figure double precision can speak of
+RESOLVABLE_DB = float(20 * np.log10(CROSSING_TOL / EPS))
 
 
 def response_of(loop):
@@ -121,6 +134,70 @@ def _unique(w, rel=1e-7) -> np.ndarray:
     return w[keep]
 
 
+def rounding_bound(loop, w) -> np.ndarray:
+    """Bound on the rounding error of ``L(jw)``, relative to ``|L(jw)|``, at frequencies ``w``.
+
+    For a state-space loop ``L = C (jw I - A)^-1 B + D`` solved by LU with partial pivoting
+    (componentwise backward stable), the forward error of ``x = (jw I - A)^-1 B`` is at most
+    about ``n eps |M^-1| (|M| |x| + |B|)`` with ``M = jw I - A`` (Skeel's bound), so
+    ``|dL| <= n eps |C| |M^-1| (|M| |x| + |B|) + eps (|C| |x| + |D|)``. Unlike the normwise
+    condition number it is blind to the scaling of the states, so it stays near ``n eps``
+    where the evaluation is accurate and grows where it is not (near a pole at the origin, an
+    integrator's asymptote evaluated at micro-hertz). Other systems get 0 (no bound known).
+
+    Parameters
+    ----------
+    loop : control.LTI
+        SISO open loop.
+    w : array_like
+        Angular frequencies (rad/s).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``|dL| / |L|`` per frequency (``inf`` where ``L`` is 0 or not finite).
+    """
+    w = np.atleast_1d(np.asarray(w, float))
+    if not (isinstance(loop, ct.StateSpace) and loop.isctime() and loop.nstates > 0
+            and loop.ninputs == 1 and loop.noutputs == 1):
+        return np.zeros(w.shape)
+    A, B, C, D = (np.asarray(m, float) for m in (loop.A, loop.B, loop.C, loop.D))
+    n = A.shape[0]
+    out = np.empty(w.shape)
+    for k, wk in enumerate(w):
+        M = 1j * wk * np.eye(n) - A
+        try:
+            Mi = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            out[k] = np.inf
+            continue
+        x = Mi @ B
+        lw = complex((C @ x + D)[0, 0])
+        err = (n * EPS * (np.abs(C) @ np.abs(Mi) @ (np.abs(M) @ np.abs(x) + np.abs(B)))[0, 0]
+               + EPS * ((np.abs(C) @ np.abs(x))[0, 0] + abs(D[0, 0])))
+        with np.errstate(all="ignore"):
+            out[k] = err / abs(lw) if np.isfinite(lw) and lw != 0 else np.inf
+    return out
+
+
+def resolvable(loop, w, lw) -> np.ndarray:
+    """Which crossings at ``w`` (rad/s), ``L`` there ``lw``, double precision resolves.
+
+    Both rules tie to :data:`CROSSING_TOL`, the tolerance a crossing is accepted to:
+
+    - ``1 + L`` carries each term to ``eps max(1, |L|)``; the crossing is resolved when that is
+      at most ``CROSSING_TOL min(1, |L|)``, i.e. ``|20 log10 |L|| <=`` :data:`RESOLVABLE_DB`
+      (about 193 dB). Beyond it ``1 + L`` rounds to 1 (or to ``L``): no gain change the
+      closed loop can see puts it through -1 there.
+    - the computed ``L(jw)`` is within :data:`CROSSING_TOL` of the loop's own value
+      (:func:`rounding_bound`); otherwise the sign of ``Im L`` (or of ``|L| - 1``) is rounding.
+    """
+    lw = np.atleast_1d(np.asarray(lw, complex))
+    with np.errstate(all="ignore"):
+        db = 20 * np.log10(np.abs(lw))
+    return np.isfinite(db) & (np.abs(db) <= RESOLVABLE_DB) & (rounding_bound(loop, w) <= CROSSING_TOL)
+
+
 def crossings(loop):
     """Every phase crossing and gain crossing of the SISO loop ``L`` at ``0 < w < inf``.
 
@@ -128,6 +205,8 @@ def crossings(loop):
     ----------
     loop : control.LTI
         Continuous-time SISO open loop.
+
+    A crossing double precision cannot resolve (:func:`resolvable`) is left out.
 
     Returns
     -------
@@ -148,7 +227,7 @@ def crossings(loop):
     wpc0 = np.atleast_1d(np.asarray(wpc0, float))
     wpc0 = wpc0[(wpc0 >= lo) & (wpc0 <= hi)]
     w = _grid(loop, np.concatenate([wpc0, np.atleast_1d(wgc0)]))
-    loop = response_of(loop)
+    system, loop = loop, response_of(loop)
 
     def im(x):
         lw = _evaluate(loop, x)
@@ -163,9 +242,13 @@ def crossings(loop):
     lp = _evaluate(loop, wpc)
     real_negative = np.isfinite(lp) & (lp.real < 0) & (np.abs(lp.imag) <= CROSSING_TOL * np.abs(lp))
     wpc, lp = wpc[real_negative], lp[real_negative]
+    keep = resolvable(system, wpc, lp)
+    wpc, lp = wpc[keep], lp[keep]
     wgc = _unique(_roots(log_mag, w, seeds_g))
     lg = _evaluate(loop, wgc)
     unit = np.isfinite(lg) & (np.abs(np.abs(lg) - 1) <= CROSSING_TOL)
     wgc, lg = wgc[unit], lg[unit]
+    keep = resolvable(system, wgc, lg)
+    wgc, lg = wgc[keep], lg[keep]
     pm = np.remainder(np.angle(lg, deg=True), 360.0) - 180.0
     return wpc, 1.0 / np.abs(lp), wgc, pm

@@ -26,7 +26,7 @@ from .chain_margins import chain_margins
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
 from .metrics import grid_figures
-from .requirements import check, requirements_of
+from .requirements import check, requirements_of, unstable_checks
 from .response import loop_response, plant_responses
 from .result import DesignResult
 from .stroke import STROKE_POINTS, operating_point, show_q, stroke_check
@@ -329,14 +329,14 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     f_req = next(r.value for r in reqs if r.name == "bandwidth")
     mg = loop_margins(loop, cl_siso, phase_hz=phase_hz,
                       omega=frequency_grid(extra=[phase_hz, f_req]))
-    lag_at = loop_margins(loop, cl_siso, phase_hz=f_req).phase_at_freq_deg if f_req != phase_hz \
-        else mg.phase_at_freq_deg
-    achieved = {"bandwidth": mg.bandwidth_hz if mg.closed_loop_stable else 0.0,
-                "phase_lag_at_bandwidth": -lag_at if mg.closed_loop_stable else math.inf,
-                "gain_margin": abs(mg.gain_margin_db) if mg.closed_loop_stable else 0.0,
-                "phase_margin": mg.phase_margin_deg if mg.closed_loop_stable else -math.inf,
-                "sensitivity_peak": mg.sensitivity_peak_db if mg.closed_loop_stable else math.inf}
-    checks = check(reqs, achieved)
+    if mg.closed_loop_stable:
+        lag_at = loop_margins(loop, cl_siso, phase_hz=f_req).phase_at_freq_deg if f_req != phase_hz \
+            else mg.phase_at_freq_deg
+        checks = check(reqs, {"bandwidth": mg.bandwidth_hz, "phase_lag_at_bandwidth": -lag_at,
+                              "gain_margin": abs(mg.gain_margin_db), "phase_margin": mg.phase_margin_deg,
+                              "sensitivity_peak": mg.sensitivity_peak_db})
+    else:  # no margin, Ms or bandwidth: every row fails with the reason, no placeholder figure
+        checks = unstable_checks(reqs, mg.unstable_reason)
     stroke = None
     if stroke_points:
         stroke = stroke_check(scene, controller, p.q0, points=stroke_points, model=model,
@@ -411,7 +411,9 @@ def _failure_notes(result) -> tuple:
     """One note per failing requirement, with the figures (never hidden)."""
     out = []
     for c in result.requirements:
-        if not c.passed:
+        if c.reason:
+            out.append(f"the design misses {c.name}: {c.reason}")
+        elif not c.passed:
             out.append(f"the design misses {c.name}: achieved {c.achieved:.4g} {c.unit}, required {c.sense} "
                        f"{c.required:g} {c.unit}, short by {c.shortfall:.3g} {c.unit}")
     rb = result.robustness

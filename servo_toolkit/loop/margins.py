@@ -30,15 +30,19 @@ class Margins:
         At every gain crossing ``w_gc`` of a stable closed loop, the smallest pure delay that
         puts the loop through -1 there: ``(phase margin mod 360 deg, in rad) / w_gc`` (MATLAB
         ``allmargin``'s convention; a crossing with a negative phase margin has one too, as
-        the delay must turn the loop clockwise by 360 deg + PM); every one is 0 when the
+        the delay must turn the loop clockwise by 360 deg + PM); NaN (JSON null) when the
         closed loop is unstable. See :func:`delay_margins`. Each is a delay at which
         closed-loop poles reach the imaginary axis; past the smallest the loop may regain
         stability (at a crossing where ``|L|`` rises) and lose it again.
     gain_margin_db, phase_margin_deg, delay_margin_s : float
-        The smallest of each (``inf`` without a crossing, but a delay margin of 0 for an
-        unstable closed loop); the gain margin is the smallest in magnitude. The smallest
-        delay margin is the largest delay the loop tolerates: below it the closed loop
-        stays stable, just above it is unstable.
+        The smallest of each (``inf`` without a crossing); the gain margin is the smallest in
+        magnitude. The smallest delay margin is the largest delay the loop tolerates: below
+        it the closed loop stays stable, just above it is unstable. A margin is the distance
+        of a stable closed loop to instability: for an unstable one every margin figure here
+        (and the lower and upper gain margins, disk margin, Ms and bandwidth) is NaN, JSON
+        null, and :attr:`unstable_reason` says why. The per-crossing lists
+        (``gain_margins_db``, ``phase_margins_deg``) still give where ``L`` crosses and the
+        gain or phase change that puts it through -1 there.
     disk_margin : float
         Balanced (skew 0) disk margin alpha, python-control's ``disk_margins``.
     disk_gain_margin_db, disk_phase_margin_deg : float
@@ -67,8 +71,10 @@ class Margins:
         no reduction destabilizes the loop) and rise (``inf`` when none) before the closed loop
         changes stability, over every crossing including w = 0 and w -> inf.
     notes : tuple of str
-        Why a figure is left out (disk margin and Ms of an unstable closed loop are NaN, JSON
-        null), and any disagreement of the Nyquist count with the poles.
+        Why a figure is left out (the margins of an unstable closed loop are NaN, JSON null),
+        and any disagreement of the Nyquist count with the poles.
+    unstable_closed_loop_poles : int
+        Closed-loop poles with a real part of 0 or more (0 for a stable closed loop).
     """
 
     gain_margins_db: tuple
@@ -94,20 +100,55 @@ class Margins:
     lower_gain_margin_db: float = -math.inf
     upper_gain_margin_db: float = math.inf
     notes: tuple = ()
+    unstable_closed_loop_poles: int = 0
+
+    @property
+    def instability(self) -> str:
+        """The unstable closed-loop poles in words ("" when the closed loop is stable)."""
+        if self.closed_loop_stable:
+            return ""
+        n = self.unstable_closed_loop_poles
+        return (f"{n} closed-loop pole{'' if n == 1 else 's'} in the right half-plane, the largest real part "
+                f"{self.max_closed_loop_pole_real:.4g} 1/s")
+
+    @property
+    def unstable_reason(self) -> str:
+        """Why the closed loop has no margins, in words ("" when it is stable)."""
+        return f"closed loop unstable: {self.instability}" if not self.closed_loop_stable else ""
+
+    def headline(self) -> str:
+        """The margins in one line, or, for an unstable closed loop, that it has none."""
+        if not self.closed_loop_stable:
+            return ("margins: none (gain, phase, delay and disk margins, Ms and bandwidth describe a stable "
+                    "closed loop only)")
+        return (f"GM {self.gain_margin_db:.2f} dB, PM {self.phase_margin_deg:.1f} deg, delay margin "
+                f"{self.delay_margin_s * 1e3:.3g} ms, disk margin {self.disk_margin:.3f}, "
+                f"Ms {self.sensitivity_peak_db:.2f} dB")
 
     def to_dict(self) -> dict:
-        """JSON-ready, units in the key names."""
+        """JSON-ready, units in the key names; a figure not defined is None (JSON null)."""
         d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
-        for k in ("disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "sensitivity_peak_db"):
-            if isinstance(d[k], float) and math.isnan(d[k]):
-                d[k] = None  # not defined for an unstable closed loop; notes say so
+        for k, v in d.items():
+            if isinstance(v, float) and math.isnan(v):
+                d[k] = None  # not defined (an unstable closed loop); unstable_reason and notes say why
+        d["delay_margins_s"] = [None if math.isnan(x) else x for x in self.delay_margins_s]
+        d["unstable_reason"] = self.unstable_reason or None
         d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == REQUIREMENT_SINE_HZ else None
         if d["phase_at_8hz_deg"] is None:
             d["phase_at_freq_deg"] = self.phase_at_freq_deg
         return d
 
     def table(self) -> str:
-        """Every crossing, as text."""
+        """Every crossing, as text (for an unstable closed loop, where ``L`` crosses and
+        ``|L|`` or its phase there: no margins)."""
+        if not self.closed_loop_stable:
+            return "\n".join([
+                "  phase crossings (not margins, the closed loop is unstable):  " + (", ".join(
+                    f"|L| {-g:+.2f} dB at {f:.3g} Hz" for g, f in zip(self.gain_margins_db, self.phase_crossover_hz))
+                    or "none"),
+                "  gain crossings (not margins, the closed loop is unstable):   " + (", ".join(
+                    f"phase {p - 180:.1f} deg at {f:.3g} Hz" for p, f in zip(self.phase_margins_deg,
+                                                                          self.gain_crossover_hz)) or "none")])
         lines = ["  phase crossings:  " + (", ".join(f"{g:+.2f} dB at {f:.3g} Hz" for g, f in
                                                  zip(self.gain_margins_db, self.phase_crossover_hz)) or "none"),
                  "  gain crossings:   " + (", ".join(f"PM {p:.1f} deg, delay {d * 1e3:.3g} ms at {f:.3g} Hz"
@@ -140,18 +181,18 @@ def delay_margins(phase_margins_deg, gain_crossover, closed_loop_stable: bool) -
     gain_crossover : array_like
         Gain crossover frequencies (rad/s).
     closed_loop_stable : bool
-        Without delay; an unstable closed loop has a delay margin of 0 at every crossing.
+        Without delay; an unstable closed loop has no delay margin (NaN at every crossing).
 
     Returns
     -------
     numpy.ndarray
         ``radians(pm mod 360) / w_gc``; ``inf`` at a crossing at ``w = 0`` with a
-        nonzero margin (no delay moves ``L(0)``).
+        nonzero margin (no delay moves ``L(0)``); NaN for an unstable closed loop.
     """
     pm = np.asarray(phase_margins_deg, float)
     wgc = np.asarray(gain_crossover, float)
     if not closed_loop_stable:
-        return np.zeros_like(pm)
+        return np.full_like(pm, np.nan)
     turn = np.radians(np.remainder(pm, 360.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(wgc > 0, turn / np.where(wgc > 0, wgc, 1.0), np.where(turn > 0, np.inf, 0.0))
@@ -275,7 +316,8 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
             notes.append(f"python-control could not compute the disk margin ({exc})")
     else:
         dmarg = dgm = dpm = ms = math.nan
-        notes.append("disk margin and sensitivity peak Ms are not defined for an unstable closed loop")
+        notes.append("gain, phase, delay and disk margins, sensitivity peak Ms and bandwidth are not defined for "
+                     "an unstable closed loop")
     dm = delay_margins(pm, wgc, stable)
     try:
         bw = ct.bandwidth(closed_loop) if stable else math.nan
@@ -288,16 +330,18 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
     phase = float(np.degrees(np.unwrap(np.angle(t)))[-1])
     order = np.argsort(np.abs(gm_db)) if gm_db.size else []
     lower, upper = gm_db[gm_db < 0], gm_db[gm_db > 0]
+    nan = math.nan
     return Margins(
         gain_margins_db=tuple(float(x) for x in gm_db), phase_crossover_hz=tuple(float(x) for x in wpc / (2 * np.pi)),
         phase_margins_deg=tuple(float(x) for x in pm), gain_crossover_hz=tuple(float(x) for x in wgc / (2 * np.pi)),
         delay_margins_s=tuple(float(x) for x in dm),
-        gain_margin_db=float(gm_db[order[0]]) if gm_db.size else math.inf,
-        phase_margin_deg=float(pm.min()) if pm.size else math.inf,
-        delay_margin_s=float(dm.min()) if dm.size else (math.inf if stable else 0.0),
+        gain_margin_db=(float(gm_db[order[0]]) if gm_db.size else math.inf) if stable else nan,
+        phase_margin_deg=(float(pm.min()) if pm.size else math.inf) if stable else nan,
+        delay_margin_s=(float(dm.min()) if dm.size else math.inf) if stable else nan,
         disk_margin=dmarg, disk_gain_margin_db=dgm, disk_phase_margin_deg=dpm,
         sensitivity_peak_db=ms, bandwidth_hz=bw, phase_at_hz=float(phase_hz), phase_at_freq_deg=phase,
         closed_loop_stable=stable, max_closed_loop_pole_real=float(np.max(poles.real)) if poles.size else -math.inf,
         open_loop_rhp_poles=rhp, integrators=integrators, nyquist_rhp_closed_loop_poles=z,
-        lower_gain_margin_db=float(lower.max()) if lower.size else -math.inf,
-        upper_gain_margin_db=float(upper.min()) if upper.size else math.inf, notes=tuple(notes))
+        lower_gain_margin_db=(float(lower.max()) if lower.size else -math.inf) if stable else nan,
+        upper_gain_margin_db=(float(upper.min()) if upper.size else math.inf) if stable else nan, notes=tuple(notes),
+        unstable_closed_loop_poles=int(np.sum(poles.real >= 0)))

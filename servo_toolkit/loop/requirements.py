@@ -57,7 +57,11 @@ class Check:
     required, achieved : float
     passed : bool
     shortfall : float
-        By how much the requirement is missed (0 when passed), in ``unit``.
+        By how much the requirement is missed (0 when passed), in ``unit``; NaN when the
+        figure does not exist (``reason``).
+    reason : str
+        Why the requirement fails without a figure ("" otherwise): the closed loop is unstable,
+        so it has no margin, Ms or bandwidth (:func:`unstable_checks`); ``achieved`` is NaN.
     """
 
     name: str
@@ -68,12 +72,20 @@ class Check:
     sense: str
     source: str
     shortfall: float
+    reason: str = ""
+
+    @property
+    def achieved_text(self) -> str:
+        """The achieved figure with its unit, or ``"unstable"`` when the loop has none."""
+        if self.reason:
+            return "unstable"
+        return f"{self.achieved:.4g} {self.unit}".rstrip()
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready (a figure that does not exist is NaN here, null in the JSON text)."""
         return {"required": self.required, "achieved": self.achieved, "passed": self.passed,
                 "unit": self.unit, "sense": self.sense, "source": self.source,
-                "shortfall": self.shortfall}
+                "shortfall": self.shortfall, "reason": self.reason or None}
 
 
 #: name -> (lower bound, lower bound included, upper bound or None) in display units: the
@@ -199,7 +211,8 @@ def check(requirements, achieved: dict) -> list[Check]:
     """Compare each requirement with ``achieved[name]`` (display units).
 
     An infinite figure is a limit with a meaning (no phase crossover: an infinite gain
-    margin; the design's figures of an unstable loop) and is judged; NaN is no figure at all.
+    margin) and is judged; NaN is no figure at all (an unstable loop's requirements fail with
+    its reason instead, :func:`unstable_checks`).
 
     Raises
     ------
@@ -218,6 +231,16 @@ def check(requirements, achieved: dict) -> list[Check]:
         checks.append(Check(r.name, r.value, a, ok, r.unit, r.sense, r.source,
                             float(short) if math.isfinite(short) else math.inf))
     return checks
+
+
+def unstable_checks(requirements, reason: str, suffix: str = "") -> list[Check]:
+    """Each requirement failing on an unstable closed loop: no figure (``achieved`` and
+    ``shortfall`` NaN), ``passed`` False and ``reason`` saying why. A margin, Ms or a
+    bandwidth measures a stable loop; an unstable one has none, so no placeholder figure
+    (0 dB, -inf deg) stands in for it. ``suffix`` is appended to each name
+    (``"_over_stroke"``)."""
+    return [Check(r.name + suffix, r.value, math.nan, False, r.unit, r.sense, r.source, math.nan, reason)
+            for r in requirements]
 
 
 #: robust requirement name -> (Robustness attribute, sense, unit shown, SI -> shown factor,

@@ -108,11 +108,12 @@ class DesignResult(RichDisplay):
         m = self.margins.to_dict()
         top = {k: m[k] for k in ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "disk_margin",
                                  "sensitivity_peak_db", "bandwidth_hz", "phase_at_8hz_deg",
-                                 "closed_loop_stable") if k in m}
+                                 "closed_loop_stable", "unstable_reason") if k in m}
         reqs = {c.name: c.to_dict() for c in self.requirements}
         reqs["closed_loop_stable"] = {"required": True, "achieved": self.margins.closed_loop_stable,
                                       "passed": self.margins.closed_loop_stable, "unit": "",
-                                      "sense": "==", "source": "always", "shortfall": 0.0}
+                                      "sense": "==", "source": "always", "shortfall": 0.0,
+                                      "reason": self.margins.unstable_reason or None}
         u = self.unit
         inertia, stiffness = ("kg", "n_per_m") if u.linear else ("kg_m2", "n_m_per_rad")
         return {"scene": self.scene_name, u.key("q0"): float(u.show(self.q0)), **top,
@@ -149,10 +150,10 @@ class DesignResult(RichDisplay):
                  f"K = {num(show('stiffness', p.K))} {self.display.stiffness_unit(u.linear)}, resonance {p.resonance_hz:.3g} Hz, anti-resonance "
                  f"{p.antiresonance_hz:.3g} Hz",
                  f"  controller: {self.controller.description}",
-                 f"  closed loop stable: {'yes' if m.closed_loop_stable else 'NO'}; bandwidth "
-                 f"{m.bandwidth_hz:.3g} Hz; phase at {m.phase_at_hz:g} Hz {m.phase_at_freq_deg:.1f} deg",
-                 f"  GM {m.gain_margin_db:.2f} dB, PM {m.phase_margin_deg:.1f} deg, delay margin "
-                 f"{m.delay_margin_s * 1e3:.3g} ms, disk margin {m.disk_margin:.3f}, Ms {m.sensitivity_peak_db:.2f} dB",
+                 (f"  closed loop stable: yes; bandwidth {m.bandwidth_hz:.3g} Hz; phase at {m.phase_at_hz:g} Hz "
+                  f"{m.phase_at_freq_deg:.1f} deg" if m.closed_loop_stable else
+                  f"  closed loop stable: NO, {m.instability}"),
+                 f"  {m.headline()}",
                  m.table(), "", requirements_table(self.requirements)]
         if self.robustness is not None:
             lines.append(self.robustness.table())
@@ -201,14 +202,20 @@ def requirements_table(checks, stable=None) -> str:
     bool) adds the closed loop's stability as a row of the same columns."""
     width = max([24] + [len(c.name) + 2 for c in checks])
     rows = [f"  {'requirement':<{width}}{'required':>14}{'achieved':>12}  {'':6}{'short by':>10}"]
+    reasons = {}
     for c in checks:
-        short = "" if c.passed else f"{c.shortfall:.3g} {c.unit}"
+        reason = getattr(c, "reason", "")
+        short = "" if c.passed or reason else f"{c.shortfall:.3g} {c.unit}"
+        achieved = f"{'unstable':>13}" if reason else f"{c.achieved:>9.3g} {c.unit:<3}"
         rows.append(f"  {c.name:<{width}}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
-                    f"{c.achieved:>9.3g} {c.unit:<3}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
+                    f"{achieved}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
                     + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))
+        if reason:
+            reasons.setdefault(reason, []).append(c.name)
     if stable is not None:
         rows.append(f"  {'closed_loop_stable':<{width}}{'yes':>14}{'yes' if stable else 'no':>9}{'':4}  "
                     f"{'ok' if stable else 'FAIL'}")
+    rows += [f"  FAIL {', '.join(names)}: {reason}" for reason, names in reasons.items()]
     return "\n".join(rows)
 
 
@@ -217,14 +224,14 @@ def _card_line(d) -> str:
     m = d.margins
     return (f"{d.scene_name} at q0 = {d.unit.text(d.q0)}: "
             f"{'requirements met' if d.passed else f'{len(d.failures)} requirement(s) NOT met'}, "
-            f"GM {num(m.gain_margin_db, 3)} dB, PM {num(m.phase_margin_deg, 3)} deg, "
-            f"bandwidth {num(m.bandwidth_hz, 3)} Hz")
+            + (f"GM {num(m.gain_margin_db, 3)} dB, PM {num(m.phase_margin_deg, 3)} deg, "
+               f"bandwidth {num(m.bandwidth_hz, 3)} Hz" if m.closed_loop_stable else m.unstable_reason))
 
 
 def _card_html(d) -> str:
     """The Jupyter card (HTML) of a result of this module."""
     m = d.margins
-    margins = facts((("closed loop stable", "yes" if m.closed_loop_stable else "NO"),
+    margins = facts((("closed loop stable", "yes" if m.closed_loop_stable else f"NO, {m.instability}"),
                      ("gain margin", f"{num(m.gain_margin_db)} dB"),
                      ("phase margin", f"{num(m.phase_margin_deg)} deg"),
                      ("delay margin", f"{num(m.delay_margin_s * 1e3)} ms"),

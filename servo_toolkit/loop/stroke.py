@@ -34,7 +34,7 @@ from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_par
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
 from .metrics import grid_figures
-from .requirements import Check, check
+from .requirements import Check, check, unstable_checks
 from .response import current_response, loop_response, mechanical_response
 from .robustness import _controller_blocks, _controller_response
 from .schedule import crossover_hz
@@ -43,10 +43,9 @@ STROKE_POINTS = 25
 """Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
 the end that repeats the start is dropped), plus q0 and the inertia extremes."""
 
-#: margin requirement -> its figure over the stroke; the figure of an unstable loop
+#: margin requirement -> its figure over the stroke
 _MARGIN_FIGURES = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
                    "sensitivity_peak": "sensitivity_peak_db"}
-_UNSTABLE = {"gain_margin": 0.0, "phase_margin": -math.inf, "sensitivity_peak": math.inf}
 _FIGURES = ("gain_margin_db", "phase_margin_deg", "sensitivity_peak_db", "bandwidth_hz")
 #: figure -> worst is its minimum or its maximum (over the stable points)
 _WORST = {"gain_margin_db": "min", "phase_margin_deg": "min", "sensitivity_peak_db": "max",
@@ -199,21 +198,31 @@ class StrokeCheck:
         ``phase_margin_over_stroke``, ``sensitivity_peak_over_stroke``, one per margin
         requirement in ``requirements`` and with its required value (the margins the loop
         must have at q0 it must have at every point). Achieved is the worst value over the
-        points; when some point is unstable, the unstable loop's figure (0 dB, -inf deg,
-        +inf dB, as at q0), so the row fails with it."""
+        points; when some point is unstable the loop has no margins there and each row fails
+        with that reason and no figure (:func:`.requirements.unstable_checks`)."""
+        reqs = [r for r in requirements if r.name in _MARGIN_FIGURES]
+        if not self.all_stable:
+            return unstable_checks(reqs, self.unstable_reason, "_over_stroke")
         out = []
         worst = self.worst()
-        for r in requirements:
-            key = _MARGIN_FIGURES.get(r.name)
-            if key is None:
+        for r in reqs:
+            key = _MARGIN_FIGURES[r.name]
+            if key not in worst:
                 continue
-            if self.all_stable and key in worst:
-                a = worst[key]["value"]
-                a = abs(a) if key == "gain_margin_db" else a
-            else:
-                a = _UNSTABLE[r.name]
+            a = worst[key]["value"]
+            a = abs(a) if key == "gain_margin_db" else a
             out += check([r], {r.name: a})
         return [replace(c, name=f"{c.name}_over_stroke") for c in out]
+
+    @property
+    def unstable_reason(self) -> str:
+        """Why the loop is unstable over the stroke ("" when it is stable at every point)."""
+        if self.all_stable:
+            return ""
+        k = int(np.sum(~self.stable))
+        return (f"closed loop unstable at {k} of {self.q.size} stroke points (largest closed-loop pole real "
+                f"part {float(np.max(self.max_pole_real)):.4g} 1/s, at q = "
+                f"{self.show(float(self.q[int(np.argmax(self.max_pole_real))]))})")
 
     def notes(self, requirements=()) -> tuple:
         """Where the loop is unstable, and each worst margin that misses its requirement

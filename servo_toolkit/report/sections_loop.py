@@ -295,12 +295,14 @@ def loop_margins(ctx) -> Section:
     for fc, pm in zip(m.gain_crossover_hz, m.phase_margins_deg):
         k = int(np.argmin(np.abs(f - fc)))
         ap.plot([fc, fc], [ph[k], ph[k] - pm], "C2", lw=2)
-        ap.annotate(f"PM {pm:.1f} deg\n@ {fc:.3g} Hz", (fc, ph[k] - pm), fontsize="small", color="C2")
+        ap.annotate((f"PM {pm:.1f} deg\n" if m.closed_loop_stable else "") + f"@ {fc:.3g} Hz", (fc, ph[k] - pm),
+                    fontsize="small", color="C2")
     for fp, gm in zip(m.phase_crossover_hz, m.gain_margins_db):
         if F_MIN < fp < f_hi:
             k = int(np.argmin(np.abs(f - fp)))
             am.plot([fp, fp], [mag[k], mag[k] + gm], "C3", lw=2)
-            am.annotate(f"GM {gm:.1f} dB\n@ {fp:.3g} Hz", (fp, mag[k] + gm), fontsize="small", color="C3")
+            am.annotate((f"GM {gm:.1f} dB\n" if m.closed_loop_stable else "") + f"@ {fp:.3g} Hz", (fp, mag[k] + gm),
+                        fontsize="small", color="C3")
     ref = ph[0] - (ph[0] + 180) % 360
     for n in range(-3, 2):
         ap.axhline(ref + 360 * n, color="0.6", lw=0.7)
@@ -318,8 +320,10 @@ def loop_margins(ctx) -> Section:
     ax.plot(full.real, full.imag, "C0", lw=1.2, label="L(j w)")
     t = np.linspace(0, 2 * np.pi, 200)
     ax.plot(np.cos(t), np.sin(t), color="0.6", lw=0.8, label="unit circle")
-    ms = 10 ** (m.sensitivity_peak_db / 20)
-    ax.plot(-1 + np.cos(t) / ms, np.sin(t) / ms, "C1--", lw=1, label=f"1/Ms circle (Ms = {m.sensitivity_peak_db:.2f} dB)")
+    if m.closed_loop_stable:  # an unstable closed loop has no Ms
+        ms = 10 ** (m.sensitivity_peak_db / 20)
+        ax.plot(-1 + np.cos(t) / ms, np.sin(t) / ms, "C1--", lw=1,
+                label=f"1/Ms circle (Ms = {m.sensitivity_peak_db:.2f} dB)")
     ax.plot([-1], [0], "k+", ms=14, mew=2.2, label="critical point -1")
     for k, fc in enumerate(m.gain_crossover_hz):
         r = _response(d.loop, np.array([fc]))[0]
@@ -346,14 +350,24 @@ def loop_margins(ctx) -> Section:
              "deg"),
             (f"closed-loop phase at the achieved bandwidth, {fmt(m.bandwidth_hz)} Hz",
              fmt(phase_at(d.closed_loop, m.bandwidth_hz)), "deg"),
-            ("closed loop stable", "yes" if m.closed_loop_stable else "NO", "")]
-    crossings = [("phase crossing", fmt(fp), f"gain margin {fmt(g)} dB") for fp, g in
-                 zip(m.phase_crossover_hz, m.gain_margins_db)]
-    crossings += [("gain crossing", fmt(fc), f"phase margin {fmt(p)} deg, delay margin {fmt(dm * 1e3)} ms")
-                  for fc, p, dm in zip(m.gain_crossover_hz, m.phase_margins_deg, m.delay_margins_s)]
+            ("closed loop stable", "yes" if m.closed_loop_stable else f"NO: {m.instability}", "")]
+    if m.closed_loop_stable:
+        crossings = [("phase crossing", fmt(fp), f"gain margin {fmt(g)} dB") for fp, g in
+                     zip(m.phase_crossover_hz, m.gain_margins_db)]
+        crossings += [("gain crossing", fmt(fc), f"phase margin {fmt(p)} deg, delay margin {fmt(dm * 1e3)} ms")
+                      for fc, p, dm in zip(m.gain_crossover_hz, m.phase_margins_deg, m.delay_margins_s)]
+        intro = "Margins from python-control at every crossing (not only the smallest)"
+    else:  # where L crosses, but no margins: the closed loop is unstable
+        crossings = [("phase crossing", fmt(fp), f"|L| = {fmt(-g)} dB (not a margin)") for fp, g in
+                     zip(m.phase_crossover_hz, m.gain_margins_db)]
+        crossings += [("gain crossing", fmt(fc), f"phase of L {fmt(p - 180)} deg (not a margin)")
+                      for fc, p in zip(m.gain_crossover_hz, m.phase_margins_deg)]
+        intro = (f"The closed loop is unstable ({m.instability}): it has no gain, phase or delay margin, no disk "
+                 "margin, Ms or bandwidth (a margin measures how far a stable loop is from instability), so these "
+                 "are n/a; the crossings of L are listed")
     return Section("Loop Bode and Nyquist with margins",
-                   para("Margins from python-control at every crossing (not only the smallest); the plots span "
-                        f"{fmt(F_MIN)} to {fmt(f_hi)} Hz, so every crossing listed is marked on them.")
+                   para(f"{intro}; the plots span {fmt(F_MIN)} to {fmt(f_hi)} Hz, so every crossing listed is "
+                        "marked on them.")
                    + table(("figure", "value", "unit"), rows) + table(("crossing", "frequency [Hz]", "margin"), crossings,
                                                                  table_id="crossings-table"),
                    (FigureSpec(fig, "Open-loop Bode with every gain and phase margin marked."),

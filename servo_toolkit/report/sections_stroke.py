@@ -107,7 +107,7 @@ def margins_along_stroke(ctx) -> Section:
     for ax in (am, ap, an):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize="x-small")
-    bind = "an unstable point" if which == "max_pole_real" else FIGURES[which][0]
+    bind = "stability: the least stable point" if which == "max_pole_real" else FIGURES[which][0]
     text = para(f"The controller designed at q0 = {st.show(st.q0)} runs unchanged at {st.q.size} operating points "
                 f"from {st.show(st.q.min())} to {st.show(st.q.max())}; {int(np.sum(~st.stable))} of them are "
                 f"unstable. The binding point (smallest slack against the requirements, here on the {bind}) is "

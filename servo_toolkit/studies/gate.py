@@ -105,7 +105,7 @@ class RequirementRow:
         if self.status == "unavailable":
             return f"{self.requirement}: not evaluated: {self.detail}"
         text = f"{self.requirement}: required {self.required}, achieved {self.achieved}"
-        text += "" if self.passed else f", short by {self.shortfall}"
+        text += "" if self.passed or not self.shortfall else f", short by {self.shortfall}"
         return text + (f"; {self.detail}" if self.detail else "")
 
     def to_dict(self) -> dict:
@@ -127,10 +127,14 @@ def check_row(c, prefix: str = "", label_prefix: str = "", detail: str = "", fre
     """The row of one :class:`~servo_toolkit.loop.requirements.Check` (ID ``prefix + name``)."""
     label = LABELS.get(c.name, c.name.replace("_", " "))
     label = label.format(f=f"{fmt(frequency)} Hz" if frequency is not None else "the required bandwidth")
+    reason = getattr(c, "reason", "")
     if c.source in ("default", "override"):
         detail = "; ".join(x for x in (f"{c.source} value", detail) if x)
+    if reason:  # no figure: the closed loop is unstable, the row fails with why
+        detail = "; ".join(x for x in (reason, detail) if x)
     return RequirementRow(prefix + c.name, label_prefix + label, f"{c.sense} {_value(c.required, c.unit)}",
-                          _value(c.achieved, c.unit), "" if c.passed else _value(c.shortfall, c.unit),
+                          "unstable" if reason else _value(c.achieved, c.unit),
+                          "" if c.passed or reason else _value(c.shortfall, c.unit),
                           "pass" if c.passed else "fail", detail)
 
 
@@ -144,7 +148,8 @@ def design_rows(result, large_signal_hz=None) -> list[RequirementRow]:
     stable = bool(m.closed_loop_stable)
     pole = m.max_closed_loop_pole_real
     rows.append(RequirementRow("closed_loop_stable", LABELS["closed_loop_stable"], "yes", "yes" if stable else "no",
-                               "" if stable else f"pole at Re = {fmt(pole)} 1/s", "pass" if stable else "fail"))
+                               "" if stable else f"pole at Re = {fmt(pole)} 1/s", "pass" if stable else "fail",
+                               getattr(m, "instability", "")))
     return rows
 
 

@@ -26,7 +26,9 @@ def draw(result, axes, scene=None) -> None:
     phase = np.degrees(np.unwrap(np.angle(L)))
     bode.semilogx(f, gain_db, label="|L|")
     bode.axhline(0.0, color="0.6", lw=0.8)
-    if math.isfinite(m.gain_margin_db):
+    if not m.closed_loop_stable:
+        bode.set_title(f"loop: closed loop UNSTABLE ({m.unstable_closed_loop_poles} right-half-plane poles)", fontsize=9)
+    elif math.isfinite(m.gain_margin_db):
         bode.set_title(f"loop: GM {m.gain_margin_db:.3g} dB, PM {m.phase_margin_deg:.3g} deg", fontsize=9)
     else:
         bode.set_title(f"loop: PM {m.phase_margin_deg:.3g} deg", fontsize=9)
