@@ -58,8 +58,19 @@ def loss_coefficient(P, nts, jd, n, rest, sw):
         return 0.0
     jw = P[JW] * n * n
     t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
-    sg = tanh(t_free * P[INV_TAU_S]) * sw
-    return (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
+    return blend(P, tanh(t_free * P[INV_TAU_S]) * sw)
+
+
+@inline
+def blend(P, sg):
+    """The loss coefficient at the smooth sign ``sg`` in [-1, 1] of the power flow: 1 - eta
+    times sg driving (sg > 0), 1/eta_b - 1 times sg back-driven, i.e. ETA_MEAN sg + ETA_HALF
+    |sg| (branch-free). Monotone in sg and within [1 - 1/eta_b, 1 - eta]: inside the smoothing
+    band the loss never exceeds either mode's, so 1 - c stays >= eta > 0. (A blend quadratic
+    in sg, (ETA_MEAN + ETA_HALF sg) sg, overshoots 1 - eta wherever 1/eta_b - 1 > 3 (1 - eta),
+    and past 1, a negative efficiency, on a near-self-locking chain: 1.42 at eta = 0.29,
+    eta_b = 0.1, where the motor side's inertia J_d - c J_w passes near zero.)"""
+    return P[ETA_MEAN] * sg + P[ETA_HALF] * abs(sg)
 
 
 @inline
@@ -198,5 +209,5 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
     return pdd, qdd
 
 
-__all__ = ["B_EPS", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy", "speed_sign",
+__all__ = ["B_EPS", "blend", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy", "speed_sign",
            "node_inertia", "segment_force"]
