@@ -77,11 +77,13 @@ def blend(P, sg):
     (sqrt(sg^2 + e^2) - e scaled to 1 at +-1, e = 1/w; w = 0 is the quadratic). The quadratic
     there would overshoot 1 - eta, past 1 (a negative efficiency) near self-locking: 1.42 at
     eta = 0.29, eta_b = 0.1, where the motor side's inertia J_d - c J_w passes near zero.
-    Branch-free (the lanes vectorize it)."""
+    The quadratic costs one product (the branch is the same for every call of a model)."""
     mean, half = P[ETA_MEAN], P[ETA_HALF]
-    r = min(mean / max(abs(half), 1e-300), 2.0)
-    w2 = r * (2.0 - r) / max((r - 1.0) * (r - 1.0), 1e-300)
-    a = sg * sg * (math.sqrt(1.0 + w2) + 1.0) / (math.sqrt(1.0 + w2 * sg * sg) + 1.0)
+    a = sg * sg
+    if mean < 2.0 * abs(half):
+        r = mean / abs(half)
+        w2 = r * (2.0 - r) / max((r - 1.0) * (r - 1.0), 1e-300)
+        a *= (math.sqrt(1.0 + w2) + 1.0) / (math.sqrt(1.0 + w2 * a) + 1.0)
     return mean * sg + half * a
 
 
