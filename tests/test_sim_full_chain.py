@@ -21,6 +21,7 @@ from servo_toolkit.scene.loader import Scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, run
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.chain_model import segment_stiffness, segments
+from servo_toolkit.sim.chain_split import MIN_BACKDRIVE
 from servo_toolkit.sim.ivp import make_fun
 from servo_toolkit.sim.reference import fill, initial_state
 
@@ -320,7 +321,11 @@ def _power_terms(sc, model, res):
     jw_motor = model.P[lo.JW] * n**2
     t_free = ((jd - jw_motor) * nts - jw_motor * (-force[0] - 0.5 * dk[0] * z[0] ** 2)) * model.P[lo.INV_JD0]
     sg = np.tanh(t_free * model.P[lo.INV_TAU_S]) * np.tanh(np.abs(n) * pd * model.P[lo.WS])
-    c = (model.P[lo.ETA_MEAN] + model.P[lo.ETA_HALF] * sg) * sg
+    # 1 - eta driving (sg = 1), 1 - 1/eta_b back-driven (sg = -1); on this chain (1/eta_b - 1 below
+    # 3 (1 - eta)) blended quadratically in sg (compliance_kernel.blend)
+    c_drive, c_back = 1 - eta, 1 / max(drive.backdrive_efficiency, MIN_BACKDRIVE) - 1
+    assert c_back <= 3 * c_drive
+    c = 0.5 * (c_drive + c_back) * sg + 0.5 * (c_drive - c_back) * sg**2
     return {"supplied": supplied, "viscous": viscous, "to_load": to_load, "stored_rate": stored_rate,
             "damping": damping, "loss": c * passed, "shaft": nts * pd}
 

@@ -5,6 +5,8 @@ equation, and the full chain's node accelerations (the equations in
 
 from __future__ import annotations
 
+import math
+
 from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
@@ -58,8 +60,31 @@ def loss_coefficient(P, nts, jd, n, rest, sw):
         return 0.0
     jw = P[JW] * n * n
     t_free = ((jd - jw) * nts - jw * rest) * P[INV_JD0]
-    sg = tanh(t_free * P[INV_TAU_S]) * sw
-    return (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
+    return blend(P, tanh(t_free * P[INV_TAU_S]) * sw)
+
+
+@inline
+def blend(P, sg):
+    """The loss coefficient at the smooth sign ``sg`` in [-1, 1] of the power flow:
+    ``ETA_MEAN sg + ETA_HALF a(sg)``, 1 - eta at sg = 1 (driving), 1 - 1/eta_b at sg = -1
+    (back-driven), smooth and monotone in sg, so that inside the smoothing band the loss stays
+    between either mode's (1 - c >= eta > 0).
+
+    a(sg) is an even, smooth |sg| with a(+-1) = 1: sg^2 (the quadratic blend) wherever that is
+    monotone, r = ETA_MEAN / |ETA_HALF| >= 2 (1/eta_b - 1 <= 3 (1 - eta): every chain but a
+    near-self-locking one); otherwise the rounded |sg| whose steepest slope is r,
+    a = sg^2 (sqrt(1 + w^2) + 1) / (sqrt(1 + w^2 sg^2) + 1), w = sqrt(r (2 - r)) / (r - 1)
+    (sqrt(sg^2 + e^2) - e scaled to 1 at +-1, e = 1/w; w = 0 is the quadratic). The quadratic
+    there would overshoot 1 - eta, past 1 (a negative efficiency) near self-locking: 1.42 at
+    eta = 0.29, eta_b = 0.1, where the motor side's inertia J_d - c J_w passes near zero.
+    The quadratic costs one product (the branch is the same for every call of a model)."""
+    mean, half = P[ETA_MEAN], P[ETA_HALF]
+    a = sg * sg
+    if mean < 2.0 * abs(half):
+        r = mean / abs(half)
+        w2 = r * (2.0 - r) / max((r - 1.0) * (r - 1.0), 1e-300)
+        a *= (math.sqrt(1.0 + w2) + 1.0) / (math.sqrt(1.0 + w2 * a) + 1.0)
+    return mean * sg + half * a
 
 
 @inline
@@ -198,5 +223,5 @@ def chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T,
     return pdd, qdd
 
 
-__all__ = ["B_EPS", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy", "speed_sign",
+__all__ = ["B_EPS", "blend", "chain_accelerations", "contact", "inertia_beyond_motor", "loss_coefficient", "lossy", "speed_sign",
            "node_inertia", "segment_force"]

@@ -140,6 +140,16 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps, peaks
 
 
+def along_run(model, P, x0, duration: float, dt: float) -> dict:
+    """The single run's step check along an RK4 run of ``duration`` at step ``dt`` from
+    ``x0`` (no stability refusal): :func:`~.stability.fastest` over the states
+    :func:`_along_samples` picks (an even spread, peak current, largest deflection, extreme
+    output angles). Raises as :func:`run` does for a non-finite state or the stroke end."""
+    times, states, aux, *_ = _fixed(model, P, x0, duration, dt, None, False)
+    pick = _along_samples(states, aux)
+    return fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
+
+
 def run(model, reference: Reference, duration: float, method: str = "rk4", dt: float | None = None,
         *, output_dt: float | None = None, x0=None, at_rest: bool = False, solver: str = "LSODA",
         rtol: float = 1e-10, atol: float = 1e-10, check_stability: bool = True,

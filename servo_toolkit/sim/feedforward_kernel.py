@@ -10,12 +10,12 @@ from ..core.jit_cache import install as _install_cache
 
 _install_cache()  # noqa: E402 - before any kernel below is decorated
 
-from .layout import (BM, ETA_HALF, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
+from .layout import (BM, ETA_MEAN, FF_JSCALE, FF_KA, FF_KV, FF_LEAD, FF_MODEL, FF_SPEED, HINGE_D,  # noqa: E402
                      HINGE_K, HINGE_M, INV_H, INV_TAU_S, JW, KT, REF_A, REF_F, REF_KIND,
                      REF_OFF, REF_RAMP, REF_SINE, REF_STEP, REF_T0, REF_TABLE, T_J, T_N, TAB_H, TC, WS,
                      FF_DJ, REF_MOVE)
 from .command_kernel import impulse, impulses, move_rates  # noqa: E402
-from .compliance_kernel import inertia_beyond_motor  # noqa: E402
+from .compliance_kernel import blend, inertia_beyond_motor  # noqa: E402
 from .table_kernel import table_rates  # noqa: E402
 from .tables import cell, interp  # noqa: E402
 from .vmath import inline, tanh  # noqa: E402
@@ -87,7 +87,7 @@ def feedforward_current(r, rd, rdd, P, T):
             tw = jw * rdd + P[JW] * P[FF_JSCALE] * n * dn * rd * rd
             tt = tq - tw
             sg = tanh(tt * P[INV_TAU_S]) * tanh(abs(n) * rd * P[WS])
-            c = (P[ETA_MEAN] + P[ETA_HALF] * sg) * sg
+            c = blend(P, sg)
             tq = tw + tt / (1.0 - c)
         wm = n * rd
         i += (tq / n + P[BM] * wm + P[TC] * tanh(wm * P[WS])) / P[KT]

@@ -35,13 +35,13 @@ from ..sim.simulate import with_feedforward
 from ..sim import layout as lo
 from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
 from ..sim.batch_run import integrate_variants
-from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import fill, initial_state
 from ..sim.tables import frozen_tables
 from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from ..sim.tolerance_rows import ToleranceRows
+from .batch_step import batch_step
 from .montecarlo_result import MonteCarloResult
 from .time_run import check_friction, sine_run_options
 
@@ -189,8 +189,10 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     reference : Reference, optional
         Default: ``simulate``'s command (8 Hz, 2 deg sine; 1 mm for an output travel).
     dt : float, optional
-        Fixed step (s); default the one ``simulate`` chooses for the nominal model. Each
-        variant is checked against the RK4 stability region at its own parameters.
+        Fixed step (s); default the one ``simulate`` chooses for the nominal model, checked
+        along a run of the nominal model and reduced as a single run's automatic step is
+        (:func:`~.batch_step.batch_step`; a given step outside the region there is refused).
+        Each variant is checked against the RK4 stability region at its own parameters.
     executor : concurrent.futures.Executor, optional
         Runs chunks of ``chunk_size`` variants.
     chunk_size : int
@@ -212,7 +214,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     ------
     SceneError
         Unknown variation, bad range, a variant without load-side inertia, a duration or
-        step that is not positive.
+        step that is not positive, a given step outside the stability region along the
+        nominal run.
     """
     if friction is not None:
         check_friction(friction)  # before any work
@@ -246,18 +249,9 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     if not builder.fast:
         rows, note = fitted_rows(scene, builder, P0, values, reference)
         notes.append(note)
-    x0 = initial_state(model, P0)
-    probe = _stability_probe(model, P0, x0)
-    if dt is None:
-        cap = model.sample_time if model.sample_time > 0 else duration / 200
-        dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration)
-    elif not dt > 0:
-        raise SceneError("dt", f"must be positive (got {dt:g} s)")
-    else:
-        dt = _snap(dt, model, duration)
+    dt, step_note = batch_step(model, P0, initial_state(model, P0), duration, dt)
+    notes.append(step_note)
     n_steps = max(1, int(round(duration / dt)))
-    if n_steps > MAX_STEPS:
-        raise SceneError("duration", f"{n_steps} RK4 steps of {dt:.3g} s exceed {MAX_STEPS}")
     sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
     cases = _cases(builder, P0, values, reference, dt, n_steps, sub, chunk_size, rows)
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="montecarlo")

@@ -21,9 +21,9 @@ from ..errors import SceneError
 from ..core.parallel import chunks, run_cases
 from ..sim import layout as lo
 from ..sim.batch import F_CUR, F_ERR, F_SAT
-from ..sim.engine import AUTO_Z, MAX_STEPS, _snap, _stability_probe
 from ..sim.reference import initial_state
 from ..sim.tolerance_rows import ToleranceRows, keep_effects
+from .batch_step import batch_step
 from .time_reference import run_spec
 from .time_run import sine_run_options
 
@@ -128,16 +128,9 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     if rows.inert:
         notes.append("not acting in the model as run (exactly no effect on its figures): " + ", ".join(rows.inert))
     model, P0 = rows.model, rows.P0
-    x0 = initial_state(model, P0)
-    if dt is None:
-        probe = _stability_probe(model, P0, x0)
-        cap = model.sample_time if model.sample_time > 0 else duration / 200
-        dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration)
-    else:
-        dt = _snap(float(dt), model, duration)
+    dt, step_note = batch_step(model, P0, initial_state(model, P0), duration, dt)
+    notes.append(step_note)
     n_steps = max(1, int(round(duration / dt)))
-    if n_steps > MAX_STEPS:
-        raise SceneError("duration", f"{n_steps} RK4 steps of {dt:.3g} s exceed {MAX_STEPS}")
     sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
     X = np.column_stack([np.asarray(values[k], float) for k in rows.names])
     size = chunk_size or (TABLE_CHUNK_SIZE if rows.table_moves or rows.fitted is None else CHUNK_SIZE)
