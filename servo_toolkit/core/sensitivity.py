@@ -187,7 +187,8 @@ def sobol(func, dists, n: int, *, seed: int = 0, confidence: float = 0.95, resam
         boot = bootstrap([np.arange(n)], statistic, method="BCa", n_resamples=resamples,
                          confidence_level=confidence, rng=np.random.default_rng(seed + 1))
     low, high = _interval(boot, confidence)
-    return {"first": np.atleast_2d(res.first_order), "total": np.atleast_2d(res.total_order),
+    shape = (f_A.shape[0], len(dists))  # (s, d): scipy drops the input axis of a single input
+    return {"first": np.reshape(res.first_order, shape), "total": np.reshape(res.total_order, shape),
             "first_low": low[0], "first_high": high[0], "total_low": low[1], "total_high": high[1], "n": n}
 
 
