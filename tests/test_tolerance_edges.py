@@ -20,3 +20,50 @@ def test_sobol_indices_of_a_single_input_keep_one_column_per_figure():
         assert np.shape(res[k]) == (3, 1), k
     # one input carries all of the variance: S_1 = S_T = 1 (Saltelli's estimators, exact here)
     np.testing.assert_allclose(res["total"][:, 0], 1.0, atol=0.05)
+
+
+# --- the verdict: the interval's lower end, and why it falls short -------------------------
+
+@pytest.mark.parametrize("passed, total, met, why", [
+    (100, 100, False, "at least 368 variants, all passing"),  # the sample is too small to show 99 %
+    (368, 368, True, ""),
+    (993, 1000, False, "the point estimate 99.3 % reaches 99 % but the interval's lower end"),
+    (950, 1000, False, "50 of 1000 variants fail"),
+])
+def test_a_yield_short_of_its_requirement_says_why(passed, total, met, why):
+    from servo_toolkit.core.yields import Yield
+    y = Yield.of("all", "every requirement", passed, total, 0.95, 0.99)
+    assert y.met is met and why in y.shortfall() and (y.shortfall() == "") is met
+    assert y.to_dict()["shortfall"] == y.shortfall()
+
+
+def test_clopper_pearson_ends_at_zero_and_all_successes_are_the_one_sided_closed_forms():
+    from servo_toolkit.core.yields import clopper_pearson
+    n, a = 50, 0.05
+    assert clopper_pearson(n, n, 1 - a) == pytest.approx(((a / 2) ** (1 / n), 1.0))
+    assert clopper_pearson(0, n, 1 - a) == pytest.approx((0.0, 1 - (a / 2) ** (1 / n)))
+
+
+def test_the_check_row_of_a_sample_too_small_to_show_the_yield_says_how_many_are_needed():
+    from types import SimpleNamespace
+
+    from servo_toolkit.core.yields import Yield
+    from servo_toolkit.studies.gate import yield_rows
+    every = Yield.of("all", "every requirement", 100, 100, 0.95, 0.99)
+    study = SimpleNamespace(tolerances=SimpleNamespace(min_yield=0.99), overall=every, yields=(every,),
+                            settings={"method": "lhs"})
+    row = yield_rows(study)[0]
+    assert row.status == "fail" and "at least 368 variants, all passing" in row.detail
+
+
+@pytest.mark.parametrize("table, line", [("tolerances", 'min_yield = 1.0\nmotor.resistance = "+-5 %"'),
+                                         ("robustness", 'load_inertia = ["0.5 kg*m^2", "2 kg*m^2"]\nmin_yield = 1')])
+def test_a_required_yield_of_one_is_refused_as_unprovable(table, line, tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "one.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[{table}]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{table}.min_yield" in err[0] and "cannot be shown" in err[0], err

@@ -330,6 +330,7 @@ def _virtual(key: str, robust_value=None):
 
 
 def _settings(table: dict, robust) -> dict:
+    from .tables import UNPROVABLE_YIELD
     from .tracking import tracking_error as _tracking_error
     f = Fields({k: v for k, v in table.items() if k in SETTINGS}, "tolerances")
     samples = f.integer("samples", DEFAULT_SAMPLES, minimum=2)
@@ -342,6 +343,7 @@ def _settings(table: dict, robust) -> dict:
                **(_tracking_error(f) or ({"max_tracking_error": robust.max_tracking_error,
                                           "tracking_error_dimension": robust.tracking_error_dimension}
                                          if robust is not None else {})))
+    require(out["min_yield"] < 1.0, f.key("min_yield"), UNPROVABLE_YIELD)
     return out
 
 

@@ -141,6 +141,8 @@ class ToleranceResult(RichDisplay):
         for y in self.yields:
             verdict = "" if y.required is None else ("  ok" if y.met else "  FAIL")
             lines.append(f"  yield {y.name:<22}{y.text()}{verdict}")
+            if y.shortfall():
+                lines.append(f"        {y.shortfall()}")
         for s in self.sensitivities:
             if s.method == "none":
                 lines.append(f"  sensitivity of {s.label}: {s.reason}")
