@@ -67,3 +67,47 @@ def test_a_required_yield_of_one_is_refused_as_unprovable(table, line, tmp_path,
     assert main(["tolerances", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{table}.min_yield" in err[0] and "cannot be shown" in err[0], err
+
+
+# --- the text: every share with its interval, the keys that do not enter, corner units -----
+
+@pytest.fixture(scope="module")
+def small_result():
+    """A result put together from its parts (no study run): two tolerances that enter the
+    figure, one known not to."""
+    from servo_toolkit.core.sensitivity import rank
+    from servo_toolkit.core.yields import Yield
+    from servo_toolkit.scene.tolerances import Tolerance, Tolerances
+    from servo_toolkit.studies.tolerance_result import ToleranceResult, WorstCorner
+    items = (Tolerance("motor.resistance", "ohm", 0.5, "uniform", 0.5, 0.7),
+             Tolerance("load.inertia", "kg*m^2", 1.0, "uniform", 0.8, 1.2),
+             Tolerance("motor.voltage_limit", "V", 270.0, "uniform", 243.0, 297.0),
+             Tolerance("drivetrain[1].efficiency", "dimensionless", 0.9, "uniform", 0.85, 0.92))
+    rng = np.random.default_rng(0)
+    X = np.column_stack([t.ppf(rng.random(200)) for t in items])
+    y = 50 - 20 * X[:, 1] - 2 * X[:, 0] + 0.01 * rng.standard_normal(200)
+    s = rank("phase_margin", "phase margin", "deg", [t.key for t in items], X, y,
+             inert=[False, False, True, False])
+    every = Yield.of("all", "every requirement", 200, 200, 0.95, 0.99)
+    worst = WorstCorner({"motor.resistance": 0.7, "load.inertia": 1.2, "motor.voltage_limit": 270.0,
+                         "drivetrain[1].efficiency": 0.85}, 0.3, "phase_margin", 8, {})
+    return ToleranceResult("demo", Tolerances(items, samples=200), {t.key: X[:, j] for j, t in enumerate(items)},
+                           {}, None, (), {}, (every,), (s,), worst, {"method": "lhs"})
+
+
+def test_the_text_shows_every_share_with_its_interval_and_the_keys_that_do_not_enter(small_result):
+    text = small_result.table()
+    s = small_result.sensitivities[0]
+    assert "standardized regression" in text and "95 % intervals" in text
+    i = s.keys.index("load.inertia")
+    assert f"({100 * s.low[i]:.3g}..{100 * s.high[i]:.3g} %)" in text
+    assert "does not enter it (0 exactly): motor.voltage_limit" in text
+    assert "motor.voltage_limit      " not in text  # not ranked among the shares
+
+
+def test_the_worst_corner_is_shown_with_units(small_result):
+    text = small_result.table()
+    assert "motor.resistance = 0.7 ohm" in text and "load.inertia = 1.2 kg*m^2" in text
+    assert "motor.voltage_limit = 270 V" in text
+    assert "drivetrain[1].efficiency = 0.85" in text and "0.85 dimensionless" not in text
+    assert "motor.resistance = 0.7 ohm" in small_result._repr_html_()

@@ -10,6 +10,9 @@ import numpy as np
 from ..display.cards import RichDisplay, card, facts, svg, table
 from ..display.html import fmt
 
+#: a ranking's method in words
+METHODS = {"src": "standardized regression", "sobol": "Sobol total indices"}
+
 
 @dataclass(frozen=True)
 class WorstCorner:
@@ -147,13 +150,27 @@ class ToleranceResult(RichDisplay):
             if s.method == "none":
                 lines.append(f"  sensitivity of {s.label}: {s.reason}")
                 continue
-            top = ", ".join(f"{k} {100 * v:.3g} %" for k, v, _, _ in s.ranking()[:3])
-            lines.append(f"  sensitivity of {s.label} ({s.method}, R^2 {s.r2:.3f}): {top}")
+            lines.append(f"  sensitivity of {s.label} ({METHODS.get(s.method, s.method)}, R^2 {s.r2:.3f}, "
+                         f"shares of its variance with {100 * s.confidence:g} % intervals):")
+            inert = [k for k, flag in zip(s.keys, s.inert) if flag]
+            for k, v, lo, hi in s.ranking():
+                if k not in inert:
+                    lines.append(f"    {k:<34}{100 * v:7.3g} %  ({100 * lo:.3g}..{100 * hi:.3g} %)")
+            if inert:
+                lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            at = ", ".join(f"{k}={fmt(v, 4)}" for k, v in w.values.items())
-            lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at {at}")
+            lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at "
+                         f"{self.corner_text()}")
         return "\n".join(lines)
+
+    def corner_text(self) -> str:
+        """The worst corner's values with their units (SI), e.g. ``motor.resistance = 0.7 ohm``."""
+        if self.worst is None:
+            return ""
+        units = {t.key: t.unit for t in self.tolerances.items}
+        return ", ".join(f"{k} = {fmt(v, 4)}" + ("" if units.get(k, "") in ("", "1", "dimensionless")
+                                                 else f" {units[k]}") for k, v in self.worst.values.items())
 
     def plot(self, ax=None, figure: str | None = None):
         """Bar chart of the tolerances' variance shares on ``figure`` (default: the first
@@ -198,7 +215,7 @@ class ToleranceResult(RichDisplay):
             parts.append(svg(lambda ax: self.plot(ax), size=(7.0, 0.5 + 0.35 * len(self.tolerances.items))))
         notes = [f"{s.label}: {s.reason}" for s in self.sensitivities]
         if self.worst is not None:
-            notes.append("worst corner: " + ", ".join(f"{k}={fmt(v, 4)}" for k, v in self.worst.values.items()))
+            notes.append("worst corner: " + self.corner_text())
         return card(f"Tolerances of {self.scene_name}", status=self.passed if self.tolerances.min_yield is not None
                     else None, parts=parts, notes=notes + list(self.notes))
 
