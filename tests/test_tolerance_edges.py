@@ -111,3 +111,38 @@ def test_the_worst_corner_is_shown_with_units(small_result):
     assert "motor.voltage_limit = 270 V" in text
     assert "drivetrain[1].efficiency = 0.85" in text and "0.85 dimensionless" not in text
     assert "motor.resistance = 0.7 ohm" in small_result._repr_html_()
+
+
+# --- the table: distributions the physics cannot hold ---------------------------------------
+
+@pytest.mark.parametrize("line, rule", [
+    ('motor.resistance = { sigma = "200 %" }', "30.9 % of the variants below"),  # P(z < -0.499)
+    ('"drivetrain[0].backlash" = { sigma = "0.1 deg" }', "15.9 % of the variants below"),  # P(z < -1)
+    ('"drivetrain[1].efficiency" = { sigma = "10 %" }', "13.3 % of the variants above"),  # P(z > 1.11)
+])
+def test_a_normal_the_physical_range_would_cut_silently_is_refused_naming_the_key(line, rule, tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "wide.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    key = line.split(" = ")[0].strip('"')
+    assert len(err) == 1 and f"tolerances.{key}" in err[0] and rule in err[0] and "give m" in err[0], err
+
+
+def test_a_normal_cut_where_the_scene_says_is_drawn_from_its_truncation(tmp_path):
+    from scipy.stats import truncnorm
+
+    from servo_toolkit.scene.loader import load_scene
+
+    from .conftest import SCENES
+    path = tmp_path / "cut.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\n"drivetrain[0].backlash" = { sigma = "0.1 deg", min = "0 deg" }\n')
+    t = load_scene(path).tolerances.items[0]
+    mu = sigma = np.radians(0.1)
+    assert (t.low, t.mean, t.sigma) == pytest.approx((0.0, mu, sigma))
+    u = np.array([0.1, 0.5, 0.9])
+    np.testing.assert_allclose(t.ppf(u), truncnorm.ppf(u, -1.0, np.inf, loc=mu, scale=sigma), rtol=1e-12)

@@ -20,7 +20,8 @@ value. A positive range wider than a decade (``hi / lo > 10``) is sampled unifor
 logarithm, as the robustness study's ranges are. ``{sigma}`` (a quantity, or ``"X %"`` of
 the mean) is a normal about ``mean`` (default the scene's value), truncated to the key's
 physical range (its sign rule and the range its model is conditioned for,
-:mod:`servo_toolkit.core.ranges`) and to ``min``/``max`` when given. Integer keys are
+:mod:`servo_toolkit.core.ranges`) and to ``min``/``max`` when given; the physical range alone
+may cut at most :data:`IMPLICIT_CUT` of it (else the scene gives the end). Integer keys are
 rounded. Every distribution is checked when the scene loads: an unknown key, a malformed
 distribution, a sigma that is not positive or an end outside the key's conditioned range is
 one line naming the key. Before a study draws variants it also builds the scene at each
@@ -58,6 +59,9 @@ DEFAULT_SAMPLES = 1024
 LOG_RATIO = 10.0
 #: a normal's mean +- this many sigma (within its truncation) must give a scene that loads
 CHECKED_SIGMAS = 4.0
+#: the largest probability a normal may lose to the key's physical range without a ``min`` or
+#: ``max`` given (beyond 3.09 sigma)
+IMPLICIT_CUT = 1e-3
 #: virtual keys: not written in a scene, applied to the built drivetrain (unit, meaning)
 STIFFNESS_SCALE = "drivetrain.stiffness_scale"
 VIRTUAL = {STIFFNESS_SCALE: ("dimensionless", "factor on the drivetrain's series stiffness (nominal 1)")}
@@ -286,6 +290,8 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
             low = _end(raw["min"], kp, where) if "min" in raw else plo
             high = _end(raw["max"], kp, where) if "max" in raw else phi
             require(low < mean < high, where, f"the mean {mean:g} must lie inside the truncation {low:g}..{high:g}")
+            _implicit_cut(mean, sigma, low if "min" not in raw else -math.inf,
+                          high if "max" not in raw else math.inf, kp, where)
         else:
             require("min" in raw and "max" in raw and "mean" not in raw, where,
                     "a table is a range {min, max} or a normal {sigma} (with optional mean, min, max)")
@@ -304,6 +310,20 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
     unit = "dimensionless" if kp.unit in ("1", "") else kp.unit
     return Tolerance(kp.key, unit, nominal, dist, float(low), float(high), float(mean), float(sigma),
                      kp.integer, str(written))
+
+
+def _implicit_cut(mean: float, sigma: float, low: float, high: float, kp, where: str) -> None:
+    """A normal cut by the key's physical range (not by a ``min``/``max`` the scene gives)
+    loses at most :data:`IMPLICIT_CUT` of its probability: a wider cut would change the
+    distribution the scene states without saying so."""
+    from scipy.stats import norm
+    below, above = norm.cdf((low - mean) / sigma), norm.sf((high - mean) / sigma)
+    for mass, end, side, key in ((below, low, "below", "min"), (above, high, "above", "max")):
+        unit = "" if kp.unit in ("1", "", "dimensionless") else f" {kp.unit}"
+        require(mass <= IMPLICIT_CUT, where,
+                f"a normal of sigma {sigma:g}{unit} about {mean:g}{unit} puts {100 * mass:.3g} % of the variants "
+                f"{side} the key's physical range ({end:g}{unit}): give {key} to truncate it where it is meant, "
+                f"or a smaller sigma")
 
 
 def _check_end(v: float, kp, where: str) -> None:
@@ -423,5 +443,5 @@ def check_ends(tolerances) -> None:
                                                         f"{exc.key}: {exc.rule}") from None
 
 
-__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "LOG_RATIO", "METHODS", "SETTINGS", "STIFFNESS_SCALE", "Tolerance",
+__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "IMPLICIT_CUT", "LOG_RATIO", "METHODS", "SETTINGS", "STIFFNESS_SCALE", "Tolerance",
            "Tolerances", "VIRTUAL", "check_ends", "parse_distribution", "tolerances_of"]
