@@ -146,3 +146,26 @@ def test_a_normal_cut_where_the_scene_says_is_drawn_from_its_truncation(tmp_path
     assert (t.low, t.mean, t.sigma) == pytest.approx((0.0, mu, sigma))
     u = np.array([0.1, 0.5, 0.9])
     np.testing.assert_allclose(t.ppf(u), truncnorm.ppf(u, -1.0, np.inf, loc=mu, scale=sigma), rtol=1e-12)
+
+
+# --- the ranking of a sample too small for a regression -------------------------------------
+
+def test_too_few_variants_for_a_regression_say_so_instead_of_a_figure_that_does_not_vary():
+    from scipy.stats import uniform
+
+    from servo_toolkit.core.sensitivity import rank, sobol
+
+    def f(x):
+        return 3 * x[0] + x[1] ** 2
+    X = np.random.default_rng(1).random((4, 3))
+    s = rank("f", "f", "", ("a", "b", "c"), X, f(X.T))  # 4 variants, 3 keys: no residual left
+    assert s.method == "none" and "4 variants cannot fit a regression on 3 tolerances" in s.reason
+    assert "does not vary" not in s.reason
+    s2 = rank("f", "f", "", ("a", "b", "c"), X[:2], f(X[:2].T))
+    assert s2.method == "none" and "does not vary" not in s2.reason
+    # with evaluations of its own, the variance-based indices rank it and say why (no R^2)
+    s3 = rank("f", "f", "", ("a", "b", "c"), X, f(X.T),
+              sobol_run=lambda live: sobol(lambda x: f(x)[None], [uniform(0, 1)] * int(live.sum()), 256, seed=1,
+                                           resamples=20))
+    assert s3.method == "sobol" and s3.reason.startswith("4 variants cannot fit") and np.isnan(s3.r2)
+    assert s3.top == "a" and s3.high[2] < 1e-9  # c enters nothing

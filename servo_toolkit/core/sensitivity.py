@@ -241,15 +241,24 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
     live = ~inert
     zero = np.zeros(d)
     left = "" if ok.all() else f" ({int((~ok).sum())} variants without a finite figure left out)"
-    if ok.sum() < 3 or np.ptp(y[ok]) == 0 or not live.any():
+    if not live.any() or (ok.sum() >= 2 and np.ptp(y[ok]) == 0):
         return Sensitivity(figure, label, unit, keys, "none", zero, zero, zero, zero, None, 0.0, inert,
                            int(ok.sum()), confidence, "the figure does not vary over the variants" + left)
     src, lo_src, hi_src = zero.copy(), zero.copy(), zero.copy()
-    s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence)
-    src[live], lo_src[live], hi_src[live] = s, lo, hi
-    share_lo, share_hi = _square_interval(lo_src, hi_src)
     notes = " Keys known not to enter it: 0 exactly." if inert.any() else ""
-    if r2 >= R2_LINEAR or sobol_run is None:
+    few = int(ok.sum()) < int(live.sum()) + 2  # a regression on d keys needs d + 2 variants (a residual)
+    if few:
+        short = (f"{int(ok.sum())} variants cannot fit a regression on {int(live.sum())} tolerances "
+                 f"(at least {int(live.sum()) + 2} are needed)")
+        if sobol_run is None:
+            return Sensitivity(figure, label, unit, keys, "none", zero, zero, zero, zero, None, math.nan, inert,
+                               int(ok.sum()), confidence, short + ": not ranked" + left)
+        r2 = math.nan
+    else:
+        s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence)
+        src[live], lo_src[live], hi_src[live] = s, lo, hi
+    share_lo, share_hi = _square_interval(lo_src, hi_src)
+    if not few and (r2 >= R2_LINEAR or sobol_run is None):
         why = (f"near-linear (R^2 = {r2:.3f} >= {R2_LINEAR:g}): standardized regression, shares SRC^2"
                if r2 >= R2_LINEAR else
                f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear, ranked by standardized regression without "
@@ -261,8 +270,9 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
     tlo, thi = zero.copy(), zero.copy()
     total[live], first[live] = res["total"][0], res["first"][0]
     tlo[live], thi[live] = res["total_low"][0], res["total_high"][0]
-    why = (f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear or interacting, variance-based Sobol indices "
-           f"(total S_T; {res['n']} x {int(live.sum()) + 2} evaluations, bootstrap intervals)")
+    why = ((short if few else f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear or interacting")
+           + f", variance-based Sobol indices (total S_T; {res['n']} x {int(live.sum()) + 2} evaluations, "
+             "bootstrap intervals)")
     return Sensitivity(figure, label, unit, keys, "sobol", total, np.clip(tlo, 0.0, None), thi, src, first, r2,
                        inert, res["n"] * (int(live.sum()) + 2), confidence, why + left + "." + notes)
 

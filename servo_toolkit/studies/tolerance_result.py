@@ -150,7 +150,8 @@ class ToleranceResult(RichDisplay):
             if s.method == "none":
                 lines.append(f"  sensitivity of {s.label}: {s.reason}")
                 continue
-            lines.append(f"  sensitivity of {s.label} ({METHODS.get(s.method, s.method)}, R^2 {s.r2:.3f}, "
+            fit = f"R^2 {s.r2:.3f}" if np.isfinite(s.r2) else "no regression"
+            lines.append(f"  sensitivity of {s.label} ({METHODS.get(s.method, s.method)}, {fit}, "
                          f"shares of its variance with {100 * s.confidence:g} % intervals):")
             inert = [k for k, flag in zip(s.keys, s.inert) if flag]
             for k, v, lo, hi in s.ranking():
