@@ -169,3 +169,18 @@ def test_too_few_variants_for_a_regression_say_so_instead_of_a_figure_that_does_
                                            resamples=20))
     assert s3.method == "sobol" and s3.reason.startswith("4 variants cannot fit") and np.isnan(s3.r2)
     assert s3.top == "a" and s3.high[2] < 1e-9  # c enters nothing
+
+
+# --- a Sobol sample that is not a power of 2 ------------------------------------------------
+
+def test_a_sobol_sample_not_a_power_of_two_is_noted():
+    from servo_toolkit.studies.tolerances import sampling_notes
+    (note,) = sampling_notes("sobol", 24)
+    assert note.startswith("a Sobol sample of 24 variants, not a power of 2") and "32 variants would" in note
+    assert sampling_notes("sobol", 32) == [] and sampling_notes("lhs", 24) == []
+
+
+def test_the_notes_are_printed_with_the_text(small_result):
+    from dataclasses import replace
+    shown = replace(small_result, notes=("a Sobol sample of 24 variants, not a power of 2",))
+    assert "  note: a Sobol sample of 24 variants, not a power of 2" in shown.table()

@@ -163,6 +163,7 @@ class ToleranceResult(RichDisplay):
             w = self.worst
             lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at "
                          f"{self.corner_text()}")
+        lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 
     def corner_text(self) -> str:

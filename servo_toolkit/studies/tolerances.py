@@ -153,6 +153,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
                 if plants.method == "separable" else "")]
     if plants.inert:
         notes.append("not entering the linear loop (its margins do not depend on them): " + ", ".join(plants.inert))
+    notes += sampling_notes(method, n)
     runs = None
     if nonlinear or (nonlinear is None and timed):
         from .tolerance_runs import tolerance_runs
@@ -181,6 +182,17 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     settings = {"samples": n, "method": method, "seed": seed, "plants": plants.method, "plants_error": plants.error}
     return ToleranceResult(scene.name, tol, values, figs, runs, tuple(margins + timed), passes, yields, sens, worst,
                            settings, tuple(notes))
+
+
+def sampling_notes(method: str, n: int) -> list:
+    """What the draws cannot promise: a scrambled Sobol sample of ``n`` not a power of 2 is
+    balanced (and the yield interval's conservatism shown) only for 2^m points (scipy warns;
+    the study says so in its notes)."""
+    if method == "sobol" and n & (n - 1):
+        return [f"a Sobol sample of {n} variants, not a power of 2: the sequence is balanced (and the yield "
+                f"interval's conservatism shown) only for 2^m points; {1 << n.bit_length()} variants would "
+                f"restore it"]
+    return []
 
 
 def _refuse_failed(runs, values) -> None:
