@@ -184,3 +184,20 @@ def test_the_notes_are_printed_with_the_text(small_result):
     from dataclasses import replace
     shown = replace(small_result, notes=("a Sobol sample of 24 variants, not a power of 2",))
     assert "  note: a Sobol sample of 24 variants, not a power of 2" in shown.table()
+
+
+# --- montecarlo on a scene with [tolerances] ------------------------------------------------
+
+def test_montecarlo_names_the_tolerances_it_does_not_vary():
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.studies.montecarlo import unvaried_tolerances
+
+    from .conftest import SCENES
+    scene = load_scene(SCENES / "examples" / "ema_tolerances.toml")
+    (note,) = unvaried_tolerances(scene, {"load_inertia": np.zeros(2), "stiffness": np.ones(2)})
+    # its load.inertia of 0.8..1.2 kg*m^2 is not the Monte Carlo's load_inertia range either
+    for key in scene.tolerances.keys:
+        assert key in note
+    assert "tolerances --nonlinear" in note
+    robust = load_scene(SCENES / "ema_robust.toml")  # [robustness] only: its ranges are the ones varied
+    assert unvaried_tolerances(robust, {"load_inertia": np.zeros(2), "stiffness": np.ones(2)}) == []
