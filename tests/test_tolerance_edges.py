@@ -201,3 +201,20 @@ def test_montecarlo_names_the_tolerances_it_does_not_vary():
     assert "tolerances --nonlinear" in note
     robust = load_scene(SCENES / "ema_robust.toml")  # [robustness] only: its ranges are the ones varied
     assert unvaried_tolerances(robust, {"load_inertia": np.zeros(2), "stiffness": np.ones(2)}) == []
+
+
+@pytest.mark.parametrize("line, rule", [
+    ('"drivetrain[0].teeth" = "+-5 %"', "not a numeric key that can vary: a list of whole numbers"),
+    ('"drivetrain[0].teeth[1]" = "38:42"', "not a numeric key that can vary: a list of whole numbers"),
+    ('motor.resistence = "+-5 %"', "did you mean motor.resistance?"),
+])
+def test_a_key_that_cannot_vary_or_is_misspelt_is_told_apart(line, rule, tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "keys.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    key = line.split(" = ")[0].strip('"')
+    assert len(err) == 1 and f"tolerances.{key}:" in err[0] and rule in err[0], err
