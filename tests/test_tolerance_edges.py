@@ -218,3 +218,31 @@ def test_a_key_that_cannot_vary_or_is_misspelt_is_told_apart(line, rule, tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     key = line.split(" = ")[0].strip('"')
     assert len(err) == 1 and f"tolerances.{key}:" in err[0] and rule in err[0], err
+
+
+def test_a_share_interval_stops_at_all_of_the_variance():
+    from servo_toolkit.core.sensitivity import rank
+    rng = np.random.default_rng(3)
+    X = rng.random((8, 1))
+    y = X[:, 0] + 0.05 * rng.standard_normal(8)  # few variants: a wide interval about SRC ~ 1
+    s = rank("f", "f", "", ("a",), X, y)
+    assert s.method == "src" and s.high[0] <= max(1.0, s.share[0]) and s.low[0] <= s.share[0] <= s.high[0]
+
+
+def test_the_worst_corner_shows_its_time_run_with_units_or_why_it_did_not_run():
+    from types import SimpleNamespace
+
+    from servo_toolkit.studies.tolerance_result import WorstCorner
+    t = np.linspace(0.0, 1.0, 11)
+    sim = SimpleNamespace(output_angle=np.radians(0.5) * np.ones_like(t), reference_angle=np.zeros_like(t),
+                          motor_current=-12.5 * np.ones_like(t))
+    w = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, simulation=sim)
+    assert w.run_text().endswith("tracking error 0.5 deg, peak current 12.5 A")
+    assert w.to_dict()["simulation"]["max_tracking_error"] == pytest.approx(np.radians(0.5))
+    travel = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, simulation=SimpleNamespace(
+        output_angle=2e-4 * np.ones_like(t), reference_angle=np.zeros_like(t), motor_current=np.ones_like(t)),
+        output="linear")
+    assert "tracking error 0.2 mm" in travel.run_text()
+    failed = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, run_error="the step did not converge")
+    assert failed.run_text() == "its time run could not be carried out: the step did not converge"
+    assert failed.to_dict()["run_error"] == "the step did not converge"

@@ -207,6 +207,12 @@ def _interval(boot, confidence: float):
     return low, high
 
 
+def _share_cap(high, share):
+    """An interval's upper end of a share of the variance, at most 1 (all of it) unless the
+    estimate itself lies above (estimator noise, kept visible)."""
+    return np.minimum(high, np.maximum(1.0, share))
+
+
 def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys=None, confidence: float = 0.95,
          sobol_run=None) -> Sensitivity:
     """The ranking of ``keys`` on ``y`` (one value per row of ``X``; non-finite rows left
@@ -263,7 +269,8 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
                if r2 >= R2_LINEAR else
                f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear, ranked by standardized regression without "
                "variance-based indices (the shares explain only R^2 of the spread)")
-        return Sensitivity(figure, label, unit, keys, "src", src ** 2, share_lo, share_hi, src, None, r2, inert,
+        return Sensitivity(figure, label, unit, keys, "src", src ** 2, share_lo, _share_cap(share_hi, src ** 2), src,
+                           None, r2, inert,
                            int(ok.sum()), confidence, why + left + "." + notes)
     res = sobol_run(live)
     total, first = zero.copy(), zero.copy()
@@ -273,7 +280,8 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
     why = ((short if few else f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear or interacting")
            + f", variance-based Sobol indices (total S_T; {res['n']} x {int(live.sum()) + 2} evaluations, "
              "bootstrap intervals)")
-    return Sensitivity(figure, label, unit, keys, "sobol", total, np.clip(tlo, 0.0, None), thi, src, first, r2,
+    return Sensitivity(figure, label, unit, keys, "sobol", total, np.clip(tlo, 0.0, None), _share_cap(thi, total),
+                       src, first, r2,
                        inert, res["n"] * (int(live.sum()) + 2), confidence, why + left + "." + notes)
 
 

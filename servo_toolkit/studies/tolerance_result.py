@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.sensitivity import R2_LINEAR
 from ..display.cards import RichDisplay, card, facts, svg, table
 from ..display.html import fmt
 
@@ -39,6 +40,10 @@ class WorstCorner:
         (``gain_margin_db``, ``phase_margin_deg``) and its closed-loop stability.
     simulation : SimulationResult or None
         The nonlinear closed-loop run of the corner's scene (``simulate``'s command).
+    output : {"angular", "linear"}
+        The actuator's output (the tracking error in deg, or mm).
+    run_error : str
+        Why the corner's run could not be carried out ("" when it was).
     """
 
     values: dict
@@ -48,16 +53,36 @@ class WorstCorner:
     figures: dict
     reference: dict = field(default_factory=dict)
     simulation: object = None
+    output: str = "angular"
+    run_error: str = ""
+
+    def run_figures(self) -> dict | None:
+        """The corner's time run as ``max_tracking_error`` (SI: rad or m) and
+        ``peak_current`` (A); None without a run."""
+        sim = self.simulation
+        if sim is None:
+            return None
+        return {"max_tracking_error": float(np.max(np.abs(sim.output_angle - sim.reference_angle))),
+                "peak_current": float(np.max(np.abs(sim.motor_current)))}
+
+    def run_text(self) -> str:
+        """The corner's time run in words with units, or why it could not run."""
+        run = self.run_figures()
+        if run is None:
+            return f"its time run could not be carried out: {self.run_error}" if self.run_error else ""
+        err, unit = ((1e3, "mm") if self.output == "linear" else (180 / np.pi, "deg"))
+        return (f"its time run (simulate's command): tracking error {fmt(err * run['max_tracking_error'], 4)} {unit}, "
+                f"peak current {fmt(run['peak_current'], 4)} A")
 
     def to_dict(self) -> dict:
-        """JSON-ready (the simulation as its two figures)."""
-        sim = self.simulation
+        """JSON-ready (the simulation as its two figures, SI)."""
         out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
                "corners_evaluated": self.corners, "figures": {k: float(v) for k, v in self.figures.items()},
                "reference": self.reference}
-        if sim is not None:
-            out["simulation"] = {"max_tracking_error": float(np.max(np.abs(sim.output_angle - sim.reference_angle))),
-                                 "peak_current": float(np.max(np.abs(sim.motor_current)))}
+        if self.run_figures() is not None:
+            out["simulation"] = self.run_figures()
+        if self.run_error:
+            out["run_error"] = self.run_error
         return out
 
 
@@ -153,6 +178,8 @@ class ToleranceResult(RichDisplay):
             fit = f"R^2 {s.r2:.3f}" if np.isfinite(s.r2) else "no regression"
             lines.append(f"  sensitivity of {s.label} ({METHODS.get(s.method, s.method)}, {fit}, "
                          f"shares of its variance with {100 * s.confidence:g} % intervals):")
+            if s.method == "src" and not s.r2 >= R2_LINEAR:
+                lines.append(f"    caution: {s.reason}")
             inert = [k for k, flag in zip(s.keys, s.inert) if flag]
             for k, v, lo, hi in s.ranking():
                 if k not in inert:
@@ -161,8 +188,10 @@ class ToleranceResult(RichDisplay):
                 lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at "
-                         f"{self.corner_text()}")
+            lines.append(f"  worst corner over the linear figures ({w.corners} evaluated): {w.figure} margin "
+                         f"{fmt(100 * w.score, 3)} % at {self.corner_text()}")
+            if w.run_text():
+                lines.append(f"    {w.run_text()}")
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 

@@ -179,6 +179,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     if worst_corner:
         worst = _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, structural_damping,
                               runs, duration)
+    notes = list(dict.fromkeys(notes))  # a note given by two parts of the model once
     settings = {"samples": n, "method": method, "seed": seed, "plants": plants.method, "plants_error": plants.error}
     return ToleranceResult(scene.name, tol, values, figs, runs, tuple(margins + timed), passes, yields, sens, worst,
                            settings, tuple(notes))
@@ -319,9 +320,10 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
     corner = {k: float(v[i]) for k, v in vals.items()}
     figures = {k: float(v[i]) for k, v in cf.items()}
     reference = _corner_margins(keys, corner, p, ctrl, scene, zeta)
-    simulation = _corner_run(scene, keys, corner, ctrl, runs, duration)
+    simulation, failed = _corner_run(scene, keys, corner, ctrl, runs, duration)
     figure = margins[int(which[i])].name if margins and np.isfinite(score[i]) else "stable"
-    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation)
+    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation,
+                       "linear" if scene.drivetrain.output_is_linear else "angular", failed)
 
 
 def _split(corner):
@@ -366,9 +368,9 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
     options = replace(options, stiffness_scale=options.stiffness_scale * scale)
     try:
         return simulate(cs, ctrl, reference=reference, duration=duration or run_duration, method="rk4",
-                        dt=None if runs is None else runs.dt_s, options=options)
-    except (SimulationError, SceneError):
-        return None
+                        dt=None if runs is None else runs.dt_s, options=options), ""
+    except (SimulationError, SceneError) as exc:
+        return None, str(exc)
 
 
 __all__ = ["FIGURES", "tolerance_study"]
