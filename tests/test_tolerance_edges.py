@@ -246,3 +246,44 @@ def test_the_worst_corner_shows_its_time_run_with_units_or_why_it_did_not_run():
     failed = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, run_error="the step did not converge")
     assert failed.run_text() == "its time run could not be carried out: the step did not converge"
     assert failed.to_dict()["run_error"] == "the step did not converge"
+
+
+# --- variants whose time run stops: the design's failure or the model's ---------------------
+
+def _runs(reasons):
+    from servo_toolkit.studies.tolerance_runs import ToleranceRuns
+    n = len(reasons)
+    return ToleranceRuns(np.full(n, 0.01), np.full(n, 20.0), np.zeros(n, bool), np.array([bool(r) for r in reasons]),
+                         tuple(reasons), 1e-4, 0.3, 3000, 0.1)
+
+
+def test_a_variant_that_hits_its_stroke_end_or_diverges_unstable_fails_its_time_requirements():
+    from servo_toolkit.loop.requirements import Requirement
+    from servo_toolkit.studies.tolerances import _judge_failed, _meets
+    runs = _runs(["", "stroke end reached at t = 0.24 s", "non-finite state at t = 0.1 s", ""])
+    stable = np.array([True, True, False, True])
+    judged, physical = _judge_failed(runs, {"load.inertia": np.ones(4)}, stable)
+    assert physical.tolist() == [False, True, True, False]
+    assert np.isnan(judged.tracking_error[1:3]).all() and judged.tracking_error[0] == 0.01
+    req = Requirement("tracking_error", "<=", 1.0, "deg", "tolerances")
+    assert _meets(req, np.degrees(judged.tracking_error)).tolist() == [True, False, False, True]
+
+
+@pytest.mark.parametrize("reason", ["non-finite state at t = 0.1 s",  # a stable loop blowing up: the model's
+                                    "step 0.0001 s outside the RK4 stability region at this variant's parameters",
+                                    "no start: the initial state has no equilibrium"])
+def test_a_variant_the_model_could_not_run_leaves_no_verdict(reason):
+    from servo_toolkit.errors import SimulationError
+    from servo_toolkit.studies.tolerances import _judge_failed
+    with pytest.raises(SimulationError, match="could not run 1 of 2 variants"):
+        _judge_failed(_runs(["", reason]), {"load.inertia": np.ones(2)}, np.array([True, True]))
+
+
+def test_an_unstable_worst_corner_says_so_with_its_pole(small_result):
+    from dataclasses import replace
+
+    from servo_toolkit.studies.tolerance_result import WorstCorner
+    worst = WorstCorner({"load.inertia": 1.2}, -np.inf, "stable", 2, {"max_pole_real": 13.05})
+    text = replace(small_result, worst=worst).table()
+    assert "closed loop unstable (a pole at real part 13.05 1/s) at load.inertia = 1.2 kg*m^2" in text
+    assert "-inf %" not in text

@@ -188,8 +188,11 @@ class ToleranceResult(RichDisplay):
                 lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            lines.append(f"  worst corner over the linear figures ({w.corners} evaluated): {w.figure} margin "
-                         f"{fmt(100 * w.score, 3)} % at {self.corner_text()}")
+            how = (f"{w.figure} margin {fmt(100 * w.score, 3)} %" if np.isfinite(w.score) else
+                   "closed loop unstable" + (f" (a pole at real part {fmt(w.figures['max_pole_real'], 4)} 1/s)"
+                                             if "max_pole_real" in w.figures else ""))
+            lines.append(f"  worst corner over the linear figures ({w.corners} evaluated): {how} at "
+                         f"{self.corner_text()}")
             if w.run_text():
                 lines.append(f"    {w.run_text()}")
         lines += [f"  note: {note}" for note in self.notes]

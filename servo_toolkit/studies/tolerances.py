@@ -159,8 +159,12 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
         from .tolerance_runs import tolerance_runs
         runs = tolerance_runs(scene, values, ctrl, keys=keys, executor=executor, progress=progress, duration=duration,
                               seed=seed)
-        _refuse_failed(runs, values)
+        runs, physical = _judge_failed(runs, values, stable)
         notes += list(runs.notes)
+        if physical.any():
+            notes.append(f"{int(physical.sum())} variants fail the time requirements by their physics (the stroke "
+                         f"end reached, or a run diverging with an unstable linear loop): counted as failing, left "
+                         f"out of the time figures' rankings")
         shown = {"tracking_error": runs.tracking_error * (1e3 if scene.drivetrain.output_is_linear else 180 / math.pi),
                  "peak_current": runs.peak_current}
         for r in timed:
@@ -194,6 +198,29 @@ def sampling_notes(method: str, n: int) -> list:
                 f"interval's conservatism shown) only for 2^m points; {1 << n.bit_length()} variants would "
                 f"restore it"]
     return []
+
+
+def _judge_failed(runs, values, stable):
+    """(runs, physical): the runs with the time figures of the variants that failed by
+    their physics set to NaN (they fail every time requirement), and which those are: a run
+    that reached the stroke end (the actuator hit its stop), or that diverged while its
+    linear loop is unstable. Any other failed run (a step outside the RK4 stability region,
+    no start, a stable loop's state turning non-finite) is the model's, not the design's:
+    no verdict.
+
+    Raises
+    ------
+    SimulationError
+        Naming the first variant that failed for want of a model.
+    """
+    from dataclasses import replace
+    reasons = np.array(runs.reasons, dtype=object)
+    stroke = np.array([r.startswith("stroke end reached") for r in reasons], bool)
+    diverged = np.array([r.startswith("non-finite state") for r in reasons], bool) & ~np.asarray(stable, bool)
+    physical = runs.failed & (stroke | diverged)
+    _refuse_failed(replace(runs, failed=runs.failed & ~physical), values)
+    nan = np.where(physical, np.nan, 1.0)
+    return replace(runs, tracking_error=runs.tracking_error * nan, peak_current=runs.peak_current * nan), physical
 
 
 def _refuse_failed(runs, values) -> None:
