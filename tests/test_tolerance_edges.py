@@ -287,3 +287,18 @@ def test_an_unstable_worst_corner_says_so_with_its_pole(small_result):
     text = replace(small_result, worst=worst).table()
     assert "closed loop unstable (a pole at real part 13.05 1/s) at load.inertia = 1.2 kg*m^2" in text
     assert "-inf %" not in text
+
+
+@pytest.mark.parametrize("line, rule", [
+    ('load.hinge_stiffness = "+-20 %"', "20 % of the scene's value 0 is no spread: give the half width with a unit"),
+    ('load.hinge_stiffness = { sigma = "5 %" }', "a sigma of 5 % of a mean of 0 is no spread"),
+])
+def test_a_percentage_of_a_zero_value_asks_for_a_unit(line, rule, tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "zero.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tolerances.load.hinge_stiffness:" in err[0] and rule in err[0], err

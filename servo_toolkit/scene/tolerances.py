@@ -268,7 +268,10 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
     written = raw if isinstance(raw, str) else repr(raw)
     mean, sigma, dist = math.nan, math.nan, "uniform"
     if isinstance(raw, str) and _PLUS_MINUS.match(raw):
-        half = _spread(_PLUS_MINUS.match(raw).group(2), kp, where, nominal)
+        text = _PLUS_MINUS.match(raw).group(2)
+        half = _spread(text, kp, where, nominal)
+        require(not (nominal == 0 and _PERCENT.match(text)), where,
+                f"{text} of the scene's value 0 is no spread: give the half width with a unit, or a range 'lo:hi'")
         require(half > 0 and math.isfinite(half), where, f"the half width must be positive and finite (got {half:g})")
         low, high = nominal - half, nominal + half
     elif isinstance(raw, str) and ":" in raw:
@@ -284,6 +287,8 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
         if "sigma" in raw:
             dist = "normal"
             mean = _end(raw["mean"], kp, where) if "mean" in raw else nominal
+            require(not (mean == 0 and isinstance(raw["sigma"], str) and _PERCENT.match(raw["sigma"])), where,
+                    f"a sigma of {raw['sigma']} of a mean of 0 is no spread: give sigma with a unit")
             sigma = _spread(raw["sigma"], kp, where, mean)
             require(sigma > 0 and math.isfinite(sigma), where, f"sigma must be positive and finite (got {sigma:g})")
             plo, phi = _physical_range(kp)
