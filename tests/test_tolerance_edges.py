@@ -232,16 +232,17 @@ def test_a_share_interval_stops_at_all_of_the_variance():
 def test_the_worst_corner_shows_its_time_run_with_units_or_why_it_did_not_run():
     from types import SimpleNamespace
 
+    from servo_toolkit.core.output_units import OutputUnit
     from servo_toolkit.studies.tolerance_result import WorstCorner
     t = np.linspace(0.0, 1.0, 11)
     sim = SimpleNamespace(output_angle=np.radians(0.5) * np.ones_like(t), reference_angle=np.zeros_like(t),
-                          motor_current=-12.5 * np.ones_like(t))
+                          motor_current=-12.5 * np.ones_like(t), unit=OutputUnit("rad"))
     w = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, simulation=sim)
     assert w.run_text().endswith("tracking error 0.5 deg, peak current 12.5 A")
     assert w.to_dict()["simulation"]["max_tracking_error"] == pytest.approx(np.radians(0.5))
     travel = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, simulation=SimpleNamespace(
-        output_angle=2e-4 * np.ones_like(t), reference_angle=np.zeros_like(t), motor_current=np.ones_like(t)),
-        output="linear")
+        output_angle=2e-4 * np.ones_like(t), reference_angle=np.zeros_like(t), motor_current=np.ones_like(t),
+        unit=OutputUnit("m")))
     assert "tracking error 0.2 mm" in travel.run_text()
     failed = WorstCorner({"load.inertia": 1.2}, 0.3, "phase_margin", 2, {}, run_error="the step did not converge")
     assert failed.run_text() == "its time run could not be carried out: the step did not converge"

@@ -40,8 +40,6 @@ class WorstCorner:
         (``gain_margin_db``, ``phase_margin_deg``) and its closed-loop stability.
     simulation : SimulationResult or None
         The nonlinear closed-loop run of the corner's scene (``simulate``'s command).
-    output : {"angular", "linear"}
-        The actuator's output (the tracking error in deg, or mm).
     run_error : str
         Why the corner's run could not be carried out ("" when it was).
     """
@@ -53,7 +51,6 @@ class WorstCorner:
     figures: dict
     reference: dict = field(default_factory=dict)
     simulation: object = None
-    output: str = "angular"
     run_error: str = ""
 
     def run_figures(self) -> dict | None:
@@ -70,8 +67,9 @@ class WorstCorner:
         run = self.run_figures()
         if run is None:
             return f"its time run could not be carried out: {self.run_error}" if self.run_error else ""
-        err, unit = ((1e3, "mm") if self.output == "linear" else (180 / np.pi, "deg"))
-        return (f"its time run (simulate's command): tracking error {fmt(err * run['max_tracking_error'], 4)} {unit}, "
+        unit = self.simulation.unit
+        return (f"its time run (simulate's command): tracking error {fmt(unit.show(run['max_tracking_error']), 4)} "
+                f"{unit.shown}, "
                 f"peak current {fmt(run['peak_current'], 4)} A")
 
     def to_dict(self) -> dict:

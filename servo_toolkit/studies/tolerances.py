@@ -349,8 +349,7 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
     reference = _corner_margins(keys, corner, p, ctrl, scene, zeta)
     simulation, failed = _corner_run(scene, keys, corner, ctrl, runs, duration)
     figure = margins[int(which[i])].name if margins and np.isfinite(score[i]) else "stable"
-    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation,
-                       "linear" if scene.drivetrain.output_is_linear else "angular", failed)
+    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed)
 
 
 def _split(corner):
