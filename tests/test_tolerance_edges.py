@@ -303,3 +303,10 @@ def test_a_percentage_of_a_zero_value_asks_for_a_unit(line, rule, tmp_path, caps
     assert main(["tolerances", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "tolerances.load.hinge_stiffness:" in err[0] and rule in err[0], err
+
+
+def test_the_gate_at_a_two_sided_90_percent_is_the_success_run_demonstration_at_95():
+    from servo_toolkit.core.yields import Yield, minimum_samples
+    # success-run theorem: n = ln(1 - C) / ln(R) = ln(0.05) / ln(0.99) = 298.07 -> 299 (R99/C95)
+    assert minimum_samples(0.99, 0.90) == 299
+    assert Yield.of("all", "", 299, 299, 0.90, 0.99).met and not Yield.of("all", "", 298, 298, 0.90, 0.99).met
