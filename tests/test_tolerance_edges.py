@@ -310,3 +310,27 @@ def test_the_gate_at_a_two_sided_90_percent_is_the_success_run_demonstration_at_
     # success-run theorem: n = ln(1 - C) / ln(R) = ln(0.05) / ln(0.99) = 298.07 -> 299 (R99/C95)
     assert minimum_samples(0.99, 0.90) == 299
     assert Yield.of("all", "", 299, 299, 0.90, 0.99).met and not Yield.of("all", "", 298, 298, 0.90, 0.99).met
+
+
+def test_the_sobol_time_runs_serve_both_time_figures_once(monkeypatch):
+    from types import SimpleNamespace
+
+    from servo_toolkit.scene.tolerances import Tolerance, Tolerances
+    from servo_toolkit.studies import tolerance_runs as module
+    from servo_toolkit.studies.tolerances import _time_sobol
+    items = (Tolerance("a", "ohm", 1.0, "uniform", 0.5, 1.5), Tolerance("b", "ohm", 1.0, "uniform", 0.5, 1.5))
+    tol = Tolerances(items)
+    calls = []
+
+    def fake_runs(scene, vals, controller, **kw):  # tracking error = a, peak current = b (SI)
+        calls.append(len(vals["a"]))
+        return SimpleNamespace(tracking_error=np.asarray(vals["a"], float), peak_current=np.asarray(vals["b"], float),
+                               failed=np.zeros(len(vals["a"]), bool))
+    monkeypatch.setattr(module, "tolerance_runs", fake_runs)
+    runs = SimpleNamespace(rows=SimpleNamespace(controller=None, keys=None), duration_s=0.1, dt_s=1e-4)
+    cache, live = {}, np.array([True, True])
+    err = _time_sobol(tol, None, runs, "tracking_error", 64, cache, 0)(live)
+    cur = _time_sobol(tol, None, runs, "peak_current", 64, cache, 0)(live)
+    assert sum(calls) == 64 * (2 + 2)  # one set of n (d + 2) runs for the two figures
+    np.testing.assert_allclose(err["total"][0], [1.0, 0.0], atol=0.05)  # the error is a alone
+    np.testing.assert_allclose(cur["total"][0], [0.0, 1.0], atol=0.05)  # the current is b alone

@@ -287,25 +287,29 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
             out.append(rank(name, label, units.get(name, "A" if name == "peak_current" else ""), keys, X, y,
                             inert=inert_time, log_keys=_log_keys(tol), confidence=tol.confidence,
                             sobol_run=None if not sobol_runs else _time_sobol(tol, scene, runs, name, sobol_runs,
+                                                                              cache,
                                                                               seed)))
     return tuple(out)
 
 
-def _time_sobol(tol, scene, runs, name, base, seed):
-    """Sobol indices of a time figure from ``base (d + 2)`` further time runs."""
+def _time_sobol(tol, scene, runs, name, base, cache, seed):
+    """Sobol indices of a time figure from ``base (d + 2)`` further time runs (one set of
+    runs gives both time figures: ``cache`` keeps it for the second)."""
     from .tolerance_runs import tolerance_runs
 
     def run(live):
         live_keys = [k for k, m in zip(tol.keys, live) if m]
-
-        def func(x):
-            vals = {k: np.full(x.shape[1], tol.item(k).nominal) for k in tol.keys}
-            vals.update({k: x[j] for j, k in enumerate(live_keys)})
-            r = tolerance_runs(scene, vals, runs.rows.controller, keys=runs.rows.keys, progress=False,
-                               duration=runs.duration_s, dt=runs.dt_s)
-            y = r.tracking_error if name == "tracking_error" else r.peak_current
-            return np.where(r.failed, np.nanmax(y), y)[None]
-        return sobol(func, [tol.item(k) for k in live_keys], base, seed=seed, confidence=tol.confidence)
+        key = ("time", tuple(live_keys))
+        if key not in cache:
+            def func(x):
+                vals = {k: np.full(x.shape[1], tol.item(k).nominal) for k in tol.keys}
+                vals.update({k: x[j] for j, k in enumerate(live_keys)})
+                r = tolerance_runs(scene, vals, runs.rows.controller, keys=runs.rows.keys, progress=False,
+                                   duration=runs.duration_s, dt=runs.dt_s)
+                return np.array([np.where(r.failed, np.nanmax(y), y) for y in (r.tracking_error, r.peak_current)])
+            cache[key] = sobol(func, [tol.item(k) for k in live_keys], base, seed=seed, confidence=tol.confidence)
+        j = 0 if name == "tracking_error" else 1
+        return {k: v[j:j + 1] if isinstance(v, np.ndarray) else v for k, v in cache[key].items()}
     return run
 
 
