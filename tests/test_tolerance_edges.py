@@ -334,3 +334,16 @@ def test_the_sobol_time_runs_serve_both_time_figures_once(monkeypatch):
     assert sum(calls) == 64 * (2 + 2)  # one set of n (d + 2) runs for the two figures
     np.testing.assert_allclose(err["total"][0], [1.0, 0.0], atol=0.05)  # the error is a alone
     np.testing.assert_allclose(cur["total"][0], [0.0, 1.0], atol=0.05)  # the current is b alone
+
+
+@pytest.mark.parametrize("line", ['motor.resistance = { sigma = "1e-300 ohm" }', 'motor.resistance = "+-1e-12 %"'])
+def test_a_spread_below_the_precision_of_the_study_is_refused(line, tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "tiny.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    # a variant that differs by rounding would be listed as a key that does not enter the loop
+    assert len(err) == 1 and "tolerances.motor.resistance:" in err[0] and "below 1e-09 of the value 0.5" in err[0]

@@ -59,6 +59,9 @@ DEFAULT_SAMPLES = 1024
 LOG_RATIO = 10.0
 #: a normal's mean +- this many sigma (within its truncation) must give a scene that loads
 CHECKED_SIGMAS = 4.0
+#: the smallest spread (a sigma, a range's half width) relative to the key's value: below it the
+#: variants differ by rounding only
+MIN_SPREAD = 1e-9
 #: the largest probability a normal may lose to the key's physical range without a ``min`` or
 #: ``max`` given (beyond 3.09 sigma)
 IMPLICIT_CUT = 1e-3
@@ -308,6 +311,11 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
     require(low <= high, where, f"lo must not exceed hi (got {low:g} > {high:g})")
     if dist != "normal":
         require(high > low, where, f"the range is a single value ({low:g}): give a spread")
+    spread = sigma if dist == "normal" else 0.5 * (high - low)
+    scale = max(abs(v) for v in ((nominal, mean) if dist == "normal" else (nominal, low, high)) if math.isfinite(v))
+    require(spread > MIN_SPREAD * scale, where,
+            f"a spread of {spread:g} is below {MIN_SPREAD:g} of the value {scale:g}: the study cannot tell it "
+            f"from none (give a real spread, or leave the key out)")
     for v in (low, high):
         _check_end(v, kp, where)
     if dist == "uniform" and low > 0 and high > LOG_RATIO * low and not kp.integer:
@@ -448,5 +456,5 @@ def check_ends(tolerances) -> None:
                                                         f"{exc.key}: {exc.rule}") from None
 
 
-__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "IMPLICIT_CUT", "LOG_RATIO", "METHODS", "SETTINGS", "STIFFNESS_SCALE", "Tolerance",
+__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "IMPLICIT_CUT", "MIN_SPREAD", "LOG_RATIO", "METHODS", "SETTINGS", "STIFFNESS_SCALE", "Tolerance",
            "Tolerances", "VIRTUAL", "check_ends", "parse_distribution", "tolerances_of"]
