@@ -284,11 +284,11 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
                                                                                            "peak current")}
         units = {r.name: r.unit for r in timed}
         for name, (y, label) in shown.items():
-            out.append(rank(name, label, units.get(name, "A" if name == "peak_current" else ""), keys, X, y,
+            unit = "A" if name == "peak_current" else ("mm" if scene.drivetrain.output_is_linear else "deg")
+            out.append(rank(name, label, units.get(name, unit), keys, X, y,
                             inert=inert_time, log_keys=_log_keys(tol), confidence=tol.confidence,
                             sobol_run=None if not sobol_runs else _time_sobol(tol, scene, runs, name, sobol_runs,
-                                                                              cache,
-                                                                              seed)))
+                                                                              cache, seed)))
     return tuple(out)
 
 
