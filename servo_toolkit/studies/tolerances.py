@@ -403,4 +403,4 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
         return None, str(exc)
 
 
-__all__ = ["FIGURES", "tolerance_study"]
+__all__ = ["FIGURES", "sampling_notes", "tolerance_study"]
