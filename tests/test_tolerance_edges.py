@@ -347,3 +347,34 @@ def test_a_spread_below_the_precision_of_the_study_is_refused(line, tmp_path, ca
     err = capsys.readouterr().err.strip().splitlines()
     # a variant that differs by rounding would be listed as a key that does not enter the loop
     assert len(err) == 1 and "tolerances.motor.resistance:" in err[0] and "below 1e-09 of the value 0.5" in err[0]
+
+
+# --- time runs in worker processes: the chunks unpickle with the standard pickle ------------
+
+class _PicklingExecutor:
+    """Runs each call here after a round trip through pickle, as a process pool sends it."""
+
+    def submit(self, fn, *args, **kwargs):
+        import pickle
+        from concurrent.futures import Future
+        fn, args, kwargs = pickle.loads(pickle.dumps((fn, args, kwargs)))
+        future = Future()
+        future.set_result(fn(*args, **kwargs))
+        return future
+
+
+def test_the_time_runs_chunks_travel_to_worker_processes(tmp_path):
+    from servo_toolkit.loop.sampling import sample_tolerances
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.sim import controller_for
+    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+
+    from .conftest import SCENES
+    path = tmp_path / "runs.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + '\n[tolerances]\nload.inertia = "+-20 %"\n')
+    scene = load_scene(path)
+    values = sample_tolerances(scene.tolerances, 4, "lhs", 0)
+    ctrl, _ = controller_for(scene)  # python-control's systems and the scene do not pickle: they stay here
+    sent = tolerance_runs(scene, values, ctrl, duration=0.02, progress=False, executor=_PicklingExecutor())
+    assert sent.rows.fitted is not None and not sent.failed.any()
+    assert np.all(np.isfinite(sent.tracking_error)) and np.ptp(sent.peak_current) > 0  # the variants differ
