@@ -378,3 +378,16 @@ def test_the_time_runs_chunks_travel_to_worker_processes(tmp_path):
     sent = tolerance_runs(scene, values, ctrl, duration=0.02, progress=False, executor=_PicklingExecutor())
     assert sent.rows.fitted is not None and not sent.failed.any()
     assert np.all(np.isfinite(sent.tracking_error)) and np.ptp(sent.peak_current) > 0  # the variants differ
+
+
+def test_a_study_whose_tolerances_enter_no_judged_figure_says_its_yield_is_the_nominal_verdict(tmp_path):
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.studies.tolerances import tolerance_study
+
+    from .conftest import SCENES
+    path = tmp_path / "friction.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\nmotor.coulomb_friction = "x0.5:x3"\n')
+    study = tolerance_study(load_scene(path), samples=8, worst_corner=False, progress=False)
+    assert all(s.method == "none" for s in study.sensitivities)  # the margins are the nominal's in every variant
+    assert any(n.startswith("no tolerance enters a judged figure") for n in study.notes)
