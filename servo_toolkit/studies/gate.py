@@ -189,7 +189,8 @@ def yield_rows(tolerances) -> list[RequirementRow]:
         why = "" if met else "; " + Yield.of(y.name, y.label, y.passed, y.total, y.confidence, required).shortfall()
         words = YIELD_LABELS.get(y.name, y.name.replace("_", " "))
         detail = (f"{100 * y.confidence:g} % Clopper-Pearson interval {fmt(100 * y.low, 4)}..{fmt(100 * y.high, 4)} %, "
-                  f"{y.passed} of {y.total} variants ({tolerances.settings.get('method', '')}) of the [tolerances]{why}")
+                  f"{y.passed} of {y.total} variants ({tolerances.settings.get('method', '')}) of the [tolerances]"
+                  + why)
         rows.append(RequirementRow("yield" if y.name == "all" else f"yield_{y.name}",
                                    f"yield: built actuators meeting {words} (lower end of the interval)",
                                    f">= {fmt(100 * required)} %", f"{fmt(100 * y.low, 4)} %",
