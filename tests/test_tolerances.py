@@ -300,4 +300,5 @@ def test_check_gates_on_the_lower_end_and_the_report_shows_the_same_rows(tmp_pat
     ctx = Context(load_scene(path))
     section = run_section("tolerances", "Tolerances", tolerances_section, ctx)
     assert section.status in ("pass", "fail") and "tolerance-yields" in section.html and section.figures
+    assert "Worst corner over the linear figures" in section.html and "load.inertia = 1.2 kg*m^2" in section.html
     assert [r.to_dict() for r in yield_rows(tolerance_results(ctx))] == rows

@@ -216,10 +216,13 @@ _NOTES = {"tolerances": [
     "key's unit, or `xF` a factor of the scene's value); log-uniform when positive and wider than a decade |",
     "| `\"+-5 %\"`, `\"+-0.1 ohm\"` | uniform about the scene's value |",
     "| `{sigma = \"2 %\"}`, `{sigma = \"0.02 ohm\", mean = ..., min = ..., max = ...}` | normal about `mean` "
-    "(default the scene's value), truncated to the key's physical range and to `min`/`max` |", "",
+    "(default the scene's value), truncated to `min`/`max` and to the key's physical range; without `min` "
+    "(`max`) the physical range may cut at most 0.1 % of it (3.09 sigma), else give the end |", "",
     "Each range end, and a normal's truncation, must obey the key's rule in the tables above (its sign and "
     "the range its model is conditioned for); an unknown key, a list or text key, a requirement, a malformed "
-    "distribution or a sigma that is not positive is one line naming `tolerances.<key>` (exit 2). Integer keys "
+    "distribution, a sigma that is not positive, a spread below 1e-9 of the value or a percentage of a value of "
+    "0 is one line naming `tolerances.<key>` (exit 2); `min_yield` is below 1 (no sample shows a yield of 1). "
+    "Integer keys "
     "are rounded. `[robustness]`'s `load_inertia` and `stiffness` ranges are the tolerances `load.inertia` and "
     "`drivetrain.stiffness_scale`.", ""]}
 

@@ -187,7 +187,8 @@ def sobol(func, dists, n: int, *, seed: int = 0, confidence: float = 0.95, resam
         boot = bootstrap([np.arange(n)], statistic, method="BCa", n_resamples=resamples,
                          confidence_level=confidence, rng=np.random.default_rng(seed + 1))
     low, high = _interval(boot, confidence)
-    return {"first": np.atleast_2d(res.first_order), "total": np.atleast_2d(res.total_order),
+    shape = (f_A.shape[0], len(dists))  # (s, d): scipy drops the input axis of a single input
+    return {"first": np.reshape(res.first_order, shape), "total": np.reshape(res.total_order, shape),
             "first_low": low[0], "first_high": high[0], "total_low": low[1], "total_high": high[1], "n": n}
 
 
@@ -204,6 +205,12 @@ def _interval(boot, confidence: float):
         p_low, p_high = np.percentile(dist, [alpha, 100.0 - alpha], axis=-1)
         low, high = np.where(bad, p_low, low), np.where(bad, p_high, high)
     return low, high
+
+
+def _share_cap(high, share):
+    """An interval's upper end of a share of the variance, at most 1 (all of it) unless the
+    estimate itself lies above (estimator noise, kept visible)."""
+    return np.minimum(high, np.maximum(1.0, share))
 
 
 def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys=None, confidence: float = 0.95,
@@ -240,29 +247,41 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
     live = ~inert
     zero = np.zeros(d)
     left = "" if ok.all() else f" ({int((~ok).sum())} variants without a finite figure left out)"
-    if ok.sum() < 3 or np.ptp(y[ok]) == 0 or not live.any():
+    if not live.any() or (ok.sum() >= 2 and np.ptp(y[ok]) == 0):
         return Sensitivity(figure, label, unit, keys, "none", zero, zero, zero, zero, None, 0.0, inert,
                            int(ok.sum()), confidence, "the figure does not vary over the variants" + left)
     src, lo_src, hi_src = zero.copy(), zero.copy(), zero.copy()
-    s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence)
-    src[live], lo_src[live], hi_src[live] = s, lo, hi
-    share_lo, share_hi = _square_interval(lo_src, hi_src)
     notes = " Keys known not to enter it: 0 exactly." if inert.any() else ""
-    if r2 >= R2_LINEAR or sobol_run is None:
+    few = int(ok.sum()) < int(live.sum()) + 2  # a regression on d keys needs d + 2 variants (a residual)
+    if few:
+        short = (f"{int(ok.sum())} variants cannot fit a regression on {int(live.sum())} tolerances "
+                 f"(at least {int(live.sum()) + 2} are needed)")
+        if sobol_run is None:
+            return Sensitivity(figure, label, unit, keys, "none", zero, zero, zero, zero, None, math.nan, inert,
+                               int(ok.sum()), confidence, short + ": not ranked" + left)
+        r2 = math.nan
+    else:
+        s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence)
+        src[live], lo_src[live], hi_src[live] = s, lo, hi
+    share_lo, share_hi = _square_interval(lo_src, hi_src)
+    if not few and (r2 >= R2_LINEAR or sobol_run is None):
         why = (f"near-linear (R^2 = {r2:.3f} >= {R2_LINEAR:g}): standardized regression, shares SRC^2"
                if r2 >= R2_LINEAR else
                f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear, ranked by standardized regression without "
                "variance-based indices (the shares explain only R^2 of the spread)")
-        return Sensitivity(figure, label, unit, keys, "src", src ** 2, share_lo, share_hi, src, None, r2, inert,
+        return Sensitivity(figure, label, unit, keys, "src", src ** 2, share_lo, _share_cap(share_hi, src ** 2), src,
+                           None, r2, inert,
                            int(ok.sum()), confidence, why + left + "." + notes)
     res = sobol_run(live)
     total, first = zero.copy(), zero.copy()
     tlo, thi = zero.copy(), zero.copy()
     total[live], first[live] = res["total"][0], res["first"][0]
     tlo[live], thi[live] = res["total_low"][0], res["total_high"][0]
-    why = (f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear or interacting, variance-based Sobol indices "
-           f"(total S_T; {res['n']} x {int(live.sum()) + 2} evaluations, bootstrap intervals)")
-    return Sensitivity(figure, label, unit, keys, "sobol", total, np.clip(tlo, 0.0, None), thi, src, first, r2,
+    why = ((short if few else f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear or interacting")
+           + f", variance-based Sobol indices (total S_T; {res['n']} x {int(live.sum()) + 2} evaluations, "
+             "bootstrap intervals)")
+    return Sensitivity(figure, label, unit, keys, "sobol", total, np.clip(tlo, 0.0, None), _share_cap(thi, total),
+                       src, first, r2,
                        inert, res["n"] * (int(live.sum()) + 2), confidence, why + left + "." + notes)
 
 

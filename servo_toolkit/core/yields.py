@@ -92,6 +92,23 @@ class Yield:
         required)."""
         return self.required is None or self.low >= self.required
 
+    def shortfall(self) -> str:
+        """Why the required yield is not met, in words ("" when it is met or none is
+        required): a sample too small to show it (every variant passing), a point estimate
+        that reaches it with an interval that does not, or too few variants passing."""
+        if self.met:
+            return ""
+        req, conf = f"{100 * self.required:g} %", f"{100 * self.confidence:g} %"
+        need = minimum_samples(self.required, self.confidence)
+        if self.passed == self.total:
+            return (f"every variant passes, but {self.total} variants cannot show {req} at {conf} confidence "
+                    f"(the interval's lower end is {100 * self.low:.4g} %): at least {need} variants, all passing, "
+                    f"are needed (samples = {need})")
+        if self.fraction >= self.required:
+            return (f"the point estimate {100 * self.fraction:.4g} % reaches {req} but the interval's lower end "
+                    f"{100 * self.low:.4g} % does not: more variants narrow the interval")
+        return f"{self.total - self.passed} of {self.total} variants fail: the yield is below {req}"
+
     def text(self) -> str:
         """E.g. ``99.4 % (97.9..99.9 %, 95 % interval; 994 of 1000)``."""
         return (f"{100 * self.fraction:.4g} % ({100 * self.low:.4g}..{100 * self.high:.4g} %, "
@@ -101,7 +118,7 @@ class Yield:
         """JSON-ready."""
         return {"name": self.name, "label": self.label, "passed": self.passed, "total": self.total,
                 "fraction": self.fraction, "confidence": self.confidence, "low": self.low, "high": self.high,
-                "required": self.required, "met": self.met}
+                "required": self.required, "met": self.met, "shortfall": self.shortfall()}
 
 
 __all__ = ["Yield", "clopper_pearson", "minimum_samples"]

@@ -64,20 +64,20 @@ def tolerances_section(ctx) -> Section:
     rank_rows = []
     for s in r.sensitivities:
         top = ", ".join(f"{k} {fmt(100 * v, 3)} % [{fmt(100 * lo, 2)}..{fmt(100 * hi, 2)}]"
-                        for k, v, lo, hi in s.ranking()[:3]) if s.method != "none" else ""
+                        for k, v, lo, hi in [x for x in s.ranking() if not s.inert[s.keys.index(x[0])]][:3]
+                        ) if s.method != "none" else ""
         rank_rows.append((s.label, s.method, fmt(s.r2, 3), top, s.reason))
     body += table(("figure", "method", "R^2", "largest shares of its variance", "why"), rank_rows,
                   table_id="tolerance-sensitivity")
     if r.worst is not None:
         w = r.worst
-        at = ", ".join(f"{k} = {fmt(v, 4)}" for k, v in w.values.items())
+        at = r.corner_text()
         ref = w.reference
-        sim = w.simulation
-        run = ("" if sim is None else
-               f" Its nonlinear run: worst tracking error {fmt(sim.unit.show(np.max(np.abs(sim.output_angle - sim.reference_angle))), 4)} "
-               f"{sim.unit.shown}, peak current {fmt(np.max(np.abs(sim.motor_current)), 4)} A.")
-        body += para(f"Worst corner ({w.corners} corners evaluated): {at}; smallest margin to a requirement "
-                     f"{fmt(100 * w.score, 3)} % ({w.figure}). python-control on its plant built exactly: gain margin "
+        run = f" {w.run_text()[0].upper()}{w.run_text()[1:]}." if w.run_text() else ""
+        how = (f"smallest margin to a requirement {fmt(100 * w.score, 3)} % ({w.figure})" if np.isfinite(w.score)
+               else "its closed loop is unstable")
+        body += para(f"Worst corner over the linear figures ({w.corners} corners evaluated): {at}; {how}. "
+                     f"python-control on its plant built exactly: gain margin "
                      f"{fmt(ref.get('gain_margin_db'), 4)} dB, phase margin {fmt(ref.get('phase_margin_deg'), 4)} deg "
                      f"(the vectorized study: {fmt(w.figures['gain_margin_db'], 4)} dB, "
                      f"{fmt(w.figures['phase_margin_deg'], 4)} deg)." + run)

@@ -161,12 +161,22 @@ class SceneKeys:
         if read is None:
             if key in self._lists or any(key.startswith(f"{k}[") for k in self._lists):
                 raise SceneError(where, "a list, not a scalar quantity; name a scalar key")
-            if key in self._other:
-                raise SceneError(where, "not a numeric key (a text or table)")
+            base = re.sub(r"\[\d+\]$", "", key)  # an element of a list names the list
+            if base in self._other:
+                table, _, name = base.rpartition(".")
+                value = (table_of(self.data, table) or {}).get(name)
+                kind = ("a list of whole numbers (counts such as a gear's teeth are exact)"
+                        if isinstance(value, list) and all(isinstance(v, int) for v in value) else
+                        "a list" if isinstance(value, list) else "a table" if isinstance(value, dict) else "a text")
+                raise SceneError(where, f"not a numeric key that can vary: {kind}")
             if key.split(".")[0].split("[")[0] in NOT_PHYSICAL:
                 raise SceneError(where, "not a physical parameter of the actuator; name motor, drivetrain, load "
                                         "or sensors keys")
-            raise SceneError(where, f"not {what} {', '.join(self.known(integers))}")
+            import difflib
+            known = self.known(integers)
+            close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise SceneError(where, f"{hint}not {what} {', '.join(known)}")
         if not _physical(read.table):
             raise SceneError(where, "not a physical parameter of the actuator; name motor, drivetrain, load or "
                                     "sensors keys")

@@ -12,6 +12,10 @@ from ..core.ranges import VARIED
 from ..errors import SceneError
 from .tracking import tracking_error as _tracking_error
 
+#: the rule of a required yield of 1
+UNPROVABLE_YIELD = ("a yield of 1 cannot be shown by any number of variants (the lower end of its interval, on "
+                    "which the gate judges, stays below 1): give less than 1, e.g. 0.999")
+
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
 #: ``[robustness] method`` values
@@ -189,6 +193,7 @@ class Robustness:
                 min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
                 min_yield=f.number("min_yield", rule="positive", bounds=(1e-6, 1.0)) if f.has("min_yield") else None,
                 **_tracking_error(f))
+        require(r.min_yield is None or r.min_yield < 1.0, f.key("min_yield"), UNPROVABLE_YIELD)
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,

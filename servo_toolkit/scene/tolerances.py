@@ -20,8 +20,9 @@ value. A positive range wider than a decade (``hi / lo > 10``) is sampled unifor
 logarithm, as the robustness study's ranges are. ``{sigma}`` (a quantity, or ``"X %"`` of
 the mean) is a normal about ``mean`` (default the scene's value), truncated to the key's
 physical range (its sign rule and the range its model is conditioned for,
-:mod:`servo_toolkit.core.ranges`) and to ``min``/``max`` when given. Integer keys are
-rounded. Every distribution is checked when the scene loads: an unknown key, a malformed
+:mod:`servo_toolkit.core.ranges`) and to ``min``/``max`` when given; the physical range alone
+may cut at most :data:`~.distributions.IMPLICIT_CUT` of it (else the scene gives the end).
+Integer keys are rounded. Every distribution is checked when the scene loads: an unknown key, a malformed
 distribution, a sigma that is not positive or an end outside the key's conditioned range is
 one line naming the key. Before a study draws variants it also builds the scene at each
 end (a normal's mean +- 4 sigma within its truncation, :func:`check_ends`): an end at which
@@ -36,111 +37,23 @@ drivetrain's series stiffness, nominal 1).
 from __future__ import annotations
 
 import copy
-import math
-import re
 from dataclasses import dataclass, field
-
-import numpy as np
 
 from ..errors import SceneError
 from ..core.fields import Fields, require
-from ..core.ranges import conditioned_range, range_rule
-from ..core.units import parse_quantity
+from .distributions import (DISTRIBUTION_KEYS, IMPLICIT_CUT, LOG_RATIO, MIN_SPREAD, Tolerance,
+                            parse_distribution)
 
 #: ``[tolerances]`` keys that are settings, not distributions
 SETTINGS = ("samples", "method", "seed", "min_yield", "confidence", "max_tracking_error", "max_peak_current")
 #: sampling methods (``scipy.stats.qmc``: Latin hypercube, scrambled Sobol; or independent draws)
 METHODS = ("lhs", "sobol", "random")
-#: distribution keys of a table value
-DISTRIBUTION_KEYS = ("min", "max", "sigma", "mean")
 DEFAULT_SAMPLES = 1024
-#: a positive range wider than this ratio (hi / lo) is sampled uniformly in log(value)
-LOG_RATIO = 10.0
 #: a normal's mean +- this many sigma (within its truncation) must give a scene that loads
 CHECKED_SIGMAS = 4.0
 #: virtual keys: not written in a scene, applied to the built drivetrain (unit, meaning)
 STIFFNESS_SCALE = "drivetrain.stiffness_scale"
 VIRTUAL = {STIFFNESS_SCALE: ("dimensionless", "factor on the drivetrain's series stiffness (nominal 1)")}
-_PLUS_MINUS = re.compile(r"^\s*(\+-|\+/-|±)\s*(.+?)\s*$")
-_PERCENT = re.compile(r"^\s*([0-9.eE+-]+)\s*%\s*$")
-_FACTOR = re.compile(r"^\s*x\s*([0-9.eE+-]+)\s*$")
-
-
-@dataclass(frozen=True)
-class Tolerance:
-    """The distribution of one scene key over the built actuators.
-
-    Attributes
-    ----------
-    key : str
-        Key path (``motor.resistance``) or a virtual key (``drivetrain.stiffness_scale``).
-    unit : str
-        SI unit of the values.
-    nominal : float
-        The scene's value (SI).
-    distribution : {"uniform", "log_uniform", "normal"}
-    low, high : float
-        Uniform: the range; normal: its truncation.
-    mean, sigma : float
-        Normal only (NaN otherwise).
-    integer : bool
-        Values are rounded (an integer key).
-    written : str
-        The distribution as the scene gives it.
-    """
-
-    key: str
-    unit: str
-    nominal: float
-    distribution: str
-    low: float
-    high: float
-    mean: float = math.nan
-    sigma: float = math.nan
-    integer: bool = False
-    written: str = ""
-
-    def ppf(self, u) -> np.ndarray:
-        """Values at probabilities ``u`` in (0, 1) (the inverse CDF)."""
-        u = np.asarray(u, float)
-        if self.distribution == "normal":
-            from scipy.stats import truncnorm
-            a, b = (self.low - self.mean) / self.sigma, (self.high - self.mean) / self.sigma
-            x = truncnorm.ppf(u, a, b, loc=self.mean, scale=self.sigma)
-        elif self.distribution == "log_uniform":
-            x = np.exp(np.log(self.low) + u * (np.log(self.high) - np.log(self.low)))
-        elif self.integer:
-            x = np.floor(self.low + u * (self.high - self.low + 1.0))
-        else:
-            x = self.low + u * (self.high - self.low)
-        x = np.clip(x, self.low, self.high)
-        return np.round(x) if self.integer else x
-
-    @property
-    def ends(self) -> tuple:
-        """The two extreme values a corner of the tolerance box takes: a range's ends, a
-        normal's mean +- 3 sigma within its truncation."""
-        if self.distribution == "normal":
-            lo, hi = max(self.low, self.mean - 3 * self.sigma), min(self.high, self.mean + 3 * self.sigma)
-            return (round(lo), round(hi)) if self.integer else (lo, hi)
-        return self.low, self.high
-
-    def describe(self) -> str:
-        """One phrase, e.g. ``uniform 0.475..0.525 ohm`` or ``normal, sigma 0.004 N*m/A``."""
-        unit = "" if self.unit in ("dimensionless", "1", "") else f" {self.unit}"
-        if self.distribution == "normal":
-            cut = [f"{v:.4g}" for v in (self.low, self.high)]
-            return f"normal, mean {self.mean:.4g}, sigma {self.sigma:.4g}{unit} (truncated to {cut[0]}..{cut[1]})"
-        kind = "log-uniform" if self.distribution == "log_uniform" else "uniform"
-        return f"{kind} {self.low:.4g}..{self.high:.4g}{unit}"
-
-    def to_dict(self) -> dict:
-        """JSON-ready."""
-        d = {"key": self.key, "unit": self.unit, "nominal": self.nominal, "distribution": self.distribution,
-             "low": self.low, "high": self.high, "written": self.written}
-        if self.distribution == "normal":
-            d.update(mean=self.mean, sigma=self.sigma)
-        return d
 
 
 @dataclass(frozen=True)
@@ -212,117 +125,6 @@ def _flatten(table: dict, prefix: str = ""):
             yield key, v
 
 
-def _end(text, kp, where: str) -> float:
-    """A range end: a quantity in the key's unit, or ``xF`` a factor of its value."""
-    if isinstance(text, str):
-        m = _FACTOR.match(text)
-        if m:
-            return float(m.group(1)) * kp.value
-    if kp.integer and isinstance(text, (int, float)) and not isinstance(text, bool):
-        return float(text)
-    return parse_quantity(text, "dimensionless" if kp.unit == "1" else kp.unit, where)
-
-
-def _spread(text: str, kp, where: str, center: float) -> float:
-    """A half width or sigma: ``"X %"`` of ``|center|``, or a quantity."""
-    m = _PERCENT.match(text) if isinstance(text, str) else None
-    if m:
-        return float(m.group(1)) / 100.0 * abs(center)
-    return parse_quantity(text, "dimensionless" if kp.unit == "1" else kp.unit, where)
-
-
-def _physical_range(kp) -> tuple:
-    """(low, high) a value of ``kp`` may take: its sign rule and conditioned range."""
-    if kp.integer:
-        low = float(kp.rule.split()[-1]) if kp.rule and kp.rule.startswith("at least") else -math.inf
-        return low, math.inf
-    rng = conditioned_range(kp.unit, kp.bounds)
-    if rng is None:
-        return (0.0 if kp.rule in ("positive", "nonnegative") else -math.inf), math.inf
-    low, high = rng
-    if kp.rule == "positive" or kp.bounds is not None:
-        return low, high
-    if kp.rule == "nonnegative":
-        return 0.0, high
-    return -high, high
-
-
-_EXPECTED = ("expected a range 'lo:hi' (ends with units, or xF a factor of the scene's value), [lo, hi], "
-             "'+-X %', '+-X unit', {min, max} or a normal {sigma} (with optional mean, min, max)")
-
-
-def parse_distribution(raw, kp, where: str) -> Tolerance:
-    """The :class:`Tolerance` of key ``kp`` (a :class:`~.key_paths.KeyPath`) written ``raw``.
-
-    Raises
-    ------
-    SceneError
-        Naming ``where``: a malformed distribution, a sigma that is not positive, ends in
-        the wrong order or outside the key's physical range.
-    """
-    nominal = kp.value
-    written = raw if isinstance(raw, str) else repr(raw)
-    mean, sigma, dist = math.nan, math.nan, "uniform"
-    if isinstance(raw, str) and _PLUS_MINUS.match(raw):
-        half = _spread(_PLUS_MINUS.match(raw).group(2), kp, where, nominal)
-        require(half > 0 and math.isfinite(half), where, f"the half width must be positive and finite (got {half:g})")
-        low, high = nominal - half, nominal + half
-    elif isinstance(raw, str) and ":" in raw:
-        a, _, b = raw.partition(":")
-        low, high = _end(a.strip(), kp, where), _end(b.strip(), kp, where)
-    elif isinstance(raw, list):
-        require(len(raw) == 2, where, f"a range [lo, hi] has two values (got {len(raw)})")
-        low, high = _end(raw[0], kp, where), _end(raw[1], kp, where)
-    elif isinstance(raw, dict):
-        unknown = sorted(set(raw) - set(DISTRIBUTION_KEYS))
-        require(not unknown, where, f"unknown distribution key {unknown[0] if unknown else ''!r}; "
-                                    f"known: {', '.join(DISTRIBUTION_KEYS)}")
-        if "sigma" in raw:
-            dist = "normal"
-            mean = _end(raw["mean"], kp, where) if "mean" in raw else nominal
-            sigma = _spread(raw["sigma"], kp, where, mean)
-            require(sigma > 0 and math.isfinite(sigma), where, f"sigma must be positive and finite (got {sigma:g})")
-            plo, phi = _physical_range(kp)
-            low = _end(raw["min"], kp, where) if "min" in raw else plo
-            high = _end(raw["max"], kp, where) if "max" in raw else phi
-            require(low < mean < high, where, f"the mean {mean:g} must lie inside the truncation {low:g}..{high:g}")
-        else:
-            require("min" in raw and "max" in raw and "mean" not in raw, where,
-                    "a table is a range {min, max} or a normal {sigma} (with optional mean, min, max)")
-            low, high = _end(raw["min"], kp, where), _end(raw["max"], kp, where)
-    else:
-        raise SceneError(where, f"{_EXPECTED} (got {raw!r})")
-    require(math.isfinite(low) and math.isfinite(high) or dist == "normal", where,
-            f"the range must be finite (got {low:g}..{high:g})")
-    require(low <= high, where, f"lo must not exceed hi (got {low:g} > {high:g})")
-    if dist != "normal":
-        require(high > low, where, f"the range is a single value ({low:g}): give a spread")
-    for v in (low, high):
-        _check_end(v, kp, where)
-    if dist == "uniform" and low > 0 and high > LOG_RATIO * low and not kp.integer:
-        dist = "log_uniform"
-    unit = "dimensionless" if kp.unit in ("1", "") else kp.unit
-    return Tolerance(kp.key, unit, nominal, dist, float(low), float(high), float(mean), float(sigma),
-                     kp.integer, str(written))
-
-
-def _check_end(v: float, kp, where: str) -> None:
-    """A value of the distribution's support obeys the key's sign rule and range."""
-    if not math.isfinite(v):
-        return
-    if kp.integer:
-        plo, _ = _physical_range(kp)
-        require(v >= plo and float(v).is_integer(), where, f"an integer key: ends must be integers of at least "
-                                                          f"{plo:g} (got {v:g})")
-        return
-    if kp.rule == "positive":
-        require(v > 0, where, f"must be positive over the whole distribution (got an end at {v:g})")
-    if kp.rule == "nonnegative":
-        require(v >= 0, where, f"must not be negative over the whole distribution (got an end at {v:g})")
-    broken = range_rule(v, kp.rule if kp.rule is not None or v <= 0 else "positive", kp.unit, kp.bounds)
-    require(broken is None, where, f"an end of the distribution {broken}")
-
-
 def _virtual(key: str, robust_value=None):
     from .key_paths import KeyPath
     unit, _ = VIRTUAL[key]
@@ -330,6 +132,7 @@ def _virtual(key: str, robust_value=None):
 
 
 def _settings(table: dict, robust) -> dict:
+    from .tables import UNPROVABLE_YIELD
     from .tracking import tracking_error as _tracking_error
     f = Fields({k: v for k, v in table.items() if k in SETTINGS}, "tolerances")
     samples = f.integer("samples", DEFAULT_SAMPLES, minimum=2)
@@ -342,6 +145,7 @@ def _settings(table: dict, robust) -> dict:
                **(_tracking_error(f) or ({"max_tracking_error": robust.max_tracking_error,
                                           "tracking_error_dimension": robust.tracking_error_dimension}
                                          if robust is not None else {})))
+    require(out["min_yield"] < 1.0, f.key("min_yield"), UNPROVABLE_YIELD)
     return out
 
 
@@ -421,5 +225,5 @@ def check_ends(tolerances) -> None:
                                                         f"{exc.key}: {exc.rule}") from None
 
 
-__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "LOG_RATIO", "METHODS", "SETTINGS", "STIFFNESS_SCALE", "Tolerance",
-           "Tolerances", "VIRTUAL", "check_ends", "parse_distribution", "tolerances_of"]
+__all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "IMPLICIT_CUT", "LOG_RATIO", "METHODS", "MIN_SPREAD", "SETTINGS",
+           "STIFFNESS_SCALE", "Tolerance", "Tolerances", "VIRTUAL", "check_ends", "parse_distribution", "tolerances_of"]

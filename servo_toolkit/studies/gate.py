@@ -29,6 +29,7 @@ import math
 import re
 from dataclasses import dataclass
 
+from ..core.yields import Yield
 from ..display.html import fmt
 
 #: check name -> words of the requirement (``{f}``: the frequency the figure is taken at)
@@ -185,9 +186,11 @@ def yield_rows(tolerances) -> list[RequirementRow]:
     rows = []
     for y in (tolerances.overall, *tolerances.yields[:-1]):
         met = y.low >= required
+        why = "" if met else "; " + Yield.of(y.name, y.label, y.passed, y.total, y.confidence, required).shortfall()
         words = YIELD_LABELS.get(y.name, y.name.replace("_", " "))
         detail = (f"{100 * y.confidence:g} % Clopper-Pearson interval {fmt(100 * y.low, 4)}..{fmt(100 * y.high, 4)} %, "
-                  f"{y.passed} of {y.total} variants ({tolerances.settings.get('method', '')}) of the [tolerances]")
+                  f"{y.passed} of {y.total} variants ({tolerances.settings.get('method', '')}) of the [tolerances]"
+                  + why)
         rows.append(RequirementRow("yield" if y.name == "all" else f"yield_{y.name}",
                                    f"yield: built actuators meeting {words} (lower end of the interval)",
                                    f">= {fmt(100 * required)} %", f"{fmt(100 * y.low, 4)} %",

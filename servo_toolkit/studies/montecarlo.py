@@ -162,6 +162,20 @@ def _reason(status, step, dt, stable, lam_dt):
     return stop
 
 
+def unvaried_tolerances(scene, values) -> list:
+    """A note naming the scene's ``[tolerances]`` keys this run leaves at their values (the
+    Monte Carlo varies ``load_inertia`` and ``stiffness`` only; ``tolerance_study`` with
+    ``nonlinear=True`` runs every tolerance in time)."""
+    tol, spec = scene.tolerances, scene.robustness
+    covered = {"load.inertia": "load_inertia", STIFFNESS_SCALE: "stiffness"}  # as [robustness] gives them
+    ranges = spec.ranges if spec is not None else {}
+    left = [] if tol is None else [k for k in tol.keys if not (covered.get(k) in values and covered[k] in ranges)]
+    if not left:
+        return []
+    return [f"the scene's [tolerances] {', '.join(left)} are not varied here (this Monte Carlo varies "
+            f"{', '.join(values)}): servo-toolkit tolerances --nonlinear runs every tolerance in time"]
+
+
 def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
                grid: bool | None = None, duration: float | None = None, full: bool = False,
                controller=None, reference=None, dt: float | None = None, executor=None,
@@ -240,6 +254,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     controller = nominal_feedforward(with_feedforward(controller, feedforward, scene), scene)
     options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
     notes.insert(0, f"{source}, the same on every variant")
+    notes += unvaried_tolerances(scene, values)
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
     if builder.fast and not builder.self_check(values):
         builder = replace(builder, fast=False)

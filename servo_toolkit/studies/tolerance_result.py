@@ -7,8 +7,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.sensitivity import R2_LINEAR
 from ..display.cards import RichDisplay, card, facts, svg, table
 from ..display.html import fmt
+
+#: a ranking's method in words
+METHODS = {"src": "standardized regression", "sobol": "Sobol total indices"}
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,8 @@ class WorstCorner:
         (``gain_margin_db``, ``phase_margin_deg``) and its closed-loop stability.
     simulation : SimulationResult or None
         The nonlinear closed-loop run of the corner's scene (``simulate``'s command).
+    run_error : str
+        Why the corner's run could not be carried out ("" when it was).
     """
 
     values: dict
@@ -45,16 +51,36 @@ class WorstCorner:
     figures: dict
     reference: dict = field(default_factory=dict)
     simulation: object = None
+    run_error: str = ""
+
+    def run_figures(self) -> dict | None:
+        """The corner's time run as ``max_tracking_error`` (SI: rad or m) and
+        ``peak_current`` (A); None without a run."""
+        sim = self.simulation
+        if sim is None:
+            return None
+        return {"max_tracking_error": float(np.max(np.abs(sim.output_angle - sim.reference_angle))),
+                "peak_current": float(np.max(np.abs(sim.motor_current)))}
+
+    def run_text(self) -> str:
+        """The corner's time run in words with units, or why it could not run."""
+        run = self.run_figures()
+        if run is None:
+            return f"its time run could not be carried out: {self.run_error}" if self.run_error else ""
+        unit = self.simulation.unit
+        return (f"its time run (simulate's command): tracking error {fmt(unit.show(run['max_tracking_error']), 4)} "
+                f"{unit.shown}, "
+                f"peak current {fmt(run['peak_current'], 4)} A")
 
     def to_dict(self) -> dict:
-        """JSON-ready (the simulation as its two figures)."""
-        sim = self.simulation
+        """JSON-ready (the simulation as its two figures, SI)."""
         out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
                "corners_evaluated": self.corners, "figures": {k: float(v) for k, v in self.figures.items()},
                "reference": self.reference}
-        if sim is not None:
-            out["simulation"] = {"max_tracking_error": float(np.max(np.abs(sim.output_angle - sim.reference_angle))),
-                                 "peak_current": float(np.max(np.abs(sim.motor_current)))}
+        if self.run_figures() is not None:
+            out["simulation"] = self.run_figures()
+        if self.run_error:
+            out["run_error"] = self.run_error
         return out
 
 
@@ -141,17 +167,42 @@ class ToleranceResult(RichDisplay):
         for y in self.yields:
             verdict = "" if y.required is None else ("  ok" if y.met else "  FAIL")
             lines.append(f"  yield {y.name:<22}{y.text()}{verdict}")
+            if y.shortfall():
+                lines.append(f"        {y.shortfall()}")
         for s in self.sensitivities:
             if s.method == "none":
                 lines.append(f"  sensitivity of {s.label}: {s.reason}")
                 continue
-            top = ", ".join(f"{k} {100 * v:.3g} %" for k, v, _, _ in s.ranking()[:3])
-            lines.append(f"  sensitivity of {s.label} ({s.method}, R^2 {s.r2:.3f}): {top}")
+            fit = f"R^2 {s.r2:.3f}" if np.isfinite(s.r2) else "no regression"
+            lines.append(f"  sensitivity of {s.label} ({METHODS.get(s.method, s.method)}, {fit}, "
+                         f"shares of its variance with {100 * s.confidence:g} % intervals):")
+            if s.method == "src" and not s.r2 >= R2_LINEAR:
+                lines.append(f"    caution: {s.reason}")
+            inert = [k for k, flag in zip(s.keys, s.inert) if flag]
+            for k, v, lo, hi in s.ranking():
+                if k not in inert:
+                    lines.append(f"    {k:<34}{100 * v:7.3g} %  ({100 * lo:.3g}..{100 * hi:.3g} %)")
+            if inert:
+                lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            at = ", ".join(f"{k}={fmt(v, 4)}" for k, v in w.values.items())
-            lines.append(f"  worst corner ({w.corners} evaluated): {w.figure} margin {fmt(100 * w.score, 3)} % at {at}")
+            how = (f"{w.figure} margin {fmt(100 * w.score, 3)} %" if np.isfinite(w.score) else
+                   "closed loop unstable" + (f" (a pole at real part {fmt(w.figures['max_pole_real'], 4)} 1/s)"
+                                             if "max_pole_real" in w.figures else ""))
+            lines.append(f"  worst corner over the linear figures ({w.corners} evaluated): {how} at "
+                         f"{self.corner_text()}")
+            if w.run_text():
+                lines.append(f"    {w.run_text()}")
+        lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
+
+    def corner_text(self) -> str:
+        """The worst corner's values with their units (SI), e.g. ``motor.resistance = 0.7 ohm``."""
+        if self.worst is None:
+            return ""
+        units = {t.key: t.unit for t in self.tolerances.items}
+        return ", ".join(f"{k} = {fmt(v, 4)}" + ("" if units.get(k, "") in ("", "1", "dimensionless")
+                                                 else f" {units[k]}") for k, v in self.worst.values.items())
 
     def plot(self, ax=None, figure: str | None = None):
         """Bar chart of the tolerances' variance shares on ``figure`` (default: the first
@@ -196,7 +247,7 @@ class ToleranceResult(RichDisplay):
             parts.append(svg(lambda ax: self.plot(ax), size=(7.0, 0.5 + 0.35 * len(self.tolerances.items))))
         notes = [f"{s.label}: {s.reason}" for s in self.sensitivities]
         if self.worst is not None:
-            notes.append("worst corner: " + ", ".join(f"{k}={fmt(v, 4)}" for k, v in self.worst.values.items()))
+            notes.append("worst corner: " + self.corner_text())
         return card(f"Tolerances of {self.scene_name}", status=self.passed if self.tolerances.min_yield is not None
                     else None, parts=parts, notes=notes + list(self.notes))
 

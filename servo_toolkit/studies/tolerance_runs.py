@@ -13,7 +13,7 @@ so a cluster's workers share that work too.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -77,9 +77,8 @@ class ToleranceRuns:
 def _chunk(case):
     """One chunk: its rows, then the batched runs (module level: picklable)."""
     from .montecarlo import _chunk as run_chunk
-    rows, X = case["rows"], case["X"]
-    P, T, tix = rows.rows(X)
-    run = {"model": rows.model, "P": P, "dt": case["dt"], "n_steps": case["n_steps"], "sub": case["sub"]}
+    P, T, tix = case["built"] if "built" in case else case["rows"].rows(case["X"])
+    run = {"model": case["model"], "P": P, "dt": case["dt"], "n_steps": case["n_steps"], "sub": case["sub"]}
     if T.shape[0] == 1 and not np.any(tix):
         run.update(deltas=np.zeros(len(P)), d_table=None)
     else:
@@ -134,7 +133,11 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     sub = int(round(model.sample_time / dt)) if P0[lo.CMODE] == lo.SAMPLED else 0
     X = np.column_stack([np.asarray(values[k], float) for k in rows.names])
     size = chunk_size or (TABLE_CHUNK_SIZE if rows.table_moves or rows.fitted is None else CHUNK_SIZE)
-    cases = [{"rows": rows, "X": X[idx], "dt": dt, "n_steps": n_steps, "sub": sub}
+    # a chunk carries what a worker process can unpickle: fitted rows without the scene and the
+    # controller (only exact builds need them), or rows built here, variant by variant
+    shipped = None if rows.fitted is None else replace(rows, keys=None, controller=None, reference=None)
+    cases = [{"model": rows.model, "dt": dt, "n_steps": n_steps, "sub": sub,
+              **({"rows": shipped, "X": X[idx]} if shipped is not None else {"built": rows.rows(X[idx])})}
              for idx in chunks(np.arange(X.shape[0]), max(1, int(size)))]
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="tolerance runs")
     from .montecarlo import joined

@@ -153,17 +153,26 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
                 if plants.method == "separable" else "")]
     if plants.inert:
         notes.append("not entering the linear loop (its margins do not depend on them): " + ", ".join(plants.inert))
+    notes += sampling_notes(method, n)
     runs = None
     if nonlinear or (nonlinear is None and timed):
         from .tolerance_runs import tolerance_runs
         runs = tolerance_runs(scene, values, ctrl, keys=keys, executor=executor, progress=progress, duration=duration,
                               seed=seed)
-        _refuse_failed(runs, values)
+        runs, physical = _judge_failed(runs, values, stable)
         notes += list(runs.notes)
+        if physical.any():
+            notes.append(f"{int(physical.sum())} variants fail the time requirements by their physics (the stroke "
+                         f"end reached, or a run diverging with an unstable linear loop): counted as failing, left "
+                         f"out of the time figures' rankings")
         shown = {"tracking_error": runs.tracking_error * (1e3 if scene.drivetrain.output_is_linear else 180 / math.pi),
                  "peak_current": runs.peak_current}
         for r in timed:
             passes[r.name] = _meets(r, shown[r.name])
+    if runs is None and set(plants.inert) >= set(tol.keys):
+        notes.append("no tolerance enters a judged figure: every variant has the nominal design's margins, so the "
+                     "yield is the nominal verdict whatever the sample; a time requirement (max_tracking_error, "
+                     "max_peak_current) or --nonlinear judges what they act on")
     passes["all"] = np.logical_and.reduce(list(passes.values()))
     labels = {"stable": "closed loop stable", **{k: v[1] for k, v in FIGURES.items()},
               "tracking_error": "tracking error", "peak_current": "peak current", "all": "every requirement"}
@@ -178,9 +187,44 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     if worst_corner:
         worst = _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, structural_damping,
                               runs, duration)
+    notes = list(dict.fromkeys(notes))  # a note given by two parts of the model once
     settings = {"samples": n, "method": method, "seed": seed, "plants": plants.method, "plants_error": plants.error}
     return ToleranceResult(scene.name, tol, values, figs, runs, tuple(margins + timed), passes, yields, sens, worst,
                            settings, tuple(notes))
+
+
+def sampling_notes(method: str, n: int) -> list:
+    """What the draws cannot promise: a scrambled Sobol sample of ``n`` not a power of 2 is
+    balanced (and the yield interval's conservatism shown) only for 2^m points (scipy warns;
+    the study says so in its notes)."""
+    if method == "sobol" and n & (n - 1):
+        return [f"a Sobol sample of {n} variants, not a power of 2: the sequence is balanced (and the yield "
+                f"interval's conservatism shown) only for 2^m points; {1 << n.bit_length()} variants would "
+                f"restore it"]
+    return []
+
+
+def _judge_failed(runs, values, stable):
+    """(runs, physical): the runs with the time figures of the variants that failed by
+    their physics set to NaN (they fail every time requirement), and which those are: a run
+    that reached the stroke end (the actuator hit its stop), or that diverged while its
+    linear loop is unstable. Any other failed run (a step outside the RK4 stability region,
+    no start, a stable loop's state turning non-finite) is the model's, not the design's:
+    no verdict.
+
+    Raises
+    ------
+    SimulationError
+        Naming the first variant that failed for want of a model.
+    """
+    from dataclasses import replace
+    reasons = np.array(runs.reasons, dtype=object)
+    stroke = np.array([r.startswith("stroke end reached") for r in reasons], bool)
+    diverged = np.array([r.startswith("non-finite state") for r in reasons], bool) & ~np.asarray(stable, bool)
+    physical = runs.failed & (stroke | diverged)
+    _refuse_failed(replace(runs, failed=runs.failed & ~physical), values)
+    nan = np.where(physical, np.nan, 1.0)
+    return replace(runs, tracking_error=runs.tracking_error * nan, peak_current=runs.peak_current * nan), physical
 
 
 def _refuse_failed(runs, values) -> None:
@@ -244,28 +288,32 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
                                                                                            "peak current")}
         units = {r.name: r.unit for r in timed}
         for name, (y, label) in shown.items():
-            out.append(rank(name, label, units.get(name, "A" if name == "peak_current" else ""), keys, X, y,
+            unit = "A" if name == "peak_current" else ("mm" if scene.drivetrain.output_is_linear else "deg")
+            out.append(rank(name, label, units.get(name, unit), keys, X, y,
                             inert=inert_time, log_keys=_log_keys(tol), confidence=tol.confidence,
                             sobol_run=None if not sobol_runs else _time_sobol(tol, scene, runs, name, sobol_runs,
-                                                                              seed)))
+                                                                              cache, seed)))
     return tuple(out)
 
 
-def _time_sobol(tol, scene, runs, name, base, seed):
-    """Sobol indices of a time figure from ``base (d + 2)`` further time runs."""
+def _time_sobol(tol, scene, runs, name, base, cache, seed):
+    """Sobol indices of a time figure from ``base (d + 2)`` further time runs (one set of
+    runs gives both time figures: ``cache`` keeps it for the second)."""
     from .tolerance_runs import tolerance_runs
 
     def run(live):
         live_keys = [k for k, m in zip(tol.keys, live) if m]
-
-        def func(x):
-            vals = {k: np.full(x.shape[1], tol.item(k).nominal) for k in tol.keys}
-            vals.update({k: x[j] for j, k in enumerate(live_keys)})
-            r = tolerance_runs(scene, vals, runs.rows.controller, keys=runs.rows.keys, progress=False,
-                               duration=runs.duration_s, dt=runs.dt_s)
-            y = r.tracking_error if name == "tracking_error" else r.peak_current
-            return np.where(r.failed, np.nanmax(y), y)[None]
-        return sobol(func, [tol.item(k) for k in live_keys], base, seed=seed, confidence=tol.confidence)
+        key = ("time", tuple(live_keys))
+        if key not in cache:
+            def func(x):
+                vals = {k: np.full(x.shape[1], tol.item(k).nominal) for k in tol.keys}
+                vals.update({k: x[j] for j, k in enumerate(live_keys)})
+                r = tolerance_runs(scene, vals, runs.rows.controller, keys=runs.rows.keys, progress=False,
+                                   duration=runs.duration_s, dt=runs.dt_s)
+                return np.array([np.where(r.failed, np.nanmax(y), y) for y in (r.tracking_error, r.peak_current)])
+            cache[key] = sobol(func, [tol.item(k) for k in live_keys], base, seed=seed, confidence=tol.confidence)
+        j = 0 if name == "tracking_error" else 1
+        return {k: v[j:j + 1] if isinstance(v, np.ndarray) else v for k, v in cache[key].items()}
     return run
 
 
@@ -307,9 +355,9 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
     corner = {k: float(v[i]) for k, v in vals.items()}
     figures = {k: float(v[i]) for k, v in cf.items()}
     reference = _corner_margins(keys, corner, p, ctrl, scene, zeta)
-    simulation = _corner_run(scene, keys, corner, ctrl, runs, duration)
+    simulation, failed = _corner_run(scene, keys, corner, ctrl, runs, duration)
     figure = margins[int(which[i])].name if margins and np.isfinite(score[i]) else "stable"
-    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation)
+    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed)
 
 
 def _split(corner):
@@ -354,9 +402,9 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
     options = replace(options, stiffness_scale=options.stiffness_scale * scale)
     try:
         return simulate(cs, ctrl, reference=reference, duration=duration or run_duration, method="rk4",
-                        dt=None if runs is None else runs.dt_s, options=options)
-    except (SimulationError, SceneError):
-        return None
+                        dt=None if runs is None else runs.dt_s, options=options), ""
+    except (SimulationError, SceneError) as exc:
+        return None, str(exc)
 
 
-__all__ = ["FIGURES", "tolerance_study"]
+__all__ = ["FIGURES", "sampling_notes", "tolerance_study"]
