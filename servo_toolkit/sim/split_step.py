@@ -30,6 +30,14 @@ fourth order. Where the continued motion does not switch within the step (a reve
 first stage's slope predicted, a stage that crossed a speed's zero or broke away from its
 estimate of the state, when the continued motion does not) that motion is the step.
 
+After a switch the rest of the step, [t + tau, t + dt], is a step of its own: its plain RK4
+step (:func:`rk4_checked`) is checked with the fixed-step loops' own test (:func:`switch_ahead`
+from its first stage's slopes and its result, :func:`stage_turns` on its stages) and, where a
+second switch falls within it (the other node reverses too, the node just stuck breaks away
+again, the motor side and the load of a two-mass chain switch together), split again in
+turn, up to :data:`MAX_SWITCHES` switches per step, after which the rest is that plain step.
+A step with one switch costs what it did: the rest's plain step is the one kept.
+
 Everything here is compiled once as functions of their own (called at switches only), with
 the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
 """
