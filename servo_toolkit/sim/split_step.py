@@ -30,6 +30,14 @@ fourth order. Where the continued motion does not switch within the step (a reve
 first stage's slope predicted, a stage that crossed a speed's zero or broke away from its
 estimate of the state, when the continued motion does not) that motion is the step.
 
+After a switch the rest of the step, [t + tau, t + dt], is a step of its own: its plain RK4
+step (:func:`rk4_checked`) is checked with the fixed-step loops' own test (:func:`switch_ahead`
+from its first stage's slopes and its result, :func:`stage_turns` on its stages) and, where a
+second switch falls within it (the other node reverses too, the node just stuck breaks away
+again, the motor side and the load of a two-mass chain switch together), split again in
+turn, up to :data:`MAX_SWITCHES` switches per step, after which the rest is that plain step.
+A step with one switch costs what it did: the rest's plain step is the one kept.
+
 Everything here is compiled once as functions of their own (called at switches only), with
 the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
 """
@@ -43,6 +51,8 @@ from .layout import DIR_L, DIR_M, HOLD_GAUGE, NX_PHYS, TS_L, TS_M
 TAU_TOL = 1e-12
 #: most Illinois iterations per switch (about 6 to 10 are taken)
 MAX_ITER = 60
+#: most switches located within one step; the rest of the step after the last is one RK4 step
+MAX_SWITCHES = 4
 #: a breakaway level out of reach: the node held at rest
 HELD = 1e300
 #: the speed (rad/s, m/s) a node breaking away leaves rest with: its direction only
@@ -148,6 +158,46 @@ def stage_turns(pd, pd_stage, qd, qd_stage):
     return pd * pd_stage < 0.0 or qd * qd_stage < 0.0
 
 
+@jit  # the rest of a split step
+def rk4_checked(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4):
+    """:func:`rk4_step` that also tells whether a node carrying friction may switch within the
+    step, by the fixed-step loops' own test: :func:`switch_ahead` from the first stage's slopes
+    and the result, or a stage whose speed left a node's direction (:func:`stage_turns`).
+    Returns ``(p, pd, q, qd, cur, xi, ahead)``."""
+    nx = x.size
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    u0 = u1 = u2 = u3 = u4 = u5 = 0.0
+    g1 = g3 = 0.0
+    turned = False
+    for stage in range(4):
+        c, w = rk4_coefficients(stage, h)
+        kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
+        if cont and stage > 0:
+            kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
+            for j in range(NX_PHYS, nx):
+                xs[j] = x[j] + c * kin[j]
+        if stage > 0:
+            turned = turned or stage_turns(pd, pd + c * s1, qd, qd + c * s3)
+        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
+            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+            P, T, iref, x if stage == 0 else xs, kout)
+        if stage == 0:
+            g1, g3 = s1, s3
+        u0 += w * s0
+        u1 += w * s1
+        u2 += w * s2
+        u3 += w * s3
+        u4 += w * s4
+        u5 += w * s5
+    sixth = h / 6.0
+    if cont:
+        for j in range(NX_PHYS, nx):
+            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    pd_new, qd_new = pd + sixth * u1, qd + sixth * u3
+    ahead = turned or switch_ahead(pd, pd_new, pd + h * g1, qd, qd_new, qd + h * g3, P, rigid)
+    return p + sixth * u0, pd_new, q + sixth * u2, qd_new, cur + sixth * u4, xi + sixth * u5, ahead
+
+
 @jit
 def _trial(t, h, p, pd, q, qd, cur, xi, s, W, T, iref, cont, x, x0, xs, k1, k2, k3, k4):
     """An RK4 step of length h from the step's start with the parameters W (x[7:] restored
@@ -213,15 +263,13 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
     return a if breakaway else b  # a breakaway: still held at a; a reversal: just past the zero
 
 
-@jit  # called at a switch only
-def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
+@jit
+def _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
                   x0, PW):
-    """The step from t of a node that may switch within it (:func:`switch_ahead`, or a stage
-    whose speed left the node's direction), split at the switch located within the step
-    (module doc): RK4 to tau, the node at rest there, RK4 for the rest; without a switch
-    along the continued motion, one RK4 step. Returns the step's new ``(p, pd, q, qd, cur,
-    xi)`` (x[7:] advanced in place when they move). ``x0`` (the size of x) and ``PW`` (3 rows
-    the size of P) are scratch: the step allocates nothing."""
+    """The first switch within the step from t (module doc): ``(True, p, pd, q, qd, cur, xi,
+    tau)`` the state at t + tau just after it (RK4 to tau, the node at rest there or leaving
+    it; x[7:] advanced to t + tau), else ``(False, ...)`` with the step's result (the
+    continued motion, or the node held all through) and tau = dt."""
     for j in range(x.size):
         x0[j] = x[j]
     load = not rigid and P[TS_L] > 0.0  # the load carries friction of its own
@@ -250,7 +298,7 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
             node, g0, g1 = 1, qd, r[3]
         else:  # the continued motion does not reverse within the step: it is the step (a stage of
             # the plain step that crossed a speed's zero made the friction jump there)
-            return r
+            return False, r[0], r[1], r[2], r[3], r[4], r[5], dt
         tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
                         k1, k2, k3, k4, node, False)
     else:
@@ -261,13 +309,14 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
         g1 = _held_moment(t, dt, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4, node)
         if g1 <= 0.0:  # held at the step's end: at rest all through it (a stage of the plain
             # step, from its estimate of the state, broke away too early)
-            return _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+            r = _trial(t, dt, p, pd, q, qd, cur, xi, s, H, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
+            return False, r[0], r[1], r[2], r[3], r[4], r[5], dt
         g0 = _held_moment(t, 0.0, p, pd, q, qd, cur, xi, s, H, Z, T, iref, cont, x, x0, xs, k1, k2, k3, k4,
                           node)
         if g0 < 0.0:
             tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T,
                             iref, cont, x, x0, xs, k1, k2, k3, k4, node, True)
-    # RK4 to tau (the continued motion, or held at rest), the node at rest there, RK4 on
+    # RK4 to tau (the continued motion, or held at rest), the node at rest there
     r = _trial(t, tau, p, pd, q, qd, cur, xi, s, H if breakaway else W, T, iref, cont, x, x0, xs, k1, k2, k3, k4)
     p, pd, q, qd, cur, xi = r
     if node == 0:
@@ -294,4 +343,36 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
                 qd = v
         else:
             qd = v
-    return rk4_step(t + tau, dt - tau, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
+    return True, p, pd, q, qd, cur, xi, tau
+
+
+@jit  # called at a switch only
+def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
+                  x0, PW):
+    """The step from t of a node that may switch within it (:func:`switch_ahead`, or a stage
+    whose speed left the node's direction), split at the switches located within the step
+    (module doc): RK4 to the first switch tau, the node at rest there (or leaving it), and the
+    rest [t + tau, t + dt] taken as a step of its own (:func:`rk4_checked`): split again when
+    the callers' test finds a switch within it, up to :data:`MAX_SWITCHES` switches, after
+    which the rest is one plain RK4 step; without a switch along the continued motion, one
+    RK4 step. Returns the step's new ``(p, pd, q, qd, cur, xi)`` (x[7:] advanced in place
+    when they move). ``x0`` (the size of x) and ``PW`` (3 rows the size of P) are scratch: the
+    step allocates nothing."""
+    n = 0
+    while True:
+        split, p, pd, q, qd, cur, xi, tau = _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid,
+                                                          x, xs, k1, k2, k3, k4, pd_new, qd_new, x0, PW)
+        if not split:
+            return p, pd, q, qd, cur, xi
+        n += 1
+        t += tau
+        dt -= tau
+        for j in range(x.size):  # x[7:] at the switch, should the rest be split again
+            x0[j] = x[j]
+        p1, pd1, q1, qd1, cur1, xi1, ahead = rk4_checked(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid,
+                                                          x, xs, k1, k2, k3, k4)
+        if not ahead or n >= MAX_SWITCHES:
+            return p1, pd1, q1, qd1, cur1, xi1
+        for j in range(x.size):
+            x[j] = x0[j]
+        pd_new, qd_new = pd1, qd1

@@ -1,0 +1,92 @@
+"""Two friction switches within one fixed step: the motor and the load of a stiff two-mass
+chain, each with friction that holds, reverse 26 to 32 microseconds apart at each of the sine
+voltage's three reversals. The RK4 step locates both (the rest of a split step is checked and split again), so
+its error against the event-driven reference solver falls at fourth order; with the second
+switch left inside a plain RK4 step the error stalled at about 2e-4 of the swing from 1e-3 s
+down to 1.25e-4 s."""
+
+import math
+
+import numpy as np
+import pytest
+
+from servo_toolkit.components.compliance import Compliance, Load
+from servo_toolkit.components.motor import DCMotor
+from servo_toolkit.scene.loader import Scene
+from servo_toolkit.sim import ModelOptions, Reference, build_model, run
+
+KT, R = 0.1, 1.0
+J_M, J_L = 1e-3, 1e-2  # kg*m^2; both nodes decelerate alike under their Coulomb levels (10 rad/s^2)
+TC_M, TS_M, TC_L, TS_L = 0.01, 0.015, 0.1, 0.15  # N*m
+K = 2000.0  # N*m/rad: the nodes move together and stop nearly together
+SINE = Reference.voltage(0.0, 3.0, 2.0)
+DURATION, FINE, OUT = 1.0, 1e-5, 2.5e-4
+DTS = (2.5e-4, 1.25e-4, 6.25e-5)
+
+
+@pytest.fixture(scope="module")
+def case():
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=J_M,
+                    viscous_friction=0.0, coulomb_friction=TC_M, static_friction=TS_M, voltage_limit=100.0,
+                    current_limit=50.0)
+    sc = Scene("two nodes", motor=motor, stages=(Compliance("shaft", K),),
+               load=Load(inertia=J_L, coulomb_friction=TC_L, static_friction=TS_L))
+    model = build_model(sc, None, ModelOptions(backlash=False, friction="stick"))
+    ref = run(model, SINE, DURATION, method="reference", output_dt=FINE, rtol=1e-12, atol=1e-12)
+    return model, ref
+
+
+def reversals(times, v):
+    """(start, end) of the record intervals over which the speed v changes sign."""
+    i = np.flatnonzero(v[:-1] * v[1:] < 0.0)
+    return list(zip(times[i], times[i + 1]))
+
+
+def test_rk4_locates_two_switches_in_one_step_at_fourth_order(case):
+    model, ref = case
+    assert not model.rigid
+    # the reference: the motor and the load reverse within 5e-5 s of each other (record brackets), three times,
+    # and for every dt at least one of these pairs falls inside one step
+    motor, load = reversals(ref.times, ref.states[:, 1]), reversals(ref.times, ref.states[:, 3])
+    assert len(motor) == 3
+    load = [min(load, key=lambda lo: abs(lo[0] - m[0])) for m in motor]  # the load's reversal nearest each
+    for dt in DTS:
+        assert all(max(m[1], lo[1]) - min(m[0], lo[0]) < 5e-5 for m, lo in zip(motor, load))
+        # both record brackets within one step [k dt, (k + 1) dt]
+        one = [max(m[1], lo[1]) <= (math.floor(min(m[0], lo[0]) / dt + 1e-9) + 1) * dt + 1e-12
+               for m, lo in zip(motor, load)]
+        assert any(one), dt
+    every = round(OUT / FINE)
+    truth = ref.states[::every][:, [0, 2]]
+    amp = np.ptp(truth[:, 1])
+    errors = []
+    for dt in DTS:
+        r = run(model, SINE, DURATION, method="rk4", dt=dt, output_dt=OUT)
+        np.testing.assert_allclose(r.times, ref.times[::every], rtol=0, atol=1e-12)
+        errors.append(float(np.abs(r.states[:, [0, 2]] - truth).max() / amp))
+    orders = [math.log2(a / b) for a, b in zip(errors[:-1], errors[1:])]
+    assert errors[-1] < 1e-7 and min(orders) > 3.5, (errors, orders)
+
+
+def test_the_monte_carlo_lanes_split_twice_as_the_single_run(case):
+    """The batched lanes hand a step to the same split step: lanes with the swing varied about
+    the case's equal the per-variant loop, and the case's own lane ends where the reference
+    does at 1e-4 s (2.0e-7 of the swing seen; 6.8e-5 with the second switch left inside a
+    plain step)."""
+    from servo_toolkit.sim import layout as lo
+    from servo_toolkit.sim.batch_lanes import W, block_kind
+    from servo_toolkit.sim.reference import fill, initial_state
+
+    from .test_batch_lanes import DT, _assert_equal, _both
+
+    model, ref = case
+    P = np.array([fill(model, SINE)] * (W + 1))
+    P[1:, lo.REF_A] = np.linspace(2.9, 3.1, W)
+    X0 = np.array([initial_state(model, p) for p in P])
+    assert block_kind(np.ascontiguousarray(P), 0, W)[0]  # in lanes
+    steps = round(DURATION / DT)
+    one, lanes = _both(P, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 0, steps=steps)
+    _assert_equal(one, lanes)
+    amp = np.ptp(ref.states[:, 2])
+    end = np.abs(lanes[0][0, [0, 2]] - ref.states[-1, [0, 2]]).max() / amp
+    assert end < 1e-6, end
