@@ -95,6 +95,16 @@ def _failures(design_result, qdesign, reason=None) -> tuple:
     return tuple(out)
 
 
+def design_failures(design_result) -> tuple:
+    """The design's own closed loop, unstable: the exported controller does not hold the
+    plant, whatever the number format (an export of it is never silent)."""
+    m = design_result.margins
+    if m.closed_loop_stable:
+        return ()
+    return (f"the designed closed loop (without quantization) is unstable ({m.instability}): the exported "
+            "controller does not stabilise the plant",)
+
+
 def _lost_filters(rows) -> tuple:
     """A filter whose complex pair became real is gone: say so."""
     return tuple(f"quantization turns the {r['what']}s of {r['section']} ({r['design_hz']:.4g} Hz) real: "
@@ -117,7 +127,8 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         Quantize the motion controller; the margins are recomputed with the quantized
         coefficients and checked against the design's requirements: ``result.failures``
         names every requirement the quantized loop misses (and whether the design without
-        quantization already misses it).
+        quantization already misses it). In either format, a design whose own closed loop is
+        unstable is a failure (``result.failures`` says so first; the files are still written).
     current_sample_time : float, optional
         Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
     inputs : sequence of path
@@ -136,14 +147,16 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     blocks = blocks_of(design_result, scene, current_sample_time)
     ctrl = design_result.controller
     motion = ct.sample_system(ctrl.motion, ctrl.sample_time, method="tustin")
-    result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s)
+    result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s,
+                          failures=design_failures(design_result))
     if fixed_point is not None:
         q = quantize(blocks, scene.motor, fixed_point)
         qdesign, reason = evaluate_quantized(scene, design_result, quantized_controller(design_result, q))
         shifts = filter_shifts(blocks, q)
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
-                         failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
+                         failures=result.failures + _failures(design_result, qdesign, reason)
+                         + _lost_filters(shifts))
     command = command_export(design_result, scene, fixed_point)
     result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",
