@@ -258,6 +258,11 @@ GOOD = "frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n8,22,-95\n
     ("time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,1,0,0,0\n0.001,1,0,0,0\n0.003,1,0,0,0\n",
      "row 4", "equally spaced"),
     ("frequency_hz,gain_db,phase_deg\n", "row 2", "no data rows"),
+    (GOOD.replace("phase_deg", "phase_rad"), "header", "column 3 is 'phase_rad': the unit of phase must be deg"),
+    ("frequency_hz,gain_db\n1,40\n2,34\n", "header", "column 3 (phase_deg) is missing"),
+    ("time_s,command_m,output_mm,current_A\n0,0,0,0\n", "header", "column 3 is 'output_mm': the unit of output must be m"),
+    ("time_ms,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,0,0,0,0\n", "header",
+     "column 1 is 'time_ms': the unit of time must be s"),
     ("frequency_hz,gain_db,phase_deg\n1,40,-90\n2,x,-91\n", "row 3", "must be numbers"),
 ])
 def test_bad_data_is_refused_with_one_line(tmp_path, capsys, text, where, rule):
