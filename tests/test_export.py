@@ -516,3 +516,23 @@ def test_c_calls_no_library(ema, tmp_path, fmt):
     if nm:
         undefined = subprocess.run([nm, "-u", str(obj)], check=True, capture_output=True, text=True).stdout
         assert undefined.strip() == ""
+
+
+def test_q15_too_coarse_for_the_loop_gains_fails(tmp_path):
+    """The EMPS cart's loop in q15: half a count of the position (the pi full scale over
+    2^15) through the position gain and 100 samples of the speed PI's integral alone moves
+    i_ref by more than the 40 A current limit (a closed form on the exported coefficients),
+    so the stated rounding bound must reach the limit and the export must fail saying so,
+    however good the quantized coefficients' margins; q31 holds."""
+    scene = load_scene(SCENES / "emps.toml")
+    d = design(scene, progress=False)
+    r = export(d, scene, fixed_point="q15")
+    (kpos, *_), (kp, k1, _) = r.blocks.position[0].b, r.blocks.speed.b
+    steps = round(r.bound_horizon_s / r.blocks.sample_time)
+    input_alone = 0.5 * r.quantized.lsb["theta"] * abs(kpos) * (abs(kp) + steps * abs(kp + k1))
+    assert input_alone > r.blocks.current_limit
+    assert r.error_bound >= input_alone and not r.passed
+    assert any("rounding bound on i_ref" in f and "current limit" in f for f in r.failures), r.failures
+    assert r.quantized_design.margins.closed_loop_stable  # the margins alone would not show it
+    r31 = export(d, scene, fixed_point="q31")
+    assert r31.passed and r31.error_bound < 0.01 * r31.blocks.current_limit

@@ -105,6 +105,23 @@ def design_failures(design_result) -> tuple:
             "controller does not stabilise the plant",)
 
 
+def resolution_failures(result) -> tuple:
+    """The fixed-point code's worst-case i_ref rounding error over the stated horizon at or
+    beyond the current limit: its signals are too coarse for the loop's gains (the half count
+    of the position error alone, through the position gain and the speed PI's integral, can
+    command the whole current range), and the margins of the quantized coefficients say
+    nothing about it."""
+    q = result.quantized
+    bound, limit = result.error_bound, result.blocks.current_limit
+    if not bound >= limit:
+        return ()
+    hint = "; q31 keeps more bits" if q.fmt == "q15" else ""
+    return (f"the {q.fmt} rounding bound on i_ref ({bound:.3g} A over {result.bound_horizon_s:g} s) reaches the "
+            f"current limit ({limit:g} A): the signal LSBs (position {q.lsb['theta']:.3g} per count of a "
+            f"{q.lsb['theta'] * 2**q.signal_bits:.3g} full scale, motor speed {q.lsb['omega']:.3g} rad/s, current "
+            f"{q.lsb['current']:.3g} A) are too coarse for this loop's gains{hint}",)
+
+
 def _lost_filters(rows) -> tuple:
     """A filter whose complex pair became real is gone: say so."""
     return tuple(f"quantization turns the {r['what']}s of {r['section']} ({r['design_hz']:.4g} Hz) real: "
@@ -157,6 +174,7 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
                          failures=result.failures + _failures(design_result, qdesign, reason)
                          + _lost_filters(shifts))
+        result = replace(result, failures=result.failures + resolution_failures(result))
     command = command_export(design_result, scene, fixed_point)
     result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",
