@@ -13,6 +13,11 @@ SIGNALS = {"theta_ref": "rad", "theta": "rad", "omega_m": "rad/s (motor)", "moto
            "i_ref": "A", "i": "A", "v": "V"}
 
 
+def signals(output_unit: str = "rad") -> dict:
+    """Each signal's unit (theta_ref and theta in the output's: rad or m)."""
+    return {**SIGNALS, "theta_ref": output_unit, "theta": output_unit}
+
+
 def motion_dict(sys_d, states=()) -> dict:
     """``A``, ``B``, ``C``, ``D``, ``sample_time_s``, ``inputs``, ``outputs`` of a discrete system."""
     return {"A": np.atleast_2d(sys_d.A).tolist(), "B": np.atleast_2d(sys_d.B).tolist(),
@@ -90,7 +95,7 @@ class ExportResult:
         """The content of ``controller.json``."""
         out = {"scene": self.scene_name, "generator": "servo_toolkit export",
                "format": "float64" if self.quantized is None else self.quantized.fmt,
-               "signals": SIGNALS, "motion": motion_dict(self.motion, self.motion.state_labels),
+               "signals": signals(self.blocks.output_unit), "motion": motion_dict(self.motion, self.motion.state_labels),
                "blocks": self.blocks.to_dict(), "design": self._design_dict(),
                "passed": self.passed, "failures": list(self.failures)}
         if self.command is not None:
