@@ -257,6 +257,8 @@ GOOD = "frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n8,22,-95\n
     ("frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n", "(data)", "need at least 4"),
     ("time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,1,0,0,0\n0.001,1,0,0,0\n0.003,1,0,0,0\n",
      "row 4", "equally spaced"),
+    ("time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,1,0,0,0\n0.001,1,0,0,0\n0.001,1,0,0,0\n",
+     "row 4", "time_s must increase strictly from row to row (0.001 after 0.001: a duplicate)"),
     ("frequency_hz,gain_db,phase_deg\n", "row 2", "no data rows"),
     (GOOD.replace("phase_deg", "phase_rad"), "header", "column 3 is 'phase_rad': the unit of phase must be deg"),
     ("frequency_hz,gain_db\n1,40\n2,34\n", "header", "column 3 (phase_deg) is missing"),

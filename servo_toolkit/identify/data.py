@@ -178,7 +178,8 @@ def check_time(data) -> None:
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)
     if bad.size:
-        raise SceneError(f"row {bad[0] + 3}", "time_s must increase strictly from row to row", src)
+        raise SceneError(f"row {bad[0] + 3}", f"time_s must increase strictly from row to row ({t[bad[0] + 1]:.9g} "
+                         f"after {t[bad[0]]:.9g}{': a duplicate' if t[bad[0] + 1] == t[bad[0]] else ''})", src)
     dt = step[0]
     bad = np.flatnonzero(np.abs(step - dt) > 1e-6 * dt + 1e-12)
     if bad.size:
