@@ -11,7 +11,8 @@ Frequency responses
 Voltage-driven time traces
     Current, motor angle and output angle, each divided by its own noise (the scatter of
     its measurement, at least an encoder count's rounding noise), so the floor is 1 and the
-    intervals weigh each channel by its noise; features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
+    intervals weigh each channel by its noise; each angle's zero fitted (the mean difference
+    from the model's), so no one sample's noise shifts a trace; features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
 Closed-loop time traces
     Output position and motor current of the nonlinear closed loop (:mod:`.loop_model`),
     each divided by its own noise (the scatter of its measurement), so the floor is 1 and
@@ -118,7 +119,8 @@ def voltage_traces(data) -> Comparison:
 
     def evaluate(scene):
         model = time_response(scene, data.time_s, data.voltage_V)
-        r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, noise)])
+        r = np.concatenate([(y - m - (k > 0) * np.mean(y - m)) / s
+                            for k, (y, m, s) in enumerate(zip(model, measured, noise))])
         return model, r, step_mismatch(step_features(data.time_s, data.voltage_V, model[1]), features)
     floor = None if scatter_sd(measured[0]) is None else 1.0
     return Comparison(evaluate, floor, 3, data.time_s - data.time_s[0], "s")
