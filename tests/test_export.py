@@ -561,3 +561,24 @@ def test_q15_too_coarse_for_the_loop_gains_fails(emps):
     assert r.quantized_design.margins.closed_loop_stable  # the margins alone would not show it
     r31 = export(d, scene, fixed_point="q31")
     assert r31.passed and r31.error_bound < 0.01 * r31.blocks.current_limit
+
+
+@pytest.mark.parametrize("fmt", ["q15", "q31"])
+def test_a_gain_that_overflows_the_fixed_point_code_is_named(ema, fmt):
+    """A speed PI 1e12 times the design's: its n0 in counts per count times a full-scale
+    input (2^15 or 2^29 counts), scaled to the state's fraction bits, is far beyond the 2^63
+    of the C's int64 sums (worked by hand from the stored integer and its format); the
+    design's own coefficients stay below 2^60."""
+    from servo_toolkit.export.blocks import blocks_of
+    from servo_toolkit.export.build import overflow_failures
+    from servo_toolkit.export.quantize import FORMATS, quantize
+    scene, d = ema
+    blocks = blocks_of(d, scene)
+    assert overflow_failures(quantize(blocks, scene.motor, fmt)) == ()
+    big = dataclasses.replace(blocks, speed=dataclasses.replace(blocks.speed, b=tuple(1e12 * v for v in blocks.speed.b)))
+    q = quantize(big, scene.motor, fmt)
+    _, s_bits, guard = FORMATS[fmt]
+    n0, f0 = q.speed.b_int[0], q.speed.fb[0]
+    assert abs(n0) * 2.0 ** (s_bits + max(0, guard - f0)) > 2.0**63
+    failures = overflow_failures(q)
+    assert failures and failures[0].startswith("speed_pi n0 = ") and f"overflows {fmt}" in failures[0], failures

@@ -122,6 +122,30 @@ def resolution_failures(result) -> tuple:
             f"{q.lsb['current']:.3g} A) are too coarse for this loop's gains{hint}",)
 
 
+#: largest magnitude of one product term in the C's int64 sums (8 terms at most, 2^63 the range)
+PRODUCT_LIMIT = 2.0**60
+
+
+def overflow_failures(quantized) -> tuple:
+    """Each stored coefficient whose product with a full-scale signal (the input at its full
+    scale, the state at ``SERVO_STATE_MAX``), scaled to the state's fraction bits, leaves the
+    64-bit range of the C's sums: named with its value and format (the code would overflow,
+    not saturate)."""
+    from .quantize import q_name
+    from .sensitivity import COEFFICIENTS
+    s, g, word = quantized.signal_bits, quantized.guard, quantized.word
+    out = []
+    for sec in quantized.sections():
+        stored = [(v, f, s + max(0, g - f)) for v, f in zip(sec.b_int, sec.fb)]
+        stored += [(v, f, s + g + max(0, -f)) for v, f in zip(sec.a_int, sec.fa)]
+        for name, (v, f, bits) in zip(COEFFICIENTS, stored):
+            if abs(v) * 2.0**bits >= PRODUCT_LIMIT:
+                out.append(f"{sec.name} {name} = {v * 2.0**-f:.6g} counts per count ({q_name(word, f)}) overflows "
+                           f"{quantized.fmt}: its product with a full-scale signal, {abs(v) * 2.0**bits:.3g}, "
+                           f"exceeds the 2^60 the fixed-point code's 64-bit sums allow")
+    return tuple(out)
+
+
 def _lost_filters(rows) -> tuple:
     """A filter whose complex pair became real is gone: say so."""
     return tuple(f"quantization turns the {r['what']}s of {r['section']} ({r['design_hz']:.4g} Hz) real: "
@@ -174,7 +198,7 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
                          failures=result.failures + _failures(design_result, qdesign, reason)
                          + _lost_filters(shifts))
-        result = replace(result, failures=result.failures + resolution_failures(result))
+        result = replace(result, failures=overflow_failures(q) + result.failures + resolution_failures(result))
     command = command_export(design_result, scene, fixed_point)
     result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",
