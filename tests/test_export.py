@@ -516,3 +516,69 @@ def test_c_calls_no_library(ema, tmp_path, fmt):
     if nm:
         undefined = subprocess.run([nm, "-u", str(obj)], check=True, capture_output=True, text=True).stdout
         assert undefined.strip() == ""
+
+
+@pytest.fixture(scope="module")
+def emps():
+    """The EMPS: a linear cart (output position in m) in a position loop at 1 kHz."""
+    scene = load_scene(SCENES / "emps.toml")
+    return scene, design(scene, progress=False)
+
+
+def test_a_linear_output_is_exported_in_m(emps, tmp_path):
+    """The EMPS's position is the cart's travel: its controller reads theta in m (the
+    loop's own output, independent of the export), and every exported label says m."""
+    from servo_toolkit.loop import linear_closed_loop
+    scene, d = emps
+    assert scene.drivetrain.output_unit == "m"
+    # the exported position gain is the loop's, per m: 2 pi / lead (10 mm) motor rad per m, times Kp
+    r = export(d, scene, tmp_path / "drive", fixed_point="q15")
+    assert r.blocks.position[0].b[0] == pytest.approx(2 * math.pi / 0.010 * d.motion.gains["kp"], rel=1e-9)
+    assert linear_closed_loop(scene, d.controller, d.q0)["theta", "theta_ref"].dcgain() == pytest.approx(1, rel=1e-6)
+    written = json.loads((tmp_path / "drive" / "controller.json").read_text())
+    assert written["signals"]["theta"] == "m" and written["signals"]["theta_ref"] == "m"
+    assert written["blocks"]["position"][0]["input_unit"] == "m" and written["blocks"]["output_unit"] == "m"
+    assert "theta_m" in written["quantized"]["lsb"] and "theta_rad" not in written["quantized"]["lsb"]
+    h = (tmp_path / "drive" / "servo_controller.h").read_text()
+    assert "output position command and measurement, m" in h and "SERVO_THETA_LSB_M " in h
+    assert "SERVO_THETA_LSB_RAD" not in h and "(m -> rad/s)" in r.table()
+
+
+def test_q15_too_coarse_for_the_loop_gains_fails(emps):
+    """The EMPS cart's loop in q15: half a count of the position (the pi full scale over
+    2^15) through the position gain and 100 samples of the speed PI's integral alone moves
+    i_ref by more than the 40 A current limit (a closed form on the exported coefficients),
+    so the stated rounding bound must reach the limit and the export must fail saying so,
+    however good the quantized coefficients' margins; q31 holds."""
+    scene, d = emps
+    r = export(d, scene, fixed_point="q15")
+    (kpos, *_), (kp, k1, _) = r.blocks.position[0].b, r.blocks.speed.b
+    steps = round(r.bound_horizon_s / r.blocks.sample_time)
+    input_alone = 0.5 * r.quantized.lsb["theta"] * abs(kpos) * (abs(kp) + steps * abs(kp + k1))
+    assert input_alone > r.blocks.current_limit
+    assert r.error_bound >= input_alone and not r.passed
+    assert any("rounding bound on i_ref" in f and "current limit" in f for f in r.failures), r.failures
+    assert r.quantized_design.margins.closed_loop_stable  # the margins alone would not show it
+    r31 = export(d, scene, fixed_point="q31")
+    assert r31.passed and r31.error_bound < 0.01 * r31.blocks.current_limit
+
+
+@pytest.mark.parametrize("fmt", ["q15", "q31"])
+def test_a_gain_that_overflows_the_fixed_point_code_is_named(ema, fmt):
+    """A speed PI 1e12 times the design's: its n0 in counts per count times a full-scale
+    input (2^15 or 2^29 counts), scaled to the state's fraction bits, is far beyond the 2^63
+    of the C's int64 sums (worked by hand from the stored integer and its format); the
+    design's own coefficients stay below 2^60."""
+    from servo_toolkit.export.blocks import blocks_of
+    from servo_toolkit.export.build import overflow_failures
+    from servo_toolkit.export.quantize import FORMATS, quantize
+    scene, d = ema
+    blocks = blocks_of(d, scene)
+    assert overflow_failures(quantize(blocks, scene.motor, fmt)) == ()
+    big = dataclasses.replace(blocks, speed=dataclasses.replace(blocks.speed, b=tuple(1e12 * v for v in blocks.speed.b)))
+    q = quantize(big, scene.motor, fmt)
+    _, s_bits, guard = FORMATS[fmt]
+    n0, f0 = q.speed.b_int[0], q.speed.fb[0]
+    assert abs(n0) * 2.0 ** (s_bits + max(0, guard - f0)) > 2.0**63
+    failures = overflow_failures(q)
+    assert failures and failures[0].startswith("speed_pi n0 = ") and f"overflows {fmt}" in failures[0], failures

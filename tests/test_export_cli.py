@@ -129,3 +129,28 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
         writer.write_files(tmp_path / "out", {"a.txt": "1", "b.txt": "2"})
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
     assert (tmp_path / "out" / "a.txt").read_text() == "old"
+
+
+def test_export_of_an_unstable_design_says_so_and_exits_1(tmp_path, capsys):
+    """At Ts = 1 s the reference EMA's cascade cannot hold its drivetrain: its own closed
+    loop has poles in the right half-plane (python-control's poles, independent of the
+    export); the float export writes the files yet fails and says why."""
+    import control as ct
+
+    from servo_toolkit import design, load_scene
+    from servo_toolkit.loop import linear_closed_loop
+    out = tmp_path / "drive"
+    assert main(["export", str(EMA), "-o", str(out), "--sample-time", "1 s", "--json"]) == 1
+    cap = capsys.readouterr()
+    data = json.loads(cap.out)
+    assert data["passed"] is False and data["design"]["closed_loop_stable"] is False
+    assert "unstable" in data["failures"][0]
+    assert "designed closed loop (without quantization) is unstable" in cap.err
+    written = json.loads((out / "controller.json").read_text())
+    assert written["passed"] is False and written["design"]["closed_loop_stable"] is False
+    from dataclasses import replace
+    scene = load_scene(EMA)
+    scene = replace(scene, sensors=replace(scene.sensors, sample_time=1.0))
+    d = design(scene)
+    poles = ct.poles(linear_closed_loop(scene, d.controller, d.q0)["theta", "theta_ref"])
+    assert max(poles.real) > 0

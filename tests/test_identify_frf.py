@@ -115,6 +115,21 @@ def test_bad_frf_options_are_one_line(tmp_path, capsys, args, where):
     assert log.read_text() == before
 
 
+@pytest.mark.parametrize("header, row, where, rule", [
+    ("time_ms,current_A,motor_angle_rad", None, "header", "column 1 is 'time_ms': the time must be in s"),
+    ("time_s,current_A,motor_angle_rad", "0.007,nan,0", "row 9", "current_A must be a finite number (got nan)"),
+])
+def test_a_log_names_the_column_it_refuses(tmp_path, capsys, header, row, where, rule):
+    log = tmp_path / "log.csv"
+    rows = [f"{k * 1e-3:g},1,2" for k in range(40)]
+    if row is not None:
+        rows[7] = row
+    log.write_text(header + "\n" + "\n".join(rows) + "\n")
+    assert main(["frf", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and where in err and rule in err, err
+
+
 def test_a_log_without_time_is_refused(tmp_path, capsys):
     log = tmp_path / "log.csv"
     log.write_text("t,current_A,motor_angle_rad\n" + "0,1,2\n" * 40)

@@ -125,11 +125,12 @@ class Blocks:
     sample_time : float
         Motion-controller sample time (s).
     position : tuple of Biquad
-        Error (rad) -> motor speed command (rad/s) for the cascade, -> i_ref (A) otherwise.
+        Error (``output_unit``) -> motor speed command (rad/s) for the cascade, -> i_ref (A)
+        otherwise.
     speed : Biquad or None
         Motor speed error (rad/s) -> i_ref (A); None without a speed loop.
     ratio : float
-        N (motor rad per output rad), folded into ``position``.
+        N (motor rad per output rad, or per output m), folded into ``position``.
     current_limit : float
         A.
     current : CurrentLoop
@@ -138,6 +139,8 @@ class Blocks:
         The continuous design the sections come from: position gain ``kp`` (1/s), speed
         gains ``kv`` (A per output rad/s) and ``wvi`` (rad/s) or the compensator's gains, the
         filter and its parameters (rad/s).
+    output_unit : {"rad", "m"}
+        Unit of the output position (theta_ref, theta): an angle, or a travel in m.
     """
 
     structure: str
@@ -149,6 +152,7 @@ class Blocks:
     current: CurrentLoop
     estimator: Estimator
     design: dict = field(default_factory=dict)
+    output_unit: str = "rad"
 
     def sections(self) -> tuple:
         """Every section, in signal order."""
@@ -173,6 +177,7 @@ class Blocks:
 
     def to_dict(self) -> dict:
         return {"structure": self.structure, "sample_time_s": self.sample_time, "ratio": self.ratio,
+                "output_unit": self.output_unit,
                 "design": self.design,
                 "position": [s.to_dict() for s in self.position],
                 "speed": None if self.speed is None else self.speed.to_dict(),
@@ -264,17 +269,18 @@ def blocks_of(design_result, scene, current_sample_time: float | None = None) ->
         raise SceneError("design", "export needs a designed motion controller (design(scene)); this "
                          "result carries only a state space")
     (pn, pd), speed = motion.pieces()
+    unit = scene.drivetrain.output_unit
     if speed is None:
-        position = tustin_sections(pn, pd, ts, "position", "rad", "A")
+        position = tustin_sections(pn, pd, ts, "position", unit, "A")
         vel = None
     else:
         n = motion.ratio
-        position = tustin_sections(n * np.asarray(pn), pd, ts, "position", "rad", "rad/s")
+        position = tustin_sections(n * np.asarray(pn), pd, ts, "position", unit, "rad/s")
         vel = tustin_sections(np.asarray(speed[0]) / n, speed[1], ts, "speed_pi", "rad/s", "A")[0]
     info = {"gains": {k: float(v) for k, v in motion.gains.items()}, "filter": motion.filter,
             "filter_params": {k: float(v) for k, v in motion.filter_params.items()}, "method": "tustin"}
     return Blocks(motion.structure, ts, position, vel, motion.ratio, scene.motor.current_limit,
-                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl), info)
+                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl), info, unit)
 
 
 def tustin_to_continuous(sys_d: ct.StateSpace) -> ct.StateSpace:

@@ -95,6 +95,57 @@ def _failures(design_result, qdesign, reason=None) -> tuple:
     return tuple(out)
 
 
+def design_failures(design_result) -> tuple:
+    """The design's own closed loop, unstable: the exported controller does not hold the
+    plant, whatever the number format (an export of it is never silent)."""
+    m = design_result.margins
+    if m.closed_loop_stable:
+        return ()
+    return (f"the designed closed loop (without quantization) is unstable ({m.instability}): the exported "
+            "controller does not stabilise the plant",)
+
+
+def resolution_failures(result) -> tuple:
+    """The fixed-point code's worst-case i_ref rounding error over the stated horizon at or
+    beyond the current limit: its signals are too coarse for the loop's gains (the half count
+    of the position error alone, through the position gain and the speed PI's integral, can
+    command the whole current range), and the margins of the quantized coefficients say
+    nothing about it."""
+    q = result.quantized
+    bound, limit = result.error_bound, result.blocks.current_limit
+    if not bound >= limit:
+        return ()
+    hint = "; q31 keeps more bits" if q.fmt == "q15" else ""
+    return (f"the {q.fmt} rounding bound on i_ref ({bound:.3g} A over {result.bound_horizon_s:g} s) reaches the "
+            f"current limit ({limit:g} A): the signal LSBs (position {q.lsb['theta']:.3g} per count of a "
+            f"{q.lsb['theta'] * 2**q.signal_bits:.3g} full scale, motor speed {q.lsb['omega']:.3g} rad/s, current "
+            f"{q.lsb['current']:.3g} A) are too coarse for this loop's gains{hint}",)
+
+
+#: largest magnitude of one product term in the C's int64 sums (8 terms at most, 2^63 the range)
+PRODUCT_LIMIT = 2.0**60
+
+
+def overflow_failures(quantized) -> tuple:
+    """Each stored coefficient whose product with a full-scale signal (the input at its full
+    scale, the state at ``SERVO_STATE_MAX``), scaled to the state's fraction bits, leaves the
+    64-bit range of the C's sums: named with its value and format (the code would overflow,
+    not saturate)."""
+    from .quantize import q_name
+    from .sensitivity import COEFFICIENTS
+    s, g, word = quantized.signal_bits, quantized.guard, quantized.word
+    out = []
+    for sec in quantized.sections():
+        stored = [(v, f, s + max(0, g - f)) for v, f in zip(sec.b_int, sec.fb)]
+        stored += [(v, f, s + g + max(0, -f)) for v, f in zip(sec.a_int, sec.fa)]
+        for name, (v, f, bits) in zip(COEFFICIENTS, stored):
+            if abs(v) * 2.0**bits >= PRODUCT_LIMIT:
+                out.append(f"{sec.name} {name} = {v * 2.0**-f:.6g} counts per count ({q_name(word, f)}) overflows "
+                           f"{quantized.fmt}: its product with a full-scale signal, {abs(v) * 2.0**bits:.3g}, "
+                           f"exceeds the 2^60 the fixed-point code's 64-bit sums allow")
+    return tuple(out)
+
+
 def _lost_filters(rows) -> tuple:
     """A filter whose complex pair became real is gone: say so."""
     return tuple(f"quantization turns the {r['what']}s of {r['section']} ({r['design_hz']:.4g} Hz) real: "
@@ -117,7 +168,8 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         Quantize the motion controller; the margins are recomputed with the quantized
         coefficients and checked against the design's requirements: ``result.failures``
         names every requirement the quantized loop misses (and whether the design without
-        quantization already misses it).
+        quantization already misses it). In either format, a design whose own closed loop is
+        unstable is a failure (``result.failures`` says so first; the files are still written).
     current_sample_time : float, optional
         Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
     inputs : sequence of path
@@ -136,14 +188,17 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     blocks = blocks_of(design_result, scene, current_sample_time)
     ctrl = design_result.controller
     motion = ct.sample_system(ctrl.motion, ctrl.sample_time, method="tustin")
-    result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s)
+    result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s,
+                          failures=design_failures(design_result))
     if fixed_point is not None:
         q = quantize(blocks, scene.motor, fixed_point)
         qdesign, reason = evaluate_quantized(scene, design_result, quantized_controller(design_result, q))
         shifts = filter_shifts(blocks, q)
         result = replace(result, quantized=q, quantized_design=qdesign, filters=shifts,
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
-                         failures=_failures(design_result, qdesign, reason) + _lost_filters(shifts))
+                         failures=result.failures + _failures(design_result, qdesign, reason)
+                         + _lost_filters(shifts))
+        result = replace(result, failures=overflow_failures(q) + result.failures + resolution_failures(result))
     command = command_export(design_result, scene, fixed_point)
     result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",

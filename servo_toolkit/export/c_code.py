@@ -24,9 +24,11 @@ def _f(x: float) -> str:
 
 def _units_comment(blocks, quantized) -> str:
     fixed = quantized is not None
+    unit = blocks.output_unit
+    what = "angle" if unit == "rad" else "position"
     lines = ["Signals (engineering units):",
-             "  theta_ref, theta   output angle command and measurement, rad"
-             + (" (fixed point: counts of SERVO_THETA_LSB_RAD)" if fixed else ""),
+             f"  theta_ref, theta   output {what} command and measurement, {unit}"
+             + (f" (fixed point: counts of SERVO_THETA_LSB_{unit.upper()})" if fixed else ""),
              "  omega_m            motor speed, rad/s" + (" (counts of SERVO_OMEGA_LSB_RAD_S)" if fixed else ""),
              "  i_ref              current command, A" + (" (counts of SERVO_CURRENT_LSB_A)" if fixed else "")
              + f", clamped at +-{blocks.current_limit:g} A",
@@ -60,7 +62,7 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "", comm
             f"#define SERVO_CURRENT_LIMIT_A {_f(blocks.current_limit)}",
             f"#define SERVO_VOLTAGE_LIMIT_V {_f(blocks.current.voltage_limit)}"]
     if fixed:
-        defs += [f"#define SERVO_THETA_LSB_RAD {_f(quantized.lsb['theta'])}",
+        defs += [f"#define SERVO_THETA_LSB_{blocks.output_unit.upper()} {_f(quantized.lsb['theta'])}",
                  f"#define SERVO_OMEGA_LSB_RAD_S {_f(quantized.lsb['omega'])}",
                  f"#define SERVO_CURRENT_LSB_A {_f(quantized.lsb['current'])}",
                  f"#define SERVO_SIGNAL_MAX {2**quantized.signal_bits - 1}L"]

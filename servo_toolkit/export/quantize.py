@@ -17,7 +17,7 @@ by ``d2 = D(1)`` to the word's relative precision, however close to z = 1 it sit
 recursion adds the integer parts (``2 y``, ``y``) exactly. :mod:`.sensitivity` tells how far one
 LSB of each stored coefficient moves the section's poles and zeros.
 
-A signal is an integer count of its LSB: the output angle ``pi / 2^S`` rad, the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
+A signal is an integer count of its LSB: the output position ``pi / 2^S`` rad (m for a linear output), the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
 ``Wfs`` and ``Ifs`` the powers of two above the no-load speed ``Vlim / Ke`` and the current
 limit. In the integer domain a section's numerator carries ``LSB_in / LSB_out``.
 
@@ -185,7 +185,7 @@ class Quantized:
     def to_dict(self) -> dict:
         return {"format": self.fmt, "coefficient_word_bits": self.word + 1,
                 "signal_full_scale_counts": 2**self.signal_bits, "state_extra_fraction_bits": self.guard,
-                "lsb": {"theta_rad": self.lsb["theta"], "omega_m_rad_s": self.lsb["omega"],
+                "lsb": {f"theta_{self.blocks.output_unit}": self.lsb["theta"], "omega_m_rad_s": self.lsb["omega"],
                         "current_A": self.lsb["current"]},
                 "sections": [s.to_dict(self.word) for s in self.sections()],
                 "current_limit_counts": self.current_limit_counts}

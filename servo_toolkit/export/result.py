@@ -13,6 +13,11 @@ SIGNALS = {"theta_ref": "rad", "theta": "rad", "omega_m": "rad/s (motor)", "moto
            "i_ref": "A", "i": "A", "v": "V"}
 
 
+def signals(output_unit: str = "rad") -> dict:
+    """Each signal's unit (theta_ref and theta in the output's: rad or m)."""
+    return {**SIGNALS, "theta_ref": output_unit, "theta": output_unit}
+
+
 def motion_dict(sys_d, states=()) -> dict:
     """``A``, ``B``, ``C``, ``D``, ``sample_time_s``, ``inputs``, ``outputs`` of a discrete system."""
     return {"A": np.atleast_2d(sys_d.A).tolist(), "B": np.atleast_2d(sys_d.B).tolist(),
@@ -48,9 +53,10 @@ class ExportResult:
     directory : pathlib.Path or None
         Where the files were written (None: not written).
     failures : tuple of str
-        The requirements the quantized controller's loop misses, each named with its figure
-        and whether the design without quantization already misses it (empty: the quantized
-        loop meets every requirement of the scene).
+        First, in either format, the design's own closed loop when it is unstable; then the
+        requirements the quantized controller's loop misses, each named with its figure
+        and whether the design without quantization already misses it (empty: the loop
+        is stable and the quantized loop meets every requirement of the scene).
     bound_horizon_s : float
         Horizon of the stated fixed-point rounding bound.
     command : CommandExport or None
@@ -74,7 +80,8 @@ class ExportResult:
 
     @property
     def passed(self) -> bool:
-        """The export holds the requirements (always, without quantization)."""
+        """The designed loop is stable and (with quantization) the quantized loop holds the
+        requirements."""
         return not self.failures
 
     @property
@@ -88,8 +95,9 @@ class ExportResult:
         """The content of ``controller.json``."""
         out = {"scene": self.scene_name, "generator": "servo_toolkit export",
                "format": "float64" if self.quantized is None else self.quantized.fmt,
-               "signals": SIGNALS, "motion": motion_dict(self.motion, self.motion.state_labels),
-               "blocks": self.blocks.to_dict()}
+               "signals": signals(self.blocks.output_unit), "motion": motion_dict(self.motion, self.motion.state_labels),
+               "blocks": self.blocks.to_dict(), "design": self._design_dict(),
+               "passed": self.passed, "failures": list(self.failures)}
         if self.command is not None:
             out["command"] = self.command.to_dict()
         if self.quantized is not None:
@@ -106,13 +114,16 @@ class ExportResult:
                                 "passed": self.passed, "failures": list(self.failures)}
         return out
 
+    def _design_dict(self) -> dict:
+        m = self.design.margins
+        return {"gain_margin_db": m.gain_margin_db, "phase_margin_deg": m.phase_margin_deg,
+                "closed_loop_stable": bool(m.closed_loop_stable),
+                "instability": None if m.closed_loop_stable else m.instability}
+
     def to_dict(self) -> dict:
         """JSON-ready summary: ``controller.json`` plus where it was written and the verdict."""
         return {**self.controller_json(), "directory": None if self.directory is None else str(self.directory),
-                "files": sorted(self.files), "passed": self.passed,
-                "design": {"gain_margin_db": self.design.margins.gain_margin_db,
-                           "phase_margin_deg": self.design.margins.phase_margin_deg,
-                           "closed_loop_stable": bool(self.design.margins.closed_loop_stable)}}
+                "files": sorted(self.files)}
 
     def table(self) -> str:
         """Text summary for the command line."""
@@ -143,6 +154,8 @@ class ExportResult:
                              f"({worst['format']}), one LSB moves a root by "
                              f"{100 * worst['root_shift_relative_per_lsb']:.2g} %")
             lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantized loop within the requirements (every one met)"]
+        else:
+            lines += [f"  FAIL: {r}" for r in self.failures]
         if self.command is not None:
             from .command import describe
             lines += describe(self.command)

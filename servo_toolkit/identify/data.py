@@ -178,7 +178,8 @@ def check_time(data) -> None:
     step = np.diff(t)
     bad = np.flatnonzero(step <= 0)
     if bad.size:
-        raise SceneError(f"row {bad[0] + 3}", "time_s must increase strictly from row to row", src)
+        raise SceneError(f"row {bad[0] + 3}", f"time_s must increase strictly from row to row ({t[bad[0] + 1]:.9g} "
+                         f"after {t[bad[0]]:.9g}{': a duplicate' if t[bad[0] + 1] == t[bad[0]] else ''})", src)
     dt = step[0]
     bad = np.flatnonzero(np.abs(step - dt) > 1e-6 * dt + 1e-12)
     if bad.size:
@@ -196,6 +197,40 @@ def _averages(column, src) -> int:
         raise SceneError(f"row {bad[0] + 2}", f"averages must be the same on every row ({column[bad[0]]:g} here, "
                          f"{column[0]:g} on row 2)", src)
     return int(column[0])
+
+
+def _stem(name: str) -> str:
+    """A column's quantity without its unit (``phase_rad`` -> ``phase``)."""
+    return name.rsplit("_", 1)[0].lower() if "_" in name else name.lower()
+
+
+def header_rule(header: tuple, expected: str) -> str:
+    """The rule a header breaks, naming its first wrong or missing column when the kind of
+    data it means is recognisable (the quantity of its columns), else the headers read."""
+    names = {c.lower() for c in header}
+    if header and _stem(header[0]).startswith("freq") or names & {"gain_db", "phase_deg", "coherence"}:
+        kind, template, optional = "a frequency response", FREQUENCY_HEADER, ("coherence", "averages")
+    elif any(_stem(c) == "voltage" for c in header):
+        kind, template, optional = "voltage-driven time traces", TIME_HEADER, ()
+    elif any(_stem(c) in ("command", "output") for c in header):
+        unit = next((c.rsplit("_", 1)[1] for c in header if _stem(c) == "command" and "_" in c), "m")
+        template = LOOP_HEADERS.get(unit, LOOP_HEADERS["m"])
+        kind, optional = "closed-loop time traces", ()
+    else:
+        return f"expected {expected}, got {','.join(header)!r}"
+    full = template + optional
+    wanted = ",".join(template) + "".join(f"[,{o}" for o in optional) + "]" * len(optional)
+    for n, name in enumerate(full):
+        if n >= len(header):
+            if n < len(template):
+                return f"column {n + 1} ({name}) is missing; expected {wanted} ({kind})"
+            break
+        if header[n] != name:
+            why = (f"column names are case-sensitive: write {name}" if header[n].lower() == name.lower() else
+                   f"the unit of {_stem(name)} must be {name.split('_', 1)[1]}" if _stem(header[n]) == _stem(name)
+                   else f"column {n + 1} of {kind} is {name}")
+            return f"column {n + 1} is {header[n]!r}: {why}; expected {wanted}"
+    return f"column {len(full) + 1} ({header[len(full)]!r}) is not a column of {kind}; expected {wanted}"
 
 
 def read_data(path) -> FrequencyData | TimeData | LoopData:
@@ -233,7 +268,7 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
     elif loop_unit is not None:
         kind = "loop"
     else:
-        raise SceneError("header", f"expected {expected}, got {','.join(header)!r}", src)
+        raise SceneError("header", header_rule(header, expected), src)
     values = []
     for n, row in enumerate(rows[1:], start=2):
         if len(row) != len(header):

@@ -102,6 +102,10 @@ def read_time_log(path) -> TimeLog:
         raise SceneError("header", "empty file; expected a header time_s,SIGNAL,...", src)
     header = [c.strip() for c in rows[0]]
     times = [c for c in TIME_COLUMNS if c in header]
+    other_unit = next((c for c in header if c.lower().startswith(("time_", "t_")) and c not in TIME_COLUMNS), None)
+    if not times and other_unit is not None:
+        raise SceneError("header", f"column {header.index(other_unit) + 1} is {other_unit!r}: the time must be in s "
+                         f"(time_s, or t_s as simulate -o writes)", src)
     if len(times) != 1 or len(header) < 3 or len(set(header)) != len(header):
         raise SceneError("header", "expected one time column (time_s, or t_s as simulate -o writes) and at least "
                          f"two distinct signal names, got {','.join(header)!r}", src)
@@ -114,7 +118,8 @@ def read_time_log(path) -> TimeLog:
         except ValueError:
             raise SceneError(f"row {n}", f"values must be numbers (got {','.join(row)!r})", src) from None
         if not all(math.isfinite(x) for x in v):
-            raise SceneError(f"row {n}", "values must be finite numbers", src)
+            name = next(h for h, x in zip(header, v) if not math.isfinite(x))
+            raise SceneError(f"row {n}", f"{name} must be a finite number (got {row[header.index(name)].strip()})", src)
         values.append(v)
     if len(values) < 2 * MIN_SEGMENT:
         raise SceneError("(data)", f"{len(values)} rows; a spectrum needs at least {2 * MIN_SEGMENT}", src)

@@ -9,8 +9,10 @@ Frequency responses
     neper weighs as one radian), each weighted by sqrt(coherence). Features of a current
     -> speed response (:mod:`.features`).
 Voltage-driven time traces
-    Current, motor angle and output angle, each divided by the RMS of its measurement;
-    features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
+    Current, motor angle and output angle, each divided by its own noise (the scatter of
+    its measurement, at least an encoder count's rounding noise), so the floor is 1 and the
+    intervals weigh each channel by its noise; each angle's zero fitted (the mean difference
+    from the model's), so no one sample's noise shifts a trace; features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
 Closed-loop time traces
     Output position and motor current of the nonlinear closed loop (:mod:`.loop_model`),
     each divided by its own noise (the scatter of its measurement), so the floor is 1 and
@@ -106,21 +108,30 @@ def voltage_traces(data) -> Comparison:
     """Time traces of the voltage-driven linear plant."""
     measured = (data.current_A, data.motor_angle_rad - data.motor_angle_rad[0],
                 data.output_angle_rad - data.output_angle_rad[0])
-    scales = []
+    noise = []
     for name, m in zip(("current_A", "motor_angle_rad", "output_angle_rad"), measured):
         rms = float(np.sqrt(np.mean((m - m.mean()) ** 2)))
         if not rms > 0:
             raise SceneError(name, "is constant in the time traces; nothing to fit it to", data.source)
-        scales.append(rms)
+        sd = scatter_sd(m)
+        noise.append(rms if sd is None else max(sd, quantum_sd(m), 1e-9 * rms))
     features = step_features(data.time_s, data.voltage_V, measured[1])
 
     def evaluate(scene):
         model = time_response(scene, data.time_s, data.voltage_V)
-        r = np.concatenate([(y - m) / s for y, m, s in zip(model, measured, scales)])
+        r = np.concatenate([(y - m - (k > 0) * np.mean(y - m)) / s
+                            for k, (y, m, s) in enumerate(zip(model, measured, noise))])
         return model, r, step_mismatch(step_features(data.time_s, data.voltage_V, model[1]), features)
-    sds = [scatter_sd(m) for m in measured]
-    floor = None if sds[0] is None else math.sqrt(float(np.mean([(sd / s) ** 2 for sd, s in zip(sds, scales)])))
+    floor = None if scatter_sd(measured[0]) is None else 1.0
     return Comparison(evaluate, floor, 3, data.time_s - data.time_s[0], "s")
+
+
+def quantum_sd(values) -> float:
+    """The rounding noise of a quantized measurement, its smallest step between distinct
+    values over sqrt(12) (an encoder's count; negligible for a continuous one): the floor of
+    its noise where the signal rests on a count and its differences vanish."""
+    steps = np.diff(np.unique(np.asarray(values, float)))
+    return float(steps.min()) / math.sqrt(12.0) if steps.size else 0.0
 
 
 def loop_traces(data: LoopData, base, controller) -> Comparison:

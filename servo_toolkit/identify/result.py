@@ -151,7 +151,7 @@ class FitResult:
             lines.append(f"  residual: {self.residual_db_rms:.3g} dB RMS gain, {self.residual_phase_deg_rms:.3g} deg "
                          f"RMS phase (weighted residual RMS {self.initial_residual_rms:.3g} -> {self.residual_rms:.3g})")
         else:
-            lines.append(f"  residual: {self.residual_rms:.3g} RMS of traces normalised by their RMS "
+            lines.append(f"  residual: {self.residual_rms:.3g} RMS of the traces' differences, each over its noise "
                          f"(initial {self.initial_residual_rms:.3g})")
         if len(self.keys) > 1:
             pairs = [(abs(self.correlation[a, b]), a, b) for a in range(len(self.keys))
