@@ -135,3 +135,18 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     if friction is not None:
         return replace(plan.options, friction=friction), notes + chosen
     return plan.options, notes
+
+
+def with_model_notes(notes, model_notes) -> tuple:
+    """A run's notes: ``notes`` (the study's), then the model's that do not repeat one of
+    them. The study that chose the two-mass reduction has noted the choice with its figures
+    (:func:`sine_run_options`); the model built on that choice notes the same lumping again
+    (``... lumped into the two-mass reduction (chain='two_mass')``): a model note whose words
+    before its parenthesis begin one of the study's notes is left out."""
+    notes = list(notes)
+    for note in model_notes:
+        head = note.split(" (", 1)[0]
+        if note not in notes and not any(n.startswith(head) for n in notes):
+            notes.append(note)
+    return tuple(notes)
+
