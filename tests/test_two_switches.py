@@ -90,3 +90,21 @@ def test_the_monte_carlo_lanes_split_twice_as_the_single_run(case):
     amp = np.ptp(ref.states[:, 2])
     end = np.abs(lanes[0][0, [0, 2]] - ref.states[-1, [0, 2]]).max() / amp
     assert end < 1e-6, end
+
+
+def test_the_reference_reaches_the_motor_sticking_whatever_the_duration(case):
+    """The motor sticks at rest ten times before the load breaks away (the spring's moment
+    within its Coulomb level): with its friction's sign taken from the speed, no implicit step
+    ends past that zero, and LSODA crept towards it until its budget was spent at 0.0229 s of a
+    0.35 s run (0.0070 s of a 0.5 s one, none of a 1 s one: the restarts' first steps differ).
+    Its sliding friction held in its direction, the run of 0.35 s follows the 1 s run and RK4."""
+    model, ref = case
+    short = run(model, SINE, 0.35, method="reference", output_dt=OUT, rtol=1e-12, atol=1e-12)
+    every = round(OUT / FINE)
+    n = short.times.size
+    amp = np.ptp(short.states[:, 2])
+    assert amp > 0.3  # the load broke away and swung
+    err_ref = np.abs(short.states[:, [0, 2]] - ref.states[::every][:n, [0, 2]]).max() / amp
+    r = run(model, SINE, 0.35, method="rk4", dt=DTS[-1], output_dt=OUT)
+    err_rk4 = np.abs(short.states[:, [0, 2]] - r.states[:, [0, 2]]).max() / amp
+    assert err_ref < 1e-9 and err_rk4 < 1e-7, (err_ref, err_rk4)

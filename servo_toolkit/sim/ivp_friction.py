@@ -3,7 +3,15 @@ events.
 
 The motor side and the load are watched as they always were: a sliding node's speed reaching
 0 (restart at rest), a resting node's speed leaving a band of 1e-9 (then its reversal is
-watched), their friction's sign left to the speed. The full chain's intermediate nodes are
+watched). While one slides its friction's sign is held in its direction (``DIR_M``,
+``DIR_L``), at rest it is left to the speed. Left to the speed while sliding, a node that
+comes to stick (its applied moment within the Coulomb level) has no motion past its zero:
+beyond it the friction pushes it back, so no implicit step ending there converges and LSODA
+crept towards the zero until its budget was spent; whether one of its steps happened to land
+past the zero depended on the first steps after the restarts, hence on the run's duration
+(the two-switch chain's motor, sticking at 0.0229 s of a 0.35 s run, 0.0070 s of a 0.5 s one,
+met in time in a 1 s one). Held, the friction is smooth across the zero and the reversal's
+event is met in every run. The full chain's intermediate nodes are
 solved in modes: between two events each is in one mode, sliding in a held direction (its
 friction's sign held there, its ``NF_DIR`` in the solver's copy of the parameters, so that
 the right-hand side is smooth
@@ -25,8 +33,9 @@ of the time and lies within the solver's error for a while. A reversal watched a
 there fires on that error (Radau at rtol = atol = 1e-12 stuck and broke the wheel away
 10,000 times at one instant), so until the next event the node that broke away is watched
 for a reversal beyond the band of the motor side's and the load's watch (1e-9 of the largest
-speed; the node restarts at rest either way). The motor side and the load, whose friction
-takes the speed's sign, keep the watch at 0: within a band their friction would chatter.
+speed; the node restarts at rest either way). The motor side and the load keep the watch at
+0: they leave rest with a seed of speed (:data:`~.split_step.SEED`) whose sign their friction
+takes at once.
 """
 
 from __future__ import annotations
@@ -153,8 +162,8 @@ class FrictionModes:
 
     def _watch(self, i, x):
         """The motor side's and the load's event (their speed reaching 0 from its side, or,
-        at rest, leaving a band of ``scale`` as a safeguard beside their breakaway's event),
-        their friction's sign left to the speed."""
+        at rest, leaving a band of ``scale`` as a safeguard beside their breakaway's event);
+        while sliding their friction's sign is held (:meth:`events`)."""
         if x[i] != 0.0:
             return self._reversal(i, 1.0 if x[i] > 0 else -1.0)
 
@@ -175,7 +184,8 @@ class FrictionModes:
     def events(self, t0, x) -> list:
         """Each node's mode at (t0, x), its direction set in P, and the terminal events that
         end the modes (each with ``node``). The motor side and the load (x[1], x[3]) keep
-        their own watch (:meth:`_watch`); the modes are the intermediate nodes'."""
+        their own watch (:meth:`_watch`), their friction held in the direction of their speed
+        while they slide (left to the speed at rest); the modes are the intermediate nodes'."""
         for i in self.nodes:  # sliding nodes first: the moments on the resting ones depend on them
             if i <= 3:
                 continue
@@ -194,6 +204,10 @@ class FrictionModes:
                     self.rest[i] = (x[i - 1], x[2])
         if self.gauge is not None:
             self._leave_rest(t0, x)
+        for i in self.nodes:  # the motor side and the load: sliding in a held direction, or at rest
+            if i <= 3:
+                self.dirs[i] = 0.0 if x[i] == 0.0 else (1.0 if x[i] > 0.0 else -1.0)
+                self._hold(i)
         events = []
         for i in self.nodes:
             if i <= 3:
