@@ -70,10 +70,12 @@ def rk4_coefficients(stage, dt):
 
 
 @jit  # called at a speed reversal only: compiled once, outside the step loop
-def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
+def _rk4_scalars(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
     """One classical RK4 step of length h from the physical state given as scalars (a
     continuous controller's and the full chain's states x[7:] are advanced in place).
-    Returns the advanced ``(p, pd, q, qd, cur, xi)``.
+    Returns the advanced ``(p, pd, q, qd, cur, xi)``, then the first stage's slopes of the
+    node speeds and whether a later stage's speeds left a node's direction at the step's
+    start (:func:`stage_turns`).
 
     Its right-hand side is :func:`kernel.rhs_phys_serial`, called rather than inlined: this
     step runs only where a step is split, and a call compiles in a fraction of the time of
@@ -82,6 +84,8 @@ def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3
     nx = x.size
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
     u0 = u1 = u2 = u3 = u4 = u5 = 0.0
+    g1 = g3 = 0.0
+    turned = False
     for stage in range(4):
         c, w = rk4_coefficients(stage, h)
         kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
@@ -89,9 +93,13 @@ def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3
             kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
             for j in range(NX_PHYS, nx):
                 xs[j] = x[j] + c * kin[j]
+        if stage > 0:
+            turned = turned or stage_turns(pd, pd + c * s1, qd, qd + c * s3)
         s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
             t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
             P, T, iref, x if stage == 0 else xs, kout)
+        if stage == 0:
+            g1, g3 = s1, s3
         u0 += w * s0
         u1 += w * s1
         u2 += w * s2
@@ -102,7 +110,15 @@ def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3
     if cont:
         for j in range(NX_PHYS, nx):
             x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-    return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5)
+    return (p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4, xi + sixth * u5,
+            g1, g3, turned)
+
+
+@jit
+def rk4_step(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4):
+    """One classical RK4 step (:func:`_rk4_scalars`); returns the advanced ``(p, pd, q, qd, cur, xi)``."""
+    r = _rk4_scalars(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, xs, k1, k2, k3, k4)
+    return r[0], r[1], r[2], r[3], r[4], r[5]
 
 
 @inline
@@ -164,38 +180,10 @@ def rk4_checked(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, 
     step, by the fixed-step loops' own test: :func:`switch_ahead` from the first stage's slopes
     and the result, or a stage whose speed left a node's direction (:func:`stage_turns`).
     Returns ``(p, pd, q, qd, cur, xi, ahead)``."""
-    nx = x.size
-    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-    u0 = u1 = u2 = u3 = u4 = u5 = 0.0
-    g1 = g3 = 0.0
-    turned = False
-    for stage in range(4):
-        c, w = rk4_coefficients(stage, h)
-        kout = k1 if stage == 0 else (k2 if stage == 1 else (k3 if stage == 2 else k4))
-        if cont and stage > 0:
-            kin = k1 if stage == 1 else (k2 if stage == 2 else k3)
-            for j in range(NX_PHYS, nx):
-                xs[j] = x[j] + c * kin[j]
-        if stage > 0:
-            turned = turned or stage_turns(pd, pd + c * s1, qd, qd + c * s3)
-        s0, s1, s2, s3, s4, s5, _, _, _, _ = rhs_phys_serial(
-            t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-            P, T, iref, x if stage == 0 else xs, kout)
-        if stage == 0:
-            g1, g3 = s1, s3
-        u0 += w * s0
-        u1 += w * s1
-        u2 += w * s2
-        u3 += w * s3
-        u4 += w * s4
-        u5 += w * s5
-    sixth = h / 6.0
-    if cont:
-        for j in range(NX_PHYS, nx):
-            x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-    pd_new, qd_new = pd + sixth * u1, qd + sixth * u3
-    ahead = turned or switch_ahead(pd, pd_new, pd + h * g1, qd, qd_new, qd + h * g3, P, rigid)
-    return p + sixth * u0, pd_new, q + sixth * u2, qd_new, cur + sixth * u4, xi + sixth * u5, ahead
+    p1, pd1, q1, qd1, cur1, xi1, g1, g3, turned = _rk4_scalars(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont,
+                                                               x, xs, k1, k2, k3, k4)
+    ahead = turned or switch_ahead(pd, pd1, pd + h * g1, qd, qd1, qd + h * g3, P, rigid)
+    return p1, pd1, q1, qd1, cur1, xi1, ahead
 
 
 @jit
