@@ -148,6 +148,47 @@ def test_a_normal_cut_where_the_scene_says_is_drawn_from_its_truncation(tmp_path
     np.testing.assert_allclose(t.ppf(u), truncnorm.ppf(u, -1.0, np.inf, loc=mu, scale=sigma), rtol=1e-12)
 
 
+@pytest.mark.parametrize("line, side", [
+    ('motor.coulomb_friction = { sigma = "0.01 N*m", min = "x1" }', +1),  # a friction that only grows
+    ('"drivetrain[0].backlash" = { sigma = "0.02 deg", mean = "0.1 deg", max = "0.1 deg" }', -1),
+])
+def test_a_normal_whose_mean_is_its_truncation_is_a_half_normal_drawn_with_its_closed_form_moments(
+        line, side, tmp_path):
+    """A half-normal of scale sigma about mu has mean mu +- sigma sqrt(2/pi) and standard
+    deviation sigma sqrt(1 - 2/pi): independent draws match both within 4 standard errors."""
+    import math
+
+    from servo_toolkit.loop.sampling import sample_tolerances
+    from servo_toolkit.scene.loader import load_scene
+
+    from .conftest import SCENES
+    path = tmp_path / "half.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    tol = load_scene(path).tolerances
+    t = tol.items[0]
+    assert t.half == ("above" if side > 0 else "below") and t.describe().startswith(f"half-normal {t.half}")
+    n = 4096
+    x = sample_tolerances(tol, n, "random", 3)[t.key]
+    mean, sd = t.mean + side * t.sigma * math.sqrt(2 / math.pi), t.sigma * math.sqrt(1 - 2 / math.pi)
+    kurtosis = 3.0 + 8 * (math.pi - 3) / (math.pi - 2) ** 2  # of the half-normal: 3.869
+    assert abs(x.mean() - mean) < 4 * sd / math.sqrt(n)
+    assert abs(x.std(ddof=1) - sd) < 4 * sd * math.sqrt((kurtosis - 1) / (4 * n))
+    assert np.all(side * (x - t.mean) >= 0)  # every draw on the mean's one side
+    assert t.ends == pytest.approx(tuple(sorted((t.mean, t.mean + 3 * side * t.sigma))))
+
+
+def test_a_mean_outside_its_truncation_is_still_refused(tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "half.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\nmotor.coulomb_friction = { sigma = "0.01 N*m", min = "x1.1" }\n')
+    assert main(["tolerances", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tolerances.motor.coulomb_friction:" in err[0] and "must lie inside" in err[0], err
+
+
 # --- the ranking of a sample too small for a regression -------------------------------------
 
 def test_too_few_variants_for_a_regression_say_so_instead_of_a_figure_that_does_not_vary():

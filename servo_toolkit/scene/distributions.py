@@ -27,6 +27,8 @@ MIN_SPREAD = 1e-9
 #: the largest probability a normal may lose to the key's physical range without a ``min`` or
 #: ``max`` given (beyond 3.09 sigma)
 IMPLICIT_CUT = 1e-3
+#: a half-normal's far truncation closer than this many sigma to its mean is shown in its description
+CHECKED_FAR = 6.0
 _PLUS_MINUS = re.compile(r"^\s*(\+-|\+/-|±)\s*(.+?)\s*$")
 _PERCENT = re.compile(r"^\s*([0-9.eE+-]+)\s*%\s*$")
 _FACTOR = re.compile(r"^\s*x\s*([0-9.eE+-]+)\s*$")
@@ -91,14 +93,36 @@ class Tolerance:
             return (round(lo), round(hi)) if self.integer else (lo, hi)
         return self.low, self.high
 
-    def describe(self) -> str:
-        """One phrase, e.g. ``uniform 0.475..0.525 ohm`` or ``normal, sigma 0.004 N*m/A``."""
-        unit = "" if self.unit in ("dimensionless", "1", "") else f" {self.unit}"
+    @property
+    def half(self) -> str:
+        """``"above"`` (``"below"``) for a half-normal, a normal whose mean is its lower
+        (upper) truncation; ``""`` otherwise."""
+        if self.distribution != "normal":
+            return ""
+        return "above" if self.mean == self.low else ("below" if self.mean == self.high else "")
+
+    def describe(self, unit: str | None = None, factor: float = 1.0) -> str:
+        """One phrase, e.g. ``uniform 0.475..0.525 ohm`` or ``normal, sigma 0.004 N*m/A``.
+
+        Parameters
+        ----------
+        unit : str, optional
+            The unit to show the values in (default: :attr:`unit`, SI).
+        factor : float
+            Shown units per SI unit.
+        """
+        unit = self.unit if unit is None else unit
+        unit = "" if unit in ("dimensionless", "1", "") else f" {unit}"
+        low, high, mean, sigma = (v * factor for v in (self.low, self.high, self.mean, self.sigma))
+        if self.half:
+            far = high if self.half == "above" else low
+            return f"half-normal {self.half} {mean:.4g}, sigma {sigma:.4g}{unit}" + (
+                f" (truncated to {low:.4g}..{high:.4g})" if abs(far - mean) < CHECKED_FAR * sigma else "")
         if self.distribution == "normal":
-            cut = [f"{v:.4g}" for v in (self.low, self.high)]
-            return f"normal, mean {self.mean:.4g}, sigma {self.sigma:.4g}{unit} (truncated to {cut[0]}..{cut[1]})"
+            cut = [f"{v:.4g}" for v in (low, high)]
+            return f"normal, mean {mean:.4g}, sigma {sigma:.4g}{unit} (truncated to {cut[0]}..{cut[1]})"
         kind = "log-uniform" if self.distribution == "log_uniform" else "uniform"
-        return f"{kind} {self.low:.4g}..{self.high:.4g}{unit}"
+        return f"{kind} {low:.4g}..{high:.4g}{unit}"
 
     def to_dict(self) -> dict:
         """JSON-ready."""
@@ -187,7 +211,9 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
             plo, phi = _physical_range(kp)
             low = _end(raw["min"], kp, where) if "min" in raw else plo
             high = _end(raw["max"], kp, where) if "max" in raw else phi
-            require(low < mean < high, where, f"the mean {mean:g} must lie inside the truncation {low:g}..{high:g}")
+            require(low <= mean <= high and low < high, where,
+                    f"the mean {mean:g} must lie inside the truncation {low:g}..{high:g} (or at one end of it: "
+                    f"a half-normal)")
             _implicit_cut(mean, sigma, low if "min" not in raw else -math.inf,
                           high if "max" not in raw else math.inf, kp, where)
         else:
