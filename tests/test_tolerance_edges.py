@@ -248,6 +248,8 @@ def test_montecarlo_names_the_tolerances_it_does_not_vary():
     ('"drivetrain[0].teeth" = "+-5 %"', "not a numeric key that can vary: a list of whole numbers"),
     ('"drivetrain[0].teeth[1]" = "38:42"', "not a numeric key that can vary: a list of whole numbers"),
     ('motor.resistence = "+-5 %"', "did you mean motor.resistance?"),
+    # the design's sample time is no tolerance: the margins and the time runs would ignore it
+    ('sensors.sample_time = "+-1 %"', "the controller's sample time is the design's, not a tolerance"),
 ])
 def test_a_key_that_cannot_vary_or_is_misspelt_is_told_apart(line, rule, tmp_path, capsys):
     from servo_toolkit.cli import main

@@ -27,7 +27,8 @@ distribution, a sigma that is not positive or an end outside the key's condition
 one line naming the key. Before a study draws variants it also builds the scene at each
 end (a normal's mean +- 4 sigma within its truncation, :func:`check_ends`): an end at which
 the scene itself does not load (the loader's own rules, e.g. Kt and Ke within 10 %) is one
-line naming the key too.
+line naming the key too. The controller's sample time (``sensors.sample_time``) is the
+design's, not a tolerance (:data:`FIXED`): it is refused naming the key.
 
 ``[robustness]`` ranges are tolerances too: ``load_inertia`` is ``load.inertia`` and the
 stiffness factor is the virtual key ``drivetrain.stiffness_scale`` (a factor on the
@@ -54,6 +55,13 @@ CHECKED_SIGMAS = 4.0
 #: virtual keys: not written in a scene, applied to the built drivetrain (unit, meaning)
 STIFFNESS_SCALE = "drivetrain.stiffness_scale"
 VIRTUAL = {STIFFNESS_SCALE: ("dimensionless", "factor on the drivetrain's series stiffness (nominal 1)")}
+#: numeric keys that are the design's, not a tolerance of the built actuators: key -> why, and
+#: what to do instead (the one line the loader gives)
+FIXED = {"sensors.sample_time": (
+    "the controller's sample time is the design's, not a tolerance: the designed controller is discretized "
+    "at it and the time runs sample it at a whole number of integration steps, while a drive clock's drift "
+    "(tens of ppm) moves the sampling delay's phase by as little; leave it out, and compare sample times by "
+    "designing and checking a scene for each")}
 
 
 @dataclass(frozen=True)
@@ -172,6 +180,7 @@ def tolerances_of(data: dict, source, robust, scene, build):
         require(key not in where_of, where, "given twice")
         kp = _virtual(key) if key in VIRTUAL else keys.resolve(key, where=where, what="a numeric key of this scene; "
                                                                                     "toleranced keys are:")
+        require(kp.key not in FIXED, where, FIXED.get(kp.key, ""))
         items.append(parse_distribution(raw, kp, where))
         where_of[key] = where
     if robust is not None:
@@ -226,4 +235,5 @@ def check_ends(tolerances) -> None:
 
 
 __all__ = ["CHECKED_SIGMAS", "DEFAULT_SAMPLES", "IMPLICIT_CUT", "LOG_RATIO", "METHODS", "MIN_SPREAD", "SETTINGS",
-           "STIFFNESS_SCALE", "Tolerance", "Tolerances", "VIRTUAL", "check_ends", "parse_distribution", "tolerances_of"]
+           "STIFFNESS_SCALE", "FIXED", "Tolerance", "Tolerances", "VIRTUAL", "check_ends", "parse_distribution",
+           "tolerances_of"]
