@@ -434,3 +434,39 @@ def test_a_study_whose_tolerances_enter_no_judged_figure_says_its_yield_is_the_n
     study = tolerance_study(load_scene(path), samples=8, worst_corner=False, progress=False)
     assert all(s.method == "none" for s in study.sensitivities)  # the margins are the nominal's in every variant
     assert any(n.startswith("no tolerance enters a judged figure") for n in study.notes)
+
+
+class _CountingExecutor(_PicklingExecutor):
+    """A pickling executor that counts the chunks of time runs it was given."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def submit(self, fn, *args, **kwargs):
+        self.calls += args[0].__module__.endswith("tolerance_runs")  # run_cases sends (function, chunk)
+        return super().submit(fn, *args, **kwargs)
+
+
+def test_the_sobol_time_runs_go_to_the_executor_and_give_the_same_json(tmp_path):
+    """Two variants of one tolerance cannot fit a regression: the time figures are ranked by
+    Sobol indices from 4 (1 + 2) further runs, which go to the executor in chunks as the
+    study's own time runs do; the JSON is byte-identical with and without it."""
+    import json
+
+    from servo_toolkit.loop import design
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.studies.tolerances import tolerance_study
+
+    from .conftest import SCENES
+    path = tmp_path / "sobol.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\nmax_tracking_error = "5 deg"\nmotor.coulomb_friction = "x0.5:x3"\n')
+    scene = load_scene(path)
+    kw = dict(samples=2, worst_corner=False, progress=False, sobol_runs=4, duration=0.02)
+    designed = design(scene, progress=False)
+    here = tolerance_study(scene, designed, **kw)
+    pool = _CountingExecutor()
+    sent = tolerance_study(scene, designed, executor=pool, **kw)
+    assert here.sensitivity("tracking_error").method == "sobol"
+    assert pool.calls == 1 + 3  # the variants' chunk, then the Sobol sample's A, B and AB_i runs
+    assert json.dumps(sent.to_dict(), sort_keys=True) == json.dumps(here.to_dict(), sort_keys=True)

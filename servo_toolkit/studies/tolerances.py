@@ -182,7 +182,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
                             int(ok.sum()), n, tol.confidence, tol.min_yield if name == "all" else None)
                    for name, ok in passes.items())
     sens = _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ctrl, f_req, structural_damping,
-                          sobol_runs, seed)
+                          sobol_runs, seed, executor)
     worst = None
     if worst_corner:
         worst = _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, structural_damping,
@@ -240,7 +240,8 @@ def _log_keys(tol):
     return np.array([t.distribution == "log_uniform" for t in tol.items])
 
 
-def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ctrl, f_req, zeta, sobol_runs, seed):
+def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ctrl, f_req, zeta, sobol_runs, seed,
+                   executor=None):
     """Ranking of the tolerances on each requirement's figure."""
     from ..loop.robustness import variant_figures
     keys = tol.keys
@@ -292,13 +293,14 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
             out.append(rank(name, label, units.get(name, unit), keys, X, y,
                             inert=inert_time, log_keys=_log_keys(tol), confidence=tol.confidence,
                             sobol_run=None if not sobol_runs else _time_sobol(tol, scene, runs, name, sobol_runs,
-                                                                              cache, seed)))
+                                                                              cache, seed, executor)))
     return tuple(out)
 
 
-def _time_sobol(tol, scene, runs, name, base, cache, seed):
+def _time_sobol(tol, scene, runs, name, base, cache, seed, executor=None):
     """Sobol indices of a time figure from ``base (d + 2)`` further time runs (one set of
-    runs gives both time figures: ``cache`` keeps it for the second)."""
+    runs gives both time figures: ``cache`` keeps it for the second), in chunks on
+    ``executor`` as the study's other time runs (the figures do not depend on it)."""
     from .tolerance_runs import tolerance_runs
 
     def run(live):
@@ -309,7 +311,7 @@ def _time_sobol(tol, scene, runs, name, base, cache, seed):
                 vals = {k: np.full(x.shape[1], tol.item(k).nominal) for k in tol.keys}
                 vals.update({k: x[j] for j, k in enumerate(live_keys)})
                 r = tolerance_runs(scene, vals, runs.rows.controller, keys=runs.rows.keys, progress=False,
-                                   duration=runs.duration_s, dt=runs.dt_s)
+                                   duration=runs.duration_s, dt=runs.dt_s, executor=executor)
                 return np.array([np.where(r.failed, np.nanmax(y), y) for y in (r.tracking_error, r.peak_current)])
             cache[key] = sobol(func, [tol.item(k) for k in live_keys], base, seed=seed, confidence=tol.confidence)
         j = 0 if name == "tracking_error" else 1
