@@ -470,3 +470,31 @@ def test_the_sobol_time_runs_go_to_the_executor_and_give_the_same_json(tmp_path)
     assert here.sensitivity("tracking_error").method == "sobol"
     assert pool.calls == 1 + 3  # the variants' chunk, then the Sobol sample's A, B and AB_i runs
     assert json.dumps(sent.to_dict(), sort_keys=True) == json.dumps(here.to_dict(), sort_keys=True)
+
+
+def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_path):
+    """Friction acts in time only: its tolerance does not move the margins, yet it drives the
+    tracking error. With a bound on the tracking error every corner runs in time and the worst
+    is the one that misses its limit by the most, its shortfall divided by the limit; the
+    corner's own single simulation (an independent path from the batched runs) gives that
+    figure, and no sampled variant tracks worse than the box's worst corner."""
+    from servo_toolkit.scene.loader import load_scene
+    from servo_toolkit.studies.tolerances import tolerance_study
+
+    from .conftest import SCENES
+    path = tmp_path / "corner.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text()
+                    + '\n[tolerances]\nmax_tracking_error = "1 deg"\nmotor.resistance = "+-10 %"\n'
+                      'motor.coulomb_friction = "x0.5:x5"\n')
+    study = tolerance_study(load_scene(path), samples=8, progress=False, duration=0.05)
+    w = study.worst
+    assert all(study.yield_of(r).fraction == 1 for r in ("gain_margin", "phase_margin", "sensitivity_peak"))
+    assert w.figure == "tracking_error" and w.basis.startswith("every requirement") and w.corners == 4
+    assert w.values["motor.coulomb_friction"] == pytest.approx(0.1)  # the friction at its high end, not nominal
+    err = np.degrees(w.run_figures()["max_tracking_error"])
+    assert w.time_figures["tracking_error"] == pytest.approx(err, rel=1e-4)
+    assert w.score == pytest.approx(1.0 - err / 1.0, rel=1e-4) and w.score < 0
+    assert err >= np.degrees(np.max(study.runs.tracking_error))
+    assert "worst corner over every requirement (margins and time runs) (4 evaluated): tracking_error margin" \
+        in study.table()
+    assert study.to_dict()["worst_corner"]["time_figures"]["tracking_error"] == pytest.approx(err, rel=1e-4)

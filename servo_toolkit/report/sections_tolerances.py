@@ -75,8 +75,8 @@ def tolerances_section(ctx) -> Section:
         ref = w.reference
         run = f" {w.run_text()[0].upper()}{w.run_text()[1:]}." if w.run_text() else ""
         how = (f"smallest margin to a requirement {fmt(100 * w.score, 3)} % ({w.figure})" if np.isfinite(w.score)
-               else "its closed loop is unstable")
-        body += para(f"Worst corner over the linear figures ({w.corners} corners evaluated): {at}; {how}. "
+               else w.verdict())
+        body += para(f"Worst corner over {w.basis} ({w.corners} corners evaluated): {at}; {how}. "
                      f"python-control on its plant built exactly: gain margin "
                      f"{fmt(ref.get('gain_margin_db'), 4)} dB, phase margin {fmt(ref.get('phase_margin_deg'), 4)} deg "
                      f"(the vectorized study: {fmt(w.figures['gain_margin_db'], 4)} dB, "

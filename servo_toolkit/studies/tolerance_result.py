@@ -26,10 +26,11 @@ class WorstCorner:
         Key -> value (SI) at the corner (tolerances that enter no figure at their nominal
         value).
     score : float
-        Its smallest relative margin to a requirement (negative: short), over the linear
-        figures; -inf for an unstable loop.
+        Its smallest relative margin to a requirement (negative: short; each shortfall
+        divided by its limit), over :attr:`basis`; -inf for an unstable loop or a time run
+        that failed by its physics (the stroke end reached).
     figure : str
-        The requirement that margin belongs to.
+        The requirement that margin belongs to (``"stable"`` for an unstable loop).
     corners : int
         Corners evaluated (all of them up to 2**10; else the one the regression's signs
         point to).
@@ -42,6 +43,15 @@ class WorstCorner:
         The nonlinear closed-loop run of the corner's scene (``simulate``'s command).
     run_error : str
         Why the corner's run could not be carried out ("" when it was).
+    basis : str
+        What the corner is the worst in: ``"the linear figures"``, or ``"every requirement
+        (margins and time runs)"`` when the study judges time requirements (every corner
+        then runs in time, batched).
+    time_figures : dict
+        The corner's batched time run in its requirements' units (``tracking_error`` in deg
+        or mm, ``peak_current`` in A; NaN when it failed by its physics, ``failed`` saying
+        why); empty without time requirements.
+    notes : tuple of str
     """
 
     values: dict
@@ -52,6 +62,9 @@ class WorstCorner:
     reference: dict = field(default_factory=dict)
     simulation: object = None
     run_error: str = ""
+    basis: str = "the linear figures"
+    time_figures: dict = field(default_factory=dict)
+    notes: tuple = ()
 
     def run_figures(self) -> dict | None:
         """The corner's time run as ``max_tracking_error`` (SI: rad or m) and
@@ -72,11 +85,23 @@ class WorstCorner:
                 f"{unit.shown}, "
                 f"peak current {fmt(run['peak_current'], 4)} A")
 
+    def verdict(self) -> str:
+        """How the corner fails, e.g. ``phase_margin margin 12.5 %``, ``closed loop unstable (a
+        pole at real part 13 1/s)`` or ``its time run fails by its physics (stroke end ...)``."""
+        if np.isfinite(self.score):
+            return f"{self.figure} margin {fmt(100 * self.score, 3)} %"
+        if self.figure != "stable":
+            return f"its time run fails by its physics ({self.time_figures.get('failed', self.figure)})"
+        return "closed loop unstable" + (f" (a pole at real part {fmt(self.figures['max_pole_real'], 4)} 1/s)"
+                                         if "max_pole_real" in self.figures else "")
+
     def to_dict(self) -> dict:
         """JSON-ready (the simulation as its two figures, SI)."""
         out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
-               "corners_evaluated": self.corners, "figures": {k: float(v) for k, v in self.figures.items()},
-               "reference": self.reference}
+               "basis": self.basis, "corners_evaluated": self.corners,
+               "figures": {k: float(v) for k, v in self.figures.items()}, "reference": self.reference}
+        if self.time_figures:
+            out["time_figures"] = dict(self.time_figures)
         if self.run_figures() is not None:
             out["simulation"] = self.run_figures()
         if self.run_error:
@@ -186,10 +211,7 @@ class ToleranceResult(RichDisplay):
                 lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            how = (f"{w.figure} margin {fmt(100 * w.score, 3)} %" if np.isfinite(w.score) else
-                   "closed loop unstable" + (f" (a pole at real part {fmt(w.figures['max_pole_real'], 4)} 1/s)"
-                                             if "max_pole_real" in w.figures else ""))
-            lines.append(f"  worst corner over the linear figures ({w.corners} evaluated): {how} at "
+            lines.append(f"  worst corner over {w.basis} ({w.corners} evaluated): {w.verdict()} at "
                          f"{self.corner_text()}")
             if w.run_text():
                 lines.append(f"    {w.run_text()}")

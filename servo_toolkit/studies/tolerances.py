@@ -165,8 +165,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
             notes.append(f"{int(physical.sum())} variants fail the time requirements by their physics (the stroke "
                          f"end reached, or a run diverging with an unstable linear loop): counted as failing, left "
                          f"out of the time figures' rankings")
-        shown = {"tracking_error": runs.tracking_error * (1e3 if scene.drivetrain.output_is_linear else 180 / math.pi),
-                 "peak_current": runs.peak_current}
+        shown = _time_shown(scene, runs)
         for r in timed:
             passes[r.name] = _meets(r, shown[r.name])
     if runs is None and set(plants.inert) >= set(tol.keys):
@@ -186,7 +185,8 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     worst = None
     if worst_corner:
         worst = _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, structural_damping,
-                              runs, duration)
+                              runs, duration, timed=timed if runs is not None else (), executor=executor, seed=seed)
+        notes += list(worst.notes) if worst is not None else []
     notes = list(dict.fromkeys(notes))  # a note given by two parts of the model once
     settings = {"samples": n, "method": method, "seed": seed, "plants": plants.method, "plants_error": plants.error}
     return ToleranceResult(scene.name, tol, values, figs, runs, tuple(margins + timed), passes, yields, sens, worst,
@@ -204,6 +204,21 @@ def sampling_notes(method: str, n: int) -> list:
     return []
 
 
+def _time_shown(scene, runs) -> dict:
+    """The time runs' figures in the units of their requirements (deg or mm; A)."""
+    return {"tracking_error": runs.tracking_error * (1e3 if scene.drivetrain.output_is_linear else 180 / math.pi),
+            "peak_current": runs.peak_current}
+
+
+def _physical(runs, stable) -> np.ndarray:
+    """Which failed runs failed by their physics: the stroke end reached, or a divergence
+    with an unstable linear loop."""
+    reasons = np.array(runs.reasons, dtype=object)
+    stroke = np.array([r.startswith("stroke end reached") for r in reasons], bool)
+    diverged = np.array([r.startswith("non-finite state") for r in reasons], bool) & ~np.asarray(stable, bool)
+    return runs.failed & (stroke | diverged)
+
+
 def _judge_failed(runs, values, stable):
     """(runs, physical): the runs with the time figures of the variants that failed by
     their physics set to NaN (they fail every time requirement), and which those are: a run
@@ -218,10 +233,7 @@ def _judge_failed(runs, values, stable):
         Naming the first variant that failed for want of a model.
     """
     from dataclasses import replace
-    reasons = np.array(runs.reasons, dtype=object)
-    stroke = np.array([r.startswith("stroke end reached") for r in reasons], bool)
-    diverged = np.array([r.startswith("non-finite state") for r in reasons], bool) & ~np.asarray(stable, bool)
-    physical = runs.failed & (stroke | diverged)
+    physical = _physical(runs, stable)
     _refuse_failed(replace(runs, failed=runs.failed & ~physical), values)
     nan = np.where(physical, np.nan, 1.0)
     return replace(runs, tracking_error=runs.tracking_error * nan, peak_current=runs.peak_current * nan), physical
@@ -319,20 +331,32 @@ def _time_sobol(tol, scene, runs, name, base, cache, seed, executor=None):
     return run
 
 
-def _score(margins, figs):
-    """Per variant: its smallest relative margin to a requirement and which; -inf unstable."""
-    rel = np.array([_relative_margin(r, figs[FIGURES[r.name][0]]) for r in margins]) if margins else \
-        np.zeros((1, figs["stable"].size))
+def _score(margins, figs, timed=(), shown=None, undecided=None):
+    """Per variant: its smallest relative margin to a requirement (each shortfall divided by
+    its limit) and which requirement (an index into ``margins + timed``); -inf for an unstable
+    loop or a time run failed by its physics (its figures NaN in ``shown``); a time run
+    without a verdict (``undecided``) is judged on the other requirements."""
+    rows = [_relative_margin(r, figs[FIGURES[r.name][0]]) for r in margins]
+    if timed:
+        rows += [np.where(undecided, np.inf, _relative_margin(r, shown[r.name])) if undecided is not None
+                 else _relative_margin(r, shown[r.name]) for r in timed]
+    rel = np.array(rows) if rows else np.zeros((1, figs["stable"].size))
     rel = np.where(np.isnan(rel), -np.inf, rel)
     k = np.argmin(rel, axis=0)
     score = rel[k, np.arange(rel.shape[1])]
     return np.where(figs["stable"], score, -np.inf), k
 
 
-def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, zeta, runs, duration):
-    """The corner with the smallest margin, built exactly and run again."""
+def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, zeta, runs, duration, timed=(),
+                  executor=None, seed=0):
+    """The corner that fails worst, built exactly and run again: the smallest relative margin
+    to a requirement over the linear figures and, when the study judges time requirements
+    (``timed``), over the corners' time runs too (each requirement's shortfall divided by its
+    limit)."""
     from ..loop.robustness import variant_figures
-    live = [t for t in tol.items if t.key not in plants.inert]
+    timed = list(timed)
+    inert = set(plants.inert) & (set(runs.rows.inert) if timed else set(plants.inert))
+    live = [t for t in tol.items if t.key not in inert]
     nominal = {t.key: t.nominal for t in tol.items}
     if not live:
         return None
@@ -340,7 +364,7 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
         combos = np.array(list(itertools.product(*[t.ends for t in live])), float)
         how = len(combos)
     else:
-        score, _ = _score(margins, figs)
+        score, _ = _score(margins, figs, timed, _time_shown(scene, runs) if timed else None)
         finite = np.isfinite(score)
         fill = np.where(finite, score, np.min(score[finite]) - 1.0 if finite.any() else -1.0)
         X = np.column_stack([values[t.key] for t in live])
@@ -351,15 +375,33 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
     vals.update({t.key: combos[:, j] for j, t in enumerate(live)})
     cp = plants.mapper(vals) if plants.mapper is not None else None
     cf = variant_figures(scene, p, ctrl, vals, f_req, plants=cp, progress=False, structural_damping=zeta)
-    score, which = _score(margins, cf)
-    unstable = np.isneginf(score)
+    shown, undecided, reasons, notes = None, None, None, []
+    if timed:
+        from .tolerance_runs import tolerance_runs
+        cr = tolerance_runs(scene, vals, ctrl, keys=keys, executor=executor, progress=False, duration=runs.duration_s,
+                            dt=runs.dt_s, seed=seed)
+        physical = _physical(cr, cf["stable"])
+        undecided, reasons = cr.failed & ~physical, cr.reasons
+        shown = {k: np.where(physical, np.nan, v) for k, v in _time_shown(scene, cr).items()}
+        if undecided.any():
+            j = int(np.flatnonzero(undecided)[0])
+            notes.append(f"{int(undecided.sum())} of {how} corners could not run in time (first: {reasons[j]}): "
+                         f"judged on their margins only")
+    score, which = _score(margins, cf, timed, shown, undecided)
+    unstable = ~np.asarray(cf["stable"], bool)
     i = int(np.argmax(np.where(unstable, cf["max_pole_real"], -np.inf)) if unstable.any() else np.argmin(score))
     corner = {k: float(v[i]) for k, v in vals.items()}
     figures = {k: float(v[i]) for k, v in cf.items()}
     reference = _corner_margins(keys, corner, p, ctrl, scene, zeta)
     simulation, failed = _corner_run(scene, keys, corner, ctrl, runs, duration)
-    figure = margins[int(which[i])].name if margins and np.isfinite(score[i]) else "stable"
-    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed)
+    names = [r.name for r in margins + timed]
+    figure = names[int(which[i])] if names and not unstable[i] else "stable"
+    time_figures = {} if shown is None else {r.name: float(shown[r.name][i]) for r in timed}
+    if reasons is not None and reasons[i] and not undecided[i]:
+        time_figures["failed"] = reasons[i]
+    basis = "every requirement (margins and time runs)" if timed else "the linear figures"
+    return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed, basis,
+                       time_figures, tuple(notes))
 
 
 def _split(corner):
