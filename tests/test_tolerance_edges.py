@@ -498,3 +498,34 @@ def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_
     assert "worst corner over every requirement (margins and time runs) (4 evaluated): tracking_error margin" \
         in study.table()
     assert study.to_dict()["worst_corner"]["time_figures"]["tracking_error"] == pytest.approx(err, rel=1e-4)
+
+
+def test_a_stiffness_and_an_inertia_are_shown_in_the_scenes_display_units_and_the_json_names_si(small_result):
+    import json
+    import math
+    from dataclasses import replace
+
+    from servo_toolkit.display.units import DisplayUnits
+    from servo_toolkit.scene.tolerances import Tolerance, Tolerances
+    from servo_toolkit.studies.tolerance_result import WorstCorner
+    k0 = 1696.8 * 180 / math.pi  # the housing's 1696.8 N*m/deg in SI
+    items = (Tolerance("drivetrain[3].stiffness", "N*m/rad", k0, "uniform", 0.85 * k0, 1.15 * k0),
+             Tolerance("load.inertia", "kg*m^2", 1.0, "uniform", 0.8, 1.2),
+             Tolerance("motor.rotor_inertia", "kg*m^2", 2e-4, "uniform", 1.8e-4, 2.2e-4))
+    worst = WorstCorner({"drivetrain[3].stiffness": 0.85 * k0, "load.inertia": 1.2, "motor.rotor_inertia": 2.2e-4},
+                        0.3, "phase_margin", 8, {}, units={t.key: t.unit for t in items})
+    shown = replace(small_result, tolerances=Tolerances(items, samples=200), worst=worst,
+                    display=DisplayUnits(stiffness="N*m/deg", inertia="kg*cm^2"))
+    text = shown.table()
+    assert "drivetrain[3].stiffness = 1442 N*m/deg" in text  # 0.85 x 1696.8
+    assert "load.inertia = 12e3 kg*cm^2" in text
+    assert "motor.rotor_inertia = 220e-6 kg*m^2" in text  # the motor's own inertia stays SI
+    assert "N*m/rad" not in text and "1442 N*m/deg" in shown._repr_html_()
+    assert shown.describe(items[0]) == "uniform 1442..1951 N*m/deg"
+    d = json.loads(json.dumps(shown.to_dict()))
+    assert d["worst_corner"]["values"]["drivetrain[3].stiffness"] == pytest.approx(0.85 * k0)  # SI, saying so
+    assert d["worst_corner"]["units"]["drivetrain[3].stiffness"] == "N*m/rad"
+    assert d["tolerances"][0]["unit"] == "N*m/rad"
+    # a preference of the other output coordinate's quantity leaves a stage's own unit alone
+    travel = replace(shown, display=DisplayUnits(stiffness="N/um"), linear=True)
+    assert "drivetrain[3].stiffness = 82.64e3 N*m/rad" in travel.table()

@@ -51,7 +51,7 @@ def tolerances_section(ctx) -> Section:
     text = para(
         f"{r.count} variants drawn by {r.settings['method']} (seed {r.settings['seed']}) from {len(tol.items)} "
         "tolerances, each with the reported design's controller: " + "; ".join(
-            f"{t.key} {t.describe()}" for t in tol.items) + ".",
+            f"{t.key} {r.describe(t)}" for t in tol.items) + ".",
         ("The design must reach a yield of " + f"{fmt(100 * req)} % on the lower end of the interval."
          if req is not None else "The scene requires no yield (min_yield); the yields are reported."),
         "A Clopper-Pearson interval covers the true yield at least at its stated rate for independent draws and "

@@ -10,9 +10,44 @@ import numpy as np
 from ..core.sensitivity import R2_LINEAR
 from ..display.cards import RichDisplay, card, facts, svg, table
 from ..display.html import fmt
+from ..display.units import DisplayUnits
 
 #: a ranking's method in words
 METHODS = {"src": "standardized regression", "sobol": "Sobol total indices"}
+#: the dimensionless units (shown without a unit)
+_NO_UNIT = ("", "1", "dimensionless")
+
+
+def shown_unit(key: str, unit: str, display: DisplayUnits | None = None, linear: bool = False) -> tuple:
+    """``(unit, factor)`` a tolerance's SI values are shown in: the scene's ``[display]`` unit
+    for a stiffness, or an inertia (a mass at an output travel), in the output's SI unit (a
+    motor's own rotor inertia stays in kg*m^2, as everywhere); else the SI ``unit`` itself
+    (factor 1).
+
+    Parameters
+    ----------
+    key : str
+        The tolerance's key path.
+    unit : str
+        Its SI unit.
+    display : DisplayUnits, optional
+    linear : bool
+        The scene's output is a travel.
+    """
+    import pint
+
+    from ..core.units import UREG
+    display = display or DisplayUnits()
+    for quantity in ("stiffness", "inertia"):
+        if getattr(display, quantity) is None or (quantity == "inertia" and key.startswith("motor.")):
+            continue
+        try:
+            same = UREG.Unit(unit) == UREG.Unit(DisplayUnits().unit(quantity, linear))
+        except (pint.errors.PintError, ValueError, TypeError):  # a unit pint does not read: shown as it is
+            same = False
+        if same:
+            return display.unit(quantity, linear), display.factor(quantity, linear)
+    return unit, 1.0
 
 
 @dataclass(frozen=True)
@@ -52,6 +87,8 @@ class WorstCorner:
         or mm, ``peak_current`` in A; NaN when it failed by its physics, ``failed`` saying
         why); empty without time requirements.
     notes : tuple of str
+    units : dict
+        Key -> the SI unit of its value in :attr:`values`.
     """
 
     values: dict
@@ -65,6 +102,7 @@ class WorstCorner:
     basis: str = "the linear figures"
     time_figures: dict = field(default_factory=dict)
     notes: tuple = ()
+    units: dict = field(default_factory=dict)
 
     def run_figures(self) -> dict | None:
         """The corner's time run as ``max_tracking_error`` (SI: rad or m) and
@@ -98,6 +136,7 @@ class WorstCorner:
     def to_dict(self) -> dict:
         """JSON-ready (the simulation as its two figures, SI)."""
         out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
+               "units": dict(self.units),
                "basis": self.basis, "corners_evaluated": self.corners,
                "figures": {k: float(v) for k, v in self.figures.items()}, "reference": self.reference}
         if self.time_figures:
@@ -135,6 +174,11 @@ class ToleranceResult(RichDisplay):
     settings : dict
         ``samples``, ``method``, ``seed``, how the plants were mapped.
     notes : tuple of str
+    display : DisplayUnits
+        The units the text, card and report show a stiffness and an inertia in (the scene's
+        ``[display]``; the values and JSON stay SI, each with its unit).
+    linear : bool
+        The scene's output is a travel.
     """
 
     scene_name: str
@@ -149,6 +193,8 @@ class ToleranceResult(RichDisplay):
     worst: object = None
     settings: dict = field(default_factory=dict)
     notes: tuple = ()
+    display: DisplayUnits = DisplayUnits()
+    linear: bool = False
 
     @property
     def count(self) -> int:
@@ -218,13 +264,25 @@ class ToleranceResult(RichDisplay):
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 
+    def shown(self, key: str) -> tuple:
+        """``(unit, factor)`` the values of tolerance ``key`` are shown in (:func:`shown_unit`)."""
+        units = {t.key: t.unit for t in self.tolerances.items}
+        return shown_unit(key, units.get(key, ""), self.display, self.linear)
+
+    def describe(self, tolerance) -> str:
+        """A tolerance's distribution in words, in the units shown."""
+        return tolerance.describe(*self.shown(tolerance.key))
+
     def corner_text(self) -> str:
-        """The worst corner's values with their units (SI), e.g. ``motor.resistance = 0.7 ohm``."""
+        """The worst corner's values with their units (the scene's ``[display]`` unit for a
+        stiffness or an inertia, else SI), e.g. ``motor.resistance = 0.7 ohm``."""
         if self.worst is None:
             return ""
-        units = {t.key: t.unit for t in self.tolerances.items}
-        return ", ".join(f"{k} = {fmt(v, 4)}" + ("" if units.get(k, "") in ("", "1", "dimensionless")
-                                                 else f" {units[k]}") for k, v in self.worst.values.items())
+        out = []
+        for k, v in self.worst.values.items():
+            unit, factor = self.shown(k)
+            out.append(f"{k} = {fmt(v * factor, 4)}" + ("" if unit in _NO_UNIT else f" {unit}"))
+        return ", ".join(out)
 
     def plot(self, ax=None, figure: str | None = None):
         """Bar chart of the tolerances' variance shares on ``figure`` (default: the first

@@ -190,7 +190,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     notes = list(dict.fromkeys(notes))  # a note given by two parts of the model once
     settings = {"samples": n, "method": method, "seed": seed, "plants": plants.method, "plants_error": plants.error}
     return ToleranceResult(scene.name, tol, values, figs, runs, tuple(margins + timed), passes, yields, sens, worst,
-                           settings, tuple(notes))
+                           settings, tuple(notes), scene.display, scene.drivetrain.output_is_linear)
 
 
 def sampling_notes(method: str, n: int) -> list:
@@ -401,7 +401,7 @@ def _worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, key
         time_figures["failed"] = reasons[i]
     basis = "every requirement (margins and time runs)" if timed else "the linear figures"
     return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed, basis,
-                       time_figures, tuple(notes))
+                       time_figures, tuple(notes), {t.key: t.unit for t in tol.items})
 
 
 def _split(corner):
