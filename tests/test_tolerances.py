@@ -272,6 +272,9 @@ def test_yields_count_the_variants_and_the_rows_judge_the_lower_end(study):
     d = study.to_dict()
     json.dumps(d)
     assert d["yields"][-1]["name"] == "all" and d["worst_corner"]["corners_evaluated"] == 32
+    stiffness = d["worst_corner"]["values"]["drivetrain[3].stiffness"]  # SI in the JSON, which says so
+    assert d["worst_corner"]["units"]["drivetrain[3].stiffness"] == "N*m/rad"
+    assert f"drivetrain[3].stiffness = {stiffness * math.pi / 180:.4g} N*m/deg" in study.table()
     assert repr(study).startswith("<ToleranceResult: ema_tolerances: 256 variants") and "<svg" in study._repr_html_()
 
 
@@ -301,4 +304,6 @@ def test_check_gates_on_the_lower_end_and_the_report_shows_the_same_rows(tmp_pat
     section = run_section("tolerances", "Tolerances", tolerances_section, ctx)
     assert section.status in ("pass", "fail") and "tolerance-yields" in section.html and section.figures
     assert "Worst corner over the linear figures" in section.html and "load.inertia = 1.2 kg*m^2" in section.html
+    # the housing's stiffness in the scene's [display] unit, as it is written (1696.8 N*m/deg +- 15 %)
+    assert "uniform 1442..1951 N*m/deg" in section.html and "N*m/rad" not in section.html
     assert [r.to_dict() for r in yield_rows(tolerance_results(ctx))] == rows

@@ -217,11 +217,13 @@ _NOTES = {"tolerances": [
     "| `\"+-5 %\"`, `\"+-0.1 ohm\"` | uniform about the scene's value |",
     "| `{sigma = \"2 %\"}`, `{sigma = \"0.02 ohm\", mean = ..., min = ..., max = ...}` | normal about `mean` "
     "(default the scene's value), truncated to `min`/`max` and to the key's physical range; without `min` "
-    "(`max`) the physical range may cut at most 0.1 % of it (3.09 sigma), else give the end |", "",
+    "(`max`) the physical range may cut at most 0.1 % of it (3.09 sigma), else give the end; a mean at `min` "
+    "or `max` is a half-normal |", "",
     "Each range end, and a normal's truncation, must obey the key's rule in the tables above (its sign and "
     "the range its model is conditioned for); an unknown key, a list or text key, a requirement, a malformed "
     "distribution, a sigma that is not positive, a spread below 1e-9 of the value or a percentage of a value of "
-    "0 is one line naming `tolerances.<key>` (exit 2); `min_yield` is below 1 (no sample shows a yield of 1). "
+    "0 is one line naming `tolerances.<key>` (exit 2), as is `sensors.sample_time` (the design's sample time, "
+    "not a tolerance); `min_yield` is below 1 (no sample shows a yield of 1). "
     "Integer keys "
     "are rounded. `[robustness]`'s `load_inertia` and `stiffness` ranges are the tolerances `load.inertia` and "
     "`drivetrain.stiffness_scale`.", ""]}

@@ -2,7 +2,8 @@
 (a range, ``"+-X %"``, a normal ``{sigma}``), read into a :class:`Tolerance` and checked
 against the key's physical range (:mod:`servo_toolkit.core.ranges`): its sign rule, the
 range its model is conditioned for, a normal the physical range alone would cut by more
-than :data:`IMPLICIT_CUT`, a spread the study cannot tell from none (:data:`MIN_SPREAD`)."""
+than :data:`IMPLICIT_CUT`, a spread the study cannot tell from none (:data:`MIN_SPREAD`). A
+normal whose mean is its ``min`` (``max``) is a half-normal: cut at its mean by construction."""
 
 from __future__ import annotations
 

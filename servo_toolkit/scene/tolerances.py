@@ -21,7 +21,9 @@ logarithm, as the robustness study's ranges are. ``{sigma}`` (a quantity, or ``"
 the mean) is a normal about ``mean`` (default the scene's value), truncated to the key's
 physical range (its sign rule and the range its model is conditioned for,
 :mod:`servo_toolkit.core.ranges`) and to ``min``/``max`` when given; the physical range alone
-may cut at most :data:`~.distributions.IMPLICIT_CUT` of it (else the scene gives the end).
+may cut at most :data:`~.distributions.IMPLICIT_CUT` of it (else the scene gives the end);
+a mean at ``min`` or ``max`` is a half-normal (``{ sigma = "0.01 N*m", min = "x1" }``: a
+friction that can only grow).
 Integer keys are rounded. Every distribution is checked when the scene loads: an unknown key, a malformed
 distribution, a sigma that is not positive or an end outside the key's conditioned range is
 one line naming the key. Before a study draws variants it also builds the scene at each

@@ -332,4 +332,4 @@ class ToleranceResult(RichDisplay):
                     else None, parts=parts, notes=notes + list(self.notes))
 
 
-__all__ = ["ToleranceResult", "WorstCorner"]
+__all__ = ["ToleranceResult", "WorstCorner", "shown_unit"]
