@@ -14,7 +14,8 @@ import numpy as np
 
 from ..errors import SceneError, SimulationError
 from .tolerance_result import WorstCorner
-from .tolerances import FIGURES, _physical, _relative_margin, _time_shown
+from .tolerance_figures import FIGURES, physical_failures as _physical, relative_margin as _relative_margin, \
+    time_shown as _time_shown
 
 #: corners evaluated one by one up to this many (2**10); beyond, the regression's signs choose
 MAX_CORNERS = 1024

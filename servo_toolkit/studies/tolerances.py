@@ -33,13 +33,9 @@ from ..errors import SceneError, SimulationError
 from ..core.sensitivity import rank, sobol
 from ..core.yields import Yield
 from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
+from .tolerance_figures import FIGURES, meets as _meets, physical_failures as _physical, time_shown as _time_shown
 from .tolerance_result import ToleranceResult
 
-#: margin requirement -> (figure of the linear study, label)
-FIGURES = {"gain_margin": ("gain_margin_db", "gain margin"), "phase_margin": ("phase_margin_deg", "phase margin"),
-           "sensitivity_peak": ("sensitivity_peak_db", "sensitivity peak Ms"),
-           "bandwidth": ("bandwidth_hz", "closed-loop bandwidth"),
-           "phase_lag_at_bandwidth": ("phase_lag_deg", "phase lag at the bandwidth")}
 #: base sample of the Sobol indices of a nonlinear margin figure (n (d + 2) evaluations)
 SOBOL_BASE = 512
 
@@ -62,18 +58,6 @@ def _requirements(scene, result, tol):
     if tol.max_peak_current is not None:
         timed.append(Requirement("peak_current", "<=", tol.max_peak_current, "A", "tolerances"))
     return margins, timed
-
-
-def _meets(r, y):
-    with np.errstate(invalid="ignore"):
-        return (y >= r.value) if r.sense == ">=" else (y <= r.value) & np.isfinite(y)
-
-
-def _relative_margin(r, y):
-    """(achieved - required) / |required| in the requirement's sense (positive: met)."""
-    scale = abs(r.value) if r.value else 1.0
-    with np.errstate(invalid="ignore"):
-        return ((y - r.value) if r.sense == ">=" else (r.value - y)) / scale
 
 
 def tolerance_study(scene, result=None, *, samples: int | None = None, method: str | None = None,
@@ -203,21 +187,6 @@ def sampling_notes(method: str, n: int) -> list:
                 f"interval's conservatism shown) only for 2^m points; {1 << n.bit_length()} variants would "
                 f"restore it"]
     return []
-
-
-def _time_shown(scene, runs) -> dict:
-    """The time runs' figures in the units of their requirements (deg or mm; A)."""
-    return {"tracking_error": runs.tracking_error * (1e3 if scene.drivetrain.output_is_linear else 180 / math.pi),
-            "peak_current": runs.peak_current}
-
-
-def _physical(runs, stable) -> np.ndarray:
-    """Which failed runs failed by their physics: the stroke end reached, or a divergence
-    with an unstable linear loop."""
-    reasons = np.array(runs.reasons, dtype=object)
-    stroke = np.array([r.startswith("stroke end reached") for r in reasons], bool)
-    diverged = np.array([r.startswith("non-finite state") for r in reasons], bool) & ~np.asarray(stable, bool)
-    return runs.failed & (stroke | diverged)
 
 
 def _judge_failed(runs, values, stable):
