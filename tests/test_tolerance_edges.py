@@ -436,6 +436,17 @@ def test_a_study_whose_tolerances_enter_no_judged_figure_says_its_yield_is_the_n
     assert any(n.startswith("no tolerance enters a judged figure") for n in study.notes)
 
 
+@pytest.fixture(scope="module")
+def reference_design():
+    """The reference EMA's design (its [tolerances] do not enter it): the controller every
+    variant of the studies below runs."""
+    from servo_toolkit.loop import design
+    from servo_toolkit.scene.loader import load_scene
+
+    from .conftest import SCENES
+    return design(load_scene(SCENES / "ema_reference.toml"), progress=False)
+
+
 class _CountingExecutor(_PicklingExecutor):
     """A pickling executor that counts the chunks of time runs it was given."""
 
@@ -447,13 +458,12 @@ class _CountingExecutor(_PicklingExecutor):
         return super().submit(fn, *args, **kwargs)
 
 
-def test_the_sobol_time_runs_go_to_the_executor_and_give_the_same_json(tmp_path):
+def test_the_sobol_time_runs_go_to_the_executor_and_give_the_same_json(tmp_path, reference_design):
     """Two variants of one tolerance cannot fit a regression: the time figures are ranked by
     Sobol indices from 4 (1 + 2) further runs, which go to the executor in chunks as the
     study's own time runs do; the JSON is byte-identical with and without it."""
     import json
 
-    from servo_toolkit.loop import design
     from servo_toolkit.scene.loader import load_scene
     from servo_toolkit.studies.tolerances import tolerance_study
 
@@ -463,16 +473,15 @@ def test_the_sobol_time_runs_go_to_the_executor_and_give_the_same_json(tmp_path)
                     + '\n[tolerances]\nmax_tracking_error = "5 deg"\nmotor.coulomb_friction = "x0.5:x3"\n')
     scene = load_scene(path)
     kw = dict(samples=2, worst_corner=False, progress=False, sobol_runs=4, duration=0.02)
-    designed = design(scene, progress=False)
-    here = tolerance_study(scene, designed, **kw)
+    here = tolerance_study(scene, reference_design, **kw)
     pool = _CountingExecutor()
-    sent = tolerance_study(scene, designed, executor=pool, **kw)
+    sent = tolerance_study(scene, reference_design, executor=pool, **kw)
     assert here.sensitivity("tracking_error").method == "sobol"
     assert pool.calls == 1 + 3  # the variants' chunk, then the Sobol sample's A, B and AB_i runs
     assert json.dumps(sent.to_dict(), sort_keys=True) == json.dumps(here.to_dict(), sort_keys=True)
 
 
-def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_path):
+def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_path, reference_design):
     """Friction acts in time only: its tolerance does not move the margins, yet it drives the
     tracking error. With a bound on the tracking error every corner runs in time and the worst
     is the one that misses its limit by the most, its shortfall divided by the limit; the
@@ -486,7 +495,7 @@ def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_
     path.write_text((SCENES / "ema_reference.toml").read_text()
                     + '\n[tolerances]\nmax_tracking_error = "1 deg"\nmotor.resistance = "+-10 %"\n'
                       'motor.coulomb_friction = "x0.5:x5"\n')
-    study = tolerance_study(load_scene(path), samples=8, progress=False, duration=0.05)
+    study = tolerance_study(load_scene(path), reference_design, samples=8, progress=False, duration=0.05)
     w = study.worst
     assert all(study.yield_of(r).fraction == 1 for r in ("gain_margin", "phase_margin", "sensitivity_peak"))
     assert w.figure == "tracking_error" and w.basis.startswith("every requirement") and w.corners == 4
