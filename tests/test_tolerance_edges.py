@@ -261,6 +261,9 @@ def test_a_key_that_cannot_vary_or_is_misspelt_is_told_apart(line, rule, tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     key = line.split(" = ")[0].strip('"')
     assert len(err) == 1 and f"tolerances.{key}:" in err[0] and rule in err[0], err
+    if "did you mean" in rule:  # the keys it lists are the ones that can vary: not the refused ones
+        listed = err[0].split("toleranced keys are:")[1]
+        assert "motor.inductance" in listed and "sensors.sample_time" not in listed, err
 
 
 def test_a_share_interval_stops_at_all_of_the_variance():
@@ -538,3 +541,23 @@ def test_a_stiffness_and_an_inertia_are_shown_in_the_scenes_display_units_and_th
     # a preference of the other output coordinate's quantity leaves a stage's own unit alone
     travel = replace(shown, display=DisplayUnits(stiffness="N/um"), linear=True)
     assert "drivetrain[3].stiffness = 82.64e3 N*m/rad" in travel.table()
+
+
+def test_a_distribution_written_as_a_table_reads_back_as_the_scene_gives_it():
+    """The JSON's ``written`` is TOML: pasted back into a scene it is the same table."""
+    import tomllib
+
+    from servo_toolkit import load_scene
+    from servo_toolkit.scene.key_paths import table_of
+
+    from .conftest import SCENES
+    path = SCENES / "examples" / "ema_tolerances.toml"
+    raw = tomllib.loads(path.read_text())["tolerances"]
+    tables = 0
+    for t in load_scene(path).tolerances.items:
+        given = table_of(raw, t.key.rpartition(".")[0]) or {}
+        given = given.get(t.key.rpartition(".")[2], raw.get(t.key))
+        if isinstance(given, dict):
+            tables += 1
+            assert tomllib.loads(f"x = {t.written}")["x"] == given, t.written
+    assert tables >= 1

@@ -153,6 +153,18 @@ def _spread(text: str, kp, where: str, center: float) -> float:
     return parse_quantity(text, "dimensionless" if kp.unit == "1" else kp.unit, where)
 
 
+def _toml_value(raw) -> str:
+    """``raw`` (a value of a TOML table) as it reads in the scene: an inline table
+    ``{ sigma = "2 %", min = "x0.95" }``, a quoted text or a number."""
+    if isinstance(raw, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in raw.items()) + " }"
+    if isinstance(raw, str):
+        return '"' + raw.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(raw, bool):
+        return "true" if raw else "false"
+    return repr(raw)
+
+
 def _physical_range(kp) -> tuple:
     """(low, high) a value of ``kp`` may take: its sign rule and conditioned range."""
     if kp.integer:
@@ -183,7 +195,7 @@ def parse_distribution(raw, kp, where: str) -> Tolerance:
         the wrong order or outside the key's physical range.
     """
     nominal = kp.value
-    written = raw if isinstance(raw, str) else repr(raw)
+    written = raw if isinstance(raw, str) else _toml_value(raw)
     mean, sigma, dist = math.nan, math.nan, "uniform"
     if isinstance(raw, str) and _PLUS_MINUS.match(raw):
         text = _PLUS_MINUS.match(raw).group(2)

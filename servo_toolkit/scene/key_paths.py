@@ -137,7 +137,7 @@ class SceneKeys:
         return sorted(set(keys))
 
     def resolve(self, key: str, *, where: str | None = None, integers: bool = True,
-                what: str = "a numeric key of this scene; known:") -> KeyPath:
+                what: str = "a numeric key of this scene; known:", excluded=()) -> KeyPath:
         """The key path ``key``.
 
         Parameters
@@ -149,6 +149,8 @@ class SceneKeys:
             Accept integer keys.
         what : str
             What the key must be, for the error message (the known keys follow it).
+        excluded : collection of str
+            Keys left out of the known keys the error lists (keys the caller refuses).
 
         Raises
         ------
@@ -173,7 +175,7 @@ class SceneKeys:
                 raise SceneError(where, "not a physical parameter of the actuator; name motor, drivetrain, load "
                                         "or sensors keys")
             import difflib
-            known = self.known(integers)
+            known = [k for k in self.known(integers) if k not in excluded]
             close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
             hint = f"did you mean {close[0]}? " if close else ""
             raise SceneError(where, f"{hint}not {what} {', '.join(known)}")
