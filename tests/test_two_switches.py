@@ -108,3 +108,50 @@ def test_the_reference_reaches_the_motor_sticking_whatever_the_duration(case):
     r = run(model, SINE, 0.35, method="rk4", dt=DTS[-1], output_dt=OUT)
     err_rk4 = np.abs(short.states[:, [0, 2]] - r.states[:, [0, 2]]).max() / amp
     assert err_ref < 1e-9 and err_rk4 < 1e-7, (err_ref, err_rk4)
+
+
+@pytest.mark.parametrize("solver", ["Radau", "BDF"])
+def test_the_stiff_solvers_step_across_the_motors_breakaway(case, solver):
+    """Radau and BDF at rtol = atol = 1e-12 used to fail at the motor's first breakaway
+    (t = 0.00398 s, "Required step size is less than spacing between numbers"): past it the
+    resting motor's acceleration is that of the moment beyond its breakaway level, but a
+    Newton iterate whose speed rounds to -1e-38 met the sliding friction the other way, a jump
+    of 2 Ts / J_m, and no step across the instant converged. Held at rest until the breakaway
+    event (its speed read as 0), both run the 0.35 s case, stick the motor over the same
+    records as the LSODA reference and follow it to its accuracy (Radau 3.5e-10, BDF 5.3e-10
+    of the swing)."""
+    model, ref = case
+    r = run(model, SINE, 0.35, method="reference", solver=solver, output_dt=OUT, rtol=1e-12, atol=1e-12)
+    every = round(OUT / FINE)
+    n = r.times.size
+    truth = ref.states[::every][:n]
+    assert r.times[-1] == pytest.approx(0.35) and np.sum(truth[:, 1] == 0.0) > 10
+    np.testing.assert_array_equal(r.states[:, 1] == 0.0, truth[:, 1] == 0.0)
+    amp = np.ptp(r.states[:, 2])
+    err = np.abs(r.states[:, [0, 2]] - truth[:, [0, 2]]).max() / amp
+    assert amp > 0.3 and err < 1e-9, err
+
+
+def test_a_failed_reference_solve_names_the_instant_it_reached(case):
+    """A negative winding resistance makes the motor drive itself ever faster (back EMF as
+    positive feedback, about 1e4 /s on the rotor) until the state overflows. The failure
+    names the instant RK45 reached, not the solve's start (0 s): the instant where LSODA, an
+    independent solver, first holds a non-finite state on a 1e-3 s grid follows it within a
+    grid step, and the solve's span is named."""
+    from servo_toolkit import SimulationError
+    from servo_toolkit.sim import layout as lo
+    from servo_toolkit.sim.ivp import solve_reference
+    from servo_toolkit.sim.reference import fill, initial_state
+
+    model, _ = case
+    P = fill(model, SINE)
+    P[lo.R], P[lo.STROKE_MODE] = -1e-3, lo.STROKE_NONE
+    x0 = initial_state(model, P)
+    reached = []
+    for solver, grid in (("RK45", [0.0, 0.5]), ("LSODA", np.linspace(0.0, 0.5, 501))):
+        with pytest.raises(SimulationError, match=rf"reference solver \({solver}.* failed at t = ") as err:
+            solve_reference(model, P, x0, grid, solver=solver)
+        assert "(in its solve from 0 s to 0.5 s)" in str(err.value)
+        reached.append(float(str(err.value).split("failed at t = ")[1].split(" s")[0]))
+    rk45, lsoda = reached
+    assert 0.01 < rk45 <= lsoda <= rk45 + 1e-3, reached

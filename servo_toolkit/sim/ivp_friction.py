@@ -208,6 +208,12 @@ class FrictionModes:
             if i <= 3:
                 self.dirs[i] = 0.0 if x[i] == 0.0 else (1.0 if x[i] > 0.0 else -1.0)
                 self._hold(i)
+        # the nodes at rest are held there: the solver's trial states, whose speed there may be
+        # off 0 by its rounding, are read at rest (module doc)
+        rest = [i for i in self.nodes if x[i] == 0.0 and self.dirs[i] == 0.0]
+        if self.model.rigid and 1 in rest:
+            rest.append(3)
+        self.fun.rest = rest
         events = []
         for i in self.nodes:
             if i <= 3:
