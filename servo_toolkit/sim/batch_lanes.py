@@ -249,7 +249,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     H = np.zeros(W) if open_loop else IREF
     xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
     k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
-    x0, PW = np.empty(nx), np.empty((4, n_par))  # the split step's scratch
+    x0, PW = np.empty(nx), np.empty((4, max(n_par, nx)))  # the split step's scratch
     to_sample = 0
     sixth = dt / 6.0
     running = nl

@@ -87,8 +87,8 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
 def scratch(nx: int, n_par: int):
     """The scratch arrays of :func:`_rk4` for nx states and n_par parameters: the stages'
     slopes and state (zeros), the controller's work vector and the split step's state and
-    parameter copies."""
-    return np.zeros((5, nx)), np.empty(max(nx, 1)), np.empty(nx), np.empty((4, n_par))
+    parameter copies (4 rows, each wide enough for P and for x)."""
+    return np.zeros((5, nx)), np.empty(max(nx, 1)), np.empty(nx), np.empty((4, max(n_par, nx)))
 
 
 @inline

@@ -85,8 +85,8 @@ def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
     ``qd_new``: their speeds at the plain step's end); ``mask``: the intermediate nodes that
     may (bits, :func:`.node_switch.node_flags`), k1..k4 holding the plain step's slopes.
     Returns the step's new ``(p, pd, q, qd, cur, xi)`` (x[7:] advanced in place when they
-    move). ``x0`` (the size of x) and ``PW`` (4 rows the size of P) are scratch: the step
-    allocates nothing."""
+    move). ``x0`` (the size of x) and ``PW`` (4 rows, each at least the size of P and of x) are
+    scratch: the step allocates nothing."""
     n = 0
     while True:
         split, p, pd, q, qd, cur, xi, tau, held = _earliest(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont,
