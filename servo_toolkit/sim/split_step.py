@@ -11,8 +11,9 @@ within the step and integrates RK4 to it and from it:
 - a reversal: tau is the zero of the node's speed along the motion continued smoothly past
   it (its sliding friction held at its direction before the zero: ``DIR_M``, ``DIR_L`` in a
   scratch copy of the parameters), found by the Illinois method on RK4 trial steps from the
-  step's start, each of RK4's own order on that smooth motion; the node restarts at rest
-  exactly at tau, where the friction decides between stick and slip;
+  step's start, each of RK4's own order on that smooth motion (the motor side and the load
+  both reversing along it: the earlier of their zeros); the node restarts at rest exactly at
+  tau, where the friction decides between stick and slip;
 - a breakaway: tau is where the node's signed breakaway distance crosses 0, along the motion
   with the node held (its breakaway level out of reach in the scratch copy), the distance
   read by the right-hand side with ``HOLD_GAUGE`` = 1 in another
@@ -289,6 +290,11 @@ def first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs
             return False, r[0], r[1], r[2], r[3], r[4], r[5], dt
         tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
                         k1, k2, k3, k4, node, False)
+        if node == 0 and load and qd * r[3] < 0.0:  # both reverse along the continued motion: the earlier
+            tau_l = _illinois(0.0, dt, qd, r[3], t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
+                              k1, k2, k3, k4, 1, False)
+            if tau_l < tau:
+                tau, node = tau_l, 1
     else:
         if node == 0:
             H[TS_M] = HELD
