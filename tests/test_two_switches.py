@@ -3,7 +3,8 @@ chain, each with friction that holds, reverse 26 to 32 microseconds apart at eac
 voltage's three reversals. The RK4 step locates both (the rest of a split step is checked and split again), so
 its error against the event-driven reference solver falls at fourth order; with the second
 switch left inside a plain RK4 step the error stalled at about 2e-4 of the swing from 1e-3 s
-down to 1.25e-4 s."""
+down to 1.25e-4 s. The same holds at an intermediate node of the full chain switching with
+the load; and the stiff reference solvers (Radau, BDF) step across the motor's breakaway."""
 
 import math
 
@@ -108,3 +109,106 @@ def test_the_reference_reaches_the_motor_sticking_whatever_the_duration(case):
     r = run(model, SINE, 0.35, method="rk4", dt=DTS[-1], output_dt=OUT)
     err_rk4 = np.abs(short.states[:, [0, 2]] - r.states[:, [0, 2]]).max() / amp
     assert err_ref < 1e-9 and err_rk4 < 1e-7, (err_ref, err_rk4)
+
+
+@pytest.mark.parametrize("solver", ["Radau", "BDF"])
+def test_the_stiff_solvers_step_across_the_motors_breakaway(case, solver):
+    """Radau and BDF at rtol = atol = 1e-12 used to fail at the motor's first breakaway
+    (t = 0.00398 s, "Required step size is less than spacing between numbers"): past it the
+    resting motor's acceleration is that of the moment beyond its breakaway level, but a
+    Newton iterate whose speed rounds to -1e-38 met the sliding friction the other way, a jump
+    of 2 Ts / J_m, and no step across the instant converged. Held at rest until the breakaway
+    event (its speed read as 0), both run the 0.35 s case, stick the motor over the same
+    records as the LSODA reference and follow it to its accuracy (Radau 3.5e-10, BDF 5.3e-10
+    of the swing)."""
+    model, ref = case
+    r = run(model, SINE, 0.35, method="reference", solver=solver, output_dt=OUT, rtol=1e-12, atol=1e-12)
+    every = round(OUT / FINE)
+    n = r.times.size
+    truth = ref.states[::every][:n]
+    assert r.times[-1] == pytest.approx(0.35) and np.sum(truth[:, 1] == 0.0) > 10
+    np.testing.assert_array_equal(r.states[:, 1] == 0.0, truth[:, 1] == 0.0)
+    amp = np.ptp(r.states[:, 2])
+    err = np.abs(r.states[:, [0, 2]] - truth[:, [0, 2]]).max() / amp
+    assert amp > 0.3 and err < 1e-9, err
+
+
+def test_a_failed_reference_solve_names_the_instant_it_reached(case):
+    """A negative winding resistance makes the motor drive itself ever faster (back EMF as
+    positive feedback, about 1e4 /s on the rotor) until the state overflows. The failure
+    names the instant RK45 reached, not the solve's start (0 s): the instant where LSODA, an
+    independent solver, first holds a non-finite state on a 1e-3 s grid follows it within a
+    grid step, and the solve's span is named."""
+    from servo_toolkit import SimulationError
+    from servo_toolkit.sim import layout as lo
+    from servo_toolkit.sim.ivp import solve_reference
+    from servo_toolkit.sim.reference import fill, initial_state
+
+    model, _ = case
+    P = fill(model, SINE)
+    P[lo.R], P[lo.STROKE_MODE] = -1e-3, lo.STROKE_NONE
+    x0 = initial_state(model, P)
+    reached = []
+    for solver, grid in (("RK45", [0.0, 0.5]), ("LSODA", np.linspace(0.0, 0.5, 501))):
+        with pytest.raises(SimulationError, match=rf"reference solver \({solver}.* failed at t = ") as err:
+            solve_reference(model, P, x0, grid, solver=solver)
+        assert "(in its solve from 0 s to 0.5 s)" in str(err.value)
+        reached.append(float(str(err.value).split("failed at t = ")[1].split(" s")[0]))
+    rk45, lsoda = reached
+    assert 0.01 < rk45 <= lsoda <= rk45 + 1e-3, reached
+
+
+@pytest.fixture(scope="module")
+def wheel_case():
+    """A full chain: the motor drives a wheel through a compliant 2:1 gear, the wheel drives
+    the load through a stiff 1:1 mesh; the wheel (gear A's friction, at its node) and the load
+    carry friction that holds and decelerate alike under their Coulomb levels (10 rad/s^2)."""
+    from servo_toolkit.components.gear import GearTrain
+    from servo_toolkit.components.stage_friction import StageFriction
+
+    motor = DCMotor(resistance=R, inductance=0.0, torque_constant=KT, back_emf_constant=KT, rotor_inertia=2.5e-4,
+                    viscous_friction=0.0, coulomb_friction=0.0, current_limit=50.0, voltage_limit=100.0)
+    stages = (GearTrain("gear A", ratio=2.0, inertias=(0.0, J_M), torsional_stiffness=200.0),
+              GearTrain("gear B", ratio=1.0, inertias=(0.0, 0.0), torsional_stiffness=K))
+    sc = Scene("wheel and load", motor=motor, stages=stages,
+               load=Load(inertia=J_L, coulomb_friction=TC_L, static_friction=TS_L),
+               stage_friction=(StageFriction(TC_M, TS_M), None))
+    model = build_model(sc, None, ModelOptions(chain="full", friction="stick", backlash=False, inductance=False))
+    ref = run(model, SINE, DURATION, method="reference", output_dt=FINE, rtol=1e-12, atol=1e-12)
+    return model, ref
+
+
+def test_rk4_locates_an_intermediate_nodes_switch_and_the_loads_in_one_step(wheel_case):
+    """The wheel, an intermediate node of the full chain, and the load reverse 10 to 20
+    microseconds apart at each of the sine voltage's three reversals. Every switch within a
+    step is located at every node (the rest of a split step is checked for the intermediate
+    nodes too, and the earliest of several flagged switches comes first), so RK4's error
+    against the event-driven reference falls at fourth order: 3.4e-7, 2.4e-8, 1.6e-9 and
+    8.7e-11 of the output's swing from 2.5e-4 s to 3.125e-5 s. With one intermediate node's
+    switch per step and the rest of the load's split unchecked for it, the error was 5.0e-6,
+    1.8e-6, 3.3e-7 and 2.0e-6 (no order)."""
+    from servo_toolkit.sim import layout as lo
+
+    model, ref = wheel_case
+    assert model.P[lo.NMID] == 1 and model.P[lo.TS_L] > 0.0 and model.P[lo.TS_M] == 0.0
+    o = int(model.P[lo.OFF_NODE])
+    wheel, load = reversals(ref.times, ref.states[:, o + 1]), reversals(ref.times, ref.states[:, 3])
+    load = [lo_ for lo_ in load if lo_[0] > 0.1]
+    wheel = [min(wheel, key=lambda w: abs(w[0] - lo_[0])) for lo_ in load]  # the wheel's reversal nearest each
+    assert len(load) == 3
+    dts = DTS + (3.125e-5,)
+    for dt in dts:
+        assert all(max(w[1], lo_[1]) - min(w[0], lo_[0]) < 5e-5 for w, lo_ in zip(wheel, load))
+        one = [max(w[1], lo_[1]) <= (math.floor(min(w[0], lo_[0]) / dt + 1e-9) + 1) * dt + 1e-12
+               for w, lo_ in zip(wheel, load)]
+        assert any(one), dt
+    every = round(OUT / FINE)
+    cols = [0, 2, o]
+    truth = ref.states[::every][:, cols]
+    amp = np.ptp(ref.states[:, 2])
+    errors = []
+    for dt in dts:
+        r = run(model, SINE, DURATION, method="rk4", dt=dt, output_dt=OUT)
+        errors.append(float(np.abs(r.states[:, cols] - truth).max() / amp))
+    orders = [math.log2(a / b) for a, b in zip(errors[:-1], errors[1:])]
+    assert errors[-1] < 1e-9 and min(orders) > 3.5, (errors, orders)

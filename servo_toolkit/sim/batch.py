@@ -38,7 +38,7 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     out_x = np.empty((2, x.size))
     out_aux = np.empty((2, lo.NAUX))
     _rk4(x, P, T, 0.0, dt, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, fig, snap,
-         np.zeros((5, x.size)), np.empty(max(x.size, 1)), np.empty(x.size), np.empty((3, P.size)))
+         np.zeros((5, x.size)), np.empty(max(x.size, 1)), np.empty(x.size), np.empty((4, max(P.size, x.size))))
 
 
 def run_variants(X, P, T, tix, dt, n_steps, sub, figs, snaps):

@@ -17,7 +17,7 @@ scalar pass only for a lane with a new peak, a state that may stop it, or its la
 Friction that holds (``STICK``) runs
 in the lanes: its stick and breakaway law is branch-free in the right-hand side, and a lane
 whose node reverses its speed or breaks away within a step has that step redone by the
-single run's split step (:func:`split_step.switched_step`, from the same first-stage slopes
+single run's split step (:func:`switch_loop.switched_step`, from the same first-stage slopes
 and results) while its block-mates take the plain update. A block holding a continuous
 controller, a cam, a feedforward or controllers of different structures falls back to
 :func:`batch.variant_run` per variant.
@@ -36,7 +36,8 @@ from numba.np.arrayobj import make_array, populate_array
 from . import layout as lo
 from .batch import variant_run
 from .integrators import rk4_coefficients, snapshot as _snap, step_status
-from .split_step import stage_turns, switch_ahead, switched_step
+from .split_step import stage_turns, switch_ahead
+from .switch_loop import switched_step
 from .layout import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, S_DEFLECTION, S_END, S_PEAK
 from .kernel import FASTMATH, clip, command, controller_inputs, motion_columns, reference, rhs_phys
 
@@ -248,7 +249,7 @@ def block_run(X, P, T, tix, v0, nl, dt, n_steps, sub, shared, figs, snaps):
     H = np.zeros(W) if open_loop else IREF
     xw, xs = np.empty(nx), np.empty(nx)  # a lane's state and stage state for a split step
     k1, k2, k3, k4 = np.empty(nx), np.empty(nx), np.empty(nx), np.empty(nx)
-    x0, PW = np.empty(nx), np.empty((3, n_par))  # the split step's scratch
+    x0, PW = np.empty(nx), np.empty((4, max(n_par, nx)))  # the split step's scratch
     to_sample = 0
     sixth = dt / 6.0
     running = nl
@@ -344,7 +345,7 @@ def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, x
     """Friction that holds, per lane: a running lane whose node carrying friction reverses its
     speed or breaks away within the step (:func:`split_step.switch_ahead`, from the step's
     result and its first stage's slopes ``G``, as the single run decides) has its step redone
-    by :func:`split_step.switched_step`; its new state goes into ``Y`` and ``SPLIT`` marks it,
+    by :func:`switch_loop.switched_step`; its new state goes into ``Y`` and ``SPLIT`` marks it,
     so the plain update leaves it alone."""
     sixth = dt / 6.0
     nx = xw.size
@@ -361,7 +362,7 @@ def _split_reversals(t, dt, v0, nl, Y, U, G, P, T, TI, IREF, ACT, SPLIT, TURN, x
                 xw[j] = Y[j, l]
             Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l] = switched_step(
                 t, dt, Y[0, l], Y[1, l], Y[2, l], Y[3, l], Y[4, l], Y[5, l], Y[6, l], P[v], T[TI[l]], IREF[l],
-                False, rigid, xw, xs, k1, k2, k3, k4, pd_new, qd_new, x0, PW)
+                False, rigid, xw, xs, k1, k2, k3, k4, pd_new, qd_new, x0, PW, True, 0)
             SPLIT[l] = 1.0
 
 

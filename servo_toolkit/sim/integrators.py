@@ -23,8 +23,9 @@ import numba as nb
 import numpy as np
 
 from .kernel import FASTMATH, controller_sample, inline, jit, reference, rhs, rhs_phys
-from .node_switch import node_switch_ahead, node_switched_step
-from .split_step import rk4_coefficients, stage_turns, switch_ahead, switched_step
+from .node_switch import node_flags
+from .split_step import rk4_coefficients, stage_turns, switch_ahead
+from .switch_loop import switched_step
 from .tables import frozen_tables
 from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, F_ERR, F_SAT, F_STATUS,
                      F_STEP, F_TAU, HALF_PLAY, ILIM, NAUX, NFIG, NMID, NODE_FRIC, NSNAP, NONFINITE, NX_PHYS, OK, S_DEFLECTION, S_END,
@@ -86,8 +87,8 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
 def scratch(nx: int, n_par: int):
     """The scratch arrays of :func:`_rk4` for nx states and n_par parameters: the stages'
     slopes and state (zeros), the controller's work vector and the split step's state and
-    parameter copies."""
-    return np.zeros((5, nx)), np.empty(max(nx, 1)), np.empty(nx), np.empty((3, n_par))
+    parameter copies (4 rows, each wide enough for P and for x)."""
+    return np.zeros((5, nx)), np.empty(max(nx, 1)), np.empty(nx), np.empty((4, max(n_par, nx)))
 
 
 @inline
@@ -236,17 +237,17 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
             u5 += w * s5
         if done:
             break
-        if stick and (turned or switch_ahead(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3,
-                                             qd + dt * g3, P, rigid)):
-            # a node carrying friction may reverse or break away within the step: split it there
-            p, pd, q, qd, cur, xi = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs,
-                                                  k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW)
-            continue
-        if lands and node_switch_ahead(x, k1, k2, k3, k4, sixth, P):
-            # an intermediate node carrying friction may reverse or break away within the step
-            p, pd, q, qd, cur, xi = node_switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, x, xs,
-                                                       k1, k2, k3, k4, x0, PW)
-            continue
+        if stick:
+            # a node carrying friction may reverse or break away within the step (the motor side
+            # or the load: ends; the full chain's intermediate nodes: mask): split it there
+            ends = turned or switch_ahead(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3, qd + dt * g3,
+                                          P, rigid)
+            mask = node_flags(x, k1, k2, k3, k4, sixth, P) if lands else 0
+            if ends or mask:
+                p, pd, q, qd, cur, xi = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x,
+                                                      xs, k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW,
+                                                      ends, mask)
+                continue
         if cont:
             for j in range(NX_PHYS, nx):
                 x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])

@@ -36,7 +36,9 @@ def make_fun(model, P, iref_box, max_evals=None, deadline=None):
 
     With ``max_evals`` (count) or ``deadline`` (``time.perf_counter()`` value) the function
     raises ``_Budget`` once either is exceeded; ``fun.count`` and ``fun.t_last`` report the
-    evaluations made and the last time evaluated.
+    evaluations made and the last time evaluated. ``fun.rest`` (empty unless set: the indices
+    in x of the speeds of nodes held at rest, :class:`~.ivp_friction.FrictionModes`) are read
+    as 0 whatever the solver's trial state holds there.
     """
     dx = np.empty(model.nx)
     aux = np.empty(lo.NAUX)
@@ -48,11 +50,16 @@ def make_fun(model, P, iref_box, max_evals=None, deadline=None):
             raise _Budget("evaluations")
         if deadline is not None and fun.count % 1000 == 0 and time.perf_counter() > deadline:
             raise _Budget("time")
-        rhs(t, np.ascontiguousarray(x, dtype=float), P, model.T, iref_box[0], dx, aux)
+        x = np.ascontiguousarray(x, dtype=float)
+        if fun.rest:
+            x = x.copy()
+            x[fun.rest] = 0.0
+        rhs(t, x, P, model.T, iref_box[0], dx, aux)
         return dx.copy()
 
     fun.count = 0
     fun.t_last = 0.0
+    fun.rest = []
     return fun
 
 
@@ -144,11 +151,21 @@ def solve_reference(model, P, x0, t_out, solver="LSODA", rtol=1e-10, atol=1e-10,
             hit = [float(t) for ev in sol.t_events for t in ev]
             raise SimulationError(f"reference solution reached the stroke end at t = {min(hit):.6g} s")
         if sol.status != 0 or not np.all(np.isfinite(sol.y)):
-            raise SimulationError(f"reference solver ({solver}) failed at t = {a:.6g} s: {sol.message}")
+            why = sol.message if sol.status != 0 else "the state became non-finite"
+            raise SimulationError(f"reference solver ({solver}, rtol {rtol:g}, atol {atol:g}) failed at t = "
+                                  f"{_reached(sol, fun):.9g} s (in its solve from {a:.6g} s to {b:.6g} s): "
+                                  f"{why}")
         out[k_out:stop] = sol.y[:, :want.size].T
         irefs[k_out:stop] = box[0]
         k_out = stop
     return out, irefs
+
+
+def _reached(sol, fun) -> float:
+    """Where a failed solve stopped: its first output time with a non-finite state, else the
+    last time the right-hand side was evaluated at (the solver's last trial)."""
+    bad = ~np.all(np.isfinite(sol.y), axis=0) if sol.y.size else np.zeros(0, dtype=bool)
+    return float(sol.t[np.argmax(bad)]) if bad.any() else float(fun.t_last)
 
 
 class _Joined:
@@ -160,13 +177,24 @@ class _Joined:
         self.status, self.message, self.t_events = status, message, t_events
 
 
+def _solve(fun, span, x, solver, t_eval, rtol, atol, events):
+    """``solve_ivp`` whose failure on a non-finite state inside a stiff solver's linear
+    algebra (scipy raises ValueError there) is reported as a failed solve (status -1)."""
+    try:
+        return solve_ivp(fun, span, x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol, events=events)
+    except ValueError as why:
+        if "infs or NaNs" not in str(why):
+            raise
+        return _Joined([], [], -1, f"the state became non-finite ({why})", [])
+
+
 def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
     """One controller sample: ``solve_ivp`` from a to b, restarted at every friction event
     (:class:`~.ivp_friction.FrictionModes`: a reversal, a breakaway) with the node at rest.
     Returns the joined result and the state at b."""
     if not modes.nodes:
-        sol = solve_ivp(fun, (a, b), x, method=solver, t_eval=t_eval, rtol=rtol, atol=atol, events=events)
-        return sol, sol.y[:, -1].copy()
+        sol = _solve(fun, (a, b), x, solver, t_eval, rtol, atol, events)
+        return sol, (sol.y[:, -1].copy() if sol.t.size else x)
     ts, ys = [], []
     t0, x = a, np.array(x, dtype=float)
     modes.start(x)
@@ -174,13 +202,13 @@ def _solve_segment(fun, a, b, x, t_eval, solver, rtol, atol, events, modes):
         ev_f = modes.events(t0, x)
         evs = (events or []) + ev_f
         te = t_eval[t_eval >= t0]
-        sol = solve_ivp(fun, (t0, b), x, method=solver, t_eval=te, rtol=rtol, atol=atol, events=evs)
+        sol = _solve(fun, (t0, b), x, solver, te, rtol, atol, evs)
         # no output time before an event: solve_ivp leaves its empty lists as they are
         sol.t, sol.y = np.asarray(sol.t, dtype=float), np.asarray(sol.y, dtype=float).reshape(x.size, -1)
         if sol.status != 1:
             ts.append(sol.t)
             ys.append(sol.y)
-            return _Joined(ts, ys, sol.status, sol.message, sol.t_events), sol.y[:, -1].copy()
+            return _Joined(ts, ys, sol.status, sol.message, sol.t_events), (sol.y[:, -1].copy() if sol.t.size else x)
         n_stroke = len(events or [])
         hits = [(ev[0], k) for k, ev in enumerate(sol.t_events) if len(ev)]
         t_hit, k = min(hits)

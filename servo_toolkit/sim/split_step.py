@@ -4,14 +4,16 @@ Friction that holds (:mod:`.friction_kernel`) switches where a node carrying it 
 speed (it stops: stick or slide on the other way) and where a stuck node breaks away (the
 moment on it reaches the breakaway level). The right-hand side jumps there, so a step across
 a switch is of low order; the fixed-step loops (:func:`.integrators._rk4`, the Monte Carlo
-lanes) hand such a step to :func:`switched_step`, which finds the switch's instant tau
+lanes) hand such a step to :func:`.switch_loop.switched_step`, whose locator for the motor
+side and the load (:func:`first_switch`) finds the switch's instant tau
 within the step and integrates RK4 to it and from it:
 
 - a reversal: tau is the zero of the node's speed along the motion continued smoothly past
   it (its sliding friction held at its direction before the zero: ``DIR_M``, ``DIR_L`` in a
   scratch copy of the parameters), found by the Illinois method on RK4 trial steps from the
-  step's start, each of RK4's own order on that smooth motion; the node restarts at rest
-  exactly at tau, where the friction decides between stick and slip;
+  step's start, each of RK4's own order on that smooth motion (the motor side and the load
+  both reversing along it: the earlier of their zeros); the node restarts at rest exactly at
+  tau, where the friction decides between stick and slip;
 - a breakaway: tau is where the node's signed breakaway distance crosses 0, along the motion
   with the node held (its breakaway level out of reach in the scratch copy), the distance
   read by the right-hand side with ``HOLD_GAUGE`` = 1 in another
@@ -32,11 +34,10 @@ estimate of the state, when the continued motion does not) that motion is the st
 
 After a switch the rest of the step, [t + tau, t + dt], is a step of its own: its plain RK4
 step (:func:`rk4_checked`) is checked with the fixed-step loops' own test (:func:`switch_ahead`
-from its first stage's slopes and its result, :func:`stage_turns` on its stages) and, where a
-second switch falls within it (the other node reverses too, the node just stuck breaks away
-again, the motor side and the load of a two-mass chain switch together), split again in
-turn, up to :data:`MAX_SWITCHES` switches per step, after which the rest is that plain step.
-A step with one switch costs what it did: the rest's plain step is the one kept.
+from its first stage's slopes and its result, :func:`stage_turns` on its stages; the full
+chain's intermediate nodes by :func:`.node_switch.node_flags`) and, where a second switch falls
+within it, split again in turn, up to :data:`MAX_SWITCHES` switches per step
+(:mod:`.switch_loop`, for every node carrying friction).
 
 Everything here is compiled once as functions of their own (called at switches only), with
 the right-hand side :func:`kernel.rhs_phys_serial`, never another inlined copy.
@@ -157,7 +158,7 @@ def switch_ahead(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid):
     """Whether a node carrying friction may switch within the step: reverses
     (:func:`reversal`) or, at rest at the step's start, moves at its end (a breakaway).
     Cheap, inlined in the step loop (which also hands over a step one of whose stages left
-    a node's direction: :func:`stage_turns`); :func:`switched_step` then decides and does
+    a node's direction: :func:`stage_turns`); :func:`.switch_loop.switched_step` then decides and does
     the work."""
     frac, _ = reversal(pd, pd_new, pd_lin, qd, qd_new, qd_lin, P, rigid)
     if frac < 1.0:
@@ -252,8 +253,8 @@ def _illinois(a, b, ga, gb, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont,
 
 
 @jit
-def _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
-                  x0, PW):
+def first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
+                 x0, PW):
     """The first switch within the step from t (module doc): ``(True, p, pd, q, qd, cur, xi,
     tau)`` the state at t + tau just after it (RK4 to tau, the node at rest there or leaving
     it; x[7:] advanced to t + tau), else ``(False, ...)`` with the step's result (the
@@ -289,6 +290,11 @@ def _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
             return False, r[0], r[1], r[2], r[3], r[4], r[5], dt
         tau = _illinois(0.0, dt, g0, g1, t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
                         k1, k2, k3, k4, node, False)
+        if node == 0 and load and qd * r[3] < 0.0:  # both reverse along the continued motion: the earlier
+            tau_l = _illinois(0.0, dt, qd, r[3], t, p, pd, q, qd, cur, xi, s, W, H, Z, T, iref, cont, x, x0, xs,
+                              k1, k2, k3, k4, 1, False)
+            if tau_l < tau:
+                tau, node = tau_l, 1
     else:
         if node == 0:
             H[TS_M] = HELD
@@ -332,35 +338,3 @@ def _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, x
         else:
             qd = v
     return True, p, pd, q, qd, cur, xi, tau
-
-
-@jit  # called at a switch only
-def switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid, x, xs, k1, k2, k3, k4, pd_new, qd_new,
-                  x0, PW):
-    """The step from t of a node that may switch within it (:func:`switch_ahead`, or a stage
-    whose speed left the node's direction), split at the switches located within the step
-    (module doc): RK4 to the first switch tau, the node at rest there (or leaving it), and the
-    rest [t + tau, t + dt] taken as a step of its own (:func:`rk4_checked`): split again when
-    the callers' test finds a switch within it, up to :data:`MAX_SWITCHES` switches, after
-    which the rest is one plain RK4 step; without a switch along the continued motion, one
-    RK4 step. Returns the step's new ``(p, pd, q, qd, cur, xi)`` (x[7:] advanced in place
-    when they move). ``x0`` (the size of x) and ``PW`` (3 rows the size of P) are scratch: the
-    step allocates nothing."""
-    n = 0
-    while True:
-        split, p, pd, q, qd, cur, xi, tau = _first_switch(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid,
-                                                          x, xs, k1, k2, k3, k4, pd_new, qd_new, x0, PW)
-        if not split:
-            return p, pd, q, qd, cur, xi
-        n += 1
-        t += tau
-        dt -= tau
-        for j in range(x.size):  # x[7:] at the switch, should the rest be split again
-            x0[j] = x[j]
-        p1, pd1, q1, qd1, cur1, xi1, ahead = rk4_checked(t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, rigid,
-                                                          x, xs, k1, k2, k3, k4)
-        if not ahead or n >= MAX_SWITCHES:
-            return p1, pd1, q1, qd1, cur1, xi1
-        for j in range(x.size):
-            x[j] = x0[j]
-        pd_new, qd_new = pd1, qd1
