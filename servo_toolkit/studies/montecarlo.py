@@ -43,7 +43,7 @@ from ..sim.variants import VariantBuilder
 from ..sim.tolerance_rows import ToleranceRows
 from .batch_step import batch_step
 from .montecarlo_result import MonteCarloResult
-from .time_run import check_friction, sine_run_options, with_model_notes
+from .time_run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000
@@ -281,7 +281,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
-        notes=with_model_notes(notes, model.notes), runner=(builder, P0, reference, rows))
+        notes=(*notes, *model.notes), runner=(builder, P0, reference, rows))
 
 
 def fitted_rows(scene, builder, P0, values, reference):
