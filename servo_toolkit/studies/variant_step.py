@@ -9,8 +9,8 @@ friction's tanh(omega_m / w_s) and the loss's blend between driving and back-dri
 scaled by the torque carried) change fastest. The lanes keep three states of each run: its
 peak current (the largest torque), its largest drivetrain deflection and its end
 (:data:`servo_toolkit.sim.batch.NSNAP`). Each is checked as it is, in contact
-(:func:`~servo_toolkit.sim.stability.contact_variant`) and at a speed reversal (both sides at
-rest, every position, current and controller state kept), and so is the start (as it is and
+(:func:`~servo_toolkit.sim.stability.contact_states`) and at a speed reversal (both sides at
+rest, every position, current and controller state kept: :func:`reversal_states`), and so is the start (as it is and
 in contact): the largest |lambda dt| over them stands for the run, and a step outside RK4's
 stability region at any of them fails the variant with that reason.
 """
@@ -20,35 +20,35 @@ from __future__ import annotations
 import numpy as np
 
 from ..sim.batch import NSNAP, jacobians
-from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
+from ..sim.stability import IMAG_LIMIT, contact_states, rk4_amplification, smooth_parameters
 
 
-def reversal_state(model, x) -> np.ndarray:
-    """``x`` with the motor side and the load at rest (a speed reversal): the smooth
-    friction's and the loss's steepest point, at the torque the state carries."""
-    y = x.copy()
-    y[1] = 0.0
+def reversal_states(model, X) -> np.ndarray:
+    """The states ``X`` (rows) with the motor side and the load at rest (a speed reversal):
+    the smooth friction's and the loss's steepest point, at the torque each state carries."""
+    Y = np.array(X, dtype=float, copy=True)
+    Y[:, 1] = 0.0
     if not model.rigid:
-        y[3] = 0.0
-    return y
+        Y[:, 3] = 0.0
+    return Y
 
 
 def checked_states(model, P, X0, snaps):
     """The states each variant's step is checked at: ``(states, times, irefs, owner)``: its
-    start and the start in contact, then per snapshot the state, in contact and at a speed
-    reversal (:func:`reversal_state`)."""
+    start and the start in contact, then each snapshot as it is, in contact and at a speed
+    reversal (:func:`reversal_states`)."""
     nv, nx = X0.shape
-    states, times, irefs, owner = [], [], [], []
-    for v in range(nv):
-        x0 = X0[v]
-        for x in (x0, contact_variant(model, P[v], x0)):
-            states.append(x), times.append(0.0), irefs.append(x0[4]), owner.append(v)
-        for k in range(NSNAP):
-            s = snaps[v, k]
-            x = s[:nx]
-            for y in (x, contact_variant(model, P[v], x), reversal_state(model, x)):
-                states.append(y), times.append(s[nx]), irefs.append(s[nx + 1]), owner.append(v)
-    return np.array(states), np.array(times), np.array(irefs), np.array(owner, dtype=np.int64)
+    S = snaps.reshape(nv * NSNAP, -1)
+    x, t, ir = S[:, :nx], S[:, nx], S[:, nx + 1]
+    own = np.repeat(np.arange(nv, dtype=np.int64), NSNAP)
+    Psnap = P[own]
+    states = np.concatenate([X0, contact_states(model, P, X0), x, contact_states(model, Psnap, x),
+                             reversal_states(model, x)])
+    start = np.zeros(nv)
+    times = np.concatenate([start, start, t, t, t])
+    irefs = np.concatenate([X0[:, 4], X0[:, 4], ir, ir, ir])
+    owner = np.concatenate([np.arange(nv, dtype=np.int64)] * 2 + [own] * 3)
+    return states, times, irefs, owner
 
 
 def step_check(model, P, T, tix, X0, snaps, dt):
@@ -93,4 +93,4 @@ def step_check(model, P, T, tix, X0, snaps, dt):
     return worst, stable
 
 
-__all__ = ["checked_states", "reversal_state", "step_check"]
+__all__ = ["checked_states", "reversal_states", "step_check"]
