@@ -123,16 +123,6 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps, peaks
 
 
-def along_run(model, P, x0, duration: float, dt: float) -> dict:
-    """The single run's step check along an RK4 run of ``duration`` at step ``dt`` from
-    ``x0`` (no stability refusal): :func:`~.stability.fastest` over the states
-    :func:`_along_samples` picks (an even spread, peak current, largest deflection, extreme
-    output angles). Raises as :func:`run` does for a non-finite state or the stroke end."""
-    times, states, aux, *_ = _fixed(model, P, x0, duration, dt, None, False)
-    pick = _along_samples(states, aux)
-    return fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
-
-
 @dataclass(frozen=True)
 class StepChoice:
     """A fixed-step run's step, how it was chosen and checked (:func:`choose_step`), and the
@@ -187,6 +177,19 @@ class StepChoice:
     stopped: str = ""
     notes: tuple = ()
     run: tuple | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready (without the run's arrays)."""
+        return {"dt_s": self.dt, "method": self.method, "choice": self.choice, "probe": self.probe,
+                "stability": self.stability, "reductions": list(self.reductions), "first_dt_s": self.first_dt,
+                "refused": self.refused, "along": self.along, "outside": self.outside, "stopped": self.stopped,
+                "notes": list(self.notes)}
+
+    def __repr__(self) -> str:
+        step = "no fixed step" if self.dt is None else f"dt {self.dt:.4g} s"
+        state = f"refused: {self.refused}" if self.refused else (f"stopped: {self.stopped}" if self.stopped
+                                                                   else self.choice)
+        return f"StepChoice({self.method}, {step}; {state})"
 
 
 def choose_step(model, P, x0, duration: float, dt: float | None = None, output_dt: float | None = None, *,

@@ -8,8 +8,9 @@ runs once at that step and the step is checked along that run, at the states the
 checks. A step the study chose is reduced as the single run's ``auto`` reduces it (|lambda dt| = 1 for the fastest eigenvalue found along
 the run, rerun and checked again); a step the caller gave that leaves the stability region
 along the nominal run is refused, as the single run refuses it. Each variant is then also
-checked at its own parameters (its start and its snapshots, :func:`.montecarlo._step_check`):
-a variant whose step lies outside the region there fails with that reason.
+checked at its own parameters (its start and its snapshots, each also in contact and at a
+speed reversal: :func:`.variant_step.step_check`): a variant whose step lies outside the
+region there fails with that reason.
 """
 
 from __future__ import annotations

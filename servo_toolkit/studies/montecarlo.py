@@ -7,7 +7,7 @@ output travel) and the same reduced or full model. Every variant runs the design
 controller on the nonlinear model (saturation, friction, backlash, sampling, quantization)
 through the batched kernel (:mod:`servo_toolkit.sim.batch`), and is step-checked at its
 own parameters (the RK4 stability region at its start, peak current, largest drivetrain
-deflection and end). Chunks of variants go to an optional executor (a process pool, a dask
+deflection and end, each also in contact and at a speed reversal: :mod:`.variant_step`). Chunks of variants go to an optional executor (a process pool, a dask
 ``Client.get_executor()``).
 
 A variant's parameter row comes from :class:`~servo_toolkit.sim.variants.VariantBuilder`'s
