@@ -12,9 +12,10 @@ its designed controller, prints:
 - the nonlinear time runs of N_TIME variants (default 1000): the batched integration time per
   variant on one core (``integrate_variants`` on up to 500 variants, best of 3) against one
   single run of the nominal model, target <= 1/3, then with each variant's parameter row and
-  stroke tables (CPU time per variant), and the end-to-end time with the rows' fit. The
-  single run is ``sim.run`` of the rows' nominal model (the same reduced model, command,
-  duration and dt as the variants), RK4, warm: its ``wall_s``, the compiled integration
+  stroke tables (CPU time per variant), each variant's step check at its start and snapshots
+  (:func:`servo_toolkit.studies.variant_step.step_check`, CPU time per variant), and the
+  end-to-end time with the rows' fit. The single run is ``sim.run`` of the rows' nominal
+  model (the same reduced model, command, duration and dt as the variants), RK4, warm: its ``wall_s``, the compiled integration
   alone (compilation, the stability probe and the result's traces excluded, as the batch's
   figure excludes its own setup), best of 4;
 - the same N margins and N_TIME time runs in chunks on a dask cluster (ADDRESS, or
@@ -51,6 +52,7 @@ from servo_toolkit.sim import run  # noqa: E402
 from servo_toolkit.sim.batch_run import integrate_variants  # noqa: E402
 from servo_toolkit.sim.reference import initial_state  # noqa: E402
 from servo_toolkit.studies.tolerance_runs import tolerance_runs  # noqa: E402
+from servo_toolkit.studies.variant_step import step_check  # noqa: E402
 
 SCENE = ROOT / "scenes" / "examples" / "ema_tolerances.toml"
 KEYS = ("motor.resistance", "motor.torque_constant", "motor.coulomb_friction", "drivetrain[1].efficiency",
@@ -114,10 +116,18 @@ def main(n: int = 100_000, n_time: int = 1000, scheduler=None) -> None:
     numba.set_num_threads(1)
     per = min(integrate_variants(P, T, tix, X0, runs.dt_s, runs.steps_per_variant, sub)[3]
               for _ in range(REPEATS)) / len(X)
+    snaps = integrate_variants(P, T, tix, X0, runs.dt_s, runs.steps_per_variant, sub)[2]
+    checked = []
+    for _ in range(REPEATS):  # each variant's step check at its start and snapshots, CPU time per variant
+        cpu = time.process_time()
+        step_check(rows.model, P, T, tix, X0, snaps, runs.dt_s)
+        checked.append((time.process_time() - cpu) / len(X))
+    checked = min(checked)
     numba.set_num_threads(cores)
     print(f"time runs: single run {single * 1e3:.2f} ms; batched on one core {per * 1e3:.2f} ms per variant = "
           f"{per / single:.2f} x (target <= 0.33: {'met' if per <= single / 3 else 'NOT met'}); with its row and "
-          f"tables ({made * 1e3:.2f} ms) {(per + made) / single:.2f} x; {n_time} variants "
+          f"tables ({made * 1e3:.2f} ms) {(per + made) / single:.2f} x; its step check {checked * 1e3:.3f} ms; "
+          f"{n_time} variants "
           f"end to end {total:.1f} s (rows fitted from {rows.evaluations} exact models, verified to "
           f"{rows.error:.2g}); {_load()}")
 

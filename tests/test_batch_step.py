@@ -67,3 +67,18 @@ def test_tolerance_runs_step_passes_the_single_runs_check(lossy_scene, controlle
     r = tolerance_runs(lossy_scene, values, controller, reference=REF, duration=DURATION, progress=False)
     run(r.rows.model, REF, DURATION, "rk4", r.dt_s)  # raises if outside the region along the run
     assert any("checked along the nominal run" in n for n in r.notes)
+
+
+def test_the_batched_step_is_the_single_run_s_automatic_step(mc):
+    """One step choice for both: the Monte Carlo's step and the single run's ``auto`` step of
+    the nominal model, its choice in the same words."""
+    import json
+
+    from servo_toolkit.sim.engine import choose_step
+    from servo_toolkit.sim.reference import initial_state
+    builder, P0, reference, _ = mc.runner
+    step = choose_step(builder.model, P0, initial_state(builder.model, P0), DURATION)
+    single = run(builder.model, reference, DURATION, "auto")
+    assert step.dt == mc.dt_s == single.dt_s and step.choice == single.choice and not step.refused
+    assert step.along["dt_limit_s"] >= step.dt and "\n" not in repr(step)
+    json.dumps(step.to_dict())

@@ -8,6 +8,7 @@ n-mass plant, and the design notes say when a lumped mode lies near the loop.
 """
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -70,6 +71,21 @@ def test_a_time_run_takes_simulate_s_rule_at_its_own_frequency(ema):
         choice = choose_chain(sc, ctrl, operating_point(sc)[0], [f], options.damping_ratio, "the study's frequencies")
         assert options.chain == choice.chain
         assert any(n == choice.note for n in notes)
+        assert options.chain_note == choice.note  # the model built on the choice carries it
+
+
+def test_a_model_on_a_chain_a_study_chose_does_not_note_the_lumping_again(ema):
+    """The same two-mass model, asked for as such (its notes say the modes are lumped) and
+    chosen by a study's rule (the study's notes say so, with the figures; the model's not
+    again): the two models are the same, only the notes differ."""
+    sc, ctrl = ema
+    options, notes = sine_run_options(sc, ctrl, Reference.sine(math.radians(0.5), 8.0))
+    assert options.chain == "two_mass" and sum("lumped into the two-mass" in n for n in notes) == 1
+    chosen = build_model(sc, ctrl, options)
+    asked = build_model(sc, ctrl, replace(options, chain_note=""))
+    assert (chosen.P == asked.P).all()
+    assert not any("lumped into the two-mass" in n for n in chosen.notes)
+    assert any("lumped into the two-mass reduction (chain='two_mass')" in n for n in asked.notes)
 
 
 def test_a_low_second_mode_near_the_loop_is_noted_in_the_design():

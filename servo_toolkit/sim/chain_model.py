@@ -47,12 +47,13 @@ def resolve(scene, controller, options, q0: float, notes: list) -> str:
     """``"full"`` or ``"two_mass"`` for ``options.chain``: ``"auto"`` decided by
     :func:`~servo_toolkit.sim.chain_choice.choose_chain` at the scene's working frequencies
     (the requirement sine, the required bandwidth, the loop's crossover, the scene's study
-    frequencies), and said in ``notes``."""
+    frequencies), and said in ``notes``. A chain a study chose for its run carries that
+    choice (``options.chain_note``, the study's note of it): the lumping is not noted again."""
     chain = scene.drivetrain.chain
     if not has_upper_modes(chain, q0):
         return "two_mass"  # one compliance: the two-mass model is the chain
     if options.chain != "auto":
-        if options.chain == "two_mass":
+        if options.chain == "two_mass" and not options.chain_note:  # a study that chose it has noted it
             modes = chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi)
             notes.append(f"drivetrain modes {_hz(modes)} lumped into the two-mass reduction (chain='two_mass')")
         return options.chain

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -11,9 +12,9 @@ from ..errors import SimulationError, StrokeEndReached
 from . import layout as lo
 from .integrators import integrate
 from .ivp import MAX_RHS_EVALS, solve_reference
-from .kernel import hermite, reference as ref_at, rhs
 from .reference import Reference, check_start_on_tables, fill, initial_state
 from .result import SimulationResult
+from .run_result import aux_traces, check_finite, make_result
 from .stability import fastest
 
 METHODS = ("rk4", "paper", "reference", "auto")
@@ -25,13 +26,15 @@ AUTO_MAX_STEPS = 20_000_000
 #: duration that asks for more is refused instead of running for hours
 MAX_STEPS = 300_000_000
 MAX_RECORDS = 4000
+#: reductions of the automatic step before it hands the run to the implicit solver
+MAX_REDUCTIONS = 3
 #: states checked for the step limit along a fixed-step run
 ALONG_SAMPLES = 48
 #: |lambda dt| limit of the paper scheme's explicit position sum
 PAPER_LIMIT = 2.0
 
 
-def _snap(dt, model, duration, output_dt=None):
+def snap(dt, model, duration, output_dt=None):
     """The largest step <= dt that divides the sample time (else the record interval, else
     the duration)."""
     span = model.sample_time if model.sample_time > 0 else (output_dt or duration)
@@ -57,19 +60,6 @@ def _stability_probe(model, P, x0):
     return fastest(model, P, [x0], [0.0], [x0[4] if model.closed_loop else 0.0])
 
 
-def _aux_traces(model, P, times, states, irefs):
-    """Current, voltage, i_ref, torque, motor speed and reference at the records."""
-    n = len(times)
-    aux = np.empty((n, lo.NAUX))
-    dx, a = np.empty(model.nx), np.empty(lo.NAUX)
-    speed, refs = np.empty(n), np.empty(n)
-    for k in range(n):
-        rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
-        aux[k] = a
-        speed[k] = hermite(model.T, lo.T_N, P, states[k, 0])[0] * states[k, 1]
-        refs[k] = ref_at(times[k], P) if model.closed_loop else P[lo.REF_OFF]
-    return aux, speed, refs
-
 
 def paper_limit(probe) -> float:
     """Step limit of the paper's scheme: RK4's on the velocities and currents, and at most
@@ -89,13 +79,6 @@ def _along_samples(states, aux, n=ALONG_SAMPLES):
     pick.update((int(np.argmax(states[:, 2])), int(np.argmin(states[:, 2]))))
     return np.array(sorted(pick))
 
-
-def _check_finite(model, times, states):
-    bad = ~np.all(np.isfinite(states), axis=1)
-    if bad.any():
-        k = int(np.argmax(bad))
-        names = [model.state_names[j] for j in np.flatnonzero(~np.isfinite(states[k]))]
-        raise SimulationError(f"non-finite state {', '.join(names)} at t = {times[k]:.6g} s")
 
 
 def _fixed(model, P, x0, duration, dt, output_dt, paper):
@@ -140,14 +123,191 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     return out_t[:k], out_x[:k], out_aux[:k], max_tau, wall, n_steps, peaks
 
 
-def along_run(model, P, x0, duration: float, dt: float) -> dict:
-    """The single run's step check along an RK4 run of ``duration`` at step ``dt`` from
-    ``x0`` (no stability refusal): :func:`~.stability.fastest` over the states
-    :func:`_along_samples` picks (an even spread, peak current, largest deflection, extreme
-    output angles). Raises as :func:`run` does for a non-finite state or the stroke end."""
-    times, states, aux, *_ = _fixed(model, P, x0, duration, dt, None, False)
-    pick = _along_samples(states, aux)
-    return fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
+@dataclass(frozen=True)
+class StepChoice:
+    """A fixed-step run's step, how it was chosen and checked (:func:`choose_step`), and the
+    run at that step.
+
+    Attributes
+    ----------
+    dt : float
+        The step (s) last run (the refused one when ``refused``).
+    method : {"rk4", "paper", "reference"}
+        ``"reference"``: ``method="auto"`` handed the run to the implicit solver (the step
+        needs more than the step budget, or stayed outside the stability region after
+        :data:`MAX_REDUCTIONS` reductions).
+    choice : str
+        How the step was chosen, in words (:attr:`SimulationResult.choice`).
+    probe : dict
+        :func:`~.stability.fastest` at the start.
+    stability : dict
+        The figures a run reports: those along the run where its fastest eigenvalue exceeds
+        the start's, else the start's.
+    reductions : tuple of dict
+        Each step the automatic choice gave up, with the figures along its run that made it
+        (``dt_s`` the step, then :func:`~.stability.fastest`'s keys).
+    first_dt : float
+        The step before any reduction.
+    refused : str
+        Why the given (or default) step is refused ("" if it is not): outside the stability
+        region at the start or along the run.
+    along : dict or None
+        :func:`~.stability.fastest` along the last run at ``dt`` (None: not run or not
+        checked).
+    outside : dict or None
+        The figures where a refused step left the region (at the start or along the run).
+    stopped : str
+        The run's stop (a non-finite state, the stroke end) when ``stops_ok``; "" otherwise.
+    notes : tuple of str
+        A given step snapped to divide the sample time.
+    run : tuple or None
+        The last run at ``dt``: times, states, aux, max |tau|, wall time, steps, peaks.
+    """
+
+    dt: float | None
+    method: str
+    choice: str
+    probe: dict
+    stability: dict
+    reductions: tuple = ()
+    first_dt: float | None = None
+    refused: str = ""
+    along: dict | None = None
+    outside: dict | None = None
+    stopped: str = ""
+    notes: tuple = ()
+    run: tuple | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready (without the run's arrays)."""
+        return {"dt_s": self.dt, "method": self.method, "choice": self.choice, "probe": self.probe,
+                "stability": self.stability, "reductions": list(self.reductions), "first_dt_s": self.first_dt,
+                "refused": self.refused, "along": self.along, "outside": self.outside, "stopped": self.stopped,
+                "notes": list(self.notes)}
+
+    def __repr__(self) -> str:
+        step = "no fixed step" if self.dt is None else f"dt {self.dt:.4g} s"
+        state = f"refused: {self.refused}" if self.refused else (f"stopped: {self.stopped}" if self.stopped
+                                                                   else self.choice)
+        return f"StepChoice({self.method}, {step}; {state})"
+
+
+def choose_step(model, P, x0, duration: float, dt: float | None = None, output_dt: float | None = None, *,
+                method: str = "auto", check: bool = True, max_steps: int | None = None,
+                stops_ok: bool = False) -> StepChoice:
+    """The fixed RK4 (or paper-scheme) step of a run, chosen and checked along the run.
+
+    The step starts from the fastest eigenvalue at the start (|lambda dt| = :data:`AUTO_Z`,
+    at most the sample time, snapped to divide it); a given step is snapped down to divide
+    it. The model then runs at that step and the step is checked at the states
+    :func:`_along_samples` picks along the run. ``method="auto"`` reduces a step that
+    leaves the stability region there (|lambda dt| = :data:`AUTO_Z` for the fastest
+    eigenvalue found, run and checked again, at most :data:`MAX_REDUCTIONS` times) and hands
+    the run to the implicit solver beyond that or beyond ``max_steps``; a given or default
+    step (``"rk4"``, ``"paper"``) outside the region is refused (:attr:`StepChoice.refused`).
+
+    Parameters
+    ----------
+    model : Model
+    P : numpy.ndarray
+        Its parameter row filled for the command.
+    x0 : numpy.ndarray
+        The start.
+    duration : float
+        Run length (s).
+    dt : float, optional
+        The caller's step (s); default chosen here.
+    output_dt : float, optional
+        Record interval (the step divides it when there is no sample time).
+    method : {"auto", "rk4", "paper"}
+    check : bool
+        Check the step (False: the probe at the start stands for the run, nothing refused).
+    max_steps : int, optional
+        Most steps ``"auto"`` takes before it hands over (default :data:`AUTO_MAX_STEPS`).
+    stops_ok : bool
+        A run that stops (non-finite state, stroke end) ends the choice at its step
+        (:attr:`StepChoice.stopped`) instead of raising.
+
+    Returns
+    -------
+    StepChoice
+
+    Raises
+    ------
+    SimulationError, StrokeEndReached
+        The run stopped (unless ``stops_ok``).
+    """
+    max_steps = AUTO_MAX_STEPS if max_steps is None else max_steps
+    probe = _stability_probe(model, P, x0)
+    limit = probe["dt_limit_s"]
+    cap = model.sample_time if model.sample_time > 0 else duration / 200
+    auto_dt = snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration, output_dt)
+    choice, notes = "", []
+    if method == "auto":
+        if duration / auto_dt > max_steps:
+            return StepChoice(None, "reference", f"fastest eigenvalue |lambda| = {probe['max_abs_lambda']:.3g} 1/s "
+                              f"needs dt <= {limit:.3g} s, more than {max_steps} RK4 steps: implicit solver instead",
+                              probe, probe, first_dt=auto_dt)
+        dt = auto_dt
+        choice = (f"RK4 with dt = {dt:.4g} s: |lambda dt| = {probe['max_abs_lambda'] * dt:.3g} for the "
+                  f"fastest eigenvalue (stability limit dt = {limit:.4g} s)")
+    elif dt is None:
+        dt = auto_dt
+        choice = f"default step {dt:.4g} s (|lambda dt| = {probe['max_abs_lambda'] * dt:.3g})"
+    else:
+        snapped = snap(dt, model, duration, output_dt)
+        if abs(snapped - dt) > 1e-12 * dt:
+            notes.append(f"step {dt:.4g} s snapped to {snapped:.4g} s to divide the sample time")
+        dt = snapped
+        choice = f"user step {dt:.4g} s"
+    paper, reduce = method == "paper", method == "auto"
+    scheme = "paper scheme" if paper else "RK4"
+    if paper:
+        limit = paper_limit(probe)
+    common = dict(probe=probe, first_dt=dt, notes=tuple(notes))
+    if check and dt > limit:
+        return StepChoice(dt, method, choice, stability=probe, outside=probe, **common, refused=(
+            f"{scheme} step {dt:.4g} s is outside the stability region: fastest eigenvalue "
+            f"lambda = {probe['lambda'][0]:.4g}{probe['lambda'][1]:+.4g}j 1/s at t = 0 gives "
+            f"|lambda dt| = {probe['max_abs_lambda'] * dt:.3g}; use dt <= {limit:.4g} s or method='auto'"))
+    method = "paper" if paper else "rk4"
+    reductions = []
+    while True:
+        try:
+            fixed = _fixed(model, P, x0, duration, dt, output_dt, paper)
+        except (SimulationError, StrokeEndReached) as exc:
+            if not stops_ok:
+                raise
+            return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions), stopped=str(exc),
+                              **common)
+        times, states, aux = fixed[:3]
+        if not check:  # nothing to check: the probe at the start stands for the run
+            along = probe
+            break
+        pick = _along_samples(states, aux)
+        along = fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
+        if paper:
+            along["dt_limit_s"] = paper_limit(along)
+        if dt <= along["dt_limit_s"]:
+            break
+        if not reduce:
+            return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions), outside=along,
+                              **common, refused=(
+                f"{scheme} step {dt:.4g} s left the stability region along the run: |lambda| = "
+                f"{along['max_abs_lambda']:.4g} 1/s at t = {along['t_s']:.4g} s needs dt <= "
+                f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'"))
+        reductions.append({"dt_s": dt, **along})
+        new_dt = snap(AUTO_Z / along["max_abs_lambda"], model, duration, output_dt)
+        if len(reductions) > MAX_REDUCTIONS or duration / new_dt > max_steps:
+            choice += f"; along the run |lambda| rose to {along['max_abs_lambda']:.3g} 1/s: implicit solver instead"
+            return StepChoice(dt, "reference", choice, stability=probe, reductions=tuple(reductions), **common)
+        choice += (f"; reduced to dt = {new_dt:.4g} s after |lambda| = {along['max_abs_lambda']:.3g} 1/s at "
+                   f"t = {along['t_s']:.3g} s")
+        dt = new_dt
+    stability = {**along, "dt_limit_s": min(limit, along["dt_limit_s"])} \
+        if along["max_abs_lambda"] > probe["max_abs_lambda"] else probe
+    return StepChoice(dt, method, choice, stability=stability, reductions=tuple(reductions), run=fixed,
+                      along=along if check else None, **common)
 
 
 def run(model, reference: Reference, duration: float, method: str = "rk4", dt: float | None = None,
@@ -208,73 +368,20 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         x0 = np.asarray(x0, dtype=float).copy()
         check_start_on_tables(model, P, x0)
     notes = list(model.notes)
-    probe = _stability_probe(model, P, x0)
-    limit = probe["dt_limit_s"]
-    cap = model.sample_time if model.sample_time > 0 else duration / 200
-    auto_dt = _snap(min(cap, AUTO_Z / max(probe["max_abs_lambda"], 1e-300)), model, duration, output_dt)
-    choice = ""
-    if method == "auto":
-        if duration / auto_dt > AUTO_MAX_STEPS:
-            method, choice = "reference", (f"fastest eigenvalue |lambda| = {probe['max_abs_lambda']:.3g} 1/s "
-                                          f"needs dt <= {limit:.3g} s, more than {AUTO_MAX_STEPS} RK4 steps: "
-                                          f"implicit solver instead")
-        else:
-            method, dt = "rk4", auto_dt
-            choice = (f"RK4 with dt = {dt:.4g} s: |lambda dt| = {probe['max_abs_lambda'] * dt:.3g} for the "
-                      f"fastest eigenvalue (stability limit dt = {limit:.4g} s)")
-        requested = "auto"
+    requested = method
+    if method == "reference":
+        probe, choice = _stability_probe(model, P, x0), ""
     else:
-        requested = method
-    if method in ("rk4", "paper"):
-        if dt is None:
-            dt = auto_dt
-            choice = choice or f"default step {dt:.4g} s (|lambda dt| = {probe['max_abs_lambda'] * dt:.3g})"
-        else:
-            snapped = _snap(dt, model, duration, output_dt)
-            if abs(snapped - dt) > 1e-12 * dt:
-                notes.append(f"step {dt:.4g} s snapped to {snapped:.4g} s to divide the sample time")
-            dt = snapped
-            choice = choice or f"user step {dt:.4g} s"
-        scheme = "paper scheme" if method == "paper" else "RK4"
-        if method == "paper":
-            limit = paper_limit(probe)
-        if check_stability and dt > limit:
-            raise SimulationError(
-                f"{scheme} step {dt:.4g} s is outside the stability region: fastest eigenvalue "
-                f"lambda = {probe['lambda'][0]:.4g}{probe['lambda'][1]:+.4g}j 1/s at t = 0 gives "
-                f"|lambda dt| = {probe['max_abs_lambda'] * dt:.3g}; use dt <= {limit:.4g} s or method='auto'")
-        tries = 0
-        while True:
-            times, states, aux, max_tau, wall, steps, peaks = _fixed(model, P, x0, duration, dt, output_dt,
-                                                                     method == "paper")
-            if not check_stability:  # nothing to check: the probe at the start stands for the run
-                along = probe
-                break
-            pick = _along_samples(states, aux)
-            along = fastest(model, P, states[pick], times[pick], aux[pick, lo.AUX_IREF])
-            if method == "paper":
-                along["dt_limit_s"] = paper_limit(along)
-            if not check_stability or dt <= along["dt_limit_s"]:
-                break
-            if requested != "auto":
-                raise SimulationError(
-                    f"{scheme} step {dt:.4g} s left the stability region along the run: |lambda| = "
-                    f"{along['max_abs_lambda']:.4g} 1/s at t = {along['t_s']:.4g} s needs dt <= "
-                    f"{along['dt_limit_s']:.4g} s; use a smaller dt or method='auto'")
-            tries += 1
-            new_dt = _snap(AUTO_Z / along["max_abs_lambda"], model, duration, output_dt)
-            if tries > 3 or duration / new_dt > AUTO_MAX_STEPS:
-                method = "reference"
-                choice += f"; along the run |lambda| rose to {along['max_abs_lambda']:.3g} 1/s: implicit solver instead"
-                break
-            choice += f"; reduced to dt = {new_dt:.4g} s after |lambda| = {along['max_abs_lambda']:.3g} 1/s at t = {along['t_s']:.3g} s"
-            dt = new_dt
+        step = choose_step(model, P, x0, duration, dt, output_dt, method=method, check=check_stability)
+        notes += step.notes
+        if step.refused:
+            raise SimulationError(step.refused)
+        method, probe, choice = step.method, step.probe, step.choice
         if method != "reference":
-            probe = {**along, "dt_limit_s": min(limit, along["dt_limit_s"])} \
-                if along["max_abs_lambda"] > probe["max_abs_lambda"] else probe
-            aux_t, speed, refs = _aux_traces(model, P, times, states, aux[:, lo.AUX_IREF])
-            return _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps,
-                           requested, choice, probe, reference, notes, peaks)
+            times, states, aux, max_tau, wall, steps, peaks = step.run
+            aux_t, speed, refs = aux_traces(model, P, times, states, aux[:, lo.AUX_IREF])
+            return make_result(model, times, states, aux, speed, refs, max_tau, wall, method, step.dt, steps,
+                           requested, choice, step.stability, reference, notes, peaks)
     # implicit / adaptive reference
     if output_dt is None:
         n = min(MAX_RECORDS, max(200, int(duration / (model.sample_time or duration / 1000))))
@@ -286,47 +393,8 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
     states, irefs = solve_reference(model, P, x0, t_out, solver=solver, rtol=rtol, atol=atol,
                                     max_rhs_evals=max_rhs_evals, time_limit_s=time_limit_s)
     wall = time.perf_counter() - start
-    _check_finite(model, t_out, states)
-    aux, speed, refs = _aux_traces(model, P, t_out, states, irefs)
+    check_finite(model, t_out, states)
+    aux, speed, refs = aux_traces(model, P, t_out, states, irefs)
     choice = choice or f"scipy solve_ivp {solver}, rtol {rtol:g}, atol {atol:g}"
-    return _result(model, t_out, states, aux, speed, refs, float(np.max(np.abs(aux[:, lo.AUX_TAU]))),
+    return make_result(model, t_out, states, aux, speed, refs, float(np.max(np.abs(aux[:, lo.AUX_TAU]))),
                    wall, f"reference:{solver}", None, 0, requested, choice, probe, reference, notes)
-
-
-def _result(model, times, states, aux, speed, refs, max_tau, wall, method, dt, steps, requested,
-            choice, probe, reference, notes, peaks=None):
-    stab = {k: v for k, v in probe.items()}
-    if dt is not None:
-        stab["abs_lambda_dt"] = probe["max_abs_lambda"] * dt
-    notes = [*notes, *limit_notes(model, times, aux)]
-    return SimulationResult(times=times, states=states, state_names=model.state_names,
-                            reference_angle=refs, motor_speed=speed, motor_current=aux[:, lo.AUX_I],
-                            motor_voltage=aux[:, lo.AUX_V], current_reference=aux[:, lo.AUX_IREF],
-                            motor_torque=aux[:, lo.AUX_TAU], max_abs_motor_torque=float(max_tau),
-                            wall_s=wall, method=method, dt_s=dt, steps=steps, requested=requested,
-                            choice=choice, stability=stab, reference=reference.to_dict(),
-                            controller=model.controller, notes=tuple(notes),
-                            output_unit=getattr(model, "output_unit", "rad"), peaks=peaks or {})
-
-
-def limit_notes(model, times, aux) -> list:
-    """A note of the time the motor spent at its voltage and current limits over the
-    recorded samples (within 1e-3 of the limit, as the large-signal check counts it; the
-    current or the loop's clamped current command), so a saturated run says so; none for a
-    run that never reached a limit."""
-    if times.size == 0:
-        return []
-    dt = np.diff(times, append=times[-1])
-    parts = []
-    current = np.maximum(np.abs(aux[:, lo.AUX_I]), np.abs(aux[:, lo.AUX_IREF]))  # the command clamped, or the current
-    for what, level, lim, unit in (("voltage", np.abs(aux[:, lo.AUX_V]), model.P[lo.VLIM], "V"),
-                                   ("current", current, model.P[lo.ILIM], "A")):
-        if math.isfinite(lim):
-            at = level >= lim * (1.0 - 1e-3)
-            if at.any():
-                parts.append(f"its {what} limit {lim:.4g} {unit} for {float(np.sum(dt[at])) * 1e3:.4g} ms")
-    if not parts:
-        return []
-    tail = ": the loop was saturated there, not linear" if model.closed_loop else ""
-    return [f"the motor was at {' and at '.join(parts)} of the {float(times[-1] - times[0]) * 1e3:.4g} ms run "
-            f"(recorded samples){tail}"]

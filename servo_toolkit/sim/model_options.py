@@ -60,6 +60,11 @@ class ModelOptions:
         :data:`~.chain_choice.LUMP_TOLERANCE` of the response at the scene's working
         frequencies (:func:`~.chain_choice.choose_chain`; the model's notes say which, with
         both RK4 step limits and the cost).
+    chain_note : str
+        Why ``chain`` is what it is when a study chose it for its run
+        (:attr:`~.chain_choice.ChainChoice.note`: the choice with its step limits and cost,
+        in the study's notes): the model does not note the lumping again. Empty: the model
+        notes ``chain`` as given.
     speed_estimator : {None, "ideal", "difference", "kalman"}
         Motor speed fed to the sampled speed loop (None: the scene's ``[sensors]
         speed_estimator``). ``"ideal"``: the true omega_m; ``"difference"``: backward
@@ -95,6 +100,7 @@ class ModelOptions:
     efficiency: bool = True
     chain: str = "auto"
     friction: str = "smooth"
+    chain_note: str = ""
 
     def __post_init__(self):
         if self.friction not in FRICTION_CHOICES:

@@ -59,20 +59,26 @@ def contact_variant(model, P, x) -> np.ndarray:
     """The same state in its stiffest configuration: the drivetrain pushed just into contact
     and closing (there the damper part is capped at the spring part, f = 2 K z, an undamped
     stiffness 2 K), and at rest against an elastic end stop it has passed (its spring
-    engaged)."""
-    y = x.copy()
+    engaged). One state of one parameter row (:func:`contact_states` for many)."""
+    return contact_states(model, np.asarray(P)[None], np.asarray(x)[None])[0]
+
+
+def contact_states(model, P, X) -> np.ndarray:
+    """:func:`contact_variant` of each row of ``X`` (states) with its row of ``P``."""
+    Y = np.array(X, dtype=float, copy=True)
     qi = 0 if model.rigid else 2
-    if P[lo.STROKE_MODE] == lo.STROKE_STOP and not P[lo.STROKE_LO] <= y[qi] <= P[lo.STROKE_HI]:
-        y[1] = y[qi + 1] = 0.0
+    past = (P[:, lo.STROKE_MODE] == lo.STROKE_STOP) & ~((P[:, lo.STROKE_LO] <= Y[:, qi]) & (Y[:, qi] <= P[:, lo.STROKE_HI]))
+    Y[past, 1] = 0.0
+    Y[past, qi + 1] = 0.0
     if model.rigid:
-        return y
-    c = P[lo.HALF_PLAY]
-    d = y[0] - y[2]
-    side = 1.0 if d >= 0 else -1.0
-    if abs(d) <= c:
-        y[0] = y[2] + (c + 1e-9 + 1e-6 * c) * side
-    y[1] = y[3] + side * max(abs(y[1] - y[3]), 1e-3)
-    return y
+        return Y
+    c = P[:, lo.HALF_PLAY]
+    d = Y[:, 0] - Y[:, 2]
+    side = np.where(d >= 0, 1.0, -1.0)
+    inside = np.abs(d) <= c
+    Y[inside, 0] = Y[inside, 2] + (c[inside] + 1e-9 + 1e-6 * c[inside]) * side[inside]
+    Y[:, 1] = Y[:, 3] + side * np.maximum(np.abs(Y[:, 1] - Y[:, 3]), 1e-3)
+    return Y
 
 
 def max_stable_dt(eigs) -> float:

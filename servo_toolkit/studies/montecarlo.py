@@ -7,7 +7,7 @@ output travel) and the same reduced or full model. Every variant runs the design
 controller on the nonlinear model (saturation, friction, backlash, sampling, quantization)
 through the batched kernel (:mod:`servo_toolkit.sim.batch`), and is step-checked at its
 own parameters (the RK4 stability region at its start, peak current, largest drivetrain
-deflection and end). Chunks of variants go to an optional executor (a process pool, a dask
+deflection and end, each also in contact and at a speed reversal: :mod:`.variant_step`). Chunks of variants go to an optional executor (a process pool, a dask
 ``Client.get_executor()``).
 
 A variant's parameter row comes from :class:`~servo_toolkit.sim.variants.VariantBuilder`'s
@@ -33,17 +33,17 @@ from ..core.parallel import chunks, run_cases
 from ..sim import controller_for
 from ..sim.simulate import with_feedforward
 from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, NSNAP, jacobians
+from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP
 from ..sim.batch_run import integrate_variants
 from ..sim.reference import fill, initial_state
 from ..sim.tables import frozen_tables
-from ..sim.stability import IMAG_LIMIT, contact_variant, rk4_amplification, smooth_parameters
 from .time_reference import run_spec
 from ..sim.variants import VariantBuilder
 from ..sim.tolerance_rows import ToleranceRows
 from .batch_step import batch_step
 from .montecarlo_result import MonteCarloResult
-from .time_run import check_friction, sine_run_options, with_model_notes
+from .variant_step import step_check
+from .time_run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000
@@ -59,38 +59,6 @@ ROW_POINTS = {"load_inertia": 41, "stiffness": 9}
 FIT_OVERHEAD = 12
 #: the Monte Carlo's variations -> the scene keys the fitted rows vary
 KEYS = {"load_inertia": "load.inertia", "stiffness": STIFFNESS_SCALE}
-
-
-def _step_check(model, P, T, tix, X0, snaps, dt):
-    """Largest |lambda dt| per variant over its start (and its contact variant) and its
-    snapshots, and whether dt lies in RK4's stability region there."""
-    nv, nx = X0.shape
-    states, times, irefs, owner = [], [], [], []
-    for v in range(nv):
-        x0 = X0[v]
-        for x, t, ir in ((x0, 0.0, x0[4]), (contact_variant(model, P[v], x0), 0.0, x0[4])):
-            states.append(x), times.append(t), irefs.append(ir), owner.append(v)
-        for k in range(NSNAP):
-            s = snaps[v, k]
-            states.append(s[:nx]), times.append(s[nx]), irefs.append(s[nx + 1]), owner.append(v)
-    X, owner = np.array(states), np.array(owner, dtype=np.int64)
-    ok_rows = np.all(np.isfinite(X), axis=1)
-    X, owner = X[ok_rows], owner[ok_rows]
-    J = np.empty((X.shape[0], nx, nx))
-    jacobians(X, np.array(times)[ok_rows], np.array(irefs)[ok_rows], smooth_parameters(P), T, tix, owner, J)
-    good = np.all(np.isfinite(J), axis=(1, 2))
-    lam = np.full((X.shape[0], nx), np.nan + 0j)
-    lam[good] = np.linalg.eigvals(J[good])
-    z = lam * dt
-    mag = np.abs(z)
-    decaying = z.real < -1e-9 * mag
-    inside = np.where(decaying, np.abs(rk4_amplification(z)) <= 1 + 1e-12, mag <= IMAG_LIMIT)
-    inside |= ~np.isfinite(z) | (mag == 0)
-    worst = np.zeros(nv)
-    stable = np.ones(nv, dtype=bool)
-    np.maximum.at(worst, owner, np.nan_to_num(np.max(np.where(np.isfinite(mag), mag, 0.0), axis=1)))
-    np.logical_and.at(stable, owner, np.all(inside, axis=1))
-    return worst, stable
 
 
 def _chunk(case):
@@ -115,7 +83,7 @@ def _chunk(case):
     models = [model] * len(P) if case.get("T") is None else [replace(model, T=t) for t in T]
     X0, refused = _starts(models, P)
     _, figs, snaps, wall = integrate_variants(P, T, tix, X0, dt, n_steps, sub)
-    lam_dt, stable = _step_check(model, P, T, tix, X0, snaps, dt)
+    lam_dt, stable = step_check(model, P, T, tix, X0, snaps, dt)
     none = np.array([bool(r) for r in refused], dtype=bool)
     figs[none, F_ERR] = figs[none, F_CUR] = np.nan  # never run: no figures
     return {"figs": figs, "lam_dt": lam_dt, "stable": stable, "wall": wall, "refused": refused}
@@ -281,7 +249,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "model": "full" if full else "reduced", "reference": reference.to_dict(),
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
-        notes=with_model_notes(notes, model.notes), runner=(builder, P0, reference, rows))
+        notes=(*notes, *model.notes), runner=(builder, P0, reference, rows))
 
 
 def fitted_rows(scene, builder, P0, values, reference):

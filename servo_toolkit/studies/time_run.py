@@ -113,7 +113,8 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     -------
     options : ModelOptions
     notes : list of str
-        Which model, and for the reduced one what it left out and the a-priori bound.
+        Which model, and for the reduced one what it left out and the a-priori bound, and the
+        choice of the chain's modes (``options.chain_note``: the model does not note it again).
     """
     from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
     from .reduce_estimates import plan_reduction
@@ -130,23 +131,11 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     notes = [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
              f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
              "the reasoning, --full for the full model)"]
-    if plan.chain_choice is not None and plan.options.compliance:
-        notes.append(plan.chain_choice.note)  # simulate's rule: the steps and the cost
+    options = plan.options
+    if plan.chain_choice is not None and options.compliance:
+        # simulate's rule, with the steps and the cost; the model built on it carries the choice
+        notes.append(plan.chain_choice.note)
+        options = replace(options, chain_note=plan.chain_choice.note)
     if friction is not None:
-        return replace(plan.options, friction=friction), notes + chosen
-    return plan.options, notes
-
-
-def with_model_notes(notes, model_notes) -> tuple:
-    """A run's notes: ``notes`` (the study's), then the model's that do not repeat one of
-    them. The study that chose the two-mass reduction has noted the choice with its figures
-    (:func:`sine_run_options`); the model built on that choice notes the same lumping again
-    (``... lumped into the two-mass reduction (chain='two_mass')``): a model note whose words
-    before its parenthesis begin one of the study's notes is left out."""
-    notes = list(notes)
-    for note in model_notes:
-        head = note.split(" (", 1)[0]
-        if note not in notes and not any(n.startswith(head) for n in notes):
-            notes.append(note)
-    return tuple(notes)
-
+        return replace(options, friction=friction), notes + chosen
+    return options, notes

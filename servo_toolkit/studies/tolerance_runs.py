@@ -25,7 +25,7 @@ from ..sim.reference import initial_state
 from ..sim.tolerance_rows import ToleranceRows, keep_effects
 from .batch_step import batch_step
 from .time_reference import run_spec
-from .time_run import sine_run_options, with_model_notes
+from .time_run import sine_run_options
 
 #: variants per chunk (smaller when every variant carries its own stroke tables)
 CHUNK_SIZE = 2000
@@ -144,7 +144,7 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     figs, _, _, reasons, failed = joined(parts, dt)
     return ToleranceRuns(figs[:, F_ERR], figs[:, F_CUR], figs[:, F_SAT] > 0, failed, reasons,
                          float(dt), duration, n_steps, float(sum(p["wall"] for p in parts)), rows,
-                         with_model_notes(notes, model.notes))
+                         (*notes, *model.notes))
 
 
 __all__ = ["ToleranceRuns", "tolerance_runs"]
