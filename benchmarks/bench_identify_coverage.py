@@ -97,8 +97,10 @@ def main() -> None:
         z = np.array([one(s) for s in seeds])
     wall = time.perf_counter() - start
     lo, hi = stats.binom.ppf([0.025, 0.975], repeats, 0.05)
-    print(f"{rig}: {repeats} fits of time traces, {wall:.0f} s ({wall / repeats * processes:.2f} s per fit per process)")
-    print(f"{'parameter':<26}{'mean z':>8}{'+-SE':>7}{'SD z':>7}{'misses':>8}   (95 % range of misses {lo:.0f}-{hi:.0f})")
+    per_fit = wall / repeats * processes
+    print(f"{rig}: {repeats} fits of time traces, {wall:.0f} s ({per_fit:.2f} s per fit per process)")
+    print(f"{'parameter':<26}{'mean z':>8}{'+-SE':>7}{'SD z':>7}{'misses':>8}   "
+          f"(95 % range of misses {lo:.0f}-{hi:.0f})")
     for k, key in enumerate(keys):
         col = z[:, k]
         mean, sd = col.mean(), col.std(ddof=1)

@@ -73,8 +73,8 @@ def _scales_comment(blocks, quantized) -> list:
     lines = [f"Fixed point: a signal is counts of full scale / 2^SERVO_SIGNAL_BITS ({quantized.signal_bits}); each "
              "full scale is a",
              "power of two (its _FULL_SCALE_LOG2), so value = counts * 2^(LOG2 - SERVO_SIGNAL_BITS) is a shift:"]
-    lines += [f"  {name:<18} full scale {full:.6g} {u} = 2^{int(round(math.log2(full)))} {u} ({define}_FULL_SCALE_*), {why}"
-              for name, define, u, full, why in rows]
+    lines += [f"  {name:<18} full scale {full:.6g} {u} = 2^{int(round(math.log2(full)))} {u} "
+              f"({define}_FULL_SCALE_*), {why}" for name, define, u, full, why in rows]
     return lines
 
 
