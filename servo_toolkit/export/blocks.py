@@ -141,6 +141,9 @@ class Blocks:
         filter and its parameters (rad/s).
     output_unit : {"rad", "m"}
         Unit of the output position (theta_ref, theta): an angle, or a travel in m.
+    stroke : tuple of float
+        ``(lower, upper)`` of the output position (``output_unit``): the drivetrain's stroke,
+        which sets the fixed-point position full scale (:mod:`.quantize`).
     """
 
     structure: str
@@ -153,6 +156,7 @@ class Blocks:
     estimator: Estimator
     design: dict = field(default_factory=dict)
     output_unit: str = "rad"
+    stroke: tuple = (-math.pi, math.pi)
 
     def sections(self) -> tuple:
         """Every section, in signal order."""
@@ -178,6 +182,7 @@ class Blocks:
     def to_dict(self) -> dict:
         return {"structure": self.structure, "sample_time_s": self.sample_time, "ratio": self.ratio,
                 "output_unit": self.output_unit,
+                f"stroke_{self.output_unit}": [float(v) for v in self.stroke],
                 "design": self.design,
                 "position": [s.to_dict() for s in self.position],
                 "speed": None if self.speed is None else self.speed.to_dict(),
@@ -280,7 +285,8 @@ def blocks_of(design_result, scene, current_sample_time: float | None = None) ->
     info = {"gains": {k: float(v) for k, v in motion.gains.items()}, "filter": motion.filter,
             "filter_params": {k: float(v) for k, v in motion.filter_params.items()}, "method": "tustin"}
     return Blocks(motion.structure, ts, position, vel, motion.ratio, scene.motor.current_limit,
-                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl), info, unit)
+                  current_loop(ctrl, scene.motor, current_sample_time), estimator_of(scene, ctrl), info, unit,
+                  tuple(float(v) for v in scene.drivetrain.stroke))
 
 
 def tustin_to_continuous(sys_d: ct.StateSpace) -> ct.StateSpace:

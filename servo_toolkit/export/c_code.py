@@ -9,6 +9,8 @@ of a negative number, no left shift at all).
 
 from __future__ import annotations
 
+import math
+
 from .c_command import header_part, shaper_type, source_part
 from .quantize import FORMATS
 
@@ -35,6 +37,8 @@ def _units_comment(blocks, quantized) -> str:
              "  i                  measured armature current, A",
              "  v                  armature voltage command, V, clamped at "
              f"+-{blocks.current.voltage_limit:g} V"]
+    if fixed:
+        lines += _scales_comment(blocks, quantized)
     if blocks.estimator.kind != "ideal":
         lines.append("  motor_angle        motor encoder angle (counts * 2 pi / counts per rev), rad")
         if fixed:
@@ -43,6 +47,35 @@ def _units_comment(blocks, quantized) -> str:
     lines += ["Call servo_motion_step every SERVO_MOTION_SAMPLE_TIME_S and servo_current_step every",
               "SERVO_CURRENT_SAMPLE_TIME_S (SERVO_CURRENT_STEPS_PER_MOTION times per motion sample)."]
     return "\n".join(" * " + line for line in lines)
+
+
+def _scale_defines(blocks, quantized) -> list:
+    """The fixed-point signals' full scales (value of 2^SERVO_SIGNAL_BITS counts, a power of
+    two: its exponent too) and LSBs, each in its unit."""
+    fs = quantized.full_scale
+    out = [f"#define SERVO_SIGNAL_BITS {quantized.signal_bits}",
+           f"#define SERVO_SIGNAL_MAX {2**quantized.signal_bits - 1}L"]
+    for name, unit, key in (("THETA", blocks.output_unit.upper(), "theta"), ("OMEGA", "RAD_S", "omega"),
+                            ("CURRENT", "A", "current")):
+        out += [f"#define SERVO_{name}_FULL_SCALE_{unit} {_f(fs[key])}",
+                f"#define SERVO_{name}_FULL_SCALE_LOG2 {int(round(math.log2(fs[key])))}",
+                f"#define SERVO_{name}_LSB_{unit} {_f(quantized.lsb[key])}"]
+    return out
+
+
+def _scales_comment(blocks, quantized) -> list:
+    unit = blocks.output_unit
+    fs = quantized.full_scale
+    rows = (("theta_ref, theta", "SERVO_THETA", unit, fs["theta"], "from the stroke "
+             f"{blocks.stroke[0]:.6g} .. {blocks.stroke[1]:.6g} {unit}"),
+            ("omega_m", "SERVO_OMEGA", "rad/s", fs["omega"], "from the no-load motor speed"),
+            ("i_ref", "SERVO_CURRENT", "A", fs["current"], f"above the {blocks.current_limit:g} A current limit"))
+    lines = [f"Fixed point: a signal is counts of full scale / 2^SERVO_SIGNAL_BITS ({quantized.signal_bits}); each "
+             "full scale is a",
+             "power of two (its _FULL_SCALE_LOG2), so value = counts * 2^(LOG2 - SERVO_SIGNAL_BITS) is a shift:"]
+    lines += [f"  {name:<18} full scale {full:.6g} {u} = 2^{int(round(math.log2(full)))} {u} "
+              f"({define}_FULL_SCALE_*), {why}" for name, define, u, full, why in rows]
+    return lines
 
 
 def header(blocks, quantized=None, scene_name: str = "", version: str = "", command=None) -> str:
@@ -62,10 +95,7 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "", comm
             f"#define SERVO_CURRENT_LIMIT_A {_f(blocks.current_limit)}",
             f"#define SERVO_VOLTAGE_LIMIT_V {_f(blocks.current.voltage_limit)}"]
     if fixed:
-        defs += [f"#define SERVO_THETA_LSB_{blocks.output_unit.upper()} {_f(quantized.lsb['theta'])}",
-                 f"#define SERVO_OMEGA_LSB_RAD_S {_f(quantized.lsb['omega'])}",
-                 f"#define SERVO_CURRENT_LSB_A {_f(quantized.lsb['current'])}",
-                 f"#define SERVO_SIGNAL_MAX {2**quantized.signal_bits - 1}L"]
+        defs += _scale_defines(blocks, quantized)
     est = blocks.estimator.kind
     proto = ["void servo_init(servo_state_t *st, double motor_angle_rad);",
              f"{sig} servo_motion_step(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m);",

@@ -17,9 +17,20 @@ by ``d2 = D(1)`` to the word's relative precision, however close to z = 1 it sit
 recursion adds the integer parts (``2 y``, ``y``) exactly. :mod:`.sensitivity` tells how far one
 LSB of each stored coefficient moves the section's poles and zeros.
 
-A signal is an integer count of its LSB: the output position ``pi / 2^S`` rad (m for a linear output), the motor speed ``Wfs / 2^S`` rad/s and the current ``Ifs / 2^S`` A,
-``Wfs`` and ``Ifs`` the powers of two above the no-load speed ``Vlim / Ke`` and the current
-limit. In the integer domain a section's numerator carries ``LSB_in / LSB_out``.
+A signal is an integer count of its LSB, its full scale (the value of ``2^S`` counts) over
+``2^S``; each full scale is a power of two (in the signal's unit), so converting between
+counts and engineering units is a shift (:func:`full_scales`):
+
+* position (theta_ref, theta, and their difference), rad or m: the smallest power of two at
+  least :data:`FULL_SCALE_MARGIN` times the largest of the stroke's span ``hi - lo`` (what the
+  error can reach) and its ends' magnitudes ``|lo|``, ``|hi|`` (what theta can reach);
+* motor speed, rad/s: the smallest power of two at least :data:`FULL_SCALE_MARGIN` times the
+  no-load speed ``Vlim / Ke`` (a load that drives the motor can push it past that; 2^12 rad/s
+  for a motor without back EMF);
+* current, A: the power of two above the current limit (i_ref is clamped there, and the limit
+  stays below ``2^S`` counts).
+
+In the integer domain a section's numerator carries ``LSB_in / LSB_out``.
 
 Rounding (the C ``rshift_round``: half away from zero): every product shifted right loses at
 most half a count of the state scale ``2^-G`` LSB, and the DF2T recursion sums ten of them
@@ -48,6 +59,10 @@ from .blocks import Biquad, Blocks
 #: format -> (coefficient fraction word W, signal bits S, extra state fraction bits G)
 FORMATS = {"q15": (15, 15, 16), "q31": (31, 29, 0)}
 
+
+#: full scale of the position and the motor speed over the most the signal reaches (a travel
+#: past the stroke's ends into the end stops, a motor driven past its no-load speed)
+FULL_SCALE_MARGIN = 1.25
 
 #: most fraction bits of a coefficient (the C shifts 64-bit products by at most this)
 MAX_FRACTION_BITS = 62
@@ -139,7 +154,8 @@ class Quantized:
     fmt : str
         ``"q15"`` or ``"q31"``.
     lsb : dict
-        ``theta`` (rad), ``omega`` (motor rad/s), ``current`` (A) per count.
+        ``theta`` (rad, or m for a linear output), ``omega`` (motor rad/s), ``current`` (A)
+        per count; each a power of two (:func:`full_scales` over ``2^S``).
     position : tuple of QSection
     speed : QSection or None
     current_limit_counts : int
@@ -167,6 +183,12 @@ class Quantized:
     def guard(self) -> int:
         return FORMATS[self.fmt][2]
 
+    @property
+    def full_scale(self) -> dict:
+        """``theta``, ``omega``, ``current``: the value of ``2^S`` counts of each signal (its
+        unit as in :attr:`lsb`)."""
+        return {k: v * 2**self.signal_bits for k, v in self.lsb.items()}
+
     def sections(self) -> tuple:
         return self.position + ((self.speed,) if self.speed is not None else ())
 
@@ -182,11 +204,24 @@ class Quantized:
                                  steps, self.guard)
         return err * self.sections()[-1].lsb_out
 
+    def signal_scales(self) -> list:
+        """Per signal: name, unit, full scale, its base-2 exponent and the LSB (what drive
+        firmware needs to convert counts: ``value = counts * full_scale / 2^S``)."""
+        unit = self.blocks.output_unit
+        rows = (("theta_ref, theta", unit, "theta"), ("omega_m", "rad/s", "omega"), ("i_ref", "A", "current"))
+        return [{"signals": name, "unit": u, "full_scale": self.full_scale[k],
+                 "full_scale_log2": int(round(math.log2(self.full_scale[k]))), "lsb": self.lsb[k]}
+                for name, u, k in rows]
+
     def to_dict(self) -> dict:
+        unit = self.blocks.output_unit
         return {"format": self.fmt, "coefficient_word_bits": self.word + 1,
                 "signal_full_scale_counts": 2**self.signal_bits, "state_extra_fraction_bits": self.guard,
-                "lsb": {f"theta_{self.blocks.output_unit}": self.lsb["theta"], "omega_m_rad_s": self.lsb["omega"],
+                "lsb": {f"theta_{unit}": self.lsb["theta"], "omega_m_rad_s": self.lsb["omega"],
                         "current_A": self.lsb["current"]},
+                "full_scale": {f"theta_{unit}": self.full_scale["theta"],
+                               "omega_m_rad_s": self.full_scale["omega"], "current_A": self.full_scale["current"]},
+                "signal_scales": self.signal_scales(),
                 "sections": [s.to_dict(self.word) for s in self.sections()],
                 "current_limit_counts": self.current_limit_counts}
 
@@ -211,14 +246,31 @@ def _pow2_above(x: float) -> float:
     return 2.0 ** (math.floor(math.log2(max(x, 1e-300))) + 1)
 
 
+def _pow2_at_least(x: float) -> float:
+    """The smallest power of two >= x (x itself when it is one, to a relative 1e-12)."""
+    return 2.0 ** math.ceil(math.log2(max(x, 1e-300)) - 1e-12)
+
+
+def full_scales(blocks: Blocks, motor) -> dict:
+    """Full scale of each signal (the value of ``2^S`` counts): ``theta`` in the output's unit
+    from ``blocks.stroke``, ``omega`` (motor rad/s) from the no-load speed, ``current`` (A)
+    from the current limit; each a power of two (see the module docstring)."""
+    lo, hi = (float(v) for v in blocks.stroke)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise SceneError("drivetrain.stroke", f"must be two finite positions, lower < upper, got {blocks.stroke!r}")
+    reach = max(hi - lo, abs(lo), abs(hi))
+    omega = (_pow2_at_least(FULL_SCALE_MARGIN * motor.voltage_limit / motor.back_emf_constant)
+             if motor.back_emf_constant > 0 else 2.0**12)
+    return {"theta": _pow2_at_least(FULL_SCALE_MARGIN * reach), "omega": omega,
+            "current": _pow2_above(blocks.current_limit)}
+
+
 def quantize(blocks: Blocks, motor, fmt: str) -> Quantized:
     """Quantize ``blocks`` to ``fmt`` (``"q15"`` or ``"q31"``)."""
     if fmt not in FORMATS:
         raise SceneError("fixed_point", f"must be one of {tuple(FORMATS)}, got {fmt!r}")
     word, sbits, _ = FORMATS[fmt]
-    w_fs = _pow2_above(motor.voltage_limit / motor.back_emf_constant) if motor.back_emf_constant > 0 else 2.0**12
-    lsb = {"theta": math.pi / 2**sbits, "omega": w_fs / 2**sbits,
-           "current": _pow2_above(blocks.current_limit) / 2**sbits}
+    lsb = {k: v / 2**sbits for k, v in full_scales(blocks, motor).items()}
     out_lsb = lsb["omega"] if blocks.speed is not None else lsb["current"]
 
     def q(sec: Biquad, lsb_in, lsb_out):
