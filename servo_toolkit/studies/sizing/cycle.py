@@ -1,9 +1,17 @@
 """A duty cycle as samples of the prescribed motion q(t), its speed and acceleration.
 
-Each segment is sampled at the midpoints of equal sub-intervals, so every sample stands for
-the same share of its segment's time (its ``weight``, s): a mean over the cycle is
-``sum(x * weight) / duration``, exact for a piecewise-constant x whose pieces end on
-sample boundaries.
+Each segment is cut at its kinks (:func:`kink_times`: its ends and, for a ramp or a step,
+where the acceleration jumps) and each piece is sampled at the midpoints of equal
+sub-intervals, so every sample stands for a share of its piece's time (its ``weight``, s):
+a mean over the cycle is ``sum(x * weight) / duration``, exact for the piecewise-constant
+acceleration of a ramp or a step however short its move is against the cycle's sample time.
+
+Midpoints never land where the speed peaks at the end of an acceleration (a triangular
+move's top speed, a ramp's last instant of acceleration at full speed), nor on a segment's
+ends (a sine starts at its top speed): by up to half a sample of acceleration, which for a
+short move in a long cycle is several percent of the peak speed, power and voltage. So each
+kink also carries two samples of zero weight, one on each side of the acceleration's jump:
+they count in every peak and in none of the means.
 
 Motions (position q0 at the segment's start, local time t from 0 to the duration T):
 
@@ -38,7 +46,8 @@ class CycleMotion:
     t : numpy.ndarray
         Sample times from the cycle's start (s).
     weight : numpy.ndarray
-        Time each sample stands for (s); they sum to the cycle's duration.
+        Time each sample stands for (s); they sum to the cycle's duration. Zero for the
+        samples at a segment's kinks (module docstring), which count in the peaks only.
     q, qd, qdd : numpy.ndarray
         Position (rad or m), speed, acceleration.
     load : numpy.ndarray
@@ -104,6 +113,39 @@ def segment_motion(seg, q0: float, t) -> tuple:
     return q0 + zero, zero, zero.copy()
 
 
+def kink_times(seg) -> tuple:
+    """Local times of ``seg`` where its acceleration jumps or its speed peaks between the
+    midpoint samples: the segment's ends and, for a ramp and a step, the ends of the
+    acceleration and deceleration."""
+    if seg.kind == "ramp":
+        return (0.0, seg.accel_time, seg.duration - seg.accel_time, seg.duration)
+    if seg.kind == "step":
+        return (0.0, seg.rise_time / 2, seg.rise_time, seg.duration)
+    return (0.0, seg.duration)
+
+
+def _samples(seg, q0: float, dt: float) -> tuple:
+    """(local times, weights, q, qd, qdd) of a segment: the midpoints of each piece between
+    its kinks (at most ``dt`` apart, at least :data:`MIN_SEGMENT_SAMPLES` over the segment)
+    and the zero-weight samples on each side of every kink, in time order."""
+    cuts = np.unique(np.clip(kink_times(seg), 0.0, seg.duration))
+    dt = min(dt, seg.duration / MIN_SEGMENT_SAMPLES)
+    local, weight = [], []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if b - a <= 1e-12 * seg.duration:
+            continue
+        n = max(1, int(math.ceil((b - a) / dt - 1e-9)))
+        local.append(a + (np.arange(n) + 0.5) * (b - a) / n)
+        weight.append(np.full(n, (b - a) / n))
+    eps = 1e-9 * seg.duration
+    kinks = np.clip([t + side * eps for t in cuts for side in (-1.0, 1.0)], 0.0, seg.duration)
+    times = np.concatenate(local + [kinks])
+    weight = np.concatenate(weight + [np.zeros(kinks.size)])
+    order = np.argsort(times, kind="stable")
+    q, qd, qdd = segment_motion(seg, q0, times[order])
+    return times[order], weight[order], q, qd, qdd
+
+
 def sample_cycle(duty, start: float, default_load: float, sample_time: float | None = None) -> CycleMotion:
     """The motion of one cycle of ``duty`` (a :class:`~servo_toolkit.scene.duty_cycle.DutyCycle`).
 
@@ -126,16 +168,13 @@ def sample_cycle(duty, start: float, default_load: float, sample_time: float | N
     q0 = start if duty.start is None else duty.start
     parts, t0 = [], 0.0
     for i, seg in enumerate(duty.segments):
-        n = max(MIN_SEGMENT_SAMPLES, int(math.ceil(seg.duration / dt - 1e-9)))
-        h = seg.duration / n
-        local = (np.arange(n) + 0.5) * h
-        q, qd, qdd = segment_motion(seg, q0, local)
+        local, weight, q, qd, qdd = _samples(seg, q0, dt)
         load = default_load if seg.load is None else seg.load
-        parts.append((t0 + local, np.full(n, h), q, qd, qdd, np.full(n, load), np.full(n, i)))
+        parts.append((t0 + local, weight, q, qd, qdd, np.full(local.size, load), np.full(local.size, i)))
         t0 += seg.duration
         q0 = segment_end(seg, q0)
     cols = [np.concatenate(c) for c in zip(*parts)]
     return CycleMotion(*cols[:6], segment=cols[6].astype(int))
 
 
-__all__ = ["CycleMotion", "sample_cycle", "segment_motion", "trapezoid", "DEFAULT_SAMPLES"]
+__all__ = ["CycleMotion", "sample_cycle", "segment_motion", "trapezoid", "kink_times", "DEFAULT_SAMPLES"]

@@ -141,8 +141,10 @@ def interval_i2(current, weight, steps: int = THERMAL_STEPS) -> tuple[np.ndarray
     """(mean i^2 over each of ``steps`` equal intervals of the cycle, interval length h):
     the samples' i^2 integrated over time and cut at the interval ends. ``current`` may have
     leading axes (a sweep): the intervals are along its last axis."""
-    current = np.asarray(current, dtype=float)
     weight = np.asarray(weight, dtype=float)
+    keep = weight > 0    # the zero-weight samples of the peaks carry no heat
+    current = np.asarray(current, dtype=float)[..., keep]
+    weight = weight[keep]
     edges = np.concatenate(([0.0], np.cumsum(weight)))
     total = edges[-1]
     energy = np.concatenate([np.zeros(current.shape[:-1] + (1,)), np.cumsum(current**2 * weight, axis=-1)], axis=-1)
