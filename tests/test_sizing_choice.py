@@ -100,6 +100,19 @@ def test_a_swept_lead_divides_the_screws_life_and_bounds_the_feasible_range():
 def test_a_gear_in_front_of_the_screw_leaves_its_lives_out_of_the_sweep():
     sweep = size(SCENES / "ema_sizing.toml").sweep
     assert sweep.swept == "ratio of spur gear train" and sweep.lives == ()
+    assert sweep.feasible_range() is not None
+
+
+def test_a_life_no_gear_ratio_changes_leaves_no_ratio_feasible():
+    # the screw's L10 behind a gear is the same at every gear ratio: short of the required
+    # life there, it is short at every ratio, and no ratio of the sweep is feasible
+    data = tomllib.loads((SCENES / "ema_sizing.toml").read_text())
+    data["duty_cycle"]["required_life"] = "100000 h"
+    res = size(scene_from_dict(data))
+    screw = next(life for life in res.lives if "(screw)" in life.part)
+    assert screw.hours < 1e5 and not res.passed
+    assert not res.sweep.feasible.any() and res.sweep.feasible_range() is None
+    assert "feasible overall ratio none" in res.table()
 
 
 def test_the_sweep_figure_draws_every_figure_against_its_limit():

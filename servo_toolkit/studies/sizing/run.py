@@ -118,18 +118,23 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
         margins.append(upper("winding temperature", thermal.peak_winding - KELVIN, hot - KELVIN, "degC",
                              motor.ambient_temperature - KELVIN))
     static = getattr(stage, "static_load_rating", None)
-    if static is not None:    # a roller screw's static rating against the peak thrust on its last nut
-        margins.append(upper(f"static load {stage.name}", float(np.abs(loads.screw_thrust).max()),
-                             static, "N"))
-    if duty.required_life is not None:
-        margins += [lower(f"L10 {life.part}", life.hours, duty.required_life / 3600, "h") for life in lives]
+    statics = [] if static is None else [   # a roller screw's static rating against the peak thrust on its last nut
+        upper(f"static load {stage.name}", float(np.abs(loads.screw_thrust).max()), static, "N")]
+    life_margins = [] if duty.required_life is None else [
+        lower(f"L10 {life.part}", life.hours, duty.required_life / 3600, "h") for life in lives]
+    margins += statics + life_margins
+    lead_swept = screw_index(drivetrain) == 0
+    # the margins no factor on the first stage's ratio changes: the static load, and the lives
+    # behind a gear (which leaves the screw's speed as it is)
+    fixed = statics + ([] if lead_swept else life_margins)
     sweep_result = None
     if sweep:
         factors = np.geomspace(duty.ratio_range[0], duty.ratio_range[1], duty.ratio_points)
         sweep_result = ratio_sweep(drivetrain, motion, loads, (("scene motor", motor),) + tuple(duty.motors),
                                    factors, required_bandwidth=scene.requirements.bandwidth,
-                                   lives=lives if screw_index(drivetrain) == 0 else None,
-                                   required_life=duty.required_life, display=scene.display)
+                                   lives=lives if lead_swept else None,
+                                   required_life=duty.required_life, display=scene.display,
+                                   fixed_limits_hold=all(m.passed for m in fixed))
     power = voltage * current
     mechanical = torque * speed
     regen = float(np.sum(np.maximum(-power, 0.0) * motion.weight))

@@ -17,7 +17,8 @@ Per motor and ratio: RMS torque and current, peak torque and speed, peak voltage
 winding), the steady periodic winding temperature and the estimate of the achievable
 position-loop bandwidth; per ratio the screw's lives when the lead is swept. Feasible: every
 limit of the sizing holds (peak and RMS torque, peak voltage, winding temperature, the
-required bandwidth and, with a swept lead, the required life).
+required bandwidth, the required life, a roller screw's static load): the limits no factor
+changes (the static load; the lives behind a gear) hold at every ratio or at none.
 
 * **Bandwidth estimate**: min(f_r / 3, f_a / 2), f_r the chain's lowest resonance with the
   motor node's inertia of that motor and ratio (the chain's eigenproblem at the cycle's
@@ -202,7 +203,8 @@ def _swept(drivetrain) -> str:
 
 
 def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidth=None, lives=None,
-                required_life=None, display=None, thermal_steps: int = 200) -> RatioSweep:
+                required_life=None, display=None, thermal_steps: int = 200,
+                fixed_limits_hold: bool = True) -> RatioSweep:
     """The :class:`RatioSweep` of a sized duty cycle (module docstring).
 
     Parameters
@@ -225,6 +227,10 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
         The scene's ``[display]``: the unit the stiffness is shown in.
     thermal_steps : int
         Intervals per cycle of the thermal integration.
+    fixed_limits_hold : bool
+        Whether the limits no factor changes hold (a roller screw's static load; the screw's
+        lives behind a gear, which leaves the screw's speed as it is): when one fails, no
+        ratio is feasible.
     """
     from ...display.units import DisplayUnits
     display = display or DisplayUnits()
@@ -240,7 +246,7 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
                             "winding_temperature", "bandwidth", "feasible")}
     optimal, limits = [], []
     life_rows = tuple((life.part, life.hours / s[:, 0]) for life in (lives or ()))
-    life_ok = np.ones(s.size, bool)
+    life_ok = np.full(s.size, bool(fixed_limits_hold))
     if required_life is not None:
         for _, hours in life_rows:
             life_ok &= hours >= required_life / 3600
