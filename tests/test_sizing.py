@@ -71,6 +71,19 @@ def test_peaks_of_a_short_move_in_a_long_cycle_are_the_closed_form():
     assert res.rms_torque == pytest.approx(torque * math.sqrt(2 * rise / 60.0), rel=1e-9)
 
 
+def test_regenerated_energy_of_a_decelerating_inertia_is_the_closed_form():
+    # each deceleration of the trapezoid returns Ke w I - R I^2 while the back-EMF outweighs
+    # the copper loss; the winding cold (at the ambient, where R is given): the most returned
+    scene = scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg"))
+    res = size(scene, sweep=False)
+    d, t, ta, r, k = math.radians(60), 0.4, 0.1, 0.5, 0.2
+    current = (J_M * N + J_L / N) * d / ((t - ta) * ta) / k
+    top = N * d / (t - ta)
+    until = ta * (1 - r * current / (k * top))        # back-EMF power = copper loss there
+    energy = k * current * top * (until - until**2 / (2 * ta)) - r * current**2 * until
+    assert res.regenerated_energy == pytest.approx(2 * energy, rel=1e-4)
+
+
 def test_rms_optimal_ratio_is_the_inertia_matching_ratio():
     scene = scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg", ratio_range=[0.1, 10.0],
                                           ratio_points=201))

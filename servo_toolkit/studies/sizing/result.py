@@ -43,7 +43,8 @@ class SizingResult(RichDisplay):
     peak_electrical_power : float
         Largest u i drawn from the supply (W).
     regenerated_energy : float
-        Energy the motor returns to the supply per cycle (J).
+        Energy the motor returns to the supply per cycle (J), the winding at the ambient
+        temperature (cold: the most it returns; the hot winding's loss returns less).
     thermal : ThermalResult or None
         None when the motor has no thermal network.
     lives : tuple of Life

@@ -137,7 +137,10 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
                                    fixed_limits_hold=all(m.passed for m in fixed))
     power = voltage * current
     mechanical = torque * speed
-    regen = float(np.sum(np.maximum(-power, 0.0) * motion.weight))
+    # the energy returned with the winding cold (at the ambient): the hot winding's larger loss
+    # would return less, the wrong side for the braking resistor or bus capacitance it sizes
+    cold = electrical(motor, torque, speed, motor.ambient_temperature)["electrical_power"]
+    regen = float(np.sum(np.maximum(-cold, 0.0) * motion.weight))
     return SizingResult(
         scene=scene.name, output_unit=drivetrain.output_unit, method=method, motion=motion,
         motor_torque=torque, motor_speed=speed, current=current, voltage=voltage,
