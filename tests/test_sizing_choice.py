@@ -149,3 +149,28 @@ def test_the_sizing_scene_keeps_the_reference_emas_tables():
     for a, b in zip(siz["drivetrain"], ref["drivetrain"]):
         extra = added.get(a.get("name"), set())
         assert {k: v for k, v in a.items() if k not in extra} == b, a.get("name")
+
+
+def test_a_fine_cycle_and_many_ratios_sweep_in_bounded_memory():
+    # 100,000 samples x 200 ratios: the sweep takes the ratios a few at a time, so no array of
+    # 20 million elements (160 MB) is built; the figures are those of the ratios one by one
+    import tracemalloc
+    from servo_toolkit.studies.sizing import sweep as sweep_module
+    from servo_toolkit.studies.sizing.loads import cycle_loads
+    scene = scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg", sample_time="12 us",
+                                          ratio_range=[0.5, 2.0], ratio_points=200))
+    tracemalloc.start()
+    try:
+        res = size(scene)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert res.motion.t.size > 100_000 and peak < 100e6, peak
+    # each ratio's figures are those of that factor's own (factors x samples) row
+    loads = cycle_loads(scene.drivetrain, res.motion)
+    rest, shaft, _ = sweep_module.split_torque(scene.drivetrain, res.motion, loads)
+    k = 137
+    s = res.sweep.factors[k]
+    torque = rest / s + s * shaft
+    assert res.sweep.rms_torque[0, k] == pytest.approx(res.motion.rms(torque), rel=1e-12)
+    assert res.sweep.peak_torque[0, k] == pytest.approx(float(np.abs(torque).max()), rel=1e-12)

@@ -58,6 +58,10 @@ from ...components.roller_screw.stages import RollerScrew
 from .envelope import Envelope
 from .thermal import ThermalNetwork, interval_i2, periodic_peak
 
+#: most elements of one (factors x samples) array of the sweep: the factors are taken a few
+#: at a time, so a fine sample time and many ratios bound the memory (about 16 MB an array)
+CHUNK_ELEMENTS = 2_000_000
+
 
 @dataclass(frozen=True)
 class RatioSweep:
@@ -254,20 +258,13 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
         # the candidate's rotor replaces the scene's in the shaft's torque and on the motor node
         extra = motor.rotor_inertia - rotor0
         t_shaft = shaft + extra * (n * motion.qdd + dn * motion.qd**2)
-        torque = rest / s + s * t_shaft + motor.viscous_friction * s * w1 + motor.coulomb_friction * np.sign(w1)
-        speed = s * w1
         env = Envelope.of(motor)
-        current = torque / motor.torque_constant
-        rms_t = np.sqrt(np.sum(torque**2 * motion.weight, axis=1) / motion.duration)
-        peak_t = np.abs(torque).max(axis=1)
-        peak_w = np.abs(speed).max(axis=1)
-        peak_u = np.abs(env.hot_resistance * current + motor.back_emf_constant * speed).max(axis=1)
         net = ThermalNetwork.from_motor(motor)
-        if net is None:
-            temp = np.full(s.size, np.nan)
-        else:
-            i2, h = interval_i2(current, motion.weight, thermal_steps)
-            temp = periodic_peak(net, i2, h)
+        # a few factors at a time: (factors x samples) arrays stay within CHUNK_ELEMENTS
+        step = max(1, CHUNK_ELEMENTS // max(1, w1.size))
+        rms_t, peak_t, peak_w, peak_u, temp = (np.concatenate(c) for c in zip(*(
+            _figures(motor, env, net, s[a:a + step], rest, t_shaft, w1, motion, thermal_steps)
+            for a in range(0, s.shape[0], step))))
         j_shaft_m = float(j_shaft[0]) + extra * float(n[0]) ** 2
         bw = bandwidth_estimate(drivetrain.chain, q0, lambda f: node0 + (f**2 - 1) * j_shaft_m
                                 + extra * float(n[0]) ** 2, s[:, 0])
@@ -296,6 +293,24 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
                       limits=tuple(limits), swept=_swept(drivetrain), output_unit=drivetrain.output_unit,
                       stiffness_unit=display.stiffness_unit(linear),
                       stiffness_factor=display.factor("stiffness", linear), **arrays)
+
+
+def _figures(motor, env, net, s, rest, t_shaft, w1, motion, thermal_steps: int) -> tuple:
+    """(RMS torque, peak torque, peak speed, peak voltage, winding temperature) of ``motor`` at
+    the factors ``s`` (a column), each an array over the factors."""
+    torque = rest / s + s * t_shaft + motor.viscous_friction * s * w1 + motor.coulomb_friction * np.sign(w1)
+    speed = s * w1
+    current = torque / motor.torque_constant
+    rms_t = np.sqrt(np.sum(torque**2 * motion.weight, axis=1) / motion.duration)
+    peak_t = np.abs(torque).max(axis=1)
+    peak_w = np.abs(speed).max(axis=1)
+    peak_u = np.abs(env.hot_resistance * current + motor.back_emf_constant * speed).max(axis=1)
+    if net is None:
+        temp = np.full(s.shape[0], np.nan)
+    else:
+        i2, h = interval_i2(current, motion.weight, thermal_steps)
+        temp = periodic_peak(net, i2, h)
+    return rms_t, peak_t, peak_w, peak_u, temp
 
 
 def _dn(drivetrain, motion) -> np.ndarray:
