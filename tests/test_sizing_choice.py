@@ -174,3 +174,15 @@ def test_a_fine_cycle_and_many_ratios_sweep_in_bounded_memory():
     torque = rest / s + s * shaft
     assert res.sweep.rms_torque[0, k] == pytest.approx(res.motion.rms(torque), rel=1e-12)
     assert res.sweep.peak_torque[0, k] == pytest.approx(float(np.abs(torque).max()), rel=1e-12)
+
+
+def test_a_screw_held_still_has_an_unbounded_life_shown_as_such():
+    # a hold turns the screw no revolution: its L10 in hours is unbounded, a margin of inf (not
+    # "none", which reads as no margin left)
+    data = screw_scene(required_life="1000 h")
+    data["duty_cycle"]["segments"] = [{"kind": "dwell", "duration": "1 s", "load": "3 kN"}]
+    res = size(scene_from_dict(data), sweep=False)
+    assert [life.hours for life in res.lives] == [math.inf, math.inf] and res.passed
+    rows = [line for line in res.table().splitlines() if "L10" in line]
+    assert len(rows) == 2 and all(line.split()[-2:] == ["inf", "ok"] for line in rows), rows
+    assert "none" not in res.table()

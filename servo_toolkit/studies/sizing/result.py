@@ -14,6 +14,12 @@ from ...display.cards import RichDisplay, badge, card, facts, num, svg, table
 KELVIN = 273.15
 
 
+def _margin_text(margin: float) -> str:
+    """A margin as a percentage; an unbounded one (a life without a revolution, a thermal
+    runaway) as inf or -inf."""
+    return f"{margin:.1%}" if math.isfinite(margin) else ("inf" if margin > 0 else "-inf")
+
+
 def _fin(x):
     return float(x) if x is not None and math.isfinite(x) else None
 
@@ -125,7 +131,7 @@ class SizingResult(RichDisplay):
                  f"peak power {self.peak_power:.4g} W, regenerated {self.regenerated_energy:.4g} J per cycle",
                  f"  {'quantity':<34}{'value':>12}{'limit':>12}  unit   margin"]
         for m in self.margins:
-            margin = f"{m.margin:>7.1%}" if math.isfinite(m.margin) else f"{'none':>7}"
+            margin = f"{_margin_text(m.margin):>7}"
             runaway = m.name == "winding temperature" and self.thermal is not None and self.thermal.runaway
             lines.append(f"  {m.name:<34}{m.value:>12.4g}{m.limit:>12.4g}  {m.unit:<6}{margin}  "
                          f"{'ok' if m.passed else 'EXCEEDED'}" + ("  (thermal runaway: no steady state)" * runaway))
@@ -145,7 +151,7 @@ class SizingResult(RichDisplay):
                 f"peak {float(np.abs(self.motor_torque).max()):.3g} N*m{tail}")
 
     def _repr_card(self) -> str:
-        rows = [(m.name, f"{num(m.value)} {m.unit}", f"{num(m.limit)} {m.unit}", f"{m.margin:.1%}", badge(m.passed))
+        rows = [(m.name, f"{num(m.value)} {m.unit}", f"{num(m.limit)} {m.unit}", _margin_text(m.margin), badge(m.passed))
                 for m in self.margins]
         parts = [facts([("RMS torque", f"{num(self.rms_torque)} N*m"), ("RMS current", f"{num(self.rms_current)} A"),
                         ("peak power", f"{num(self.peak_power)} W"),
