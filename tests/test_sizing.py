@@ -104,6 +104,25 @@ def _network_closed_form(net: ThermalNetwork, power: float, t):
     return steady[0] + (vec[0] * coef * np.exp(np.outer(t, lam))).sum(axis=1), -1 / lam
 
 
+def test_rms_optimal_ratio_under_a_load_torque_is_the_closed_form():
+    # T = (J_L a + T_L) / n + J_m n a is smallest in RMS at n*^2 = rms(J_L a + T_L) / (J_m rms(a))
+    segments = trapezoid_cycle()
+    for seg, load in zip(segments, ("30 N*m", "30 N*m", "-30 N*m", "0 N*m")):
+        seg["load"] = load
+    res = size(scene_from_dict(inertia_scene(segments, start="0 deg", ratio_range=[0.1, 10.0], ratio_points=3)))
+    m = res.motion
+    d, t, ta, dwell = math.radians(60), 0.4, 0.1, 0.2
+    a = d / ((t - ta) * ta)
+    # mean square over the cycle of J_L a + T_L, piece by piece: (J_L a + T_L)^2 over each
+    # acceleration (+a, -a on the way out under +30, -a, +a back under -30) and T_L^2 elsewhere
+    total = 2 * t + 2 * dwell
+    out = ta * ((J_L * a + 30) ** 2 + (J_L * a - 30) ** 2) + (t - 2 * ta) * 30**2 + dwell * 30**2
+    back = ta * ((-J_L * a - 30) ** 2 + (J_L * a - 30) ** 2) + (t - 2 * ta) * 30**2
+    ms_load, ms_accel = (out + back) / total, 4 * ta * a**2 / total
+    assert res.sweep.rms_optimal_ratio[0] == pytest.approx((ms_load / (J_M**2 * ms_accel)) ** 0.25, rel=1e-9)
+    assert m.mean(m.qdd**2) == pytest.approx(ms_accel, rel=1e-12)
+
+
 def test_constant_loss_settles_at_p_times_r_th_with_the_networks_time_constants():
     net = ThermalNetwork(r_wh=0.2, r_ha=0.5, tau_w=40.0, tau_h=900.0, ambient=30.0)
     t = np.array([1.0, 10.0, 60.0, 600.0, 3000.0, 30000.0])
