@@ -292,3 +292,25 @@ def test_cli_sweep_plot_needs_the_sweep(tmp_path, capsys):
     assert main(["size", str(SCENES / "ema_sizing.toml"), "--no-sweep", "--sweep-plot", str(figure)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--sweep-plot" in err and not figure.exists()
+
+
+def test_the_envelope_brakes_with_the_back_emf_on_the_supplys_side():
+    # braking, |R i - Ke w| <= V allows Kt (V + Ke |w|) / R: at the no-load speed V / Ke the
+    # motor still brakes with its peak torque, where motoring it has none left
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    motor = {"voltage_limit": "48 V", "current_limit": "20 A"}
+    res = size(scene_from_dict(inertia_scene(trapezoid_cycle(), motor, start="0 deg")), sweep=False)
+    env = res.envelope
+    top = env.voltage_limit / env.back_emf_constant
+    assert env.voltage_torque(top) == pytest.approx(0.0, abs=1e-12)
+    assert env.braking_torque(top) == pytest.approx(0.2 * 2 * 48 / env.hot_resistance, rel=1e-12)
+    fig, ax = plt.subplots()
+    res.plot_torque_speed(ax)
+    edges = [line for line in ax.lines if line.get_linestyle() == "-" and len(line.get_xdata()) > 2]
+    ends = {(float(np.sign(line.get_xdata()[-1])), float(np.sign(line.get_ydata()[0]))): line.get_ydata()[-1]
+            for line in edges}
+    assert ends[(1.0, 1.0)] < 0.1 * env.peak_torque and ends[(-1.0, -1.0)] > -0.1 * env.peak_torque
+    assert ends[(1.0, -1.0)] == pytest.approx(-env.peak_torque) and ends[(-1.0, 1.0)] == pytest.approx(env.peak_torque)
+    plt.close(fig)

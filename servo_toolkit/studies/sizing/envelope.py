@@ -7,7 +7,8 @@ Envelope of a DC motor on a supply of voltage V with a current limit I:
   network allows: Kt sqrt((T_max - T_a) / ((R_wh + R_ha) R(T_max))) (none without either);
 * voltage line: the torque the supply can push at speed w, Kt (V - Ke |w|) / R(T_max), zero
   at the no-load speed V / Ke. The winding is taken hot (at its limit T_max) for every
-  voltage figure, the conservative side.
+  voltage figure, the conservative side. Braking (torque against the speed), the back-EMF
+  helps the supply: |u| = |R i - Ke w| <= V allows up to Kt (V + Ke |w|) / R(T_max).
 
 A margin is the distance to the limit as a fraction of it: 1 - value / limit for an upper
 limit (torque, current, voltage, temperature rise over the ambient), value / limit - 1 for a
@@ -69,10 +70,17 @@ class Envelope:
         return np.maximum(self.torque_constant * (self.voltage_limit - self.back_emf_constant * w)
                           / self.hot_resistance, 0.0)
 
+    def braking_torque(self, speed) -> np.ndarray:
+        """Largest torque the supply holds against ``speed`` (rad/s), braking (N*m, >= 0)."""
+        w = np.abs(np.asarray(speed, dtype=float))
+        return self.torque_constant * (self.voltage_limit + self.back_emf_constant * w) / self.hot_resistance
+
     def curve(self, top_speed: float, points: int = 200) -> tuple:
-        """(speed, peak-limited torque) of the envelope's upper edge from 0 to ``top_speed``."""
+        """(speed, peak-limited motoring torque, peak-limited braking torque) of the envelope's
+        edges from 0 to ``top_speed``."""
         w = np.linspace(0.0, top_speed, points)
-        return w, np.minimum(self.voltage_torque(w), self.peak_torque)
+        return (w, np.minimum(self.voltage_torque(w), self.peak_torque),
+                np.minimum(self.braking_torque(w), self.peak_torque))
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary."""

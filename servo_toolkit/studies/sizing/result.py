@@ -187,11 +187,11 @@ class SizingResult(RichDisplay):
         top = max(float(np.abs(self.motor_speed).max()) * 1.2, 1e-9)
         if math.isfinite(env.no_load_speed):
             top = max(top, env.no_load_speed * 1.05)
-        w, tq = env.curve(top)
+        w, motoring, braking = env.curve(top)
         ax.plot(self.motor_speed, self.motor_torque, ".", ms=2, label="cycle")
-        for sign in (1, -1):
-            ax.plot(sign * w, tq, "k-", lw=1, label="peak / voltage" if sign > 0 else None)
-            ax.plot(sign * w, -tq, "k-", lw=1)
+        for sign in (1, -1):   # motoring in the 1st and 3rd quadrants, braking in the 2nd and 4th
+            ax.plot(sign * w, sign * motoring, "k-", lw=1, label="peak / voltage" if sign > 0 else None)
+            ax.plot(sign * w, -sign * braking, "k-", lw=1)
             if env.continuous_torque is not None:
                 ax.axhline(sign * env.continuous_torque, color="C1", ls="--", lw=1,
                            label="continuous" if sign > 0 else None)
