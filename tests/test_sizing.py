@@ -71,6 +71,27 @@ def test_peaks_of_a_short_move_in_a_long_cycle_are_the_closed_form():
     assert res.rms_torque == pytest.approx(torque * math.sqrt(2 * rise / 60.0), rel=1e-9)
 
 
+def test_a_sine_in_a_long_cycle_is_resolved_period_by_period():
+    # 16 periods of an 8 Hz sine in a 992 s cycle: at the cycle's 4000 samples the sine would
+    # get 16, one a period, all on the zero crossings of its acceleration
+    amp, f, dwell = math.radians(2), 8.0, 990.0
+    cycle = [{"kind": "sine", "amplitude": "2 deg", "frequency": "8 Hz", "cycles": 16},
+             {"kind": "dwell", "duration": f"{dwell} s"}]
+    res = size(scene_from_dict(inertia_scene(cycle, start="0 deg")), sweep=False)
+    w = 2 * math.pi * f
+    peak = (J_M * N + J_L / N) * amp * w**2                   # torque at the peak acceleration
+    assert res.rms_torque == pytest.approx(peak / math.sqrt(2) * math.sqrt(2.0 / (2.0 + dwell)), rel=1e-9)
+    assert float(np.abs(res.motor_torque).max()) == pytest.approx(peak, rel=1e-12)
+    assert float(np.abs(res.motor_speed).max()) == pytest.approx(N * amp * w, rel=1e-12)
+
+
+def test_a_sine_of_more_periods_than_the_samples_of_a_cycle_is_one_line(tmp_path):
+    cycle = [{"kind": "sine", "amplitude": "1 deg", "frequency": "100 Hz", "cycles": 80000}]
+    with pytest.raises(SceneError) as info:
+        scene_from_dict(inertia_scene(cycle, start="0 deg"), str(tmp_path / "s.toml"))
+    assert info.value.key == "duty_cycle.segments[0].cycles" and "32" in str(info.value)
+
+
 def test_regenerated_energy_of_a_decelerating_inertia_is_the_closed_form():
     # each deceleration of the trapezoid returns Ke w I - R I^2 while the back-EMF outweighs
     # the copper loss; the winding cold (at the ambient, where R is given): the most returned

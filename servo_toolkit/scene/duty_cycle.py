@@ -49,6 +49,11 @@ MAX_CSV_POINTS = 100_000
 MAX_CSV_BYTES = 8 * 1024 * 1024
 #: most ratios of the sweep
 MAX_RATIO_POINTS = 1000
+#: most samples of one cycle for the sizing
+MAX_CYCLE_SAMPLES = 2_000_000
+#: fewest samples of a sine segment's period, and of a points segment's interval between points
+SINE_SAMPLES = 32
+POINTS_SAMPLES = 2
 POSITION = "position"
 #: segment key -> (unit, rule, kinds that take it); ``position`` is the output's unit
 _KEYS = {"duration": ("s", "positive", ("dwell", "ramp", "step")),
@@ -260,9 +265,27 @@ def duty_cycle_from_table(table, output_unit: str = "rad", source: str | None = 
     require(duty.duration <= MAX_CYCLE_S, f.key("segments"),
             f"the cycle lasts at most {MAX_CYCLE_S:g} s (got {duty.duration:g} s)")
     if dt is not None:
-        require(duty.duration / dt <= 2e6, f.key("sample_time"),
-                f"at most 2e6 samples per cycle (got {duty.duration / dt:.3g})")
+        require(duty.duration / dt <= MAX_CYCLE_SAMPLES, f.key("sample_time"),
+                f"at most {MAX_CYCLE_SAMPLES:.0e} samples per cycle (got {duty.duration / dt:.3g})")
+    resolved = 0.0   # the samples that resolve the sines' periods and the points' intervals
+    for i, seg in enumerate(segments):
+        resolved += resolving_samples(seg)
+        key = f"duty_cycle.segments[{i}]." + ("cycles" if seg.kind == "sine" else "file")
+        require(resolved <= MAX_CYCLE_SAMPLES, key,
+                f"at most {MAX_CYCLE_SAMPLES:.0e} samples per cycle: each sine period takes {SINE_SAMPLES}, each "
+                f"interval between points {POINTS_SAMPLES} (got {resolved:.3g} up to this segment)")
     return duty
+
+
+def resolving_samples(segment: Segment) -> float:
+    """Samples the sizing takes to resolve a segment's motion at least: :data:`SINE_SAMPLES`
+    per sine period, :data:`POINTS_SAMPLES` per interval between a points file's points (0
+    for the others, whose pieces are polynomials)."""
+    if segment.kind == "sine":
+        return segment.cycles * SINE_SAMPLES
+    if segment.kind == "points":
+        return (len(segment.times) - 1) * POINTS_SAMPLES
+    return 0.0
 
 
 def segment_end(segment: Segment, start: float) -> float:
@@ -312,4 +335,5 @@ def check_positions(duty: DutyCycle, stroke: tuple, mid: float, output_unit: str
             f"the cycle repeats, so it must end where it starts ({show(start)}; it ends at {show(at)})")
 
 
-__all__ = ["DutyCycle", "Segment", "SEGMENT_KINDS", "duty_cycle_from_table", "check_positions", "segment_end"]
+__all__ = ["DutyCycle", "Segment", "SEGMENT_KINDS", "duty_cycle_from_table", "check_positions", "segment_end",
+           "resolving_samples", "SINE_SAMPLES", "POINTS_SAMPLES", "MAX_CYCLE_SAMPLES"]

@@ -6,6 +6,11 @@ sub-intervals, so every sample stands for a share of its piece's time (its ``wei
 a mean over the cycle is ``sum(x * weight) / duration``, exact for the piecewise-constant
 acceleration of a ramp or a step however short its move is against the cycle's sample time.
 
+A sine takes at least 32 samples a period and a points spline 2 between its points
+(:func:`~servo_toolkit.scene.duty_cycle.resolving_samples`), whatever the cycle's length:
+a few samples over many periods would land on the same phases (all at the zero crossings of
+the acceleration, say) and miss its torque.
+
 Midpoints never land where the speed peaks at the end of an acceleration (a triangular
 move's top speed, a ramp's last instant of acceleration at full speed), nor on a segment's
 ends (a sine starts at its top speed): by up to half a sample of acceleration, which for a
@@ -113,34 +118,40 @@ def segment_motion(seg, q0: float, t) -> tuple:
     return q0 + zero, zero, zero.copy()
 
 
-def kink_times(seg) -> tuple:
-    """Local times of ``seg`` where its acceleration jumps or its speed peaks between the
-    midpoint samples: the segment's ends and, for a ramp and a step, the ends of the
-    acceleration and deceleration."""
+def kink_times(seg) -> np.ndarray:
+    """Local times of ``seg`` where its acceleration jumps or its speed or acceleration peaks
+    between the midpoint samples: the segment's ends; for a ramp and a step, the ends of the
+    acceleration and deceleration; for a sine, every quarter period."""
     if seg.kind == "ramp":
-        return (0.0, seg.accel_time, seg.duration - seg.accel_time, seg.duration)
-    if seg.kind == "step":
-        return (0.0, seg.rise_time / 2, seg.rise_time, seg.duration)
-    return (0.0, seg.duration)
+        inner = (seg.accel_time, seg.duration - seg.accel_time)
+    elif seg.kind == "step":
+        inner = (seg.rise_time / 2, seg.rise_time)
+    elif seg.kind == "sine":
+        inner = np.arange(1, math.floor(4 * seg.cycles) + 1) / (4 * seg.frequency)
+    else:
+        inner = ()
+    return np.unique(np.clip(np.concatenate(([0.0], inner, [seg.duration])), 0.0, seg.duration))
 
 
 def _samples(seg, q0: float, dt: float) -> tuple:
     """(local times, weights, q, qd, qdd) of a segment: the midpoints of each piece between
-    its kinks (at most ``dt`` apart, at least :data:`MIN_SEGMENT_SAMPLES` over the segment)
-    and the zero-weight samples on each side of every kink, in time order."""
-    cuts = np.unique(np.clip(kink_times(seg), 0.0, seg.duration))
-    dt = min(dt, seg.duration / MIN_SEGMENT_SAMPLES)
-    local, weight = [], []
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        if b - a <= 1e-12 * seg.duration:
-            continue
-        n = max(1, int(math.ceil((b - a) / dt - 1e-9)))
-        local.append(a + (np.arange(n) + 0.5) * (b - a) / n)
-        weight.append(np.full(n, (b - a) / n))
+    its kinks (at most ``dt`` apart, at least :data:`MIN_SEGMENT_SAMPLES` over the segment and
+    those that resolve a sine or a points spline) and the zero-weight samples on each side of
+    every kink, in time order."""
+    from ...scene.duty_cycle import resolving_samples
+    cuts = kink_times(seg)
+    dt = min(dt, seg.duration / max(MIN_SEGMENT_SAMPLES, resolving_samples(seg)))
+    start, length = cuts[:-1], np.diff(cuts)
+    keep = length > 1e-12 * seg.duration
+    start, length = start[keep], length[keep]
+    n = np.maximum(1, np.ceil(length / dt - 1e-9).astype(int))
+    piece = np.repeat(np.arange(n.size), n)
+    within = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    h = length / n
     eps = 1e-9 * seg.duration
-    kinks = np.clip([t + side * eps for t in cuts for side in (-1.0, 1.0)], 0.0, seg.duration)
-    times = np.concatenate(local + [kinks])
-    weight = np.concatenate(weight + [np.zeros(kinks.size)])
+    kinks = np.clip(np.concatenate([cuts - eps, cuts + eps]), 0.0, seg.duration)
+    times = np.concatenate([start[piece] + (within + 0.5) * h[piece], kinks])
+    weight = np.concatenate([h[piece], np.zeros(kinks.size)])
     order = np.argsort(times, kind="stable")
     q, qd, qdd = segment_motion(seg, q0, times[order])
     return times[order], weight[order], q, qd, qdd

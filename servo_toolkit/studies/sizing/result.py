@@ -151,8 +151,8 @@ class SizingResult(RichDisplay):
                 f"peak {float(np.abs(self.motor_torque).max()):.3g} N*m{tail}")
 
     def _repr_card(self) -> str:
-        rows = [(m.name, f"{num(m.value)} {m.unit}", f"{num(m.limit)} {m.unit}", _margin_text(m.margin), badge(m.passed))
-                for m in self.margins]
+        rows = [(m.name, f"{num(m.value)} {m.unit}", f"{num(m.limit)} {m.unit}", _margin_text(m.margin),
+                 badge(m.passed)) for m in self.margins]
         parts = [facts([("RMS torque", f"{num(self.rms_torque)} N*m"), ("RMS current", f"{num(self.rms_current)} A"),
                         ("peak power", f"{num(self.peak_power)} W"),
                         ("regenerated per cycle", f"{num(self.regenerated_energy)} J")]),
