@@ -105,6 +105,11 @@ def test_regenerated_energy_of_a_decelerating_inertia_is_the_closed_form():
     assert res.regenerated_energy == pytest.approx(2 * energy, rel=1e-4)
 
 
+def test_a_scene_without_limits_says_it_judged_nothing():
+    res = size(scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg")), sweep=False)
+    assert res.margins == () and "no limit to size against" in res.table()
+
+
 def test_rms_optimal_ratio_is_the_inertia_matching_ratio():
     scene = scene_from_dict(inertia_scene(trapezoid_cycle(), start="0 deg", ratio_range=[0.1, 10.0],
                                           ratio_points=201))

@@ -127,6 +127,9 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     # the margins no factor on the first stage's ratio changes: the static load, and the lives
     # behind a gear (which leaves the screw's speed as it is)
     fixed = statics + ([] if lead_swept else life_margins)
+    if not margins:
+        notes.append("no limit to size against: the scene gives the motor no current or voltage limit, peak or "
+                     "continuous torque nor thermal network, and the duty cycle no required life")
     sweep_result = None
     if sweep:
         factors = np.geomspace(duty.ratio_range[0], duty.ratio_range[1], duty.ratio_points)
