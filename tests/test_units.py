@@ -36,6 +36,29 @@ def test_parse_errors_name_key(text, message):
     assert info.value.key == "drivetrain[1].lead"
 
 
+@pytest.mark.parametrize("text, expected_hz", [
+    ("100 rad/s", 100 / (2 * math.pi)),  # omega = 2 pi f
+    ("60 rpm", 1.0),                      # one revolution per second
+    ("360 deg/s", 1.0),
+    ("1 kHz", 1000.0),
+    ("10 1/s", 10.0),                     # cycles per second, as Hz
+])
+def test_an_angular_rate_given_for_a_frequency_is_divided_by_two_pi(text, expected_hz):
+    assert parse_quantity(text, "Hz", "requirements.bandwidth") == pytest.approx(expected_hz, rel=1e-12)
+
+
+def test_an_angular_rate_required_as_a_bandwidth_is_checked_in_hz():
+    from servo_toolkit.loop.requirements import parse_override
+    assert parse_override("bandwidth=100 rad/s") == ("bandwidth", pytest.approx(15.915494309189533))
+
+
+@pytest.mark.parametrize("text", ["50 %", "0.5 percent", "3 ppm"])
+def test_a_ratio_is_not_an_angle(text):
+    with pytest.raises(SceneError, match="a ratio is not an angle") as info:
+        parse_quantity(text, "deg", "requirements.min_phase_margin")
+    assert info.value.key == "requirements.min_phase_margin"
+
+
 def test_nan_rejected():
     with pytest.raises(SceneError, match="NaN"):
         parse_quantity(float("nan"), "m", "x")
