@@ -201,6 +201,9 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
+    # the verdict is every row's (sizing, yield and Monte Carlo rows too), not only the loop's
+    d["loop_requirements_met"] = d["requirements_met"]
+    d["requirements_met"] = ok
     d["rows"] = [r.to_dict() for r in g.rows]
     if ls is not None:
         d["large_signal"] = ls.to_dict()
