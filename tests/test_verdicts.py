@@ -258,3 +258,22 @@ def test_a_large_signal_run_into_the_end_stop_is_a_failed_row_not_bad_input():
     assert row.name == "large_signal_within_stroke" and not row.passed
     assert row.achieved == 0.7 and row.shortfall == pytest.approx(0.3)
     assert "stroke end reached" in ls.note(False)
+
+
+# -- a figure printed beside its verdict reads as that verdict ------------------------------
+
+@pytest.mark.parametrize("achieved, sense", [(5.9996, ">="), (6.0004, ">="), (5.99999, ">="), (6.0004, "<="),
+                                             (5.9996, "<="), (8.0, ">="), (14.05, ">=")])
+def test_the_achieved_figure_shown_agrees_with_the_verdict(achieved, sense):
+    """The number printed in the text table, the JSON/JUnit row and the report compares with
+    the requirement as the verdict does (5.9996 dB shown as "6 dB" beside FAIL did not)."""
+    import re
+    from servo_toolkit.loop.requirements import check, Requirement
+    from servo_toolkit.loop.result import requirements_table
+    from servo_toolkit.studies.gate import check_row
+    c, = check([Requirement("gain_margin", sense, 6.0, "dB", "scene")], {"gain_margin": achieved})
+    row = check_row(c)
+    line = requirements_table([c]).splitlines()[1]
+    for text in (row.achieved, re.search(r"dB\s+(\S+) dB", line).group(1)):
+        shown = float(text.split()[0])
+        assert (shown >= 6.0 if sense == ">=" else shown <= 6.0) == c.passed, (text, c)
