@@ -90,3 +90,14 @@ def test_infinite_resistance_breaks_the_finite_rule(ema_dict):
     with pytest.raises(SceneError, match="must be finite") as info:
         build(variant(ema_dict, motor__resistance="inf ohm"))
     assert info.value.key == "motor.resistance"
+
+
+def test_a_scene_bandwidth_and_study_frequency_in_rad_per_s_are_read_in_hz(ema_dict):
+    """[requirements] bandwidth and a study's frequency given as 2 pi * 8 rad/s are 8 Hz."""
+    from servo_toolkit.scene.loader import scene_from_dict
+    omega = f"{2 * math.pi * 8:.12g} rad/s"
+    ema_dict["requirements"]["bandwidth"] = omega
+    ema_dict["studies"]["kv_8hz"]["frequency"] = omega
+    scene = scene_from_dict(ema_dict)
+    assert scene.requirements.bandwidth == pytest.approx(8.0, rel=1e-10)
+    assert scene.studies["kv_8hz"].params["frequency"] == pytest.approx(8.0, rel=1e-10)
