@@ -273,7 +273,8 @@ def test_the_achieved_figure_shown_agrees_with_the_verdict(achieved, sense):
     from servo_toolkit.studies.gate import check_row
     c, = check([Requirement("gain_margin", sense, 6.0, "dB", "scene")], {"gain_margin": achieved})
     row = check_row(c)
+    from servo_toolkit.display.cards import requirement_rows
     line = requirements_table([c]).splitlines()[1]
-    for text in (row.achieved, re.search(r"dB\s+(\S+) dB", line).group(1)):
+    for text in (row.achieved, re.search(r"dB\s+(\S+) dB", line).group(1), requirement_rows([c])[0][2]):
         shown = float(text.split()[0])
         assert (shown >= 6.0 if sense == ">=" else shown <= 6.0) == c.passed, (text, c)

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..core.units import parse_quantity
+from ..display.html import telling_digits  # noqa: F401 - the requirement tables' digits
 
 #: name -> (Requirements attribute, sense, unit shown, SI -> shown factor, default in shown units)
 #: sense ">=" means the achieved figure must be at least the requirement.
@@ -45,22 +46,6 @@ class Requirement:
     value: float
     unit: str
     source: str
-
-
-def telling_digits(achieved: float, required: float, digits: int) -> int:
-    """Significant digits, at least ``digits``, that show a figure apart from its
-    requirement when they differ (a gain margin of 5.996 dB against 6 dB is written
-    5.996 dB, not 6 dB beside a failed verdict); at most 12."""
-    try:
-        a, r = float(achieved), float(required)
-    except (TypeError, ValueError):
-        return digits
-    if not (math.isfinite(a) and math.isfinite(r)) or a == r:
-        return digits
-    d = digits
-    while d < 12 and f"{a:.{d}g}" == f"{r:.{d}g}":
-        d += 1
-    return d
 
 
 @dataclass(frozen=True)
