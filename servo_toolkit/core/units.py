@@ -69,7 +69,10 @@ def _angle_power(units) -> float:
 
 
 def _is_frequency(unit: str) -> bool:
-    """True when ``unit`` is a frequency in cycles per time (Hz, kHz, 1/s), not an angular rate."""
+    """True when ``unit`` is a frequency in cycles per time (Hz, kHz), not an angular rate
+    nor another rate in 1/s (a time constant's inverse)."""
+    if "Hz" not in unit:
+        return False
     target = UREG.Unit(unit)
     return target.dimensionality == UREG.Unit("Hz").dimensionality and _angle_power(target) == 0
 
