@@ -93,6 +93,18 @@ def test_junit_in_a_missing_directory_exits_2_before_any_design(tmp_path, capsys
     assert "is a directory" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("empty", ["", "  "])
+def test_an_empty_junit_path_exits_2_instead_of_writing_no_report(empty, capsys, monkeypatch):
+    import servo_toolkit.cli.cmd_check as cmd_check
+
+    def no_design(*args, **kwargs):
+        raise AssertionError("designed before checking the --junit path")
+    monkeypatch.setattr(cmd_check, "design_from_args", no_design)
+    assert main(["check", EMA, "--linear-only", "--junit", empty]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--junit" in err[0] and "is empty" in err[0]
+
+
 def test_design_names_the_scene_without_a_drivetrain(capsys):
     assert main(["design", PLATFORM]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -89,6 +89,19 @@ def test_closed_stdout_in_process(monkeypatch):
     assert main(["stiffness", EMA]) == 0
 
 
+@pytest.mark.parametrize("require, code", [([], 0), (["--require", "phase_margin=179 deg"], 1)])
+def test_an_ascii_stdout_keeps_the_verdict_of_a_scene_named_with_an_accent(tmp_path, monkeypatch, require, code):
+    import io
+    scene = tmp_path / "actionneur.toml"
+    scene.write_text(Path(EMA).read_text(encoding="utf-8").replace('name = "ema_reference"', 'name = "vérin"', 1),
+                     encoding="utf-8")
+    raw = io.BytesIO()
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(raw, encoding="ascii"))  # LANG=C without UTF-8 mode
+    assert main(["check", str(scene), "--linear-only", *require]) == code
+    sys.stdout.flush()
+    assert raw.getvalue().decode("ascii").startswith("v\\xe9rin (")
+
+
 # --- process pools -------------------------------------------------------------------------
 
 def _montecarlo_json(capsys, *extra):

@@ -90,6 +90,26 @@ def test_scene_tables_of_dimensionless_values_have_no_unit():
     assert row["stiffness"] == ("1000", "N*m/rad")
 
 
+@pytest.mark.parametrize("name", ["ema_sizing", "cam_follower", "linear_roller_screw_actuator"])
+def test_every_scene_parameter_in_the_report_has_a_unit(name):
+    """Each row of the scene summary carries a physical unit, never the placeholder "SI";
+    temperatures (K inside) are shown in degC: 155 degC is 428.15 K."""
+    from servo_toolkit.report.units_table import LINEAR_LOAD, rows
+    scene = load_scene(SCENES / f"{name}.toml")
+    linear = scene.drivetrain.output_is_linear
+    parts = [scene.motor, *scene.stages, scene.sensors, scene.requirements]
+    table = [r for part in parts for r in rows(part)] + rows(scene.load, LINEAR_LOAD if linear else None)
+    assert [r for r in table if r[2] == "SI" or "(" in r[1]] == []
+    motor = {n: (v, u) for n, v, u in rows(scene.motor)}
+    assert motor["ambient_temperature"][1] == "degC" and motor["stribeck_speed"][1] == "rad/s"
+    if name == "ema_sizing":
+        assert motor["max_winding_temperature"] == ("155", "degC")
+        assert motor["thermal_resistance_winding"] == ("0.1", "K/W")
+    if linear:
+        load = {n: u for n, _, u in rows(scene.load, LINEAR_LOAD)}
+        assert load["coulomb_friction"] == "N" and load["stribeck_speed"] == "m/s"
+
+
 # ---------------------------------------------------------------- poles
 
 def test_closed_loop_poles_are_those_of_the_loop_closed_by_hand(designed):

@@ -61,6 +61,9 @@ def test_check_fails_a_life_short_of_the_required_and_names_it_in_junit(tmp_path
     assert status["life_ball_screw_screw"] == "fail" and status["life_ball_screw_bearing"] == "pass"
     assert status["thermal_margin"] == "pass" and status["envelope_peak_torque"] == "pass"
     assert scene["sizing"]["method"] == "inverse_dynamics"
+    # one verdict per scene: the loop alone meets its requirements, the scene does not
+    assert scene["passed"] is False and scene["requirements_met"] is False
+    assert scene["loop_requirements_met"] is True
     cases = {c.get("name"): c for c in ET.parse(junit).getroot().iter("testcase")}
     assert cases["life_ball_screw_screw"].find("failure") is not None
     assert cases["thermal_margin"].find("failure") is None

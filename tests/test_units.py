@@ -36,6 +36,29 @@ def test_parse_errors_name_key(text, message):
     assert info.value.key == "drivetrain[1].lead"
 
 
+@pytest.mark.parametrize("text, expected_hz", [
+    ("100 rad/s", 100 / (2 * math.pi)),  # omega = 2 pi f
+    ("60 rpm", 1.0),                      # one revolution per second
+    ("360 deg/s", 1.0),
+    ("1 kHz", 1000.0),
+    ("10 1/s", 10.0),                     # cycles per second, as Hz
+])
+def test_an_angular_rate_given_for_a_frequency_is_divided_by_two_pi(text, expected_hz):
+    assert parse_quantity(text, "Hz", "requirements.bandwidth") == pytest.approx(expected_hz, rel=1e-12)
+
+
+def test_an_angular_rate_required_as_a_bandwidth_is_checked_in_hz():
+    from servo_toolkit.loop.requirements import parse_override
+    assert parse_override("bandwidth=100 rad/s") == ("bandwidth", pytest.approx(15.915494309189533))
+
+
+@pytest.mark.parametrize("text", ["50 %", "0.5 percent", "3 ppm"])
+def test_a_ratio_is_not_an_angle(text):
+    with pytest.raises(SceneError, match="a ratio is not an angle") as info:
+        parse_quantity(text, "deg", "requirements.min_phase_margin")
+    assert info.value.key == "requirements.min_phase_margin"
+
+
 def test_nan_rejected():
     with pytest.raises(SceneError, match="NaN"):
         parse_quantity(float("nan"), "m", "x")
@@ -67,3 +90,14 @@ def test_infinite_resistance_breaks_the_finite_rule(ema_dict):
     with pytest.raises(SceneError, match="must be finite") as info:
         build(variant(ema_dict, motor__resistance="inf ohm"))
     assert info.value.key == "motor.resistance"
+
+
+def test_a_scene_bandwidth_and_study_frequency_in_rad_per_s_are_read_in_hz(ema_dict):
+    """[requirements] bandwidth and a study's frequency given as 2 pi * 8 rad/s are 8 Hz."""
+    from servo_toolkit.scene.loader import scene_from_dict
+    omega = f"{2 * math.pi * 8:.12g} rad/s"
+    ema_dict["requirements"]["bandwidth"] = omega
+    ema_dict["studies"]["kv_8hz"]["frequency"] = omega
+    scene = scene_from_dict(ema_dict)
+    assert scene.requirements.bandwidth == pytest.approx(8.0, rel=1e-10)
+    assert scene.studies["kv_8hz"].params["frequency"] == pytest.approx(8.0, rel=1e-10)

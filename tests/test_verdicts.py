@@ -23,6 +23,7 @@ EMA = str(SCENES / "ema_reference.toml")
 
 def test_check_whose_large_signal_run_cannot_run_exits_2_with_the_reason(monkeypatch, tmp_path, capsys):
     import servo_toolkit.sim as sim
+    import servo_toolkit.studies.time_run  # noqa: F401 - binds the real simulate before the patch, not the stub
 
     def cannot(*args, **kwargs):
         raise SimulationError("1 s at a step of 1e-09 s is 1e+09 steps, more than the 3e+08 one run may take")
@@ -258,3 +259,23 @@ def test_a_large_signal_run_into_the_end_stop_is_a_failed_row_not_bad_input():
     assert row.name == "large_signal_within_stroke" and not row.passed
     assert row.achieved == 0.7 and row.shortfall == pytest.approx(0.3)
     assert "stroke end reached" in ls.note(False)
+
+
+# -- a figure printed beside its verdict reads as that verdict ------------------------------
+
+@pytest.mark.parametrize("achieved, sense", [(5.9996, ">="), (6.0004, ">="), (5.99999, ">="), (6.0004, "<="),
+                                             (5.9996, "<="), (8.0, ">="), (14.05, ">=")])
+def test_the_achieved_figure_shown_agrees_with_the_verdict(achieved, sense):
+    """The number printed in the text table, the JSON/JUnit row and the report compares with
+    the requirement as the verdict does (5.9996 dB shown as "6 dB" beside FAIL did not)."""
+    import re
+    from servo_toolkit.loop.requirements import check, Requirement
+    from servo_toolkit.loop.result import requirements_table
+    from servo_toolkit.studies.gate import check_row
+    c, = check([Requirement("gain_margin", sense, 6.0, "dB", "scene")], {"gain_margin": achieved})
+    row = check_row(c)
+    from servo_toolkit.display.cards import requirement_rows
+    line = requirements_table([c]).splitlines()[1]
+    for text in (row.achieved, re.search(r"dB\s+(\S+) dB", line).group(1), requirement_rows([c])[0][2]):
+        shown = float(text.split()[0])
+        assert (shown >= 6.0 if sense == ">=" else shown <= 6.0) == c.passed, (text, c)

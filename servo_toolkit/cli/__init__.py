@@ -131,8 +131,10 @@ class _NullStream:
 
 class _VerdictSafeStdout:
     """stdout for a command: a reader that goes away (a closed pipe, ``| head``) never stops
-    the command nor changes its exit code, and any other failure to write (a full disk) is
-    remembered, so that the command ends with exit 2 and one line instead of a traceback."""
+    the command nor changes its exit code, a character the stream's encoding cannot take (a
+    scene name with an accent under a Latin-1 or ASCII locale) is written as an escape, and any
+    other failure to write (a full disk) is remembered, so that the command ends with exit 2 and
+    one line instead of a traceback."""
 
     def __init__(self, stream):
         self._stream = _NullStream() if stream is None else stream
@@ -148,6 +150,9 @@ class _VerdictSafeStdout:
             self.closed_by_reader = True
         except OSError as exc:
             self.error = exc
+        except UnicodeEncodeError:  # a character the stream's encoding lacks (a non-UTF-8 locale): escaped
+            encoding = getattr(self._stream, "encoding", None) or "ascii"
+            return self.write(text.encode(encoding, "backslashreplace").decode(encoding))
         return len(text)
 
     def flush(self):

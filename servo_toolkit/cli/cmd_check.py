@@ -169,7 +169,10 @@ def check_writable(path, inputs=()) -> None:
     """SceneError (key ``--junit``) unless a JUnit file may be written at ``path``: its folder
     must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
     existing file that is not a JUnit report (nothing a user has is overwritten). Checked
-    before any design runs."""
+    before any design runs. An empty path (an unset variable in a CI script) is an error,
+    not a request to write none."""
+    if not str(path).strip():
+        raise SceneError("--junit", "is empty: give the file to write, e.g. --junit check.xml")
     p = check_output_file(path, "--junit", inputs=inputs)
     if p.is_file() and not _is_junit(p):
         raise SceneError("--junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
@@ -198,6 +201,9 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
+    # the verdict is every row's (sizing, yield and Monte Carlo rows too), not only the loop's
+    d["loop_requirements_met"] = d["requirements_met"]
+    d["requirements_met"] = ok
     d["rows"] = [r.to_dict() for r in g.rows]
     if ls is not None:
         d["large_signal"] = ls.to_dict()
@@ -292,7 +298,7 @@ def run(args) -> int:
         parse_override(text)
     if args.samples is not None and args.samples < 1:
         raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
-    if args.junit:
+    if args.junit is not None:
         check_writable(args.junit, args.scenes)
     design_text = None
     if getattr(args, "design", None):  # the one design file every scene is checked with: read once, before any work
@@ -312,7 +318,7 @@ def run(args) -> int:
             prepare_kernels(loops[0])  # one warm-up for every scene's nonlinear rows
     with _executor(scheduler, scenes, args.scenes) as (executor, _):
         entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor, design_text)
-    if args.junit:
+    if args.junit is not None:
         write_junit(args.junit, entries)
     if args.json:
         sys.stdout.write(to_json({"passed": all_ok and not errors, "errors": errors, "skipped": skipped,

@@ -71,8 +71,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    """Run the command; exit 0 when every requirement is met and the closed loop is stable,
-    1 otherwise (as ``check``), 2 on bad input."""
+    """Run the command; exit 0 when every loop requirement (the large-signal and robustness
+    rows included) is met and the closed loop is stable, 1 otherwise, 2 on bad input. The
+    rows ``check`` adds for a ``[duty_cycle]`` (sizing), a required yield or Monte Carlo
+    requirements are not judged here."""
     for text in args.require:  # a bad value: exit 2 before the scene is read
         parse_override(text)
     scene = load_scene(args.scene)

@@ -62,6 +62,21 @@ def parse_text(text: str, key: str) -> pint.Quantity:
     return _parse_string(text, key)
 
 
+def _angle_power(units) -> float:
+    """The power of the radian in ``units`` (pint counts the radian as dimensionless)."""
+    _, root = UREG.get_root_units(units)
+    return root._units.get("radian", 0)
+
+
+def _is_frequency(unit: str) -> bool:
+    """True when ``unit`` is a frequency in cycles per time (Hz, kHz), not an angular rate
+    nor another rate in 1/s (a time constant's inverse)."""
+    if "Hz" not in unit:
+        return False
+    target = UREG.Unit(unit)
+    return target.dimensionality == UREG.Unit("Hz").dimensionality and _angle_power(target) == 0
+
+
 def _reject_angle(q: pint.Quantity, text: str, key: str) -> None:
     """SceneError when ``q`` carries an angle (rad, deg, turn, sr...): pint counts the radian
     as dimensionless, so "3 deg" would pass as the number 0.052 where a ratio or an
@@ -90,6 +105,9 @@ def parse_quantity(value, unit: str, key: str) -> float:
     -------
     float
 
+    An angular rate given for a frequency (``"100 rad/s"``, ``"60 rpm"`` for ``"Hz"``) is
+    divided by 2 pi: 100 rad/s is 15.9 Hz, not the 100 Hz of pint's dimensionless radian.
+
     Raises
     ------
     SceneError
@@ -109,8 +127,13 @@ def parse_quantity(value, unit: str, key: str) -> float:
         else:
             if unit in ("dimensionless", "", "1"):
                 _reject_angle(q, value, key)
+            elif str(q.units) != "dimensionless" and _angle_power(q.units) == 0 and _angle_power(UREG.Unit(unit)) == 1 \
+                    and UREG.Unit(unit).dimensionality == q.dimensionality:
+                raise SceneError(key, f"expected a quantity in {unit}, got {value!r}: a ratio is not an angle")
             try:
                 result = float(q.to(unit).magnitude)
+                if _angle_power(q.units) == 1 and _is_frequency(unit):
+                    result /= 2 * math.pi  # an angular rate ("100 rad/s", "60 rpm") in cycles per time
             except pint.errors.DimensionalityError:
                 raise SceneError(
                     key, f"dimension mismatch: expected a quantity in {unit}, "

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import io
 
-from .html import Raw, esc, fmt
+from .html import Raw, esc, fmt, telling_digits
 from .html import table as html_table
 
 #: style of the cards (scoped by the class name, so a notebook's own styles are untouched)
@@ -78,7 +78,8 @@ def card(title: str, *, status: bool | None = None, parts=(), notes=()) -> str:
 def requirement_rows(checks):
     """Rows (name, required, achieved, badge, shortfall) of requirement checks."""
     return [(c.name, f"{c.sense} {num(c.required)} {c.unit}",
-             f"unstable ({c.reason})" if getattr(c, "reason", "") else f"{num(c.achieved)} {c.unit}",
+             f"unstable ({c.reason})" if getattr(c, "reason", "") else
+             f"{num(c.achieved, telling_digits(c.achieved, c.required, 4))} {c.unit}",
              badge(c.passed), "" if c.passed or getattr(c, "reason", "") else f"{num(c.shortfall, 3)} {c.unit}")
             for c in checks]
 

@@ -17,6 +17,22 @@ def esc(value) -> str:
 ENG_LOW, ENG_HIGH = 1e-3, 1e4
 
 
+def telling_digits(achieved: float, required: float, digits: int) -> int:
+    """Significant digits, at least ``digits``, that show a figure apart from its
+    requirement when they differ (a gain margin of 5.996 dB against 6 dB is written
+    5.996 dB, not 6 dB beside a failed verdict); at most 12."""
+    try:
+        a, r = float(achieved), float(required)
+    except (TypeError, ValueError):
+        return digits
+    if not (math.isfinite(a) and math.isfinite(r)) or a == r:
+        return digits
+    d = digits
+    while d < 12 and f"{a:.{d}g}" == f"{r:.{d}g}":
+        d += 1
+    return d
+
+
 def fmt(value, digits: int = 4) -> str:
     """A number for a table: ``digits`` significant digits, inf/nan spelled out.
 

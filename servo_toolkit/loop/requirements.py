@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from ..core.units import parse_quantity
+from ..display.html import telling_digits  # noqa: F401 - the requirement tables' digits
 
 #: name -> (Requirements attribute, sense, unit shown, SI -> shown factor, default in shown units)
 #: sense ">=" means the achieved figure must be at least the requirement.

@@ -8,6 +8,7 @@ import control as ct
 import numpy as np
 
 from .margins import Margins
+from .requirements import telling_digits
 from ..display.cards import RichDisplay
 from ..core.output_units import OutputUnit
 from ..display.cards import card, esc_lines, facts, num, svg
@@ -206,7 +207,8 @@ def requirements_table(checks, stable=None) -> str:
     for c in checks:
         reason = getattr(c, "reason", "")
         short = "" if c.passed or reason else f"{c.shortfall:.3g} {c.unit}"
-        achieved = f"{'unstable':>13}" if reason else f"{c.achieved:>9.3g} {c.unit:<3}"
+        d = telling_digits(c.achieved, c.required, 3)
+        achieved = f"{'unstable':>13}" if reason else f"{c.achieved:>9.{d}g} {c.unit:<3}"
         rows.append(f"  {c.name:<{width}}{c.sense + ' ' + f'{c.required:g} {c.unit}':>14}"
                     f"{achieved}  {'ok' if c.passed else 'FAIL':6}{short:>10}"
                     + ("  (default)" if c.source == "default" else "  (override)" if c.source == "override" else ""))

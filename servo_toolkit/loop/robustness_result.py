@@ -10,6 +10,7 @@ import numpy as np
 from ..core.output_units import OutputUnit
 from ..display.cards import RichDisplay, card, facts, requirements_table, svg
 from ..display.units import DisplayUnits
+from .requirements import telling_digits
 from .vary import ranges_text, variant_text
 
 
@@ -101,7 +102,8 @@ class RobustnessResult(RichDisplay):
         for c in self.requirements:
             at = self.variant_text(self.worst.get(c.name, {}))
             short = "" if c.passed else f" short by {c.shortfall:.3g} {c.unit}".rstrip()
-            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.4g} {c.unit} "
+            d = telling_digits(c.achieved, c.required, 4)
+            lines.append(f"  worst {c.name:<24}{c.sense} {c.required:g} {c.unit}: {c.achieved:.{d}g} {c.unit} "
                          f"{'ok' if c.passed else 'FAIL'}{short}  at {at}")
         return "\n".join(lines)
 

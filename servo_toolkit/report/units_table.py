@@ -37,7 +37,14 @@ UNITS = {
     "screw_speed": ("rad/s", 1.0), "load": ("N", 1.0), "roller_screw_friction": (DIMENSIONLESS, 1.0),
     "screw_screw_friction": (DIMENSIONLESS, 1.0), "nut_screw_friction": (DIMENSIONLESS, 1.0),
     "ratio_x": (DIMENSIONLESS, 1.0), "ratio_y": (DIMENSIONLESS, 1.0), "platform_inertia": ("kg*m^2", 1.0),
+    "static_friction": ("N*m", 1.0), "stribeck_speed": ("rad/s", 1.0), "base_radius": ("mm", 1e3),
+    "thermal_resistance_winding": ("K/W", 1.0), "thermal_resistance_housing": ("K/W", 1.0),
+    "thermal_time_constant_winding": ("s", 1.0), "thermal_time_constant_housing": ("s", 1.0),
+    "copper_temperature_coefficient": ("1/K", 1.0), "dynamic_load_rating": ("N", 1.0),
+    "static_load_rating": ("N", 1.0), "bearing_dynamic_load_rating": ("N", 1.0),
 }
+#: temperatures (K inside) shown in degC
+TEMPERATURES = {"max_winding_temperature", "ambient_temperature", "resistance_temperature"}
 #: (class name, field) overrides where one name means different quantities
 OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6),
              ("RollerScrew", "stroke_range"): ("mm", 1e3)}
@@ -67,7 +74,8 @@ def _text(value) -> str:
 
 #: the load of an output travel (a chain ending in a screw): a mass and forces
 LINEAR_LOAD = {"inertia": ("kg", 1.0), "hinge_moment": ("N", 1.0), "hinge_stiffness": ("N/m", 1.0),
-               "damping": ("N*s/m", 1.0)}
+               "damping": ("N*s/m", 1.0), "coulomb_friction": ("N", 1.0), "static_friction": ("N", 1.0),
+               "stribeck_speed": ("m/s", 1.0)}
 
 
 def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
@@ -83,6 +91,13 @@ def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
             continue
         value = getattr(obj, f.name)
         if value is None:
+            continue
+        if isinstance(value, (list, tuple)) and value and all(dataclasses.is_dataclass(v) for v in value):
+            # nested parts (a roller screw's stages): each field on its own row, in its unit
+            out += [(f"{f.name}[{i}].{name}", text, unit) for i, v in enumerate(value) for name, text, unit in rows(v)]
+            continue
+        if f.name in TEMPERATURES and isinstance(value, (int, float)):
+            out.append((f.name, _text(value - 273.15), "degC"))
             continue
         unit, factor = (units or {}).get(f.name) or OVERRIDES.get((cls, f.name), UNITS.get(f.name, ("SI", 1.0)))
         if isinstance(value, str):

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 from ..core.yields import Yield
 from ..display.html import fmt
+from ..loop.requirements import telling_digits
 
 #: check name -> words of the requirement (``{f}``: the frequency the figure is taken at)
 LABELS = {
@@ -120,8 +121,8 @@ class RequirementRow:
         return (self.id, self.requirement, self.required, self.achieved, self.shortfall, self.status)
 
 
-def _value(value, unit: str) -> str:
-    return f"{fmt(value)} {unit}".rstrip()
+def _value(value, unit: str, digits: int = 4) -> str:
+    return f"{fmt(value, digits)} {unit}".rstrip()
 
 
 def check_row(c, prefix: str = "", label_prefix: str = "", detail: str = "", frequency=None) -> RequirementRow:
@@ -133,8 +134,9 @@ def check_row(c, prefix: str = "", label_prefix: str = "", detail: str = "", fre
         detail = "; ".join(x for x in (f"{c.source} value", detail) if x)
     if reason:  # no figure: the closed loop is unstable, the row fails with why
         detail = "; ".join(x for x in (reason, detail) if x)
+    digits = telling_digits(c.achieved, c.required, 4)  # a figure shown apart from its requirement
     return RequirementRow(prefix + c.name, label_prefix + label, f"{c.sense} {_value(c.required, c.unit)}",
-                          "unstable" if reason else _value(c.achieved, c.unit),
+                          "unstable" if reason else _value(c.achieved, c.unit, digits),
                           "" if c.passed or reason else _value(c.shortfall, c.unit),
                           "pass" if c.passed else "fail", detail)
 
