@@ -265,9 +265,7 @@ def _motions(scene, study):
     if at not in ("output", "motor"):
         raise SceneError(study.key("amplitude_at"), f"must be 'output' or 'motor' (got {at!r})")
     offset = float(study.get("offset", dt.mid_stroke))
-    if at == "motor":
-        n0 = float(dt.ratio([offset])[0][0])
-        amps = [a / n0 for a in amps]
+    amps = output_amplitudes(scene, study, amps)
     lo, hi = dt.stroke
     for a in amps:
         if offset - a < lo - 1e-12 or offset + a > hi + 1e-12:
@@ -275,6 +273,31 @@ def _motions(scene, study):
                              f"{math.degrees(offset + a):.3f} deg leaves the stroke "
                              f"{math.degrees(lo):.3f}..{math.degrees(hi):.3f} deg")
     return [SineMotion(float(a), float(freq), offset) for a in amps], at
+
+
+def output_amplitudes(scene, study, amplitudes=None) -> list:
+    """The output amplitudes (rad, or m for an output travel) of a kv study's sine motions.
+
+    A study with ``amplitude_at = "motor"`` gives the motor-gear angle: the output moves
+    that divided by the ratio N at the study's ``offset`` (default mid-stroke). Simulations
+    of the study (``simulate``, ``accuracy``, ``reduce``) command these amplitudes.
+
+    Parameters
+    ----------
+    scene : Scene
+    study : Study
+        Of kind ``"kv"``.
+    amplitudes : sequence of float, optional
+        The study's amplitudes as given (default: its ``amplitudes`` or ``amplitude``).
+    """
+    if amplitudes is None:
+        amplitudes = study.get("amplitudes", None) or [study.get("amplitude")]
+    amps = [float(a) for a in amplitudes]
+    if study.get("amplitude_at", "output") == "motor":
+        dt = scene.drivetrain
+        n0 = float(dt.ratio([float(study.get("offset", dt.mid_stroke))])[0][0])
+        amps = [a / n0 for a in amps]
+    return amps
 
 
 def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, float]:
@@ -416,4 +439,5 @@ def _card_html(k) -> str:
     return card(f"Kv of {k.scene}, study {k.study}", parts=parts, notes=k.notes)
 
 
-__all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]
+__all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "output_amplitudes",
+           "rigid_model_effect", "with_load_inertia"]

@@ -41,8 +41,10 @@ from .sweep import linear_response, study_points, sweep
 TIME_KINDS = ("kv", "simulate")
 
 
-def time_points(study):
-    """``(frequencies_hz, amplitudes_rad)`` of a kv or simulate study with a sine motion."""
+def time_points(study, scene=None):
+    """``(frequencies_hz, amplitudes_rad)`` of a kv or simulate study with a sine motion (the
+    output's amplitudes: a kv study's motor-gear amplitudes divided by the ratio, which needs
+    ``scene``)."""
     p = study.params
     if "voltage" in p:
         raise SceneError(study.key("voltage"), "an open-loop study has no closed loop to reduce")
@@ -54,6 +56,11 @@ def time_points(study):
     amps = p.get("amplitudes") or ([p["amplitude"]] if p.get("amplitude") is not None else None)
     if freq is None or not amps:
         raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
+    if study.kind == "kv" and p.get("amplitude_at", "output") != "output":
+        if scene is None:
+            raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
+        from .kv import output_amplitudes
+        amps = output_amplitudes(scene, study, amps)
     return np.array([float(freq)]), tuple(float(a) for a in amps)
 
 
@@ -134,7 +141,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
             raise SceneError(study.key("kind"), f"is {study.kind!r}; frequencies replace a frequency_sweep "
                              "study's only (a time study's motion sets its frequency)")
         name = study.name
-        freqs, amps = time_points(study)
+        freqs, amps = time_points(study, scene)
         measure = "trace"
     else:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
@@ -261,7 +268,7 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     if study is None or study.kind == "frequency_sweep":
         _, freqs, amps = _sweep_points(scene, study, frequencies)
     elif study.kind in TIME_KINDS:
-        freqs, amps = time_points(study)
+        freqs, amps = time_points(study, scene)
     else:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
                          "simulate studies")
