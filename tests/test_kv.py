@@ -133,6 +133,30 @@ def test_constant_ratio_kv_matches_the_hand_computation(tmp_path):
     assert [c.kv_screw for c in r.cases] == pytest.approx([t / thrust[0] for t in thrust], rel=1e-9)
 
 
+def test_a_motion_near_or_above_the_mode_is_flagged(tmp_path):
+    """With the two gear stages compliant (1000 and 5000 N*m/rad on their output shafts) the
+    chain is a two-mass system at the nut: rotor 2e-4 kg*m^2 * N^2 against the screw and
+    the masses, spring 1/(1/(k1 (2 N_s)^2) + 1/(k2 N_s^2)): its mode sqrt(K (1/J1 + 1/J2))
+    is 1.69 kHz. A motion above it, or within a factor 2, gets a warning that the rigid Kv
+    does not hold; one far below it does not."""
+    from servo_toolkit.studies.kv import default_kv_study
+    text = LINEAR_THREE_STAGE.replace('ratio = 3.0', 'ratio = 3.0\ntorsional_stiffness = "1000 N*m/rad"')
+    path = tmp_path / "lin.toml"
+    path.write_text(text.replace('ratio = 2.0', 'ratio = 2.0\ntorsional_stiffness = "5000 N*m/rad"'))
+    scene = load_scene(path)
+    n_s = 2 * math.pi / 5e-3
+    k = 1 / (1 / (1000 * (2 * n_s) ** 2) + 1 / (5000 * n_s ** 2))
+    f_n = math.sqrt(k * (1 / (2e-4 * (6 * n_s) ** 2) + 1 / (1.3e-5 * n_s ** 2 + 10.6))) / (2 * math.pi)
+    assert f_n == pytest.approx(1693, rel=1e-3)
+
+    def warnings(f):
+        r = kv_study(scene, default_kv_study(scene, 1e-6, f), losses="none", samples_per_period=40, progress=False)
+        return [n for n in r.notes if n.startswith("warning")]
+    assert not warnings(0.4 * f_n)
+    assert "within a factor 2 of the drivetrain's lowest mode (1.69e+03 Hz)" in warnings(0.6 * f_n)[0]
+    assert "above the drivetrain's lowest mode" in warnings(2.0 * f_n)[0]
+
+
 def test_zero_reference_is_added_and_bad_studies_name_their_key(ema_dict):
     data = variant(ema_dict, studies__kv_stroke__load_inertias=["2 kg*m^2"])
     r = kv_study(build(data), "kv_stroke", samples_per_period=400, progress=False)

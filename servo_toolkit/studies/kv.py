@@ -300,6 +300,12 @@ def output_amplitudes(scene, study, amplitudes=None) -> list:
     return amps
 
 
+#: (f / f_n)^2 at and above which the rigid inverse dynamics is no estimate of the loads:
+#: the motion within a factor 2 of the drivetrain's lowest mode, its inertial torque off by
+#: a quarter or more (above the mode, by more than all of it)
+RIGID_VALID_EFFECT = 0.25
+
+
 def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, float]:
     """What the rigid inverse dynamics leaves out: ``(lowest drivetrain mode (Hz), effect)``.
 
@@ -379,6 +385,14 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     model_note, effect = _model_note(scene, motions[0].frequency, [0.0] + [float(j) for j in inertias])
     notes = ["Kv = peak with the external inertia / peak of the same motion at zero external inertia",
              "motor torque includes the rotor inertia, stage losses and motor friction", model_note]
+    if effect >= RIGID_VALID_EFFECT:
+        f_n = motions[0].frequency / math.sqrt(effect)
+        notes.append(f"warning: these rigid-model peaks and Kv do not hold (off by about {effect:.0%} of the inertial "
+                     f"torque): the motion's {motions[0].frequency:.4g} Hz "
+                     + (f"is above the drivetrain's lowest mode ({f_n:.3g} Hz), where the motor side moves against "
+                        "the output" if effect >= 1 else f"is within a factor {1 / math.sqrt(RIGID_VALID_EFFECT):.3g} "
+                        f"of the drivetrain's lowest mode ({f_n:.3g} Hz)")
+                     + "; simulate the compliant chain instead")
     if 0.0 not in [float(j) for j in inertias]:
         notes.append("the zero-inertia reference case was added to the study's inertias")
     if at == "motor":
