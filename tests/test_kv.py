@@ -133,6 +133,23 @@ def test_constant_ratio_kv_matches_the_hand_computation(tmp_path):
     assert [c.kv_screw for c in r.cases] == pytest.approx([t / thrust[0] for t in thrust], rel=1e-9)
 
 
+def test_a_motor_gear_amplitude_is_an_angle_also_for_an_output_travel(tmp_path):
+    """Read at the motor gear, the amplitude is the gear's angle: 2 deg on the linear chain
+    (N = 6 * 2 pi / 5 mm rad/m) moves the nut 2 deg / N = 4.63 um; a length there is refused
+    naming the key, and the stroke message is in mm."""
+    path = tmp_path / "lin.toml"
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "2 deg"\namplitude_at = "motor"'))
+    r = kv_study(load_scene(path), "lin", losses="none", samples_per_period=40, progress=False)
+    assert r.cases[0].amplitude == pytest.approx(math.radians(2) / (6 * 2 * math.pi / 5e-3), rel=1e-12)
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "2 mm"\namplitude_at = "motor"'))
+    with pytest.raises(SceneError, match=r"studies\.lin\.amplitude: .*rad"):
+        load_scene(path)
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "900 rad"\namplitude_at = "motor"'))
+    with pytest.raises(SceneError, match=r"studies\.lin\.amplitude: the motion -119.36\d* mm\.\.119.36\d* mm leaves "
+                                         r"the stroke -50 mm\.\.50 mm"):
+        kv_study(load_scene(path), "lin", losses="none", samples_per_period=40, progress=False)
+
+
 def test_a_motion_near_or_above_the_mode_is_flagged(tmp_path):
     """With the two gear stages compliant (1000 and 5000 N*m/rad on their output shafts) the
     chain is a two-mass system at the nut: rotor 2e-4 kg*m^2 * N^2 against the screw and

@@ -267,11 +267,11 @@ def _motions(scene, study):
     offset = float(study.get("offset", dt.mid_stroke))
     amps = output_amplitudes(scene, study, amps)
     lo, hi = dt.stroke
+    u = output_unit(scene)
     for a in amps:
         if offset - a < lo - 1e-12 or offset + a > hi + 1e-12:
-            raise SceneError(study.key("amplitude"), f"the motion {math.degrees(offset - a):.3f}.."
-                             f"{math.degrees(offset + a):.3f} deg leaves the stroke "
-                             f"{math.degrees(lo):.3f}..{math.degrees(hi):.3f} deg")
+            raise SceneError(study.key("amplitude"), f"the motion {u.text(offset - a, 6)}..{u.text(offset + a, 6)} "
+                             f"leaves the stroke {u.text(lo, 6)}..{u.text(hi, 6)}")
     return [SineMotion(float(a), float(freq), offset) for a in amps], at
 
 
