@@ -63,6 +63,22 @@ def test_the_observed_order_leaves_out_the_reference_plateau():
     assert abs(_order(dts, [1e-3 * d / 1e-4 for d in dts]) - 1.0) < 1e-9         # no plateau: every point
 
 
+def test_the_reference_s_own_error_is_not_fitted_as_rk4_s():
+    """On the reference EMA (8 Hz, 2 deg, 0.1 s) RK4's errors against an RK4 run at 1/128
+    of the sample time fall at fourth order (2.0e-7, 1.15e-8, 6.9e-10, 4.2e-11, 2.6e-12 as
+    dt halves from 1e-4 s) while the LSODA reference (rtol 1e-12) itself is 8.6e-12 off:
+    against it the last two read 4.0e-11 and 1.0e-11. Those are the reference's accuracy,
+    not the step's: left out, the fitted order is the true 4.1, not 3.7."""
+    from servo_toolkit.studies.accuracy import AccuracyResult, _order
+    dts = [1e-4 / k for k in (1, 2, 4, 8, 16)]
+    against_reference = [2.004e-7, 1.148e-8, 6.843e-10, 4.024e-11, 1.007e-11]
+    assert abs(_order(dts, against_reference) - 4.1) < 0.05
+    runs = tuple({"method": "rk4", "dt_s": d, "wall_s": 1e-3, "error": e} for d, e in zip(dts, against_reference))
+    table = AccuracyResult(runs, 4.1, 1.0, 1.0, 0.0349, 0.1).table()
+    assert table.count("(at the reference's own accuracy)") == 2
+    assert "relative to the motion amplitude (0.0349 rad)" in table
+
+
 def test_self_convergence_measures_the_order_where_the_reference_cannot():
     """On the cam drive every RK4 error against the stiff reference sits at the reference's
     own accuracy (no order can be fitted), yet successive halvings of the step still shrink
@@ -83,7 +99,7 @@ def test_the_order_floor_leaves_out_rounding():
     dts = [1e-4, 5e-5, 2.5e-5, 1.25e-5]
     fourth = [1e-10 * (d / 1e-4) ** 4 for d in dts]  # from the third on below the rounding floor
     assert abs(_order(dts, fourth, ROUNDING_FLOOR) - 4.0) < 1e-9
-    assert math.isnan(_order(dts, fourth))  # the reference floor (1e-11) leaves a single point
+    assert math.isnan(_order(dts, fourth))  # the reference floor (1e-10) leaves a single point
 
 
 def test_with_friction_that_holds_the_order_stays_four_away_from_the_switching_instants():

@@ -6,6 +6,7 @@ import subprocess
 import sys
 import tomllib
 
+import numpy as np
 import pytest
 
 from servo_toolkit.cli import main
@@ -173,3 +174,70 @@ def test_every_error_rule_exits_2_with_one_line(tmp_path, capsys, scene, old, ne
     assert len(lines) == 1, lines
     assert f"{key}:" in lines[0] and rule in lines[0]
     assert tomllib.loads(bad.read_text())  # still valid TOML: the rule, not the syntax, failed
+
+
+THREE_STAGES = """
+name = "three_stages"
+[motor]
+kind = "dc"
+resistance = "0.5 ohm"
+torque_constant = "0.2 N*m/A"
+back_emf_constant = "0.2 V*s/rad"
+rotor_inertia = "2.0e-4 kg*m^2"
+voltage_limit = "270 V"
+current_limit = "60 A"
+[[drivetrain]]
+kind = "gear"
+name = "g1"
+ratio = 3.0
+torsional_stiffness = "1000 N*m/rad"
+[[drivetrain]]
+kind = "gear"
+name = "g2"
+ratio = 2.0
+torsional_stiffness = "5000 N*m/rad"
+[[drivetrain]]
+kind = "ball_screw"
+name = "screw"
+lead = "5 mm"
+axial_stiffness = "2.0e8 N/m"
+[load]
+inertia = "10 kg"
+"""
+
+
+def test_three_stage_series_stiffness_by_hand(tmp_path, capsys):
+    """1/K = sum (1/k_i) / n_i^2 at the nut: g1's shaft turns 2 * 2 pi / lead per metre, g2's
+    2 pi / lead, the nut 1: 6.3165e9, 7.8957e9 and 2e8 N/m, total 1.8922e8 N/m; each share
+    K / K_i."""
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_STAGES)
+    assert main(["stiffness", str(path), "--json"]) == 0
+    data = strict_json(capsys.readouterr().out)
+    n_s = 2 * math.pi / 5e-3
+    k = [1000 * (2 * n_s) ** 2, 5000 * n_s**2, 2e8]
+    total = 1 / sum(1 / ki for ki in k)
+    assert [st["stiffness_N_per_m"][0] for st in data["stages"]] == pytest.approx(k, rel=1e-12)
+    assert [st["share"][0] for st in data["stages"]] == pytest.approx([total / ki for ki in k], rel=1e-12)
+    assert data["total_N_per_m"][0] == pytest.approx(total, rel=1e-12)
+    assert data["ratio_rad_per_m"][0] == pytest.approx(6 * n_s, rel=1e-12)
+
+
+def test_seed001_criterion_keeps_the_gear_ratio_between_two_meshes_of_a_linear_chain(tmp_path):
+    """Two gear meshes before the screw of a linear chain: between them the ratio is the
+    second gear's (2, or 20); expressed at N/m through one lever (the last mesh's 2 pi / lead)
+    the first mesh's own K is k1 (2 pi / lead)^2. With a 20:1 second gear the first mesh
+    meets both of seed 001's conditions (ratio 20 >= 10, 1000 >= 5000 / 10) and its share
+    is below 1e-3, as the conditions bound it (within / ratio^2 = 0.025 of the second's)."""
+    from servo_toolkit.scene.loader import load_scene
+    path = tmp_path / "three.toml"
+    c = 2 * math.pi / 5e-3
+    for gear, negligible in ((2.0, False), (20.0, True)):
+        path.write_text(THREE_STAGES.replace("ratio = 2.0", f"ratio = {gear}"))
+        chain = load_scene(path).drivetrain.stiffness(np.array([0.0]))
+        crit = chain.criterion()
+        assert crit.own_stiffness == pytest.approx([1000 * c**2, 5000 * c**2, 2e8], rel=1e-12)
+        assert crit.later_ratio[0] == pytest.approx([gear], rel=1e-12)
+        assert bool(crit.negligible[0]) is negligible and not crit.negligible[1:].any()
+        assert crit.own_stiffness[:, None] * crit.ratio**2 == pytest.approx(chain.stage_stiffness, rel=1e-12)
+    assert chain.shares[0, 0] <= 10 / 20**2 * chain.shares[1, 0]

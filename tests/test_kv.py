@@ -65,6 +65,115 @@ def test_literal_motor_gear_reading_gives_no_dynamic_effect(ema_dict):
     assert math.degrees(r.cases[0].amplitude) == pytest.approx(2 / 138.858, rel=1e-3)
 
 
+def test_motor_gear_amplitudes_reach_simulations_divided_by_the_ratio(ema_dict):
+    """A kv study read at the motor gear moves the output by A / N: the time runs of the
+    study (simulate, accuracy via run_spec; reduce via time_points) command that, not A."""
+    from servo_toolkit.studies.reduce import time_points
+    from servo_toolkit.studies.time_reference import run_spec
+    scene = build(variant(ema_dict, studies__kv_8hz__amplitude_at="motor"))
+    n0 = float(scene.drivetrain.ratio([scene.drivetrain.mid_stroke])[0][0])
+    expected = [math.radians(a) / n0 for a in (2.0, 3.0, 4.0)]
+    assert run_spec(scene, "kv_8hz")[0].amplitude == pytest.approx(expected[0], rel=1e-12)
+    freqs, amps = time_points(scene.study("kv_8hz"), scene)
+    assert list(freqs) == [8.0] and amps == pytest.approx(expected, rel=1e-12)
+    plain = build(ema_dict)  # read at the output (the default): unchanged
+    assert run_spec(plain, "kv_8hz")[0].amplitude == pytest.approx(math.radians(2.0), rel=1e-12)
+
+
+LINEAR_THREE_STAGE = """
+name = "linear_three_stage"
+[motor]
+kind = "dc"
+resistance = "0.5 ohm"
+torque_constant = "0.2 N*m/A"
+back_emf_constant = "0.2 V*s/rad"
+rotor_inertia = "2.0e-4 kg*m^2"
+voltage_limit = "270 V"
+current_limit = "60 A"
+[[drivetrain]]
+kind = "gear"
+ratio = 3.0
+[[drivetrain]]
+kind = "gear"
+ratio = 2.0
+[[drivetrain]]
+kind = "ball_screw"
+lead = "5 mm"
+screw_inertia = "1.3e-5 kg*m^2"
+nut_mass = "0.6 kg"
+[load]
+inertia = "10 kg"
+hinge_moment = "500 N"
+[sensors]
+sample_time = "0.1 ms"
+motor_encoder_counts = 4096
+output_encoder_bits = 16
+[studies.lin]
+kind = "kv"
+amplitude = "2 mm"
+frequency = "5 Hz"
+load_inertias = ["0 kg", "10 kg", "40 kg"]
+"""
+
+
+def test_constant_ratio_kv_matches_the_hand_computation(tmp_path):
+    """Lossless constant-ratio chain, sine x = A sin(w t) against a constant force F: the
+    peak motor torque is (M A w^2 + F) / N with M = J_m N^2 + J_s N_s^2 + m_nut + m_load,
+    the peak screw thrust (m_nut + m_load) A w^2 + F (Kv = ratio to m_load = 0)."""
+    path = tmp_path / "lin.toml"
+    path.write_text(LINEAR_THREE_STAGE)
+    r = kv_study(load_scene(path), "lin", losses="none", samples_per_period=400, progress=False)
+    n_s = 2 * math.pi / 5e-3
+    n = 6 * n_s
+    aw2 = 2e-3 * (2 * math.pi * 5) ** 2
+    torque = [((2e-4 * n ** 2 + 1.3e-5 * n_s ** 2 + 0.6 + m) * aw2 + 500) / n for m in (0, 10, 40)]
+    thrust = [(0.6 + m) * aw2 + 500 for m in (0, 10, 40)]
+    assert [c.peak_motor_torque for c in r.cases] == pytest.approx(torque, rel=1e-9)
+    assert [c.peak_screw_thrust for c in r.cases] == pytest.approx(thrust, rel=1e-9)
+    assert [c.kv_screw for c in r.cases] == pytest.approx([t / thrust[0] for t in thrust], rel=1e-9)
+
+
+def test_a_motor_gear_amplitude_is_an_angle_also_for_an_output_travel(tmp_path):
+    """Read at the motor gear, the amplitude is the gear's angle: 2 deg on the linear chain
+    (N = 6 * 2 pi / 5 mm rad/m) moves the nut 2 deg / N = 4.63 um; a length there is refused
+    naming the key, and the stroke message is in mm."""
+    path = tmp_path / "lin.toml"
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "2 deg"\namplitude_at = "motor"'))
+    r = kv_study(load_scene(path), "lin", losses="none", samples_per_period=40, progress=False)
+    assert r.cases[0].amplitude == pytest.approx(math.radians(2) / (6 * 2 * math.pi / 5e-3), rel=1e-12)
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "2 mm"\namplitude_at = "motor"'))
+    with pytest.raises(SceneError, match=r"studies\.lin\.amplitude: .*rad"):
+        load_scene(path)
+    path.write_text(LINEAR_THREE_STAGE.replace('amplitude = "2 mm"', 'amplitude = "900 rad"\namplitude_at = "motor"'))
+    with pytest.raises(SceneError, match=r"studies\.lin\.amplitude: the motion -119.36\d* mm\.\.119.36\d* mm leaves "
+                                         r"the stroke -50 mm\.\.50 mm"):
+        kv_study(load_scene(path), "lin", losses="none", samples_per_period=40, progress=False)
+
+
+def test_a_motion_near_or_above_the_mode_is_flagged(tmp_path):
+    """With the two gear stages compliant (1000 and 5000 N*m/rad on their output shafts) the
+    chain is a two-mass system at the nut: rotor 2e-4 kg*m^2 * N^2 against the screw and
+    the masses, spring 1/(1/(k1 (2 N_s)^2) + 1/(k2 N_s^2)): its mode sqrt(K (1/J1 + 1/J2))
+    is 1.69 kHz. A motion above it, or within a factor 2, gets a warning that the rigid Kv
+    does not hold; one far below it does not."""
+    from servo_toolkit.studies.kv import default_kv_study
+    text = LINEAR_THREE_STAGE.replace('ratio = 3.0', 'ratio = 3.0\ntorsional_stiffness = "1000 N*m/rad"')
+    path = tmp_path / "lin.toml"
+    path.write_text(text.replace('ratio = 2.0', 'ratio = 2.0\ntorsional_stiffness = "5000 N*m/rad"'))
+    scene = load_scene(path)
+    n_s = 2 * math.pi / 5e-3
+    k = 1 / (1 / (1000 * (2 * n_s) ** 2) + 1 / (5000 * n_s ** 2))
+    f_n = math.sqrt(k * (1 / (2e-4 * (6 * n_s) ** 2) + 1 / (1.3e-5 * n_s ** 2 + 10.6))) / (2 * math.pi)
+    assert f_n == pytest.approx(1693, rel=1e-3)
+
+    def warnings(f):
+        r = kv_study(scene, default_kv_study(scene, 1e-6, f), losses="none", samples_per_period=40, progress=False)
+        return [n for n in r.notes if n.startswith("warning")]
+    assert not warnings(0.4 * f_n)
+    assert "within a factor 2 of the drivetrain's lowest mode (1.69e+03 Hz)" in warnings(0.6 * f_n)[0]
+    assert "above the drivetrain's lowest mode" in warnings(2.0 * f_n)[0]
+
+
 def test_zero_reference_is_added_and_bad_studies_name_their_key(ema_dict):
     data = variant(ema_dict, studies__kv_stroke__load_inertias=["2 kg*m^2"])
     r = kv_study(build(data), "kv_stroke", samples_per_period=400, progress=False)

@@ -98,6 +98,22 @@ def test_chain_plant_has_every_mode_and_named_signals():
                                rtol=1e-6)
 
 
+def test_three_mass_modes_match_the_closed_form():
+    """Free-free three masses J1 - k1 - J2 - k2 - J3 (rotor and pinion at the output; wheel;
+    load): w^2 are the roots of w^4 - w^2 (k1 (1/J1 + 1/J2) + k2 (1/J2 + 1/J3))
+    + k1 k2 (J1 + J2 + J3) / (J1 J2 J3) = 0 (textbook, independent of the chain's matrices)."""
+    k1, k2 = 5.0e4, 1.2e4
+    sc = scene([GearTrain("gear", ratio=N, inertias=(J_PINION, J_WHEEL), torsional_stiffness=k1),
+                Compliance("shaft", k2)], ke=0.0)
+    j1, j2, j3 = (J_ROTOR + J_PINION) * N**2, J_WHEEL, J_LOAD
+    b = k1 * (1 / j1 + 1 / j2) + k2 * (1 / j2 + 1 / j3)
+    c = k1 * k2 * (j1 + j2 + j3) / (j1 * j2 * j3)
+    expected = np.sqrt([(b - math.sqrt(b * b - 4 * c)) / 2, (b + math.sqrt(b * b - 4 * c)) / 2])
+    g = plant(sc, 0.0, inductance=False, model="chain", structural_damping=0.0)
+    poles = ct.poles(g)
+    np.testing.assert_allclose(np.sort(np.abs(poles[np.abs(poles.imag) > 1.0]))[::2], expected, rtol=1e-8)
+
+
 def test_chain_plant_of_one_compliance_is_the_two_mass_plant():
     sc = mesh(eta=0.9)
     w = np.logspace(0, 4, 60)

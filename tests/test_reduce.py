@@ -108,6 +108,25 @@ def test_cli_reduce(capsys, scenes_dir):
     capsys.readouterr()
 
 
+def test_estimate_only_refuses_what_the_runs_refuse(capsys, scenes_dir, ema_dict):
+    """A frequency the sampled loop cannot track (above a quarter of the 10 kHz sample rate)
+    and frequencies given for a time study exit 2 with or without the runs; a motor-gear kv
+    study is judged at its output amplitude A / N."""
+    path = str(scenes_dir / "ema_reference.toml")
+    for extra in ([], ["--estimate-only"]):
+        assert main(["reduce", path, "--frequency", "4000", *extra]) == 2
+        assert "--frequency: must be at most 2500 Hz" in capsys.readouterr().err
+    with pytest.raises(SceneError, match=r"studies\.kv_8hz\.kind.*frequencies"):
+        reduced_options(load_scene(path), "kv_8hz", frequencies=[10.0])
+    fast = build(variant(ema_dict, studies__kv_8hz__frequency="3000 Hz"))
+    with pytest.raises(SceneError, match=r"studies\.kv_8hz\.frequency: must be at most 2500 Hz"):
+        reduced_options(fast, "kv_8hz")
+    scene = build(variant(ema_dict, studies__kv_8hz__amplitude_at="motor"))
+    n0 = float(scene.drivetrain.ratio([scene.drivetrain.mid_stroke])[0][0])
+    _, plan = reduced_options(scene, "kv_8hz")
+    assert plan.to_dict()["amplitudes_deg"] == pytest.approx([a / n0 for a in (2.0, 3.0, 4.0)], rel=1e-9)
+
+
 def test_kv_stroke_start_up_saturation_is_outside_the_compared_window():
     """The 30 deg, 0.6 s stroke motion needs at most 8.1 N*m from the motor in steady state
     (rigid inverse dynamics, lossless: 40 A < the 60 A limit), but the sine command starts

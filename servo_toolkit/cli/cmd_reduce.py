@@ -59,6 +59,10 @@ def run(args) -> int:
     if args.plot:  # checked before any work
         check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
+    if args.frequency:  # one the sampled loop cannot track fails before any work, with or without runs
+        from ..studies.time_reference import check_sine_frequency
+        for f in args.frequency:
+            check_sine_frequency(f, float(scene.sensors.sample_time), None, "--frequency")
     _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
     if args.estimate_only:
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]

@@ -135,9 +135,11 @@ class NeglectCriterion:
     (N*m/rad for an output angle, N/m for an output travel): a spring on a coordinate of
     the output's unit keeps its own stiffness k_i and its ratio n_i = |du_i/dq|; a spring
     on a coordinate of the other kind (a nut or a rod in a rotary chain, a gear mesh in a
-    linear one) is first expressed at the output's unit through its ratio at mid-stroke,
-    c_i = n_i(q0): own stiffness K_i = k_i c_i^2, ratio rho_i(q) = n_i(q) / c_i. Then
-    K_i rho_i^2 is always the stiffness reflected to the output and rho_i is a pure number.
+    linear one) is first expressed at the output's unit through one lever c for all of
+    them, the ratio at mid-stroke of the last of them (nearest the output), c = n_last(q0):
+    own stiffness K_i = k_i c^2, ratio rho_i(q) = n_i(q) / c. Then K_i rho_i^2 is always
+    the stiffness reflected to the output, rho_i is a pure number, and the ratio between two
+    springs of that kind (two gear meshes before a screw) stays their gear ratio.
 
     With those, for a stage i and a later stage j the compliance ratio is
     (K_j / K_i) / (rho_i / rho_j)^2. The seed's conditions are

@@ -75,7 +75,8 @@ class StiffnessChain:
         ``"N*m/rad"`` or ``"N/m"`` per spring: the unit of ``native_stiffness``.
     lever : numpy.ndarray
         c_i, shape (n_springs,): 1 for a spring on a coordinate of the output's unit, else
-        its ratio to the output at mid-stroke (see :class:`~servo_toolkit.drivetrain.elements.NeglectCriterion`).
+        the ratio to the output at mid-stroke of the last spring of the other kind, the same
+        for all of them (see :class:`~servo_toolkit.drivetrain.elements.NeglectCriterion`).
     """
 
     names: tuple
@@ -305,7 +306,10 @@ class Drivetrain:
         total = 1.0 / compliance.sum(axis=0)
         units = [stage_units(self.stages)[1][i] for i in kin.spring_stage]
         at_mid = [np.abs(s.u.d1[0]) for s in self.kinematics([self.mid_stroke]).springs]
-        lever = np.array([1.0 if u == self.output_unit else c for u, c in zip(units, at_mid)])
+        # one lever for every spring of the other kind (the mid-stroke ratio of the last of them,
+        # nearest the output), so that the ratios between springs of that kind stay their own
+        other = [c for u, c in zip(units, at_mid) if u != self.output_unit]
+        lever = np.array([1.0 if u == self.output_unit else other[-1] for u in units])
         return StiffnessChain(tuple(s.label for s in kin.springs), k, total,
                               compliance / compliance.sum(axis=0), ratio, native,
                               tuple(STIFFNESS_UNIT[u] for u in units), lever)

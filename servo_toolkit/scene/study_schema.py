@@ -87,14 +87,16 @@ def study_params(name: str, table, output_unit: str = "rad") -> tuple:
     f = Fields(table, f"studies.{name}")
     kind = f.text("kind", choices=set(SCHEMA))
     params = {}
+    # a kv study's amplitudes read at the motor gear are angles of the motor gear, whatever the output
+    at_motor = kind == "kv" and table.get("amplitude_at") == "motor"
     for key, (unit, rule) in SCHEMA[kind].items():
         if not f.has(key):
             continue
         if unit == POSITION:
-            params[key] = f.quantity(key, output_unit, rule=rule)
+            params[key] = f.quantity(key, "rad" if at_motor and key == "amplitude" else output_unit, rule=rule)
         elif isinstance(unit, list):
-            u = (output_unit if unit[0] == POSITION else INERTIA_UNIT[output_unit] if unit[0] == INERTIA
-                 else unit[0])
+            u = (("rad" if at_motor and key == "amplitudes" else output_unit) if unit[0] == POSITION
+                 else INERTIA_UNIT[output_unit] if unit[0] == INERTIA else unit[0])
             params[key] = list(f.quantity_list(key, u, rule=rule))
             require(len(params[key]) > 0, f.key(key), "give at least one value")
         elif isinstance(unit, tuple):
@@ -118,6 +120,8 @@ def study_params(name: str, table, output_unit: str = "rad") -> tuple:
     if "period" in params:
         require(params["period"] <= MAX_DURATION_S, f.key("period"), f"at most {MAX_DURATION_S:g} s")
     for key in ("amplitude", "amplitudes"):
+        if at_motor:  # motor-gear angles: the output's stroke bounds them once divided by the ratio
+            continue
         values = params.get(key)
         values = values if isinstance(values, list) else [values] if values is not None else []
         limit = math.pi if output_unit == "rad" else 10.0

@@ -265,16 +265,45 @@ def _motions(scene, study):
     if at not in ("output", "motor"):
         raise SceneError(study.key("amplitude_at"), f"must be 'output' or 'motor' (got {at!r})")
     offset = float(study.get("offset", dt.mid_stroke))
-    if at == "motor":
-        n0 = float(dt.ratio([offset])[0][0])
-        amps = [a / n0 for a in amps]
+    amps = output_amplitudes(scene, study, amps)
     lo, hi = dt.stroke
+    u = output_unit(scene)
     for a in amps:
         if offset - a < lo - 1e-12 or offset + a > hi + 1e-12:
-            raise SceneError(study.key("amplitude"), f"the motion {math.degrees(offset - a):.3f}.."
-                             f"{math.degrees(offset + a):.3f} deg leaves the stroke "
-                             f"{math.degrees(lo):.3f}..{math.degrees(hi):.3f} deg")
+            raise SceneError(study.key("amplitude"), f"the motion {u.text(offset - a, 6)}..{u.text(offset + a, 6)} "
+                             f"leaves the stroke {u.text(lo, 6)}..{u.text(hi, 6)}")
     return [SineMotion(float(a), float(freq), offset) for a in amps], at
+
+
+def output_amplitudes(scene, study, amplitudes=None) -> list:
+    """The output amplitudes (rad, or m for an output travel) of a kv study's sine motions.
+
+    A study with ``amplitude_at = "motor"`` gives the motor-gear angle: the output moves
+    that divided by the ratio N at the study's ``offset`` (default mid-stroke). Simulations
+    of the study (``simulate``, ``accuracy``, ``reduce``) command these amplitudes.
+
+    Parameters
+    ----------
+    scene : Scene
+    study : Study
+        Of kind ``"kv"``.
+    amplitudes : sequence of float, optional
+        The study's amplitudes as given (default: its ``amplitudes`` or ``amplitude``).
+    """
+    if amplitudes is None:
+        amplitudes = study.get("amplitudes", None) or [study.get("amplitude")]
+    amps = [float(a) for a in amplitudes]
+    if study.get("amplitude_at", "output") == "motor":
+        dt = scene.drivetrain
+        n0 = float(dt.ratio([float(study.get("offset", dt.mid_stroke))])[0][0])
+        amps = [a / n0 for a in amps]
+    return amps
+
+
+#: (f / f_n)^2 at and above which the rigid inverse dynamics is no estimate of the loads:
+#: the motion within a factor 2 of the drivetrain's lowest mode, its inertial torque off by
+#: a quarter or more (above the mode, by more than all of it)
+RIGID_VALID_EFFECT = 0.25
 
 
 def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, float]:
@@ -356,6 +385,14 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     model_note, effect = _model_note(scene, motions[0].frequency, [0.0] + [float(j) for j in inertias])
     notes = ["Kv = peak with the external inertia / peak of the same motion at zero external inertia",
              "motor torque includes the rotor inertia, stage losses and motor friction", model_note]
+    if effect >= RIGID_VALID_EFFECT:
+        f_n = motions[0].frequency / math.sqrt(effect)
+        notes.append(f"warning: these rigid-model peaks and Kv do not hold (off by about {effect:.0%} of the inertial "
+                     f"torque): the motion's {motions[0].frequency:.4g} Hz "
+                     + (f"is above the drivetrain's lowest mode ({f_n:.3g} Hz), where the motor side moves against "
+                        "the output" if effect >= 1 else f"is within a factor {1 / math.sqrt(RIGID_VALID_EFFECT):.3g} "
+                        f"of the drivetrain's lowest mode ({f_n:.3g} Hz)")
+                     + "; simulate the compliant chain instead")
     if 0.0 not in [float(j) for j in inertias]:
         notes.append("the zero-inertia reference case was added to the study's inertias")
     if at == "motor":
@@ -416,4 +453,5 @@ def _card_html(k) -> str:
     return card(f"Kv of {k.scene}, study {k.study}", parts=parts, notes=k.notes)
 
 
-__all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "rigid_model_effect", "with_load_inertia"]
+__all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "output_amplitudes",
+           "rigid_model_effect", "with_load_inertia"]

@@ -41,8 +41,10 @@ from .sweep import linear_response, study_points, sweep
 TIME_KINDS = ("kv", "simulate")
 
 
-def time_points(study):
-    """``(frequencies_hz, amplitudes_rad)`` of a kv or simulate study with a sine motion."""
+def time_points(study, scene=None):
+    """``(frequencies_hz, amplitudes_rad)`` of a kv or simulate study with a sine motion (the
+    output's amplitudes: a kv study's motor-gear amplitudes divided by the ratio, which needs
+    ``scene``)."""
     p = study.params
     if "voltage" in p:
         raise SceneError(study.key("voltage"), "an open-loop study has no closed loop to reduce")
@@ -54,6 +56,15 @@ def time_points(study):
     amps = p.get("amplitudes") or ([p["amplitude"]] if p.get("amplitude") is not None else None)
     if freq is None or not amps:
         raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
+    if scene is not None:  # a sine the sampled loop cannot track is no study to reduce for
+        from .time_reference import check_sine_frequency
+        check_sine_frequency(float(freq), float(scene.sensors.sample_time), None,
+                             study.key("frequency" if p.get("frequency") is not None else "period"))
+    if study.kind == "kv" and p.get("amplitude_at", "output") != "output":
+        if scene is None:
+            raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
+        from .kv import output_amplitudes
+        amps = output_amplitudes(scene, study, amps)
     return np.array([float(freq)]), tuple(float(a) for a in amps)
 
 
@@ -130,11 +141,9 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
         name, freqs, amps = _sweep_points(scene, study, frequencies)
         freqs, measure = np.asarray(freqs), "sweep"
     elif study.kind in TIME_KINDS:
-        if frequencies is not None:
-            raise SceneError(study.key("kind"), f"is {study.kind!r}; frequencies replace a frequency_sweep "
-                             "study's only (a time study's motion sets its frequency)")
+        _no_frequencies(study, frequencies)
         name = study.name
-        freqs, amps = time_points(study)
+        freqs, amps = time_points(study, scene)
         measure = "trace"
     else:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
@@ -230,6 +239,13 @@ def _difference(a, b, names):
     return np.where(failed, math.nan, diff), sat & ~failed, tuple(failures)
 
 
+def _no_frequencies(study, frequencies) -> None:
+    """SceneError when frequencies are given for a time study (its motion sets its own)."""
+    if frequencies is not None:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; frequencies replace a frequency_sweep "
+                         "study's only (a time study's motion sets its frequency)")
+
+
 def _largest(diff, where) -> float:
     """Largest difference over the points ``where`` (NaN: none ran on both models)."""
     ok = where & ~np.isnan(diff)
@@ -260,8 +276,14 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":
         _, freqs, amps = _sweep_points(scene, study, frequencies)
+        from .time_reference import check_sine_frequency
+        for f in freqs:
+            check_sine_frequency(f, float(scene.sensors.sample_time), None,
+                                 "frequencies" if frequencies is not None or study is None
+                                 else study.key("frequencies"))
     elif study.kind in TIME_KINDS:
-        freqs, amps = time_points(study)
+        _no_frequencies(study, frequencies)
+        freqs, amps = time_points(study, scene)
     else:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; reduce handles frequency_sweep, kv and "
                          "simulate studies")

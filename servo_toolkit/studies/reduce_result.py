@@ -189,8 +189,9 @@ class ReductionResult(RichDisplay):
     def table(self) -> str:
         """Plain-text report: effects, estimates, choice, bound and measured difference."""
         p = self.plan
-        lines = [f"Reduction of {self.scene} for study {self.study or '(default sweep)'}: "
-                 f"{self.frequencies_hz.size} frequencies {self.frequencies_hz[0]:.3g}..{self.frequencies_hz[-1]:.3g} Hz, "
+        f = self.frequencies_hz
+        freqs = (f"frequency {f[0]:.4g} Hz" if f.size == 1 else f"{f.size} frequencies {f[0]:.3g}..{f[-1]:.3g} Hz")
+        lines = [f"Reduction of {self.scene} for study {self.study or '(default sweep)'}: {freqs}, "
                  f"amplitudes {', '.join(OutputUnit(self.output_unit).text(a, 3) for a in self.amplitudes_rad)}",
                  f"{'effect':34s} {'estimate':>9} {'[dB]':>7} {'[deg]':>6}  decision",
                  "-" * 96]

@@ -219,7 +219,8 @@ class StiffnessResult(RichDisplay):
                          f"{'YES' if c.negligible[i] else 'no'} ({flags})")
         lines.append(f"neglect: ratio to every later stage >= {c.min_ratio:g} and own stiffness >= "
                      f"1/{c.within:g} of some later stage's (seed 001);")
-        lines.append("own K of a spring on the other kind of coordinate is taken through its ratio at mid-stroke")
+        lines.append("own K of a spring on the other kind of coordinate is taken through the mid-stroke ratio "
+                     "of the last such spring")
         return "\n".join(lines)
 
     def plot(self, ax=None):
