@@ -79,6 +79,16 @@ def test_cli_bad_require_exits_2_with_one_line(command, text, name, capsys):
     assert captured.out == ""
 
 
+@pytest.mark.parametrize("command", ["check", "design", "tolerances", "export"])
+def test_a_requirement_given_twice_exits_2_naming_both(command, tmp_path, capsys):
+    """The same requirement under two names (pm is phase_margin) is refused, not the last kept."""
+    out = ["-o", str(tmp_path / "out")] if command == "export" else []
+    assert main([command, EMA, *out, "--require", "phase_margin=45deg", "--require", "pm=60deg"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("servo-toolkit: error: --require pm=60deg: ")
+    assert "phase_margin is already required by --require phase_margin=45deg" in lines[0]
+
+
 def test_junit_in_a_missing_directory_exits_2_before_any_design(tmp_path, capsys, monkeypatch):
     import servo_toolkit.cli.cmd_check as cmd_check
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from ..errors import SceneError, SimulationError
 from ..core.files import atomic_file, check_output_file
-from ..loop.requirements import parse_override
+from ..loop.requirements import parse_overrides
 from ..loop.result import requirements_table
 from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
@@ -294,8 +294,7 @@ def run(args) -> int:
     """
     from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
-    for text in args.require:
-        parse_override(text)
+    parse_overrides(args.require)
     if args.samples is not None and args.samples < 1:
         raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.junit is not None:

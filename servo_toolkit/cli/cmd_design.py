@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import SceneError
 from ..loop import design
-from ..loop.requirements import parse_override
+from ..loop.requirements import parse_overrides
 from ..scene import load_scene
 from .common import add_force, add_json, add_scene, check_robustness_budget, emit, prepare_kernels
 
@@ -48,7 +48,7 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
     scene's ``[robustness]`` for a robust design (``check --vary``); ``executor`` runs the
     chunks of its variants (``check --scheduler``); ``design_text``, the ``--design`` file's
     text already read, is not read again."""
-    require = dict(parse_override(text) for text in args.require)
+    require = parse_overrides(args.require)
     if getattr(args, "design", None):
         from ..loop.tuning import load_design
         return load_design(scene, args.design, require=require or None, text=design_text)
@@ -75,8 +75,7 @@ def run(args) -> int:
     rows included) is met and the closed loop is stable, 1 otherwise, 2 on bad input. The
     rows ``check`` adds for a ``[duty_cycle]`` (sizing), a required yield or Monte Carlo
     requirements are not judged here."""
-    for text in args.require:  # a bad value: exit 2 before the scene is read
-        parse_override(text)
+    parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
     scene = load_scene(args.scene)
     if not getattr(args, "design", None):
         from ..loop.design import robust_spec

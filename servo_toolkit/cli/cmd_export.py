@@ -54,10 +54,9 @@ def run(args) -> int:
     design without quantization already misses it); the files are written either way."""
     from ..export import export
     from ..export.writer import check_directory
-    from ..loop.requirements import parse_override
+    from ..loop.requirements import parse_overrides
 
-    for text in args.require:
-        parse_override(text)
+    parse_overrides(args.require)
     ts_i = None if args.current_sample_time is None else parse_quantity(args.current_sample_time, "s",
                                                                         "--current-sample-time")
     ts = None if args.sample_time is None else parse_quantity(args.sample_time, "s", "--sample-time")

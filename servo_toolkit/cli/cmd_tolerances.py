@@ -48,10 +48,9 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run the command."""
-    from ..loop.requirements import parse_override
+    from ..loop.requirements import parse_overrides
     from ..studies.tolerances import tolerance_study
-    for text in args.require:
-        parse_override(text)
+    parse_overrides(args.require)
     scheduler = scheduler_of(args)  # every option is checked before the scene is read
     scene = load_scene(args.scene)
     if scene.tolerances is None:

@@ -208,6 +208,20 @@ def parse_override(text: str) -> tuple[str, float]:
         raise SceneError(option, exc.rule) from None
 
 
+def parse_overrides(texts) -> dict:
+    """Every ``--require NAME=VALUE`` of a command line (:func:`parse_override`) as
+    ``{name: value}``; a requirement given twice (under any of its names) is refused naming
+    both, rather than the last one silently winning."""
+    out, given = {}, {}
+    for text in texts:
+        name, value = parse_override(text)
+        if name in given:
+            raise SceneError(f"--require {text}", f"{name} is already required by --require {given[name]}; "
+                                                  "give each requirement once")
+        out[name], given[name] = value, text
+    return out
+
+
 def check(requirements, achieved: dict) -> list[Check]:
     """Compare each requirement with ``achieved[name]`` (display units).
 
