@@ -145,3 +145,14 @@ def test_export_never_replaces_a_folder_holding_the_user_s_own_controller_json(t
     again = tmp_path / "again"  # an earlier export carries its marks: it is replaced
     assert main(["export", str(EMA), "-o", str(again)]) == 0
     assert main(["export", str(EMA), "-o", str(again)]) == 0
+
+
+@pytest.mark.parametrize("args, key", [(["report", "-o", ""], "--output"), (["simulate", "-o", ""], "--output"),
+                                       (["export", "-o", ""], "-o"), (["sweep", "--plot", " "], "--plot")])
+def test_an_empty_output_path_is_one_line_not_the_current_folder(args, key, capsys):
+    """``-o "$OUT"`` with OUT unset names no output: refused before any work, never read as
+    the current folder."""
+    from servo_toolkit.cli import main
+    assert main([args[0], str(SCENES / "ema_reference.toml"), *args[1:]]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{key}: is empty: give the" in err[0], err

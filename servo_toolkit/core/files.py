@@ -65,6 +65,13 @@ def _probe(folder, key: str, path) -> None:
         raise SceneError(key, f"cannot write {_q(path)}: {exc.strerror or exc}") from None
 
 
+def check_named(path, key: str, what: str) -> None:
+    """An empty path (an unset variable in a script: ``-o "$OUT"``) names no output: refused
+    rather than read as the current folder."""
+    if not str(os.fspath(path)).strip():
+        raise SceneError(key, f"is empty: give the {what} to write")
+
+
 def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
     """Check, before any work, that a file may be written at ``path``.
 
@@ -87,8 +94,9 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
     SceneError
         Naming ``key`` and the rule: a wrong suffix, one of the inputs, a symbolic link, a
         folder, a device, FIFO or socket, a read-only file, a folder that does not exist or
-        does not take a new file.
+        does not take a new file, an empty path.
     """
+    check_named(path, key, "file")
     p = Path(path)
     if suffixes and p.suffix.lower() not in suffixes:
         raise SceneError(key, f"{p.name!r} must end in one of {', '.join(suffixes)}")
@@ -172,8 +180,9 @@ def check_output_folder(path, key: str, allowed=(), inputs=(), parents: bool = F
     Raises
     ------
     SceneError
-        Naming ``key`` and the rule.
+        Naming ``key`` and the rule (an empty path too).
     """
+    check_named(path, key, "folder")
     p = Path(path)
     st = _lstat(p)
     if isinstance(st, OSError):
@@ -297,5 +306,5 @@ def save_figure(fig, path, key: str = "--plot") -> Path:
     return Path(path)
 
 
-__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_output_file", "check_output_folder", "same_file", "save_figure",
+__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_named", "check_output_file", "check_output_folder", "same_file", "save_figure",
            "write_text"]

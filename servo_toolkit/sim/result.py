@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from ..core.files import atomic_file, check_output_file
+from ..core.files import atomic_file, check_named, check_output_file
 from ..core.output_units import OutputUnit
 from ..display.cards import RichDisplay
 from ..display.cards import card, facts, num, svg
@@ -248,6 +248,7 @@ def check_trace_path(path, key: str = "--output", inputs=()):
     """
     if path is None:
         return None
+    check_named(path, key, "file")
     path = Path(path)
     if path.suffix not in TRACE_SUFFIXES:
         raise SceneError(key, f"trace file {path.name!r} must end in .csv or .npz")
