@@ -39,21 +39,6 @@ EMPS_KEYS = ["load.inertia", "load.damping"]
 EMPS_FACTORS = np.array([1.2, 1.1])
 
 
-def rig_traces(truth_scene, seed, duration=0.4, step=2e-4):
-    """Voltage multisine on the rig; current with noise, angles from the encoders."""
-    from servo_toolkit.identify import TimeData
-    from servo_toolkit.identify.model import time_response
-    t = np.arange(0, duration, step)
-    rng = np.random.default_rng(seed)
-    fs = np.array([3, 7, 13, 21, 29, 33, 41, 60, 90])
-    u = sum(4 * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)) for f in fs)
-    i, qm, qo = time_response(truth_scene, t, u)
-    i = i + rng.normal(0, 0.05, t.size)
-    qm = np.round(qm / (2 * np.pi / 4096)) * (2 * np.pi / 4096)
-    qo = np.round(qo / (2 * np.pi / 2**16)) * (2 * np.pi / 2**16)
-    return TimeData(t, u, i, qm, qo)
-
-
 def _truth(rig: str):
     import servo_toolkit as st
     from servo_toolkit.identify.params import SceneTemplate
@@ -71,11 +56,12 @@ def one(job) -> np.ndarray:
     import servo_toolkit as st
     rig, seed = job
     scene, values, keys = _truth(rig)
+    sys.path.insert(0, str(ROOT))  # the rigs of the tests
     if rig == "emps":
-        sys.path.insert(0, str(ROOT))
         from tests.test_identify_coverage import emps_traces
         data = emps_traces(scene, seed)
     else:
+        from tests.test_identify import rig_traces
         data = rig_traces(scene, seed)
     r = st.fit(scene, data, None, keys, starts=0)
     lo, hi = np.log(r.ci95[:, 0]), np.log(r.ci95[:, 1])
