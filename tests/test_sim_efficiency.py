@@ -265,6 +265,15 @@ def test_small_commands_stick_in_the_friction_band_of_the_load(ema, ema_controll
     assert gains[True][0] < gains[False][0] - 2.0
 
 
+def smoothing_scaled(model, scale):
+    """``model`` with the smoothing of its signs narrowed by ``scale``: the friction's speed
+    scale w_s and the loss's torque scale (``INV_TAU_S``: its inverse) times ``scale``."""
+    P = model.P.copy()
+    P[lo.INV_TAU_S] /= scale
+    P[lo.WS] /= scale
+    return replace(model, P=P)
+
+
 def test_the_smoothing_of_the_moving_loss_costs_at_most_its_stated_bound(ema, ema_controller):
     """The loss's smooth signs (tanh over 0.1 % of the peak torque and over the friction
     speed) against the switched law, as both scales go to 0: on the rigid reference EMA's
@@ -278,12 +287,8 @@ def test_the_smoothing_of_the_moving_loss_costs_at_most_its_stated_bound(ema, em
     amp = math.radians(2.0)
     ref = Reference.sine(amp, 8.0)
 
-    def output(scale):
-        P = model.P.copy()
-        P[lo.INV_TAU_S] /= scale
-        P[lo.WS] /= scale
-        return run(replace(model, P=P), ref, 0.125, "rk4", dt=1e-6, output_dt=1e-4).output_angle
-    out = [output(s) for s in (1.0, 0.25, 0.0625)]
+    out = [run(smoothing_scaled(model, s), ref, 0.125, "rk4", dt=1e-6, output_dt=1e-4).output_angle
+           for s in (1.0, 0.25, 0.0625)]
     d0, d1 = (np.max(np.abs(a - b)) / amp for a, b in zip(out, out[1:]))
     q = d0 / d1
     assert 2.5 < q < 4.5, q
@@ -304,12 +309,7 @@ def test_near_self_locking_the_smoothing_costs_at_most_its_stated_bound(ema, ema
     amp = math.radians(2.0)
     ref = Reference.sine(amp, 8.0)
 
-    def output(scale):
-        P = model.P.copy()
-        P[lo.INV_TAU_S] /= scale
-        P[lo.WS] /= scale
-        return run(replace(model, P=P), ref, 0.125, "auto", output_dt=1e-4)
-    runs = [output(s) for s in (1.0, 0.25, 0.0625)]
+    runs = [run(smoothing_scaled(model, s), ref, 0.125, "auto", output_dt=1e-4) for s in (1.0, 0.25, 0.0625)]
     assert all(r.method == "rk4" for r in runs) and float(np.max(np.abs(runs[0].motor_current))) > 59.0  # stalled
     d0, d1 = (np.max(np.abs(a.output_angle - b.output_angle)) / amp for a, b in zip(runs, runs[1:]))
     q = d0 / d1
