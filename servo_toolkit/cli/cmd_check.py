@@ -170,9 +170,8 @@ def check_writable(path, inputs=()) -> None:
     must exist, ``path`` must not be a folder, one of the ``inputs`` (the scenes), or an
     existing file that is not a JUnit report (nothing a user has is overwritten). Checked
     before any design runs. An empty path (an unset variable in a CI script) is an error,
-    not a request to write none."""
-    if not str(path).strip():
-        raise SceneError("--junit", "is empty: give the file to write, e.g. --junit check.xml")
+    not a request to write none (:func:`~servo_toolkit.core.files.check_named`, as for every
+    output)."""
     p = check_output_file(path, "--junit", inputs=inputs)
     if p.is_file() and not _is_junit(p):
         raise SceneError("--junit", f"refusing to overwrite {str(path)!r}: it exists and is not a JUnit report")
