@@ -43,6 +43,17 @@ def reversals(times, v):
     return list(zip(times[i], times[i + 1]))
 
 
+def assert_one_pair_within_one_step(first, second, dts):
+    """The paired reversals (record brackets ``(t_before, t_after)``) lie within 50 us of each
+    other, and for every dt at least one pair's two brackets fall within one step
+    [k dt, (k + 1) dt]."""
+    for dt in dts:
+        assert all(max(a[1], b[1]) - min(a[0], b[0]) < 5e-5 for a, b in zip(first, second))
+        one = [max(a[1], b[1]) <= (math.floor(min(a[0], b[0]) / dt + 1e-9) + 1) * dt + 1e-12
+               for a, b in zip(first, second)]
+        assert any(one), dt
+
+
 def test_rk4_locates_two_switches_in_one_step_at_fourth_order(case):
     model, ref = case
     assert not model.rigid
@@ -51,12 +62,7 @@ def test_rk4_locates_two_switches_in_one_step_at_fourth_order(case):
     motor, load = reversals(ref.times, ref.states[:, 1]), reversals(ref.times, ref.states[:, 3])
     assert len(motor) == 3
     load = [min(load, key=lambda lo: abs(lo[0] - m[0])) for m in motor]  # the load's reversal nearest each
-    for dt in DTS:
-        assert all(max(m[1], lo[1]) - min(m[0], lo[0]) < 5e-5 for m, lo in zip(motor, load))
-        # both record brackets within one step [k dt, (k + 1) dt]
-        one = [max(m[1], lo[1]) <= (math.floor(min(m[0], lo[0]) / dt + 1e-9) + 1) * dt + 1e-12
-               for m, lo in zip(motor, load)]
-        assert any(one), dt
+    assert_one_pair_within_one_step(motor, load, DTS)
     every = round(OUT / FINE)
     truth = ref.states[::every][:, [0, 2]]
     amp = np.ptp(truth[:, 1])
@@ -197,11 +203,7 @@ def test_rk4_locates_an_intermediate_nodes_switch_and_the_loads_in_one_step(whee
     wheel = [min(wheel, key=lambda w: abs(w[0] - lo_[0])) for lo_ in load]  # the wheel's reversal nearest each
     assert len(load) == 3
     dts = DTS + (3.125e-5,)
-    for dt in dts:
-        assert all(max(w[1], lo_[1]) - min(w[0], lo_[0]) < 5e-5 for w, lo_ in zip(wheel, load))
-        one = [max(w[1], lo_[1]) <= (math.floor(min(w[0], lo_[0]) / dt + 1e-9) + 1) * dt + 1e-12
-               for w, lo_ in zip(wheel, load)]
-        assert any(one), dt
+    assert_one_pair_within_one_step(wheel, load, dts)
     every = round(OUT / FINE)
     cols = [0, 2, o]
     truth = ref.states[::every][:, cols]
