@@ -174,7 +174,8 @@ class ActuatorCheck(RichDisplay):
 
     def _repr_card(self) -> str:
         rows = [(r.id, f"{r.achieved} ({r.required}) {'ok' if r.passed else 'FAIL'}") for r in self.rows()]
-        return card("Nonlinear closed loop", parts=[facts(rows), svg(self.plot, size=(10.0, 5.6))],
+        return card("Nonlinear closed loop", status=self.passed,
+                    parts=[facts(rows), svg(self.plot, size=(10.0, 5.6), rows=2, cols=2, sharex="col")],
                     notes=self.notes)
 
 
