@@ -23,10 +23,14 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - inertia variation over the motion: loop with the motor-side inertia changed by
   max |J(q) - J(q0)| + max |dJ/dq| A / 2 (the velocity term J' q'^2 / 2 acts like an inertia
   error of J' A / 2);
-- static friction (stick), where the full model has it (``friction="stick"``): the loop's
-  response to the whole friction as a relay at its breakaway levels, through the response to
-  a torque at the output (an upper estimate, :mod:`.reduce_friction`); left out, the run uses
-  the smooth model;
+- friction that holds (stick), where the full model has it (``friction="stick"``): node by
+  node (the motor, each stage's friction, the load's), the relay of its level against the
+  output's motion through the loop and against the force its node's motion needs, the stick
+  phases at the sine's reversals and a drive held at rest counted (:mod:`.reduce_friction`);
+  left out, the run uses the smooth model (the motor's Coulomb friction smoothed, the rest
+  left out);
+- the current and voltage limits: reported, never left out (the model always clamps); the
+  estimate is how far the linear prediction's peak exceeds the limit, 0 within it;
 - ratio variation and small inertias are reported: the tabulated model has no switch for
   them and they cost nothing (they add no state).
 
@@ -53,6 +57,9 @@ from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_c
 from ..sim.chain_choice import choose_chain, has_upper_modes
 from .reduce_choice import Effect, ReductionPlan, choose
 from .reduce_friction import friction_effect
+
+#: the effect of friction that holds (the smooth model without it)
+FRICTION_EFFECT = "friction that holds (stick)"
 
 #: compliance share below which a stage's compliance is negligible (seed 001)
 SHARE_THRESHOLD = 1e-3
@@ -152,6 +159,11 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     i_peak = np.abs(ref["i"]) * a_max + abs(i0)
     v_peak = np.abs(ref["u"]) * a_max + abs(motor.resistance * i0)
     limited = (i_peak > motor.current_limit) | (v_peak > motor.voltage_limit)
+    over = max(float(np.max(i_peak)) / motor.current_limit, float(np.max(v_peak)) / motor.voltage_limit)
+    effects.append(Effect("current and voltage limits", None,
+                          f"linear prediction's peaks {i_peak.max():.3g} A of {motor.current_limit:.3g} A, "
+                          f"{v_peak.max():.3g} V of {motor.voltage_limit:.3g} V", max(over - 1.0, 0.0),
+                          reason="kept: the model always clamps the current and the voltage (no switch)"))
     if limited.any():
         notes.append(f"the linear loop predicts the current or voltage limit from {freqs[limited][0]:.3g} Hz "
                      f"at {u.text(a_max, 3)} (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
@@ -215,10 +227,10 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
                    f"{static:.4g} static)")
         effects.append(Effect("backlash", "backlash", why, e))
 
-    # friction that holds (the smooth model without it)
+    # friction that holds, node by node (the smooth model without it)
     fric = friction_effect(scene, controller, p, w, t_full, amps, base)
     if fric is not None:
-        effects.append(Effect("static friction (stick)", "friction", *fric))
+        effects.append(Effect(FRICTION_EFFECT, "friction", fric[0], fric[1], parts=fric[2]))
 
     # inertia variation over the motion
     j, dj = drive.inertia(qs)
