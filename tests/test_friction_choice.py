@@ -103,3 +103,25 @@ def test_the_default_run_draws_the_current_of_the_full_model(gearmotor):
     assert "load holds (estimate 8" in line
     options, notes = sine_run_options(gearmotor, None, None, full=True)
     assert options.friction == "stick" and "friction that holds" in notes[0]
+
+
+def test_a_motor_held_below_breakaway_creeps_only_in_the_smooth_model_and_its_notes_say_so():
+    """0.2 V on the stalled gearmotor (Kt V / R = 0.01 N*m, half its 0.02 N*m Coulomb level,
+    a third of its 0.03 N*m breakaway): friction that holds keeps it still; the smooth model
+    creeps at the speed where Tc tanh(w / 1 rad/s) = Kt (V - Ke w) / R (0.53 rad/s, a little
+    below 1 rad/s * atanh(1/2) = 0.55 rad/s by the back-emf), and its notes say it creeps."""
+    from scipy.optimize import brentq
+
+    from servo_toolkit.sim import ModelOptions, simulate
+
+    from .conftest import variant
+    sc = build(variant(tomllib.loads(GEARMOTOR), motor__coulomb_friction="0.02 N*m",
+                       motor__static_friction="0.03 N*m", load__coulomb_friction="0 N"))
+    volts = 0.2
+    runs = {f: simulate(sc, None, duration=2.0, voltage=volts, options=ModelOptions(friction=f, backlash=False))
+            for f in ("stick", "smooth")}
+    creep = brentq(lambda w: 0.02 * np.tanh(w) - 0.06 * (volts - 0.06 * w) / 1.2, 0.0, 5.0)
+    assert np.max(np.abs(runs["stick"].motor_speed)) == 0.0
+    assert runs["smooth"].motor_speed[-1] == pytest.approx(creep, rel=0.02)
+    assert any("held below breakaway creeps" in n and "0.549 rad/s at half of Tc" in n for n in runs["smooth"].notes)
+    assert not any("creeps" in n for n in runs["stick"].notes)
