@@ -261,3 +261,29 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
 
     plan = choose(effects, rigid_effect, base, tolerance, limited.any(), freqs, amps, notes, choice)
     return replace(plan, output_unit=output_unit(scene).si)
+
+
+def friction_cost_note(scene, controller, frequencies_hz, amplitudes, options,
+                       tolerance: float = DEFAULT_TOLERANCE) -> str | None:
+    """The note of a study that runs without friction that holds (``options.friction`` other
+    than ``"stick"``): each node's friction smoothed or left out, with its estimate
+    (:func:`~.reduce_friction.judge_nodes`), and whether their sum exceeds half the tolerance;
+    None when the model holds or the scene has no Coulomb or static friction."""
+    from .reduce_friction import friction_note, judge_nodes
+    if options.friction == "stick":
+        return None
+    q0 = operating_point(scene)[0]
+    p = plant_parameters(scene, q0, structural_damping=options.damping_ratio)
+    w = 2 * np.pi * np.asarray(sorted(frequencies_hz), dtype=float)
+    t_full = loop_response(p, controller, scene.motor, w)["theta"]
+    nodes = judge_nodes(scene, controller, p, w, t_full, [float(a) for a in amplitudes], options)
+    if not nodes:
+        return None
+    total = sum(x.estimate for x in nodes)
+    verdict = (f"within the budget {tolerance / 2:g}" if total <= tolerance / 2 else
+               f"over the budget {tolerance / 2:g}: the study's figures do not hold where friction decides them "
+               "(ModelOptions(friction=\"stick\") runs friction that holds)")
+    if options.friction == "off":
+        return (f"friction left out (friction model 'off'), estimates: "
+                + ", ".join(f"{x.label} {x.estimate:.2g}" for x in nodes) + f"; sum {total:.2g} {verdict}")
+    return f"{friction_note(nodes, True)}; sum {total:.2g} {verdict}"
