@@ -136,3 +136,23 @@ def test_a_sweep_without_stick_says_what_its_friction_costs(gearmotor):
     line = next(n for n in res.notes if n.startswith("friction without stick"))
     est = float(line.split("load left out (estimate ")[1].split(")")[0])
     assert est > 8 and "over the budget 0.01" in line
+
+
+def test_cli_reduce_shows_each_node_s_friction(capsys, tmp_path):
+    """``reduce --estimate-only`` puts the friction's nodes under its row, one line each with
+    its worst case in words; ``--json`` gives them as the effect's ``parts``."""
+    import json
+
+    from servo_toolkit.cli import main
+    path = tmp_path / "gearmotor.toml"
+    path.write_text(GEARMOTOR)
+    assert main(["reduce", str(path), "--study", "move", "--estimate-only"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    row = next(i for i, x in enumerate(lines) if x.startswith(FRICTION_EFFECT))
+    assert "kept" in lines[row] and lines[row + 1].strip().startswith("load breakaway 10 N at the output")
+    assert lines[row + 2].strip().startswith("load: worst at 2 Hz, 0.5 mm") and "needs 8" in lines[row + 2]
+    assert any(x.startswith("current and voltage limits") for x in lines)
+    assert main(["reduce", str(path), "--study", "move", "--estimate-only", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    (fric,) = [e for e in out["effects"] if e["effect"] == FRICTION_EFFECT]
+    assert [p["node"] for p in fric["parts"]] == ["load"] and fric["parts"][0]["without_stick"] == "left out"
