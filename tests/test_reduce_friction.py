@@ -15,7 +15,7 @@ from servo_toolkit.studies.time_run import sine_run_options
 
 from .conftest import build, variant
 
-STICK = "static friction (stick)"
+STICK = "friction that holds (stick)"
 
 
 def sticky(ema_dict, amplitude="0.2 deg", breakaway="0.2 N*m"):
@@ -32,12 +32,27 @@ def test_stick_is_kept_where_friction_dominates_the_motion(ema_dict):
     assert options.friction == "stick"
 
 
-def test_a_time_run_without_stick_in_its_full_model_has_no_such_effect(ema_dict):
-    """``simulate``'s sine runs start from the smooth model: there is no stick to leave out."""
+def test_a_time_run_keeps_stick_where_friction_dominates_and_says_so(ema_dict):
+    """``simulate``'s sine runs start from friction that holds: a 0.2 N*m breakaway against a
+    0.2 deg, 8 Hz motion keeps it, and the notes name the motor's friction with its estimate."""
     scene = sticky(ema_dict)
     controller, _ = controller_for(scene)
     options, notes = sine_run_options(scene, controller, Reference.sine(math.radians(0.2), 8.0))
-    assert options.friction == "smooth" and STICK not in notes[0]
+    assert options.friction == "stick" and STICK not in notes[0]
+    line = next(n for n in notes if n.startswith("friction that holds (stick) kept"))
+    assert "motor holds (estimate" in line
+
+
+def test_a_time_run_smooths_the_motor_s_friction_where_it_costs_little(ema_dict):
+    """The reference EMA's 0.02 N*m Coulomb friction against its 2 deg, 8 Hz sine: within the
+    budget, the run smooths it and its notes say so, with the estimate."""
+    scene = build(ema_dict)
+    controller, _ = controller_for(scene)
+    options, notes = sine_run_options(scene, controller, Reference.sine(math.radians(2.0), 8.0))
+    line = next(n for n in notes if n.startswith("friction without stick"))
+    est = float(line.split("motor smoothed, no stick (estimate ")[1].split(")")[0])
+    assert options.friction == "smooth" and 0 < est <= 0.01
+    assert f"{STICK} (estimate" in notes[0]
 
 
 def _friction_only_cost(scene, controller, amplitude):

@@ -66,7 +66,8 @@ def run(args) -> int:
     _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
     if args.estimate_only:
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
-        lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}\n{'':34s}   {e.quantity}" for e in plan.effects]
+        for e in plan.effects:
+            lines += [f"{e.effect:34s} {e.estimate:9.2e}  {e.reason}"] + e.details(" " * 37)
         lines.append("left out: " + (", ".join(e.effect for e in plan.omitted) or "nothing"))
         emit(args, plan, "\n".join(lines))
         return 0

@@ -34,10 +34,12 @@ def add_force(parser) -> None:
 def add_friction(parser) -> None:
     """Add ``--friction``: the friction model of the nonlinear runs (``ModelOptions.friction``)."""
     parser.add_argument("--friction", choices=("stick", "smooth", "off"), default=None,
-                        help="friction model (default smooth): 'stick' holds exactly at rest below the breakaway "
-                             "(static) level and breaks away above it (the scene's static_friction, Stribeck speed "
-                             "and Coulomb level on the motor and the load); 'smooth' the motor's Coulomb friction as "
-                             "Tc tanh(w / 1 rad/s), never sticking; 'off' viscous friction only")
+                        help="friction model (default: chosen by need, friction that holds unless the reduction's "
+                             "estimate of smoothing it at every node is within its budget; --full holds): 'stick' "
+                             "holds exactly at rest below the breakaway (static) level and breaks away above it (the "
+                             "scene's static_friction, Stribeck speed and Coulomb level on the motor, each stage and "
+                             "the load); 'smooth' the motor's Coulomb friction as Tc tanh(w / 1 rad/s), never "
+                             "sticking, the rest left out; 'off' viscous friction only")
 
 
 def check_robustness_budget(scene, spec, robust_design: bool, samples_option, force: bool) -> None:

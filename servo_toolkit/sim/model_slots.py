@@ -37,9 +37,17 @@ def friction_slots(P, motor, load, options, notes: list) -> None:
             notes.append("Coulomb and static friction left out (viscous friction kept)")
         return
     if options.friction == "smooth":
-        if ts_m > motor.coulomb_friction or load.coulomb_friction > 0 or ts_l > 0:
-            notes.append("static friction and the load's friction left out: the motor's Coulomb friction is "
-                         f"smoothed, Tc tanh(w / {options.friction_speed:g} rad/s), and never sticks")
+        left = [what for what, there in (("static friction", ts_m > motor.coulomb_friction or ts_l > load.coulomb_friction),
+                                         ("the load's friction", load.coulomb_friction > 0 or ts_l > 0)) if there]
+        ws = options.friction_speed
+        if motor.coulomb_friction > 0:
+            notes.append((" and ".join(left) + " left out; " if left else "")
+                         + f"the motor's Coulomb friction {motor.coulomb_friction:.4g} N*m is smoothed, Tc tanh(w / "
+                         f"{ws:g} rad/s), and never sticks: a motor held below breakaway creeps, a torque tau turning it at "
+                         f"{ws:g} rad/s * atanh(tau / Tc) ({ws * math.atanh(0.5):.3g} rad/s at half of Tc) instead "
+                         "of holding it, and any tau >= Tc accelerates it")
+        elif left:
+            notes.append(" and ".join(left) + " left out (the smooth model keeps only the motor's Coulomb friction)")
         return
     P[lo.STICK] = 1.0
     P[lo.TS_M], P[lo.INV_VS_M] = ts_m, _inverse_speed(motor.stribeck_speed)

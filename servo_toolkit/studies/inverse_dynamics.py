@@ -28,6 +28,15 @@ Loads and losses (the documented model)
   ``losses="none"`` sets every eta_k = 1.
 * The motor rotor is before every loss: T_m = (G_0 + I_rotor) / N + b w_m + Tc sign(w_m)
   with the motor's viscous and Coulomb friction, w_m = N qd.
+* Friction at a stage's output (``[[drivetrain]]`` ``coulomb_friction``, ``viscous_friction``,
+  :class:`~servo_toolkit.components.stage_friction.StageFriction`) acts on the stage's output
+  members, beyond its loss: F_k = Tc_k sign(u_k') + B_k u_k' at the stage's output coordinate
+  u_k, generalized F_k du_k/dq, added to raw at stage k (so the losses of stage k and of every
+  stage before it carry it). The load's Coulomb friction Tc_L sign(y') joins its moments. Both
+  slide at their Coulomb level: the breakaway excess Ts - Tc of a start from rest is not in
+  (:func:`breakaway_note` says how large it is). On a constant-speed segment (qdd = 0, constant
+  ratios) the motor torque is therefore b w_m + Tc_m + (F_0 u_0' + (F_1 u_1' + ... + (c y' +
+  Tc_L + M_h) y'_q / eta_n ...) / eta_1) / eta_0 / N while motoring.
 
 Forces in the chain
 -------------------
@@ -70,8 +79,9 @@ class InverseDynamicsResult:
     motor_torque : numpy.ndarray
         N*m at the motor shaft (what the motor's electromagnetic torque must be).
     inertial_torque, external_torque, loss_torque, friction_torque : numpy.ndarray
-        Parts of ``motor_torque`` (N*m): all inertial forces over N, external moments over
-        N, stage losses, motor friction. They add up to ``motor_torque``.
+        Parts of ``motor_torque`` (N*m): all inertial forces over N, external moments and the
+        stages' and the load's friction over N, stage losses, motor friction. They add up to
+        ``motor_torque``.
     screw_thrust, rod_force : numpy.ndarray or None
         N; None when the chain has no ball or roller screw / no rocker linkage after it (a
         roller screw's thrust is that on its last nut).
@@ -172,8 +182,66 @@ def external_force(drivetrain: Drivetrain, q, qd) -> np.ndarray:
     return moment * y.d1
 
 
+def stage_friction_forces(drivetrain: Drivetrain, stage_friction, q, qd) -> list:
+    """Each stage's friction at its output, generalized at q (N*m per rad of q, or N): Tc_k
+    sign(u_k') du_k/dq + B_k u_k' du_k/dq with u_k' = du_k/dq qd; zeros for a stage without."""
+    zero = np.zeros_like(q)
+    if not stage_friction or all(f is None for f in stage_friction):
+        return [zero] * len(drivetrain.stages)
+    sides, _ = drivetrain.output_sides(q)
+    out = []
+    for k in range(len(drivetrain.stages)):
+        fr = stage_friction[k] if k < len(stage_friction) else None
+        if fr is None:
+            out.append(zero)
+            continue
+        slope = sides[k].d1
+        speed = slope * qd
+        out.append((fr.coulomb_friction * np.sign(speed) + fr.viscous_friction * speed) * slope)
+    return out
+
+
+def load_friction_force(drivetrain: Drivetrain, q, qd) -> np.ndarray:
+    """The load's Coulomb friction, Tc_L sign(y') dy/dq, generalized at q."""
+    y = drivetrain.kinematics(q).output
+    return drivetrain.load.coulomb_friction * np.sign(y.d1 * qd) * y.d1
+
+
+def breakaway_note(motor, load, stage_friction, unit: str = "N*m") -> str | None:
+    """What the inverse dynamics leaves out of the scene's friction: the breakaway excess
+    Ts - Tc a start from rest needs at each node that gives one (None when none does)."""
+    parts = []
+    if motor.breakaway_torque > motor.coulomb_friction:
+        parts.append(f"motor {motor.breakaway_torque - motor.coulomb_friction:.4g} N*m")
+    for k, fr in enumerate(stage_friction or ()):
+        if fr is not None and fr.breakaway > fr.coulomb_friction:
+            parts.append(f"drivetrain[{k}] {fr.breakaway - fr.coulomb_friction:.4g} at its output")
+    if load.breakaway > load.coulomb_friction:
+        parts.append(f"load {load.breakaway - load.coulomb_friction:.4g} {unit}")
+    if not parts:
+        return None
+    return ("friction slides at its Coulomb level: a start from rest needs the breakaway excess Ts - Tc "
+            "on top (" + ", ".join(parts) + "), not in these figures")
+
+
+def friction_notes(scene) -> list:
+    """What the inverse dynamics takes of the scene's friction (every node's Coulomb and
+    viscous levels) and what it leaves out (the breakaway excess of a start from rest)."""
+    motor, load = scene.motor, scene.load
+    frictions = scene.stage_friction or ()
+    taken = [f"motor {motor.coulomb_friction:.4g} N*m"] if motor.coulomb_friction > 0 else []
+    taken += [f"drivetrain[{k}] {fr.coulomb_friction:.4g} at its output" for k, fr in enumerate(frictions)
+              if fr is not None and fr.coulomb_friction > 0]
+    unit = "N" if scene.drivetrain.output_unit == "m" else "N*m"
+    if load.coulomb_friction > 0:
+        taken.append(f"load {load.coulomb_friction:.4g} {unit}")
+    notes = [f"Coulomb friction in the loads, through the stages' losses: {', '.join(taken)}"] if taken else []
+    left = breakaway_note(motor, load, frictions, unit)
+    return notes + ([left] if left else [])
+
+
 def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "directional",
-                     friction: bool = True) -> InverseDynamicsResult:
+                     friction: bool = True, stage_friction=()) -> InverseDynamicsResult:
     """Motor torque, screw thrust and link-rod force along a prescribed motion.
 
     Parameters
@@ -187,7 +255,10 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     losses : {"directional", "none"}
         Stage-efficiency model (module docstring).
     friction : bool
-        Include the motor's viscous and Coulomb friction.
+        Include the motor's viscous and Coulomb friction, the load's Coulomb friction and
+        the stages' (``stage_friction``).
+    stage_friction : sequence of StageFriction or None
+        Each stage's friction at its output (``scene.stage_friction``; empty: none).
 
     Returns
     -------
@@ -207,6 +278,12 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     chains = [subchain(drivetrain, k) for k in range(n + 1)]
     inertial = [inertial_force(c, q, qd, qdd) for c in chains]   # inertial[n] = load only
     external = external_force(drivetrain, q, qd)
+    zero = np.zeros_like(q)
+    if friction:
+        external = external + load_friction_force(drivetrain, q, qd)
+        at_stage = stage_friction_forces(drivetrain, stage_friction, q, qd)
+    else:
+        at_stage = [zero] * n
     # each element's inertial force, and its place in the chain (drivetrain.chain): before its
     # stage's loss (a stage's input members) or beyond it (its output members)
     per = drivetrain.reflected_inertias(q)
@@ -218,7 +295,7 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     required[n] = inertial[n] + external
     for k in reversed(range(n)):
         mine = owner == k
-        raw = required[k + 1] + force[mine & ~before].sum(axis=0)
+        raw = required[k + 1] + force[mine & ~before].sum(axis=0) + at_stage[k]
         if losses == "none":
             eta = eta_b = 1.0
         else:
@@ -234,20 +311,21 @@ def inverse_dynamics(drivetrain: Drivetrain, motion, t, *, losses: str = "direct
     fric = (motor.viscous_friction * motor_speed + motor.coulomb_friction * np.sign(motor_speed)
             if friction else np.zeros_like(q))
     torque = (required[0] + rotor) / ratio + fric
-    lossless = (total_inertial + external) / ratio
-    screw, rod = _chain_forces(drivetrain, chains, required, q, qd, qdd)
+    lossless = (total_inertial + external + sum(at_stage)) / ratio
+    screw, rod = _chain_forces(drivetrain, chains, required, q, qd, qdd, at_stage)
     if not np.all(np.isfinite(torque)):
         raise SimulationError("inverse dynamics produced a non-finite motor torque")
     return InverseDynamicsResult(
         t=t, q=q, qd=qd, qdd=qdd, ratio=ratio, motor_speed=motor_speed, motor_torque=torque,
-        inertial_torque=total_inertial / ratio, external_torque=external / ratio,
+        inertial_torque=total_inertial / ratio, external_torque=(external + sum(at_stage)) / ratio,
         loss_torque=(required[0] + rotor) / ratio - lossless, friction_torque=fric,
         screw_thrust=screw, rod_force=rod, losses=losses)
 
 
-def _chain_forces(drivetrain, chains, required, q, qd, qdd):
+def _chain_forces(drivetrain, chains, required, q, qd, qdd, at_stage):
     """Screw thrust and link-rod force from the first ball or roller screw of the chain (a
-    roller screw's thrust is that on its last nut)."""
+    roller screw's thrust is that on its last nut); the thrust carries the nut's own friction
+    (the screw stage's, ``at_stage``)."""
     stages = drivetrain.stages
     k = next((i for i, s in enumerate(stages) if isinstance(s, (BallScrew, RollerScrew))), None)
     if k is None:
@@ -256,7 +334,7 @@ def _chain_forces(drivetrain, chains, required, q, qd, qdd):
     kin = beyond.kinematics(q).motor            # nut travel x_A as a jet in q
     rate, curvature = kin.d1, kin.d2
     pin = required[k + 1] / rate
-    thrust = pin + stages[k].nut_mass * (rate * qdd + curvature * qd**2)
+    thrust = pin + stages[k].nut_mass * (rate * qdd + curvature * qd**2) + at_stage[k] / rate
     rod = None
     if k + 1 < len(stages) and isinstance(stages[k + 1], RockerLinkage):
         phi = chains[k + 2].kinematics(q).motor.value   # the linkage's own output angle
@@ -270,5 +348,6 @@ def motor_torque_at(drivetrain: Drivetrain, motion, t: float, **options) -> floa
     return float(inverse_dynamics(drivetrain, motion, [t], **options).motor_torque[0])
 
 
-__all__ = ["InverseDynamicsResult", "inverse_dynamics", "inertial_force", "external_force",
+__all__ = ["InverseDynamicsResult", "inverse_dynamics", "inertial_force", "external_force", "breakaway_note", "friction_notes",
+           "load_friction_force", "stage_friction_forces",
            "subchain", "motor_torque_at", "LOSS_MODELS"]

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 from ..drivetrain.reflected import Drivetrain
 from ..errors import SceneError
 from ..core.parallel import run_cases
-from .inverse_dynamics import inverse_dynamics
+from .inverse_dynamics import friction_notes, inverse_dynamics
 from ..core.output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
 from ..display.cards import RichDisplay
@@ -201,12 +201,13 @@ class _Case:
     motion: SineMotion
     samples_per_period: int
     losses: str
+    stage_friction: tuple = ()
 
 
 def _peaks(case: _Case) -> tuple:
     """Peak motor torque, screw thrust and rod force of one case (module level: picklable)."""
     r = inverse_dynamics(case.drivetrain, case.motion, case.motion.times(case.samples_per_period),
-                         losses=case.losses)
+                         losses=case.losses, stage_friction=case.stage_friction)
     return r.peak_motor_torque, r.peak_screw_thrust, r.peak_rod_force
 
 
@@ -217,8 +218,9 @@ def with_load_inertia(drivetrain: Drivetrain, inertia: float) -> Drivetrain:
 
 def kv_grid(drivetrain: Drivetrain, motions, load_inertias, *, losses: str = "directional",
             samples_per_period: int = 2000, executor=None, progress: bool = True,
-            description: str = "Kv cases") -> list[list[tuple]]:
-    """Peak loads for every motion and inertia, with the zero-inertia reference added.
+            description: str = "Kv cases", stage_friction=()) -> list[list[tuple]]:
+    """Peak loads for every motion and inertia, with the zero-inertia reference added;
+    ``stage_friction`` (``scene.stage_friction``) each stage's friction.
 
     Returns
     -------
@@ -227,7 +229,7 @@ def kv_grid(drivetrain: Drivetrain, motions, load_inertias, *, losses: str = "di
         reference first.
     """
     inertias = [0.0] + [float(j) for j in load_inertias if float(j) != 0.0]
-    cases = [_Case(with_load_inertia(drivetrain, j), m, samples_per_period, losses)
+    cases = [_Case(with_load_inertia(drivetrain, j), m, samples_per_period, losses, tuple(stage_friction))
              for m in motions for j in inertias]
     peaks = run_cases(_peaks, cases, executor=executor, progress=progress, description=description)
     k = len(inertias)
@@ -375,7 +377,8 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     if not isinstance(inertias, (list, tuple)) or any(not (j >= 0 and math.isfinite(j)) for j in inertias):
         raise SceneError(study.key("load_inertias"), "must be a list of non-negative inertias")
     grid = kv_grid(scene.drivetrain, motions, inertias, losses=losses, samples_per_period=samples_per_period,
-                   executor=executor, progress=progress, description=f"Kv {study.name}")
+                   executor=executor, progress=progress, description=f"Kv {study.name}",
+                   stage_friction=scene.stage_friction or ())
     cases = []
     for motion, rows in zip(motions, grid):
         ref = rows[0][1]
@@ -384,7 +387,8 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
                                 _ratio(torque, ref[0]), _ratio(thrust, ref[1]), _ratio(rod, ref[2])))
     model_note, effect = _model_note(scene, motions[0].frequency, [0.0] + [float(j) for j in inertias])
     notes = ["Kv = peak with the external inertia / peak of the same motion at zero external inertia",
-             "motor torque includes the rotor inertia, stage losses and motor friction", model_note]
+             "motor torque includes the rotor inertia and the stages' losses", model_note]
+    notes += friction_notes(scene)
     if effect >= RIGID_VALID_EFFECT:
         f_n = motions[0].frequency / math.sqrt(effect)
         notes.append(f"warning: these rigid-model peaks and Kv do not hold (off by about {effect:.0%} of the inertial "

@@ -262,6 +262,10 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
             notes.append("reduced model (use full=True / --full for the full model)")
     model = build_model(scene, controller, options)
     notes += list(model.notes)
+    from .reduce_estimates import friction_cost_note
+    cost = friction_cost_note(scene, controller, freq, amps, options)
+    if cost:
+        notes.append(cost)
     n, n_rec = grid(plan, model.sample_time)
     closed, decay = linear_response(scene, controller, freq, options.damping_ratio)
     linear = closed if response == "closed_loop" else linear_plant_response(scene, model.q0, freq,

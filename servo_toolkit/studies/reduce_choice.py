@@ -48,6 +48,10 @@ class Effect:
     share : float
         A stage's compliance share (``switch == "stiffness_scale"``): leaving it out raises the
         series stiffness by 1 / (1 - share).
+    parts : tuple
+        The parts of an effect judged node by node (the friction's
+        :class:`~.reduce_friction.FrictionNode`, each with its own estimate; the effect's
+        estimate is their sum).
     """
 
     effect: str
@@ -57,12 +61,21 @@ class Effect:
     omitted: bool = False
     reason: str = ""
     share: float = 0.0
+    parts: tuple = ()
 
     def to_dict(self) -> dict:
         """JSON-ready."""
-        return {"effect": self.effect, "switch": self.switch, "quantity": self.quantity,
-                "estimate_relative": self.estimate, "estimate_dB": _db(self.estimate),
-                "estimate_deg": _deg(self.estimate), "left_out": self.omitted, "reason": self.reason}
+        out = {"effect": self.effect, "switch": self.switch, "quantity": self.quantity,
+               "estimate_relative": self.estimate, "estimate_dB": _db(self.estimate),
+               "estimate_deg": _deg(self.estimate), "left_out": self.omitted, "reason": self.reason}
+        if self.parts:
+            out["parts"] = [x.to_dict() for x in self.parts]
+        return out
+
+    def details(self, indent: str) -> list:
+        """The text lines under the effect's row: the quantity compared, then each part's
+        worst case."""
+        return [f"{indent}{self.quantity}"] + [f"{indent}  {x.label}: {x.where}" for x in self.parts]
 
 
 @dataclass(frozen=True)

@@ -23,10 +23,14 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - inertia variation over the motion: loop with the motor-side inertia changed by
   max |J(q) - J(q0)| + max |dJ/dq| A / 2 (the velocity term J' q'^2 / 2 acts like an inertia
   error of J' A / 2);
-- static friction (stick), where the full model has it (``friction="stick"``): the loop's
-  response to the whole friction as a relay at its breakaway levels, through the response to
-  a torque at the output (an upper estimate, :mod:`.reduce_friction`); left out, the run uses
-  the smooth model;
+- friction that holds (stick), where the full model has it (``friction="stick"``): node by
+  node (the motor, each stage's friction, the load's), the relay of its level against the
+  output's motion through the loop and against the force its node's motion needs, the stick
+  phases at the sine's reversals and a drive held at rest counted (:mod:`.reduce_friction`);
+  left out, the run uses the smooth model (the motor's Coulomb friction smoothed, the rest
+  left out);
+- the current and voltage limits: reported, never left out (the model always clamps); the
+  estimate is how far the linear prediction's peak exceeds the limit, 0 within it;
 - ratio variation and small inertias are reported: the tabulated model has no switch for
   them and they cost nothing (they add no state).
 
@@ -53,6 +57,9 @@ from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_c
 from ..sim.chain_choice import choose_chain, has_upper_modes
 from .reduce_choice import Effect, ReductionPlan, choose
 from .reduce_friction import friction_effect
+
+#: the effect of friction that holds (the smooth model without it)
+FRICTION_EFFECT = "friction that holds (stick)"
 
 #: compliance share below which a stage's compliance is negligible (seed 001)
 SHARE_THRESHOLD = 1e-3
@@ -152,6 +159,11 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     i_peak = np.abs(ref["i"]) * a_max + abs(i0)
     v_peak = np.abs(ref["u"]) * a_max + abs(motor.resistance * i0)
     limited = (i_peak > motor.current_limit) | (v_peak > motor.voltage_limit)
+    over = max(float(np.max(i_peak)) / motor.current_limit, float(np.max(v_peak)) / motor.voltage_limit)
+    effects.append(Effect("current and voltage limits", None,
+                          f"linear prediction's peaks {i_peak.max():.3g} A of {motor.current_limit:.3g} A, "
+                          f"{v_peak.max():.3g} V of {motor.voltage_limit:.3g} V", max(over - 1.0, 0.0),
+                          reason="kept: the model always clamps the current and the voltage (no switch)"))
     if limited.any():
         notes.append(f"the linear loop predicts the current or voltage limit from {freqs[limited][0]:.3g} Hz "
                      f"at {u.text(a_max, 3)} (peak {i_peak.max():.3g} A, {v_peak.max():.3g} V): "
@@ -215,10 +227,10 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
                    f"{static:.4g} static)")
         effects.append(Effect("backlash", "backlash", why, e))
 
-    # friction that holds (the smooth model without it)
+    # friction that holds, node by node (the smooth model without it)
     fric = friction_effect(scene, controller, p, w, t_full, amps, base)
     if fric is not None:
-        effects.append(Effect("static friction (stick)", "friction", *fric))
+        effects.append(Effect(FRICTION_EFFECT, "friction", fric[0], fric[1], parts=fric[2]))
 
     # inertia variation over the motion
     j, dj = drive.inertia(qs)
@@ -249,3 +261,29 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
 
     plan = choose(effects, rigid_effect, base, tolerance, limited.any(), freqs, amps, notes, choice)
     return replace(plan, output_unit=output_unit(scene).si)
+
+
+def friction_cost_note(scene, controller, frequencies_hz, amplitudes, options,
+                       tolerance: float = DEFAULT_TOLERANCE) -> str | None:
+    """The note of a study that runs without friction that holds (``options.friction`` other
+    than ``"stick"``): each node's friction smoothed or left out, with its estimate
+    (:func:`~.reduce_friction.judge_nodes`), and whether their sum exceeds half the tolerance;
+    None when the model holds or the scene has no Coulomb or static friction."""
+    from .reduce_friction import friction_note, judge_nodes
+    if options.friction == "stick":
+        return None
+    q0 = operating_point(scene)[0]
+    p = plant_parameters(scene, q0, structural_damping=options.damping_ratio)
+    w = 2 * np.pi * np.asarray(sorted(frequencies_hz), dtype=float)
+    t_full = loop_response(p, controller, scene.motor, w)["theta"]
+    nodes = judge_nodes(scene, controller, p, w, t_full, [float(a) for a in amplitudes], options)
+    if not nodes:
+        return None
+    total = sum(x.estimate for x in nodes)
+    verdict = (f"within the budget {tolerance / 2:g}" if total <= tolerance / 2 else
+               f"over the budget {tolerance / 2:g}: the study's figures do not hold where friction decides them "
+               "(ModelOptions(friction=\"stick\") runs friction that holds)")
+    if options.friction == "off":
+        return (f"friction left out (friction model 'off'), estimates: "
+                + ", ".join(f"{x.label} {x.estimate:.2g}" for x in nodes) + f"; sum {total:.2g} {verdict}")
+    return f"{friction_note(nodes, True)}; sum {total:.2g} {verdict}"

@@ -198,7 +198,7 @@ class ReductionResult(RichDisplay):
         for e in p.effects:
             lines.append(f"{e.effect[:34]:34s} {e.estimate:9.2e} {_db(e.estimate):7.3f} {_deg(e.estimate):6.2f}  "
                          f"{e.reason or ('left out' if e.omitted else 'kept')}")
-            lines.append(f"{'':34s}   {e.quantity}")
+            lines.extend(e.details(" " * 37))
         lines.append("-" * 96)
         left = [e.effect for e in p.omitted]
         lines.append("left out: " + (", ".join(left) if left else "nothing"))

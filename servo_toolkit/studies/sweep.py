@@ -169,6 +169,10 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
             notes.append("reduced model (use full=True / --full for the full model)")
     model = build_model(scene, controller, options)
     notes += list(model.notes)
+    from .reduce_estimates import friction_cost_note
+    cost = friction_cost_note(scene, controller, freqs_arr, amps, options)
+    if cost:
+        notes.append(cost)
     lin, decay = linear_response(scene, controller, freqs_arr, options.damping_ratio)
     grid = np.unique(np.concatenate([np.geomspace(freqs_arr[0] / 1.5, freqs_arr[-1] * 1.5, 300), freqs_arr]))
     lin_grid, _ = linear_response(scene, controller, grid, options.damping_ratio)

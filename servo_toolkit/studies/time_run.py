@@ -47,7 +47,9 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     schedule : bool or GainSchedule, optional
         Gains scheduled along the stroke (None: none).
     friction : {"stick", "smooth", "off"}, optional
-        The friction model (``ModelOptions.friction``); None: the default, smooth.
+        The friction model (``ModelOptions.friction``); None: chosen by need, friction that
+        holds unless the reduction's estimate allows the smooth model
+        (:func:`sine_run_options`); an open-loop voltage run holds (``"stick"``).
 
     Returns
     -------
@@ -60,7 +62,7 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage,
                         feedforward=feedforward, shaper=shaper, schedule=schedule,
-                        options=None if friction is None else ModelOptions(friction=check_friction(friction)))
+                        options=ModelOptions(friction="stick" if friction is None else check_friction(friction)))
     controller, source = controller_for(scene)
     controller = with_feedforward(controller, feedforward, scene, shaper=shaper, schedule=schedule)
     options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
@@ -105,25 +107,29 @@ def check_friction(friction: str) -> str:
 
 def sine_run_options(scene, controller, reference, full: bool = False, friction: str | None = None):
     """Model options of a closed-loop sine run: the reduced model for its frequency and
-    amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one. A ``friction``
-    model given (``"stick"``, ``"smooth"``, ``"off"``) is kept in either: the reduction
-    judges the other effects.
+    amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one. Both start from
+    friction that holds (``"stick"``) at every node; the reduction smooths it (the smooth
+    model) only where its node-by-node estimate (:mod:`.reduce_friction`) is within the budget.
+    A ``friction`` model given (``"stick"``, ``"smooth"``, ``"off"``) is kept in either: the
+    reduction judges the other effects.
 
     Returns
     -------
     options : ModelOptions
     notes : list of str
-        Which model, and for the reduced one what it left out and the a-priori bound, and the
-        choice of the chain's modes (``options.chain_note``: the model does not note it again).
+        Which model, and for the reduced one what it left out and the a-priori bound, the
+        friction at each node (held, smoothed or left out, with its estimate), and the choice
+        of the chain's modes (``options.chain_note``: the model does not note it again).
     """
     from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-    from .reduce_estimates import plan_reduction
+    from .reduce_estimates import FRICTION_EFFECT, plan_reduction
+    from .reduce_friction import friction_note
 
-    options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
+    options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
     chosen = [] if friction is None else [f"friction model {check_friction(friction)} (as asked)"]
     if full:
         options = replace(options, chain="full", friction=friction or options.friction)
-        return options, ["full model (every modelled effect kept, every drivetrain mode)"] + chosen
+        return options, ["full model (every modelled effect kept, every drivetrain mode, friction that holds)"] + chosen
     plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
@@ -131,6 +137,9 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     notes = [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
              f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
              "the reasoning, --full for the full model)"]
+    fric = next((e for e in plan.effects if e.effect == FRICTION_EFFECT), None)
+    if fric is not None and friction is None:
+        notes.append(friction_note(fric.parts, fric.omitted))
     options = plan.options
     if plan.chain_choice is not None and options.compliance:
         # simulate's rule, with the steps and the cost; the model built on it carries the choice

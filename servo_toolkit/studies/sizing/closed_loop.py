@@ -3,7 +3,8 @@ closed-loop simulation.
 
 Every segment runs as its own simulation of the scene's designed loop from rest at the
 segment's start position, with the segment's load as the hinge moment, over the segment's
-duration: a ``dwell`` is a hold and a ``sine`` a sine command; a ``ramp`` (trapezoid), a
+duration, with friction that holds (``ModelOptions(friction="stick")``: a dwell rests, a sine
+reverses, a hold may sit below breakaway): a ``dwell`` is a hold and a ``sine`` a sine command; a ``ramp`` (trapezoid), a
 ``step`` (its move over ``rise_time``, then the hold) and a ``points`` spline are sampled
 commands (:meth:`~servo_toolkit.sim.Reference.table`: a cubic spline through the prescribed
 motion at :func:`table_spacing`, evaluated in the compiled loop with its exact derivatives,
@@ -138,7 +139,7 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
         load = scene.load.hinge_moment if seg.load is None else seg.load
         run_scene = replace(hot, load=replace(hot.load, hinge_moment=load))
         res = simulate(run_scene, controller, reference=_reference(seg, q0), duration=seg.duration,
-                       method="auto", options=ModelOptions(stroke_end="stop"))
+                       method="auto", options=ModelOptions(stroke_end="stop", friction="stick"))
         local = motion.t[idx] - t_start
         current[idx] = np.interp(local, res.times, res.motor_current)
         torque[idx] = kt * current[idx]
@@ -155,7 +156,8 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
         q0 = segment_end(seg, q0)
     notes = [f"simulated with the winding hot ({hot.motor.resistance:.4g} ohm at "
              f"{scene.motor.max_winding_temperature - 273.15:.4g} degC); the voltage of a simulated segment is "
-             "the current loop's own, clamped at the supply"]
+             "the current loop's own, clamped at the supply", "friction that holds at every node that gives it "
+             "(the motor's, each stage's, the load's): a duty cycle rests, holds and reverses"]
     if simulated.any():
         from ...core.output_units import OutputUnit
         unit = OutputUnit(scene.drivetrain.output_unit)

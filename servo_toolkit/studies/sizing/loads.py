@@ -1,6 +1,7 @@
 """Motor torque, speed, current, voltage and power along a duty cycle, from the Kv inverse
 dynamics (:func:`servo_toolkit.studies.inverse_dynamics.inverse_dynamics`: efficiency by
-direction of power flow, variable ratio and inertia along the stroke, motor friction).
+direction of power flow, variable ratio and inertia along the stroke, the motor's, each
+stage's and the load's friction at their Coulomb levels).
 
 Each segment's external load replaces the scene's ``[load] hinge_moment`` over that
 segment (the load's inertia, stiffness and damping stay). The motor's electrical side is
@@ -17,7 +18,7 @@ import numpy as np
 
 from ...components.ball_screw import BallScrew
 from ...components.roller_screw.stages import RollerScrew
-from ..inverse_dynamics import inverse_dynamics, subchain
+from ..inverse_dynamics import friction_notes, inverse_dynamics, subchain
 
 
 @dataclass(frozen=True)
@@ -47,9 +48,9 @@ class CycleLoads:
     screw_speed: np.ndarray | None
 
 
-def cycle_loads(drivetrain, motion, losses: str = "directional") -> CycleLoads:
+def cycle_loads(drivetrain, motion, losses: str = "directional", stage_friction=()) -> CycleLoads:
     """Inverse dynamics of ``drivetrain`` along a :class:`~.cycle.CycleMotion`, one call per
-    distinct segment load.
+    distinct segment load; ``stage_friction`` (``scene.stage_friction``) each stage's friction.
 
     Raises
     ------
@@ -63,7 +64,8 @@ def cycle_loads(drivetrain, motion, losses: str = "directional") -> CycleLoads:
         idx = np.flatnonzero(motion.load == value)
         arrays = motion.q[idx], motion.qd[idx], motion.qdd[idx]
         train = replace(drivetrain, load=replace(drivetrain.load, hinge_moment=float(value)))
-        res = inverse_dynamics(train, lambda t, a=arrays: a, motion.t[idx], losses=losses)
+        res = inverse_dynamics(train, lambda t, a=arrays: a, motion.t[idx], losses=losses,
+                               stage_friction=stage_friction)
         torque[idx], speed[idx], ratio[idx], fric[idx] = (res.motor_torque, res.motor_speed, res.ratio,
                                                           res.friction_torque)
         if res.screw_thrust is not None:

@@ -10,6 +10,7 @@ from ...errors import SceneError
 from .cycle import sample_cycle
 from .envelope import Envelope, lower, upper
 from .life import screw_lives
+from ..inverse_dynamics import friction_notes
 from .loads import cycle_loads, electrical, screw_index
 from .result import SizingResult
 from .sweep import ratio_sweep
@@ -75,12 +76,13 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     drivetrain = scene.drivetrain
     motor = drivetrain.motor
     motion = sample_cycle(duty, drivetrain.mid_stroke, scene.load.hinge_moment)
-    loads = cycle_loads(drivetrain, motion, losses)
+    loads = cycle_loads(drivetrain, motion, losses, scene.stage_friction)
     hot = motor.max_winding_temperature
     torque, speed = loads.motor_torque, loads.motor_speed
     elec = electrical(motor, torque, speed, hot)
     current, voltage = elec["current"], elec["voltage"]
-    peak_i, peak_u, notes, clamp = float(np.abs(current).max()), float(np.abs(voltage).max()), [], None
+    peak_i, peak_u, clamp = float(np.abs(current).max()), float(np.abs(voltage).max()), None
+    notes = friction_notes(scene)
     method = "inverse_dynamics"
     if closed_loop:
         from .closed_loop import closed_loop_loads
