@@ -1,4 +1,10 @@
-"""Helpers shared by the command modules."""
+"""Helpers shared by the command modules.
+
+The command modules import only this module, :mod:`.budget` and the standard library when
+their parser is built (``servo-toolkit CMD --help``); what a command computes with (the
+scene loader and its unit parser, python-control, scipy, numba, matplotlib) is imported in
+its ``run``, when it runs.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,12 @@ import sys
 
 from ..core.json_text import to_json
 from ..errors import SceneError
+
+
+def load_scene(path=None):
+    """:func:`servo_toolkit.scene.loader.load_scene`, imported when a command reads its scene."""
+    from ..scene.loader import load_scene as load
+    return load(path)
 
 
 def add_scene(parser, optional: bool = False) -> None:
