@@ -73,16 +73,19 @@ def emit(args, result, text: str) -> None:
 
 
 def prepare_kernels(scene) -> None:
-    """Compile (or load) every simulation kernel before the timed work of a command, saying on
-    stderr what happens when they are not cached yet (the first run after an install): one
-    warm-up serves every command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`)."""
+    """Compile every simulation kernel before the timed work of a command when they are not
+    cached yet (the first run after an install), saying so on stderr: one warm-up serves every
+    command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`). With every
+    kernel cached it does nothing: a command loads the kernels it calls when it first calls
+    them, and no others (a ``check`` without Monte Carlo rows never loads the batch)."""
     if not (scene.stages and scene.motor is not None):
         return
     from ..core.jit_cache import cache_dir
     from ..studies.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
-    if not is_cached():
-        print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
-              f"cached in {cache_dir()})", file=sys.stderr, flush=True)
+    if is_cached():
+        return
+    print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
+          f"cached in {cache_dir()})", file=sys.stderr, flush=True)
     compile_kernels()
 
 
