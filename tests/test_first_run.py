@@ -3,6 +3,7 @@ and a cache that follows the kernel sources and works for a read-only installati
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -26,16 +27,16 @@ def _run(code, env=None, timeout=120):
 def _heavy_loaded(argv) -> list:
     """The numerical libraries in ``sys.modules`` after ``import servo_toolkit.cli`` and, with
     ``argv``, after the command line ``argv`` (a ``--help``) ran in a new process."""
-    code = ("import sys, contextlib, io\n"
+    code = ("import sys, contextlib, io, json\n"
             "import servo_toolkit.cli\n"
             f"argv = {argv!r}\n"
             "if argv is not None:\n"
             "    with contextlib.redirect_stdout(io.StringIO()):\n"
             "        try:\n            servo_toolkit.cli.main(argv)\n        except SystemExit:\n            pass\n"
-            f"print(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))")
+            f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))))")
     proc = _run(code)
     assert proc.returncode == 0, proc.stderr
-    return eval(proc.stdout.strip())
+    return json.loads(proc.stdout)
 
 
 def test_import_and_help_load_no_numerical_library():
