@@ -3,6 +3,7 @@ and a cache that follows the kernel sources and works for a read-only installati
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -15,7 +16,7 @@ from servo_toolkit.core import jit_cache
 
 from .conftest import ROOT
 
-HEAVY = ("control", "scipy", "numba", "matplotlib", "pint")
+HEAVY = ("control", "scipy", "numba", "llvmlite", "matplotlib", "pint")
 
 
 def _run(code, env=None, timeout=120):
@@ -23,16 +24,31 @@ def _run(code, env=None, timeout=120):
                           cwd=ROOT, env={**os.environ, **(env or {})})
 
 
-def test_import_and_help_load_no_numerical_library():
-    code = ("import sys, contextlib, io\n"
-            "import servo_toolkit\n"
-            "from servo_toolkit.cli import main\n"
-            "with contextlib.redirect_stdout(io.StringIO()):\n"
-            "    try:\n        main(['--help'])\n    except SystemExit:\n        pass\n"
-            f"print([m for m in {HEAVY!r} if m in sys.modules])")
+def _heavy_loaded(argv) -> list:
+    """The numerical libraries in ``sys.modules`` after ``import servo_toolkit.cli`` and, with
+    ``argv``, after the command line ``argv`` (a ``--help``) ran in a new process."""
+    code = ("import sys, contextlib, io, json\n"
+            "import servo_toolkit.cli\n"
+            f"argv = {argv!r}\n"
+            "if argv is not None:\n"
+            "    with contextlib.redirect_stdout(io.StringIO()):\n"
+            "        try:\n            servo_toolkit.cli.main(argv)\n        except SystemExit:\n            pass\n"
+            f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r}))))")
     proc = _run(code)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "[]"
+    return json.loads(proc.stdout)
+
+
+def test_import_and_help_load_no_numerical_library():
+    assert _heavy_loaded(None) == []
+    assert _heavy_loaded(["--help"]) == []
+
+
+@pytest.mark.parametrize("command", list(cli.COMMANDS))
+def test_a_commands_help_loads_no_numerical_library(command):
+    """``servo-toolkit CMD --help`` builds the command's parser from the light command-line
+    modules alone: no scipy, python-control, numba, matplotlib nor pint."""
+    assert _heavy_loaded([command, "--help"]) == []
 
 
 def test_lazy_names_resolve():
@@ -48,6 +64,14 @@ def test_command_table_matches_each_command_module():
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
     helps = {a.dest: a.help for a in sub._choices_actions}
     assert helps == cli.COMMANDS
+
+
+def test_tolerances_method_choices_are_the_scenes():
+    """``tolerances --method`` offers exactly the sampling methods a scene's ``[tolerances]``
+    accepts (the parser names them without loading the scene reader)."""
+    from servo_toolkit.cli import cmd_tolerances
+    from servo_toolkit.scene import tolerances
+    assert cmd_tolerances.METHODS == tolerances.METHODS
 
 
 def test_cache_path_follows_the_kernel_sources(tmp_path, monkeypatch):
@@ -116,7 +140,8 @@ def test_first_report_on_an_empty_cache_is_complete(tmp_path):
 def test_one_warm_up_compiles_every_kernel_and_says_so(tmp_path, monkeypatch, capsys):
     """Any command that simulates warms every kernel a user meets next (the single run's, the
     paper scheme's and the Monte Carlo batch's): with only the batch missing it still says
-    that it compiles, and with every entry point cached it says nothing."""
+    that it compiles, and with every entry point cached it neither says nor warms anything
+    (a command loads what it calls when it calls it)."""
     from servo_toolkit import load_scene
     from servo_toolkit.core import jit_cache
     from servo_toolkit.cli.common import prepare_kernels
@@ -133,7 +158,7 @@ def test_one_warm_up_compiles_every_kernel_and_says_so(tmp_path, monkeypatch, ca
     (tmp_path / "sim" / "batch_lanes.run_lanes-250.py311.nbi").write_bytes(b"")
     prepare_kernels(scene)
     assert "compiling" not in capsys.readouterr().err
-    assert calls == ["warm", "warm"]
+    assert calls == ["warm"]
 
 
 def test_the_warm_up_compiles_the_batch_beside_the_single_run(tmp_path, monkeypatch):

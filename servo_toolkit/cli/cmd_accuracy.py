@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from ..scene import load_scene
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, prepare_kernels
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, load_scene, prepare_kernels
 
 #: accuracy runs are short: the reference restarts at every controller sample
 ACCURACY_DURATION = 0.1

@@ -27,12 +27,9 @@ from pathlib import Path
 
 from ..errors import SceneError, SimulationError
 from ..core.files import atomic_file, check_output_file
-from ..loop.requirements import parse_overrides
-from ..loop.result import requirements_table
-from ..scene.loader import load_scene
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
-from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, prepare_kernels,
-                     scheduler_of, study_executor, to_json)
+from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, load_scene,
+                     prepare_kernels, scheduler_of, study_executor, to_json)
 
 
 def register(sub) -> None:
@@ -186,6 +183,7 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     """Design and check one scene: (suite name, cases, JSON dict); ``executor`` runs the
     chunks of its variants; ``design_text`` is the ``--design`` file's text (read once for
     every scene)."""
+    from ..loop.result import requirements_table
     from ..studies.actuator.result import IDS as ACTUATOR_IDS
     from ..studies.gate import SIZING_ROWS, gate
     sizing_ids = {rid for rid, _ in SIZING_ROWS.values()}
@@ -297,6 +295,7 @@ def run(args) -> int:
     ``error`` testcase of the JUnit file; the other scenes are still checked and written,
     and the exit code is 2.
     """
+    from ..loop.requirements import parse_overrides
     from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     parse_overrides(args.require)

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from ..errors import SceneError
-from ..loop import design
-from ..loop.requirements import parse_overrides
-from ..scene import load_scene
-from .common import add_force, add_json, add_scene, check_robustness_budget, emit, prepare_kernels
+from .common import add_force, add_json, add_scene, check_robustness_budget, emit, load_scene, prepare_kernels
+
+
+def design(scene, **options):
+    """:func:`servo_toolkit.loop.design.design`, imported when a design runs."""
+    from ..loop.design import design as design_loop
+    return design_loop(scene, **options)
 
 
 def add_design_options(p) -> None:
@@ -48,6 +51,7 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
     scene's ``[robustness]`` for a robust design (``check --vary``); ``executor`` runs the
     chunks of its variants (``check --scheduler``); ``design_text``, the ``--design`` file's
     text already read, is not read again."""
+    from ..loop.requirements import parse_overrides
     require = parse_overrides(args.require)
     if getattr(args, "design", None):
         from ..loop.tuning import load_design
@@ -75,6 +79,7 @@ def run(args) -> int:
     rows included) is met and the closed loop is stable, 1 otherwise, 2 on bad input. The
     rows ``check`` adds for a ``[duty_cycle]`` (sizing), a required yield or Monte Carlo
     requirements are not judged here."""
+    from ..loop.requirements import parse_overrides
     parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
     scene = load_scene(args.scene)
     if not getattr(args, "design", None):

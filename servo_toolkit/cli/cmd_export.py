@@ -5,10 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene.loader import load_scene
-from ..core.units import parse_quantity
 from .cmd_design import add_design_options, design_from_args
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, emit, load_scene
 
 #: library keys that are command-line options here
 OPTION_KEYS = {"current_sample_time": "--current-sample-time", "fixed_point": "--fixed-point",
@@ -52,6 +50,7 @@ def run(args) -> int:
     """Run the command: 0 exported, 1 the designed closed loop is unstable or (``--fixed-point``)
     the quantized controller's loop misses a requirement of the scene (each named; also when the
     design without quantization already misses it); the files are written either way."""
+    from ..core.units import parse_quantity
     from ..export import export
     from ..export.writer import check_directory
     from ..loop.requirements import parse_overrides

@@ -19,8 +19,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SceneError
-from ..scene import load_scene, read_scene_text
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, emit, load_scene
 from ..core.files import check_output_file, write_text
 
 
@@ -72,6 +71,7 @@ def _check_points_files(scene, output) -> None:
 def run(args) -> int:
     """Run the command."""
     from ..identify import calibrated_text, fit, read_data
+    from ..scene import read_scene_text
     scene = load_scene(args.scene)
     if args.output is not None:  # checked before any work
         check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data, *scene.input_files))

@@ -5,10 +5,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
-from ..studies.kv import default_kv_study, kv_study
-from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, load_scene
 from .hints import what_to_run
 
 
@@ -44,6 +41,8 @@ def _check_budget(scene, studies, force: bool) -> None:
 
 def run(args) -> int:
     """Run the command."""
+    from ..studies.kv import default_kv_study, kv_study
+    from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
     scene = load_scene(args.scene)
     sine = args.amplitude is not None or args.frequency is not None
     if args.study and sine:

@@ -10,9 +10,8 @@ import math
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
 from .common import (add_force, add_friction, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, emit,
-                     prepare_kernels, scheduler_of, study_executor)
+                     load_scene, prepare_kernels, scheduler_of, study_executor)
 
 #: most variants of one run (as ``check --samples`` and a scene's ``[robustness] samples``)
 MAX_SAMPLES = 1_000_000

@@ -6,8 +6,7 @@ import math
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
-from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, prepare_kernels
+from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, load_scene, prepare_kernels
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from ..scene import load_scene
-from .common import add_force, add_scene, bounded, check_robustness_budget, prepare_kernels
+from .common import add_force, add_scene, bounded, check_robustness_budget, load_scene, prepare_kernels
 
 
 def register(sub) -> None:

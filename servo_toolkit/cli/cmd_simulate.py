@@ -5,9 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
-from ..studies.run import default_study, is_mechanism_study, run_study
-from .common import add_force, add_friction, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit, prepare_kernels
+from .common import (add_force, add_friction, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit,
+                     load_scene, prepare_kernels)
 
 
 def register(sub) -> None:
@@ -46,6 +45,7 @@ def register(sub) -> None:
 def _mechanism_dispatch(scene, args):
     """The mechanism studies' own runner when it handles this study (by default, a scene
     without a motor-driven drivetrain runs its first mechanism study), else None."""
+    from ..studies.run import default_study, is_mechanism_study, run_study
     name = args.study or default_study(scene)
     if not name:
         return None
@@ -90,6 +90,7 @@ def check_budget(scene, args, amplitude) -> None:
 def run(args) -> int:
     """Run the command."""
     from ..sim.result import check_trace_path
+    from ..studies.run import run_study
     from ..studies.time_run import simulate_study
 
     scene = load_scene(args.scene)

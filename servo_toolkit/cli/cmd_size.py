@@ -12,8 +12,7 @@ from pathlib import Path
 
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 from ..errors import SceneError
-from ..scene.loader import load_scene
-from .common import add_json, add_scene, emit, prepare_kernels
+from .common import add_json, add_scene, emit, load_scene, prepare_kernels
 
 HELP = "size motor and screw along the scene's duty cycle: envelope, RMS, thermal, life, ratio sweep"
 

@@ -7,9 +7,7 @@ is not finite, outside the drivetrain's stroke, or of the wrong kind exits 2.
 
 from __future__ import annotations
 
-from ..scene.loader import load_scene
-from ..studies.stiffness import stiffness_study
-from .common import add_json, add_scene, emit
+from .common import add_json, add_scene, emit, load_scene
 
 
 def register(sub) -> None:
@@ -26,6 +24,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Run the command."""
+    from ..studies.stiffness import stiffness_study
     scene = load_scene(args.scene)
     result = stiffness_study(scene, args.angle, args.position)
     emit(args, result, f"Stiffness chain of {scene.name}, referred to the output\n" + result.table())

@@ -5,13 +5,9 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
 from ..errors import SceneError
-from ..scene import load_scene
-from ..studies.run import default_study, is_mechanism_study, run_study
 from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
-                     prepare_kernels, scheduler_of, study_executor)
+                     load_scene, prepare_kernels, scheduler_of, study_executor)
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 from . import sweep_multisine
 
@@ -38,6 +34,9 @@ def register(sub) -> None:
 
 def _run_mechanism(scene, name, args, scheduler) -> int:
     """A seed-mechanism study: its own runner; the sine-dwell options do not apply."""
+    import numpy as np
+
+    from ..studies.run import run_study
     given = [opt for opt, value in (("--frequency", args.frequency), ("--amplitude", args.amplitude),
                                     ("--full", args.full), ("--method", args.method != "sine")) if value]
     if given:
@@ -57,6 +56,7 @@ def _run_mechanism(scene, name, args, scheduler) -> int:
 def _sweep(scene, name, **options):
     """The sweep of study ``name``, or of the scene's first frequency_sweep study (and 8 Hz)."""
     if name:
+        from ..studies.run import run_study
         return run_study(scene, name, as_kind="frequency_sweep", **options)
     from ..studies.sweep import sweep
     return sweep(scene, None, **options)
@@ -80,6 +80,7 @@ def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs:
 
 def run(args) -> int:
     """Run the command."""
+    from ..studies.run import default_study, is_mechanism_study
     scheduler = scheduler_of(args)  # before the scene is read
     sweep_multisine.check_options(args)
     scene = load_scene(args.scene)

@@ -11,10 +11,14 @@ from __future__ import annotations
 import sys
 
 from ..errors import SceneError
-from ..scene import load_scene
-from ..scene.tolerances import METHODS
 from .cmd_design import add_design_options, design_from_args
-from .common import add_json, add_scene, add_scheduler, bounded, emit, prepare_kernels, scheduler_of, study_executor
+from .common import (add_json, add_scene, add_scheduler, bounded, emit, load_scene, prepare_kernels, scheduler_of,
+                     study_executor)
+
+#: the sampling methods of ``--method``: those of a scene's ``[tolerances] method``
+#: (:data:`servo_toolkit.scene.tolerances.METHODS`, whose module loads the scene reader and
+#: its unit parser; the parser is built without them)
+METHODS = ("lhs", "sobol", "random")
 
 
 def register(sub) -> None:

@@ -1,4 +1,10 @@
-"""Helpers shared by the command modules."""
+"""Helpers shared by the command modules.
+
+The command modules import only this module, :mod:`.budget` and the standard library when
+their parser is built (``servo-toolkit CMD --help``); what a command computes with (the
+scene loader and its unit parser, python-control, scipy, numba, matplotlib) is imported in
+its ``run``, when it runs.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +13,12 @@ import sys
 
 from ..core.json_text import to_json
 from ..errors import SceneError
+
+
+def load_scene(path=None):
+    """:func:`servo_toolkit.scene.loader.load_scene`, imported when a command reads its scene."""
+    from ..scene.loader import load_scene as load
+    return load(path)
 
 
 def add_scene(parser, optional: bool = False) -> None:
@@ -63,16 +75,19 @@ def emit(args, result, text: str) -> None:
 
 
 def prepare_kernels(scene) -> None:
-    """Compile (or load) every simulation kernel before the timed work of a command, saying on
-    stderr what happens when they are not cached yet (the first run after an install): one
-    warm-up serves every command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`)."""
+    """Compile every simulation kernel before the timed work of a command when they are not
+    cached yet (the first run after an install), saying so on stderr: one warm-up serves every
+    command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`). With every
+    kernel cached it does nothing: a command loads the kernels it calls when it first calls
+    them, and no others (a ``check`` without Monte Carlo rows never loads the batch)."""
     if not (scene.stages and scene.motor is not None):
         return
     from ..core.jit_cache import cache_dir
     from ..studies.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
-    if not is_cached():
-        print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
-              f"cached in {cache_dir()})", file=sys.stderr, flush=True)
+    if is_cached():
+        return
+    print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
+          f"cached in {cache_dir()})", file=sys.stderr, flush=True)
     compile_kernels()
 
 

@@ -10,11 +10,11 @@ what to run instead.
 from __future__ import annotations
 
 from ..errors import SceneError
-from ..studies.run import has_motor_drivetrain, mechanism_studies
 
 
 def what_to_run(scene, path) -> str:
     """``run `servo-toolkit simulate PATH --study NAME` (studies: ...)`` for a mechanism scene."""
+    from ..studies.run import mechanism_studies
     found = mechanism_studies(scene)
     if not found:
         return "the scene has no study to run"
@@ -26,6 +26,7 @@ def no_drivetrain_hint(command: str, scene_path) -> str | None:
     """The hint for ``command`` on a scene without a motor-driven drivetrain (None when the
     scene cannot be read or does have one)."""
     from ..scene.loader import load_scene
+    from ..studies.run import has_motor_drivetrain
     try:
         scene = load_scene(scene_path) if scene_path is not None else None
     except (SceneError, OSError):

@@ -5,6 +5,7 @@ Nothing here imports from another part of the toolkit (except :mod:`servo_toolki
 
 ========================  ==========================================================
 :mod:`.units`             unit strings -> SI floats (pint), at the scene boundary
+:mod:`.unit_registry`     pint's registry, its definitions parsed once and cached per user
 :mod:`.fields`            reading one scene table with key paths in every error
 :mod:`.output_units`      the output coordinate shown in deg or mm
 :mod:`.parallel`          many independent cases: an optional executor, a progress bar

@@ -4,11 +4,11 @@ the strings "inf" and "-inf", NaN as null (JSON has no such numbers)."""
 from __future__ import annotations
 
 import json
-
-import numpy as np
+import math
 
 
 def _default(obj):
+    import numpy as np  # only for what json cannot write itself (the command line's parser loads no numpy)
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
@@ -22,8 +22,8 @@ def to_json(data) -> str:
 
 
 def _finite(obj):
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):

@@ -8,9 +8,12 @@ import re
 import pint
 
 from ..errors import SceneError
+from .unit_registry import unit_registry
 
-#: The registry used to parse scene quantities. It is only read after import.
-UREG = pint.UnitRegistry()
+#: The registry used to parse scene quantities (pint's default units; its parsed definitions
+#: come from the user's cache after the first run, :mod:`.unit_registry`). It is only read
+#: after import.
+UREG = unit_registry()
 
 _NUMBER = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 #: a non-finite number written as text ("nan ohm", "-inf N/m"), followed by a unit or the end

@@ -2,9 +2,11 @@
 
 The first run after an installation or an update of the kernels compiles them (about a
 minute and a half on a 2-core machine; :mod:`servo_toolkit.core.jit_cache` says where they are cached);
-later runs load them in well under a second. Commands, reports and benchmarks call
-:func:`compile_kernels` first, so that no section's time limit and no timing is charged
-with compilation, and so that one warm-up serves every command a user meets next: the
+later runs load them in well under a second. Reports and benchmarks call
+:func:`compile_kernels` first, and a command does when a kernel is not cached yet, so that
+no section's time limit and no timing is charged with compilation, and so that one warm-up
+serves every command a user meets next (with every kernel cached, a command loads only those
+it calls, when it calls them): the
 single run's RK4 loop, the cam paper's scheme, the right-hand side that the reference
 solver, Jacobians and traces call, and the nonlinear Monte Carlo's batch (its SIMD lanes and
 per-variant loop). The compiled code depends on the argument types alone, never on the
