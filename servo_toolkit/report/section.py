@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..display.html import Raw, badge, esc, fmt, table
+from ..display.html import Raw, badge, esc, fmt
+from ..display.html import table as _table
 from ..display.html import para as _para
 from .plain_text import plain
 
@@ -62,6 +63,20 @@ def para(*texts: str) -> str:
     return _para(*(plain(t) for t in texts))
 
 
+#: a table with more columns than this is set in the report's narrow type with its headings
+#: wrapped (inside a ``div.wide-table``), so that it stays within the page
+WIDE_COLUMNS = 7
+
+
+def table(header, rows, cls: str = "", table_id: str = "") -> str:
+    """An HTML table (:func:`servo_toolkit.display.html.table`); one with more than
+    :data:`WIDE_COLUMNS` columns comes inside ``<div class="wide-table">`` (narrow type,
+    wrapped headings)."""
+    header = list(header)
+    html = _table(header, rows, cls=cls, table_id=table_id)
+    return f'<div class="wide-table">{html}</div>' if len(header) > WIDE_COLUMNS else html
+
+
 class NotAvailable(Exception):
     """A section cannot be built: the capability is missing or does not apply."""
 
@@ -85,5 +100,5 @@ class Notes:
         return "<ul>" + "".join(f"<li>{esc(plain(t))}</li>" for t in self.items) + "</ul>" if self.items else ""
 
 
-__all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "badge", "esc",
-           "fmt", "para", "plain", "table"]
+__all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "WIDE_COLUMNS", "badge",
+           "esc", "fmt", "para", "plain", "table"]
