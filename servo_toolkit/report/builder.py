@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import sys
 import hashlib
@@ -27,7 +28,7 @@ from . import sections_studies as studies
 from . import sections_time as timing
 from . import sections_tolerances as tolerances
 from .context import Context
-from .figures import legends_outside
+from .figures import finish
 from .section import NotApplicable, NotAvailable, Section
 from .time_limit import time_limit as _time_limit
 
@@ -137,11 +138,13 @@ def run_section(key: str, title: str, builder, ctx: Context, time_limit: float |
         return Section(title, status="unavailable", reason=f"the scene does not support it: {exc}", key=key)
     except Exception as exc:  # noqa: BLE001 - a failing section must not kill the report
         return Section(title, status="unavailable", reason=f"{type(exc).__name__}: {exc}", key=key)
-    if not section.key:
-        section = Section(section.title, section.html, section.figures, section.status, section.reason, key)
-    for spec in section.figures:  # one legend placement for every figure: outside the axes
-        legends_outside(spec.figure)
-    return section
+    layout = []
+    for k, spec in enumerate(section.figures, 1):  # one legend outside the axes, titles wrapped, checked
+        try:
+            layout += [f"figure {k}: {problem}" for problem in finish(spec.figure)]
+        except Exception as exc:  # noqa: BLE001 - a figure that cannot be checked is said so, not lost
+            layout.append(f"figure {k}: its layout could not be checked ({type(exc).__name__}: {exc})")
+    return dataclasses.replace(section, key=section.key or key, layout=tuple(layout))
 
 
 def build_report(scene, light: bool = True, executor=None, progress: bool = True,

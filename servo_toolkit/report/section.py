@@ -39,6 +39,9 @@ class Section:
         Why a section is ``unavailable`` or ``n/a``.
     key : str
         Short identifier (``stiffness``, ``loop``, ...), used as the HTML anchor.
+    layout : tuple of str
+        What leaves its frame or overlaps in the laid-out figures, ``"figure K: ..."``
+        (:func:`servo_toolkit.report.figures.layout_problems`); empty when all fits.
     """
 
     title: str
@@ -47,6 +50,7 @@ class Section:
     status: str = "info"
     reason: str = ""
     key: str = ""
+    layout: tuple = ()
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -55,7 +59,7 @@ class Section:
     def to_dict(self) -> dict:
         """JSON-ready summary (no figures)."""
         return {"key": self.key, "title": self.title, "status": self.status, "reason": self.reason,
-                "figures": len(self.figures)}
+                "figures": len(self.figures), "layout": list(self.layout)}
 
 
 def para(*texts: str) -> str:

@@ -166,7 +166,8 @@ def accuracy(ctx) -> Section:
     rk = [r for r in res.runs if r["method"] == "rk4" and r["dt_s"]]
     if rk and rk[0]["error"] > 0:
         dts = [r["dt_s"] for r in rk]
-        a2.loglog(dts, [rk[0]["error"] * (d / dts[0]) ** 4 for d in dts], "k:", lw=0.8, label="slope 4")
+        a2.loglog(dts, [rk[0]["error"] * (d / dts[0]) ** 4 for d in dts], color="0.5", ls="-.", lw=0.8,
+                  label="slope 4")
     a2.set(xlabel="step dt [s]", ylabel="max error / amplitude", title="Convergence")
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize="small")
