@@ -2,14 +2,15 @@
 of N" on each, the running header (scene name, toolkit version, date; the scene file's
 SHA-256 in the footer) on one line per box, the title page's contents and sign-off, numbered
 sections and figures, the scene's parameter tables under their headings and the requirement
-rows. Each scene's report is written once for the session (``scene_report`` in conftest)."""
+rows; no word of a table or text past the page's margins, no text of a figure past its frame
+or over another, no page left holding one small figure, and the reference list at the end.
+Each scene's report is written once for the session (``scene_report`` in conftest)."""
 
 from __future__ import annotations
 
 import hashlib
 import html as html_lib
 import re
-import shutil
 import subprocess
 from types import SimpleNamespace
 
@@ -18,34 +19,19 @@ import pytest
 from servo_toolkit.core.version import __version__
 
 from .conftest import SCENE_FILES, SCENES
+from .pdf_words import PRINT_MARGINS_PT, outside_frame, poppler, require_poppler, words
 
 #: page size in PostScript points (1/72 in)
 A4_PT = (210 / 25.4 * 72, 297 / 25.4 * 72)
 #: the page margins of the print stylesheet (pt): the running header above, the footer below
-TOP_PT, BOTTOM_PT = 20 / 25.4 * 72, 18 / 25.4 * 72
+TOP_PT, BOTTOM_PT = PRINT_MARGINS_PT[0], PRINT_MARGINS_PT[2]
 
 
 def _require_tools():
-    if shutil.which("pdftoppm") is None or shutil.which("pdftotext") is None:
-        pytest.skip("pdftoppm/pdftotext not found (Debian package poppler-utils; .ci/run installs it)")
+    require_poppler()
     from servo_toolkit.report.pdf_writer import paged_engine
     if paged_engine() is None:
         pytest.skip("WeasyPrint cannot load Pango here: the report writes the plain fallback PDF")
-
-
-def _poppler(*argv) -> str:
-    return subprocess.run(argv, capture_output=True, text=True, check=True, timeout=300).stdout
-
-
-def _words(pdf):
-    """Per page: (page width, height, [(x0, y0, x1, y1, word)]) from ``pdftotext -bbox``."""
-    pages = []
-    for page in re.findall(r'<page width="([\d.]+)" height="([\d.]+)">(.*?)</page>', _poppler(
-            "pdftotext", "-bbox", str(pdf), "-"), re.S):
-        words = [(float(a), float(b), float(c), float(d), html_lib.unescape(w)) for a, b, c, d, w in re.findall(
-            r'<word xMin="([\d.]+)" yMin="([\d.]+)" xMax="([\d.]+)" yMax="([\d.]+)">(.*?)</word>', page[2])]
-        pages.append((float(page[0]), float(page[1]), words))
-    return pages
 
 
 def _png_sizes(pdf, folder):
@@ -66,11 +52,11 @@ def typeset(request, scene_report, tmp_path_factory):
     pdf = run.folder / "report.pdf"
     assert pdf.exists(), (run.code, run.err[-2000:])
     html = (run.folder / "index.html").read_text(encoding="utf-8")
-    text = _poppler("pdftotext", "-layout", str(pdf), "-")
+    text = poppler("pdftotext", "-layout", str(pdf), "-")
     pages = text.split("\f")
     if pages and not pages[-1].strip():
         pages = pages[:-1]
-    return SimpleNamespace(name=request.param, run=run, pdf=pdf, html=html, pages=pages, words=_words(pdf),
+    return SimpleNamespace(name=request.param, run=run, pdf=pdf, html=html, pages=pages, words=words(pdf),
                            sizes=_png_sizes(pdf, tmp_path_factory.mktemp("pages")),
                            whole=" ".join(" ".join(pages).split()))
 
@@ -135,3 +121,47 @@ def test_scene_tables_have_their_headings_and_the_requirement_rows(typeset):
     rows = re.findall(r"<tr><td>([a-z0-9_]+)</td>", ids[0]) if ids else []
     for rid in rows:
         assert rid in typeset.whole, (typeset.name, rid)
+
+
+def test_no_table_or_text_runs_past_the_margins(typeset):
+    """Every word of the page's body within the left and right margins (the stiffness
+    table's last column ran past the right edge) and within the page."""
+    outside = outside_frame(typeset.words, PRINT_MARGINS_PT)
+    assert not outside, (typeset.name, outside[:10])
+
+
+#: a figure problem known to its section and left to it: the time section draws the current
+#: and the voltage limits alike (red, dashed) in the two panels of its electrics figure
+KNOWN_LAYOUT = re.compile(r"layout of section \d+ \(Step response[^)]*\), figure 2: legend entries "
+                          r"'limit \+-[^']+' and 'limit \+-[^']+' are drawn alike")
+
+
+def test_every_figure_keeps_its_text_within_its_frame(typeset):
+    """Each figure is checked when its section is built (:func:`servo_toolkit.report.figures.
+    layout_problems`: titles, labels, legends and annotations within the figure or their axes,
+    none over another, no two legend entries drawn alike); the command names any it finds."""
+    lines = [line for line in typeset.run.err.splitlines() if "servo-toolkit: layout of section" in line]
+    assert not [line for line in lines if not KNOWN_LAYOUT.search(line)], (typeset.name, lines)
+
+
+def test_no_page_holds_one_small_figure_alone(typeset):
+    """A page whose body is one figure and its caption fills at least half the page: a small
+    figure shares its page with the text around it."""
+    for i, (width, height, found) in enumerate(typeset.words[1:], 2):
+        body = [w for w in found if w[1] > TOP_PT and w[3] < height - BOTTOM_PT]
+        captions = [w for w in body if re.fullmatch(r"Figure", w[4])]
+        if len(captions) != 1:
+            continue
+        line = captions[0][3]
+        if all(abs(w[3] - line) < 2.0 for w in body) and line < height / 2:
+            raise AssertionError((typeset.name, i, "one small figure alone on the page"))
+
+
+def test_methods_are_named_with_their_source_and_listed_at_the_end(typeset):
+    whole = typeset.whole
+    internal = re.search(r"\bseeds? 00\d|\bpaper scheme|LossyGear-like|of \d(\.\d+)?e[+-]\d+ ms", whole, re.I)
+    assert not internal, (typeset.name, whole[max(0, internal.start() - 80):internal.end() + 80])
+    last = " ".join(" ".join(p.split()) for p in typeset.pages[-2:]).replace("- ", "-")  # a title wrapped at its hyphen
+    assert "References" in last and "LIU Hai, DUAN Xiao-shuai, HUANG Jian" in last, typeset.name
+    for title in ("A Stiffness Calculation Method of Servo Mechanism", "Rigid-Body Dynamic Analysis of Multi-Stage"):
+        assert title in last, (typeset.name, title)

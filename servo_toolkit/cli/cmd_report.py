@@ -73,9 +73,11 @@ def run(args) -> int:
         from ..report.pdf_writer import engine_problem
         print(f"servo-toolkit: report.pdf is the plain fallback: {engine_problem()}", file=sys.stderr)
     missing = [s for s in report.sections if s.status == "unavailable"]
-    for s in report.sections:
+    for i, s in enumerate(report.sections, 1):
         if s.status in ("unavailable", "n/a"):
             print(f"servo-toolkit: {s.title}: {s.status}: {s.reason}", file=sys.stderr)
+        for problem in s.layout:
+            print(f"servo-toolkit: layout of section {i} ({s.title}), {problem}", file=sys.stderr)
     print(f"wrote {paths['html']} and {paths['pdf']} ({time.perf_counter() - start:.1f} s)")
     if missing:
         print(f"servo-toolkit: the report is incomplete: {len(missing)} section(s) unavailable: "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import sys
 import hashlib
@@ -27,8 +28,9 @@ from . import sections_studies as studies
 from . import sections_time as timing
 from . import sections_tolerances as tolerances
 from .context import Context
-from .figures import legends_outside
-from .section import NotApplicable, NotAvailable, Section
+from .figures import finish
+from .references import reader_words
+from .section import FigureSpec, NotApplicable, NotAvailable, Section
 from .time_limit import time_limit as _time_limit
 
 #: default wall-time limit per section (s) with light settings; None with full settings
@@ -137,11 +139,15 @@ def run_section(key: str, title: str, builder, ctx: Context, time_limit: float |
         return Section(title, status="unavailable", reason=f"the scene does not support it: {exc}", key=key)
     except Exception as exc:  # noqa: BLE001 - a failing section must not kill the report
         return Section(title, status="unavailable", reason=f"{type(exc).__name__}: {exc}", key=key)
-    if not section.key:
-        section = Section(section.title, section.html, section.figures, section.status, section.reason, key)
-    for spec in section.figures:  # one legend placement for every figure: outside the axes
-        legends_outside(spec.figure)
-    return section
+    layout = []
+    for k, spec in enumerate(section.figures, 1):  # one legend outside the axes, titles wrapped, checked
+        try:
+            layout += [f"figure {k}: {problem}" for problem in finish(spec.figure)]
+        except Exception as exc:  # noqa: BLE001 - a figure that cannot be checked is said so, not lost
+            layout.append(f"figure {k}: its layout could not be checked ({type(exc).__name__}: {exc})")
+    figs = tuple(FigureSpec(spec.figure, reader_words(spec.caption)) for spec in section.figures)
+    return dataclasses.replace(section, key=section.key or key, layout=tuple(layout), figures=figs,
+                               html=reader_words(section.html), reason=reader_words(section.reason))
 
 
 def build_report(scene, light: bool = True, executor=None, progress: bool = True,
@@ -195,7 +201,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     except Exception:  # noqa: BLE001 - the section already shows why
         rows = ()
     stamp = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
-    subtitle = f"{scene.description or scene.name}. Generated {stamp} by servo_toolkit."
+    subtitle = f"{reader_words(scene.description or scene.name)}. Generated {stamp} by servo_toolkit."
     return Report(scene.name, subtitle, tuple([req_section] + built), rows, scene_identity(scene, stamp, light))
 
 

@@ -59,7 +59,8 @@ def _verdict(report) -> dict:
 
 
 def context(report, target: str, tick=None) -> dict:
-    """The template's variables: identity, verdict, numbered sections and figures."""
+    """The template's variables: identity, verdict, numbered sections and figures, the
+    reference list (:data:`servo_toolkit.report.references.REFERENCES`)."""
     from markupsafe import Markup
     sections = []
     for i, s in enumerate(report.sections, 1):
@@ -72,8 +73,10 @@ def context(report, target: str, tick=None) -> dict:
                 tick()
         sections.append({"number": i, "anchor": anchor, "title": s.title, "status": s.status, "reason": s.reason,
                          "html": Markup(s.html), "figures": figs})
+    from .references import REFERENCES
     return {"target": target, "scene_name": report.scene_name, "subtitle": report.subtitle,
-            "meta": _identity(report.meta), "verdict": _verdict(report), "sections": sections}
+            "meta": _identity(report.meta), "verdict": _verdict(report), "sections": sections,
+            "references": REFERENCES}
 
 
 def _identity(meta: dict) -> dict:

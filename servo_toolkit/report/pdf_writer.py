@@ -11,7 +11,8 @@ import matplotlib
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 
-from .pdf_text import section_lines, table_lines, text_pages
+from .pdf_text import WIDTH, section_lines, table_lines, text_pages
+from .references import REFERENCES
 
 A4 = (8.27, 11.69)
 
@@ -108,6 +109,11 @@ def _write_matplotlib_pdf(report, path, tick=None) -> None:
                 fig.suptitle(old)
                 if tick is not None:
                     tick()
+        lines = ["References", ""]
+        for ref in REFERENCES:
+            lines += textwrap.wrap(ref.text(), WIDTH, subsequent_indent="    ") + [""]
+        for page in text_pages(lines, f"Servo report: {report.scene_name}"):
+            pdf.savefig(page)
         info = pdf.infodict()
         info["Title"] = f"Servo report: {report.scene_name}"
         info["Subject"] = report.subtitle

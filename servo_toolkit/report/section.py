@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..display.html import Raw, badge, esc, fmt, table
+from ..display.html import Raw, badge, esc, fmt
+from ..display.html import table as _table
 from ..display.html import para as _para
 from .plain_text import plain
 
@@ -38,6 +39,9 @@ class Section:
         Why a section is ``unavailable`` or ``n/a``.
     key : str
         Short identifier (``stiffness``, ``loop``, ...), used as the HTML anchor.
+    layout : tuple of str
+        What leaves its frame or overlaps in the laid-out figures, ``"figure K: ..."``
+        (:func:`servo_toolkit.report.figures.layout_problems`); empty when all fits.
     """
 
     title: str
@@ -46,6 +50,7 @@ class Section:
     status: str = "info"
     reason: str = ""
     key: str = ""
+    layout: tuple = ()
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -54,12 +59,26 @@ class Section:
     def to_dict(self) -> dict:
         """JSON-ready summary (no figures)."""
         return {"key": self.key, "title": self.title, "status": self.status, "reason": self.reason,
-                "figures": len(self.figures)}
+                "figures": len(self.figures), "layout": list(self.layout)}
 
 
 def para(*texts: str) -> str:
     """Paragraphs of escaped plain text (docstring markup removed, :func:`.plain_text.plain`)."""
     return _para(*(plain(t) for t in texts))
+
+
+#: a table with more columns than this is set in the report's narrow type with its headings
+#: wrapped (inside a ``div.wide-table``), so that it stays within the page
+WIDE_COLUMNS = 7
+
+
+def table(header, rows, cls: str = "", table_id: str = "") -> str:
+    """An HTML table (:func:`servo_toolkit.display.html.table`); one with more than
+    :data:`WIDE_COLUMNS` columns comes inside ``<div class="wide-table">`` (narrow type,
+    wrapped headings)."""
+    header = list(header)
+    html = _table(header, rows, cls=cls, table_id=table_id)
+    return f'<div class="wide-table">{html}</div>' if len(header) > WIDE_COLUMNS else html
 
 
 class NotAvailable(Exception):
@@ -85,5 +104,5 @@ class Notes:
         return "<ul>" + "".join(f"<li>{esc(plain(t))}</li>" for t in self.items) + "</ul>" if self.items else ""
 
 
-__all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "badge", "esc",
-           "fmt", "para", "plain", "table"]
+__all__ = ["FigureSpec", "NotApplicable", "NotAvailable", "Notes", "Raw", "STATUSES", "Section", "WIDE_COLUMNS", "badge",
+           "esc", "fmt", "para", "plain", "table"]

@@ -117,8 +117,9 @@ def closed_loop(ctx) -> Section:
     for band in (0.98, 1.02):
         ax4.axhline(band * y[-1], color="0.8", lw=0.6, ls=":")
     tr, ts, peak, tp = info["RiseTime"], info["SettlingTime"], info["Peak"], info["PeakTime"]
-    ax4.annotate(f"overshoot {info['Overshoot']:.1f} %", (tp * 1e3, peak), xytext=(8, 6), textcoords="offset points",
-                 fontsize="small", color="C3")
+    right = tp > 0.6 * t[-1]  # a peak late in the plot (no overshoot: at its end) is labelled on its left
+    ax4.annotate(f"overshoot {info['Overshoot']:.1f} %", (tp * 1e3, peak), xytext=(-8 if right else 8, -4),
+                 textcoords="offset points", ha="right" if right else "left", va="top", fontsize="small", color="C3")
     ax4.axvline(tr * 1e3, color="C2", lw=0.8, ls="--", label=f"rise time (10-90 %) {tr * 1e3:.3g} ms")
     ax4.axvline(ts * 1e3, color="C1", lw=0.8, ls="--", label=f"settling time (2 %) {ts * 1e3:.3g} ms")
     ax4.set(xlabel="time [ms]", ylabel="output / command", title="Linear step response")

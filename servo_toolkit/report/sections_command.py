@@ -72,9 +72,11 @@ def command_section(ctx) -> Section:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small")
     if cd.stroke_fixed is not None and cd.stroke_scheduled is not None:
-        for st, label in ((cd.stroke_fixed, "fixed gains"), (cd.stroke_scheduled, "scheduled gains")):
+        # colours of their own: the figure's one legend serves both panels
+        for st, label, style in ((cd.stroke_fixed, "fixed gains", "C3.-"), (cd.stroke_scheduled, "scheduled gains",
+                                                                             "C4.--")):
             order = np.argsort(st.q)
-            bx.plot(u.show(st.q[order]), st.crossover_hz[order], ".-", label=label)
+            bx.plot(u.show(st.q[order]), st.crossover_hz[order], style, label=label)
         bx.set(xlabel=f"operating point [{u.shown}]", ylabel="loop crossover [Hz]", title="Crossover along the stroke")
         bx.legend(fontsize="x-small")
     else:

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from . import figures
+from .references import NEGLECT_CRITERION, REFERENCES, SERIES_STIFFNESS
 from .section import FigureSpec, Section, esc, fmt, para, table
 from ..display.html import column
 from ..display.units import DIMENSIONLESS, DisplayUnits
@@ -66,7 +67,8 @@ def _output_units(drive, display: DisplayUnits | None = None):
 
 
 def stiffness_chain(ctx) -> Section:
-    """Each stage's stiffness at the output, compliance shares, seed 001's neglect criterion."""
+    """Each stage's stiffness at the output, compliance shares, the front-stage criterion
+    (:data:`~servo_toolkit.report.references.NEGLECT_CRITERION`)."""
     ctx.require_drivetrain("the stiffness chain")
     drive = ctx.scene.drivetrain
     qu, qf, ku, kf = _output_units(drive, ctx.scene.display)
@@ -83,7 +85,7 @@ def stiffness_chain(ctx) -> Section:
     crit = along.criterion()
     header = ["stage"] + [f"{a:+.4g} {qu}: k [{ku}]" for a in points] + [f"{a:+.4g} {qu}: share" for a in points] \
         + ["max share over stroke", "ratio to later stages (min)", "own stiffness / later (max)",
-           "may be neglected (seed 001)"]
+           f"may be neglected ({REFERENCES[1].cite})"]
     body = []
     # one number format for every stiffness of the table (a column never mixes plain and engineering)
     cells = np.asarray(column(np.vstack([chain.stage_stiffness, chain.total]).ravel() * kf, 6),
@@ -100,10 +102,10 @@ def stiffness_chain(ctx) -> Section:
     imax = int(np.argmax(along.total))
     text = [
         f"Every stage's stiffness is reflected to the {_q_label(drive)} through the square of its ratio to the "
-        "output (seed 001, eq 8); compliances in series add.",
+        f"output, by the {SERIES_STIFFNESS}, its eq 8; compliances in series add.",
         f"Along the stroke the series stiffness runs from {fmt(along.total[imin] * kf)} {ku} at "
         f"{qs[imin] * qf:+.4g} {qu} to {fmt(along.total[imax] * kf)} {ku} at {qs[imax] * qf:+.4g} {qu}.",
-        f"Seed 001's criterion: a front stage may be left out when the ratio between it and every later stage "
+        f"The {NEGLECT_CRITERION}: a front stage may be left out when the ratio between it and every later stage "
         f"is large (at least {crit.min_ratio:g} over the whole stroke) and its own stiffness is within an order of "
         f"magnitude of some later stage's (at least 1/{crit.within:g} of it); its compliance is then at most "
         f"{crit.within / crit.min_ratio ** 2:g} times that of the comparable later stage.",

@@ -9,9 +9,10 @@ import numpy as np
 
 from ..core.output_units import OutputUnit, output_unit
 from . import figures
+from .references import NEGLECT_CRITERION, REFERENCES
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, plain, table
 
-#: seed 001 table 1: measured / model stiffness at 100, 200, 300 N*m
+#: measured / model stiffness at 100, 200, 300 N*m (Ref. [2], its table 1)
 SEED001_TEST_OVER_MODEL = (434.25 / 637.65, 467.96 / 648.03, 482.42 / 661.06)
 
 
@@ -34,10 +35,10 @@ def _design_assumptions(ctx) -> list[str]:
     if chain.names:
         neg = [nm for nm, flag in zip(chain.names, chain.negligible()) if flag]
         if neg:
-            out.append("Stages whose compliance share stays below 0.1 % over the stroke (seed 001's criterion) "
+            out.append(f"Stages whose compliance share stays below 0.1 % over the stroke (the {NEGLECT_CRITERION}) "
                        f"could be treated as rigid: {', '.join(neg)}.")
         lo, hi = min(SEED001_TEST_OVER_MODEL), max(SEED001_TEST_OVER_MODEL)
-        out.append(f"Stiffness is a chain of ideal series springs. Seed 001's test rig measured {lo:.0%} to {hi:.0%} "
+        out.append(f"Stiffness is a chain of ideal series springs. The test rig of {REFERENCES[1].cite} measured {lo:.0%} to {hi:.0%} "
                    "of such a model's stiffness, so the real drivetrain resonance may lie "
                    f"{1 - math.sqrt(hi):.0%} to {1 - math.sqrt(lo):.0%} lower than the one shown here.")
     if d is not None:

@@ -287,6 +287,17 @@ def phase_at(sys, f_hz: float) -> float:
     return ph - 360.0 if ph > 0 else ph
 
 
+def _margin_bar(ax, x, y0, y1, text, color, span) -> None:
+    """A margin drawn as a bar at frequency ``x`` from ``y0`` to ``y1``, its label beside the
+    bar's middle on the side with room (left of a bar in the right part of the log ``span``),
+    on a white ground so that a curve under it does not hide it."""
+    ax.plot([x, x], [y0, y1], color, lw=2)
+    right = math.log(x / span[0]) / math.log(span[1] / span[0]) > 0.6
+    ax.annotate(text, (x, 0.5 * (y0 + y1)), xytext=(-5 if right else 5, 0), textcoords="offset points",
+                ha="right" if right else "left", va="center", fontsize="small", color=color,
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85})
+
+
 def loop_margins(ctx) -> Section:
     """Open-loop Bode and Nyquist with every crossing and margin marked."""
     d = ctx.design()
@@ -303,22 +314,22 @@ def loop_margins(ctx) -> Section:
     am.semilogx(f, 20 * np.log10(np.abs(1 / (1 + lw))), "--", label="sensitivity S = 1/(1+L)")
     ap.semilogx(f, ph)
     am.axhline(0, color="k", lw=0.7)
+    bottoms = []
     for fc, pm in zip(m.gain_crossover_hz, m.phase_margins_deg):
         k = int(np.argmin(np.abs(f - fc)))
-        ap.plot([fc, fc], [ph[k], ph[k] - pm], "C2", lw=2)
-        ap.annotate((f"PM {pm:.1f} deg\n" if m.closed_loop_stable else "") + f"@ {fc:.3g} Hz", (fc, ph[k] - pm),
-                    fontsize="small", color="C2")
+        _margin_bar(ap, fc, ph[k], ph[k] - pm, (f"PM {pm:.1f} deg " if m.closed_loop_stable else "") + f"@ {fc:.4g} Hz",
+                    "C2", (F_MIN, f_hi))
     for fp, gm in zip(m.phase_crossover_hz, m.gain_margins_db):
         if F_MIN < fp < f_hi:
             k = int(np.argmin(np.abs(f - fp)))
-            am.plot([fp, fp], [mag[k], mag[k] + gm], "C3", lw=2)
-            am.annotate((f"GM {gm:.1f} dB\n" if m.closed_loop_stable else "") + f"@ {fp:.3g} Hz", (fp, mag[k] + gm),
-                        fontsize="small", color="C3")
+            bottoms.append(mag[k])
+            _margin_bar(am, fp, mag[k], mag[k] + gm, (f"GM {gm:.1f} dB " if m.closed_loop_stable else "")
+                        + f"@ {fp:.4g} Hz", "C3", (F_MIN, f_hi))
     ref = ph[0] - (ph[0] + 180) % 360
     for n in range(-3, 2):
         ap.axhline(ref + 360 * n, color="0.6", lw=0.7)
     ap.set_ylim(ph.min() - 30, ph.max() + 30)
-    am.set_ylim(max(mag.min(), -120), mag.max() + 10)
+    am.set_ylim(min([max(mag.min(), -120)] + bottoms) - 10, mag.max() + 10)  # every margin's bar whole
     am.set_ylabel("magnitude [dB]")
     ap.set_ylabel("phase [deg]")
     ap.set_xlabel("frequency [Hz]")

@@ -191,12 +191,13 @@ def _bode_figure(pairs):
         rs, rz = loop_response(ls, f), loop_response(lz, f)
         am, ap = axes[0, j], axes[1, j]
         am.semilogx(f, 20 * np.log10(np.abs(rs)), "C0", label="continuous (design model)")
-        am.semilogx(f, 20 * np.log10(np.abs(rz)), "C1--", label=f"sampled, T = {fmt(ts * 1e6)} us")
+        sampled = f"C{j + 1}--"  # one colour per sample time: the figure has one legend for its panels
+        am.semilogx(f, 20 * np.log10(np.abs(rz)), sampled, label=f"sampled, T = {fmt(ts * 1e6)} us")
         ps = np.degrees(np.unwrap(np.angle(rs)))
         pz = np.degrees(np.unwrap(np.angle(rz)))
         pz += 360.0 * np.round((ps[0] - pz[0]) / 360.0)
         ap.semilogx(f, ps, "C0")
-        ap.semilogx(f, pz, "C1--")
+        ap.semilogx(f, pz, sampled)
         for ax in (am, ap):
             ax.axvline(nyq, color="0.5", lw=0.8, ls=":")
             ax.grid(True, which="both", alpha=0.3)

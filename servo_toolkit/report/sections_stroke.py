@@ -74,7 +74,7 @@ def margins_along_stroke(ctx) -> Section:
             ax.plot(x[~st.stable], np.zeros(int(np.sum(~st.stable))), "rx", label="unstable")
         req = _required(ctx.scene, attr)
         if req is not None:
-            ax.axhline(req, color="C3", ls="--", lw=0.9, label=f"required {sense} {req:g} {unit}")
+            ax.axhline(req, color="C3", ls="--", lw=0.9, label="requirement (table below)")
         ax.axvline(st.q0 * scale, color="C2", lw=0.8, ls=":", label="q0")
         ax.set(ylabel=f"{label} [{unit}]")
         ax.grid(True, alpha=0.3)

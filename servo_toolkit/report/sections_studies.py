@@ -8,6 +8,7 @@ import numpy as np
 
 from ..core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ
 from . import figures
+from .references import EQUIVALENT_ELEMENT, FROZEN_SCHEME, REFERENCES
 from .section import FigureSpec, NotApplicable, Section, esc, fmt, para, table
 
 
@@ -111,7 +112,8 @@ def sweep(ctx) -> Section:
 
 
 def kv_tables(ctx) -> Section:
-    """Kv tables of the scene's kv studies (seed 000): inverse dynamics along the motion."""
+    """Kv tables of the scene's kv studies (the equivalent-element method, Ref. [1]): inverse
+    dynamics along the motion."""
     ctx.require_drivetrain("the Kv study")
     from ..studies.run import run_study
     studies = ctx.scene.studies_of_kind("kv")
@@ -120,8 +122,8 @@ def kv_tables(ctx) -> Section:
     results = [run_study(ctx.scene, s.name, samples_per_period=400 if ctx.light else 2000,
                          executor=ctx.executor, progress=False) for s in studies]
     parts = [para("Kv, the dynamic-load factor: the peak load of a motion with the external inertia over the "
-                  "peak of the same motion at zero external inertia (seed 000), from inverse dynamics with "
-                  "the reflected mass matrix and Jacobians (equivalent-element method).")]
+                  f"peak of the same motion at zero external inertia, as defined in {REFERENCES[0].cite}, from "
+                  f"inverse dynamics with the reflected mass matrix and Jacobians of the {EQUIVALENT_ELEMENT}.")]
     figs = []
     for res in results:
         u, shown = res.unit, ctx.scene.display
@@ -142,8 +144,12 @@ def kv_tables(ctx) -> Section:
     return Section("Dynamic-load factor Kv", "".join(parts), tuple(figs), key="kv")
 
 
+#: the fixed-step methods of the accuracy study by name (the solver's keys ``rk4``, ``paper``)
+METHOD_NAMES = {"rk4": "RK4 (classical fixed step)", "paper": f"frozen-configuration scheme ({REFERENCES[2].cite})"}
+
+
 def accuracy(ctx) -> Section:
-    """Solver error against run time: RK4 and the cam paper's scheme at a ladder of steps
+    """Solver error against run time: RK4 and the frozen-configuration scheme (Ref. [3]) at a ladder of steps
     against the tight-tolerance reference, with the observed order of convergence."""
     ctx.require_drivetrain("the solver accuracy study")
     from ..studies.accuracy import accuracy_study
@@ -153,20 +159,25 @@ def accuracy(ctx) -> Section:
     model = build_model(ctx.scene, controller)
     duration = 0.05 if ctx.light else 0.2
     res = accuracy_study(model, reference.sine(math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ), duration, progress=False)
-    rows = [(r["method"], "adaptive" if r["dt_s"] is None else fmt(r["dt_s"]), fmt(r["wall_s"] * 1e3),
-             fmt(r["error"], 3)) for r in res.runs]
+    rows = [(METHOD_NAMES.get(r["method"], r["method"]), "adaptive" if r["dt_s"] is None else fmt(r["dt_s"]),
+             fmt(r["wall_s"] * 1e3), fmt(r["error"], 3)) for r in res.runs]
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
     res.plot(ax=a1)
+    for line in a1.lines:  # the methods by their names, not the solver's keys
+        line.set_label(METHOD_NAMES.get(line.get_label(), line.get_label()))
+    a1.legend()
     a1.set_title("Error against run time")
     a1.grid(True, which="both", alpha=0.3)
     for method, marker in (("rk4", "o-"), ("paper", "s--")):
         rs = [r for r in res.runs if r["method"] == method and r["dt_s"]]
         if rs:
-            a2.loglog([r["dt_s"] for r in rs], [max(r["error"], 1e-16) for r in rs], marker, label=method)
+            a2.loglog([r["dt_s"] for r in rs], [max(r["error"], 1e-16) for r in rs], marker,
+                      label=METHOD_NAMES[method])
     rk = [r for r in res.runs if r["method"] == "rk4" and r["dt_s"]]
     if rk and rk[0]["error"] > 0:
         dts = [r["dt_s"] for r in rk]
-        a2.loglog(dts, [rk[0]["error"] * (d / dts[0]) ** 4 for d in dts], "k:", lw=0.8, label="slope 4")
+        a2.loglog(dts, [rk[0]["error"] * (d / dts[0]) ** 4 for d in dts], color="0.5", ls="-.", lw=0.8,
+                  label="slope 4")
     a2.set(xlabel="step dt [s]", ylabel="max error / amplitude", title="Convergence")
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize="small")
@@ -174,9 +185,9 @@ def accuracy(ctx) -> Section:
                 f"Observed order of convergence: {res.order_text()}. Against the reference, the order is fitted "
                 "over the steps whose errors are above the reference's own accuracy (4 on a smooth run; less when "
                 "the run has non-smooth events); self-convergence compares successive halvings of the step and "
-                "needs no reference. Against the reference the paper scheme's error levels "
-                "off at the difference between its play operator (seed 002, eqs 6-8) and the elasto-backlash "
-                "law of the reference model, not at a step-size error.",
+                f"needs no reference. Against the reference the {FROZEN_SCHEME}'s error levels "
+                f"off at the difference between its play operator ({REFERENCES[2].cite}, eqs 6-8) and the "
+                "elasto-backlash law of the reference model, not at a step-size error.",
                 "Error is the largest output-angle difference from the reference, relative to the motion "
                 f"amplitude; each wall time is the best of {res.repeats} identical runs (compilation excluded).")
     return Section("Solver accuracy", text + table(("method", "dt [s]", "wall [ms]", "error / amplitude"), rows),

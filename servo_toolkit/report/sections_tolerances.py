@@ -49,7 +49,7 @@ def tolerances_section(ctx) -> Section:
     tol = r.tolerances
     req = tol.min_yield
     text = para(
-        f"{r.count} variants drawn by {r.settings['method']} (seed {r.settings['seed']}) from {len(tol.items)} "
+        f"{r.count} variants drawn by {r.settings['method']} (random seed {r.settings['seed']}) from {len(tol.items)} "
         "tolerances, each with the reported design's controller: " + "; ".join(
             f"{t.key} {r.describe(t)}" for t in tol.items) + ".",
         ("The design must reach a yield of " + f"{fmt(100 * req)} % on the lower end of the interval."

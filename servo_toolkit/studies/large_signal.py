@@ -103,9 +103,16 @@ class LargeSignal:
                     f"failed: {self.failure}")
         return (f"large signal: {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop: "
                 f"{self.gain_db:+.2f} dB / {self.phase_deg:.1f} deg against the linear {self.linear_gain_db:+.2f} dB / "
-                f"{self.linear_phase_deg:.1f} deg; at the voltage limit {self.time_at_voltage_limit_s * 1e3:.3g} ms and "
-                f"at the current limit {self.time_at_current_limit_s * 1e3:.3g} ms of {self.duration_s * 1e3:.3g} ms; "
+                f"{self.linear_phase_deg:.1f} deg; {self.limits_text()}; "
                 f"peak {self.peak_current_A:.3g} A, {self.peak_voltage_V:.3g} V")
+
+    def limits_text(self) -> str:
+        """How long the run spent at the drive's voltage and current limits, in words."""
+        run = f"the {self.duration_s * 1e3:.4g} ms run"
+        volt, amp = self.time_at_voltage_limit_s * 1e3, self.time_at_current_limit_s * 1e3
+        if volt <= 0 and amp <= 0:
+            return f"the drive reached neither its voltage nor its current limit in {run}"
+        return f"the drive spent {volt:.4g} ms at its voltage limit and {amp:.4g} ms at its current limit in {run}"
 
     def to_dict(self) -> dict:
         """JSON-ready, units in the key names."""
