@@ -130,18 +130,12 @@ def test_no_table_or_text_runs_past_the_margins(typeset):
     assert not outside, (typeset.name, outside[:10])
 
 
-#: a figure problem known to its section and left to it: the time section draws the current
-#: and the voltage limits alike (red, dashed) in the two panels of its electrics figure
-KNOWN_LAYOUT = re.compile(r"layout of section \d+ \(Step response[^)]*\), figure 2: legend entries "
-                          r"'limit \+-[^']+' and 'limit \+-[^']+' are drawn alike")
-
-
 def test_every_figure_keeps_its_text_within_its_frame(typeset):
     """Each figure is checked when its section is built (:func:`servo_toolkit.report.figures.
     layout_problems`: titles, labels, legends and annotations within the figure or their axes,
     none over another, no two legend entries drawn alike); the command names any it finds."""
     lines = [line for line in typeset.run.err.splitlines() if "servo-toolkit: layout of section" in line]
-    assert not [line for line in lines if not KNOWN_LAYOUT.search(line)], (typeset.name, lines)
+    assert not lines, (typeset.name, lines)
 
 
 def test_no_page_holds_one_small_figure_alone(typeset):

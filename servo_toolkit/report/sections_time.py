@@ -71,10 +71,12 @@ def _electrics(runs, motor):
         ai, av = axes[:, col]
         ai.plot(t * 1e3, r.motor_current, label="current")
         av.plot(t * 1e3, r.motor_voltage, "C1", label="voltage")
-        for ax, lim, unit in ((ai, motor.current_limit, "A"), (av, motor.voltage_limit, "V")):
+        for ax, lim, unit, style in ((ai, motor.current_limit, "A", dict(color="C3", ls="--")),
+                                     (av, motor.voltage_limit, "V", dict(color="C5", ls=":"))):
             if math.isfinite(lim):
+                what = "current" if unit == "A" else "voltage"
                 for sign in (1, -1):
-                    ax.axhline(sign * lim, color="C3", ls="--", lw=0.9, label=f"limit +-{lim:g} {unit}" if sign > 0 else None)
+                    ax.axhline(sign * lim, lw=0.9, label=f"{what} limit +-{lim:g} {unit}" if sign > 0 else None, **style)
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize="x-small")
         ai.set(ylabel="motor current [A]", title=title)
