@@ -50,7 +50,7 @@ class RollerScrewStage:
             roller_radius=q("roller_radius", "m", rule="positive"),
             nut_radius=q("nut_radius", "m", rule="positive"),
             screw_starts=f.integer("screw_starts", minimum=1),
-            lead=q("lead", "m", rule="positive"),
+            lead=q("lead", "m/turn", rule="positive"),
             flank_angle=q("flank_angle", "rad", rule="positive"),
             ring_gear_pressure_angle=q("ring_gear_pressure_angle", "rad", rule="positive"),
             rollers=f.integer("rollers", minimum=1),
