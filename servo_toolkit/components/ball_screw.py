@@ -84,7 +84,7 @@ class BallScrew(Stage):
         """Build from a ``[[drivetrain]]`` table of kind ``ball_screw``."""
         stage = cls(
             name=f.text("name", "ball screw"),
-            lead=f.quantity("lead", "m/turn", rule="positive"),
+            lead=f.quantity("lead", "m/turn", rule="positive", typical=(1e-4, 0.1)),
             screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
             nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),

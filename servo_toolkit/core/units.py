@@ -26,15 +26,28 @@ def looks_like_quantity(text: str) -> bool:
 _UNIT_DIGITS = re.compile(r"(\^|\*\*)\s*\(?\s*[-+]?\d+(\.\d+)?\s*\)?|^1\s*/")
 
 
-def _check_unit_text(unit: str, text: str, key: str) -> None:
+def _example(number: str, unit: str | None) -> str:
+    """How a key in ``unit`` writes ``number`` (``'50'`` for a ratio, ``'5 mm'``-like otherwise)."""
+    if unit is None:
+        return "'0.1 ms'"
+    if unit in ("dimensionless", "", "1"):
+        return number
+    return f"'{number} {unit}'"
+
+
+def _check_unit_text(unit: str, text: str, key: str, number: str, target: str | None) -> None:
     """SceneError unless ``unit`` is a unit, not an expression: a number in it other than
-    an exponent ("0.1 ms / 0", "1 mm / 2 s") would make pint evaluate arithmetic."""
+    an exponent ("0.1 ms / 0", "1 mm / 2 s", "50:1") would make pint evaluate arithmetic.
+    The example is in the key's own unit ``target``."""
     if any(ch.isdigit() for ch in _UNIT_DIGITS.sub("", unit)):
+        if unit.lstrip().startswith(":"):
+            raise SceneError(key, f"a ratio N:1 is written as the number N (got {text!r}), e.g. "
+                                  f"{_example(number, target)}")
         raise SceneError(key, f"a quantity is a number and a unit, not an expression (got {text!r}): "
-                              "give the value once, e.g. '0.1 ms'")
+                              f"give the value once, e.g. {_example(number, target)}")
 
 
-def _parse_string(text: str, key: str) -> pint.Quantity:
+def _parse_string(text: str, key: str, target: str | None = None) -> pint.Quantity:
     match = _NUMBER.match(text)
     nonfinite = None if match else _NONFINITE.match(text)
     if nonfinite and nonfinite.group(2).lower() == "nan":
@@ -43,7 +56,7 @@ def _parse_string(text: str, key: str) -> pint.Quantity:
     if not match:
         raise SceneError(key, f"expected a number with units, got {text!r}")
     unit = text[match.end():].strip()
-    _check_unit_text(unit, text, key)
+    _check_unit_text(unit, text, key, match.group(0).strip(), target)
     try:
         return UREG.Quantity(float(match.group(0)), unit or "dimensionless")
     except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError,
@@ -154,7 +167,7 @@ def parse_quantity(value, unit: str, key: str) -> float:
     if isinstance(value, (int, float)):
         result = float(value)
     elif isinstance(value, str):
-        q = _parse_string(value, key)
+        q = _parse_string(value, key, unit)
         if unit == "dB":
             if str(q.units) not in ("decibel", "dimensionless"):
                 raise SceneError(key, f"expected a level in dB, got {value!r}")
