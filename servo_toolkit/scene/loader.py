@@ -189,6 +189,17 @@ def check_stage_order(raw_stages) -> None:
             have, prev = give, f"drivetrain[{i}] ({kind})"
 
 
+def check_stroke_stage(raw_stages) -> None:
+    """A ``stroke`` is the range of the output: only the stage that drives it (the last
+    one, compliances aside) may give one."""
+    kinds = [t.get("kind") for t in raw_stages]
+    last = max((i for i, k in enumerate(kinds) if k != "compliance"), default=0)
+    for i, table in enumerate(raw_stages):
+        require(i >= last or "stroke" not in table, f"drivetrain[{i}].stroke",
+                f"the stroke is the range of the output: give it on the stage that drives the output, "
+                f"drivetrain[{last}] ({kinds[last]})")
+
+
 def _study(name: str, table, output_unit: str = "rad") -> Study:
     from .study_schema import study_params
     kind, params = study_params(name, table, output_unit)
@@ -225,6 +236,7 @@ def _scene_of(data: dict, source: str | None) -> Scene:
     stages = tuple(b[0] for b in built)
     stage_friction = tuple(b[1] for b in built) if any(b[1] is not None for b in built) else ()
     check_stage_order(raw_stages)
+    check_stroke_stage(raw_stages)
     forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
     require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
             f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
