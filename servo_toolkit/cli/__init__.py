@@ -27,6 +27,7 @@ from ..errors import SceneError, SceneWarning, SimulationError
 #: Commands in help order, each with its one-line help; module ``cmd_NAME`` defines
 #: ``register(subparsers)`` (with the same help) and ``run(args) -> int``.
 COMMANDS = {
+    "new": "write a commented scene to start from (an output angle or travel)",
     "stiffness": "series stiffness chain and compliance shares",
     "report": "HTML and PDF report of a scene (default: built-in EMA)",
     "kv": "dynamic-load factor Kv (inverse dynamics along prescribed motions)",
