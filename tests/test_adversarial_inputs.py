@@ -72,3 +72,20 @@ def test_check_evaluates_a_design_with_a_vanishing_position_gain(saved_design, t
     captured = capsys.readouterr()
     assert code in (0, 1), captured.err
     assert "Traceback" not in captured.err and json.loads(captured.out)
+
+
+def test_check_refuses_a_million_nonlinear_tolerance_variants_before_any_work(tmp_path, capsys):
+    text = (SCENES / "examples" / "ema_tolerances.toml").read_text()
+    text = text.replace("samples = 1024 ", 'samples = 1000000\nmax_tracking_error = "1 deg" ', 1)
+    path = tmp_path / "million.toml"
+    path.write_text(text)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tolerances.samples: the run is estimated at" in err[0] and "--force" in err[0]
+
+
+def test_tolerances_refuses_hour_long_nonlinear_runs_naming_the_duration(capsys):
+    code = main(["tolerances", str(SCENES / "examples" / "ema_tolerances.toml"), "--nonlinear", "--duration", "3600",
+                 "--samples", "1024"])
+    assert code == 2
+    assert "--duration: the run is estimated at" in capsys.readouterr().err

@@ -143,6 +143,22 @@ def robustness_seconds(scene, spec, robust_design: bool) -> tuple[float, str]:
     return seconds, what
 
 
+def tolerance_seconds(scene, samples: int, nonlinear: bool, duration: float = 1.0, sobol_runs: int = 0
+                      ) -> tuple[float, str]:
+    """A tolerance study of ``samples`` variants: their linear margins and, when
+    ``nonlinear``, a batched time run of ``duration`` seconds each (and ``sobol_runs (d + 2)``
+    further runs for the Sobol indices, d the number of tolerances)."""
+    n = int(samples)
+    seconds, what = n * LINEAR_VARIANT_S, f"{n} variants"
+    if nonlinear:
+        d = len(getattr(scene.tolerances, "items", ()) or ())
+        runs = n + int(sobol_runs) * (d + 2)
+        s, w = batch_seconds(scene, runs, duration)
+        seconds += s
+        what += f" and {w} of nonlinear runs"
+    return seconds, what
+
+
 def sweep_seconds(scene, frequencies, amplitudes, runs: int = 1) -> tuple[float, str]:
     """Sine dwells at every frequency and amplitude (``runs`` models each): a fixed cost per
     point plus :data:`DWELL_CYCLES` cycles of RK4 steps at most the sample time."""
