@@ -73,12 +73,17 @@ def collecting_notes():
     list of str
         Filled as tables are read.
     """
-    notes: list = []
-    token = _NOTES.set(notes)
+    yield from _collecting(_NOTES)
+
+
+def _collecting(var: ContextVar):
+    """A fresh list set in ``var`` while the caller's block runs (the body of a collector)."""
+    items: list = []
+    token = var.set(items)
     try:
-        yield notes
+        yield items
     finally:
-        _NOTES.reset(token)
+        var.reset(token)
 
 
 @dataclass(frozen=True)
@@ -136,12 +141,7 @@ def recording_reads():
         Filled as tables are read; the scene reference of the documentation is generated
         from it, so it names exactly the keys, units, defaults and rules the loader applies.
     """
-    reads: list = []
-    token = _READS.set(reads)
-    try:
-        yield reads
-    finally:
-        _READS.reset(token)
+    yield from _collecting(_READS)
 
 
 def _range_of(unit, rule, bounds):
