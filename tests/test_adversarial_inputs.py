@@ -89,3 +89,18 @@ def test_tolerances_refuses_hour_long_nonlinear_runs_naming_the_duration(capsys)
                  "--samples", "1024"])
     assert code == 2
     assert "--duration: the run is estimated at" in capsys.readouterr().err
+
+
+def test_fit_refuses_a_closed_loop_log_too_long_to_fit_in_the_budget(tmp_path, capsys):
+    """Each evaluation runs the nonlinear closed loop over the whole log: 120,000 rows and
+    four parameters are beyond 10 min; refused before the fit starts."""
+    n = 120_000
+    t = np.arange(n) * 1e-3
+    path = tmp_path / "long.csv"
+    np.savetxt(path, np.column_stack([t, 1e-3 * np.sin(t), 1e-3 * np.sin(t), 0.1 * np.cos(t)]), delimiter=",",
+               header="time_s,command_m,output_m,current_A", comments="", fmt="%.9g")
+    keys = ["load.inertia", "load.damping", "motor.coulomb_friction", "load.hinge_moment"]
+    code = main(["fit", str(SCENES / "emps.toml"), str(path), *[a for k in keys for a in ("--param", k)]])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "DATA.csv: the run is estimated at" in err[0] and "120000 rows" in err[0] and "--force" in err[0]
