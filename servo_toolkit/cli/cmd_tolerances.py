@@ -67,7 +67,7 @@ def run(args) -> int:
     seconds, what = tolerance_seconds(scene, samples, timed, args.duration or 1.0, args.sobol_runs or 0)
     knob = ("--duration" if args.duration and args.duration > 1.0 else
             "--samples" if args.samples else "tolerances.samples")
-    check_time(seconds, knob, what, {"--duration": f"{args.duration:g} s"}.get(knob, samples), args.force)
+    check_time(seconds, knob, what, f"{args.duration:g} s" if knob == "--duration" else samples, args.force)
     with study_executor(scheduler, args.workers) as (executor, _):
         result = design_from_args(scene, args, executor=executor)  # reads and checks a --design file first
         if timed:
