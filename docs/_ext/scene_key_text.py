@@ -71,12 +71,6 @@ BY_TABLE = {
     ("drivetrain[]", "gravity_tilt"): "Tilt gamma of the follower's axis from the vertical.",
     ("drivetrain[]", "gravity_heading"): "Heading beta of the follower's tilt about the vertical.",
     # tables without a component of their own
-    ("requirements", "bandwidth"): "Smallest closed-loop -3 dB bandwidth of the position loop (small signal).",
-    ("requirements", "max_phase_lag_at_bandwidth"): "Largest phase lag of the closed loop at the required "
-                                                    "bandwidth.",
-    ("requirements", "min_gain_margin"): "Smallest gain margin of the open loop, at every crossing.",
-    ("requirements", "min_phase_margin"): "Smallest phase margin of the open loop, at every crossing.",
-    ("requirements", "max_sensitivity_peak"): "Largest peak Ms of the sensitivity 1 / (1 + L).",
     ("robustness", "seed"): "Seed of the random variants (the same seed draws the same variants).",
     ("robustness", "min_gain_margin"): "Smallest gain margin over the stable variants.",
     ("robustness", "min_phase_margin"): "Smallest phase margin over the stable variants.",
