@@ -84,7 +84,7 @@ hinge_moment = "50 N"                    # constant force opposing positive trav
 _TAIL = """\
 
 [sensors]
-output_encoder_bits = 16                 # output encoder, counts per revolution = 2**bits (0: ideal)
+{output_encoder}
 motor_encoder_counts = 4096              # motor encoder counts per revolution (0: ideal)
 sample_time = "0.1 ms"                   # controller sample time (0: continuous)
 # speed_estimator = "ideal"              # or "difference", "kalman" (from the motor encoder)
@@ -115,10 +115,14 @@ _FILLS = {
     "angle": dict(title="A gearmotor turning an output shaft (output angle)",
                   description="DC gearmotor, 100:1, on an output shaft", ratio="100.0",
                   gear_stiffness="2.0e4 N*m/rad", bandwidth="5 Hz", amplitude="2 deg",
+                  output_encoder="output_encoder_bits = 16                 # output encoder, counts per revolution "
+                                 "= 2**bits (0: ideal)",
                   load_inertias='"0 kg*m^2", "0.5 kg*m^2"'),
     "travel": dict(title="A gearmotor driving a ball screw and a carriage (output travel)",
                    description="DC motor, 2:1 gear, 5 mm ball screw, 20 kg carriage", ratio="2.0",
                    gear_stiffness="1.6e4 N*m/rad", bandwidth="8 Hz", amplitude="1 mm",
+                   output_encoder="output_encoder_bits = 0                  # the carriage's position read "
+                                  "ideally (an output encoder counts per revolution of an angle)",
                    load_inertias='"0 kg", "20 kg"'),
 }
 
