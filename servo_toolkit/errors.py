@@ -28,6 +28,12 @@ class SceneError(ValueError):
         return SceneError(self.key, self.rule, source)
 
 
+class SceneWarning(UserWarning):
+    """A scene value that loads but may not be what its author meant (a bare number far from
+    its key's typical values, read in the key's SI unit); the command line prints it as one
+    ``servo-toolkit: note:`` line on stderr."""
+
+
 class SimulationError(RuntimeError):
     """A simulation left its validity domain (non-finite state, unstable step)."""
 

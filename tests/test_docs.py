@@ -41,6 +41,33 @@ def test_scene_reference_names_every_key_the_loader_reads():
     assert not missing, f"keys read by the loader but not in the scene reference: {missing}"
 
 
+def test_the_scene_reference_kept_in_the_repository_is_the_loaders():
+    import scene_reference
+    kept = (DOCS / scene_reference.PAGE).read_text()
+    assert kept == scene_reference.scene_markdown(), (
+        "docs/reference/scene_keys.md is stale: run python docs/_ext/scene_reference.py")
+
+
+def test_every_scene_key_has_a_sentence_of_its_own():
+    """What the key is, in words (the unit, default and range are in the other columns):
+    no empty meaning, no bare unit, no text shared by two keys of one table."""
+    import scene_reference
+    text = scene_reference.scene_markdown()
+    short, shared = [], []
+    for section in text.split("\n## ")[1:]:
+        title, seen = section.splitlines()[0], {}
+        for key, meaning in re.findall(r"^\| `([a-z_0-9]+)` \|.* \| ([^|]*) \|$", section, flags=re.M):
+            if len(meaning.split()) < 4:
+                short.append((title, key, meaning))
+            if meaning in seen.values():
+                shared.append((title, key, meaning))
+            seen[key] = meaning
+    assert not short and not shared, (short, shared)
+    for key, words in (("ambient_temperature", "Temperature of the air"), ("viscous_friction", "Viscous friction"),
+                       ("coulomb_friction", "Coulomb (sliding) friction torque"), ("bandwidth", "bandwidth")):
+        assert re.search(rf"^\| `{key}` \|.*{re.escape(words)}", text, flags=re.M), key
+
+
 def test_scene_reference_rows_carry_units_defaults_and_rules():
     import scene_reference
     text = scene_reference.scene_markdown()
@@ -99,5 +126,5 @@ def test_docs_build_without_warnings(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-q", "-b", "html", str(DOCS), str(tmp_path / "html")],
                           capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    html = (tmp_path / "html" / "reference" / "scenes.html").read_text()
+    html = (tmp_path / "html" / "reference" / "scene_keys.html").read_text()
     assert "torque_constant" in html

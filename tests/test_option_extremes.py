@@ -49,6 +49,7 @@ BASE = {
     "tolerances": [TOLERANCES, "--linear-only", "--samples", "64"],
     "fit": None,  # no numeric option
     "frf": None,  # needs a log file; its --segment bounds are tested in test_identify_frf.py
+    "new": None,  # no numeric option (writes a starting scene)
     "size": None,  # no numeric option (the duty cycle's numbers are scene keys, tested in test_sizing*.py)
 }
 #: options whose base argument the case replaces

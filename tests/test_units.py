@@ -101,3 +101,47 @@ def test_a_scene_bandwidth_and_study_frequency_in_rad_per_s_are_read_in_hz(ema_d
     scene = scene_from_dict(ema_dict)
     assert scene.requirements.bandwidth == pytest.approx(8.0, rel=1e-10)
     assert scene.studies["kv_8hz"].params["frequency"] == pytest.approx(8.0, rel=1e-10)
+
+
+@pytest.mark.parametrize("text, unit, expected", [
+    ("5 mm/turn", "m/turn", 5e-3),           # a lead per turn is the lead
+    ("5 mm/revolution", "m/turn", 5e-3),
+    ("5 mm/cycle", "m/turn", 5e-3),
+    ("5 mm", "m/turn", 5e-3),                 # written without the angle: per turn, the key's own
+    ("5 mm/rad", "m/turn", 2 * math.pi * 5e-3),
+    ("0.2 V/Hz", "V*s/rad", 0.2 / (2 * math.pi)),       # a hertz is a turn per second
+    ("1e-4 N*m/Hz", "N*m*s/rad", 1e-4 / (2 * math.pi)),
+    ("10 Hz", "rad/s", 20 * math.pi),
+    ("0.02 V/krpm", "V*s/rad", 0.02 * 60 / (2 * math.pi * 1000)),
+])
+def test_per_turn_and_per_hertz_units_count_a_turn_as_two_pi(text, unit, expected):
+    """pint's radian is dimensionless: left to pint, "5 mm/turn" is 0.796 mm and "0.2 V/Hz"
+    0.2 V*s/rad."""
+    assert parse_quantity(text, unit, "k") == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("text, unit", [("5 mm/turn", "m"), ("0.2 V/Hz", "V*s"), ("2 N*m/rad", "N*m")])
+def test_an_angle_the_key_has_no_place_for_is_refused(text, unit):
+    with pytest.raises(SceneError, match="per angle") as info:
+        parse_quantity(text, unit, "drivetrain[0].stroke")
+    assert info.value.key == "drivetrain[0].stroke"
+
+
+def test_a_lead_per_turn_gives_the_ratio_of_the_lead(ema_dict):
+    from .conftest import build, variant
+    plain = build(ema_dict).stages[1]
+    for text in ("5 mm/turn", "5 mm/revolution", "0.005 m/cycle"):
+        assert build(variant(ema_dict, drivetrain__1__lead=text)).stages[1].lead == pytest.approx(plain.lead)
+    assert plain.lead == pytest.approx(5e-3)
+
+
+def test_a_back_emf_constant_per_hertz_is_checked_against_kt(ema_dict):
+    """0.2 V/Hz is 0.0318 V*s/rad: it does not equal Kt = 0.2 N*m/A."""
+    from .conftest import build, variant
+    with pytest.raises(SceneError, match="factor of 6.283") as info:
+        build(variant(ema_dict, motor__back_emf_constant="0.2 V/Hz"))
+    assert info.value.key == "motor.back_emf_constant"
+    motor = build(variant(ema_dict, motor__back_emf_constant=f"{0.2 * 2 * math.pi} V/Hz",
+                          motor__viscous_friction="1e-4 N*m/Hz")).motor
+    assert motor.back_emf_constant == pytest.approx(0.2)
+    assert motor.viscous_friction == pytest.approx(1e-4 / (2 * math.pi))

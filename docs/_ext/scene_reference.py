@@ -14,7 +14,11 @@ import re
 from pathlib import Path
 
 from generated import page_generator
+from scene_key_text import key_text
 
+#: the generated page, inside the documentation's source folder; kept in the repository (a
+#: test fails when it differs from what the loader reads) so that it is read without a build
+PAGE = "reference/scene_keys.md"
 #: reader names, most specific first (a number is read as a dimensionless quantity too)
 _PRIORITY = ("number", "integer", "text", "quantity list", "quantity", "value", "optional")
 _ORDER = ("motor", "drivetrain[]", "load", "sensors", "requirements", "robustness", "tolerances", "studies.*",
@@ -137,7 +141,9 @@ def _title(pattern: str, kind) -> str:
     if pattern == "drivetrain[]":
         return f"`[[drivetrain]]` kind = `{kind}`"
     if pattern == "studies.*":
-        return f"`[studies.NAME]` kind = `{kind}`"
+        return (f"`[studies.NAME]` kind = `{kind}`" if kind else
+                "`[studies.NAME]` inline tables (`frequencies = {start, stop, points, spacing}`, "
+                "`external_moments = {x, y}`)")
     if pattern == "mechanism":
         return f"`[mechanism]` kind = `{kind}`"
     if pattern == "duty_cycle.segments[]":
@@ -199,7 +205,7 @@ def scene_markdown(reads=None) -> str:
                 rule = "one of " + ", ".join(f"`{c}`" for c in d["choices"])
             example = f"`{_fmt(d['written'])}`" if d["written"] is not None else ""
             out.append(f"| `{key}` | {_reader(d)} | {_cell(default)} | {_cell(rule)} | {_cell(example)} | "
-                       f"{_cell(desc.get(key, ''))} |")
+                       f"{_cell(key_text(pattern, key, desc.get(key, '')))} |")
         out.append("")
         out += _NOTES.get(pattern, [])
     return "\n".join(out)
@@ -231,5 +237,10 @@ _NOTES = {"tolerances": [
 
 def setup(app):
     """Sphinx extension entry point."""
-    app.connect("config-inited", page_generator("reference/scenes.md", scene_markdown))
+    app.connect("config-inited", page_generator(PAGE, scene_markdown))
     return {"parallel_read_safe": True, "version": "1"}
+
+
+if __name__ == "__main__":  # python docs/_ext/scene_reference.py: the page, written where it is kept
+    from generated import write_if_changed
+    write_if_changed(Path(__file__).resolve().parents[1] / PAGE, scene_markdown())

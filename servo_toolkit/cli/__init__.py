@@ -20,12 +20,14 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
-from ..errors import SceneError, SimulationError
+from ..errors import SceneError, SceneWarning, SimulationError
 
 #: Commands in help order, each with its one-line help; module ``cmd_NAME`` defines
 #: ``register(subparsers)`` (with the same help) and ``run(args) -> int``.
 COMMANDS = {
+    "new": "write a commented scene to start from (an output angle or travel)",
     "stiffness": "series stiffness chain and compliance shares",
     "report": "HTML and PDF report of a scene (default: built-in EMA)",
     "kv": "dynamic-load factor Kv (inverse dynamics along prescribed motions)",
@@ -169,6 +171,24 @@ class _VerdictSafeStdout:
         return getattr(self._stream, name)
 
 
+@contextlib.contextmanager
+def _notes_on_stderr():
+    """A :class:`SceneWarning` raised while the command runs is one ``servo-toolkit: note:``
+    line on stderr (each once); other warnings show as Python shows them."""
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, SceneWarning):
+            print(f"servo-toolkit: note: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", SceneWarning)
+        warnings.showwarning = show
+        yield
+
+
 def main(argv=None) -> int:
     """Entry point; returns the exit code (0 done, 1 a requirement not met, 2 bad input,
     130 interrupted, 143 terminated by SIGTERM). No state of stdout changes it: a closed
@@ -195,7 +215,8 @@ def _main(argv) -> int:
     out = _VerdictSafeStdout(sys.stdout)
     saved, sys.stdout = sys.stdout, out
     try:
-        code = int(args.run(args) or 0)
+        with _notes_on_stderr():
+            code = int(args.run(args) or 0)
         out.flush()
     except SceneError as exc:
         hint = None

@@ -38,6 +38,10 @@ LINEAR_VARIANT_S = 1.6e-4
 ROBUST_DESIGN_VARIANT_S = 7e-4
 #: one time sample of one stage's inverse dynamics in a Kv grid (s)
 KV_SAMPLE_STAGE_S = 6e-7
+#: one row of a closed-loop log per fitted parameter (s): the EMPS rig's 3001-row log with
+#: four parameters fits in about 20 s (tests/test_identify_loop.py); a lower bound, a noisier
+#: log takes more evaluations
+FIT_LOOP_ROW_PARAM_S = 1.5e-3
 #: settling + estimation cycles of a sine dwell at least (:mod:`.studies.sine_dwell`)
 DWELL_CYCLES = 8
 
@@ -141,6 +145,28 @@ def robustness_seconds(scene, spec, robust_design: bool) -> tuple[float, str]:
         seconds += s
         what += f" and {w} of nonlinear runs"
     return seconds, what
+
+
+def tolerance_seconds(scene, samples: int, nonlinear: bool, duration: float = 1.0, sobol_runs: int = 0
+                      ) -> tuple[float, str]:
+    """A tolerance study of ``samples`` variants: their linear margins and, when
+    ``nonlinear``, a batched time run of ``duration`` seconds each (and ``sobol_runs (d + 2)``
+    further runs for the Sobol indices, d the number of tolerances)."""
+    n = int(samples)
+    seconds, what = n * LINEAR_VARIANT_S, f"{n} variants"
+    if nonlinear:
+        d = len(getattr(scene.tolerances, "items", ()) or ())
+        runs = n + int(sobol_runs) * (d + 2)
+        s, w = batch_seconds(scene, runs, duration)
+        seconds += s
+        what += f" and {w} of nonlinear runs"
+    return seconds, what
+
+
+def fit_seconds(rows: int, params: int) -> tuple[float, str]:
+    """A fit to a closed-loop log of ``rows`` rows: the nonlinear closed loop run over the log
+    for every evaluation of the least-squares search over ``params`` parameters."""
+    return rows * max(int(params), 1) * FIT_LOOP_ROW_PARAM_S, f"{rows} rows x {params} parameters of closed-loop runs"
 
 
 def sweep_seconds(scene, frequencies, amplitudes, runs: int = 1) -> tuple[float, str]:

@@ -179,6 +179,19 @@ def _tagged(exc: SceneError, path) -> SceneError:
     return exc if exc.source else exc.with_source(str(path))
 
 
+def _check_tolerance_budget(scene, args) -> None:
+    """Refuse (exit 2, naming ``tolerances.samples``) a yield study estimated beyond the work
+    budget, unless ``--force``: checked before any work."""
+    from .budget import check_time, tolerance_seconds
+    tol = scene.tolerances
+    if tol is None or tol.min_yield is None:
+        return
+    timed = not getattr(args, "linear_only", False) and (tol.max_tracking_error is not None
+                                                          or tol.max_peak_current is not None)
+    seconds, what = tolerance_seconds(scene, tol.samples, timed)
+    check_time(seconds, "tolerances.samples", what, tol.samples, args.force)
+
+
 def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     """Design and check one scene: (suite name, cases, JSON dict); ``executor`` runs the
     chunks of its variants; ``design_text`` is the ``--design`` file's text (read once for
@@ -191,6 +204,7 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     if not getattr(args, "design", None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
         check_robustness_budget(scene, spec, robust, args.samples, args.force)
+    _check_tolerance_budget(scene, args)
     g = gate(scene, design_from_args(scene, args, spec, executor=executor, design_text=design_text), spec,
              linear_only=getattr(args, "linear_only", False), executor=executor)
     result, ls, robust = g.result, g.large_signal, g.robustness

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from ..errors import SceneError
-from .common import add_json, add_scene, emit, load_scene
+from .common import add_force, add_json, add_scene, emit, load_scene
 from ..core.files import check_output_file, write_text
 
 
@@ -41,6 +41,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", metavar="TOML",
                    help="write the calibrated scene here: the scene file with each fitted value in place and a "
                         "comment '# fitted: was ...' (never the input file)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -71,12 +72,19 @@ def _check_points_files(scene, output) -> None:
 def run(args) -> int:
     """Run the command."""
     from ..identify import calibrated_text, fit, read_data
+    from ..identify.data import LoopData
     from ..scene import read_scene_text
     scene = load_scene(args.scene)
     if args.output is not None:  # checked before any work
         check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data, *scene.input_files))
         _check_points_files(scene, args.output)
     data = read_data(args.data)
+    if isinstance(data, LoopData):  # the nonlinear closed loop runs over the whole log per evaluation
+        from .budget import check_time, fit_seconds
+        rows = int(data.time_s.size)
+        seconds, what = fit_seconds(rows, len(args.param))
+        check_time(seconds, "DATA.csv", what, f"{rows} rows in {args.data}: fit a shorter window of the log",
+                   args.force)
     result = fit(scene, data, args.response, args.param, progress=not args.json and sys.stderr.isatty())
     if args.output is not None:
         text = calibrated_text(read_scene_text(Path(scene.source)), result)

@@ -70,8 +70,10 @@ def _table(data) -> str:
     return "\n".join(lines)
 
 
-#: a trace of simulate -o: the columns of the closed loop's command and response
-_SIMULATE_HINT = "--input reference_angle_rad --output output_angle_rad"
+#: a trace of simulate -o: the columns of the closed loop's command and response (an output
+#: angle, an output travel)
+_SIMULATE_HINTS = ("--input reference_angle_rad --output output_angle_rad",
+                   "--input reference_travel_m --output output_travel_m")
 
 
 def _check_columns(args, log) -> None:
@@ -80,8 +82,8 @@ def _check_columns(args, log) -> None:
     for option, name, what in (("--input", args.input, "input (excitation)"),
                                ("--output", args.output, "output (response)")):
         if name not in log.columns:
-            hint = (f" (a trace of simulate -o: e.g. {_SIMULATE_HINT} for the closed loop)"
-                    if log.time_column == "t_s" and _SIMULATE_HINT.split()[1] in log.columns else "")
+            fits = [h for h in _SIMULATE_HINTS if h.split()[1] in log.columns] if log.time_column == "t_s" else []
+            hint = f" (a trace of simulate -o: e.g. {fits[0]} for the closed loop)" if fits else ""
             raise SceneError(f"{option} {name}", f"{args.log} has no such column; {option} names the {what} "
                              f"signal's column, one of: {', '.join(log.columns)}{hint}")
 

@@ -16,7 +16,12 @@ def register(sub) -> None:
     p.add_argument("--study", metavar="NAME", help="a study of the scene (default: 8 Hz, 2 deg sine, 1 s; "
                    "1 mm for an output travel)")
     add_sine_options(p)
-    p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None)
+    p.add_argument("--method", choices=("rk4", "paper", "reference", "auto"), default=None,
+                   help="integration method: 'auto' (the default unless the study names one) runs fixed-step "
+                        "RK4 at a step it picks from the fastest eigenvalue (|lambda dt| = 1) and hands a run "
+                        "needing more than 2e7 steps to the stiff solver; 'rk4' fixed-step RK4 at --dt or the "
+                        "study's sample_time; 'paper' the cam paper's frozen-configuration scheme (fixed step); "
+                        "'reference' scipy's stiff solve_ivp at tight tolerances (slow, the accuracy reference)")
     p.add_argument("--dt", type=bounded(float, 1e-9, 1.0, what="a step in seconds"), metavar="S",
                    help="fixed step (s), 1e-9 to 1, of the fixed-step methods (rk4, paper); without --method it "
                         "runs rk4 at that step; refused with --method auto or reference")

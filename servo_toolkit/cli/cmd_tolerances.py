@@ -12,8 +12,8 @@ import sys
 
 from ..errors import SceneError
 from .cmd_design import add_design_options, design_from_args
-from .common import (add_json, add_scene, add_scheduler, bounded, emit, load_scene, prepare_kernels, scheduler_of,
-                     study_executor)
+from .common import (add_force, add_json, add_scene, add_scheduler, bounded, emit, load_scene, prepare_kernels,
+                     scheduler_of, study_executor)
 
 #: the sampling methods of ``--method``: those of a scene's ``[tolerances] method``
 #: (:data:`servo_toolkit.scene.tolerances.METHODS`, whose module loads the scene reader and
@@ -46,6 +46,7 @@ def register(sub) -> None:
     p.add_argument("--workers", type=bounded(int, 1, 256, what="a number of processes"), default=None, metavar="N",
                    help="worker processes for chunks of variants (default: this process)")
     add_scheduler(p, what="chunks of variants (margins and time runs)")
+    add_force(p)
     add_json(p)
     p.set_defaults(run=run)
 
@@ -62,9 +63,15 @@ def run(args) -> int:
     from ..scene.tolerances import check_ends
     check_ends(scene.tolerances)
     progress = not args.json and sys.stderr.isatty()
+    timed = args.nonlinear or (args.nonlinear is None and (scene.tolerances.max_tracking_error is not None
+                                                             or scene.tolerances.max_peak_current is not None))
+    from .budget import check_time, tolerance_seconds
+    samples = args.samples or scene.tolerances.samples
+    seconds, what = tolerance_seconds(scene, samples, timed, args.duration or 1.0, args.sobol_runs or 0)
+    knob = ("--duration" if args.duration and args.duration > 1.0 else
+            "--samples" if args.samples else "tolerances.samples")
+    check_time(seconds, knob, what, f"{args.duration:g} s" if knob == "--duration" else samples, args.force)
     with study_executor(scheduler, args.workers) as (executor, _):
-        timed = args.nonlinear or (args.nonlinear is None and (scene.tolerances.max_tracking_error is not None
-                                                                 or scene.tolerances.max_peak_current is not None))
         result = design_from_args(scene, args, executor=executor)  # reads and checks a --design file first
         if timed:
             prepare_kernels(scene)

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio,
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio, read_stroke,
                    screw_backdrive_efficiency)
 
 
@@ -40,6 +40,9 @@ class BallScrew(Stage):
     damping_ratio : float or None
         Damping ratio of the axial compliance (:mod:`servo_toolkit.drivetrain.chain_damping`);
         None: the model's default structural damping.
+    stroke_range : tuple of float or None
+        ``[lowest, highest]`` nut travel (m), scene key ``stroke``, when the nut drives the
+        output; None: not given (the drivetrain's default stroke applies).
     """
 
     name: str
@@ -53,6 +56,11 @@ class BallScrew(Stage):
     bearing_dynamic_load_rating: float | None = None
     bearing_kind: str = "ball"
     damping_ratio: float | None = None
+    stroke_range: tuple | None = None
+
+    @property
+    def stroke(self):
+        return self.stroke_range
 
     @property
     def backdrive_efficiency(self) -> float:
@@ -84,7 +92,7 @@ class BallScrew(Stage):
         """Build from a ``[[drivetrain]]`` table of kind ``ball_screw``."""
         stage = cls(
             name=f.text("name", "ball screw"),
-            lead=f.quantity("lead", "m", rule="positive"),
+            lead=f.quantity("lead", "m/turn", rule="positive", typical=(1e-4, 0.1)),
             screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
             nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
@@ -95,6 +103,7 @@ class BallScrew(Stage):
             bearing_dynamic_load_rating=(f.quantity("bearing_dynamic_load_rating", "N", rule="positive")
                                          if f.has("bearing_dynamic_load_rating") else None),
             bearing_kind=f.text("bearing_kind", "ball", choices=("ball", "roller")),
+            stroke_range=read_stroke(f, "m", "nut travel"),
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.axial_stiffness,
                                                                 f.key("axial_stiffness")))

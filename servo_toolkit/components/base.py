@@ -34,6 +34,18 @@ def read_damping_ratio(f, stiffness: float, stiffness_key: str):
     return ratio
 
 
+def read_stroke(f, unit: str, what: str):
+    """The stage's ``stroke`` key: ``[lowest, highest]`` of its output in ``unit`` (``"m"``
+    for a nut's travel, ``"rad"`` for a shaft's angle), None when absent. ``what`` names the
+    output in the rule (``"nut travel"``)."""
+    if f.raw("stroke", None) is None:
+        return None
+    stroke = tuple(f.quantity_list("stroke", unit, rule="finite"))
+    require(len(stroke) == 2 and stroke[0] < stroke[1], f.key("stroke"),
+            f"must be [lowest, highest] {what} with lowest < highest")
+    return stroke
+
+
 @dataclass(frozen=True)
 class Jet:
     """A coordinate and its first two derivatives with respect to a parameter."""

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio
+from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio, read_stroke
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,9 @@ class GearTrain(Stage):
     damping_ratio : float or None
         Damping ratio of the mesh compliance (:mod:`servo_toolkit.drivetrain.chain_damping`);
         None: the model's default structural damping.
+    stroke_range : tuple of float or None
+        ``[lowest, highest]`` output shaft angle (rad), scene key ``stroke``, when the gear
+        drives the output; None: not given (the drivetrain's default stroke applies).
     """
 
     name: str
@@ -42,6 +45,11 @@ class GearTrain(Stage):
     torsional_stiffness: float = math.inf
     backlash: float = 0.0
     damping_ratio: float | None = None
+    stroke_range: tuple | None = None
+
+    @property
+    def stroke(self):
+        return self.stroke_range
 
     def _speed_ratios(self) -> list[float]:
         """Each gear's angle per output angle."""
@@ -92,6 +100,7 @@ class GearTrain(Stage):
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
             torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
+            stroke_range=read_stroke(f, "rad", "output angle"),
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.torsional_stiffness,
                                                                 f.key("torsional_stiffness")))

@@ -141,7 +141,7 @@ class DCMotor:
         require(kind == "dc", f.key("kind"), f"only kind = 'dc' is supported (got {kind!r})")
         motor = cls(
             resistance=f.quantity("resistance", "ohm", rule="positive"),
-            inductance=f.quantity("inductance", "H", 0.0, rule="nonnegative"),
+            inductance=f.quantity("inductance", "H", 0.0, rule="nonnegative", typical=(1e-6, 0.5)),
             torque_constant=f.quantity("torque_constant", "N*m/A", rule="positive"),
             back_emf_constant=f.quantity("back_emf_constant", "V*s/rad", rule="positive"),
             rotor_inertia=f.quantity("rotor_inertia", "kg*m^2", rule="positive"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Mapping
 from contextlib import contextmanager
@@ -16,6 +17,73 @@ _MISSING = object()
 
 #: the reads being collected by :func:`recording_reads` in this context (None: not collecting)
 _READS: ContextVar = ContextVar("servo_toolkit_scene_reads", default=None)
+#: the notes being collected by :func:`collecting_notes` in this context (None: not collecting)
+_NOTES: ContextVar = ContextVar("servo_toolkit_scene_notes", default=None)
+
+
+def nearest_key(name: str, known) -> str | None:
+    """The known key ``name`` most likely misspells (difflib's closest match, or a known key
+    inside it: ``gear_ratio`` -> ``ratio``), None when none is close."""
+    known = [k for k in known if k != name]
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    if close:
+        return close[0]
+    inside = sorted((k for k in known if len(k) >= 3 and (k in name or name in k)), key=len, reverse=True)
+    return inside[0] if inside else None
+
+
+def _edits(a: str, b: str) -> int:
+    """Levenshtein distance: the single-character edits that turn ``a`` into ``b``."""
+    row = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        prev, row[0] = row[0], i
+        for j, cb in enumerate(b, 1):
+            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (ca != cb))
+    return row[-1]
+
+
+def misspelling_of(name: str, written) -> str | None:
+    """The key of ``written`` (keys a table writes that were not read) that misspells the
+    required key ``name``: a typo (at most one edit per five characters, ``leed``,
+    ``resistanse``) or a longer name holding it (``gear_ratio``); stricter than
+    :func:`nearest_key`, since a key not read yet may be another key of the table
+    (``back_emf_constant`` is no misspelling of ``torque_constant``)."""
+    typos = sorted((_edits(name, k), k) for k in written if k != name and _edits(name, k) <= max(1, len(name) // 5))
+    if typos:
+        return typos[0][1]
+    holding = sorted((k for k in written if len(name) >= 3 and name in k and k != name), key=len)
+    return holding[0] if holding else None
+
+
+def unknown_key_rule(name: str, known) -> str:
+    """The rule an unknown key breaks: the nearest known key ("did you mean ratio?") and the
+    known keys."""
+    near = nearest_key(name, known)
+    hint = f"did you mean {near}? " if near else ""
+    return f"unknown key; {hint}known keys are {sorted(known)}"
+
+
+@contextmanager
+def collecting_notes():
+    """Collect the notes :class:`Fields` makes while the block runs (a bare number far from
+    its key's typical values).
+
+    Yields
+    ------
+    list of str
+        Filled as tables are read.
+    """
+    yield from _collecting(_NOTES)
+
+
+def _collecting(var: ContextVar):
+    """A fresh list set in ``var`` while the caller's block runs (the body of a collector)."""
+    items: list = []
+    token = var.set(items)
+    try:
+        yield items
+    finally:
+        var.reset(token)
 
 
 @dataclass(frozen=True)
@@ -73,12 +141,7 @@ def recording_reads():
         Filled as tables are read; the scene reference of the documentation is generated
         from it, so it names exactly the keys, units, defaults and rules the loader applies.
     """
-    reads: list = []
-    token = _READS.set(reads)
-    try:
-        yield reads
-    finally:
-        _READS.reset(token)
+    yield from _collecting(_READS)
 
 
 def _range_of(unit, rule, bounds):
@@ -133,24 +196,43 @@ class Fields:
         if name in self.table:
             return self.table[name]
         if default is _MISSING:
+            near = misspelling_of(name, [k for k in self.table if k not in self._used and isinstance(k, str)])
+            if near is not None:  # a misspelt key is what the user wrote: name it, not the missing one
+                raise SceneError(self.key(near), f"unknown key; did you mean {name}? ({name} is required and "
+                                                 "not given)")
             raise SceneError(self.key(name), "missing key (required)")
         return default
 
     def quantity(self, name: str, unit: str, default=_MISSING, *, rule: str | None = None,
-                 bounds=None) -> float:
+                 bounds=None, typical=None) -> float:
         """A quantity converted to ``unit``.
 
         ``rule`` is one of ``"positive"``, ``"nonnegative"``, ``"finite"`` (always
         implied unless the default is infinite) or None. A finite value must also lie in
         the range its model is conditioned for: ``bounds`` ``(low, high)``, else the
         unit's range (:mod:`servo_toolkit.core.ranges`); an infinite one is allowed only
-        where the rule is None (a rigid stage, no limit).
+        where the rule is None (a rigid stage, no limit). ``typical`` ``(low, high)``: the
+        values the key's physics makes plausible; a bare number (no unit written) outside
+        them is read in ``unit`` all the same, with a note naming that unit
+        (:func:`collecting_notes`): ``sample_time = 0.2`` is 0.2 s, most likely a slip for 0.2 ms.
         """
         self._note(name, "quantity", default, unit, rule, bounds=_range_of(unit, rule, bounds))
         value = self.raw(name, default)
         if value is default and default is not _MISSING and not isinstance(default, str):
             return default
-        return self._checked(parse_quantity(value, unit, self.key(name)), name, rule, unit=unit, bounds=bounds)
+        result = self._checked(parse_quantity(value, unit, self.key(name)), name, rule, unit=unit, bounds=bounds)
+        if typical is not None and isinstance(value, (int, float)) and result != 0 \
+                and not typical[0] <= abs(result) <= typical[1]:
+            self._note_unusual(name, result, unit, typical)
+        return result
+
+    def _note_unusual(self, name: str, value: float, unit: str, typical) -> None:
+        """Note a bare number outside its key's typical values, naming the unit it was read in."""
+        notes = _NOTES.get()
+        if notes is not None:
+            notes.append(f"{self.key(name)} = {value:g} has no unit and is read in {unit} (SI): "
+                         f"{value:g} {unit} is outside the typical {typical[0]:g}..{typical[1]:g} {unit}; "
+                         f"write the unit if another was meant (e.g. \"{value:g} m{unit}\")")
 
     def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None, bounds=None) -> tuple:
         """A list of quantities converted to ``unit``, each checked as :meth:`quantity` does."""
@@ -210,8 +292,7 @@ class Fields:
         """Reject keys the component does not know (catches typos)."""
         unknown = sorted(set(self.table) - self._used)
         if unknown:
-            raise SceneError(self.key(unknown[0]),
-                             f"unknown key; known keys are {sorted(self._used - {'kind'})}")
+            raise SceneError(self.key(unknown[0]), unknown_key_rule(unknown[0], self._used - {"kind"}))
 
 
 def require(condition: bool, key: str, rule: str) -> None:

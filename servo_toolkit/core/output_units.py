@@ -97,7 +97,7 @@ class OutputUnit:
         ------
         SceneError
             Not a number, an unknown unit, a unit of the other kind (a length for an
-            angle output or the reverse), not positive, or beyond :attr:`largest_amplitude`.
+            angle output or the reverse), a ratio (``"10 %"``, ``"1000 ppm"``), not positive, or beyond :attr:`largest_amplitude`.
         """
         if isinstance(value, bool):
             raise SceneError(key, f"expected an amplitude in {self.shown}, got a boolean")
@@ -105,6 +105,10 @@ class OutputUnit:
             raise SceneError(key, f"expected an amplitude such as '{self._example}', got {value!r}")
         if isinstance(value, str):
             q = parse_text(value, key)
+            if q.unitless and str(q.units) != "dimensionless":  # "10 %", "1000 ppm": pint's unitless ratios
+                kind = "a travel" if self.linear else "an angle"
+                raise SceneError(key, f"expected an amplitude in {self.shown} (e.g. '{self._example}'), "
+                                      f"got {value!r}: a ratio is not {kind}")
             if q.unitless:  # a bare number: the shown unit
                 q = UREG.Quantity(float(q.magnitude), self.shown)
             try:

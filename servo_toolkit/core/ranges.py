@@ -19,6 +19,7 @@ from __future__ import annotations
 #: SI unit -> (smallest nonzero magnitude, largest magnitude)
 CONDITIONED = {
     "m": (1e-9, 1e3),
+    "m/turn": (1e-9, 1e3),  # a screw lead: travel per turn
     "rad": (1e-12, 1e3),
     "kg": (1e-9, 1e6),
     "kg*m^2": (1e-12, 1e6),

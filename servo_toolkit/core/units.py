@@ -29,15 +29,28 @@ def looks_like_quantity(text: str) -> bool:
 _UNIT_DIGITS = re.compile(r"(\^|\*\*)\s*\(?\s*[-+]?\d+(\.\d+)?\s*\)?|^1\s*/")
 
 
-def _check_unit_text(unit: str, text: str, key: str) -> None:
+def _example(number: str, unit: str | None) -> str:
+    """How a key in ``unit`` writes ``number`` (``'50'`` for a ratio, ``'5 mm'``-like otherwise)."""
+    if unit is None:
+        return "'0.1 ms'"
+    if unit in ("dimensionless", "", "1"):
+        return number
+    return f"'{number} {unit}'"
+
+
+def _check_unit_text(unit: str, text: str, key: str, number: str, target: str | None) -> None:
     """SceneError unless ``unit`` is a unit, not an expression: a number in it other than
-    an exponent ("0.1 ms / 0", "1 mm / 2 s") would make pint evaluate arithmetic."""
+    an exponent ("0.1 ms / 0", "1 mm / 2 s", "50:1") would make pint evaluate arithmetic.
+    The example is in the key's own unit ``target``."""
     if any(ch.isdigit() for ch in _UNIT_DIGITS.sub("", unit)):
+        if unit.lstrip().startswith(":"):
+            raise SceneError(key, f"a ratio N:1 is written as the number N (got {text!r}), e.g. "
+                                  f"{_example(number, target)}")
         raise SceneError(key, f"a quantity is a number and a unit, not an expression (got {text!r}): "
-                              "give the value once, e.g. '0.1 ms'")
+                              f"give the value once, e.g. {_example(number, target)}")
 
 
-def _parse_string(text: str, key: str) -> pint.Quantity:
+def _parse_string(text: str, key: str, target: str | None = None) -> pint.Quantity:
     match = _NUMBER.match(text)
     nonfinite = None if match else _NONFINITE.match(text)
     if nonfinite and nonfinite.group(2).lower() == "nan":
@@ -46,7 +59,7 @@ def _parse_string(text: str, key: str) -> pint.Quantity:
     if not match:
         raise SceneError(key, f"expected a number with units, got {text!r}")
     unit = text[match.end():].strip()
-    _check_unit_text(unit, text, key)
+    _check_unit_text(unit, text, key, match.group(0).strip(), target)
     try:
         return UREG.Quantity(float(match.group(0)), unit or "dimensionless")
     except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError,
@@ -71,13 +84,44 @@ def _angle_power(units) -> float:
     return root._units.get("radian", 0)
 
 
-def _is_frequency(unit: str) -> bool:
-    """True when ``unit`` is a frequency in cycles per time (Hz, kHz), not an angular rate
-    nor another rate in 1/s (a time constant's inverse)."""
-    if "Hz" not in unit:
-        return False
+def _cycles(units):
+    """``units`` with each hertz counted as a turn per second: pint's hertz is 1/s with no
+    angle, but a hertz is a cycle (a turn) per second, so "0.2 V/Hz" is 0.2 V*s per turn."""
+    power = sum(p for name, p in units._units.items() if name.endswith("hertz"))
+    return units * UREG.turn ** power if power else units
+
+
+def _angle_part(units):
+    """The angle units (rad, deg, turn...) of a target unit, with their powers."""
+    part = UREG.dimensionless
+    for name, power in units._units.items():
+        one = UREG.Unit(name)
+        if one.dimensionless and _angle_power(one):
+            part = part * one ** power
+    return part
+
+
+def _convert(q: pint.Quantity, unit: str, text: str, key: str) -> float:
+    """``q`` in ``unit``, counting angles that pint counts as the number 1.
+
+    pint's radian is dimensionless, so pint converts "5 mm/turn" to 0.796 mm and "0.2 V/Hz"
+    to 0.2 V*s/rad. Here every hertz is a turn per second and the angle powers of the two
+    units must agree: equal powers convert with a turn of 2 pi rad ("5 mm/turn" is a lead of
+    5 mm in m/turn, "0.2 V/Hz" is 0.0318 V*s/rad, "100 rad/s" is 15.9 Hz); a value written
+    without an angle is in the key's own angle unit ("5 mm" for m/turn, "0.02 V*s" for
+    V*s/rad); an angle the key has no place for ("5 mm/turn" for a length in m) is refused.
+    """
     target = UREG.Unit(unit)
-    return target.dimensionality == UREG.Unit("Hz").dimensionality and _angle_power(target) == 0
+    written = UREG.Quantity(q.magnitude, _cycles(q.units))
+    wanted = _cycles(target)
+    have, need = _angle_power(written.units), _angle_power(wanted)
+    if have == 0 and need != 0:
+        written = UREG.Quantity(written.magnitude, written.units * _angle_part(wanted))
+    elif have != need:
+        what = {1: "an angle", -1: "a value per angle (per turn, rad or Hz)"}.get(have - need, "another angle power")
+        raise SceneError(key, f"expected a quantity in {unit}, got {text!r}: {what} where the key's unit "
+                              "has none (a turn is 2 pi rad, a hertz a turn per second)")
+    return float(written.to(wanted).magnitude)
 
 
 def _reject_angle(q: pint.Quantity, text: str, key: str) -> None:
@@ -108,21 +152,25 @@ def parse_quantity(value, unit: str, key: str) -> float:
     -------
     float
 
-    An angular rate given for a frequency (``"100 rad/s"``, ``"60 rpm"`` for ``"Hz"``) is
-    divided by 2 pi: 100 rad/s is 15.9 Hz, not the 100 Hz of pint's dimensionless radian.
+    Angles count although pint's radian is dimensionless: a hertz is a turn per second and a
+    turn 2 pi rad, so an angular rate given for a frequency (``"100 rad/s"``, ``"60 rpm"`` for
+    ``"Hz"``) is divided by 2 pi (100 rad/s is 15.9 Hz), ``"0.2 V/Hz"`` for ``"V*s/rad"`` is
+    0.0318 V*s/rad, ``"5 mm/turn"`` for ``"m/turn"`` is 0.005; a per-turn or per-hertz value
+    for a key without an angle in its unit (``"5 mm/turn"`` for ``"m"``) is refused.
 
     Raises
     ------
     SceneError
-        Unknown unit, wrong dimension (an angle where a dimensionless number is expected:
-        pint's radian is dimensionless, the scene's is not), not a number, or NaN.
+        Unknown unit, wrong dimension (an angle where a dimensionless number is expected, or
+        an angle power the key's unit does not have: pint's radian is dimensionless, the
+        scene's is not), not a number, or NaN.
     """
     if isinstance(value, bool):
         raise SceneError(key, f"expected a quantity in {unit}, got a boolean")
     if isinstance(value, (int, float)):
         result = float(value)
     elif isinstance(value, str):
-        q = _parse_string(value, key)
+        q = _parse_string(value, key, unit)
         if unit == "dB":
             if str(q.units) not in ("decibel", "dimensionless"):
                 raise SceneError(key, f"expected a level in dB, got {value!r}")
@@ -130,13 +178,12 @@ def parse_quantity(value, unit: str, key: str) -> float:
         else:
             if unit in ("dimensionless", "", "1"):
                 _reject_angle(q, value, key)
-            elif str(q.units) != "dimensionless" and _angle_power(q.units) == 0 and _angle_power(UREG.Unit(unit)) == 1 \
+            elif str(q.units) != "dimensionless" and _angle_power(_cycles(q.units)) == 0 \
+                    and _angle_power(UREG.Unit(unit)) == 1 \
                     and UREG.Unit(unit).dimensionality == q.dimensionality:
                 raise SceneError(key, f"expected a quantity in {unit}, got {value!r}: a ratio is not an angle")
             try:
-                result = float(q.to(unit).magnitude)
-                if _angle_power(q.units) == 1 and _is_frequency(unit):
-                    result /= 2 * math.pi  # an angular rate ("100 rad/s", "60 rpm") in cycles per time
+                result = _convert(q, unit, value, key)
             except pint.errors.DimensionalityError:
                 raise SceneError(
                     key, f"dimension mismatch: expected a quantity in {unit}, "

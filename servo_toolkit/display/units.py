@@ -17,7 +17,7 @@ from functools import lru_cache
 
 import pint
 
-from ..core.fields import Fields
+from ..core.fields import Fields, unknown_key_rule
 from ..core.output_units import OutputUnit
 from ..core.units import UREG, parse_text
 from ..errors import SceneError
@@ -124,7 +124,7 @@ def display_units_from_table(f: Fields, linear: bool) -> DisplayUnits:
     chosen = {name: _preference(f, name, linear) for name in PREFERENCES}
     unknown = sorted(set(f.table) - set(PREFERENCES))
     if unknown:
-        raise SceneError(f.key(unknown[0]), f"unknown key; known keys are {sorted(PREFERENCES)}")
+        raise SceneError(f.key(unknown[0]), unknown_key_rule(unknown[0], PREFERENCES))
     return DisplayUnits(**chosen)
 
 

@@ -18,6 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from ..components.base import Element, Jet, Lash
+from ..components.compliance import Compliance
 from ..errors import SceneError
 from .chain import Chain
 from .elements import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, neglect_criterion, reflect_elements,
@@ -162,6 +163,20 @@ class Drivetrain:
         if self.ends_in_cam:
             return (0.0, 2 * math.pi)
         return DEFAULT_LINEAR_STROKE if self.output_is_linear else (-math.pi, math.pi)
+
+    @property
+    def stroke_note(self) -> str | None:
+        """Where :attr:`stroke` comes from when no stage gives it (a default), naming the key
+        that sets it; None when a stage gives it or the chain ends in a cam (one turn)."""
+        if self.ends_in_cam or any(stage.stroke is not None for stage in self.stages):
+            return None
+        from .operating_point import show_q
+        lo, hi = self.stroke
+        last = max((i for i, s in enumerate(self.stages) if not isinstance(s, Compliance)), default=0)
+        what = "travel" if self.output_is_linear else "angle"
+        return (f"stroke {show_q(lo, self.output_unit)} .. {show_q(hi, self.output_unit)}: the default for an "
+                f"output {what} (the scene gives none; set it with stroke = [lowest, highest] on "
+                f"drivetrain[{last}])")
 
     @property
     def output_unit(self) -> str:

@@ -137,15 +137,26 @@ class LoopData:
         return len(self.time_s)
 
 
+#: largest |gain| a measured response may have (dB): 1e15 either way, beyond any actuator's
+#: response in any unit; a larger one is a slip (a column of another quantity), and its
+#: linear gain 10**(g/20) would overflow the fit's residuals
+MAX_GAIN_DB = 300.0
+
+
 def check_frequency(data: FrequencyData) -> None:
     """Raise SceneError (row numbers count the header as row 1) unless the frequencies are
-    positive and strictly increasing, the values finite and the coherence in [0, 1]."""
+    positive and strictly increasing, the values finite, the gains within
+    +-:data:`MAX_GAIN_DB` and the coherence in [0, 1]."""
     src = data.source
     for name in ("frequency_hz", "gain_db", "phase_deg", "coherence"):
         values = getattr(data, name)
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             raise SceneError(f"row {bad[0] + 2}", f"{name} must be a finite number", src)
+    bad = np.flatnonzero(np.abs(data.gain_db) > MAX_GAIN_DB)
+    if bad.size:
+        raise SceneError(f"row {bad[0] + 2}", f"gain_db must lie within +-{MAX_GAIN_DB:g} dB, a gain of 1e15 "
+                         f"either way (got {data.gain_db[bad[0]]:g} dB): no measured response has it", src)
     f = data.frequency_hz
     bad = np.flatnonzero(f <= 0)
     if bad.size:

@@ -153,6 +153,11 @@ def read_log(path) -> tuple[np.ndarray, dict]:
     return log.time_s, log.columns
 
 
+def _varies(x) -> bool:
+    """True when ``x`` changes by more than 1e-12 of its size (rounding of a constant does not)."""
+    return bool(np.ptp(x) > 1e-12 * max(float(np.max(np.abs(x))), np.finfo(float).tiny))
+
+
 def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,
                  settle: int | None = None, band=None, derivative: bool = False,
                  source: str | None = None) -> FrequencyData:
@@ -194,12 +199,17 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
     SceneError
         A segment shorter than :data:`~servo_toolkit.core.spectra.MIN_SEGMENT` or longer
         than half the log, ``periodic`` on an input that does not repeat (or a period that
-        leaves no whole one), an option of the other window, an input without excitation, a
-        band that keeps no frequency.
+        leaves no whole one), an option of the other window, a constant input (no
+        excitation) or output (no response), a band that keeps no frequency.
     """
     t = np.asarray(time_s, float)
     u = np.asarray(u, float)
     y = np.asarray(y, float)
+    for key, x, what in (("--input", u, "nothing excites the response"), ("--output", y, "nothing responds: its "
+                         "gain would be zero (-inf dB) at every frequency")):
+        if not _varies(x):
+            raise SceneError(key, f"the signal is constant ({x[0]:g} throughout, to 1e-12 of its size): {what}",
+                             source)
     n = t.size
     fs = (n - 1) / float(t[-1] - t[0])
     if window not in WINDOWS:

@@ -230,15 +230,25 @@ def nyquist_count(loop, rhp_poles: int) -> int:
                                       np.abs(np.imag(np.concatenate([poles, zeros])))]))
     w = np.concatenate([-w_pos[::-1], [0.0], w_pos])
     for _ in range(12):
-        f = 1.0 + _evaluate(loop, sigma + 1j * w)
+        w, f = _finite_points(loop, sigma, w)
         step = np.abs(np.angle(f[1:] / f[:-1]))
         bad = np.nonzero(~(step < np.pi / 4))[0]
         if not bad.size:
             break
         w = np.sort(np.concatenate([w, 0.5 * (w[bad] + w[bad + 1])]))
-    f = 1.0 + _evaluate(loop, sigma + 1j * w)
+    w, f = _finite_points(loop, sigma, w)
     winding = np.sum(np.angle(f[1:] / f[:-1])) / (2 * np.pi)
     return int(rhp_poles - round(winding))
+
+
+def _finite_points(loop, sigma, w):
+    """``(w, 1 + L(sigma + j w))`` at the points where it is finite and nonzero: a point on
+    a pole (``inf``) or one whose value underflows to zero (a loop gain of 1e-30 times a
+    zero at 1e30) turns no measurable phase, and a NaN there would stop the count."""
+    with np.errstate(all="ignore"):
+        f = 1.0 + _evaluate(loop, sigma + 1j * w)
+    keep = np.isfinite(f) & (f != 0)
+    return w[keep], f[keep]
 
 
 def gain_crossings(loop, integrators: int, found=None):

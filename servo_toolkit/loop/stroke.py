@@ -138,6 +138,8 @@ class StrokeCheck:
     scheduled : bool
         The controller's gains were scheduled along the stroke (:mod:`.schedule`): each point
         ran its own factors.
+    stroke_note : str or None
+        Where the stroke came from when it is a default (the scene gives none), else None.
     """
 
     q: np.ndarray
@@ -154,6 +156,7 @@ class StrokeCheck:
     output_unit: str = "rad"
     crossover_hz: np.ndarray | None = None
     scheduled: bool = False
+    stroke_note: str | None = None
 
     def show(self, q: float) -> str:
         """Operating point ``q`` as text (deg, or mm for a travel)."""
@@ -227,7 +230,7 @@ class StrokeCheck:
     def notes(self, requirements=()) -> tuple:
         """Where the loop is unstable, and each worst margin that misses its requirement
         (rows ``*_over_stroke``), with the operating point and the shortfall."""
-        out = []
+        out = [self.stroke_note] if self.stroke_note else []
         if not self.all_stable:
             qs = ", ".join(self.show(q) for q in self.unstable_q)
             out.append(f"the loop designed at q0 = {self.show(self.q0)} is UNSTABLE at "
@@ -361,4 +364,5 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
                        stable=max_real < 0, max_pole_real=max_real,
                        gain_margin_db=np.abs(figs["gain_margin_db"]), phase_margin_deg=figs["phase_margin_deg"],
                        sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"],
-                       output_unit=dt.output_unit, crossover_hz=crossover_hz(w, L), scheduled=schedule is not None)
+                       output_unit=dt.output_unit, crossover_hz=crossover_hz(w, L), scheduled=schedule is not None,
+                       stroke_note=dt.stroke_note)

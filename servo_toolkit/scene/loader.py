@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -17,8 +18,8 @@ from ..components.motor import DCMotor
 from ..components.platform.geometry import CrossedArchPlatform
 from ..components.roller_screw.stages import RollerScrew, RollerScrewOperating, RollerScrewStage
 from ..components.stage_friction import StageFriction
-from ..errors import SceneError
-from ..core.fields import Fields, require
+from ..errors import SceneError, SceneWarning
+from ..core.fields import Fields, collecting_notes, require
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
 from .tables import ROBUSTNESS_METHODS, SPEED_ESTIMATORS, Requirements, Robustness, Sensors, Study  # noqa: F401
@@ -64,6 +65,10 @@ class Scene:
         (:mod:`servo_toolkit.scene.tolerances`); None when the scene has neither.
     source : str or None
         File the scene was read from.
+    notes : tuple of str
+        What the loader read that the user may not have meant: a bare number far outside its
+        key's typical values, read in the key's SI unit (``sensors.sample_time = 0.2`` is
+        0.2 s). :func:`load_scene` also issues each as a :class:`~servo_toolkit.errors.SceneWarning`.
     """
 
     name: str
@@ -83,6 +88,7 @@ class Scene:
     display: DisplayUnits = field(default_factory=DisplayUnits)
     source: str | None = None
     tolerances: object = None
+    notes: tuple = ()
 
     def study(self, name: str) -> Study:
         """The study called ``name``; a SceneError lists the available ones."""
@@ -183,6 +189,17 @@ def check_stage_order(raw_stages) -> None:
             have, prev = give, f"drivetrain[{i}] ({kind})"
 
 
+def check_stroke_stage(raw_stages) -> None:
+    """A ``stroke`` is the range of the output: only the stage that drives it (the last
+    one, compliances aside) may give one."""
+    kinds = [t.get("kind") for t in raw_stages]
+    last = max((i for i, k in enumerate(kinds) if k != "compliance"), default=0)
+    for i, table in enumerate(raw_stages):
+        require(i >= last or "stroke" not in table, f"drivetrain[{i}].stroke",
+                f"the stroke is the range of the output: give it on the stage that drives the output, "
+                f"drivetrain[{last}] ({kinds[last]})")
+
+
 def _study(name: str, table, output_unit: str = "rad") -> Study:
     from .study_schema import study_params
     kind, params = study_params(name, table, output_unit)
@@ -198,69 +215,77 @@ def scene_from_dict(data: dict, source: str | None = None) -> Scene:
         With the key path and the rule broken.
     """
     try:
-        unknown = sorted(set(data) - _TOP_KEYS)
-        require(not unknown, unknown[0] if unknown else "", f"unknown top-level key; known: {sorted(_TOP_KEYS)}")
-        name = data.get("name")
-        require("name" in data, "name", "missing key (required): a non-empty string")
-        require(isinstance(name, str) and name.strip(), "name", f"expected a non-empty string, got {name!r}")
-        motor = DCMotor.from_table(Fields(data["motor"], "motor")) if "motor" in data else None
-        raw_stages = data.get("drivetrain", [])
-        require(isinstance(raw_stages, list), "drivetrain", "must be an array of tables [[drivetrain]]")
-        built = [_stage(t, i, travel) for i, (t, travel) in enumerate(zip(raw_stages, _stage_outputs_travel(raw_stages)))]
-        stages = tuple(b[0] for b in built)
-        stage_friction = tuple(b[1] for b in built) if any(b[1] is not None for b in built) else ()
-        check_stage_order(raw_stages)
-        forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
-        require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
-                f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
-        if stages:
-            require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
-        linear = bool(stages) and not forward and stage_units(stages)[0][-1] == "m"
-        load = Load.from_table(Fields(data["load"], "load"), linear) if "load" in data else Load()
-        sensors = Sensors.from_table(Fields(data["sensors"], "sensors")) if "sensors" in data else Sensors()
-        req = (Requirements.from_table(Fields(data["requirements"], "requirements"))
-               if "requirements" in data else Requirements())
-        studies = data.get("studies", {})
-        require(isinstance(studies, dict), "studies", "must be a table of [studies.NAME] tables")
-        mechanism = None
-        if "mechanism" in data:
-            f = Fields(data["mechanism"], "mechanism")
-            kind = f.text("kind")
-            require(kind in MECHANISM_KINDS, f.key("kind"),
-                    f"unknown mechanism kind {kind!r}; known: {sorted(MECHANISM_KINDS)}")
-            mechanism = MECHANISM_KINDS[kind].from_table(f)
-        raw_rs = data.get("stages", [])
-        require(isinstance(raw_rs, list), "stages", "must be an array of tables [[stages]]")
-        roller = tuple(RollerScrewStage.from_table(Fields(t, f"stages[{i}]"), i == 0)
-                       for i, t in enumerate(raw_rs))
-        operating = (RollerScrewOperating.from_table(Fields(data["operating"], "operating"))
-                     if "operating" in data else None)
-        robust = (Robustness.from_table(Fields(data["robustness"], "robustness"))
-                  if "robustness" in data else None)
-        require(bool(stages or mechanism or roller), "drivetrain",
-                "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
-        unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
-        scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
-                      stages=stages, stage_friction=stage_friction, load=load, sensors=sensors, requirements=req,
-                      studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
-                      mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
-                      duty_cycle=_duty_cycle(data, stages, unit, source),
-                      display=display_units_from_table(Fields(data.get("display", {}), "display"), unit == "m"),
-                      source=source)
-        if stages:
-            _built("drivetrain", scene.drivetrain.check)
-            from .study_stroke import check_study_amplitudes
-            check_study_amplitudes(scene)
-        if scene.duty_cycle is not None:
-            from .duty_cycle import check_positions
-            dt = scene.drivetrain
-            check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
-        if "tolerances" in data or robust is not None:
-            from .tolerances import tolerances_of
-            scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene, scene_from_dict))
-        return scene
+        with collecting_notes() as notes:
+            scene = _scene_of(data, source)
+        return replace_params(scene, notes=tuple(notes)) if notes else scene
     except SceneError as exc:
         raise exc.with_source(source) if source else exc from None
+
+
+def _scene_of(data: dict, source: str | None) -> Scene:
+    """The scene of :func:`scene_from_dict` (errors without their file)."""
+    unknown = sorted(set(data) - _TOP_KEYS)
+    require(not unknown, unknown[0] if unknown else "", f"unknown top-level key; known: {sorted(_TOP_KEYS)}")
+    name = data.get("name")
+    require("name" in data, "name", "missing key (required): a non-empty string")
+    require(isinstance(name, str) and name.strip(), "name", f"expected a non-empty string, got {name!r}")
+    motor = DCMotor.from_table(Fields(data["motor"], "motor")) if "motor" in data else None
+    raw_stages = data.get("drivetrain", [])
+    require(isinstance(raw_stages, list), "drivetrain", "must be an array of tables [[drivetrain]]")
+    built = [_stage(t, i, travel) for i, (t, travel) in enumerate(zip(raw_stages, _stage_outputs_travel(raw_stages)))]
+    stages = tuple(b[0] for b in built)
+    stage_friction = tuple(b[1] for b in built) if any(b[1] is not None for b in built) else ()
+    check_stage_order(raw_stages)
+    check_stroke_stage(raw_stages)
+    forward = [i for i, s in enumerate(stages) if s.direction == "forward"]
+    require(not forward or forward[-1] == len(stages) - 1 and len(forward) == 1,
+            f"drivetrain[{forward[0] if forward else 0}].kind", "a cam must be the last stage")
+    if stages:
+        require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
+    linear = bool(stages) and not forward and stage_units(stages)[0][-1] == "m"
+    load = Load.from_table(Fields(data["load"], "load"), linear) if "load" in data else Load()
+    sensors = Sensors.from_table(Fields(data["sensors"], "sensors")) if "sensors" in data else Sensors()
+    req = (Requirements.from_table(Fields(data["requirements"], "requirements"))
+           if "requirements" in data else Requirements())
+    studies = data.get("studies", {})
+    require(isinstance(studies, dict), "studies", "must be a table of [studies.NAME] tables")
+    mechanism = None
+    if "mechanism" in data:
+        f = Fields(data["mechanism"], "mechanism")
+        kind = f.text("kind")
+        require(kind in MECHANISM_KINDS, f.key("kind"),
+                f"unknown mechanism kind {kind!r}; known: {sorted(MECHANISM_KINDS)}")
+        mechanism = MECHANISM_KINDS[kind].from_table(f)
+    raw_rs = data.get("stages", [])
+    require(isinstance(raw_rs, list), "stages", "must be an array of tables [[stages]]")
+    roller = tuple(RollerScrewStage.from_table(Fields(t, f"stages[{i}]"), i == 0)
+                   for i, t in enumerate(raw_rs))
+    operating = (RollerScrewOperating.from_table(Fields(data["operating"], "operating"))
+                 if "operating" in data else None)
+    robust = (Robustness.from_table(Fields(data["robustness"], "robustness"))
+              if "robustness" in data else None)
+    require(bool(stages or mechanism or roller), "drivetrain",
+            "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
+    unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
+    scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
+                  stages=stages, stage_friction=stage_friction, load=load, sensors=sensors, requirements=req,
+                  studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
+                  mechanism=mechanism, roller_screw=roller, operating=operating, robustness=robust,
+                  duty_cycle=_duty_cycle(data, stages, unit, source),
+                  display=display_units_from_table(Fields(data.get("display", {}), "display"), unit == "m"),
+                  source=source)
+    if stages:
+        _built("drivetrain", scene.drivetrain.check)
+        from .study_stroke import check_study_amplitudes
+        check_study_amplitudes(scene)
+    if scene.duty_cycle is not None:
+        from .duty_cycle import check_positions
+        dt = scene.drivetrain
+        check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
+    if "tolerances" in data or robust is not None:
+        from .tolerances import tolerances_of
+        scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene, scene_from_dict))
+    return scene
 
 
 def _duty_cycle(data: dict, stages: tuple, unit: str, source):
@@ -315,7 +340,10 @@ def load_scene(path=None) -> Scene:
     if depth > MAX_DEPTH:
         raise SceneError("(file)", f"not a scene: nested {depth} levels deep (a scene needs at most {MAX_DEPTH})",
                          str(path))
-    return scene_from_dict(data, str(path))
+    scene = scene_from_dict(data, str(path))
+    for note in scene.notes:
+        warnings.warn(f"{path}: {note}", SceneWarning, stacklevel=2)
+    return scene
 
 
 #: largest scene file read (bytes): a scene is a few kilobytes of text

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from ..core.fields import Fields, require
+from ..core.fields import Fields, require, unknown_key_rule
 from ..core.ranges import VARIED
 from ..errors import SceneError
 from .time_requirements import TimeRequirements
@@ -52,7 +52,7 @@ class Sensors:
         """Build from a ``[sensors]`` table."""
         s = cls(output_encoder_bits=f.integer("output_encoder_bits", 0, minimum=0),
                 motor_encoder_counts=f.integer("motor_encoder_counts", 0, minimum=0),
-                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative"),
+                sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative", typical=(1e-6, 0.02)),
                 speed_estimator=f.text("speed_estimator", "ideal", choices=SPEED_ESTIMATORS))
         f.check_unknown()
         require(s.output_encoder_bits <= 64, f.key("output_encoder_bits"),
@@ -217,7 +217,7 @@ class Robustness:
                  "min_gain_margin", "min_phase_margin", "max_sensitivity_peak", "min_bandwidth",
                  "max_tracking_error", "max_peak_current", "min_yield"}
         unknown = sorted(set(f.table) - known)
-        require(not unknown, f.key(unknown[0]) if unknown else "", f"unknown key; known keys are {sorted(known)}")
+        require(not unknown, f.key(unknown[0]) if unknown else "", unknown_key_rule(unknown[0] if unknown else "", known))
 
         def span(name, unit, positive):
             if not f.has(name):

@@ -15,6 +15,31 @@ from ..display.cards import RichDisplay
 from ..display.cards import card, facts, num, svg
 
 
+#: the output-referred traces (the motor side and the output as coordinates at the output,
+#: the play, the command) of an output travel: they hold m and m/s, not rad
+_TRAVEL_NAMES = {"motor_side_angle_rad": "motor_side_travel_m", "motor_side_rate_rad_s": "motor_side_rate_m_s",
+                 "output_angle_rad": "output_travel_m", "output_rate_rad_s": "output_rate_m_s",
+                 "play_state_rad": "play_state_m", "reference_angle_rad": "reference_travel_m"}
+
+
+def shown_name(name: str, output_unit: str = "rad") -> str:
+    """A trace's name with the unit it holds, as written to a file or shown.
+
+    The simulation names its states for an output angle (``output_angle_rad``); for an
+    output travel (``output_unit`` ``"m"``) the output-referred traces hold metres and are
+    named so (``output_travel_m``, ``reference_travel_m``, ``output_rate_m_s``...). The
+    chain's intermediate nodes get their unit too (``node[1]_position_rad`` or ``_m``,
+    ``node[1]_rate_rad_s`` or ``_m_s``). Other names (motor current, speed estimator,
+    already in motor units) are unchanged.
+    """
+    travel = output_unit == "m"
+    if name.startswith("node[") and name.endswith("_position"):
+        return name + ("_m" if travel else "_rad")
+    if name.startswith("node[") and name.endswith("_rate"):
+        return name + ("_m_s" if travel else "_rad_s")
+    return _TRAVEL_NAMES.get(name, name) if travel else name
+
+
 @dataclass(frozen=True, repr=False)
 class SimulationResult(RichDisplay):
     """Recorded traces of one run.
@@ -26,8 +51,11 @@ class SimulationResult(RichDisplay):
     states : numpy.ndarray
         (n, nx) state records; columns named by ``state_names``.
     state_names : tuple of str
+        The simulation's names of the states (:meth:`trace` takes them, and the names
+        written to files, :func:`shown_name`, which carry the unit each trace holds).
     reference_angle : numpy.ndarray
-        Commanded output angle (rad) at the record times (open loop: the start angle).
+        Commanded output coordinate (rad, or m for an output travel) at the record times
+        (open loop: the start position).
     motor_speed : numpy.ndarray
         omega_m (rad/s).
     motor_current, motor_voltage, current_reference, motor_torque : numpy.ndarray
@@ -91,8 +119,18 @@ class SimulationResult(RichDisplay):
         return OutputUnit(self.output_unit)
 
     def trace(self, name: str) -> np.ndarray:
-        """One state trace by name."""
+        """One state trace by its simulation name (``output_angle_rad``) or by the name it
+        is written under (``output_travel_m`` for an output travel)."""
+        if name not in self.state_names:
+            shown = [shown_name(n, self.output_unit) for n in self.state_names]
+            if name in shown:
+                name = self.state_names[shown.index(name)]
         return self.states[:, self.state_names.index(name)]
+
+    @property
+    def shown_names(self) -> tuple:
+        """The states' names as written and shown, with the unit each holds (:func:`shown_name`)."""
+        return tuple(shown_name(n, self.output_unit) for n in self.state_names)
 
     @property
     def output_angle(self) -> np.ndarray:
@@ -118,8 +156,8 @@ class SimulationResult(RichDisplay):
 
     @property
     def final_state(self) -> dict:
-        """Last state by name."""
-        return {n: float(v) for n, v in zip(self.state_names, self.states[-1])}
+        """Last state by the name it is shown under (with its unit, :func:`shown_name`)."""
+        return {n: float(v) for n, v in zip(self.shown_names, self.states[-1])}
 
     @property
     def t_final(self) -> float:
@@ -127,10 +165,13 @@ class SimulationResult(RichDisplay):
         return float(self.times[-1])
 
     def columns(self) -> dict:
-        """Every trace by column name (for CSV/NPZ)."""
+        """Every trace by column name (for CSV/NPZ); each name carries the unit its trace
+        holds (:func:`shown_name`: ``output_travel_m`` and ``reference_travel_m`` for an
+        output travel)."""
         cols = {"t_s": self.times}
-        cols.update({n: self.states[:, j] for j, n in enumerate(self.state_names)})
-        cols.update({"reference_angle_rad": self.reference_angle, "motor_speed_rad_s": self.motor_speed,
+        cols.update({n: self.states[:, j] for j, n in enumerate(self.shown_names)})
+        cols.update({shown_name("reference_angle_rad", self.output_unit): self.reference_angle,
+                     "motor_speed_rad_s": self.motor_speed,
                      "motor_current_A": self.motor_current, "motor_voltage_V": self.motor_voltage,
                      "current_reference_A": self.current_reference, "motor_torque_Nm": self.motor_torque})
         return cols

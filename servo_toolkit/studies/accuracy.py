@@ -81,10 +81,11 @@ class AccuracyResult:
     output_unit: str = "rad"
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready; the amplitude's key carries its unit (``amplitude_rad``, or
+        ``amplitude_m`` for an output travel)."""
         return {"runs": list(self.runs), "order": self.order, "self_order": self.self_order,
                 "paper_order": self.paper_order,
-                "reference_wall_s": self.reference_wall_s, "amplitude_rad": self.amplitude_rad,
+                "reference_wall_s": self.reference_wall_s, f"amplitude_{self.output_unit}": self.amplitude_rad,
                 "duration_s": self.duration_s, "description": self.description, "repeats": self.repeats,
                 "switching": dict(self.switching), "notes": list(self.notes), "output_unit": self.output_unit}
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.fields import Fields, require
-from ..base import EFFICIENCY_RANGE, Element, Jet, Stage, screw_backdrive_efficiency
+from ..base import EFFICIENCY_RANGE, Element, Jet, Stage, read_stroke, screw_backdrive_efficiency
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class RollerScrewStage:
             roller_radius=q("roller_radius", "m", rule="positive"),
             nut_radius=q("nut_radius", "m", rule="positive"),
             screw_starts=f.integer("screw_starts", minimum=1),
-            lead=q("lead", "m", rule="positive"),
+            lead=q("lead", "m/turn", rule="positive"),
             flank_angle=q("flank_angle", "rad", rule="positive"),
             ring_gear_pressure_angle=q("ring_gear_pressure_angle", "rad", rule="positive"),
             rollers=f.integer("rollers", minimum=1),
@@ -334,11 +334,7 @@ class RollerScrew(Stage):
         require(eta > 0, f.key("roller_screw_friction"), "the friction coefficients leave no positive efficiency")
         efficiency = f.number("efficiency", eta, rule="positive", bounds=EFFICIENCY_RANGE)
         require(efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
-        travel = None
-        if f.raw("stroke", None) is not None:
-            travel = tuple(f.quantity_list("stroke", "m", rule="finite"))
-            require(len(travel) == 2 and travel[0] < travel[1], f.key("stroke"),
-                    "must be [lowest, highest] nut travel with lowest < highest")
+        travel = read_stroke(f, "m", "nut travel")
         ratings = {name: f.quantity(name, "N", rule="positive") if f.has(name) else None
                    for name in ("dynamic_load_rating", "static_load_rating", "bearing_dynamic_load_rating")}
         bearing_kind = f.text("bearing_kind", "ball", choices=("ball", "roller"))
