@@ -186,6 +186,7 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     """Design and check one scene: (suite name, cases, JSON dict); ``executor`` runs the
     chunks of its variants; ``design_text`` is the ``--design`` file's text (read once for
     every scene)."""
+    from ..studies.actuator.result import IDS as ACTUATOR_IDS
     from ..studies.gate import SIZING_ROWS, gate
     sizing_ids = {rid for rid, _ in SIZING_ROWS.values()}
     spec = robustness_spec(scene, varies, args.samples)
@@ -206,6 +207,8 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     d["rows"] = [r.to_dict() for r in g.rows]
     if ls is not None:
         d["large_signal"] = ls.to_dict()
+    if g.actuator is not None:
+        d["actuator"] = g.actuator.to_dict()
     if robust is not None:
         d["robustness"] = robust.to_dict()
     if g.montecarlo is not None:
@@ -222,10 +225,13 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
         if robust is not None:
             print(robust.table())
         for r in g.rows:
+            if r.id in ACTUATOR_IDS:
+                print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
+        for r in g.rows:
             if r.id in ("robust_tracking_error", "robust_peak_current") or r.id in sizing_ids \
                     or r.id.startswith(("life_", "static_load_", "yield")):
                 print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
-        for n in result.notes:
+        for n in (*result.notes, *(g.actuator.notes if g.actuator is not None else ())):
             print(f"  note: {n}")
     return scene.name, cases, d
 

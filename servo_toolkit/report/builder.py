@@ -50,7 +50,7 @@ SECTIONS = (
     ("robustness", "Robustness over the parameter variants", robust.robustness),
     ("montecarlo", "Nonlinear Monte Carlo over the parameter variants", montecarlo.montecarlo_section),
     ("tolerances", "Tolerances: yield and sensitivity", tolerances.tolerances_section),
-    ("time", "Step response and 8 Hz sine tracking", timing.time_responses),
+    ("time", "Step response and sine tracking", timing.time_responses),
     ("command", "Control that uses the model: feedforward, gain schedule, command shaping", command.command_section),
     ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
     ("kv", "Dynamic-load factor Kv", studies.kv_tables),

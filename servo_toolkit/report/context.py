@@ -69,6 +69,19 @@ class Context:
         return self.result("design", lambda: design(self.scene))
 
 
+    def actuator(self):
+        """The designed loop's nonlinear step and requirement sine
+        (:func:`servo_toolkit.studies.actuator.actuator_check`), or None when the linear closed
+        loop is unstable: one set of runs for the requirements table and the time section."""
+        def compute():
+            d = self.design()
+            if not d.margins.closed_loop_stable:
+                return None
+            from ..studies.actuator import actuator_check
+            return actuator_check(self.scene, d)
+        return self.result("actuator", compute)
+
+
 def describe_kind(scene) -> str:
     """A few words on what a scene describes."""
     if scene.mechanism is not None:

@@ -70,7 +70,7 @@ def _requirement_rows(ctx):
             return (), ()
         return tuple(unavailable_rows(wanted + [("loop_design", "loop design")], str(exc))), ()
     mc, mc_error = _montecarlo(ctx)
-    from ..errors import SimulationError
+    from ..errors import SceneError, SimulationError
     from .sections_sizing import sizing_for_gate
     sized = sizing_for_gate(ctx)   # shared with the sizing section; its error leaves its rows without a verdict
     tolerances, tol_error = _tolerances(ctx)
@@ -80,13 +80,24 @@ def _requirement_rows(ctx):
     else:
         ctx_scene = ctx.scene
     try:
-        g = gate(ctx_scene, design, montecarlo=mc, sizing=sized, tolerances=tolerances)
+        act = ctx.actuator()
+    except (SimulationError, SceneError) as exc:  # no verdict on runs that could not be made
+        act, act_error = False, exc
+    else:
+        act_error = None
+    try:
+        g = gate(ctx_scene, design, montecarlo=mc, sizing=sized, tolerances=tolerances,
+                 actuator=False if act is None else act)
         rows = list(g.rows)
     except SimulationError as exc:  # the large-signal run could not run: no verdict on its rows
         g = gate(ctx_scene, design, montecarlo=mc, linear_only=True, sizing=sized, tolerances=tolerances)
         rows = list(g.rows) + unavailable_rows(
             [("large_signal_gain", "large signal: |gain difference| from the linear loop"),
              ("large_signal_phase", "large signal: |phase difference| from the linear loop")], str(exc))
+        rows += act.rows() if act else []
+    if act_error is not None:
+        from ..studies.actuator.result import LABELS as ACT_LABELS
+        rows += unavailable_rows([(i, w.format(f="sine")) for i, w in ACT_LABELS.items()], str(act_error))
     if mc_error is not None:
         spec = ctx.scene.robustness
         ids = [(i, f"robust: worst {w}") for i, w, v in (

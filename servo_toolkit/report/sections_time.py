@@ -1,5 +1,7 @@
-"""Step response and 8 Hz sine tracking: the linear closed loop and the nonlinear simulation;
-the same step with friction that holds (stick phases, position error at rest, hunting)."""
+"""The step and the requirement sine: the linear closed loop beside the actuator's nonlinear
+closed loop, the very runs ``check`` judges (:mod:`servo_toolkit.studies.actuator`: the full
+model, friction that holds), their rows, their electrics and their friction at rest (stick
+phases, position error at rest, hunting)."""
 
 from __future__ import annotations
 
@@ -10,15 +12,9 @@ import numpy as np
 from . import figures
 from ..errors import SceneError, SimulationError
 from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
-from .section import FigureSpec, NotAvailable, Section, fmt, para, table
+from .section import FigureSpec, NotAvailable, Section, badge, fmt, para, table
 
 SINE_HZ = REQUIREMENT_SINE_HZ
-#: the step is this fraction of the sine's amplitude (the output's default command amplitude:
-#: 2 deg for an angle, 1 mm for a travel)
-STEP_FRACTION = 0.5
-#: the step with friction that holds runs this many times the step plot's span (a loop
-#: hunting against static friction or creeping to rest is slower than its step)
-REST_SPANS = 2.0
 
 
 def _fit_sine(t, y, f):
@@ -58,13 +54,13 @@ def step_cells(t, y, final, what: str):
 
 def limit_figures(result, motor) -> dict:
     """Peak |current| and |voltage| of a run and the time spent at each limit (s): the
-    voltage within 0.1 % of the supply, the current within 0.1 % of its limit."""
-    dt = np.diff(result.times, append=result.times[-1])
-    i, v = np.abs(result.motor_current), np.abs(result.motor_voltage)
-    at_v = v >= motor.voltage_limit * (1 - 1e-3) if math.isfinite(motor.voltage_limit) else np.zeros_like(v, bool)
-    at_i = i >= motor.current_limit * (1 - 1e-3) if math.isfinite(motor.current_limit) else np.zeros_like(i, bool)
+    voltage within 1 % of the supply, the current within 1 % of its limit (a current pinned at
+    99 % of its limit is at it)."""
+    from ..studies.actuator.figures import time_at_limit
+    t, i, v = result.times, np.abs(result.motor_current), np.abs(result.motor_voltage)
     return {"peak_current_A": float(i.max()), "peak_voltage_V": float(v.max()),
-            "time_at_voltage_limit_s": float(np.sum(dt[at_v])), "time_at_current_limit_s": float(np.sum(dt[at_i]))}
+            "time_at_voltage_limit_s": time_at_limit(t, v, motor.voltage_limit),
+            "time_at_current_limit_s": time_at_limit(t, i, motor.current_limit)}
 
 
 def _electrics(runs, motor):
@@ -104,114 +100,124 @@ def rest_rows(rest, u):
             ("time stuck (speed exactly 0)", f"{rest.stuck.mean():.0%} ({len(rest.stick_phases)} stick phases)")]
 
 
-def time_responses(ctx) -> Section:
-    """Step and 8 Hz sine: linear closed loop (python-control) and, when available, the
-    nonlinear simulation with the same controller (limits, friction, backlash)."""
+def time_title(ctx) -> str:
+    """The section's title: the step and the sine at the required bandwidth."""
+    try:
+        f = next(c.required for c in ctx.design().requirements if c.name == "bandwidth")
+    except Exception:  # noqa: BLE001 - the section itself says why it has no design
+        return "Step response and sine tracking"
+    return f"Step response and {fmt(f)} Hz sine tracking"
+
+
+def _linear(cl, plan, t_step, t_sine):
+    """The linear closed loop's step and sine on the nonlinear runs' grids (SI), computed on
+    evenly spaced copies of them (python-control's forced response needs even steps)."""
     import control as ct
-    d = ctx.design()
-    cl = d.closed_loop
-    q0 = d.q0
-    u = output_unit(ctx.scene)
-    sine_amp = u.show(u.default_amplitude)      # in the shown unit (deg or mm)
-    step_amp = STEP_FRACTION * sine_amp
-    what = "output travel" if u.linear else "output angle"
-    step_title = f"{step_amp:g} {u.shown} step"
-    sine_title = f"{sine_amp:g} {u.shown} sine at {SINE_HZ:g} Hz"
-    t_step = np.linspace(0.0, 0.25 if ctx.light else 0.5, 1001)
-    _, y_step = ct.step_response(cl, t_step)
-    y_step = np.asarray(y_step).reshape(-1) * step_amp
-    n_cycles = 6 if ctx.light else 12
-    t_sine = np.linspace(0.0, n_cycles / SINE_HZ, 200 * n_cycles + 1)
-    ref = sine_amp * np.sin(2 * np.pi * SINE_HZ * t_sine)
-    _, y_sine = ct.forced_response(cl, t_sine, ref)
-    y_sine = np.asarray(y_sine).reshape(-1)
-    last = t_sine >= (n_cycles - 2) / SINE_HZ
-    amp, ph = _fit_sine(t_sine[last], y_sine[last], SINE_HZ)
-    cells, note = step_cells(t_step, y_step, step_amp, "linear")
-    rows = [("linear closed loop", *cells, fmt(20 * math.log10(amp / sine_amp)), fmt(ph))]
+    even = np.linspace(t_step[0], t_step[-1], t_step.size)
+    _, y_step = ct.step_response(cl, even)
+    even_sine = np.linspace(t_sine[0], t_sine[-1], t_sine.size)
+    ref = plan.sine_amplitude * np.sin(2 * np.pi * plan.frequency * even_sine)
+    _, y_sine = ct.forced_response(cl, even_sine, ref)
+    return (np.interp(t_step, even, np.asarray(y_step).reshape(-1) * plan.step),
+            plan.sine_amplitude * np.sin(2 * np.pi * plan.frequency * t_sine),
+            np.interp(t_sine, even_sine, np.asarray(y_sine).reshape(-1)))
+
+
+def _model_rows(act, lin_step, t_sine, y_sine_lin, u):
+    """(model, rise, overshoot, settling, gain, phase) rows of the linear and the nonlinear loop."""
+    plan, f = act.plan, act.plan.frequency
+    t, y = act.step_trace()
+    keep = t >= 0.0
+    last = t_sine >= (t_sine[-1] - 2.0 / f)
+    amp, ph = _fit_sine(t_sine[last], y_sine_lin[last], f)
+    cells, note = step_cells(t[keep], lin_step, plan.step, "linear")
+    rows = [("linear closed loop", *cells, fmt(20 * math.log10(amp / plan.sine_amplitude)), fmt(ph))]
     notes = [note] if note else []
-    nonlinear = None
-    electrics, electric_fig = [], None
+    r2 = act.sine_run
+    last2 = r2.times >= (r2.times[-1] - 2.0 / f)
+    amp2, ph2 = _fit_sine(r2.times[last2], r2.output_angle[last2] - act.q0, f)
+    cells2, note2 = step_cells(t[keep], y[keep], plan.step, "nonlinear")
+    rows.append(("nonlinear simulation", *cells2, fmt(20 * math.log10(amp2 / plan.sine_amplitude)), fmt(ph2)))
+    return rows, notes + ([note2] if note2 else [])
+
+
+def time_responses(ctx) -> Section:
+    """The step and the requirement sine: the linear closed loop and the actuator's nonlinear
+    runs that ``check`` judges (one set of runs, :meth:`~.context.Context.actuator`), their
+    rows, electrics and friction at rest."""
+    from ..studies.actuator.runs import STEP_AT
+    from ..studies.hunting import analyse, dead_band, load_holds, shade_stick_phases, show_dead_band
+    d = ctx.design()
+    u = output_unit(ctx.scene)
     try:
-        from ..sim import simulate
-        from ..sim import Reference as reference
-        t_at = 0.01
-        r1 = simulate(ctx.scene, d.controller, reference=reference.step(step_amp / u.factor, at=t_at),
-                      duration=t_step[-1] + t_at, method="rk4")
-        r2 = simulate(ctx.scene, d.controller, reference=reference.sine(sine_amp / u.factor, SINE_HZ),
-                      duration=t_sine[-1], method="rk4")
-        ts1 = r1.times - t_at
-        ys1 = u.show(r1.output_angle - q0)
-        ys1 -= ys1[ts1 < 0][-1] if np.any(ts1 < 0) else 0.0
-        keep = ts1 >= 0
-        ts2, ys2 = r2.times, u.show(r2.output_angle - q0)
-        last2 = ts2 >= (n_cycles - 2) / SINE_HZ
-        amp2, ph2 = _fit_sine(ts2[last2], ys2[last2], SINE_HZ)
-        cells2, note2 = step_cells(ts1[keep], ys1[keep], step_amp, "nonlinear")
-        rows.append(("nonlinear simulation", *cells2, fmt(20 * math.log10(amp2 / sine_amp)), fmt(ph2)))
-        if note2:
-            notes.append(note2)
-        nonlinear = (ts1[keep], ys1[keep], ts2, ys2, r2)
-        notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); peak motor torque "
-                     f"in the sine run {fmt(r2.max_abs_motor_torque)} N*m.")
-        motor = ctx.scene.motor
-        for name, r in (("step", r1), (f"{SINE_HZ:g} Hz sine", r2)):
-            lf = limit_figures(r, motor)
-            electrics.append((name, fmt(lf["peak_current_A"]), fmt(motor.current_limit), fmt(lf["peak_voltage_V"]),
-                              fmt(motor.voltage_limit), fmt(lf["time_at_current_limit_s"] * 1e3),
-                              fmt(lf["time_at_voltage_limit_s"] * 1e3)))
-        electric_fig = _electrics(((step_title, r1.times - t_at, r1), (sine_title, r2.times, r2)), motor)
-    except NotAvailable as exc:
-        notes.append(f"Nonlinear simulation not available: {exc}")
-    rest, rest_body = None, ""
-    try:
-        from ..studies.hunting import rest_study
-        rest = rest_study(ctx.scene, d.controller, step=step_amp / u.factor, duration=REST_SPANS * t_step[-1],
-                          method="rk4")
-        motor = ctx.scene.motor
-        rest_body = para(
-            f"The same step with friction that holds (the motor's breakaway {fmt(motor.breakaway_torque)} N*m, "
-            f"Coulomb {fmt(motor.coulomb_friction)} N*m, and the load's where it has any; the runs above smooth "
-            "the motor's Coulomb friction and never stick): the loop stops where the moment it applies no "
-            "longer breaks the static friction (within the dead band of its proportional path, before integral "
-            "action winds up), or hunts when integral action winds up against it. Stick "
-            f"phases (the speed exactly 0) are shaded on the step plot; the run lasts {REST_SPANS:g} times "
-            "the plot's span, and the rest and the hunting are judged on its second half.")
-        rest_body += table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
-    except (SimulationError, SceneError) as exc:  # the section's time limit (NotAvailable) still stops it
-        notes.append(f"Step with friction that holds not available: {exc}")
+        act = ctx.actuator()
+    except (SimulationError, SceneError) as exc:
+        raise NotAvailable(f"the nonlinear runs could not be carried out: {exc}") from None
+    if act is None:
+        raise NotAvailable("the linear closed loop is unstable: the nonlinear runs are not made "
+                           "(closed_loop_stable fails)")
+    if act.step_run is None or act.sine_run is None:
+        raise NotAvailable(f"a nonlinear run left the stroke: {act.failure}")
+    plan, motor = act.plan, ctx.scene.motor
+    t, y = act.step_trace()
+    keep = t >= 0.0
+    r1, r2 = act.step_run, act.sine_run
+    lin_step, ref, y_sine = _linear(d.closed_loop, plan, t[keep], r2.times)
+    rows, notes = _model_rows(act, lin_step, r2.times, y_sine, u)
+    step_title = f"{u.text(plan.step, 3)} step"
+    sine_title = f"{u.text(plan.sine_amplitude, 3)} sine at {fmt(plan.frequency)} Hz"
+    notes.append(f"Nonlinear runs: {r1.method}, step {fmt(r1.dt_s)} s ({r1.choice}); the full model with friction "
+                 "that holds at the motor, each stage and the load (the runs check judges). "
+                 + " ".join(n[0].upper() + n[1:] + "." for n in plan.notes))
+    rest = analyse(r1, load_friction=load_holds(ctx.scene), window=plan.settling_time + STEP_AT)
+    band = dead_band(ctx.scene, d.controller)
+    rest = type(rest)(**{**rest.__dict__, "dead_band": band})
+    rest_body = para(
+        f"Friction at rest in the same step (the motor's breakaway {fmt(motor.breakaway_torque)} N*m, Coulomb "
+        f"{fmt(motor.coulomb_friction)} N*m, and each stage's and the load's): the loop stops where the moment it "
+        "applies no longer breaks the static friction, or hunts when integral action winds up against it. Stick "
+        "phases (the speed exactly 0) are shaded on the step plot; rest and hunting are judged after the settling "
+        "allowance.") + table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
-    a1.plot(t_step * 1e3, y_step, label="linear")
-    a1.axhline(step_amp, color="0.6", lw=0.8)
-    a2.plot(t_sine * 1e3, ref, color="0.6", lw=0.8, label="command")
-    a2.plot(t_sine * 1e3, y_sine, label="linear")
-    if nonlinear is not None:
-        a1.plot(nonlinear[0] * 1e3, nonlinear[1], "--", label="nonlinear")
-        a2.plot(nonlinear[2] * 1e3, nonlinear[3], "--", label="nonlinear")
-    if rest is not None:
-        from ..studies.hunting import shade_stick_phases, show_dead_band
-        a1.plot(rest.times * 1e3, step_amp - u.show(rest.error), ":", label="nonlinear, friction that holds")
-        shade_stick_phases(a1, rest.stick_phases, scale=1e3)
-        if rest.dead_band is not None:
-            show_dead_band(a1, step_amp, float(u.show(rest.dead_band)))
-        a1.set_xlim(0.0, t_step[-1] * 1e3)
+    a1.plot(t[keep] * 1e3, u.show(np.full(keep.sum(), plan.step)), color="0.6", lw=0.8, label="command")
+    a1.plot(t[keep] * 1e3, u.show(lin_step), label="linear")
+    a1.plot(t[keep] * 1e3, u.show(y[keep]), "--", label="nonlinear")
+    shade_stick_phases(a1, [(a - STEP_AT, b - STEP_AT) for a, b in rest.stick_phases], scale=1e3)
+    if band is not None:
+        show_dead_band(a1, float(u.show(plan.step)), float(u.show(band)))
+    a1.axhspan(u.show(plan.step - plan.rest_band), u.show(plan.step + plan.rest_band), color="C4", alpha=0.15,
+               label="settling band")
+    a1.set_xlim(0.0, t[-1] * 1e3)
+    a2.plot(r2.times * 1e3, u.show(ref), color="0.6", lw=0.8, label="command")
+    a2.plot(r2.times * 1e3, u.show(y_sine), label="linear")
+    a2.plot(r2.times * 1e3, u.show(r2.output_angle - act.q0), "--", label="nonlinear")
+    what = "output travel" if u.linear else "output angle"
     a1.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=step_title)
     a2.set(xlabel="time [ms]", ylabel=f"{what} change [{u.shown}]", title=sine_title)
     for ax in (a1, a2):
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
-    head = ("model", "rise 10-90 % [ms]", "overshoot", "settling 2 % [ms]", f"gain at {SINE_HZ:g} Hz [dB]",
-            f"phase at {SINE_HZ:g} Hz [deg]")
-    body = table(head, rows) + rest_body
-    figs = [FigureSpec(fig, "Step response and 8 Hz sine tracking"
-                       + ("; grey: the shaft stuck in the step with friction that holds; green: the dead band of the loop's "
-                          "proportional path about the command." if rest is not None else "."))]
-    if electrics:
-        body += para("Motor electrics in the nonlinear runs against the drive's limits (time at a limit: within "
-                     "0.1 % of it).") + table(("run", "peak current [A]", "current limit [A]", "peak voltage [V]",
-                                               "voltage limit [V]", "time at current limit [ms]",
-                                               "time at voltage limit [ms]"), electrics, table_id="electrics-table")
-        figs.append(FigureSpec(electric_fig, "Motor current and armature voltage against their limits."))
-    return Section("Step response and 8 Hz sine tracking",
-                   para(f"Small-signal commands about q0 = {u.text(q0)} with the designed controller.",
-                        *notes) + body, tuple(figs), key="time")
+    electrics = []
+    for name, r in (("step", r1), (f"{fmt(plan.frequency)} Hz sine", r2)):
+        lf = limit_figures(r, motor)
+        electrics.append((name, fmt(lf["peak_current_A"]), fmt(motor.current_limit), fmt(lf["peak_voltage_V"]),
+                          fmt(motor.voltage_limit), fmt(lf["time_at_current_limit_s"] * 1e3),
+                          fmt(lf["time_at_voltage_limit_s"] * 1e3)))
+    electric_fig = _electrics(((step_title, r1.times - STEP_AT, r1), (sine_title, r2.times, r2)), motor)
+    verdict = [(r.id, r.requirement, r.required, r.achieved, badge(r.status)) for r in act.rows()]
+    head = ("model", "rise 10-90 % [ms]", "overshoot", "settling 2 % [ms]", f"gain at {fmt(plan.frequency)} Hz [dB]",
+            f"phase at {fmt(plan.frequency)} Hz [deg]")
+    body = (para("The rows check judges on these runs (the same rows as the requirements table):")
+            + table(("ID", "requirement", "required", "achieved", "status"), verdict, table_id="actuator-table")
+            + table(head, rows) + rest_body
+            + para("Motor electrics in the nonlinear runs against the drive's limits (time at a limit: within 1 % "
+                   "of it).")
+            + table(("run", "peak current [A]", "current limit [A]", "peak voltage [V]", "voltage limit [V]",
+                     "time at current limit [ms]", "time at voltage limit [ms]"), electrics, table_id="electrics-table"))
+    figs = (FigureSpec(fig, f"{step_title} and {sine_title}: linear and nonlinear (full model, friction that holds); "
+                            "grey: the shaft stuck; purple: the settling band"
+                            + ("; the dead band of the loop's proportional path about the command." if band is not None
+                               else ".")),
+            FigureSpec(electric_fig, "Motor current and armature voltage against their limits."))
+    return Section(time_title(ctx), para(f"Commands about q0 = {u.text(d.q0)} with the designed controller.", *notes)
+                   + body, figs, key="time")

@@ -10,6 +10,7 @@ from types import MappingProxyType
 from ..core.fields import Fields, require
 from ..core.ranges import VARIED
 from ..errors import SceneError
+from .time_requirements import TimeRequirements
 from .tracking import tracking_error as _tracking_error
 
 #: the rule of a required yield of 1
@@ -70,7 +71,8 @@ class Sensors:
 class Requirements:
     """Loop requirements; ``None`` where the scene sets none.
 
-    Bandwidth in Hz, angles in rad, levels in dB.
+    Bandwidth in Hz, angles in rad, levels in dB; ``time`` holds what the nonlinear closed
+    loop must do in time (:class:`~.time_requirements.TimeRequirements`).
     """
 
     bandwidth: float | None = None
@@ -78,6 +80,7 @@ class Requirements:
     min_gain_margin: float | None = None
     min_phase_margin: float | None = None
     max_sensitivity_peak: float | None = None
+    time: TimeRequirements = TimeRequirements()
 
     @classmethod
     def from_table(cls, f: Fields) -> "Requirements":
@@ -88,7 +91,8 @@ class Requirements:
                 max_phase_lag_at_bandwidth=opt("max_phase_lag_at_bandwidth", "rad"),
                 min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
                 min_phase_margin=opt("min_phase_margin", "rad"),
-                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"))
+                max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
+                time=TimeRequirements.from_fields(f))
         f.check_unknown()
         require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
                 f.key("min_phase_margin"), "must be below 180 deg: a phase margin lies in [-180, 180) deg")

@@ -1,7 +1,8 @@
 """The requirement table of a design: one row per requirement, with a stable ID, shared by
 ``servo-toolkit check`` (its table and JUnit testcases) and the report.
 
-The rows come from the checks the design, its large-signal run, its robustness study and
+The rows come from the checks the design, its large-signal run, the actuator's nonlinear
+step and requirement sine (:mod:`.actuator`: full model, friction that holds), its robustness study and
 the Monte Carlo time runs produce (:class:`servo_toolkit.loop.requirements.Check`), and, for
 a scene with a ``[duty_cycle]``, from the margins of its sizing
 (:func:`servo_toolkit.studies.sizing.size`: the motor's envelope, the winding's thermal
@@ -9,7 +10,8 @@ margin and the L10 lives against ``required_life``) and, for a scene that requir
 (``min_yield``), from its tolerance study (:mod:`.tolerances`: ``yield`` and
 ``yield_<requirement>``, judged on the lower end of the yield's interval); the ID
 of a row is the name of its JUnit testcase (``bandwidth``, ``large_signal_gain``,
-``closed_loop_stable``, ``robust_gain_margin``, ``robust_tracking_error``, ...), so a row
+``closed_loop_stable``, ``step_overshoot``, ``current_ripple``, ``robust_gain_margin``,
+``robust_tracking_error``, ...), so a row
 of the report is found by the same name in a CI log.
 
 Examples
@@ -259,6 +261,10 @@ class Gate:
         The sizing along the scene's ``[duty_cycle]`` (None without one).
     tolerances : ToleranceResult or None
         The yield over the scene's ``[tolerances]`` (None when it requires no yield).
+    actuator : ActuatorCheck or None
+        The nonlinear closed loop's step and requirement sine with the full model and
+        friction that holds (:mod:`.actuator`; None when linear only or the linear closed
+        loop is unstable).
     """
 
     result: object
@@ -269,6 +275,7 @@ class Gate:
     montecarlo_checks: tuple = ()
     sizing: object = None
     tolerances: object = None
+    actuator: object = None
 
     @property
     def passed(self) -> bool:
@@ -285,7 +292,7 @@ class Gate:
 
 
 def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None,
-         executor=None, tolerances=None) -> Gate:
+         executor=None, tolerances=None, actuator=None) -> Gate:
     """Judge ``result`` (a DesignResult of ``scene``) as ``servo-toolkit check`` does.
 
     Parameters
@@ -296,7 +303,8 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         The variants to check (default: the scene's ``[robustness]``); a robust design
         carries its own robustness result.
     linear_only : bool
-        Skip the large-signal run (``check --linear-only``).
+        Skip the nonlinear runs: the large-signal sine and the actuator's step and sine
+        (``check --linear-only``).
     montecarlo : (checks, MonteCarloResult), optional
         Monte Carlo checks already computed (the report's); else they are run when ``spec``
         sets Monte Carlo requirements.
@@ -310,6 +318,10 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     tolerances : ToleranceResult, optional
         The tolerance study already computed (the report's); else it runs when the scene
         requires a yield (``min_yield`` in ``[tolerances]`` or ``[robustness]``).
+    actuator : ActuatorCheck, optional
+        The nonlinear step and sine already run (the report's); else they run unless
+        ``linear_only`` or the linear closed loop is unstable (its rows are then the
+        ``closed_loop_stable`` failure's); False when the caller did not make them (no rows).
 
     Returns
     -------
@@ -332,6 +344,12 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         from ..loop.robustness import robustness
         robust = robustness(scene, result, spec=spec, progress=False, executor=executor)
     rows = design_rows(result, None if ls is None else ls.frequency_hz)
+    if actuator is None and not linear_only and result.margins.closed_loop_stable:
+        from .actuator import actuator_check
+        actuator = actuator_check(scene, result)
+    actuator = actuator or None  # False: the caller says the runs were not made
+    if actuator is not None:
+        rows += actuator.rows()
     if robust is not None:
         rows += robust_rows(robust)
     if montecarlo is None:
@@ -353,7 +371,7 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         tolerances = tolerance_study(scene, result, executor=executor, progress=False)
     if tolerances is not None:
         rows += yield_rows(tolerances)
-    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks), sizing, tolerances)
+    return Gate(result, ls, robust, mc, tuple(rows), tuple(checks), sizing, tolerances, actuator)
 
 
 def failed_count(rows) -> int:

@@ -315,6 +315,14 @@ def analyse(result, load_friction: bool = False, window: float | None = None) ->
                       hunting=hunting, window=start, output_unit=result.output_unit, notes=notes)
 
 
+def load_holds(scene) -> bool:
+    """True when the load carries static friction of its own (a stage's beyond the two-mass
+    split joins it): its exact zero speed counts as stuck too."""
+    from ..drivetrain.operating_point import operating_point
+    load = lumped_friction(scene, operating_point(scene)[0], False, [])[1] if scene.stage_friction else scene.load
+    return load.breakaway > 0
+
+
 def rest_study(scene, controller=None, *, step: float | None = None, duration: float = 1.0,
                method: str = "rk4", dt: float | None = None, options=None) -> RestResult:
     """A step of the position loop run to rest with friction that holds.
@@ -348,10 +356,7 @@ def rest_study(scene, controller=None, *, step: float | None = None, duration: f
     size = STEP_FRACTION * u.default_amplitude if step is None else float(step)
     run = simulate(scene, controller, reference=Reference.step(size), duration=duration, method=method, dt=dt,
                    options=options)
-    # the load carries friction of its own (a stage's beyond the two-mass split joins it)
-    from ..drivetrain.operating_point import operating_point
-    load = lumped_friction(scene, operating_point(scene)[0], False, [])[1] if scene.stage_friction else scene.load
-    res = analyse(run, load_friction=load.breakaway > 0)
+    res = analyse(run, load_friction=load_holds(scene))
     ts = scene.motor.breakaway_torque
     head = (f"{u.text(size, 3)} step, {duration:g} s, {run.method}"
             + (f" at {run.dt_s:.3g} s" if run.dt_s else "")
@@ -359,5 +364,5 @@ def rest_study(scene, controller=None, *, step: float | None = None, duration: f
     return replace(res, notes=(head, *res.notes, *run.notes), dead_band=dead_band(scene, controller, efficiency=options.efficiency))
 
 
-__all__ = ["Hunting", "LOW_FREQUENCY", "MIN_STICK_RECORDS", "RestResult", "STEP_FRACTION", "analyse", "dead_band",
+__all__ = ["Hunting", "LOW_FREQUENCY", "load_holds", "MIN_STICK_RECORDS", "RestResult", "STEP_FRACTION", "analyse", "dead_band",
            "holding_band", "hunting_text", "rest_study", "shade_stick_phases", "show_dead_band", "stick_mask", "summary_line"]

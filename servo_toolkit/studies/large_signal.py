@@ -9,8 +9,8 @@ amplitude of the scene's sweep study (2 deg, or 1 mm for an output travel, witho
 for :data:`CYCLES` cycles; the fundamental of the last :data:`FIT_CYCLES` is compared with
 the linear closed loop at that frequency. Rows: ``large_signal_gain`` (|gain difference|
 at most :data:`GAIN_TOLERANCE_DB`) and ``large_signal_phase`` (|phase difference| at most
-:data:`PHASE_TOLERANCE_DEG`); the time at the voltage and current limits is reported beside
-them.
+:data:`PHASE_TOLERANCE_DEG`); the time at the voltage and current limits (within 1 % of
+each, :func:`~.actuator.figures.time_at_limit`) is reported beside them.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..loop.requirements import Check
+from .actuator.figures import time_at_limit
 
 GAIN_TOLERANCE_DB = 1.0
 PHASE_TOLERANCE_DEG = 10.0
@@ -156,15 +157,13 @@ def large_signal(scene, result) -> LargeSignal:
     last = t >= (CYCLES - FIT_CYCLES) / f
     a, ph = _fit(t[last], y[last], f)
     motor = scene.motor
-    dt = np.diff(t, append=t[-1])
     v, i = np.abs(run.motor_voltage), np.abs(run.motor_current)
-    at_v = v >= motor.voltage_limit * (1 - 1e-3) if math.isfinite(motor.voltage_limit) else np.zeros(t.size, bool)
-    at_i = i >= motor.current_limit * (1 - 1e-3) if math.isfinite(motor.current_limit) else np.zeros(t.size, bool)
     with np.errstate(divide="ignore"):
         gain = 20 * math.log10(a / amp) if a > 0 else -math.inf
     return LargeSignal(frequency_hz=float(f), amplitude=amp, gain_db=gain, phase_deg=ph,
                        linear_gain_db=lin_db, linear_phase_deg=lin_deg,
-                       time_at_voltage_limit_s=float(np.sum(dt[at_v])), time_at_current_limit_s=float(np.sum(dt[at_i])),
+                       time_at_voltage_limit_s=time_at_limit(t, v, motor.voltage_limit),
+                       time_at_current_limit_s=time_at_limit(t, i, motor.current_limit),
                        duration_s=float(duration), peak_current_A=float(i.max()), peak_voltage_V=float(v.max()))
 
 
