@@ -6,36 +6,27 @@ encoder at 0.2 ms) whose unbounded design reads the encoder into 1.5 A rms of cu
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from servo_toolkit.loop.actuator_bounds import RIPPLE_FRACTION
+from servo_toolkit.loop.actuator_bounds import RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT, ripple_allowance
 from servo_toolkit.loop.design import design
 from servo_toolkit.loop.reach import REACH_FRACTION, reach, reach_profile
 from servo_toolkit.plant.linear import plant_parameters
-from servo_toolkit.scene.loader import scene_from_dict
+from servo_toolkit.scene import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, simulate
+from servo_toolkit.studies.actuator import spec
 
-GEARMOTOR = {
-    "name": "gearmotor_carriage",
-    "motor": {"kind": "dc", "resistance": "1.2 ohm", "inductance": "1.5 mH", "torque_constant": "0.06 N*m/A",
-              "back_emf_constant": "0.06 V*s/rad", "rotor_inertia": "3e-5 kg*m^2", "voltage_limit": "48 V",
-              "current_limit": "10 A"},
-    "drivetrain": [{"kind": "gear", "name": "planetary gearhead", "ratio": 50, "torsional_stiffness": "2000 N*m/rad",
-                    "backlash": "0.5 deg", "efficiency": 0.8},
-                   {"kind": "ball_screw", "name": "ball screw", "lead": "10 mm", "axial_stiffness": "1.5e8 N/m",
-                    "backlash": "5 um", "efficiency": 0.9}],
-    "load": {"inertia": "20 kg", "damping": "50 N*s/m", "coulomb_friction": "10 N"},
-    "sensors": {"motor_encoder_counts": 2048, "sample_time": "0.2 ms"},
-    "requirements": {"bandwidth": "5 Hz", "min_gain_margin": "6 dB", "min_phase_margin": "45 deg",
-                     "max_sensitivity_peak": "6 dB"}}
+from .conftest import ROOT
+
 STEP = 0.5e-3
 
 
 @pytest.fixture(scope="module")
 def scene():
-    return scene_from_dict(GEARMOTOR)
+    return load_scene(ROOT / "tests" / "scenes" / "gearmotor_carriage.toml")
 
 
 @pytest.fixture(scope="module")
@@ -45,16 +36,16 @@ def designed(scene):
 
 def test_speed_gain_bounded_by_the_encoder_ripple(scene, designed):
     """The unbounded search's speed gain (0.2475 A*s/rad) reads the 2048-count encoder into
-    Kv LSB / (Ts sqrt 6) = 1.55 A rms; the design lowers it until the ripple is within 10 % of
-    the 10 A limit, meets every linear requirement still, and says so in its notes, its
-    table and its JSON."""
+    Kv LSB / (Ts sqrt 6) = 1.55 A rms; the design lowers it until the ripple is within check's
+    default allowance for its current_ripple row (5 % of the 10 A limit), meets every linear
+    requirement still, and says so in its notes, its table and its JSON."""
     b = designed.actuator
     assert b is not None and b.met
     lsb = 2 * math.pi / 2048
     kv = designed.motion.gains["kv"] / designed.parameters.N
     assert b.speed_gain == pytest.approx(kv)
     assert b.quantization == pytest.approx(kv * lsb / (2e-4 * math.sqrt(6)), rel=1e-12)
-    assert b.quantization <= RIPPLE_FRACTION * 10.0
+    assert b.allowance == pytest.approx(0.5) and b.quantization <= 0.5
     assert b.capped_from == pytest.approx(0.2475, rel=0.01)
     assert designed.passed
     assert any(n.startswith("speed-loop gain lowered from 0.2475") for n in designed.notes)
@@ -62,6 +53,19 @@ def test_speed_gain_bounded_by_the_encoder_ripple(scene, designed):
     assert any("play 18.9 um at the output" in n for n in designed.notes)
     assert "actuator bounds on the speed loop" in designed.table()
     assert designed.to_dict()["actuator_bounds"]["met"] is True
+
+
+def test_default_allowance_is_checks_current_ripple_default(scene):
+    """The design bounds the ripple by the figure check's current_ripple row judges by
+    default: 5 % of the current limit, or 10 % of a continuous current the motor gives; the
+    scene's max_current_ripple when it sets one."""
+    assert (RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT) == (spec.RIPPLE_OF_CONTINUOUS, spec.RIPPLE_OF_LIMIT)
+    assert ripple_allowance(scene)[0] == pytest.approx(0.05 * 10.0)
+    rated = replace(scene, motor=replace(scene.motor, continuous_torque=0.3))
+    assert ripple_allowance(rated)[0] == pytest.approx(0.1 * 0.3 / 0.06)
+    given = replace(scene, requirements=replace(scene.requirements, time=replace(
+        scene.requirements.time, max_current_ripple=0.2)))
+    assert ripple_allowance(given) == (0.2, "the scene's max_current_ripple")
 
 
 def test_tight_allowance_trades_the_margins_and_says_so(scene):

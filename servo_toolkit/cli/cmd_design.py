@@ -23,8 +23,8 @@ def add_design_options(p) -> None:
     p.add_argument("--current-ripple", type=bounded(float, 0.0, low_open=True, what="a current in A"),
                    default=None, metavar="A",
                    help="current ripple (A rms) the motor encoder's quantization and the play's limit cycle may "
-                        "each cost; a cascade's speed-loop gain is lowered to keep within it (default 10%% of the "
-                        "current limit)")
+                        "each cost; a cascade's speed-loop gain is lowered to keep within it (default the scene's "
+                        "max_current_ripple, else 10%% of the continuous current or 5%% of the current limit)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--robust", dest="robust", action="store_const", const=True, default=None,
                       help="robust design over the scene's [robustness] ranges (default ranges when it has "

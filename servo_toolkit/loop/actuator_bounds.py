@@ -9,9 +9,10 @@ from dataclasses import dataclass, replace
 
 from .backlash_df import LimitCycle, backlash_limit_cycle, quantization_ripple
 
-#: default allowance of the current ripple (rms) from either effect, as a fraction of the
-#: motor's current limit: its copper loss is 1 % of the loss at the limit
-RIPPLE_FRACTION = 0.10
+#: default allowance of the current ripple (rms) from either effect, the rule of ``check``'s
+#: ``current_ripple`` row (:mod:`servo_toolkit.studies.actuator.spec`): of the motor's
+#: continuous current when it gives one, else of its current limit
+RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT = 0.10, 0.05
 #: the cap leaves this margin below the gain that would just meet the allowance
 CAP_MARGIN = 0.95
 
@@ -135,6 +136,23 @@ class ActuatorBounds:
                 "speed_gain_max_A_s_per_rad": self.speed_gain_max, "capped_from_A_s_per_rad": self.capped_from}
 
 
+def ripple_allowance(scene, given: float | None = None) -> tuple:
+    """``(A rms, where it comes from)``: ``given``, the scene's ``max_current_ripple`` or the
+    default (:data:`RIPPLE_OF_CONTINUOUS`, :data:`RIPPLE_OF_LIMIT`)."""
+    if given is not None:
+        return given, "given"
+    scene_value = scene.requirements.time.max_current_ripple
+    if scene_value is not None:
+        return scene_value, "the scene's max_current_ripple"
+    motor = scene.motor
+    if motor.continuous_torque is not None:
+        i_cont = motor.continuous_torque / motor.torque_constant
+        return (RIPPLE_OF_CONTINUOUS * i_cont,
+                f"default: {100 * RIPPLE_OF_CONTINUOUS:g} % of the {i_cont:.3g} A continuous current")
+    return (RIPPLE_OF_LIMIT * motor.current_limit,
+            f"default: {100 * RIPPLE_OF_LIMIT:g} % of the {motor.current_limit:g} A current limit")
+
+
 def actuator_bounds(scene, result, allowance: float | None = None, delay_response=None,
                     capped_from: float | None = None) -> ActuatorBounds | None:
     """The bounds of a cascade design (``result.motion``); None for another structure.
@@ -144,7 +162,9 @@ def actuator_bounds(scene, result, allowance: float | None = None, delay_respons
     scene : Scene
     result : DesignResult
     allowance : float, optional
-        Current ripple allowed (A rms); default :data:`RIPPLE_FRACTION` of the current limit.
+        Current ripple allowed (A rms); default the scene's ``[requirements]
+        max_current_ripple``, else :data:`RIPPLE_OF_CONTINUOUS` of the continuous current
+        (``continuous_torque`` / Kt), else :data:`RIPPLE_OF_LIMIT` of the current limit.
     delay_response : callable
         s -> the sampling delay's response.
     capped_from : float, optional
@@ -154,10 +174,7 @@ def actuator_bounds(scene, result, allowance: float | None = None, delay_respons
     if motion is None or motion.structure != "cascade":
         return None
     p = result.parameters
-    source = "given"
-    if allowance is None:
-        allowance = RIPPLE_FRACTION * scene.motor.current_limit
-        source = f"default: {RIPPLE_FRACTION:.0%} of the {scene.motor.current_limit:g} A current limit"
+    allowance, source = ripple_allowance(scene, allowance)
     kv = motion.gains["kv"] / p.N
     sensors = scene.sensors
     counts = sensors.motor_encoder_counts if sensors.speed_estimator in ("ideal", "difference") else 0
@@ -192,4 +209,5 @@ def bounded(scene, result, search, allowance, delay_response, rounds: int = 3):
     return replace(result, actuator=b, notes=tuple(result.notes) + b.notes())
 
 
-__all__ = ["ActuatorBounds", "CAP_MARGIN", "RIPPLE_FRACTION", "actuator_bounds", "bounded"]
+__all__ = ["ActuatorBounds", "CAP_MARGIN", "RIPPLE_OF_CONTINUOUS", "RIPPLE_OF_LIMIT", "actuator_bounds", "bounded",
+           "ripple_allowance"]
