@@ -114,3 +114,14 @@ def test_step_through_the_reach_profile_stays_linear(scene, designed):
     y = move.output_angle - move.output_angle[0]
     assert np.max(y) < 1.02 * STEP
     assert abs(y[-1] - STEP) < 0.02 * STEP
+
+
+def test_design_command_options_carry_the_reach(scene, designed):
+    """``design``'s command options (its text and ``--json``'s ``command``) state the limits
+    a command within the motor's reach keeps."""
+    from servo_toolkit.loop.command_design import command_design
+    c = command_design(scene, designed)
+    r = reach(scene, designed.q0)
+    assert c.reach == r
+    assert c.to_dict()["reach"]["a_max"] == pytest.approx(r.a_max)
+    assert "loop.reach.reach_profile" in c.lines()[-1] and "80% of the motor's limits" in c.lines()[-1]
