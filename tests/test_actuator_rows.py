@@ -75,6 +75,9 @@ def test_the_rows_read_the_full_models_own_run():
     # from the run's first record (the rows take the last one before the step: the same rest to 1e-9)
     assert act.figures["step_overshoot"] == pytest.approx(max(0.0, y.max() / p.step - 1.0), rel=1e-6)
     assert act.passed, [r.message() for r in act.rows() if not r.passed]
+    assert repr(act).endswith("every row met>") and "<svg" in act._repr_html_()
+    assert json.loads(json.dumps(act.to_dict()))["figures"]["tracking_error_rad"] == pytest.approx(
+        act.figures["tracking_error"])
 
 
 def test_load_friction_beyond_what_the_motor_can_move_fails_check(tmp_path, capsys):

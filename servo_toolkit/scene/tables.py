@@ -73,6 +73,54 @@ class Requirements:
 
     Bandwidth in Hz, angles in rad, levels in dB; ``time`` holds what the nonlinear closed
     loop must do in time (:class:`~.time_requirements.TimeRequirements`).
+
+    Attributes
+    ----------
+    bandwidth : float or None
+        Closed-loop -3 dB bandwidth the loop must reach (Hz; default 5 Hz); also the
+        frequency of the requirement sine the nonlinear rows run.
+    max_phase_lag_at_bandwidth : float or None
+        Largest closed-loop phase lag at that bandwidth (rad in, deg shown; default 90 deg).
+    min_gain_margin : float or None
+        Smallest gain margin at every phase crossing and over the stroke (dB, 0 or more;
+        default 6 dB).
+    min_phase_margin : float or None
+        Smallest phase margin at every gain crossing and over the stroke (rad in, deg shown,
+        below 180 deg; default 45 deg).
+    max_sensitivity_peak : float or None
+        Largest sensitivity peak Ms = max |1 / (1 + L)| (dB, positive; default 6 dB).
+    step_amplitude : float or None
+        The nonlinear rows' step (an angle, or a length for an output travel; default 1 deg
+        or 0.5 mm).
+    sine_amplitude : float or None
+        The requirement sine's amplitude (an angle or a length; default the sweep study's,
+        else 2 deg or 1 mm cut to what the actuator follows at the bandwidth).
+    max_overshoot : float or None
+        Largest overshoot of the nonlinear step, a fraction of it (e.g. "20 %"; default 20 %).
+    max_settling_time : float or None
+        Longest time (s) for the nonlinear step to stay within its band (2 % of the step, or
+        the error allowed at rest when larger; default 4 periods of the bandwidth).
+    max_position_error_at_rest : float or None
+        Largest |command - output| at rest after the step (an angle or a length; default 2 %
+        of the step).
+    max_limit_cycle : float or None
+        Largest amplitude of an oscillation or a hunting after the step (an angle or a
+        length; default 2 % of the step).
+    max_tracking_error : float or None
+        Largest |command - output| over the requirement sine's last 3 of 8 periods (an angle
+        or a length; default 1.25 x the linear closed loop's).
+    max_current_ripple : float or None
+        Largest rms of the motor current above 10 x the sine's frequency, at rest after the
+        step or in the sine (A; default 10 % of the continuous current, else 5 % of the
+        current limit).
+    max_rms_current : float or None
+        Largest rms motor current over the sine's judged periods (A; default the motor's
+        continuous current, checked only when the motor gives one).
+    max_time_at_current_limit : float or None
+        Longest time the current spends within 1 % of its limit in the sine after its first
+        2 periods (s; default 0).
+    max_time_at_voltage_limit : float or None
+        The same for the armature voltage (s; default 0).
     """
 
     bandwidth: float | None = None

@@ -337,17 +337,17 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     from .montecarlo_check import montecarlo_checks
     spec = scene.robustness if spec is None else spec
     ls = None
+    if actuator is None and not linear_only and result.margins.closed_loop_stable:
+        from .actuator import actuator_check
+        actuator = actuator_check(scene, result)
+    actuator = actuator or None  # False: the caller says the runs were not made
     if not linear_only:
-        result, ls = with_large_signal(scene, result)
+        result, ls = with_large_signal(scene, result, actuator)
     robust = result.robustness
     if robust is None and spec is not None:
         from ..loop.robustness import robustness
         robust = robustness(scene, result, spec=spec, progress=False, executor=executor)
     rows = design_rows(result, None if ls is None else ls.frequency_hz)
-    if actuator is None and not linear_only and result.margins.closed_loop_stable:
-        from .actuator import actuator_check
-        actuator = actuator_check(scene, result)
-    actuator = actuator or None  # False: the caller says the runs were not made
     if actuator is not None:
         rows += actuator.rows()
     if robust is not None:

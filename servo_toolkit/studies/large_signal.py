@@ -22,11 +22,13 @@ import numpy as np
 
 from ..loop.requirements import Check
 from .actuator.figures import time_at_limit
+from .actuator.runs import JUDGED_CYCLES, SINE_CYCLES
 
 GAIN_TOLERANCE_DB = 1.0
 PHASE_TOLERANCE_DEG = 10.0
-CYCLES = 8
-FIT_CYCLES = 3
+#: the requirement sine's periods and the last ones fitted: the actuator's sine run
+#: (:mod:`.actuator.runs`), which the gate judges here too
+CYCLES, FIT_CYCLES = SINE_CYCLES, JUDGED_CYCLES
 
 
 @dataclass(frozen=True)
@@ -119,8 +121,16 @@ def _fit(t, y, f):
     return math.hypot(s, c), math.degrees(math.atan2(c, s))
 
 
-def large_signal(scene, result) -> LargeSignal:
+def large_signal(scene, result, actuator=None) -> LargeSignal:
     """Run the requirement sine through the nonlinear closed loop of ``result``'s controller.
+
+    Parameters
+    ----------
+    scene : Scene
+    result : DesignResult
+    actuator : ActuatorCheck, optional
+        The actuator's nonlinear runs (:mod:`.actuator`): its requirement sine (the full model
+        with friction that holds, the same command) is the run judged, not run again.
 
     Raises
     ------
@@ -139,11 +149,17 @@ def large_signal(scene, result) -> LargeSignal:
     from ..core.output_units import output_unit
     unit = output_unit(scene)
     amp = float(amps[0]) if scene.studies_of_kind("frequency_sweep") else unit.default_amplitude
+    if actuator is not None:
+        f, amp = actuator.plan.frequency, actuator.plan.sine_amplitude
     duration = CYCLES / f
     lin = complex(np.asarray(ct.frequency_response(result.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
     lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
     try:
-        run = simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration, method="rk4")
+        run = actuator.sine_run if actuator is not None else None
+        if actuator is not None and run is None:  # its sine left the stroke
+            raise StrokeEndReached(actuator.failure, actuator.stroke_end_s)
+        run = run or simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration,
+                              method="rk4")
     except StrokeEndReached as exc:  # the actuator ran into its end stop: a failed requirement, not bad input
         return LargeSignal(frequency_hz=float(f), amplitude=amp, gain_db=math.nan, phase_deg=math.nan,
                            linear_gain_db=lin_db, linear_phase_deg=lin_deg, time_at_voltage_limit_s=math.nan,
@@ -167,13 +183,14 @@ def large_signal(scene, result) -> LargeSignal:
                        duration_s=float(duration), peak_current_A=float(i.max()), peak_voltage_V=float(v.max()))
 
 
-def with_large_signal(scene, result):
+def with_large_signal(scene, result, actuator=None):
     """``result`` with the large-signal rows and note added (a DesignResult); an unstable
     linear closed loop (already failed by ``closed_loop_stable``) gets a note and no rows:
-    its nonlinear run would diverge, with no figure to judge."""
+    its nonlinear run would diverge, with no figure to judge. With ``actuator`` (an
+    ActuatorCheck) its requirement sine is the run judged."""
     if not result.margins.closed_loop_stable:
         return replace(result, notes=tuple(result.notes) + (
             "large signal: not run, the linear closed loop is unstable (closed_loop_stable fails)",)), None
-    ls = large_signal(scene, result)
+    ls = large_signal(scene, result, actuator)
     return replace(result, requirements=list(result.requirements) + ls.checks(),
                    notes=tuple(result.notes) + (ls.note(scene.drivetrain.output_unit == "m"),)), ls

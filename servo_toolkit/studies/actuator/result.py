@@ -56,6 +56,8 @@ class ActuatorCheck(RichDisplay):
         current ripple of each run (A); the ``current_ripple`` figure is the larger.
     failure : str
         Why a run ended early ("" when both went through).
+    stroke_end_s : float
+        When the first run that left the stroke did so (NaN when none did).
     output_unit : str
     notes : tuple of str
     """
@@ -70,6 +72,7 @@ class ActuatorCheck(RichDisplay):
     details: dict = field(default_factory=dict)
     ripples: dict = field(default_factory=dict)
     failure: str = ""
+    stroke_end_s: float = math.nan
     output_unit: str = "rad"
     notes: tuple = ()
 
@@ -171,7 +174,8 @@ class ActuatorCheck(RichDisplay):
 
     def _repr_card(self) -> str:
         rows = [(r.id, f"{r.achieved} ({r.required}) {'ok' if r.passed else 'FAIL'}") for r in self.rows()]
-        return card("Nonlinear closed loop", parts=[facts(rows), svg(self.plot, size=(10.0, 5.6))],
+        return card("Nonlinear closed loop", status=self.passed,
+                    parts=[facts(rows), svg(self.plot, size=(10.0, 5.6), rows=2, cols=2, sharex="col")],
                     notes=self.notes)
 
 
@@ -217,7 +221,7 @@ def _sine_figures(plan, run, motor, figures, details):
     return ripple(t, i, HARMONICS * f)
 
 
-def evaluate(scene, design, plan, step_run, sine_run, failure: str = "") -> ActuatorCheck:
+def evaluate(scene, design, plan, step_run, sine_run, failure: str = "", stroke_end_s: float = math.nan) -> ActuatorCheck:
     """The figures of the two runs against ``plan``'s bounds."""
     from ...core.output_units import output_unit
     u = output_unit(scene)
@@ -239,7 +243,7 @@ def evaluate(scene, design, plan, step_run, sine_run, failure: str = "") -> Actu
     notes = (*plan.notes, "nonlinear rows: the full model (every drivetrain mode, backlash, the limits, the sampled "
              "controller and its encoders) with friction that holds at the motor, each stage and the load")
     return ActuatorCheck(plan, step_run, sine_run, float(design.q0), figures, cyc, mot, details, ripples, failure,
-                         scene.drivetrain.output_unit, notes)
+                         stroke_end_s, scene.drivetrain.output_unit, notes)
 
 
 def actuator_check(scene, design, options=None) -> ActuatorCheck:
@@ -262,8 +266,8 @@ def actuator_check(scene, design, options=None) -> ActuatorCheck:
     from .runs import run_both
     from .spec import plan as make_plan
     p = make_plan(scene, design)
-    step, sine, failure = run_both(scene, design.controller, p, options)
-    return evaluate(scene, design, p, step, sine, failure)
+    step, sine, failure, end = run_both(scene, design.controller, p, options)
+    return evaluate(scene, design, p, step, sine, failure, end)
 
 
 __all__ = ["ActuatorCheck", "IDS", "LABELS", "SINE_ROWS", "STEP_ROWS", "actuator_check", "evaluate"]

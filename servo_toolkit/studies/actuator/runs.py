@@ -47,10 +47,10 @@ def sine_run(scene, controller, plan, options=None):
 
 
 def run_both(scene, controller, plan, options=None):
-    """``(step_run, sine_run, failure)``: a run that leaves the stroke is a physical outcome
-    (``failure`` says so, that run is None); a run that cannot be carried out numerically
+    """``(step_run, sine_run, failure, stroke_end_s)``: a run that leaves the stroke is a
+    physical outcome (``failure`` says so and when, that run is None); a run that cannot be carried out numerically
     raises SimulationError naming which run it was (no verdict on a figure it did not make)."""
-    runs, failure = [], ""
+    runs, failure, end = [], "", float("nan")
     u = scene.drivetrain.output_unit
     for what, fn, text in (("step", step_run, f"{plan.step * (1e3 if u == 'm' else 57.29577951308232):.3g} "
                                               f"{'mm' if u == 'm' else 'deg'} step"),
@@ -59,11 +59,12 @@ def run_both(scene, controller, plan, options=None):
             runs.append(fn(scene, controller, plan, options))
         except StrokeEndReached as exc:
             runs.append(None)
-            failure = failure or f"the {text} left the stroke at {exc.time_s:.4g} s: {exc}"
+            if not failure:
+                failure, end = f"the {text} left the stroke at {exc.time_s:.4g} s: {exc}", exc.time_s
         except SimulationError as exc:
             raise SimulationError(f"the nonlinear {text} (full model, friction that holds) could not be carried "
                                   f"out: {exc} (--linear-only skips it)") from None
-    return runs[0], runs[1], failure
+    return runs[0], runs[1], failure, end
 
 
 def window(times, start: float) -> np.ndarray:
