@@ -43,13 +43,9 @@ def published(scene, values):
 @pytest.fixture(scope="module")
 def rig():
     """The EMPS with the published values: its controller and a 3 s log of a 10 mm, 1 Hz sine
-    command (the drive saturates at the start), encoder-quantized, with current noise. The
-    rig's drive is tuned by the margins alone (speed gain 6.3 A*s/rad, no ripple allowance:
-    the design's default halves it for the encoder's ripple, a gentler drive whose log gives
-    the regressed start a viscous friction 18 % high); the fit below recovers the rig with
-    either."""
+    command (the drive saturates at the start), encoder-quantized, with current noise."""
     scene = load_scene(EMPS)
-    controller = design(scene, progress=False, current_ripple=math.inf).controller
+    controller = design(scene, progress=False).controller
     model = build_model(scene, controller, ModelOptions(stroke_end="stop"))
     res = run(model, Reference.sine(0.010, 1.0), 3.0, "rk4", output_dt=1e-3)
     rng = np.random.default_rng(1)
