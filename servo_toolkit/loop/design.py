@@ -242,9 +242,9 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         Current ripple (A rms) the motor encoder's quantization and the play's limit cycle
         may each cost a nominal cascade (:mod:`.actuator_bounds`); default the scene's
         ``max_current_ripple``, else ``check``'s default for its ``current_ripple`` row (10 %
-        of the continuous current, else 5 % of the current limit). Where the chosen speed-loop gain costs more, the search is redone
-        with the gain lowered to what the allowance permits, and the notes say which bound
-        held it and by how much.
+        of the continuous current, else 5 % of the current limit). Where the chosen
+        speed-loop gain costs more, the search is redone with the gain lowered to what the
+        allowance permits, and the notes say which bound held it and by how much.
 
     Returns
     -------
