@@ -165,8 +165,8 @@ def actuator_bounds(scene, result, allowance: float | None = None, delay_respons
         Current ripple allowed (A rms); default the scene's ``[requirements]
         max_current_ripple``, else :data:`RIPPLE_OF_CONTINUOUS` of the continuous current
         (``continuous_torque`` / Kt), else :data:`RIPPLE_OF_LIMIT` of the current limit.
-    delay_response : callable
-        s -> the sampling delay's response.
+    delay_response : callable, optional
+        s -> the sampling delay's response (default none).
     capped_from : float, optional
         The speed gain before a cap, for the notes.
     """
@@ -182,6 +182,9 @@ def actuator_bounds(scene, result, allowance: float | None = None, delay_respons
     half = 0.5 * float(scene.drivetrain.backlash([p.q0])[0])
     gains = (result.controller.current_kp, result.controller.current_ki)
     lc = None
+    if delay_response is None:  # no sampling delay given: the continuous loop
+        def delay_response(s):
+            return 1.0 + 0.0 * s
     if half > 0 and not p.rigid:
         lc = backlash_limit_cycle(p, motion, gains, delay_response, half)
     return ActuatorBounds(allowance=allowance, allowance_source=source, speed_gain=kv, counts=counts,
