@@ -55,11 +55,12 @@ def test_speed_gain_bounded_by_the_encoder_ripple(scene, designed):
     assert designed.to_dict()["actuator_bounds"]["met"] is True
 
 
-def test_default_allowance_is_checks_current_ripple_default(scene):
+def test_default_allowance_is_checks_current_ripple_default(scene, designed):
     """The design bounds the ripple by the figure check's current_ripple row judges by
     default: 5 % of the current limit, or 10 % of a continuous current the motor gives; the
     scene's max_current_ripple when it sets one."""
-    assert (RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT) == (spec.RIPPLE_OF_CONTINUOUS, spec.RIPPLE_OF_LIMIT)
+    assert spec.plan(scene, designed).bound("current_ripple").value == pytest.approx(designed.actuator.allowance)
+    assert (RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT) == (0.10, 0.05)
     assert ripple_allowance(scene)[0] == pytest.approx(0.05 * 10.0)
     rated = replace(scene, motor=replace(scene.motor, continuous_torque=0.3))
     assert ripple_allowance(rated)[0] == pytest.approx(0.1 * 0.3 / 0.06)
