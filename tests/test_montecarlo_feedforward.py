@@ -63,7 +63,8 @@ def test_saturated_variant_feedforward_not_worse_than_feedback(ema, runs):
     """4x the load inertia: the current saturates with or without the feedforward; its error
     with the feedforward stays at most the feedback's (without the clamp's back-calculation
     the feedback winds up against the feedforward's current: 3.9 deg by the feedback alone,
-    15 deg with the nominal feedforward and 14 deg with one knowing the load)."""
+    15 deg with the nominal feedforward and 14 deg with one knowing the load; with it 3.5 deg
+    by the feedback alone, which the clamp now back-calculates too, 3.0 and 2.4 deg)."""
     scene, controller = ema
     off, on = runs["off"], runs["model"]
     assert off.saturated[2] and on.saturated[2]

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from ..errors import SceneError
-from .common import add_force, add_json, add_scene, check_robustness_budget, emit, load_scene, prepare_kernels
+from .common import (add_force, add_json, add_scene, bounded, check_robustness_budget, emit, load_scene,
+                     prepare_kernels)
 
 
 def design(scene, **options):
@@ -23,6 +24,11 @@ def add_design_options(p) -> None:
     p.add_argument("--design", metavar="FILE",
                    help="evaluate the controller saved in FILE (a tuned design, written by the Jupyter tuner's "
                         "save() or servo_toolkit.loop.tuning.save_design) instead of designing one")
+    p.add_argument("--current-ripple", type=bounded(float, 0.0, low_open=True, what="a current in A"),
+                   default=None, metavar="A",
+                   help="current ripple (A rms) the motor encoder's quantization and the play's limit cycle may "
+                        "each cost; a cascade's speed-loop gain is lowered to keep within it (default the scene's "
+                        "max_current_ripple, else 10%% of the continuous current or 5%% of the current limit)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--robust", dest="robust", action="store_const", const=True, default=None,
                       help="robust design over the scene's [robustness] ranges (default ranges when it has "
@@ -60,7 +66,8 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
     if spec is not None and (robust is True or (robust is None and scene.robustness is not None)):
         robust = spec
     return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require,
-                  robust=robust, progress=False, executor=executor)
+                  robust=robust, progress=False, executor=executor,
+                  current_ripple=getattr(args, "current_ripple", None))
 
 
 def register(sub) -> None:

@@ -2,9 +2,9 @@
 
 The simulation runs the motion controller as the Tustin sampling of
 ``design(scene).controller.motion`` (:meth:`CascadeController.discrete_motion`), output
-clamped at the current limit, no anti-windup. Tustin is the substitution
-``s = (2 / Ts) (z - 1) / (z + 1)``, so it commutes with series and parallel connection: the
-same controller is, block by block,
+clamped at the current limit (with back-calculation into its integrator, which the exported
+step leaves to its caller). Tustin is the substitution ``s = (2 / Ts) (z - 1) / (z + 1)``,
+so it commutes with series and parallel connection: the same controller is, block by block,
 
 * the position path (position gain times the resonance filter; the compensator of the
   ``pid``, ``lead_lag`` and ``pi`` structures) on the error ``theta_ref - theta``, as

@@ -113,7 +113,8 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "", comm
  *
  * Motion controller ({blocks.structure}): position path = {npos} biquad(s) (direct form II
  * transposed) on theta_ref - theta{"; speed PI on the motor speed error" if blocks.speed is not None else ""};
- * i_ref clamped at the current limit (no anti-windup, as designed and simulated).
+ * i_ref clamped at the current limit; the simulation also moves the speed integrator by the
+ * clamp's excess (back-calculation), which this step leaves to the caller.
  * Current loop ({blocks.current.mode}): PI with back-calculation anti-windup at the voltage limit.
  * Speed estimator: {est}.
  *

@@ -1,7 +1,8 @@
 """What a designed loop offers around its feedback: the designed feedforward gains, the gain
 schedule along the stroke (with the stroke check's spread with and without it) and the ZV /
-ZVD command shapers on the drivetrain mode with their delays (``design --json``'s
-``command``, the report's loop section)."""
+ZVD command shapers on the drivetrain mode with their delays, and the speed, acceleration and
+jerk a command may ask within the motor's limits (``design --json``'s ``command``, the
+report's loop section)."""
 
 from __future__ import annotations
 
@@ -35,6 +36,9 @@ class CommandDesign(RichDisplay):
     modes : dict
         :func:`~.shaper.drivetrain_modes` (frequency Hz, damping ratio) by name.
     output_unit : {"rad", "m"}
+    reach : Reach or None
+        The limits a command within the motor's reach keeps (:mod:`.reach`; a step through
+        them is :func:`~.reach.reach_profile`); None when the motor cannot hold the load.
     """
 
     scene_name: str
@@ -45,6 +49,7 @@ class CommandDesign(RichDisplay):
     shapers: dict | None = None
     modes: dict | None = None
     output_unit: str = "rad"
+    reach: object = None
 
     def to_dict(self) -> dict:
         """JSON-ready (SI)."""
@@ -56,6 +61,7 @@ class CommandDesign(RichDisplay):
                "schedule": None if self.schedule is None else self.schedule.to_dict(),
                "shapers": {k: s.to_dict() for k, s in (self.shapers or {}).items()},
                "modes": {k: {"frequency_hz": f, "damping_ratio": z} for k, (f, z) in (self.modes or {}).items()}}
+        out["reach"] = None if self.reach is None else self.reach.to_dict()
         if self.stroke_fixed is not None and self.stroke_scheduled is not None:
             out["stroke_spread"] = {"fixed_gains": self.stroke_fixed.spread(),
                                     "scheduled_gains": self.stroke_scheduled.spread()}
@@ -83,6 +89,8 @@ class CommandDesign(RichDisplay):
                            f"{a.get('gain_margin_db', math.nan):.3g} -> {b.get('gain_margin_db', math.nan):.3g} dB")
         for s in (self.shapers or {}).values():
             out.append(f"  command shaper: {s.describe()}")
+        if self.reach is not None:
+            out.append(f"  {self.reach.describe(self.output_unit)} (a step through them: loop.reach.reach_profile)")
         return out
 
     def _repr_line(self) -> str:
@@ -116,7 +124,14 @@ def command_design(scene, result) -> CommandDesign:
     if not result.parameters.rigid:
         modes = drivetrain_modes(scene, result.controller, result.q0)
         shapers = {k: shaper_for(scene, k, q0=result.q0, controller=result.controller) for k in SHAPER_KINDS}
-    return CommandDesign(scene.name, gains, schedule, fixed, scheduled, shapers, modes, scene.drivetrain.output_unit)
+    from ..errors import SceneError
+    from .reach import reach
+    try:
+        limits = reach(scene, result.q0)
+    except SceneError:  # the motor cannot hold the load: no move fits (the sizing says so)
+        limits = None
+    return CommandDesign(scene.name, gains, schedule, fixed, scheduled, shapers, modes, scene.drivetrain.output_unit,
+                         limits)
 
 
 __all__ = ["CommandDesign", "command_design"]

@@ -21,6 +21,7 @@ from .controller import CascadeController
 from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant, plant_matrices,
                             plant_parameters)
+from .actuator_bounds import bounded
 from .assembly import closed_loop_matrix, controller_matrices
 from .chain_margins import chain_margins
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
@@ -108,22 +109,36 @@ def _filters(p, names, zeta, stroke_params):
     return out
 
 
-def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains, plants):
+def _speed_gains(p, refs, wb, sample_time, current_gains, kv_cap):
+    """(kv, wvi) of the cascade's speed loops: crossover at each of :data:`SPEED_RATIOS`
+    times the bandwidth on each speed reference's plant; a gain above ``kv_cap`` (A per
+    output rad/s) is lowered to it, its crossover and integral corner with it (the motor
+    side's response falls as 1/w there), and the repeats dropped."""
+    out = []
+    for r, ref in ((r, ref) for ref in refs for r in SPEED_RATIOS):
+        wv = r * wb
+        sv = np.array([1j * wv])
+        P1v, _ = plant_responses(sv, ref, *current_gains)
+        dv = _delay_response(sv, sample_time)
+        kv = float(p.N / ref.N / np.abs(dv * (1 + (wv / 4) / sv) * sv * P1v)[0])
+        if kv > kv_cap:
+            wv *= kv_cap / kv
+            kv = kv_cap
+        if all(abs(kv - k) > 1e-9 * kv or abs(wv / 4 - w) > 1e-9 * wv for k, w in out):
+            out.append((kv, wv / 4))
+    return out
+
+
+def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains, plants, kv_cap=math.inf):
     """Yield (Motion, L at every design point on the grid) for the scan of one structure."""
     n = p.N
-    kp_i, ki_i = current_gains
     P1, P2, nq = plants.P1, plants.P2, plants.N
     refs = speed_references(p, plants.params)
     for filt, fparams in filters:
         if structure == "cascade":
-            for r, ref in ((r, ref) for ref in refs for r in SPEED_RATIOS):
-                wv = r * wb
-                sv = np.array([1j * wv])
-                P1v, _ = plant_responses(sv, ref, kp_i, ki_i)
-                dv = _delay_response(sv, sample_time)
-                kv = float(n / ref.N / np.abs(dv * (1 + (wv / 4) / sv) * sv * P1v)[0])
+            for kv, wvi in _speed_gains(p, refs, wb, sample_time, current_gains, kv_cap):
                 for k in GAIN_SCAN:
-                    m = Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wv / 4}, filt, fparams, n)
+                    m = Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wvi}, filt, fparams, n)
                     cy, cw = m.responses(s)
                     yield m, loop_response(s, P1, P2, delay, cy, cw, nq)
         else:
@@ -135,7 +150,7 @@ def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains,
                 unit = Motion(structure, gains, filt, fparams, n)
                 sc = np.array([1j * wc])
                 cy1, _ = unit.responses(sc)
-                P1c, P2c = plant_responses(sc, p, kp_i, ki_i)
+                P1c, P2c = plant_responses(sc, p, *current_gains)
                 lc = _delay_response(sc, sample_time) * cy1 * P2c
                 gains = dict(gains, kc=float(1.0 / abs(lc[0])))
                 m = Motion(structure, gains, filt, fparams, n)
@@ -144,7 +159,7 @@ def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains,
 
 
 def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sample_time, current_gains,
-            stroke_params, stable_only=True):
+            stroke_params, stable_only=True, kv_cap=math.inf):
     """Best-ranked candidate aiming at ``f_target``, stable at every design point:
     (Motion, CascadeController) or None. ``stroke_params``: the plants at the design points,
     q0 first (:func:`.stroke_design.design_points`)."""
@@ -154,7 +169,7 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
     plants = StrokePlants(stroke_params, s, current_gains)
     motions, loops = [], []
     for m, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, sample_time,
-                            current_gains, plants):
+                            current_gains, plants, kv_cap):
         motions.append(m)
         loops.append(L)
     npts = plants.count
@@ -175,7 +190,8 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
 def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str = "auto",
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
            model: str = "auto", require=None, phase_hz: float = REQUIREMENT_SINE_HZ, robust=None,
-           progress: bool = True, over_stroke: bool = True, executor=None) -> DesignResult:
+           progress: bool = True, over_stroke: bool = True, executor=None,
+           current_ripple: float | None = None) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
 
     A nominal design maximizes the smallest slack against the requirements on the nominal
@@ -222,6 +238,13 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     executor : concurrent.futures.Executor, optional
         Runs the chunks of a robust design's check over the variants (e.g. a dask
         ``Client.get_executor()``); the result does not depend on it.
+    current_ripple : float, optional
+        Current ripple (A rms) the motor encoder's quantization and the play's limit cycle
+        may each cost a nominal cascade (:mod:`.actuator_bounds`); default the scene's
+        ``max_current_ripple``, else ``check``'s default for its ``current_ripple`` row (10 %
+        of the continuous current, else 5 % of the current limit). Where the chosen
+        speed-loop gain costs more, the search is redone with the gain lowered to what the
+        allowance permits, and the notes say which bound held it and by how much.
 
     Returns
     -------
@@ -258,16 +281,27 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         names = FILTERS
     else:
         names = (resonance_filter,)
-    unit = scene.drivetrain.output_unit
     if over_stroke:
         qd, stroke_params = design_points(scene, p.q0, model, structural_damping)
     else:
         qd, stroke_params = np.array([p.q0]), (p,)
+
+    def search(kv_cap):
+        return _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, (kp_i, ki_i),
+                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap)
+
+    return bounded(scene, search(math.inf), search, current_ripple, lambda s: _delay_response(s, sample_time))
+
+
+def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, current_gains, qd, stroke_params,
+             notes, model, structural_damping, over_stroke, kv_cap):
+    """The nominal search over the stroke (a second round adds the first's worst points)."""
+    unit = scene.drivetrain.output_unit
     best = None
     for round_ in range(2 if over_stroke else 1):
         filters = _filters(p, names, structural_damping, stroke_params)
         motion, ctrl, found = _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time,
-                                    (kp_i, ki_i), stroke_params)
+                                    current_gains, stroke_params, kv_cap)
         where = ([f"designed on {qd.size} stroke points, q = " + ", ".join(show_q(x, unit) for x in qd)
                   + " (q0, stroke ends, motor-side inertia and anti-resonance extremes"
                   + (", and the worst points of the first search's stroke check" if round_ else "")
@@ -284,19 +318,20 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     return best
 
 
-def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, current_gains, stroke_params):
+def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, current_gains, stroke_params,
+          kv_cap=math.inf):
     """The search with its fallbacks: (Motion, CascadeController, notes)."""
     for target in TARGET_FALLBACK:
         if target < 1 and f_req * target < LOWEST_TARGET_HZ:
             break
         chosen = _search(scene, p, reqs, structure, filters, f_req, f_req * target, phase_hz,
-                         sample_time, current_gains, stroke_params)
+                         sample_time, current_gains, stroke_params, kv_cap=kv_cap)
         if chosen is not None:
             return chosen + ([] if target == 1 else
                              [f"no stable {structure} design reaches {f_req:g} Hz; the best stable one found "
                               f"aiming at {f_req * target:.3g} Hz is shown"],)
     chosen = _search(scene, p, reqs, structure, filters, f_req, f_req, phase_hz, sample_time,
-                     current_gains, stroke_params, stable_only=False)
+                     current_gains, stroke_params, stable_only=False, kv_cap=kv_cap)
     return chosen + ([f"no stable {structure} design was found in the search (aiming as low as "
                       f"{max(LOWEST_TARGET_HZ, f_req * TARGET_FALLBACK[-1]):.3g} Hz); the best-ranked one is shown "
                       "and its closed loop is UNSTABLE"],)

@@ -64,6 +64,10 @@ class DesignResult(RichDisplay):
     chain_margins : ChainMargins or None
         The same controller on the n-mass plant of the drivetrain chain (every mode,
         :mod:`servo_toolkit.loop.chain_margins`); None for a chain with one mode.
+    actuator : ActuatorBounds or None
+        What the play and the motor encoder allow the speed loop
+        (:mod:`servo_toolkit.loop.actuator_bounds`); None for a structure without a speed
+        loop or a controller evaluated, not designed.
     """
 
     scene_name: str
@@ -83,6 +87,7 @@ class DesignResult(RichDisplay):
     output_unit: str = "rad"
     display: DisplayUnits = DisplayUnits()
     chain_margins: object = None
+    actuator: object = None
 
     @property
     def unit(self) -> OutputUnit:
@@ -135,7 +140,8 @@ class DesignResult(RichDisplay):
                 "notes": list(self.notes), "display_units": self.display.to_dict(u.linear),
                 **({"robustness": self.robustness.to_dict()} if self.robustness is not None else {}),
                 **({"stroke": self.stroke.to_dict()} if self.stroke is not None else {}),
-                **({"n_mass_plant": self.chain_margins.to_dict()} if self.chain_margins is not None else {})}
+                **({"n_mass_plant": self.chain_margins.to_dict()} if self.chain_margins is not None else {}),
+                **({"actuator_bounds": self.actuator.to_dict()} if self.actuator is not None else {})}
 
     def table(self) -> str:
         """Requirements and margins as text."""
@@ -160,6 +166,8 @@ class DesignResult(RichDisplay):
             lines.append(self.robustness.table())
         if self.stroke is not None:
             lines.append(self.stroke.summary())
+        if self.actuator is not None:
+            lines.append(self.actuator.table())
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

@@ -183,7 +183,8 @@ def _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN):
     (:func:`kernel.controller_inputs` on its state column ``Y[:, l]`` and parameter column
     ``PT[:, l]``), then the state-space update across the lanes
     (:func:`kernel.motion_columns`, vectorized), at the shared reference r or the lane's own
-    r(t). ``XN`` holds at least the controller's state count rows."""
+    r(t), with the clamp's back-calculation (``AW``) of a lane whose output is clamped.
+    ``XN`` holds at least the controller's state count rows."""
     Y, PT, TI = _packed(Y), _packed(PT), _packed(TI)
     R = _stack_matrix(1, W)[0]
     TH = _stack_matrix(1, W)[0]
@@ -199,6 +200,12 @@ def _control(t, r, shared, Y, PT, T, TI, IREF, ACT, XN):
     nc = int(PT[lo.NC, 0])
     for l in range(W):  # stopped lanes keep the state they stopped in
         if ACT[l] > 0.0:
+            o = int(PT[lo.AW, l])
+            if o > 0 and abs(YC[l]) > PT[lo.ILIM, l]:
+                # back-calculation at the clamp, as the single run's controller_update
+                excess = clip(YC[l], PT[lo.ILIM, l]) - YC[l]
+                for j in range(nc):
+                    XN[j, l] += PT[o + j, l] * excess
             for j in range(nc):
                 Y[lo.NX_PHYS + j, l] = XN[j, l]
             IREF[l] = clip(YC[l], PT[lo.ILIM, l])

@@ -77,12 +77,13 @@ def with_schedule(P, controller, mode: int, notes: list):
 
 
 def with_back_calculation(P, a, c, mode: int, notes: list):
-    """Append the clamp's back-calculation gains when the sample does more than the state-space
-    update (``FF_ON``: a feedforward or a schedule): the discrete motion controller's integrator
-    direction v (its eigenvector at z = 1) over its output gain C v, so that a clamped sample
-    moves the integrator by the excess and the next output starts at the limit. A controller
-    without an integrator, or a continuous one, gets none. Returns P."""
-    if P[lo.FF_ON] <= 0.0 or mode != lo.SAMPLED or a.shape[0] == 0:
+    """Append the clamp's back-calculation gains of a sampled motion controller with an
+    integrator: the discrete controller's integrator direction v (its eigenvector at z = 1)
+    over its output gain C v, so that a clamped sample moves the integrator by the excess
+    and the next output starts at the limit (the integrator does not wind up against the
+    current limit, with or without a feedforward). A controller without an integrator, or a
+    continuous one, gets none. Returns P."""
+    if mode != lo.SAMPLED or a.shape[0] == 0:
         return P
     ev, vec = np.linalg.eig(a)
     k = int(np.argmin(np.abs(ev - 1.0)))
@@ -91,8 +92,8 @@ def with_back_calculation(P, a, c, mode: int, notes: list):
     if abs(ev[k] - 1.0) > 1e-9 or not abs(gain) > 1e-300:
         return P
     P[lo.AW] = P.size
-    notes.append("at the current limit the motion controller's integrator takes the clamp's excess "
-                 "(back-calculation: the feedback is not wound up while the feedforward holds the limit)")
+    notes.append("anti-windup: at the current limit the motion controller's integrator takes the clamp's "
+                 "excess (back-calculation, its next output starts at the limit)")
     return np.concatenate([P, v / gain])
 
 

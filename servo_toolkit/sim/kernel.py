@@ -213,9 +213,10 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     the feedforward's speed reference ``w_ff`` (0 without one). A gain schedule
     (``SCHED``) scales the controller's position-error inputs and its speed input by its
     factors at the measured output angle (:func:`~.command_kernel.schedule_factors`). With
-    back-calculation gains (``AW``) a clamped sample moves the controller's integrator by the
-    clamp's excess (its next output starts at the limit: the feedback is not wound up while
-    the feedforward's share of the current holds the limit).
+    back-calculation gains (``AW``: every sampled controller with an integrator) a clamped
+    sample moves the controller's integrator by the clamp's excess (its next output starts
+    at the limit: the integral does not wind up while the current is limited, whether the
+    feedback or a feedforward's share holds the limit).
 
     The output angle is quantized by the output encoder; the motor speed is the true
     omega_m or, per the model's speed estimator, an estimate from the (quantized) motor
@@ -227,8 +228,8 @@ def controller_update(r, x, P, T, work, i_ff, w_ff):
     y = _motion(x, P, ge * r, ge * th, gw * (wm - w_ff), work, 0, True) + i_ff
     o = int(P[AW])
     if o > 0 and abs(y) > P[ILIM]:
-        # back-calculation at the clamp: the controller's integrator takes the excess, so the
-        # feedback is not wound up while the feedforward's share holds the limit
+        # back-calculation at the clamp: the controller's integrator takes the excess, so it
+        # does not wind up while the current is limited
         excess = clip(y, P[ILIM]) - y
         for j in range(nc):
             work[j] += P[o + j] * excess

@@ -35,6 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.output_units import output_unit
+# the default current ripple, of the continuous current else of the current limit: the
+# allowance the loop design keeps the encoder's and the play's ripple within
+from ...loop.actuator_bounds import RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT  # noqa: F401 - re-exported
 
 DEFAULT_OVERSHOOT = 0.20
 #: the default settling time, in periods of the required bandwidth
@@ -43,8 +46,6 @@ SETTLING_PERIODS = 4.0
 REST_FRACTION = 0.02
 #: the default tracking error, relative to the linear closed loop's on the same sine
 TRACKING_FACTOR = 1.25
-#: the default current ripple: of the continuous current, else of the current limit
-RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT = 0.10, 0.05
 #: the share of the current and the voltage a default sine may take to follow as a rigid body
 FOLLOW_SHARE = 0.5
 
