@@ -33,7 +33,8 @@ def test_check_whose_large_signal_run_cannot_run_exits_2_with_the_reason(monkeyp
     out, err = capsys.readouterr()
     assert "nan" not in out.lower() and "short by inf" not in out
     line, = err.strip().splitlines()
-    assert "large-signal run" in line and "1e+09 steps" in line
+    # the first nonlinear run check makes (the actuator's step) names itself and the reason
+    assert "nonlinear 1 deg step" in line and "could not be carried out" in line and "1e+09 steps" in line
     root = ET.parse(junit).getroot()
     assert not root.findall(".//failure") and root.findall(".//error")
     assert main(["check", EMA, "--json"]) == 2

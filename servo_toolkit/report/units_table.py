@@ -45,6 +45,10 @@ UNITS = {
 }
 #: temperatures (K inside) shown in degC
 TEMPERATURES = {"max_winding_temperature", "ambient_temperature", "resistance_temperature"}
+#: the time requirements' fields other than positions (:mod:`servo_toolkit.scene.time_requirements`)
+TIME_UNITS = {"max_overshoot": ("%", 100.0), "max_settling_time": ("ms", 1e3), "max_current_ripple": ("A", 1.0),
+              "max_rms_current": ("A", 1.0), "max_time_at_current_limit": ("ms", 1e3),
+              "max_time_at_voltage_limit": ("ms", 1e3)}
 #: (class name, field) overrides where one name means different quantities
 OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6),
              ("RollerScrew", "stroke_range"): ("mm", 1e3)}
@@ -95,6 +99,13 @@ def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
         if isinstance(value, (list, tuple)) and value and all(dataclasses.is_dataclass(v) for v in value):
             # nested parts (a roller screw's stages): each field on its own row, in its unit
             out += [(f"{f.name}[{i}].{name}", text, unit) for i, v in enumerate(value) for name, text, unit in rows(v)]
+            continue
+        if dataclasses.is_dataclass(value) and hasattr(value, "dimensions"):
+            # the time requirements: each key the scene set, a position as an angle or a length
+            lengths = {k for k, d in value.dimensions if d == "length"}
+            units = {k: (("mm", 1e3) if k in lengths else ("deg", DEG)) for k in value.given()} | TIME_UNITS
+            out += [(f"{f.name}.{name}", text, unit) for name, text, unit in rows(value, units)
+                    if name != "dimensions"]
             continue
         if f.name in TEMPERATURES and isinstance(value, (int, float)):
             out.append((f.name, _text(value - 273.15), "degC"))
