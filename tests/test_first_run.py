@@ -72,6 +72,9 @@ def test_tolerances_method_choices_are_the_scenes():
     from servo_toolkit.cli import cmd_tolerances
     from servo_toolkit.scene import tolerances
     assert cmd_tolerances.METHODS == tolerances.METHODS
+    from servo_toolkit.cli import cmd_new
+    from servo_toolkit.scene import template
+    assert cmd_new.OUTPUTS == template.OUTPUTS
 
 
 def test_cache_path_follows_the_kernel_sources(tmp_path, monkeypatch):

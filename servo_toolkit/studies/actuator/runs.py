@@ -17,8 +17,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ... import sim
 from ...errors import SimulationError, StrokeEndReached
-from ...sim import ModelOptions, Reference, simulate
 
 #: s of equilibrium before the step
 STEP_AT = 0.01
@@ -28,22 +28,22 @@ JUDGED_CYCLES = 3
 TRANSIENT_CYCLES = 2
 
 
-def full_options() -> ModelOptions:
+def full_options() -> sim.ModelOptions:
     """The full model with friction that holds."""
     from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
-    return replace(ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING), chain="full", friction="stick")
+    return replace(sim.ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING), chain="full", friction="stick")
 
 
 def step_run(scene, controller, plan, options=None):
     """The step of ``plan`` from the operating point, run to twice its settling allowance."""
-    return simulate(scene, controller, reference=Reference.step(plan.step, at=STEP_AT),
-                    duration=STEP_AT + 2.0 * plan.settling_time, method="rk4", options=options or full_options())
+    return sim.simulate(scene, controller, reference=sim.Reference.step(plan.step, at=STEP_AT),
+                        duration=STEP_AT + 2.0 * plan.settling_time, method="rk4", options=options or full_options())
 
 
 def sine_run(scene, controller, plan, options=None):
     """The requirement sine of ``plan``, :data:`SINE_CYCLES` periods."""
-    return simulate(scene, controller, reference=Reference.sine(plan.sine_amplitude, plan.frequency),
-                    duration=SINE_CYCLES / plan.frequency, method="rk4", options=options or full_options())
+    return sim.simulate(scene, controller, reference=sim.Reference.sine(plan.sine_amplitude, plan.frequency),
+                        duration=SINE_CYCLES / plan.frequency, method="rk4", options=options or full_options())
 
 
 def run_both(scene, controller, plan, options=None):
