@@ -38,9 +38,6 @@ MAX_NFEV_PER_PARAMETER = 50
 SAME_START = 0.05
 #: most evaluations of the fit of the features, per parameter and one: a start, not a result
 FEATURE_NFEV_PER_PARAMETER = 5
-#: steps of the forward differences of the refinement and of the fit of the features, in the
-#: log-parameters (absolute: z = 0 is the scene's own value, where a step relative to z vanishes)
-DIFF_STEP, FEATURE_DIFF_STEP = 1e-6, 1e-3
 
 
 @dataclass(frozen=True)
@@ -85,40 +82,11 @@ def _distinct(points, tol=SAME_START):
     return out
 
 
-def forward_differences(fun, upper, step: float):
-    """``(fun, jac)`` for :func:`scipy.optimize.least_squares`: the Jacobian by forward
-    differences of the absolute ``step`` in each log-parameter (backwards where the step would
-    leave the box), reusing the last value of ``fun`` at the same point. scipy's own step is
-    relative to the parameter (``diff_step`` times ``|z|`` in recent releases): at a start on
-    the scene's value (z near 0) it changes no model and left that column of the Jacobian zero,
-    the parameter judged without influence."""
-    upper = np.asarray(upper, float)
-    last = {}
-
-    def value(z):
-        out = np.asarray(fun(z), float)
-        last["z"], last["f"] = np.array(z, float), out
-        return out
-
-    def jac(z):
-        z = np.asarray(z, float)
-        f0 = last["f"] if "z" in last and np.array_equal(last["z"], z) else np.asarray(fun(z), float)
-        columns = []
-        for j in range(z.size):
-            h = step if z[j] + step <= upper[j] else -step
-            zj = z.copy()
-            zj[j] += h
-            columns.append((np.asarray(fun(zj), float) - f0) / h)
-        return np.column_stack(columns)
-    return value, jac
-
-
 def refine(residuals, start, lower, upper):
     """Local least squares (trust region within the box) from ``start``: scipy's
     ``OptimizeResult`` (``x``, ``cost``, ``fun``, ``jac``, ``nfev``, ``njev``)."""
     lower = np.asarray(lower, float)
-    fun, jac = forward_differences(residuals, upper, DIFF_STEP)
-    return optimize.least_squares(fun, np.clip(start, lower, upper), jac=jac, bounds=(lower, upper),
+    return optimize.least_squares(residuals, np.clip(start, lower, upper), bounds=(lower, upper), diff_step=1e-6,
                                   x_scale=1.0, method="trf", ftol=1e-10, xtol=1e-10, gtol=1e-10,
                                   max_nfev=MAX_NFEV_PER_PARAMETER * lower.size)
 
@@ -174,8 +142,7 @@ def global_least_squares(residuals, lower, upper, initial, *, probe=None, starts
 
             def features(z):
                 return probe(z)[1]
-            features, features_jac = forward_differences(features, upper, FEATURE_DIFF_STEP)
-            sol = optimize.least_squares(features, best, jac=features_jac, bounds=(lower, upper),
+            sol = optimize.least_squares(features, best, bounds=(lower, upper), diff_step=1e-3,
                                          max_nfev=FEATURE_NFEV_PER_PARAMETER * (npar + 1), method="trf")
             nfev += sol.nfev + sol.njev * npar
             feature_start = np.clip(sol.x, lower, upper)
