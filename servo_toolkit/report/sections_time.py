@@ -6,23 +6,15 @@ phases, position error at rest, hunting)."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from . import figures
 from ..errors import SceneError, SimulationError
-from ..core.output_units import REQUIREMENT_SINE_HZ, output_unit
+from ..core.output_units import output_unit
+from ..studies.large_signal import fit_sine
 from .section import FigureSpec, NotAvailable, Section, badge, fmt, para, table
-
-SINE_HZ = REQUIREMENT_SINE_HZ
-
-
-def _fit_sine(t, y, f):
-    """Amplitude and phase (deg) of the component of ``y`` at ``f`` (least squares with offset)."""
-    w = 2 * np.pi * f
-    a = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
-    (s, c, _), *_ = np.linalg.lstsq(a, y, rcond=None)
-    return math.hypot(s, c), math.degrees(math.atan2(c, s))
 
 
 def _step_metrics(t, y, final):
@@ -131,13 +123,13 @@ def _model_rows(act, lin_step, t_sine, y_sine_lin, u):
     t, y = act.step_trace()
     keep = t >= 0.0
     last = t_sine >= (t_sine[-1] - 2.0 / f)
-    amp, ph = _fit_sine(t_sine[last], y_sine_lin[last], f)
+    amp, ph = fit_sine(t_sine[last], y_sine_lin[last], f)
     cells, note = step_cells(t[keep], lin_step, plan.step, "linear")
     rows = [("linear closed loop", *cells, fmt(20 * math.log10(amp / plan.sine_amplitude)), fmt(ph))]
     notes = [note] if note else []
     r2 = act.sine_run
     last2 = r2.times >= (r2.times[-1] - 2.0 / f)
-    amp2, ph2 = _fit_sine(r2.times[last2], r2.output_angle[last2] - act.q0, f)
+    amp2, ph2 = fit_sine(r2.times[last2], r2.output_angle[last2] - act.q0, f)
     cells2, note2 = step_cells(t[keep], y[keep], plan.step, "nonlinear")
     rows.append(("nonlinear simulation", *cells2, fmt(20 * math.log10(amp2 / plan.sine_amplitude)), fmt(ph2)))
     return rows, notes + ([note2] if note2 else [])
@@ -173,7 +165,7 @@ def time_responses(ctx) -> Section:
                  + " ".join(n[0].upper() + n[1:] + "." for n in plan.notes))
     rest = analyse(r1, load_friction=load_holds(ctx.scene), window=plan.settling_time + STEP_AT)
     band = dead_band(ctx.scene, d.controller)
-    rest = type(rest)(**{**rest.__dict__, "dead_band": band})
+    rest = replace(rest, dead_band=band)
     rest_body = para(
         f"Friction at rest in the same step (the motor's breakaway {fmt(motor.breakaway_torque)} N*m, Coulomb "
         f"{fmt(motor.coulomb_friction)} N*m, and each stage's and the load's): the loop stops where the moment it "

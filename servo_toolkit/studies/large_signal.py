@@ -121,7 +121,8 @@ class LargeSignal:
         return d
 
 
-def _fit(t, y, f):
+def fit_sine(t, y, f):
+    """Amplitude and phase (deg) of the component of ``y`` at ``f`` (least squares with an offset)."""
     w = 2 * np.pi * f
     a = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
     (s, c, _), *_ = np.linalg.lstsq(a, y, rcond=None)
@@ -178,7 +179,7 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
                               f"be carried out: {exc} (--linear-only skips it)") from None
     t, y = run.times, run.output_angle - result.q0
     last = t >= (CYCLES - FIT_CYCLES) / f
-    a, ph = _fit(t[last], y[last], f)
+    a, ph = fit_sine(t[last], y[last], f)
     motor = scene.motor
     v, i = np.abs(run.motor_voltage), np.abs(run.motor_current)
     with np.errstate(divide="ignore"):

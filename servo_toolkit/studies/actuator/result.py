@@ -60,6 +60,8 @@ class ActuatorCheck(RichDisplay):
         When the first run that left the stroke did so (NaN when none did).
     output_unit : str
     notes : tuple of str
+    current_limit : float
+        The motor's current limit (A), drawn beside the currents.
     """
 
     plan: object
@@ -75,6 +77,7 @@ class ActuatorCheck(RichDisplay):
     stroke_end_s: float = math.nan
     output_unit: str = "rad"
     notes: tuple = ()
+    current_limit: float = math.inf
 
     @property
     def unit(self) -> OutputUnit:
@@ -151,12 +154,10 @@ class ActuatorCheck(RichDisplay):
             a2.plot(r.times * 1e3, u.show(r.reference_angle - self.q0), color="0.55", lw=0.9, label="command")
             a2.plot(r.times * 1e3, u.show(r.output_angle - self.q0), color="C0", label="output")
             a4.plot(r.times * 1e3, r.motor_current, color="C1", lw=0.8, label="motor current")
-        lim = None if self.step_run is None and self.sine_run is None else \
-            (self.step_run or self.sine_run).peaks.get("current_limit_A")
         for ax in (a3, a4):
-            if lim:
-                ax.axhline(lim, color="C3", ls="--", lw=0.8)
-                ax.axhline(-lim, color="C3", ls="--", lw=0.8)
+            if math.isfinite(self.current_limit):
+                ax.axhline(self.current_limit, color="C3", ls="--", lw=0.8, label="current limit")
+                ax.axhline(-self.current_limit, color="C3", ls="--", lw=0.8)
             ax.set(xlabel="time [ms]", ylabel="current [A]")
         a1.set(ylabel=f"output change [{u.shown}]", title=f"{u.text(self.plan.step, 3)} step")
         a2.set(ylabel=f"output [{u.shown}]", title=f"{u.text(self.plan.sine_amplitude, 3)} sine at "
@@ -243,7 +244,7 @@ def evaluate(scene, design, plan, step_run, sine_run, failure: str = "", stroke_
     notes = (*plan.notes, "nonlinear rows: the full model (every drivetrain mode, backlash, the limits, the sampled "
              "controller and its encoders) with friction that holds at the motor, each stage and the load")
     return ActuatorCheck(plan, step_run, sine_run, float(design.q0), figures, cyc, mot, details, ripples, failure,
-                         stroke_end_s, scene.drivetrain.output_unit, notes)
+                         stroke_end_s, scene.drivetrain.output_unit, notes, scene.motor.current_limit)
 
 
 def actuator_check(scene, design, options=None) -> ActuatorCheck:

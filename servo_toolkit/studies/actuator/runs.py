@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from ... import sim
+from ...core.output_units import output_unit
 from ...errors import SimulationError, StrokeEndReached
 
 #: s of equilibrium before the step
@@ -51,10 +52,8 @@ def run_both(scene, controller, plan, options=None):
     physical outcome (``failure`` says so and when, that run is None); a run that cannot be carried out numerically
     raises SimulationError naming which run it was (no verdict on a figure it did not make)."""
     runs, failure, end = [], "", float("nan")
-    u = scene.drivetrain.output_unit
-    for what, fn, text in (("step", step_run, f"{plan.step * (1e3 if u == 'm' else 57.29577951308232):.3g} "
-                                              f"{'mm' if u == 'm' else 'deg'} step"),
-                           ("sine", sine_run, f"requirement sine at {plan.frequency:g} Hz")):
+    for fn, text in ((step_run, f"{output_unit(scene).text(plan.step, 3)} step"),
+                     (sine_run, f"requirement sine at {plan.frequency:g} Hz")):
         try:
             runs.append(fn(scene, controller, plan, options))
         except StrokeEndReached as exc:
