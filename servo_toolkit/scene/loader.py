@@ -267,6 +267,7 @@ def _scene_of(data: dict, source: str | None) -> Scene:
     require(bool(stages or mechanism or roller), "drivetrain",
             "the scene describes nothing to drive: give [[drivetrain]], [mechanism] or [[stages]]")
     unit = ("m" if motor is not None and stages and _output_is_travel(raw_stages) else "rad")
+    req.time.check_output(unit == "m")  # a position in the output's dimension, before any work
     scene = Scene(name=name, description=str(data.get("description", "")), motor=motor,
                   stages=stages, stage_friction=stage_friction, load=load, sensors=sensors, requirements=req,
                   studies=MappingProxyType({k: _study(k, v, unit) for k, v in studies.items()}),
