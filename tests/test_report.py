@@ -191,7 +191,7 @@ def test_report_renders_in_chromium(browser, html, tmp_path):
     assert result["images"] == html.count('<img class="report-figure"') > 0
     assert result["loaded"] == result["images"], "some figures did not load"
     assert result["requirements_rows"] >= 1
-    assert result["sections"] == 1 + len(SECTIONS)
+    assert result["sections"] == 1 + len(SECTIONS) + 1  # requirements, the sections, the reference list
     for table_id, rows in (("stroke-table", 4), ("closed-loop-table", 9), ("controller-table", 10),
                            ("electrics-table", 2)):
         assert result["tables"].get(table_id, 0) >= rows, table_id
