@@ -98,3 +98,42 @@ def test_the_variant_s_start_and_snapshots_as_they_are_pass(study):
     worst, stable = step_check(replace(model), P[None], model.T[None], np.zeros(1, np.int64), x0[None], snaps,
                                runs.dt_s)
     assert not stable[0] and worst[0] > 2.785
+
+
+def test_a_node_held_by_friction_is_judged_without_the_blend_it_never_crosses(study):
+    """Friction that holds (chosen by need for this self-locking screw) leaves variant 1's
+    motor at rest at a snapshot, held while the moment on it stays within its breakaway level.
+    Read on the smooth dynamics that state sits at the loss blend's steepest point, outside
+    RK4's region; held, its speed stays 0, and the rest of the chain (the Jacobian without the
+    motor speed's row and column) lies inside. The variant still fails, where its motor slides
+    through the blend (its snapshot in contact)."""
+    from servo_toolkit.sim.batch_run import integrate_variants
+    from servo_toolkit.sim.reference import fill, initial_state
+    from servo_toolkit.studies.variant_step import checked_states, held_nodes, step_check
+    scene, controller, runs = study
+    assert runs.rows.options.friction == "stick"
+    variant = scene.tolerances.scene_keys().scene({k: float(VALUES[k][1]) for k in KEYS})
+    model = build_model(variant, controller, runs.rows.options)
+    P = fill(model, REF)
+    x0 = initial_state(model, P)
+    one = np.zeros(1, np.int64)
+    sub = int(round(model.sample_time / runs.dt_s))
+    _, _, snaps, _ = integrate_variants(P[None], model.T[None], one, x0[None], runs.dt_s, runs.steps_per_variant, sub)
+    X, times, irefs, owner = checked_states(model, P[None], x0[None], snaps)
+    held = held_nodes(model, P[None], model.T[None], one, X, times, irefs, owner)
+    as_is = slice(2, 2 + snaps.shape[1])
+    rows = [m for m in range(X.shape[0])[as_is] if held[m, 0]]
+    assert rows, "a snapshot with the motor held"
+    assert not held[[m for m in range(X.shape[0]) if X[m, 1] != 0.0], 0].any()  # sliding: never held
+    m = rows[0]
+    J = jacobian(model, P, X[m], times[m], irefs[m])
+    assert not _inside(model, P, X[m], times[m], irefs[m], runs.dt_s)  # the smooth reading: outside
+    keep = [j for j in range(model.nx) if j != 1]
+    lam = np.linalg.eigvals(J[np.ix_(keep, keep)]) * runs.dt_s
+    decaying = lam.real < -1e-9 * np.abs(lam)
+    assert np.all(np.where(decaying, np.abs(rk4_amplification(lam)) <= 1 + 1e-12, np.abs(lam) <= IMAG_LIMIT))
+    worst, stable = step_check(model, P[None], model.T[None], one, x0[None], snaps, runs.dt_s)
+    J_held = J.copy()
+    J_held[1, :] = 0.0
+    assert np.abs(np.linalg.eigvals(J_held)).max() < np.abs(np.linalg.eigvals(J)).max()
+    assert not stable[0] and worst[0] > 2.785  # it still fails, where it slides

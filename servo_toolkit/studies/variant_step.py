@@ -13,13 +13,22 @@ peak current (the largest torque), its largest drivetrain deflection and its end
 rest, every position, current and controller state kept: :func:`reversal_states`), and so is the start (as it is and
 in contact): the largest |lambda dt| over them stands for the run, and a step outside RK4's
 stability region at any of them fails the variant with that reason.
+
+Friction that holds (``STICK``) takes a node at rest out of the dynamics while the moment on
+it stays within its breakaway level: its speed stays 0 whatever the other states do, so the
+step sees the rest of the chain only (:func:`held_nodes`). The smooth blend at zero speed, the
+friction's and the loss's, is then not on the run's path: the Jacobian, taken on the smooth
+dynamics, keeps its other rows, and the held node's speed row is 0. A node that breaks away
+at a reversal slides through the blend and is judged with it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..sim import layout as lo
 from ..sim.batch import NSNAP, jacobians
+from ..sim.kernel import rhs
 from ..sim.stability import IMAG_LIMIT, contact_states, rk4_amplification, smooth_parameters
 
 
@@ -51,6 +60,24 @@ def checked_states(model, P, X0, snaps):
     return states, times, irefs, owner
 
 
+def held_nodes(model, P, T, tix, X, times, irefs, owner) -> np.ndarray:
+    """``(rows, 2)`` bool: whether the motor side (column 0) and the load (column 1) of state
+    ``X[m]`` (variant ``owner[m]``) are held by friction that holds: at rest, with the variant's
+    ``STICK`` on, and the right-hand side of the friction as it is (not smoothed) keeping
+    their acceleration at exactly 0 (the stuck mode of
+    :func:`~servo_toolkit.sim.friction_kernel.gear_at_rest`)."""
+    held = np.zeros((X.shape[0], 2), dtype=bool)
+    at_rest = (X[:, 1] == 0.0) | ((X[:, 3] == 0.0) & (not model.rigid))
+    rows = np.flatnonzero(at_rest & (P[owner, lo.STICK] > 0.0))
+    dx, aux = np.empty(X.shape[1]), np.empty(lo.NAUX)
+    for m in rows:
+        v = owner[m]
+        rhs(float(times[m]), X[m].copy(), P[v], T[tix[v]], float(irefs[m]), dx, aux)
+        held[m, 0] = X[m, 1] == 0.0 and dx[1] == 0.0
+        held[m, 1] = (not model.rigid) and X[m, 3] == 0.0 and dx[3] == 0.0
+    return held
+
+
 def step_check(model, P, T, tix, X0, snaps, dt):
     """Largest |lambda dt| per variant over the states :func:`checked_states` gives, and
     whether dt lies in RK4's stability region at every one of them.
@@ -78,6 +105,9 @@ def step_check(model, P, T, tix, X0, snaps, dt):
     X, times, irefs, owner = X[ok_rows], times[ok_rows], irefs[ok_rows], owner[ok_rows]
     J = np.empty((X.shape[0], nx, nx))
     jacobians(X, times, irefs, smooth_parameters(P), T, tix, owner, J)
+    held = held_nodes(model, P, T, tix, X, times, irefs, owner)
+    J[held[:, 0], 1, :] = 0.0  # a node held at rest: its speed stays 0 (the module's note)
+    J[held[:, 1], 3, :] = 0.0
     good = np.all(np.isfinite(J), axis=(1, 2))
     lam = np.full((X.shape[0], nx), np.nan + 0j)
     lam[good] = np.linalg.eigvals(J[good])
@@ -93,4 +123,4 @@ def step_check(model, P, T, tix, X0, snaps, dt):
     return worst, stable
 
 
-__all__ = ["checked_states", "reversal_states", "step_check"]
+__all__ = ["checked_states", "held_nodes", "reversal_states", "step_check"]
