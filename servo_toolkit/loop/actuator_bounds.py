@@ -18,6 +18,54 @@ CAP_MARGIN = 0.95
 
 
 @dataclass(frozen=True)
+class FilteredSpeed:
+    """The motor encoder's speed through a constant-gain Kalman filter instead of the
+    difference over one sample, at the same speed gain: what the filter buys and costs.
+
+    Attributes
+    ----------
+    ripple : float
+        rms current of the quantization through the filter's speed estimate (A).
+    extra_lag_deg : float
+        Phase the filter's estimate lags the difference's at ``crossover_hz`` (deg).
+    crossover_hz : float
+        The speed loop's crossover Kv Kt / J_m (Hz).
+    jerk : float
+        The filter's jerk level (motor rad/s^3, :func:`.encoder_estimators.default_jerk`).
+    """
+
+    ripple: float
+    extra_lag_deg: float
+    crossover_hz: float
+    jerk: float
+
+    def to_dict(self) -> dict:
+        return {"ripple_A_rms": self.ripple, "extra_lag_deg": self.extra_lag_deg,
+                "crossover_Hz": self.crossover_hz, "jerk_rad_s3": self.jerk}
+
+
+def filtered_speed(scene, speed_gain: float, counts: int, sample_time: float, q0: float) -> FilteredSpeed | None:
+    """:class:`FilteredSpeed` of a motor encoder with ``counts`` per revolution at the speed
+    gain ``speed_gain`` (A per motor rad/s); None without an encoder or a gain."""
+    if counts <= 0 or sample_time <= 0 or speed_gain == 0:
+        return None
+    import numpy as np
+
+    from .encoder_estimators import default_jerk, speed_noise_rms, speed_response, steady_state_gain
+    motor = scene.motor
+    jm = float(scene.drivetrain.motor_inertia([q0])[0])
+    lsb = 2 * math.pi / counts
+    jerk = default_jerk(motor.torque_constant, motor.current_limit, jm, speed_gain, sample_time)
+    F, _, K = steady_state_gain(sample_time, lsb, jerk)
+    fc = abs(speed_gain) * motor.torque_constant / jm / (2 * math.pi)
+    z = np.exp(2j * math.pi * fc * sample_time)
+    difference = (1 - 1 / z) / (sample_time * 2j * math.pi * fc)
+    lag = math.degrees(float(np.angle(difference / speed_response(F, K, sample_time, fc)[0])))
+    return FilteredSpeed(ripple=abs(speed_gain) * speed_noise_rms("kalman", lsb, sample_time, F, K),
+                         extra_lag_deg=lag, crossover_hz=fc, jerk=jerk)
+
+
+@dataclass(frozen=True)
 class ActuatorBounds:
     """What the play and the motor encoder allow the speed loop, for one design.
 
@@ -44,6 +92,10 @@ class ActuatorBounds:
     capped_from : float or None
         The speed gain the unbounded search chose, when the bound lowered it.
     output_unit : {"rad", "m"}
+    filtered : FilteredSpeed or None
+        The encoder's speed through a Kalman filter at ``capped_from`` (the gain the
+        quantization took away), or at ``speed_gain`` without a cap: what a filter buys
+        (None: no encoder, or the scene's speed estimator is already the filter).
     """
 
     allowance: float
@@ -56,6 +108,7 @@ class ActuatorBounds:
     limit_cycle: LimitCycle | None
     capped_from: float | None = None
     output_unit: str = "rad"
+    filtered: FilteredSpeed | None = None
 
     @property
     def limit_cycle_current(self) -> float:
@@ -97,6 +150,14 @@ class ActuatorBounds:
             else:
                 text += f", within the {self.allowance:.3g} A allowance"
             out.append(text)
+        fs = self.filtered
+        at = self.capped_from if self.capped_from is not None else kv
+        if fs is not None and quantization_ripple(at, self.counts, self.sample_time) > self.allowance:
+            out.append(f"a Kalman speed estimate ([sensors] speed_estimator = \"kalman\", jerk {fs.jerk:.3g} rad/s^3) "
+                       f"at the speed gain {at:.4g} A*s/rad would carry {fs.ripple:.3g} A rms of the quantization "
+                       f"({'within' if fs.ripple <= self.allowance else 'over'} the {self.allowance:.3g} A allowance) "
+                       f"at {abs(fs.extra_lag_deg):.3g} deg {'more' if fs.extra_lag_deg >= 0 else 'less'} phase lag than the "
+                       f"difference at the speed loop's crossover ({fs.crossover_hz:.3g} Hz)")
         if self.half_play > 0:
             lc = self.limit_cycle
             head = f"play {self._show(2 * self.half_play)} at the output"
@@ -133,7 +194,8 @@ class ActuatorBounds:
                 "quantization_ripple_A_rms": self.quantization, "half_play": self.half_play,
                 "limit_cycle": None if self.limit_cycle is None else self.limit_cycle.to_dict(),
                 "limit_cycle_current_A_rms": self.limit_cycle_current, "met": self.met,
-                "speed_gain_max_A_s_per_rad": self.speed_gain_max, "capped_from_A_s_per_rad": self.capped_from}
+                "speed_gain_max_A_s_per_rad": self.speed_gain_max, "capped_from_A_s_per_rad": self.capped_from,
+                "filtered_speed": None if self.filtered is None else self.filtered.to_dict()}
 
 
 def ripple_allowance(scene, given: float | None = None) -> tuple:
@@ -187,9 +249,11 @@ def actuator_bounds(scene, result, allowance: float | None = None, delay_respons
             return 1.0 + 0.0 * s
     if half > 0 and not p.rigid:
         lc = backlash_limit_cycle(p, motion, gains, delay_response, half)
+    filtered = filtered_speed(scene, capped_from if capped_from is not None else kv, counts, ts, p.q0)
     return ActuatorBounds(allowance=allowance, allowance_source=source, speed_gain=kv, counts=counts,
                           sample_time=ts, quantization=quantization_ripple(kv, counts, ts), half_play=half,
-                          limit_cycle=lc, capped_from=capped_from, output_unit=scene.drivetrain.output_unit)
+                          limit_cycle=lc, capped_from=capped_from, output_unit=scene.drivetrain.output_unit,
+                          filtered=filtered)
 
 
 def bounded(scene, result, search, allowance, delay_response, rounds: int = 3):
@@ -212,5 +276,5 @@ def bounded(scene, result, search, allowance, delay_response, rounds: int = 3):
     return replace(result, actuator=b, notes=tuple(result.notes) + b.notes())
 
 
-__all__ = ["ActuatorBounds", "CAP_MARGIN", "RIPPLE_OF_CONTINUOUS", "RIPPLE_OF_LIMIT", "actuator_bounds", "bounded",
+__all__ = ["ActuatorBounds", "CAP_MARGIN", "FilteredSpeed", "filtered_speed", "RIPPLE_OF_CONTINUOUS", "RIPPLE_OF_LIMIT", "actuator_bounds", "bounded",
            "ripple_allowance"]

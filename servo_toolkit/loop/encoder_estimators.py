@@ -89,6 +89,48 @@ def steady_state_covariance(sample_time: float, quantum: float, jerk: float):
     return prior, ikh @ prior @ ikh.T + k @ r @ k.T
 
 
+def default_jerk(torque_constant: float, current_limit: float, motor_inertia: float, speed_gain: float,
+                 sample_time: float) -> float:
+    """Jerk level (motor rad/s^3) for the Kalman filter's process noise: the motor reaching its
+    peak acceleration ``a_max = Kt I_max / J_m`` within one speed-loop time constant
+    ``1 / w_c``, ``w_c = Kv Kt / J_m`` from the speed path's gain ``speed_gain`` (A per motor
+    rad/s; ``0.2 pi / Ts``, a tenth of the sample rate, when it is 0)."""
+    a_max = torque_constant * current_limit / motor_inertia
+    kv = abs(speed_gain)
+    wc = kv * torque_constant / motor_inertia if kv > 0 else 0.2 * math.pi / sample_time
+    return a_max * wc
+
+
+def speed_response(F, K, sample_time: float, frequencies) -> np.ndarray:
+    """Complex ratio speed estimate / true speed of the constant-gain filter
+    (:func:`steady_state_gain`) for a sinusoidal angle at ``frequencies`` (Hz), quantization
+    left out."""
+    a = (np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])) @ F
+    out = []
+    for f in np.atleast_1d(frequencies):
+        z = np.exp(2j * math.pi * f * sample_time)
+        x = np.linalg.solve(z * np.eye(3) - a, K * z)
+        out.append(x[1] / (2j * math.pi * f))
+    return np.array(out)
+
+
+def speed_noise_rms(kind: str, quantum: float, sample_time: float, F=None, K=None) -> float:
+    """RMS speed-estimate noise (rad/s) from quantization alone, the angle error taken as
+    white and uniform over one count (variance q^2/12): q / (sqrt(6) Ts) for the difference,
+    (q / sqrt(12)) ||h|| for the filter, h the impulse response of its speed output to the
+    measurement."""
+    if kind == "difference":
+        return quantum / (math.sqrt(6.0) * sample_time)
+    a = (np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])) @ F
+    x, acc = np.asarray(K, dtype=float).copy(), 0.0
+    for _ in range(100_000):
+        acc += x[1] ** 2
+        x = a @ x
+        if abs(x[1]) < 1e-14 * math.sqrt(acc):
+            break
+    return quantum / math.sqrt(12.0) * math.sqrt(acc)
+
+
 class KalmanEstimator:
     """Per-sample Kalman estimator (filterpy) of position, speed and acceleration.
 
@@ -312,4 +354,4 @@ def compare_estimators(t, position, speed, acceleration, quantum: float, jerk: f
 
 __all__ = ["KalmanEstimator", "BackwardDifference", "Estimate", "EstimationComparison", "quantize",
            "encoder_quantum", "kalman_estimate", "backward_difference_estimate", "compare_estimators",
-           "steady_state_gain", "steady_state_covariance"]
+           "default_jerk", "speed_noise_rms", "speed_response", "steady_state_gain", "steady_state_covariance"]
