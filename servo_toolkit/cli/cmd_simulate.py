@@ -129,7 +129,8 @@ def run(args) -> int:
             return 2
         path = result.save(args.output, inputs=[args.scene, *scene.input_files])
         print(f"traces written to {path}", file=sys.stderr)
-    if "UNSTABLE" in str(getattr(result, "controller", "")):
+    from ..sim.simulate import UNSTABLE_SOURCE
+    if UNSTABLE_SOURCE in str(getattr(result, "controller", "")):
         print("servo-toolkit: warning: no stable controller was found for this scene; the run shows the "
               "design's unstable closed loop (see servo-toolkit design)", file=sys.stderr)
     emit(args, result, text)

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.angles import DEG_PER_RAD
+
 #: fewest points from which the scatter gives a noise estimate
 MIN_POINTS = 12
 #: fewest points per decade of frequency (over the data's span) for the scatter
@@ -42,7 +44,6 @@ CLIP = 3.0
 PRECISION_DB = 1e-6
 #: nepers (and radians) to dB and deg
 DB_PER_NEPER = 20 / math.log(10)
-DEG_PER_RAD = 180 / math.pi
 
 
 @dataclass(frozen=True)

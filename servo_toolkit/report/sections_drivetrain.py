@@ -11,9 +11,9 @@ from .references import NEGLECT_CRITERION, REFERENCES, SERIES_STIFFNESS
 from .section import FigureSpec, Section, esc, fmt, para, table
 from ..display.html import column
 from ..display.units import DIMENSIONLESS, DisplayUnits
+from ..core.angles import DEG_PER_RAD
 from .units_table import LINEAR_LOAD, rows as unit_rows
 
-DEG = 180.0 / math.pi
 TABLE_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
 
 
@@ -62,7 +62,7 @@ def _output_units(drive, display: DisplayUnits | None = None):
     output; the stiffness in the scene's ``[display]`` unit (SI by default)."""
     display = display or DisplayUnits()
     linear = bool(getattr(drive, "output_is_linear", False))
-    qu, qf = ("mm", 1e3) if linear else ("deg", DEG)
+    qu, qf = ("mm", 1e3) if linear else ("deg", DEG_PER_RAD)
     return qu, qf, display.stiffness_unit(linear), display.factor("stiffness", linear)
 
 

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from ..display.units import DIMENSIONLESS
+from ..core.angles import DEG_PER_RAD
 
-DEG = 180.0 / math.pi
 
 #: field name -> (display unit, factor from SI)
 UNITS = {
@@ -20,19 +19,19 @@ UNITS = {
     "nut_mass": ("kg", 1.0), "axial_stiffness": ("N/m", 1.0), "arm_length": ("mm", 1e3),
     "rod_length": ("mm", 1e3), "rod_offset": ("mm", 1e3), "rod_mass": ("kg", 1.0),
     "output_shaft_mass": ("kg", 1.0), "output_shaft_inertia": ("kg*m^2", 1.0),
-    "rod_axial_stiffness": ("N/m", 1.0), "stroke_range": ("deg", DEG), "stroke": ("deg", DEG),
+    "rod_axial_stiffness": ("N/m", 1.0), "stroke_range": ("deg", DEG_PER_RAD), "stroke": ("deg", DEG_PER_RAD),
     "stiffness": ("N*m/rad", 1.0), "inertia": ("kg*m^2", 1.0), "hinge_moment": ("N*m", 1.0),
     "hinge_stiffness": ("N*m/rad", 1.0), "damping": ("N*m*s/rad", 1.0),
     "profile_constant": ("mm", 1e3), "follower_mass": ("kg", 1.0), "follower_weight": ("N", 1.0),
-    "guide_friction_coefficient": (DIMENSIONLESS, 1.0), "gravity_tilt": ("deg", DEG),
-    "gravity_heading": ("deg", DEG), "clearance": ("mm", 1e3),
+    "guide_friction_coefficient": (DIMENSIONLESS, 1.0), "gravity_tilt": ("deg", DEG_PER_RAD),
+    "gravity_heading": ("deg", DEG_PER_RAD), "clearance": ("mm", 1e3),
     "output_encoder_bits": ("bit", 1.0), "motor_encoder_counts": ("counts/rev", 1.0),
-    "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG),
-    "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG), "max_sensitivity_peak": ("dB", 1.0),
+    "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG_PER_RAD),
+    "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG_PER_RAD), "max_sensitivity_peak": ("dB", 1.0),
     "screw_radius": ("mm", 1e3), "roller_radius": ("mm", 1e3), "nut_radius": ("mm", 1e3),
     "screw_spline_radius": ("mm", 1e3), "nut_screw_joint_radius": ("mm", 1e3),
-    "screw_starts": (DIMENSIONLESS, 1.0), "rollers": (DIMENSIONLESS, 1.0), "flank_angle": ("deg", DEG),
-    "ring_gear_pressure_angle": ("deg", DEG), "roller_mass": ("kg", 1.0), "screw_mass": ("kg", 1.0),
+    "screw_starts": (DIMENSIONLESS, 1.0), "rollers": (DIMENSIONLESS, 1.0), "flank_angle": ("deg", DEG_PER_RAD),
+    "ring_gear_pressure_angle": ("deg", DEG_PER_RAD), "roller_mass": ("kg", 1.0), "screw_mass": ("kg", 1.0),
     "roller_inertia": ("kg*m^2", 1.0), "carrier_inertia": ("kg*m^2", 1.0),
     "screw_speed": ("rad/s", 1.0), "load": ("N", 1.0), "roller_screw_friction": (DIMENSIONLESS, 1.0),
     "screw_screw_friction": (DIMENSIONLESS, 1.0), "nut_screw_friction": (DIMENSIONLESS, 1.0),
@@ -50,7 +49,7 @@ TIME_UNITS = {"max_overshoot": ("%", 100.0), "max_settling_time": ("ms", 1e3), "
               "max_rms_current": ("A", 1.0), "max_time_at_current_limit": ("ms", 1e3),
               "max_time_at_voltage_limit": ("ms", 1e3)}
 #: (class name, field) overrides where one name means different quantities
-OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG), ("BallScrew", "backlash"): ("um", 1e6),
+OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG_PER_RAD), ("BallScrew", "backlash"): ("um", 1e6),
              ("RollerScrew", "stroke_range"): ("mm", 1e3)}
 _SKIP = {"name", "direction"}
 
@@ -103,7 +102,7 @@ def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
         if dataclasses.is_dataclass(value) and hasattr(value, "dimensions"):
             # the time requirements: each key the scene set, a position as an angle or a length
             lengths = {k for k, d in value.dimensions if d == "length"}
-            units = {k: (("mm", 1e3) if k in lengths else ("deg", DEG)) for k in value.given()} | TIME_UNITS
+            units = {k: (("mm", 1e3) if k in lengths else ("deg", DEG_PER_RAD)) for k in value.given()} | TIME_UNITS
             out += [(f"{f.name}.{name}", text, unit) for name, text, unit in rows(value, units)
                     if name != "dimensions"]
             continue

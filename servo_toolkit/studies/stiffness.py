@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
+from ..core.angles import RAD_PER_DEG
 from ..drivetrain.elements import NeglectCriterion
 from ..display.cards import RichDisplay
 from ..display.cards import card, esc, num
@@ -36,7 +37,6 @@ def default_angles_deg(drivetrain) -> tuple:
     if lo - 1e-9 <= min(DEFAULT_ANGLES_DEG) and max(DEFAULT_ANGLES_DEG) <= hi + 1e-9:
         return DEFAULT_ANGLES_DEG
     return (lo, 0.5 * (lo + hi), hi)
-DEG = math.pi / 180
 
 
 def _nulls(values) -> list:
@@ -149,7 +149,7 @@ class StiffnessResult(RichDisplay):
             "output_unit": self.output_unit,
             "stages": self._stages(),
             "total_Nm_per_rad": _nulls(self.total),
-            "total_Nm_per_deg": [None] * n if self.linear else _nulls(self.total * DEG),
+            "total_Nm_per_deg": [None] * n if self.linear else _nulls(self.total * RAD_PER_DEG),
             "ratio": self.ratio.tolist(),
             "reflected_inertia_kg_m2": self.reflected_inertia.tolist(),
             "rigid": not self.names,
@@ -279,7 +279,7 @@ def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, n
         if positions_mm is not None:
             raise SceneError("position", "the output of this drivetrain is an angle: give angles "
                              "in deg (--angle DEG)")
-        key, unit, scale = "angle", "deg", DEG
+        key, unit, scale = "angle", "deg", RAD_PER_DEG
         values = (default_angles_deg(dt) if angles_deg is None else angles_deg)
     values = np.atleast_1d(np.asarray(values, dtype=float))
     if values.size == 0:
