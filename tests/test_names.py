@@ -33,3 +33,21 @@ def test_angle_conversions_are_defined_once():
 def test_the_conversions_go_the_way_their_names_say():
     from servo_toolkit.core.angles import DEG_PER_RAD, RAD_PER_DEG
     assert math.isclose(math.pi * DEG_PER_RAD, 180.0) and math.isclose(180.0 * RAD_PER_DEG, math.pi)
+
+
+def test_each_stage_carries_its_own_facts_and_they_agree():
+    """A stage's kind, what it takes and gives, its coordinates' units, ratio keys and report
+    units live on its class; what it gives (rotary or travel) is the unit of its output
+    coordinate (rad or m), and a key it displays in its own unit is one of its fields."""
+    import dataclasses
+
+    from servo_toolkit.components.base import Stage
+    from servo_toolkit.components.stages import STAGE_IO, STAGE_KINDS, STAGES
+    assert len(STAGE_KINDS) == len(STAGES) and all(issubclass(c, Stage) and c.KIND for c in STAGES)
+    unit_of = {"rotary": "rad", "travel": "m", None: None}
+    for cls in STAGES:
+        take, give = STAGE_IO[cls.KIND]
+        assert (unit_of[take], unit_of[give]) == cls.UNITS[:2], cls.__name__
+        fields = {f.name for f in dataclasses.fields(cls)}
+        assert all(name in fields for name, _, _ in cls.DISPLAY_UNITS), cls.__name__
+        assert cls.RATIO_KEYS is None or cls.RATIO_KEYS.split("/")[0].split("[")[0].split(",")[0] in fields | {"stages"}

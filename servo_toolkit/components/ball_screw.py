@@ -45,6 +45,12 @@ class BallScrew(Stage):
         output; None: not given (the drivetrain's default stroke applies).
     """
 
+    KIND = "ball_screw"
+    IO = ("rotary", "travel")
+    UNITS = ("rad", "m", "m")
+    RATIO_KEYS = "lead"
+    DISPLAY_UNITS = (("backlash", "um", 1e6),)
+
     name: str
     lead: float
     screw_inertia: float = 0.0

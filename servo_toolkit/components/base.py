@@ -110,9 +110,31 @@ def screw_backdrive_efficiency(eta: float) -> float:
 
 
 class Stage:
-    """Mixin with defaults; concrete stages are frozen dataclasses."""
+    """Mixin with defaults; concrete stages are frozen dataclasses.
+
+    A stage carries its own facts as class attributes, read by the scene loader, the
+    drivetrain and the report, so that a new stage is one module here plus its tests:
+
+    ``KIND``
+        The scene's ``kind`` of the stage (``[[drivetrain]] kind = "..."``).
+    ``IO``
+        What it takes and gives, ``"rotary"`` or ``"travel"`` (None: as it finds it).
+    ``UNITS``
+        SI units of its input and output coordinates and of its spring's coordinate
+        (``"rad"`` or ``"m"``; None: the coordinate it finds).
+    ``RATIO_KEYS``
+        The scene keys that set its ratio, for messages (None: it sets none).
+    ``DISPLAY_UNITS``
+        The report's units of its fields where they differ from the scene table's:
+        ``((field, unit, factor from SI), ...)``.
+    """
 
     direction = "backward"
+    KIND = ""
+    IO = (None, None)
+    UNITS = ("rad", "rad", "rad")
+    RATIO_KEYS = None
+    DISPLAY_UNITS = ()
 
     @property
     def backdrive_efficiency(self) -> float:

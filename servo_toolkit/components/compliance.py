@@ -25,6 +25,12 @@ class Compliance(Stage):
         None: the model's default structural damping.
     """
 
+    KIND = "compliance"
+    IO = (None, None)
+    UNITS = (None, None, None)
+    RATIO_KEYS = None
+    DISPLAY_UNITS = ()
+
     name: str
     stiffness: float
     at: str = "output"

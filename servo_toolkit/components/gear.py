@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
+from ..core.angles import DEG_PER_RAD
 from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio, read_stroke
 
 
@@ -36,6 +37,12 @@ class GearTrain(Stage):
         ``[lowest, highest]`` output shaft angle (rad), scene key ``stroke``, when the gear
         drives the output; None: not given (the drivetrain's default stroke applies).
     """
+
+    KIND = "gear"
+    IO = ("rotary", "rotary")
+    UNITS = ("rad", "rad", "rad")
+    RATIO_KEYS = "ratio/teeth"
+    DISPLAY_UNITS = (("backlash", "deg", DEG_PER_RAD),)
 
     name: str
     ratio: float

@@ -40,6 +40,12 @@ class RockerLinkage(Stage):
         (:mod:`servo_toolkit.drivetrain.chain_damping`); None: the model's default.
     """
 
+    KIND = "rocker_linkage"
+    IO = ("travel", "rotary")
+    UNITS = ("m", "rad", "m")
+    RATIO_KEYS = "arm_length, rod_length"
+    DISPLAY_UNITS = ()
+
     name: str
     arm_length: float
     rod_length: float

@@ -18,16 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: stage class name -> (input unit, output unit, spring unit); ``None`` = same as input
-_STAGE_UNITS = {
-    "GearTrain": ("rad", "rad", "rad"),
-    "BallScrew": ("rad", "m", "m"),
-    "RollerScrew": ("rad", "m", "m"),
-    "RockerLinkage": ("m", "rad", "m"),
-    "Compliance": (None, None, None),
-    "Cam": ("rad", "m", "m"),
-}
-
 #: SI stiffness unit of a spring on a coordinate of the given unit
 STIFFNESS_UNIT = {"rad": "N*m/rad", "m": "N/m"}
 #: SI inertia unit of an element on a coordinate of the given unit
@@ -45,7 +35,7 @@ def stage_units(stages) -> tuple[tuple, tuple]:
     unit = "rad"  # the motor shaft
     outs, springs = [], []
     for stage in stages:
-        _, out, spring = _STAGE_UNITS.get(type(stage).__name__, ("rad", "rad", "rad"))
+        _, out, spring = getattr(stage, "UNITS", ("rad", "rad", "rad"))  # the stage's own facts
         out = unit if out is None else out
         springs.append(out if spring is None else spring)
         outs.append(out)

@@ -29,14 +29,11 @@ from .elements import (STIFFNESS_UNIT, NeglectCriterion, ReflectedInertias, negl
 #: linear plant's matrices and the simulation's stiffness span more than double precision holds
 RATIO_RANGE = (1e-4, 1e8)
 #: the keys that set a stage's ratio, for error messages
-_RATIO_KEYS = {"GearTrain": "ratio/teeth", "BallScrew": "lead", "RollerScrew": "stages[].lead",
-               "RockerLinkage": "arm_length, rod_length", "Cam": "profile_constant"}
 
 
 def ratio_keys(drivetrain) -> str:
     """``drivetrain[i].key`` of every key that sets a ratio of the chain."""
-    out = [f"drivetrain[{i}].{_RATIO_KEYS[type(s).__name__]}" for i, s in enumerate(drivetrain.stages)
-           if type(s).__name__ in _RATIO_KEYS]
+    out = [f"drivetrain[{i}].{s.RATIO_KEYS}" for i, s in enumerate(drivetrain.stages) if s.RATIO_KEYS]
     return ", ".join(out) or "ratios"
 
 

@@ -49,8 +49,6 @@ TIME_UNITS = {"max_overshoot": ("%", 100.0), "max_settling_time": ("ms", 1e3), "
               "max_rms_current": ("A", 1.0), "max_time_at_current_limit": ("ms", 1e3),
               "max_time_at_voltage_limit": ("ms", 1e3)}
 #: (class name, field) overrides where one name means different quantities
-OVERRIDES = {("GearTrain", "backlash"): ("deg", DEG_PER_RAD), ("BallScrew", "backlash"): ("um", 1e6),
-             ("RollerScrew", "stroke_range"): ("mm", 1e3)}
 _SKIP = {"name", "direction"}
 
 
@@ -88,7 +86,7 @@ def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
     (unit, factor from SI)) takes precedence, e.g. :data:`LINEAR_LOAD`.
     """
     out = []
-    cls = type(obj).__name__
+    overrides = {name: (unit, factor) for name, unit, factor in getattr(obj, "DISPLAY_UNITS", ())}
     for f in dataclasses.fields(obj):
         if f.name in _SKIP or f.name.startswith("_"):
             continue
@@ -109,7 +107,7 @@ def rows(obj, units: dict | None = None) -> list[tuple[str, str, str]]:
         if f.name in TEMPERATURES and isinstance(value, (int, float)):
             out.append((f.name, _text(value - 273.15), "degC"))
             continue
-        unit, factor = (units or {}).get(f.name) or OVERRIDES.get((cls, f.name), UNITS.get(f.name, ("SI", 1.0)))
+        unit, factor = (units or {}).get(f.name) or overrides.get(f.name, UNITS.get(f.name, ("SI", 1.0)))
         if isinstance(value, str):
             unit = ""
         out.append((f.name, _text(_scaled(value, factor)), unit))

@@ -9,23 +9,18 @@ from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 
-from ..components.ball_screw import BallScrew
-from ..components.cam.geometry import Cam
-from ..components.compliance import Compliance, Load
-from ..components.gear import GearTrain
-from ..components.linkage import RockerLinkage
+from ..components.compliance import Load
 from ..components.motor import DCMotor
 from ..components.platform.geometry import CrossedArchPlatform
-from ..components.roller_screw.stages import RollerScrew, RollerScrewOperating, RollerScrewStage
+from ..components.roller_screw.stages import RollerScrewOperating, RollerScrewStage
 from ..components.stage_friction import StageFriction
+from ..components.stages import STAGE_IO, STAGE_KINDS  # noqa: F401 - STAGE_KINDS: the scene's stage kinds
 from ..errors import SceneError, SceneWarning
 from ..core.fields import Fields, collecting_notes, require
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
 from .tables import ROBUSTNESS_METHODS, SPEED_ESTIMATORS, Requirements, Robustness, Sensors, Study  # noqa: F401
 
-STAGE_KINDS = {"gear": GearTrain, "ball_screw": BallScrew, "rocker_linkage": RockerLinkage,
-               "compliance": Compliance, "cam": Cam, "roller_screw": RollerScrew}
 STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
@@ -122,10 +117,6 @@ class Scene:
         return scene_card(self)
 
 
-#: stage kind -> (input, output): ``rotary`` (a shaft angle) or ``travel`` (a linear
-#: position); a compliance passes on what it receives. The motor delivers a rotary input.
-STAGE_IO = {"gear": ("rotary", "rotary"), "ball_screw": ("rotary", "travel"), "roller_screw": ("rotary", "travel"),
-            "rocker_linkage": ("travel", "rotary"), "cam": ("rotary", "travel"), "compliance": (None, None)}
 
 
 def _built(path: str, build):

@@ -70,6 +70,12 @@ class Cam(Stage):
         see :attr:`pitch_base_radius`.
     """
 
+    KIND = "cam"
+    IO = ("rotary", "travel")
+    UNITS = ("rad", "m", "m")
+    RATIO_KEYS = "profile_constant"
+    DISPLAY_UNITS = ()
+
     name: str
     profile_constant: float
     follower_mass: float

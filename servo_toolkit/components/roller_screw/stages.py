@@ -270,6 +270,12 @@ class RollerScrew(Stage):
         ``"ball"`` (life exponent 3) or ``"roller"`` (10/3) bearing.
     """
 
+    KIND = "roller_screw"
+    IO = ("rotary", "travel")
+    UNITS = ("rad", "m", "m")
+    RATIO_KEYS = "stages[].lead"
+    DISPLAY_UNITS = (("stroke_range", "mm", 1e3),)
+
     name: str
     stages: tuple
     roller_screw_friction: float = 0.0
