@@ -17,7 +17,7 @@ from servo_toolkit import SceneError
 from servo_toolkit.loop.encoder_estimators import KalmanEstimator, steady_state_covariance
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.speed_estimator import speed_noise_rms
+from servo_toolkit.loop.encoder_estimators import speed_noise_rms
 from servo_toolkit.sim.kernel import measured_motor_angle, motor_angle
 
 from .conftest import SCENES, build, variant

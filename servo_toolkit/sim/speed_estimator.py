@@ -22,36 +22,19 @@ import math
 import numpy as np
 
 from ..errors import SceneError
-from ..loop.encoder_estimators import encoder_quantum, steady_state_gain
+from ..loop.encoder_estimators import default_jerk as estimator_jerk
+from ..loop.encoder_estimators import encoder_quantum, speed_response, steady_state_gain
 from . import layout as lo
 
 
 def default_jerk(scene, controller, q0: float) -> float:
-    """Jerk level (motor rad/s^3) for the Kalman filter's process noise.
-
-    The motor reaching its peak acceleration ``a_max = Kt I_max / J_m(q0)`` within one
-    speed-loop time constant ``1 / w_c``, with ``w_c = |di_ref/domega_m| Kt / J_m`` from the
-    motion controller's direct speed gain (``0.2 pi / Ts``, a tenth of the sample rate, when
-    it has none).
-    """
+    """Jerk level (motor rad/s^3) for the Kalman filter's process noise
+    (:func:`servo_toolkit.loop.encoder_estimators.default_jerk`) at the controller's direct
+    speed gain and the motor-side inertia at ``q0``."""
     motor = scene.motor
     jm = float(scene.drivetrain.motor_inertia([q0])[0])
-    a_max = motor.torque_constant * motor.current_limit / jm
-    kv = abs(float(np.asarray(controller.motion.D)[0, 2]))
-    wc = kv * motor.torque_constant / jm if kv > 0 else 0.2 * math.pi / controller.sample_time
-    return a_max * wc
-
-
-def speed_response(F, K, sample_time: float, frequencies) -> np.ndarray:
-    """Complex ratio speed estimate / true speed of the constant-gain filter for a sinusoidal
-    motor angle at ``frequencies`` (Hz), quantization left out."""
-    a = (np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])) @ F
-    out = []
-    for f in np.atleast_1d(frequencies):
-        z = np.exp(2j * math.pi * f * sample_time)
-        x = np.linalg.solve(z * np.eye(3) - a, K * z)
-        out.append(x[1] / (2j * math.pi * f))
-    return np.array(out)
+    kv = float(np.asarray(controller.motion.D)[0, 2])
+    return estimator_jerk(motor.torque_constant, motor.current_limit, jm, kv, controller.sample_time)
 
 
 def pack(scene, controller, options, kind: str, quantization: bool, nx_before: int, np_before: int):
@@ -113,18 +96,3 @@ def pack(scene, controller, options, kind: str, quantization: bool, nx_before: i
     return slots, np.concatenate([F.ravel(), K]), names, info, note
 
 
-def speed_noise_rms(kind: str, quantum: float, sample_time: float, F=None, K=None) -> float:
-    """RMS speed-estimate noise (rad/s) from quantization alone, the angle error taken as
-    white and uniform over one count (variance q^2/12): q / (sqrt(6) Ts) for the difference,
-    (q / sqrt(12)) ||h|| for the filter, h the impulse response of its speed output to the
-    measurement."""
-    if kind == "difference":
-        return quantum / (math.sqrt(6.0) * sample_time)
-    a = (np.eye(3) - np.outer(K, [1.0, 0.0, 0.0])) @ F
-    x, acc = np.asarray(K, dtype=float).copy(), 0.0
-    for _ in range(100_000):
-        acc += x[1] ** 2
-        x = a @ x
-        if abs(x[1]) < 1e-14 * math.sqrt(acc):
-            break
-    return quantum / math.sqrt(12.0) * math.sqrt(acc)
