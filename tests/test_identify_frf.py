@@ -305,3 +305,39 @@ def test_only_a_last_shorter_step_is_left_out(tmp_path, last, uneven_row, kept):
                header="t_s,reference_angle_rad,output_angle_rad", comments="", fmt="%.10g")
     with pytest.raises(SceneError, match=r"row 52: t_s must increase equally spaced, every step within 1%"):
         read_time_log(log)
+
+
+def _run(argv, capsys):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def _periodic_log(path, head: str, period: int = 64, periods: int = 5):
+    k = np.arange(period * periods)
+    u = sum(np.cos(2 * np.pi * m * k / period + m * m) for m in range(3, 8))
+    y = 0.5 * np.roll(u, 2)
+    path.write_text(head + "time_s,current_A,motor_angle_rad\n"
+                    + "".join(f"{t * 1e-3:.6f},{a:.17g},{b:.17g}\n" for t, a, b in zip(k, u, y)))
+
+
+def test_frf_takes_the_period_a_log_records(tmp_path, capsys):
+    """A log's comment lines before its header record its period, settling periods and
+    excited bins: frf uses them (4 of 5 periods averaged with one settling, the bins named
+    and no other), an option overrides them, and a recorded value that is not a whole
+    number, a period longer than the log or bins beyond half of it is one line naming it."""
+    log = tmp_path / "log.csv"
+    _periodic_log(log, "# rig log\n# period_samples: 64\n# settle_periods: 1\n# excited_bins: 4:6\n")
+    code, out, err = _run(["frf", log, "--json"], capsys)
+    got = json.loads(out)
+    assert code == 0 and got["averages"] == 4, err
+    np.testing.assert_allclose(got["frequency_hz"], np.array([4, 5, 6]) / 0.064)
+    code, out, err = _run(["frf", log, "--json", "--settle", "2"], capsys)
+    assert code == 0 and json.loads(out)["averages"] == 3, err
+    for head, key in (("# period_samples: x\n", "# period_samples"), ("# period_samples: 999\n", "# period_samples"),
+                      ("# period_samples: 64\n# settle_periods: 5\n", "# settle_periods"),
+                      ("# period_samples: 64\n# excited_bins: 7:3\n", "# excited_bins"),
+                      ("# period_samples: 64\n# excited_bins: 3:40\n", "# excited_bins")):
+        _periodic_log(log, head)
+        code, _, err = _run(["frf", log], capsys)
+        assert code == 2 and err.count("servo-toolkit: error") == 1 and key in err, err

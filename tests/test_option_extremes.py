@@ -49,6 +49,7 @@ BASE = {
     "tolerances": [TOLERANCES, "--linear-only", "--samples", "64"],
     "fit": None,  # no numeric option
     "frf": None,  # needs a log file; its --segment bounds are tested in test_identify_frf.py
+    "excite": [EMA, "-o", "{tmp}/stimulus.csv", "--resolution", "4", "--periods", "1", "--settle", "0"],
     "new": None,  # no numeric option (writes a starting scene)
     "size": None,  # no numeric option (the duty cycle's numbers are scene keys, tested in test_sizing*.py)
 }
@@ -56,7 +57,8 @@ BASE = {
 REPLACES = {("kv", "--frequency"): ["--study", "kv_8hz"], ("kv", "--amplitude"): ["--study", "kv_8hz"],
             ("sweep", "--frequency"): ["--frequency", "20"], ("check", "--samples"): ["--samples", "8"],
             ("montecarlo", "--samples"): ["--samples", "8"], ("montecarlo", "--duration"): ["--duration", "0.02"],
-            ("tolerances", "--samples"): ["--samples", "64"]}
+            ("tolerances", "--samples"): ["--samples", "64"], ("excite", "--periods"): ["--periods", "1"],
+            ("excite", "--settle"): ["--settle", "0"]}
 #: numeric pieces of string options: option -> templates of the value ({x} the number)
 PIECES = {
     "--require": ["bandwidth={x} Hz", "phase_margin={x} deg", "gain_margin={x} dB", "sensitivity_peak={x} dB",

@@ -43,6 +43,8 @@ COMMANDS = {
     "montecarlo": "nonlinear closed-loop variants (load inertia, stiffness), batched",
     "tolerances": "yield over the scene's [tolerances] and which tolerance drives it",
     "fit": "fit scene parameters to a measured frequency response or time traces",
+    "excite": "an excitation for the rig's drive within the scene's limits, with the model's response to it (a file "
+              "frf reads)",
     "frf": "frequency response and coherence from a time log (H1, Welch)",
 }
 

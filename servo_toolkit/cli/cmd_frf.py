@@ -5,11 +5,14 @@ LOG.csv has a ``time_s`` column (equally spaced) and one column per signal; the 
 when the run's final step is shorter than the others. ``--input`` and ``--output`` name the
 columns of the excitation and of the response (default ``current_A`` and
 ``motor_angle_rad``); ``--output`` is a column of the log, not a file (``-o`` is the file
-written). The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole
-periods of a periodic excitation in rectangular windows, or Welch averaging of Hann
-windows) gives the response at every excited frequency with its coherence and the number of
-spectra averaged; ``--derivative`` turns an angle's response into the speed's (what ``fit
---response plant`` compares). ``-o`` writes the CSV that ``fit`` reads.
+written). A period the log records in a comment line before its header (``# period_samples:
+N``, with ``# settle_periods: K`` and ``# excited_bins: FIRST:LAST``, as ``excite`` writes) is
+the periodic window's default, and the recorded bins are the frequencies estimated.
+The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole periods of a periodic
+excitation in rectangular windows, or Welch averaging of Hann windows) gives the response
+at every excited frequency with its coherence and the number of spectra averaged;
+``--derivative`` turns an angle's response into the speed's (what ``fit --response plant``
+compares). ``-o`` writes the CSV that ``fit`` reads.
 """
 
 from __future__ import annotations
@@ -39,9 +42,12 @@ def register(sub) -> None:
     p.add_argument("--segment", type=bounded(int, 16, 2 ** 24, what="a number of samples"), metavar="N",
                    help="hann: samples per Welch segment (default: the largest power of two giving 8 segments)")
     p.add_argument("--period", type=bounded(int, 16, 2 ** 30, what="a number of samples"), metavar="N",
-                   help="periodic: samples per period (default: the period the input repeats with)")
+                   help="periodic: samples per period (default: the one the log records in a '# period_samples: N' "
+                        "line before its header, as excite writes, with the lines its '# excited_bins: FIRST:LAST' "
+                        "line names; else the period the input repeats with)")
     p.add_argument("--settle", type=bounded(int, 0, 2 ** 20, what="a number of periods"), metavar="K",
-                   help="periodic: periods left out at the start (default 1 when the log holds 3 or more, else 0)")
+                   help="periodic: periods left out at the start (default: the log's '# settle_periods: K' line, "
+                        "else 1 when the log holds 3 or more periods, else 0)")
     p.add_argument("--band", metavar="LO:HI", help="keep frequencies from LO to HI Hz (default: every excited one)")
     p.add_argument("-o", "--out", dest="out", metavar="FRF.csv",
                    help="write frequency_hz,gain_db,phase_deg,coherence here (the CSV fit reads)")
@@ -101,9 +107,18 @@ def run(args) -> int:
     for note in log.notes:
         print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
     t, columns = log.time_s, log.columns
+    period, settle, lines = args.period, args.settle, None
+    if log.period_samples is not None and period is None and args.window != "hann" and args.segment is None:
+        period = log.period_samples
+        settle = log.settle_periods if settle is None else settle
+        if log.excited_bins is not None:
+            lines = list(range(log.excited_bins[0], log.excited_bins[1] + 1))
+        print(f"servo-toolkit: note: {args.log}: the period as the log records it, {period} samples"
+              + (f", {settle} settling" if settle is not None else "")
+              + (f", lines {lines[0]} to {lines[-1]} of the period" if lines else ""), file=sys.stderr)
     data = estimate_frf(t, columns[args.input], columns[args.output], window=args.window, segment=args.segment,
-                        period=args.period, settle=args.settle, band=band, derivative=args.derivative,
-                        source=str(args.log))
+                        period=period, settle=settle, band=band, derivative=args.derivative,
+                        source=str(args.log), lines=lines)
     if args.out is not None:
         write_text(args.out, frf_csv(data), "-o")
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,

@@ -33,6 +33,13 @@ EXCITED_DB = 40.0
 PERIODIC_TOLERANCE = 1e-2
 #: shortest period or segment (samples)
 MIN_SEGMENT = 16
+#: a time log's comment lines (``# KEY: VALUE``, before its header) that record its period
+#: (samples), the periods its response settles over and the bins of the period's DFT its
+#: excitation excites (``FIRST:LAST``), read as the periodic window's defaults
+#: (``servo-toolkit excite`` writes them)
+PERIOD_KEY = "period_samples"
+SETTLE_KEY = "settle_periods"
+LINES_KEY = "excited_bins"
 
 
 @dataclass(frozen=True)
@@ -203,5 +210,5 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     return None
 
 
-__all__ = ["EXCITED_DB", "MIN_SEGMENT", "Spectrum", "find_period", "periodic_h1", "response_csv", "welch_h1",
-           "welch_segments"]
+__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "SETTLE_KEY", "Spectrum", "find_period", "periodic_h1",
+           "response_csv", "welch_h1", "welch_segments"]

@@ -20,7 +20,12 @@ coherence's random error depends on it.
 A log is a CSV with a ``time_s`` column (equally spaced) and one column per signal, e.g.
 ``time_s,current_A,motor_angle_rad``; the traces ``simulate -o`` writes (time column
 ``t_s``, the run's last step possibly shorter: that sample is left out) read as logs too. The response of an angle's derivative (a speed, as the
-``plant`` fit compares) is the angle's response times ``j 2 pi f``.
+``plant`` fit compares) is the angle's response times ``j 2 pi f``. Comment lines before the
+header (``# KEY: VALUE``) may record the log's period in samples, the periods its response
+settles over and the bins of the period's DFT its excitation excites (``# period_samples:
+10000``, ``# settle_periods: 1``, ``# excited_bins: 2:65``, as ``excite`` writes them): they are
+the periodic window's defaults, the bins estimated at those lines whatever the input's power
+there (an excitation inside a loop reaches the input weakly where the loop's gain is high).
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.inputs import read_input_text
-from ..core.spectra import MIN_SEGMENT, find_period, periodic_h1, response_csv, welch_h1
+from ..core.spectra import LINES_KEY, MIN_SEGMENT, PERIOD_KEY, SETTLE_KEY, find_period, periodic_h1, response_csv, welch_h1
 from ..errors import SceneError
 from .data import MAX_DATA_BYTES, FrequencyData
 
@@ -62,12 +67,48 @@ class TimeLog:
         ``time_s``, or ``t_s`` (the traces ``simulate -o`` writes).
     notes : tuple of str
         What was done to the log (a run's last, shorter step left out).
+    period_samples, settle_periods : int or None
+        The period and the settling periods its comment lines record (None: not recorded).
+    excited_bins : (int, int) or None
+        The first and last bin of the period's DFT the excitation excites, as recorded.
     """
 
     time_s: np.ndarray
     columns: dict
     time_column: str = "time_s"
     notes: tuple = ()
+    period_samples: int | None = None
+    settle_periods: int | None = None
+    excited_bins: tuple | None = None
+
+
+def _recorded(lines, src) -> tuple[dict, list]:
+    """The ``# KEY: VALUE`` comment lines before the header: whole numbers for
+    :data:`PERIOD_KEY` and :data:`SETTLE_KEY`, ``FIRST:LAST`` bins for :data:`LINES_KEY` (other
+    comments are left alone), and the lines after them."""
+    found, k = {}, 0
+    while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
+        key, sep, value = lines[k].lstrip().lstrip("#").partition(":")
+        key = key.strip()
+        if sep and key == LINES_KEY:
+            first, colon, last = value.strip().partition(":")
+            try:
+                found[key] = (int(first), int(last))
+            except ValueError:
+                found[key] = None
+            if not colon or found[key] is None or not 1 <= found[key][0] <= found[key][1]:
+                raise SceneError(f"# {key}", f"must be FIRST:LAST, whole bins with 1 <= FIRST <= LAST (got "
+                                 f"{value.strip()!r})", src)
+        elif sep and key in (PERIOD_KEY, SETTLE_KEY):
+            try:
+                found[key] = int(value.strip())
+            except ValueError:
+                raise SceneError(f"# {key}", f"must be a whole number (got {value.strip()!r})", src) from None
+            if found[key] < (MIN_SEGMENT if key == PERIOD_KEY else 0):
+                raise SceneError(f"# {key}", f"must be at least {MIN_SEGMENT if key == PERIOD_KEY else 0} "
+                                 f"(got {found[key]})", src)
+        k += 1
+    return found, lines[k:]
 
 
 def _uneven(t) -> np.ndarray:
@@ -83,19 +124,23 @@ def read_time_log(path) -> TimeLog:
     ``simulate -o`` writes its traces).
 
     A run stops at its final time, so its last step may be shorter than the others: that one
-    last sample is left out, with a note; any other uneven step is refused.
+    last sample is left out, with a note; any other uneven step is refused. Comment lines
+    before the header (``# period_samples: N``, ``# settle_periods: K``) record the period
+    and the settling periods (:class:`TimeLog`).
 
     Raises
     ------
     SceneError
         Naming the file and the header or row: no time column (``time_s`` or ``t_s``), a
         value that is not a finite number, times not increasing equally spaced, fewer than
-        2 * MIN_SEGMENT rows.
+        2 * MIN_SEGMENT rows; a recorded period or settling count that is not a whole number,
+        or that does not fit the log.
     """
     src = str(path)
     text = read_input_text(path, "(file)", MAX_DATA_BYTES, source=src, what="log")
+    recorded, lines = _recorded(text.splitlines(), src)
     try:
-        rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+        rows = [r for r in csv.reader(lines) if r and any(c.strip() for c in r)]
     except csv.Error as exc:
         raise SceneError("(file)", f"cannot read the log: not a CSV table ({exc})", src) from None
     if not rows:
@@ -144,7 +189,16 @@ def read_time_log(path) -> TimeLog:
         raise SceneError(f"row {bad[0] + 3}", f"{column} must increase equally spaced, every step within "
                          f"{SPACING_TOLERANCE:.0%} of the mean {dt:.4g} s (step {step[bad[0]]:.4g} s; only a last, "
                          "shorter step is left out)", src)
-    return TimeLog(t, columns, column, tuple(notes))
+    period, settle, bins = recorded.get(PERIOD_KEY), recorded.get(SETTLE_KEY), recorded.get(LINES_KEY)
+    if bins is not None and (period is None or bins[1] >= period / 2):
+        raise SceneError(f"# {LINES_KEY}", f"needs # {PERIOD_KEY} and bins below half of it (got {bins[0]}:{bins[1]}"
+                         + (f" for a period of {period})" if period is not None else ")"), src)
+    if period is not None and period > t.size:
+        raise SceneError(f"# {PERIOD_KEY}", f"{period} samples is longer than the log's {t.size} rows", src)
+    if settle is not None and period is not None and settle >= t.size // period:
+        raise SceneError(f"# {SETTLE_KEY}", f"must leave at least one of the log's {t.size // period} whole periods "
+                         f"(got {settle})", src)
+    return TimeLog(t, columns, column, tuple(notes), period, settle, bins)
 
 
 def read_log(path) -> tuple[np.ndarray, dict]:
@@ -160,7 +214,7 @@ def _varies(x) -> bool:
 
 def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,
                  settle: int | None = None, band=None, derivative: bool = False,
-                 source: str | None = None) -> FrequencyData:
+                 source: str | None = None, lines=None) -> FrequencyData:
     """H1 estimate of the response y / u, with its coherence.
 
     Parameters
@@ -187,6 +241,10 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
         speed response.
     source : str, optional
         Where the log came from (kept with the data).
+    lines : array_like of int, optional
+        Periodic: the bins of the period's DFT to estimate at (the excitation's lines), in
+        place of those whose input power is within
+        :data:`~servo_toolkit.core.spectra.EXCITED_DB` of its peak.
 
     Returns
     -------
@@ -234,7 +292,7 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
             if not 0 <= settle < whole:
                 raise SceneError("--settle", f"must leave at least one of the log's {whole} whole periods "
                                  f"(got {settle})", source)
-            spec = periodic_h1(fs, u, y, period, settle=settle, band=band)
+            spec = periodic_h1(fs, u, y, period, settle=settle, band=band, lines=lines)
         else:
             if period is not None or settle is not None:
                 raise SceneError("--period" if period is not None else "--settle",
