@@ -51,3 +51,13 @@ def test_each_stage_carries_its_own_facts_and_they_agree():
         fields = {f.name for f in dataclasses.fields(cls)}
         assert all(name in fields for name, _, _ in cls.DISPLAY_UNITS), cls.__name__
         assert cls.RATIO_KEYS is None or cls.RATIO_KEYS.split("/")[0].split("[")[0].split(",")[0] in fields | {"stages"}
+
+
+def test_dt_is_a_time_step_never_the_drivetrain():
+    """``dt`` always means a time step (the architecture page's names): no name ``dt`` is
+    bound to a drivetrain."""
+    import re
+    bound = re.compile(r"\bdt\b[^=\n]*=\s*[\w.]*drivetrain\b|\bdt\s*:\s*Drivetrain|, dt = [\w.]+, [\w.]*drivetrain\b")
+    found = [f"{p.relative_to(PACKAGE)}:{i}" for p in PACKAGE.rglob("*.py")
+             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if bound.search(line)]
+    assert found == []

@@ -62,15 +62,15 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
     note : str or None
         The reason, for the result's notes (None for an explicit q0 or mid-stroke).
     """
-    dt = scene.drivetrain
+    drive = scene.drivetrain
     if q0 is not None:
         return float(q0), None
-    q, j = _scan(dt)
+    q, j = _scan(drive)
     spread = float(j.max() / j.min())
     if spread <= INERTIA_SPREAD_LIMIT:
-        return float(dt.mid_stroke), None
+        return float(drive.mid_stroke), None
     at = _plateau_middle(q, j)
-    u = dt.output_unit
+    u = drive.output_unit
     return at, (f"operating point q0 = {show_q(at, u)}, where the motor-side reflected inertia is "
                 f"largest ({j.max():.4g} kg*m^2, {spread:.3g}x its smallest, {j.min():.4g} kg*m^2 at "
                 f"{show_q(q[int(np.argmin(j))], u)}; rule: largest inertia when it varies by more "

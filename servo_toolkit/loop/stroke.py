@@ -340,11 +340,11 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
     if int(points) != points or points < 2:
         raise SceneError("stroke_points", f"must be an integer of at least 2 (0 skips the stroke check), "
                                           f"got {points!r}")
-    dt = scene.drivetrain
-    q = stroke_points(dt, int(points), extra=[q0])
+    drive = scene.drivetrain
+    q = stroke_points(drive, int(points), extra=[q0])
     params = tuple(plant_parameters(scene, qi, model, structural_damping) for qi in q)
-    ratio, _ = dt.ratio(q)
-    j, _ = dt.inertia(q)
+    ratio, _ = drive.ratio(q)
+    j, _ = drive.inertia(q)
     schedule = getattr(controller, "schedule", None)
     max_real = np.empty(q.size)
     for k, p in enumerate(params):  # a chain may be rigid at some points: one matrix each
@@ -364,5 +364,5 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
                        stable=max_real < 0, max_pole_real=max_real,
                        gain_margin_db=np.abs(figs["gain_margin_db"]), phase_margin_deg=figs["phase_margin_deg"],
                        sensitivity_peak_db=figs["sensitivity_peak_db"], bandwidth_hz=figs["bandwidth_hz"],
-                       output_unit=dt.output_unit, crossover_hz=crossover_hz(w, L), scheduled=schedule is not None,
-                       stroke_note=dt.stroke_note)
+                       output_unit=drive.output_unit, crossover_hz=crossover_hz(w, L), scheduled=schedule is not None,
+                       stroke_note=drive.stroke_note)

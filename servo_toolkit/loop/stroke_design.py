@@ -64,10 +64,10 @@ def design_points(scene, q0: float, model: str = "auto", structural_damping: flo
     params : tuple of PlantParameters
         The plant at each point.
     """
-    dt = scene.drivetrain
-    grid = stroke_points(dt, scan_points, extra=[q0])
+    drive = scene.drivetrain
+    grid = stroke_points(drive, scan_points, extra=[q0])
     params = [plant_parameters(scene, q, model, structural_damping) for q in grid]
-    motor = dt.motor_inertia(grid)
+    motor = drive.motor_inertia(grid)
     fa = np.array([p.antiresonance_hz if not p.rigid else np.inf for p in params])
     picks = [int(np.argmin(np.abs(grid - q0))), 0, grid.size - 1, int(np.argmax(motor)), int(np.argmin(motor))]
     if np.any(np.isfinite(fa)):

@@ -47,9 +47,9 @@ def chain_plant(scene, q0=None, inductance: bool = True,
     -------
     control.StateSpace
     """
-    dt = scene.drivetrain
-    chain = dt.chain
-    q0 = dt.mid_stroke if q0 is None else float(q0)
+    drive = scene.drivetrain
+    chain = drive.chain
+    q0 = drive.mid_stroke if q0 is None else float(q0)
     if chain.rigid:
         raise SceneError("drivetrain", "an n-mass plant needs a compliance; this chain is rigid")
     M, K, nodes = chain.condensed(q0, driving=True)
@@ -60,7 +60,7 @@ def chain_plant(scene, q0=None, inductance: bool = True,
     damping = chain_damping(chain, q0, structural_damping)
     C = damping.matrix(segment_stiffness(chain, [q0], damping.segments, driving=True)[:, 0])
     motor, load = lumped_friction(scene, q0, False, [])  # the stages' viscous friction at the motor or the load
-    n = abs(float(dt.ratio([q0])[0][0]))
+    n = abs(float(drive.ratio([q0])[0][0]))
     gain = chain.efficiency * n * motor.torque_constant
     Kx, Cx = K.copy(), C.copy()
     Cx[0, 0] += motor.viscous_friction * n**2

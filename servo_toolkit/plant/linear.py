@@ -192,10 +192,10 @@ def plant_parameters(scene, q0=None, model: str = "auto",
         two-mass plant's mode has the chain's lowest mode's damping ratio
         (:func:`two_mass_damping`).
     """
-    dt = scene.drivetrain
-    q0 = dt.mid_stroke if q0 is None else float(q0)
-    split = dt.chain.two_mass([q0], driving=True)
-    n = float(dt.ratio([q0])[0][0])
+    drive = scene.drivetrain
+    q0 = drive.mid_stroke if q0 is None else float(q0)
+    split = drive.chain.two_mass([q0], driving=True)
+    n = float(drive.ratio([q0])[0][0])
     motor, load = scene.motor, scene.load
     J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])
     if model not in ("auto", "two_mass", "rigid"):
@@ -203,12 +203,12 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     if model == "two_mass" and not math.isfinite(K):
         raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:
-        J1, J2, K = float(dt.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
-    zeta = two_mass_damping(dt.chain, q0, structural_damping) if math.isfinite(K) else 0.0
+        J1, J2, K = float(drive.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
+    zeta = two_mass_damping(drive.chain, q0, structural_damping) if math.isfinite(K) else 0.0
     motor, load = lumped_friction(scene, q0, not math.isfinite(K), [])  # the stages' viscous friction
     return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, zeta)),
                            b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
-                           N=abs(n), eta=dt.efficiency, Kt=motor.torque_constant,
+                           N=abs(n), eta=drive.efficiency, Kt=motor.torque_constant,
                            Ke=motor.back_emf_constant, R=motor.resistance, L=motor.inductance, q0=q0)
 
 

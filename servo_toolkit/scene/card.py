@@ -39,20 +39,20 @@ def scene_card(scene) -> str:
     if scene.stages:
         parts.append(table(("key", "type", "name", "data (SI)"), _stage_rows(scene)))
         try:
-            dt = scene.drivetrain
+            drive = scene.drivetrain
             from ..drivetrain.operating_point import operating_point, show_q
             q0, _ = operating_point(scene)
-            n = float(dt.ratio([q0])[0][0])
-            j = float(dt.inertia([q0])[0][0])
-            lo, hi = dt.stroke
-            u = dt.output_unit
+            n = float(drive.ratio([q0])[0][0])
+            j = float(drive.inertia([q0])[0][0])
+            lo, hi = drive.stroke
+            u = drive.output_unit
             parts.append(facts((("stroke", f"{show_q(lo, u)} .. {show_q(hi, u)}"),
                                 ("operating point q0", show_q(q0, u)),
                                 ("ratio N(q0)", f"{num(n)} motor rad per output {u}"),
                                 ("reflected inertia J(q0)", f"{num(scene.display.show('inertia', j, u == 'm'))} "
                                                             f"{scene.display.inertia_unit(u == 'm')}"),
-                                ("efficiency", f"{num(dt.efficiency, 3)} driving, "
-                                               f"{num(dt.backdrive_efficiency, 3)} back-driven"))))
+                                ("efficiency", f"{num(drive.efficiency, 3)} driving, "
+                                               f"{num(drive.backdrive_efficiency, 3)} back-driven"))))
         except SceneError as exc:
             parts.append(f'<p class="st-note">drivetrain: {exc}</p>')
     r = scene.requirements

@@ -272,8 +272,8 @@ def _scene_of(data: dict, source: str | None) -> Scene:
         check_study_amplitudes(scene)
     if scene.duty_cycle is not None:
         from .duty_cycle import check_positions
-        dt = scene.drivetrain
-        check_positions(scene.duty_cycle, dt.stroke, dt.mid_stroke, unit)
+        drive = scene.drivetrain
+        check_positions(scene.duty_cycle, drive.stroke, drive.mid_stroke, unit)
     if "tolerances" in data or robust is not None:
         from .tolerances import tolerances_of
         scene = replace_params(scene, tolerances=tolerances_of(data, source, robust, scene, scene_from_dict))

@@ -32,10 +32,10 @@ def check_amplitude(scene, amplitude: float, key: str, center: float | None = No
     center : float, optional
         Centre of the sine (default: the design's operating point).
     """
-    dt = scene.drivetrain
-    if dt.ends_in_cam:
+    drive = scene.drivetrain
+    if drive.ends_in_cam:
         return
-    lo, hi = dt.stroke
+    lo, hi = drive.stroke
     q0 = operating_point(scene)[0] if center is None else float(center)
     if q0 - amplitude >= lo - STROKE_TOL and q0 + amplitude <= hi + STROKE_TOL:
         return

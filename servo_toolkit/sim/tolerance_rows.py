@@ -147,9 +147,9 @@ def _primaries(model, scene) -> np.ndarray:
     grid = P[lo.TAB_LO] + P[lo.TAB_H] * np.arange(int(P[lo.TAB_N]))
     j0 = float(np.interp(model.q0, grid, T[lo.T_J] + P[lo.JL]))
     k0 = 0.0 if model.rigid else float(np.interp(model.q0, grid, T[lo.T_K]))
-    dt = scene.drivetrain
+    drive = scene.drivetrain
     zeta = float(model.damping.get("two_mass_ratio", model.options.damping_ratio))  # the chain's lowest mode's
-    return np.array([j0, P[lo.JL], k0, 2.0 * P[lo.HALF_PLAY], dt.efficiency, dt.backdrive_efficiency, zeta])
+    return np.array([j0, P[lo.JL], k0, 2.0 * P[lo.HALF_PLAY], drive.efficiency, drive.backdrive_efficiency, zeta])
 
 
 @dataclass(frozen=True)

@@ -242,7 +242,7 @@ def _ratio(a, b):
 
 def _motions(scene, study):
     """The study's sine motions (output amplitudes) and how the amplitudes were read."""
-    dt = scene.drivetrain
+    drive = scene.drivetrain
     kind = study.get("trajectory", "sine")
     if kind != "sine":
         raise SceneError(study.key("trajectory"), f"only 'sine' is supported (got {kind!r})")
@@ -266,9 +266,9 @@ def _motions(scene, study):
     at = study.get("amplitude_at", "output")
     if at not in ("output", "motor"):
         raise SceneError(study.key("amplitude_at"), f"must be 'output' or 'motor' (got {at!r})")
-    offset = float(study.get("offset", dt.mid_stroke))
+    offset = float(study.get("offset", drive.mid_stroke))
     amps = output_amplitudes(scene, study, amps)
-    lo, hi = dt.stroke
+    lo, hi = drive.stroke
     u = output_unit(scene)
     for a in amps:
         if offset - a < lo - 1e-12 or offset + a > hi + 1e-12:
@@ -296,8 +296,8 @@ def output_amplitudes(scene, study, amplitudes=None) -> list:
         amplitudes = study.get("amplitudes", None) or [study.get("amplitude")]
     amps = [float(a) for a in amplitudes]
     if study.get("amplitude_at", "output") == "motor":
-        dt = scene.drivetrain
-        n0 = float(dt.ratio([float(study.get("offset", dt.mid_stroke))])[0][0])
+        drive = scene.drivetrain
+        n0 = float(drive.ratio([float(study.get("offset", drive.mid_stroke))])[0][0])
         amps = [a / n0 for a in amps]
     return amps
 

@@ -246,12 +246,12 @@ class StiffnessResult(RichDisplay):
         return _card_html(self)
 
 
-def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, np.ndarray]:
+def output_points(drive, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, np.ndarray]:
     """Validated output coordinates: q (rad, or m for a linear output) and the values given.
 
     Parameters
     ----------
-    dt : Drivetrain
+    drive : Drivetrain
     angles_deg : sequence of float, optional
         Output angles (deg) of a rotary output; default -30, 0, 10, 30.
     positions_mm : sequence of float, optional
@@ -268,19 +268,19 @@ def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, n
         Key ``angle`` or ``position``: the wrong kind of coordinate for this output, a
         non-finite value, or a value outside :attr:`Drivetrain.stroke`.
     """
-    lo, hi = dt.stroke
-    if dt.output_is_linear:
+    lo, hi = drive.stroke
+    if drive.output_is_linear:
         if angles_deg is not None:
             raise SceneError("angle", "the output of this drivetrain is a travel (m), not an angle: "
                              "give positions in mm (--position MM)")
         key, unit, scale = "position", "mm", 1e-3
-        values = [dt.mid_stroke / scale] if positions_mm is None else positions_mm
+        values = [drive.mid_stroke / scale] if positions_mm is None else positions_mm
     else:
         if positions_mm is not None:
             raise SceneError("position", "the output of this drivetrain is an angle: give angles "
                              "in deg (--angle DEG)")
         key, unit, scale = "angle", "deg", RAD_PER_DEG
-        values = (default_angles_deg(dt) if angles_deg is None else angles_deg)
+        values = (default_angles_deg(drive) if angles_deg is None else angles_deg)
     values = np.atleast_1d(np.asarray(values, dtype=float))
     if values.size == 0:
         raise SceneError(key, "give at least one value")
@@ -288,7 +288,7 @@ def output_points(dt, angles_deg=None, positions_mm=None) -> tuple[np.ndarray, n
     if bad.size:
         raise SceneError(key, f"must be a finite number (got {bad[0]:g} {unit})")
     q = values * scale
-    if not dt.ends_in_cam:  # a cam law is periodic: any finite cam angle is fine
+    if not drive.ends_in_cam:  # a cam law is periodic: any finite cam angle is fine
         tol = 1e-9 * max(1.0, hi - lo)
         out = values[(q < lo - tol) | (q > hi + tol)]
         if out.size:
@@ -320,16 +320,16 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
     SceneError
         See :func:`output_points`.
     """
-    dt = scene.drivetrain
-    q, values = output_points(dt, angles_deg, positions_mm)
-    chain = dt.stiffness(q)
-    n, _ = dt.ratio(q)
-    j, _ = dt.inertia(q)
-    linear = dt.output_is_linear
+    drive = scene.drivetrain
+    q, values = output_points(drive, angles_deg, positions_mm)
+    chain = drive.stiffness(q)
+    n, _ = drive.ratio(q)
+    j, _ = drive.inertia(q)
+    linear = drive.output_is_linear
     crit = chain.criterion(min_ratio, within) if chain.names else None
     return StiffnessResult(np.full(q.size, np.nan) if linear else values, chain.names,
                            chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
-                           dt.output_unit, values if linear else None, crit,
+                           drive.output_unit, values if linear else None, crit,
                            chain.native_stiffness, chain.native_units, chain.ratio_to_output,
                            scene.display)
 

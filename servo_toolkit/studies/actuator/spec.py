@@ -124,9 +124,9 @@ def followable_amplitude(scene, q0: float, frequency: float) -> float:
     ratio at ``q0`` (motor rad per output unit), the current J A w^2 / (n Kt) and the voltage
     R J A w^2 / (n Kt) + Ke n A w (its two parts' peaks added) within the shares; friction and
     load moments are the other share's. Infinite without limits."""
-    m, dt = scene.motor, scene.drivetrain
-    n = abs(float(dt.ratio([q0])[0][0]))
-    j = float(dt.chain.node_inertias([q0], driving=True).sum())
+    m, drive = scene.motor, scene.drivetrain
+    n = abs(float(drive.ratio([q0])[0][0]))
+    j = float(drive.chain.node_inertias([q0], driving=True).sum())
     w = 2 * math.pi * frequency
     out = math.inf
     if math.isfinite(m.current_limit) and j > 0:
