@@ -219,11 +219,12 @@ def nyquist_on_data(result, f, loop, coherence, poor: float = POOR_COHERENCE):
         return None, (f"{basis}; not counted: 1 + L turns {math.degrees(abs(steps[j])):.0f} deg between "
                       f"{f[j]:.4g} and {f[j + 1]:.4g} Hz (more than {math.degrees(MAX_STEP_TURN):.0f} deg: "
                       f"the points are too sparse to tell on which side of -1 the curve passes)")
-    near = np.flatnonzero((coherence < poor) & (np.abs(meas) < 1.0))
+    near = np.flatnonzero((coherence < poor) & (np.abs(meas) <= np.abs(loop)))
     if near.size:
         j = near[0]
         return None, (f"{basis}; not decided: a point of poor coherence ({coherence[j]:.2f} < {poor:g}) lies "
-                      f"within 1 of -1 at {f[j]:.4g} Hz, where its error can move the curve across -1")
+                      f"closer to -1 than |L| there at {f[j]:.4g} Hz, where an error of its size can move the "
+                      "curve across -1")
     if z < 0 or abs(turn - k) > 0.25:
         return None, f"{basis}; not counted: the measured curve's winding ({turn:+.2f} turns) is not a whole count"
     return z, f"{basis}: {z} closed-loop right-half-plane pole(s) (the model's own {z_model})"
