@@ -224,9 +224,9 @@ class MeasuredLoop:
                f"{f[0]:.4g} to {f[-1]:.4g} Hz; the controller, the sampling delay, the current loop's "
                "electrical side" + ("" if self.signal.startswith("output_") else " and the output's transmission")
                + " are the model's",
-               f"crossings interpolated between measured points (log |L| and unwrapped phase linear in log f), "
-               f"each with the two points bracketing it; Ms is the largest over the measured points and may be "
-               f"higher between them",
+               "crossings interpolated between measured points (log |L| and unwrapped phase linear in log f), "
+               "each with the two points bracketing it; Ms is the largest over the measured points and may be "
+               "higher between them",
                f"Nyquist: {self.nyquist_note}"]
         n_poor = int(self.poor.sum())
         if n_poor:
