@@ -28,6 +28,7 @@ from pathlib import Path
 from ..errors import SceneError, SimulationError
 from ..core.files import atomic_file, check_output_file
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
+from .plant_frf import add_plant_frf_options, plant_frf_check, read_plant_frf
 from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, load_scene,
                      prepare_kernels, scheduler_of, study_executor, to_json)
 
@@ -47,6 +48,7 @@ def register(sub) -> None:
                    help="variants of the robustness study (default: the scene's [robustness] samples, else 1000)")
     p.add_argument("--junit", metavar="FILE", help="write JUnit XML: one testcase per scene and requirement")
     add_scheduler(p, workers=False, what="the chunks of the robustness variants (margins and Monte Carlo runs)")
+    add_plant_frf_options(p)
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
@@ -208,15 +210,18 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
     g = gate(scene, design_from_args(scene, args, spec, executor=executor, design_text=design_text), spec,
              linear_only=getattr(args, "linear_only", False), executor=executor)
     result, ls, robust = g.result, g.large_signal, g.robustness
-    cases = _cases(g.rows)
-    ok = g.passed
+    measured = plant_frf_check(args, scene, result) if getattr(args, "plant_frf", None) else ((), None, "")
+    cases = _cases((*g.rows, *measured[0]))
+    ok = g.passed and all(r.passed for r in measured[0])
     d = result.to_dict()
     d["source"] = str(path)
     d["passed"] = ok
     # the verdict is every row's (sizing, yield and Monte Carlo rows too), not only the loop's
     d["loop_requirements_met"] = d["requirements_met"]
     d["requirements_met"] = ok
-    d["rows"] = [r.to_dict() for r in g.rows]
+    d["rows"] = [r.to_dict() for r in (*g.rows, *measured[0])]
+    if measured[1] is not None:
+        d["measured_plant"] = measured[1]
     if ls is not None:
         d["large_signal"] = ls.to_dict()
     if g.actuator is not None:
@@ -242,6 +247,8 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
                 print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
         for n in (*result.notes, *(g.actuator.notes if g.actuator is not None else ())):
             print(f"  note: {n}")
+        if measured[2]:
+            print(measured[2])
     return scene.name, cases, d
 
 
@@ -310,6 +317,8 @@ def run(args) -> int:
     from ..loop.vary import parse_vary
     varies = dict(parse_vary(text) for text in args.vary)
     parse_overrides(args.require)
+    if getattr(args, "plant_frf", None):
+        read_plant_frf(args.plant_frf)  # a bad file stops before any design
     if args.samples is not None and args.samples < 1:
         raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.junit is not None:

@@ -1,0 +1,60 @@
+"""``--plant-frf FRF.csv``: the designed loop closed on a measured plant response (what
+``frf -o`` writes), its rows beside the model's (:mod:`servo_toolkit.loop.measured`,
+:mod:`servo_toolkit.studies.measured_gate`)."""
+
+from __future__ import annotations
+
+from ..errors import SceneError
+
+#: the columns of the measured response; what frf -o writes
+EXPECTED = "frequency_hz,gain_db,phase_deg,coherence[,averages] (what frf -o writes)"
+
+
+def add_plant_frf_options(p) -> None:
+    """The options of a loop closed on a measured plant response."""
+    p.add_argument("--plant-frf", metavar="FRF.csv",
+                   help="also check the designed loop on a measured plant: the response from the motor current to "
+                        "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence); rows "
+                        "measured_<requirement>, points of coherence below 0.8 never decide")
+    p.add_argument("--plant-frf-signal", default="motor_angle_rad", metavar="COLUMN",
+                   help="the signal the measured response is to (frf's --output): motor_angle_rad (default), "
+                        "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current")
+
+
+def read_plant_frf(path):
+    """The measured response in ``path`` (FrequencyData), or one SceneError naming
+    ``--plant-frf`` and the rule."""
+    from ..identify.data import FrequencyData, read_data
+    try:
+        data = read_data(path)
+    except SceneError as exc:
+        rule = exc.rule if exc.key in ("(file)", "header") else f"{exc.key}: {exc.rule}"
+        raise SceneError("--plant-frf", rule, str(path)) from None
+    if not isinstance(data, FrequencyData):
+        raise SceneError("--plant-frf", f"holds time traces; expected a frequency response {EXPECTED}", str(path))
+    if data.points < 2:
+        raise SceneError("--plant-frf", f"{data.points} point(s); a loop on measured data needs at least two",
+                         str(path))
+    return data
+
+
+def plant_frf_check(args, scene, result):
+    """``(rows, JSON dict, text)`` of ``result`` (the scene's design) closed on the response
+    ``--plant-frf`` names."""
+    import numpy as np
+
+    from ..loop.measured import measured_loop
+    from ..studies.measured_gate import measured_rows
+    data = read_plant_frf(args.plant_frf)
+    f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
+    m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
+                      signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req)
+    rows = measured_rows(m, result.requirements)
+    d = m.to_dict()
+    d["points_detail"] = [{"frequency_hz": float(f), "loop_gain_db": float(20 * np.log10(abs(lm))),
+                           "loop_phase_deg": float(np.degrees(np.angle(lm))), "coherence": float(c),
+                           "poor_coherence": bool(c < m.poor_coherence)}
+                          for f, lm, c in zip(m.frequency_hz, m.loop, m.coherence)]
+    text = "\n".join([m.table(), *(f"  {r.id:<34}{'ok' if r.passed else r.status.upper()}  {r.message()}" for r in rows),
+                      *(f"  note: {n}" for n in m.notes())])
+    return rows, d, text

@@ -1,0 +1,297 @@
+"""The result of a loop closed on a measured plant response (:mod:`.measured`): the loop's
+crossings, margins, Ms, bandwidth and the model's response beside the measured one."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: at most this many bands in the table of the model's mismatch
+BANDS = 6
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A crossing of the open loop found between two measured points.
+
+    Attributes
+    ----------
+    kind : {"gain", "phase"}
+        ``|L| = 1`` (its margin a phase margin, deg) or ``arg L = -180 deg`` (a gain margin, dB).
+    frequency_hz : float
+        Interpolated between the two points.
+    low_hz, high_hz : float
+        The measured points that bracket it (the grid's resolution there).
+    margin : float
+        Phase margin (deg) or gain margin (dB).
+    coherence : float
+        The lower coherence of the two points.
+    poor : bool
+        The coherence is poor: the crossing is shown, never decides a requirement.
+    source : {"measured", "model"}
+        ``model``: a phase crossing of the model's loop outside the measured band.
+    """
+
+    kind: str
+    frequency_hz: float
+    low_hz: float
+    high_hz: float
+    margin: float
+    coherence: float
+    poor: bool
+    source: str = "measured"
+
+    @property
+    def unit(self) -> str:
+        """The margin's unit."""
+        return "deg" if self.kind == "gain" else "dB"
+
+    def text(self) -> str:
+        """One line: margin, where, between which points, and a mark for poor coherence."""
+        name = "PM" if self.kind == "gain" else "GM"
+        where = (f"{self.frequency_hz:.4g} Hz (model, outside the measured band)" if self.source == "model" else
+                 f"{self.frequency_hz:.4g} Hz (between {self.low_hz:.4g} and {self.high_hz:.4g} Hz)")
+        mark = f"  [poor coherence {self.coherence:.2f}: not used]" if self.poor else ""
+        return f"{name} {self.margin:+.2f} {self.unit} at {where}{mark}"
+
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the key names."""
+        key = "phase_margin_deg" if self.kind == "gain" else "gain_margin_db"
+        return {"kind": self.kind, "frequency_hz": self.frequency_hz, "between_hz": [self.low_hz, self.high_hz],
+                key: self.margin, "coherence": self.coherence, "poor_coherence": self.poor, "source": self.source}
+
+
+def mismatch_bands(f, measured, model, coherence, poor: float, bands: int = BANDS) -> tuple:
+    """The model's response against the measured one per log-spaced band of the measured
+    range: ``(lo_hz, hi_hz, points, poor points, mean and largest |dB|, mean and largest
+    |deg|)``, the figures over the points of good coherence (NaN when a band has none)."""
+    edges = np.geomspace(f[0], f[-1], min(bands, max(1, len(f) // 3)) + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(model) / np.asarray(measured)
+    db = 20 * np.log10(np.abs(ratio))
+    deg = np.degrees(np.angle(ratio))
+    out = []
+    for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        inside = (f >= lo) & ((f < hi) if k < len(edges) - 2 else (f <= hi))
+        good = inside & (coherence >= poor)
+        n_in, n_good = int(inside.sum()), int(good.sum())
+        if not n_in:
+            continue
+        stats = ((float(np.mean(np.abs(db[good]))), float(np.max(np.abs(db[good]))),
+                  float(np.mean(np.abs(deg[good]))), float(np.max(np.abs(deg[good])))) if n_good
+                 else (math.nan,) * 4)
+        out.append((float(lo), float(hi), n_in, n_in - n_good) + stats)
+    return tuple(out)
+
+
+def _first_below(f, mag, level, coherence, poor):
+    """First frequency where ``mag`` falls below ``level``, interpolated log-log, with the
+    bracket's coherence: ``(f or None, poor, why)``."""
+    below = np.flatnonzero(mag < level)
+    if not below.size:
+        return None, False, f"|T| stays above -3 dB up to {f[-1]:.4g} Hz, the last measured point"
+    j = int(below[0])
+    if j == 0:
+        return None, False, f"|T| is below -3 dB at {f[0]:.4g} Hz, the first measured point"
+    x0, x1 = np.log10(f[j - 1]), np.log10(f[j])
+    y0, y1, yl = np.log10(mag[j - 1]), np.log10(mag[j]), np.log10(level)
+    fc = float(10 ** (x0 + (x1 - x0) * (yl - y0) / (y1 - y0)))
+    return fc, bool(min(coherence[j - 1], coherence[j]) < poor), f"between {f[j - 1]:.4g} and {f[j]:.4g} Hz"
+
+
+@dataclass(frozen=True)
+class MeasuredLoop:
+    """The design's loop on a measured plant response, beside the model's.
+
+    Attributes
+    ----------
+    frequency_hz, response, model_response, coherence : numpy.ndarray
+        The measured frequencies (Hz), the measured and the model's response from the motor
+        current to :attr:`signal`, the coherence.
+    loop, model_loop, closed, model_closed : numpy.ndarray
+        Open loop ``L`` and closed loop ``T`` (reference to output) on the measured response
+        and on the model's, at the same frequencies.
+    signal : str
+        The measured signal's column (``motor_angle_rad``, ...).
+    source : str or None
+    gain_crossings, phase_crossings : tuple of Crossing
+        Every crossing; phase crossings of the model outside the band marked ``model``.
+    closed_loop_rhp_poles : int or None
+        Closed-loop right-half-plane poles by the Nyquist count on the data (None: not
+        decided; :attr:`nyquist_note` says why and on what basis).
+    nyquist_note : str
+    poor_coherence : float
+        The coherence below which a point never decides.
+    reference_gain : float
+        ``|T(0)|`` of the model, the bandwidth's 0 dB.
+    required_bandwidth_hz : float or None
+        Where the closed-loop phase lag is read.
+    model_margins : Margins
+        The model's own margins (python-control, continuous).
+    bands : tuple
+        :func:`mismatch_bands`.
+    """
+
+    frequency_hz: np.ndarray
+    response: np.ndarray
+    model_response: np.ndarray
+    coherence: np.ndarray
+    loop: np.ndarray
+    model_loop: np.ndarray
+    closed: np.ndarray
+    model_closed: np.ndarray
+    signal: str
+    source: str | None
+    gain_crossings: tuple
+    phase_crossings: tuple
+    closed_loop_rhp_poles: int | None
+    nyquist_note: str
+    poor_coherence: float
+    reference_gain: float
+    required_bandwidth_hz: float | None
+    model_margins: object
+    bands: tuple
+
+    @property
+    def poor(self) -> np.ndarray:
+        """Points of poor coherence."""
+        return self.coherence < self.poor_coherence
+
+    @property
+    def stable(self) -> bool | None:
+        """The closed loop on the data is stable (None: not decided)."""
+        return None if self.closed_loop_rhp_poles is None else self.closed_loop_rhp_poles == 0
+
+    @property
+    def phase_margin_deg(self) -> float:
+        """Smallest phase margin over the crossings of good coherence (NaN: none)."""
+        pm = [c.margin for c in self.gain_crossings if not c.poor]
+        return float(min(pm)) if pm else math.nan
+
+    @property
+    def gain_margin_db(self) -> float:
+        """Gain margin smallest in magnitude over the phase crossings of good coherence and
+        the model's outside the band (``inf`` without one; NaN when every crossing is poor)."""
+        gm = [c.margin for c in self.phase_crossings if not c.poor]
+        if not gm:
+            return math.nan if self.phase_crossings else math.inf
+        return float(min(gm, key=abs))
+
+    def _ms(self, points) -> tuple[float, float]:
+        s = np.abs(1.0 / (1.0 + self.loop))
+        if not points.any():
+            return math.nan, math.nan
+        j = int(np.argmax(np.where(points, s, -np.inf)))
+        return float(20 * np.log10(s[j])), float(self.frequency_hz[j])
+
+    @property
+    def sensitivity_peak(self) -> tuple[float, float]:
+        """Ms (dB) and where (Hz), over the points of good coherence."""
+        return self._ms(~self.poor)
+
+    @property
+    def poor_sensitivity_peak(self) -> tuple[float, float]:
+        """Largest ``|1 / (1 + L)|`` (dB) over the points of poor coherence, and where."""
+        return self._ms(self.poor)
+
+    @property
+    def bandwidth(self) -> tuple:
+        """``(Hz or None, poor, where)``: the closed loop's -3 dB from the model's ``|T(0)|``."""
+        return _first_below(self.frequency_hz, np.abs(self.closed), self.reference_gain / math.sqrt(2),
+                            self.coherence, self.poor_coherence)
+
+    def closed_phase_at(self, hz: float) -> tuple:
+        """``(deg or None, poor)``: the closed loop's phase at ``hz``, unwrapped along the
+        points from the branch of the model's at the first point."""
+        f = self.frequency_hz
+        if not f[0] <= hz <= f[-1]:
+            return None, False
+        ph = np.degrees(np.unwrap(np.angle(self.closed)))
+        start = float(np.degrees(np.angle(self.model_closed[0])))
+        ph += 360.0 * round((start - ph[0]) / 360.0)
+        j = int(min(max(np.searchsorted(f, hz), 1), f.size - 1))
+        x = np.log10(hz)
+        x0, x1 = np.log10(f[j - 1]), np.log10(f[j])
+        value = float(ph[j - 1] + (ph[j] - ph[j - 1]) * (x - x0) / (x1 - x0))
+        return value, bool(min(self.coherence[j - 1], self.coherence[j]) < self.poor_coherence)
+
+    def notes(self) -> tuple:
+        """What the figures leave out and on what they rest."""
+        f = self.frequency_hz
+        out = [f"measured: the response from the motor current to {self.signal}, {f.size} points from "
+               f"{f[0]:.4g} to {f[-1]:.4g} Hz; the controller, the sampling delay, the current loop's "
+               "electrical side" + ("" if self.signal.startswith("output_") else " and the output's transmission")
+               + " are the model's",
+               "crossings interpolated between measured points (log |L| and unwrapped phase linear in log f), "
+               "each with the two points bracketing it; Ms is the largest over the measured points and may be "
+               "higher between them",
+               f"Nyquist: {self.nyquist_note}"]
+        n_poor = int(self.poor.sum())
+        if n_poor:
+            out.append(f"{n_poor} of {f.size} points have a coherence below {self.poor_coherence:g}: shown and "
+                       "marked, they decide no requirement")
+            peak, at = self.poor_sensitivity_peak
+            if math.isfinite(peak) and peak > self.sensitivity_peak[0]:
+                out.append(f"a point of poor coherence shows |1/(1+L)| of {peak:.2f} dB at {at:.4g} Hz, above the "
+                           "Ms of the good points: not used")
+        return tuple(out)
+
+    def to_dict(self) -> dict:
+        """JSON-ready, units in the key names (a figure not decided is None)."""
+        def num(x):
+            return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
+        ms, ms_hz = self.sensitivity_peak
+        bw, bw_poor, bw_where = self.bandwidth
+        return {"source": self.source, "signal": self.signal, "input": "current_A", "points": int(self.frequency_hz.size),
+                "band_hz": [float(self.frequency_hz[0]), float(self.frequency_hz[-1])],
+                "poor_coherence_below": self.poor_coherence, "poor_points": int(self.poor.sum()),
+                "phase_margin_deg": num(self.phase_margin_deg), "gain_margin_db": num(self.gain_margin_db),
+                "sensitivity_peak_db": num(ms), "sensitivity_peak_hz": num(ms_hz),
+                "bandwidth_hz": bw, "bandwidth_poor_coherence": bw_poor, "bandwidth_between": bw_where,
+                "closed_loop_rhp_poles": self.closed_loop_rhp_poles, "nyquist": self.nyquist_note,
+                "gain_crossings": [c.to_dict() for c in self.gain_crossings],
+                "phase_crossings": [c.to_dict() for c in self.phase_crossings],
+                "model": {"phase_margin_deg": num(self.model_margins.phase_margin_deg),
+                          "gain_margin_db": num(self.model_margins.gain_margin_db),
+                          "sensitivity_peak_db": num(self.model_margins.sensitivity_peak_db),
+                          "bandwidth_hz": num(self.model_margins.bandwidth_hz)},
+                "mismatch_bands": [dict(zip(("low_hz", "high_hz", "points", "poor_points", "mean_abs_db", "max_abs_db",
+                                             "mean_abs_deg", "max_abs_deg"), (num(v) for v in b))) for b in self.bands],
+                "notes": list(self.notes())}
+
+    def table(self) -> str:
+        """The crossings and the model's mismatch per band, as text."""
+        lines = ["  measured plant: crossings of L on the measured points"]
+        lines += [f"    {c.text()}" for c in (*self.gain_crossings, *self.phase_crossings)]
+        lines.append("    model's mismatch from the measured response (points of good coherence):")
+        lines.append("      band_hz               points  poor  mean|dB|  max|dB|  mean|deg|  max|deg|")
+        for lo, hi, n, bad, mdb, xdb, mdeg, xdeg in self.bands:
+            lines.append(f"      {lo:9.4g}..{hi:<9.4g}  {n:6d}  {bad:4d}  {mdb:8.2f}  {xdb:7.2f}  {mdeg:9.1f}  {xdeg:8.1f}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"<MeasuredLoop {self.signal} from {self.source}: {self.frequency_hz.size} points, "
+                f"PM {self.phase_margin_deg:.1f} deg, GM {self.gain_margin_db:.2f} dB>")
+
+    def _repr_html_(self) -> str:
+        from html import escape
+        return f"<pre>{escape(repr(self))}\n{escape(self.table())}</pre>"
+
+    def plot(self, ax=None):
+        """Bode plot of ``L`` on the measured response and on the model's, points of poor
+        coherence hollow; returns the axes (magnitude, phase)."""
+        import matplotlib.pyplot as plt
+        if ax is None:
+            _, ax = plt.subplots(2, 1, sharex=True)
+        f, poor = self.frequency_hz, self.poor
+        for curve, label, style in ((self.model_loop, "model", "-"), (self.loop, "measured", ".")):
+            ax[0].semilogx(f, 20 * np.log10(np.abs(curve)), style, label=label)
+            ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(curve))), style, label=label)
+        ax[0].semilogx(f[poor], 20 * np.log10(np.abs(self.loop[poor])), "o", mfc="none", label="poor coherence")
+        ax[0].set_ylabel("|L| (dB)")
+        ax[1].set_ylabel("arg L (deg)")
+        ax[1].set_xlabel("frequency (Hz)")
+        ax[0].legend()
+        return ax
