@@ -14,7 +14,7 @@ from servo_toolkit.identify.features import response_features
 from servo_toolkit.identify.fit import _intervals
 from servo_toolkit.identify.model import plant_response
 from servo_toolkit.identify.params import SceneTemplate
-from servo_toolkit.identify.search import global_least_squares
+from servo_toolkit.identify.search import global_least_squares, refine
 from servo_toolkit.identify.noise import frequency_noise, smoother_sd
 from servo_toolkit.identify.residuals import frequency_residual
 from servo_toolkit.identify.verdict import judge, scatter_sd
@@ -169,21 +169,33 @@ def test_a_mismatch_on_a_coarse_grid_is_named(coarse, points):
     assert 0.1 < r.residual_db_rms < 0.4
 
 
-#: scipy 1.17's least_squares takes its finite-difference step relative to |z| (not max(1, |z|)):
-#: at a parameter that starts at the scene's value (z = -1e-10) the step is 1e-16, no model
-#: changes, and the 30-point fit reads the load inertia as having no influence; recorded until
-#: the fit supplies its own Jacobian without changing the two-stiffness verdict
-#: (tests/test_crashes.py::test_two_stiffnesses_in_series_fit_and_say_why_not_identified)
-SCIPY_117_STEP = pytest.mark.xfail(
-    tuple(int(x) for x in __import__("scipy").__version__.split(".")[:2]) >= (1, 17), strict=True,
-    reason="scipy >= 1.17: least_squares' relative difference step is 1e-16 at a parameter starting at 0")
-
-
-@pytest.mark.parametrize("points", [pytest.param(30, marks=SCIPY_117_STEP), 40])
+@pytest.mark.parametrize("points", [30, 40])
 def test_a_noiseless_exact_model_fits_to_the_noise(coarse, points):
+    """The fit of both parameters starts on the truth's load inertia (z = -1e-10 after the
+    fit of the features): a finite-difference step relative to z (scipy's ``diff_step``, 1e-16
+    there) changed no model and read the load inertia as having no influence at 30 points."""
     _, r = coarse[points]
     assert r.verdict == "fits to the noise", r.verdict_text()
     assert r.residual_db_rms < 1e-6 and not r.warnings
+
+
+@pytest.mark.parametrize("z0, rtol", [(0.0, 1e-9), (-1e-10, 1e-9), (math.log(RANGE_FACTOR) - 1e-7, 1e-6)])
+def test_the_refinements_jacobian_steps_a_share_of_the_value_wherever_it_starts(z0, rtol):
+    """Residuals exact at z0, linear in the value exp(z): the refinement stops where it starts
+    and returns the Jacobian there, the value's derivative times (1, -2, 0.5): by central
+    differences to 1e-9 at the scene's value (z = 0) and next to it (where a step relative to
+    z, scipy's ``diff_step``, is 1e-16: a column of 0 or 1.1 instead of 1), and within the box
+    to 1e-6 beside its upper bound (ln 100), whose side is stepped short."""
+    upper = math.log(RANGE_FACTOR)
+
+    def residuals(z):
+        assert -upper <= z[0] <= upper
+        return (math.exp(z[0]) - math.exp(z0)) * np.array([1.0, -2.0, 0.5])
+
+    sol = refine(residuals, [z0], [-upper], [upper])
+    assert sol.x[0] == z0 and sol.cost == 0.0
+    np.testing.assert_allclose(sol.jac[:, 0], math.exp(z0) * np.array([1.0, -2.0, 0.5]), rtol=rtol)
+    assert sol.evaluations == sol.nfev + 2 * sol.njev
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,9 @@ The search is global over each parameter's physical range (:mod:`.bounds`, :mod:
 a start derived from the data's own features, scattered starts, local refinement. The
 verdict compares the residual with the noise floor the data show (:mod:`.verdict`).
 
-The 95 % intervals come from the Jacobian at the solution: cov = s^2 (J^T J)^-1 in the
+The 95 % intervals come from the Jacobian at the solution, the refinement's own (central
+differences of a fixed step in the coordinates, :func:`.search.differences`), which also
+decides which parameters have no influence: cov = s^2 (J^T J)^-1 in the
 search's coordinates with s^2 the residual variance, a Student t quantile for the degrees of
 freedom, mapped back to values (so the intervals of a logarithm are not symmetric). Where the
 correlation matrix says those are not to be trusted (a pair correlated beyond
@@ -277,7 +279,7 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
             break
         low = min(lows, key=lambda p: float(np.min(p.rise)))
         new = refine(residuals, low.lower, coords.lower, coords.upper)
-        nfev += int(new.nfev) + int(new.njev) * npar
+        nfev += int(new.evaluations)
         if not new.cost < 0.5 * rss:
             break
         if np.max(np.abs(new.x - sol.z)) > 1e-6:

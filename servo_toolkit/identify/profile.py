@@ -33,6 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
+from .search import differences
+
 #: the grid's first step from the optimum, as a share of the Wald half-width (so a quadratic
 #: profile crosses at the grid's second point)
 FIRST_STEP = 0.5
@@ -165,7 +167,8 @@ def profile(residuals, z, lower, upper, j: int, s2: float, level_threshold: floa
             count[0] += 1
             return residuals(x)
         sol = optimize.least_squares(sub, np.clip(x[free], lower[free], upper[free]),
-                                     bounds=(lower[free], upper[free]), diff_step=1e-6, method="trf",
+                                     jac=differences(sub, lower[free], upper[free]),
+                                     bounds=(lower[free], upper[free]), method="trf",
                                      ftol=1e-9, xtol=1e-9, gtol=1e-9, max_nfev=NFEV_PER_PARAMETER * free.size)
         x[free] = sol.x
         return x.copy(), 2.0 * float(sol.cost)

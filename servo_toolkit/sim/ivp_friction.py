@@ -37,6 +37,20 @@ speed; the node restarts at rest either way). The motor side and the load keep t
 0: they leave rest with a seed of speed (:data:`~.split_step.SEED`) whose sign their friction
 takes at once.
 
+An intermediate node that enters a sliding mode at rest (at its breakaway, or sliding on at
+once after a reversal) leaves rest with the same seed in its held direction. At exactly 0 the
+right-hand side reads the stick law, which differs from the held sliding law by what the
+breakaway's event leaves of the moment below the level: its root finder returns the stuck side
+(the event is -1e-300 there, the smaller magnitude brentq keeps), 1e-11 rad/s^2 short at the
+wheel. An implicit solver's finite-difference Jacobian steps a zero speed by sqrt(eps) atol (1.5e-20
+at atol = 1e-12) and read that jump as a stiffness of +7e8 1/s; Radau's simplified Newton
+iteration converged on it to a wrong step and its error estimate, solved with the same matrix,
+accepted it: its first step after the wheel's breakaway ran 38 us with the wheel moving the
+wrong way (+1.5e-9 rad/s instead of -9.9e-6), met the reversal's band and restarted the
+wheel, 1.6e-7 of the swing off LSODA from there on (scipy 1.16 and 1.17 alike). Seeded, the
+node reads the sliding law its mode holds at every trial state, and Radau agrees with LSODA to
+3.0e-11 of the swing, BDF to 3.5e-11.
+
 Until their breakaway's event the motor side and the load at rest are held there: the
 solver's function reads their speed as 0 (``fun.rest``, :func:`~.ivp.make_fun`) whatever its
 trial states hold. Read as they came, an implicit solver's Newton iterate whose speed rounds
@@ -47,7 +61,8 @@ moment, a jump of twice the breakaway level, and no step across the breakaway co
 side is continuous across the breakaway (the moment beyond the level grows from 0) and the
 step ending past it meets the breakaway's event. The intermediate nodes' stuck mode reads
 the stick law as it comes (held the same way, Radau's events on its lower-order dense
-output placed the wheel's breakaway worse: 5.6e-8 of the swing against 5.3e-9).
+output placed the wheel's breakaway worse: 5.6e-8 of the swing against 5.3e-9, both measured
+before the seed above).
 """
 
 from __future__ import annotations
@@ -197,7 +212,10 @@ class FrictionModes:
         """Each node's mode at (t0, x), its direction set in P, and the terminal events that
         end the modes (each with ``node``). The motor side and the load (x[1], x[3]) keep
         their own watch (:meth:`_watch`), their friction held in the direction of their speed
-        while they slide (left to the speed at rest); the modes are the intermediate nodes'."""
+        while they slide (left to the speed at rest); the modes are the intermediate nodes'.
+        x changes in place: a node entering a sliding mode at rest takes the speed
+        :data:`~.split_step.SEED` in its direction (module doc), a resting motor side or load
+        beyond its band likewise (:meth:`_leave_rest`)."""
         for i in self.nodes:  # sliding nodes first: the moments on the resting ones depend on them
             if i <= 3:
                 continue
@@ -214,6 +232,9 @@ class FrictionModes:
                 self._hold(i)
                 if self.dirs[i] == 0.0:
                     self.rest[i] = (x[i - 1], x[2])
+        for i in self.nodes:  # a sliding mode entered at rest: the seed, so the sliding law is read
+            if i > 3 and x[i] == 0.0 and self.dirs[i] != 0.0:
+                x[i] = SEED * self.dirs[i]
         if self.gauge is not None:
             self._leave_rest(t0, x)
         for i in self.nodes:  # the motor side and the load: sliding in a held direction, or at rest
@@ -247,7 +268,7 @@ class FrictionModes:
     def restart(self, ev, t, x) -> None:
         """The state after the event ``ev`` at t (x changed in place): the node at rest; after
         a reversal its mode is decided at the restart, after a breakaway it slides in the
-        direction of the moment on it."""
+        direction of the moment on it (its seed of speed set by :meth:`events`)."""
         i = ev.node
         self.fresh = i if ev.breakaway and i > 3 else None  # a held direction: not the motor side's or the load's
         if i <= 3 and ev.breakaway:  # leaves rest here, towards the side beyond its band
