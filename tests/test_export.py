@@ -91,7 +91,9 @@ class CController:
 def sim_back_calculation(a, c):
     """The simulation's back-calculation gains of the sampled controller (A, C), None without
     an integrator (:func:`servo_toolkit.sim.command_slots.with_back_calculation`)."""
-    P = with_back_calculation(np.zeros(lo.AW + 1), np.asarray(a, float), np.asarray(c, float), lo.SAMPLED, [])
+    a, c = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(c, float))
+    b, d = np.zeros((a.shape[0], 3)), np.zeros((1, 3))  # the sampled gains need neither
+    P = with_back_calculation(np.zeros(lo.AW + 1), a, b, c, d, lo.SAMPLED, [])
     return P[int(P[lo.AW]):] if P[lo.AW] > 0 else None
 
 
