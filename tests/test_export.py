@@ -28,6 +28,8 @@ from servo_toolkit import design, load_scene, simulate
 from servo_toolkit.loop.encoder_estimators import steady_state_gain
 from servo_toolkit.export import export, quantized_controller, tustin_to_continuous
 from servo_toolkit.export.quantize import q_format
+from servo_toolkit.sim import layout as lo
+from servo_toolkit.sim.command_slots import with_back_calculation
 from servo_toolkit.sim.speed_estimator import default_jerk
 from servo_toolkit.sim.reference import Reference
 
@@ -57,7 +59,7 @@ class CController:
     def __init__(self, folder, fixed: bool, estimator: bool = False):
         self.lib = compile_library(folder)
         self.state = (ctypes.c_double * 256)()
-        sig = ctypes.c_int32 if fixed else ctypes.c_double
+        sig = self.sig = ctypes.c_int32 if fixed else ctypes.c_double
         self.lib.servo_motion_step.argtypes = [ctypes.c_void_p, sig, sig, sig]
         self.lib.servo_motion_step.restype = sig
         self.lib.servo_current_step.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 3
@@ -73,6 +75,12 @@ class CController:
     def motion(self, r, th, w):
         return self.lib.servo_motion_step(self.state, r, th, w)
 
+    def motion_ff(self, r, th, w, i_ff):
+        """``servo_motion_step_ff``: the motion step with a feedforward current before the clamp."""
+        step = self.lib.servo_motion_step_ff
+        step.argtypes, step.restype = [ctypes.c_void_p] + [self.sig] * 4, self.sig
+        return step(self.state, r, th, w, i_ff)
+
     def current(self, i_ref, i, w=0.0):
         return self.lib.servo_current_step(self.state, i_ref, i, w)
 
@@ -80,15 +88,31 @@ class CController:
         return self.lib.servo_speed_estimate(self.state, z)
 
 
-def python_controller(sys_d, u, limit):
-    """The simulation's sampled controller: y = C x + D u, x <- A x + B u, i_ref clamped."""
+def sim_back_calculation(a, c):
+    """The simulation's back-calculation gains of the sampled controller (A, C), None without
+    an integrator (:func:`servo_toolkit.sim.command_slots.with_back_calculation`)."""
+    a, c = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(c, float))
+    b, d = np.zeros((a.shape[0], 3)), np.zeros((1, 3))  # the sampled gains need neither
+    P = with_back_calculation(np.zeros(lo.AW + 1), a, b, c, d, lo.SAMPLED, [])
+    return P[int(P[lo.AW]):] if P[lo.AW] > 0 else None
+
+
+def python_controller(sys_d, u, limit, i_ff=None, back_calculation=True):
+    """The simulation's sampled controller (``controller_update``): y = C x + D u + i_ff,
+    x <- A x + B u, i_ref = y clamped, and a clamped sample adds the simulation's
+    back-calculation gains times the clamp's excess to x (unless ``back_calculation`` is
+    False: the controller that winds up)."""
     a, b, c, d = (np.atleast_2d(np.asarray(m, float)) for m in (sys_d.A, sys_d.B, sys_d.C, sys_d.D))
+    g = sim_back_calculation(a, c) if back_calculation else None
     x = np.zeros(a.shape[0])
     out = np.empty(len(u))
     for k, uk in enumerate(u):
-        out[k] = (c @ x + d @ uk)[0]
+        y = (c @ x + d @ uk)[0] + (0.0 if i_ff is None else i_ff[k])
         x = a @ x + b @ uk
-    return np.clip(out, -limit, limit)
+        out[k] = min(max(y, -limit), limit)
+        if g is not None and abs(y) > limit:
+            x = x + g * (out[k] - y)
+    return out
 
 
 def inputs(n, sample_time, seed=1, amplitude=0.02, speed=300.0):
@@ -475,18 +499,26 @@ def test_discrete_pi_integral_gain(ema):
                                      {"resonance_filter": "lowpass"}, {"resonance_filter": "none"}])
 def test_other_structures_and_filters_in_c(ema, tmp_path, options):
     """Every structure and filter exports: the C equals the sampled controller (a lead-lag
-    with its notch needs two biquads)."""
+    with its notch needs two biquads), in the linear range and, driven into the current
+    clamp, with the simulation's back-calculation wherever the controller has an integrator
+    (in the speed PI of the cascade, in the position path of the pid and pi structures; the
+    lead-lag has none)."""
     scene, _ = ema
     d = design(scene, progress=False, over_stroke=False, **options)
     res = export(d, scene, tmp_path)
     assert len(res.blocks.position) == (2 if d.motion.structure == "lead_lag" else 1)
     assert (res.blocks.speed is None) == (d.motion.structure != "cascade")
+    assert (res.blocks.back_calculation() is None) == (d.motion.structure == "lead_lag")
     c = CController(tmp_path, fixed=False)
-    u = inputs(1500, d.controller.sample_time, 4, amplitude=0.002, speed=100.0)
-    want = python_controller(res.motion, u, scene.motor.current_limit)
-    c.init()
-    got = np.array([c.motion(*row) for row in u])
-    assert np.max(np.abs(got - want)) <= 1e-6 * np.max(np.abs(want))
+    limit = scene.motor.current_limit
+    for amp in (0.002, 0.5):
+        u = inputs(1500, d.controller.sample_time, 4, amplitude=amp, speed=100.0)
+        want = python_controller(res.motion, u, limit)
+        c.init()
+        got = np.array([c.motion(*row) for row in u])
+        assert np.max(np.abs(got - want)) <= 1e-6 * np.max(np.abs(want))
+    clamped = np.abs(want) == limit
+    assert 10 < np.sum(clamped) < len(u) - 10  # the clamp held and let go
 
 
 @settings(max_examples=200, deadline=None)

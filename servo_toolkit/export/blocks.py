@@ -2,9 +2,10 @@
 
 The simulation runs the motion controller as the Tustin sampling of
 ``design(scene).controller.motion`` (:meth:`CascadeController.discrete_motion`), output
-clamped at the current limit (with back-calculation into its integrator, which the exported
-step leaves to its caller). Tustin is the substitution ``s = (2 / Ts) (z - 1) / (z + 1)``,
-so it commutes with series and parallel connection: the same controller is, block by block,
+clamped at the current limit with back-calculation into its integrator (the exported step
+does the same on its own states, :mod:`.antiwindup`). Tustin is the substitution
+``s = (2 / Ts) (z - 1) / (z + 1)``, so it commutes with series and parallel connection: the
+same controller is, block by block,
 
 * the position path (position gain times the resonance filter; the compensator of the
   ``pid``, ``lead_lag`` and ``pi`` structures) on the error ``theta_ref - theta``, as
@@ -12,7 +13,8 @@ so it commutes with series and parallel connection: the same controller is, bloc
 * for the cascade, the speed PI ``(kv / N) (s + wvi) / s`` on the motor-side speed error
   ``N omega_ref - omega_m`` (the ratio N folded into the position path, so that the speed
   error is a plain difference of motor speeds);
-* the clamp at the motor's current limit.
+* the clamp at the motor's current limit, whose excess moves the integrator (the section with
+  a pole at z = 1) as the simulation's back-calculation does.
 
 The analog current PI of the design runs here at ``current_sample_time`` (an integer
 fraction of the motion sample time): the simulation's equations
@@ -30,6 +32,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import SceneError
+from . import antiwindup
 
 
 @dataclass(frozen=True)
@@ -162,6 +165,11 @@ class Blocks:
         """Every section, in signal order."""
         return self.position + ((self.speed,) if self.speed is not None else ())
 
+    def back_calculation(self):
+        """The clamp's back-calculation gains (:class:`.antiwindup.BackCalculation`), None
+        without an integrator."""
+        return antiwindup.back_calculation(self.sections())
+
     def state_space(self) -> ct.StateSpace:
         """The motion controller as one discrete state space (inputs ``theta_ref``, ``theta``,
         ``omega_m``; output ``i_ref``), composed from the sections (clamp left out)."""
@@ -186,7 +194,9 @@ class Blocks:
                 "design": self.design,
                 "position": [s.to_dict() for s in self.position],
                 "speed": None if self.speed is None else self.speed.to_dict(),
-                "current_limit_A": self.current_limit, "current_loop": self.current.to_dict(),
+                "current_limit_A": self.current_limit,
+                "back_calculation": None if (bc := self.back_calculation()) is None else bc.to_dict(),
+                "current_loop": self.current.to_dict(),
                 "speed_estimator": self.estimator.to_dict()}
 
 

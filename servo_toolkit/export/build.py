@@ -130,7 +130,8 @@ def overflow_failures(quantized) -> tuple:
     """Each stored coefficient whose product with a full-scale signal (the input at its full
     scale, the state at ``SERVO_STATE_MAX``), scaled to the state's fraction bits, leaves the
     64-bit range of the C's sums: named with its value and format (the code would overflow,
-    not saturate)."""
+    not saturate). The back-calculation's products of d1, d2 with the clamp's excess (below
+    four times ``SERVO_STATE_MAX``) stay within the margin of :data:`PRODUCT_LIMIT` to 2^63."""
     from .quantize import q_name
     from .sensitivity import COEFFICIENTS
     s, g, word = quantized.signal_bits, quantized.guard, quantized.word

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from .c_antiwindup import back_calculation_comment, back_calculation_source
 from .c_command import header_part, shaper_type, source_part
 from .quantize import FORMATS
 
@@ -34,6 +35,8 @@ def _units_comment(blocks, quantized) -> str:
              "  omega_m            motor speed, rad/s" + (" (counts of SERVO_OMEGA_LSB_RAD_S)" if fixed else ""),
              "  i_ref              current command, A" + (" (counts of SERVO_CURRENT_LSB_A)" if fixed else "")
              + f", clamped at +-{blocks.current_limit:g} A",
+             "  i_ff               feedforward current added before the clamp, A"
+             + (" (counts of SERVO_CURRENT_LSB_A, saturated at twice the full scale)" if fixed else ""),
              "  i                  measured armature current, A",
              "  v                  armature voltage command, V, clamped at "
              f"+-{blocks.current.voltage_limit:g} V"]
@@ -93,12 +96,15 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "", comm
             f"#define SERVO_HAS_SPEED_LOOP {0 if blocks.speed is None else 1}",
             f"#define SERVO_FIXED_POINT {1 if fixed else 0}",
             f"#define SERVO_CURRENT_LIMIT_A {_f(blocks.current_limit)}",
-            f"#define SERVO_VOLTAGE_LIMIT_V {_f(blocks.current.voltage_limit)}"]
+            f"#define SERVO_VOLTAGE_LIMIT_V {_f(blocks.current.voltage_limit)}",
+            f"#define SERVO_HAS_BACK_CALCULATION {0 if blocks.back_calculation() is None else 1}"]
     if fixed:
         defs += _scale_defines(blocks, quantized)
     est = blocks.estimator.kind
     proto = ["void servo_init(servo_state_t *st, double motor_angle_rad);",
              f"{sig} servo_motion_step(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m);",
+             f"{sig} servo_motion_step_ff(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m, "
+             f"{sig} i_ff);",
              "double servo_current_step(servo_state_t *st, double i_ref, double i, double omega_m);"]
     if est != "ideal":
         proto.insert(1, "double servo_speed_estimate(servo_state_t *st, double motor_angle_rad);")
@@ -112,9 +118,9 @@ def header(blocks, quantized=None, scene_name: str = "", version: str = "", comm
  * no library calls.
  *
  * Motion controller ({blocks.structure}): position path = {npos} biquad(s) (direct form II
- * transposed) on theta_ref - theta{"; speed PI on the motor speed error" if blocks.speed is not None else ""};
- * i_ref clamped at the current limit; the simulation also moves the speed integrator by the
- * clamp's excess (back-calculation), which this step leaves to the caller.
+ * transposed) on theta_ref - theta{"; speed PI on the motor speed error" if blocks.speed is not None else ""}.
+{back_calculation_comment(blocks, quantized)}
+ * servo_motion_step is servo_motion_step_ff with i_ff = 0.
  * Current loop ({blocks.current.mode}): PI with back-calculation anti-windup at the voltage limit.
  * Speed estimator: {est}.
  *
@@ -255,24 +261,37 @@ def _motion(blocks, quantized) -> str:
         sig, first = "double", "double u = theta_ref - theta;"
         pos = "u = servo_biquad(SERVO_POSITION[k], st->position[k], u);"
         speed = "u = servo_biquad(SERVO_SPEED_PI, st->speed, u - omega_m);"
-        ret = "return servo_clamp(u, SERVO_CURRENT_LIMIT_A);"
+        out, zero = "double y, i_ref;", "0.0"
+        clamp = "y = u + i_ff;\n    i_ref = servo_clamp(y, SERVO_CURRENT_LIMIT_A);"
+        ret = "return i_ref;"
     else:
         sig, first = "int32_t", "int32_t u = (int32_t)servo_sat((int64_t)theta_ref - theta, SERVO_SIGNAL_MAX);"
         pos = "u = servo_biquad(&SERVO_POSITION[k], st->position[k], u);"
         speed = ("u = servo_biquad(&SERVO_SPEED_PI, st->speed,\n"
                  "                     (int32_t)servo_sat((int64_t)u - omega_m, SERVO_SIGNAL_MAX));")
-        ret = f"return (int32_t)servo_sat(u, {quantized.current_limit_counts});"
+        out, zero = "int64_t y, i_ref;", "0"
+        clamp = (f"y = (int64_t)u + servo_sat(i_ff, 2 * SERVO_SIGNAL_MAX);\n"
+                 f"    i_ref = servo_sat(y, {quantized.current_limit_counts});")
+        ret = "return (int32_t)i_ref;"
     body = speed if blocks.speed is not None else "(void)omega_m;"
-    return f"""/* i_ref from the output angle command and measurement and the motor speed */
-{sig} servo_motion_step(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m)
+    return f"""/* i_ref from the output angle command and measurement and the motor speed, plus the
+ * feedforward current i_ff, clamped at the current limit (back-calculation at the clamp) */
+{sig} servo_motion_step_ff(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m, {sig} i_ff)
 {{
     {first}
+    {out}
     int k;
     for (k = 0; k < {npos}; ++k) {{
         {pos}
     }}
     {body}
+    {clamp}{back_calculation_source(blocks, quantized)}
     {ret}
+}}
+
+{sig} servo_motion_step(servo_state_t *st, {sig} theta_ref, {sig} theta, {sig} omega_m)
+{{
+    return servo_motion_step_ff(st, theta_ref, theta, omega_m, {zero});
 }}
 """
 

@@ -8,9 +8,12 @@ How they compose with the motion step, once per motion sample::
     servo_schedule(theta, &g_e, &g_w);                       /* with a schedule, else 1, 1 */
     servo_shape(&shaper, r, r_dot, r_ddot, shaped);          /* with a shaper, else r, r', r'' */
     w_ff = servo_feedforward_speed(shaped[0], shaped[1]);    /* N(r) r' */
-    i_ref = servo_motion_step(st, g_e * shaped[0], g_e * theta, g_w * (omega_m - w_ff))
-            + servo_feedforward_current(shaped[1], shaped[2]);
-    i_ref = clamp(i_ref, SERVO_CURRENT_LIMIT_A);
+    i_ref = servo_motion_step_ff(st, g_e * shaped[0], g_e * theta, g_w * (omega_m - w_ff),
+                                 servo_feedforward_current(shaped[1], shaped[2]));
+
+``servo_motion_step_ff`` clamps the sum at the current limit and back-calculates the
+integrator by the excess, as the simulation does with a feedforward (in a fixed-point export
+the feedforward current enters as counts of the current LSB).
 """
 
 from __future__ import annotations

@@ -41,6 +41,22 @@ arithmetic is at most :meth:`Quantized.error_bound` (l1 norms of the impulse res
 the horizon; the speed PI integrates, so the bound grows with the horizon). The coefficient
 quantization itself is judged by the margins of the quantized controller.
 
+At the current clamp the integer code back-calculates its integrator as the floating one
+(:mod:`.antiwindup`), in the integrator section's own arithmetic: with the clamp's excess
+``E`` (from the rounded i_ref, in the states' ``2^-G`` counts) ``s0 += E`` and
+``s1 += d1 E - d2 E - E`` (``-a2 E``, the products shifted as the recursion shifts
+``d1 y``, ``d2 y``), so that the step moves the states along the integer recursion's own
+integrator direction. A gain rounded to the coefficient word instead (``-a2`` of a PID's
+section to 2^-15) leaves a part of every clamped sample's move on the section's other pole,
+where, near z = 1, it adds up over the clamp beyond the bound below. A clamped sample so
+resets the integrator's share of the rounding error (the error's dynamics there,
+``A - g C``, have the other poles of ``A`` and 0 in place of the integrator's): the error
+does not accumulate while the clamp holds, and the bound, derived for the linear range, is
+checked through the clamp by the tests. The feedforward current added before the clamp is
+saturated at twice the current's full scale, so the excess stays below ``2^(S + 2)`` counts
+and its products with d1, d2 below 2^62 wherever :func:`.build.overflow_failures` passes
+their products with ``y`` (below ``2^(S + G)``, each under 2^60).
+
 The current PI and a speed estimator stay in ``double`` (the estimate is rounded to motor
 speed counts before the motion step, which the bound's input rounding covers).
 """
@@ -54,6 +70,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import SceneError
+from .antiwindup import back_calculation
 from .blocks import Biquad, Blocks
 
 #: format -> (coefficient fraction word W, signal bits S, extra state fraction bits G)
@@ -162,6 +179,9 @@ class Quantized:
     blocks : Blocks
         The quantized coefficients in physical units (what the fixed-point code computes,
         up to rounding).
+    integrator : int or None
+        Index (in :meth:`sections`) of the section the clamp back-calculates (its pole at
+        z = 1; the last section, i_ref's); None without an integrator.
     """
 
     fmt: str
@@ -170,6 +190,7 @@ class Quantized:
     speed: QSection | None
     current_limit_counts: int
     blocks: Blocks
+    integrator: int | None = None
 
     @property
     def word(self) -> int:
@@ -195,7 +216,7 @@ class Quantized:
     def error_bound(self, steps: int) -> float:
         """Largest |i_ref| difference (A) over ``steps`` samples between the fixed-point code
         and exact arithmetic on the quantized coefficients, inputs rounded to the nearest
-        count, while no signal saturates (see the module docstring)."""
+        count, while no signal reaches its full scale (the current clamp: see the module docstring)."""
         err = 1.0  # theta_ref and theta rounded: half a count each
         for sec in self.position:  # later sections take the previous one's counts
             err = _section_error(sec, err, steps, self.guard)
@@ -223,7 +244,11 @@ class Quantized:
                                "omega_m_rad_s": self.full_scale["omega"], "current_A": self.full_scale["current"]},
                 "signal_scales": self.signal_scales(),
                 "sections": [s.to_dict(self.word) for s in self.sections()],
-                "current_limit_counts": self.current_limit_counts}
+                "current_limit_counts": self.current_limit_counts,
+                "back_calculation": None if self.integrator is None else {
+                    "section": self.integrator, "name": self.sections()[self.integrator].name,
+                    "s0": "+= E", "s1": "+= d1 E - d2 E - E (-a2 E with the section's stored d1, d2)",
+                    "E": "the clamp's excess in the states' 2^-G counts of i_ref"}}
 
 
 def _l1(b, a, steps: int) -> float:
@@ -285,7 +310,22 @@ def quantize(blocks: Blocks, motor, fmt: str) -> Quantized:
     qb = replace(blocks, position=tuple(s.biquad(o) for s, o in zip(position, blocks.position)),
                  speed=None if speed is None else speed.biquad(blocks.speed),
                  current_limit=ilim * lsb["current"])
-    return Quantized(fmt, lsb, position, speed, ilim, qb)
+    return Quantized(fmt, lsb, position, speed, ilim, qb, _integrator(qb))
+
+
+def _integrator(qb: Blocks) -> int | None:
+    """Index of the quantized controller's integrator section (:mod:`.antiwindup`), which
+    the integer code back-calculates in its own arithmetic: the last section, whose output
+    is i_ref (the speed PI of the cascade; scipy's ``zpk2sos`` puts the pole at z = 1, on the
+    unit circle, in the last section of a position path)."""
+    bc = back_calculation(qb.sections())
+    if bc is None:
+        return None
+    names = [s.name for s in qb.sections()]
+    if bc.integrator != names[-1]:
+        raise ValueError(f"the fixed-point back-calculation needs the integrator in the last section, "
+                         f"found it in {bc.integrator} of {names}")
+    return len(names) - 1
 
 
 def natural_frequencies(sec: Biquad, sample_time: float) -> dict:

@@ -135,6 +135,9 @@ class ExportResult:
         for s in self.blocks.sections():
             lines.append(f"  {s.name:<10} b = [{', '.join(f'{v:.8g}' for v in s.b)}]  "
                          f"a = [1, {', '.join(f'{v:.8g}' for v in s.a)}]  ({s.input_unit} -> {s.output_unit})")
+        bc = self.blocks.back_calculation()
+        lines.append(f"  clamp at {self.blocks.current_limit:g} A, " + ("no integrator: no anti-windup" if bc is None
+                     else "anti-windup by " + bc.describe()))
         if self.quantized is not None:
             m, d = self.quantized_design.margins, self.design.margins
             loop = (f"GM {m.gain_margin_db:.2f} dB (design {d.gain_margin_db:.2f}), PM {m.phase_margin_deg:.1f} deg "

@@ -12,7 +12,9 @@ def _coefficient_rows(blocks):
     rows = [(s.name, *(fmt(v, 10) for v in (*s.b, *s.a)), f"{s.input_unit} -> {s.output_unit}")
             for s in blocks.sections()]
     cur = blocks.current
+    bc = blocks.back_calculation()
     extra = [("current limit", f"{fmt(blocks.current_limit)} A"),
+             ("anti-windup at the current clamp", "none (no integrator)" if bc is None else bc.describe()),
              ("current loop", f"{cur.mode}: kp {fmt(cur.kp)} V/A, ki {fmt(cur.ki)} V/(A s), anti-windup "
                               f"{fmt(cur.kaw)} 1/s, every {fmt(cur.sample_time * 1e6)} us, clamp "
                               f"{fmt(cur.voltage_limit)} V"),

@@ -76,25 +76,71 @@ def with_schedule(P, controller, mode: int, notes: list):
     return np.concatenate([P, schedule.block()])
 
 
-def with_back_calculation(P, a, c, mode: int, notes: list):
-    """Append the clamp's back-calculation gains of a sampled motion controller with an
-    integrator: the discrete controller's integrator direction v (its eigenvector at z = 1)
-    over its output gain C v, so that a clamped sample moves the integrator by the excess
-    and the next output starts at the limit (the integrator does not wind up against the
-    current limit, with or without a feedforward). A controller without an integrator, or a
-    continuous one, gets none. Returns P."""
-    if mode != lo.SAMPLED or a.shape[0] == 0:
-        return P
+def _integrator(a, c, at: float):
+    """``(v / C v, v)`` of the controller's integrator (the eigenvector
+    v of ``a`` at the eigenvalue ``at``: z = 1 sampled, s = 0 continuous, within 1e-9, the
+    continuous one relative to the largest eigenvalue's magnitude); None without one or when
+    it does not reach the output."""
+    if a.shape[0] == 0:
+        return None
     ev, vec = np.linalg.eig(a)
-    k = int(np.argmin(np.abs(ev - 1.0)))
+    k = int(np.argmin(np.abs(ev - at)))
     v = np.real(vec[:, k])
     gain = float(np.ravel(c) @ v)
-    if abs(ev[k] - 1.0) > 1e-9 or not abs(gain) > 1e-300:
+    scale = 1.0 if at != 0.0 else max(1.0, float(np.max(np.abs(ev))))
+    if abs(ev[k] - at) > 1e-9 * scale or not abs(gain) > 1e-300:
+        return None
+    return v / gain, v
+
+
+def tracking_rate(a, b, c, d) -> float:
+    """Kaw (1/s) of a continuous controller with an integrator: 1 / its integral time, the
+    tracking time Astrom & Hagglund take for a PI's back-calculation. The error-to-i_ref path
+    (input ``theta_ref``) near s = 0 is ``Ki / s + K0``: ``Ki = (C v)(w B)`` and
+    ``K0 = D - C A# B`` (``v``, ``w`` the right and left eigenvectors at 0 with ``w v = 1``,
+    ``A#`` the group inverse ``(A + v w)^-1 - v w``), and Kaw = Ki / K0. NaN when either is not
+    positive (no integral time to track with)."""
+    found = _integrator(a, c, 0.0)
+    if found is None:
+        return float("nan")
+    _, v = found
+    ev, left = np.linalg.eig(a.T)
+    w = np.real(left[:, int(np.argmin(np.abs(ev)))])
+    w = w / float(w @ v)
+    vw = np.outer(v, w)
+    col = np.asarray(b, float)[:, 0]
+    ki = float(np.ravel(c) @ v) * float(w @ col)
+    k0 = float(np.asarray(d, float)[0, 0]) - float(np.ravel(c) @ ((np.linalg.inv(a + vw) - vw) @ col))
+    return ki / k0 if ki > 0 and k0 > 0 else float("nan")
+
+
+def with_back_calculation(P, a, b, c, d, mode: int, notes: list):
+    """Append the clamp's back-calculation of a motion controller with an integrator: its
+    direction v (the eigenvector at z = 1 sampled, at s = 0 continuous) over its output gain
+    C v. A clamped sample of a sampled controller moves the integrator by the excess, so
+    that the next output starts at the limit; a continuous controller's integrator bleeds
+    it, ``x' += Kaw g (clamped - unclamped)``, at ``Kaw`` = 1 / its integral time
+    (:func:`tracking_rate`, appended after the gains). Either way the integrator does not
+    wind up against the current limit, with or without a feedforward. A controller without
+    an integrator gets none. Returns P."""
+    if mode not in (lo.SAMPLED, lo.CONTINUOUS):
+        return P
+    found = _integrator(a, c, 1.0 if mode == lo.SAMPLED else 0.0)
+    if found is None:
+        return P
+    g = found[0]
+    if mode == lo.SAMPLED:
+        P[lo.AW] = P.size
+        notes.append("anti-windup: at the current limit the motion controller's integrator takes the clamp's "
+                     "excess (back-calculation, its next output starts at the limit)")
+        return np.concatenate([P, g])
+    kaw = tracking_rate(a, b, c, d)
+    if not np.isfinite(kaw):
         return P
     P[lo.AW] = P.size
-    notes.append("anti-windup: at the current limit the motion controller's integrator takes the clamp's "
-                 "excess (back-calculation, its next output starts at the limit)")
-    return np.concatenate([P, v / gain])
+    notes.append(f"anti-windup: at the current limit the continuous motion controller's integrator bleeds the "
+                 f"clamp's excess (back-calculation, tracking time {1 / kaw:.4g} s, its integral time)")
+    return np.concatenate([P, g, [kaw]])
 
 
-__all__ = ["pack_feedforward", "pack_shaper", "with_back_calculation", "with_schedule"]
+__all__ = ["pack_feedforward", "pack_shaper", "tracking_rate", "with_back_calculation", "with_schedule"]

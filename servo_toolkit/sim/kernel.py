@@ -245,7 +245,9 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     Returns ``(p', pd', q', qd', i', xi', i, v, i_ref, tau_m)``; s' = 0. Only the continuous
     motion controller and the full chain's intermediate nodes touch the arrays: they read
     their states in ``x[NX_PHYS:]`` and write their derivatives into ``dx[NX_PHYS:]``
-    (nothing else is written). Scalars in and out let the
+    (nothing else is written; a continuous controller with back-calculation gains, ``AW``,
+    adds ``Kaw g (clamped - unclamped)`` to its derivative while its output is clamped, a
+    law continuous in the state, like the current PI's). Scalars in and out let the
     fixed-step loop keep the physical state in registers.
 
     ``lanes`` (a compile-time constant at each call) is True in the batched kernel's loop
@@ -280,7 +282,15 @@ def rhs_phys(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, lanes, holds):
     else:
         if not lanes and mode == CONTINUOUS:
             r, i_ff, w_ff = continuous_command(t, P, T)
-            iref = clip(_motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff, P[ILIM])
+            y = _motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, True) + i_ff
+            iref = clip(y, P[ILIM])
+            o = int(P[AW])
+            if o > 0 and iref != y:
+                # continuous back-calculation: the integral bleeds the clamp's excess at Kaw
+                nc = int(P[NC])
+                bleed = P[o + nc] * (iref - y)
+                for j in range(nc):
+                    dx[NX_PHYS + j] += P[o + j] * bleed
         else:
             iref = iref_held
         if P[L] > 0.0:

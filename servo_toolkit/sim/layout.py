@@ -125,7 +125,8 @@ REF_TAB_OFF, REF_TAB_N, REF_TAB_T0, REF_TAB_INV_DT, REF_TAB_WRAP, REF_TAB_SUM = 
 # the model's: a Monte Carlo variant's feedforward keeps the nominal load), the command
 # shaper's impulse amplitudes (SHAPE_A0 = 0: no shaper) and the times of its second and third
 # impulses (s; the first is at 0), and the index in P of the clamp's back-calculation gains
-# (one per motion-controller state: the integrator's direction over its output gain; 0: none)
+# (one per motion-controller state: the integrator's direction over its output gain, and for a
+# continuous controller then its tracking rate Kaw, 1/s; 0: none)
 SCHED, FF_DJ, SHAPE_A0, SHAPE_A1, SHAPE_A2, SHAPE_T1, SHAPE_T2, AW = range(98, 106)
 #: reference kind of a jerk-limited move (:class:`servo_toolkit.sim.reference.Reference`); its
 #: REF_F slot holds the index in P of the move's block [signed jerk, jerk time,

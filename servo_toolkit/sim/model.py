@@ -328,7 +328,7 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             names += est_names
             notes.append(note)
         P = with_schedule(P, controller, mode, notes)
-        P = with_back_calculation(P, a, c, mode, notes)
+        P = with_back_calculation(P, a, b, c, d, mode, notes)
     else:
         P[lo.CMODE] = lo.OPEN_LOOP
     if full is not None:
