@@ -337,7 +337,15 @@ def electrics(t, x, P, T, iref_held, wm, q, cur, xi, dx):
         return 0.0, 0.0, (v - P[lo.KE] * wm) / P[lo.R], v, 0.0
     if mode == lo.CONTINUOUS:
         r, i_ff, w_ff = continuous_command(t, P, T)
-        iref = clip(motion_controller(x, P, (r, q, wm - w_ff), dx) + i_ff, P[lo.ILIM])
+        unclamped = motion_controller(x, P, (r, q, wm - w_ff), dx) + i_ff
+        iref = clip(unclamped, P[lo.ILIM])
+        aw = int(P[lo.AW])
+        if aw > 0 and iref != unclamped:
+            # back-calculation while clamped: xc' += g Kaw (clamped - unclamped), the
+            # integrator's direction g at P[AW:AW+nc], the tracking gain Kaw after it
+            nc = int(P[lo.NC])
+            for j in range(nc):
+                dx[lo.NX_PHYS + j] += P[aw + j] * (P[aw + nc] * (iref - unclamped))
     else:
         iref = iref_held
     if P[lo.L] > 0.0:
