@@ -26,7 +26,7 @@ UNITS = {
     "profile_constant": ("mm", 1e3), "follower_mass": ("kg", 1.0), "follower_weight": ("N", 1.0),
     "guide_friction_coefficient": (DIMENSIONLESS, 1.0), "gravity_tilt": ("deg", DEG),
     "gravity_heading": ("deg", DEG), "clearance": ("mm", 1e3),
-    "output_encoder_bits": ("bit", 1.0), "motor_encoder_counts": ("counts/rev", 1.0),
+    "output_encoder_bits": ("bit", 1.0), "output_scale_resolution": ("um", 1e6), "motor_encoder_counts": ("counts/rev", 1.0),
     "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG),
     "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG), "max_sensitivity_peak": ("dB", 1.0),
     "screw_radius": ("mm", 1e3), "roller_radius": ("mm", 1e3), "nut_radius": ("mm", 1e3),
