@@ -253,6 +253,28 @@ def test_kv_of_a_thousand_stage_chain_is_refused(tmp_path, capsys):
     assert "1004 stages" in line
 
 
+@pytest.mark.parametrize("command", ["check", "design", "report"])
+def test_a_design_on_a_thousand_stage_chain_is_refused_before_it_runs(tmp_path, capsys, monkeypatch, command):
+    """The loop's margins on the n-mass plant of 1004 modes are hours of work: refused with one
+    line naming the drivetrain and --force, before any design starts."""
+    import importlib
+    loop_design = importlib.import_module("servo_toolkit.loop.design")
+
+    def no_design(*args, **kwargs):
+        raise AssertionError("the design started")
+    monkeypatch.setattr(loop_design, "design", no_design)
+    monkeypatch.setattr(loop_design, "evaluate", no_design)
+    gear = ('[[drivetrain]]\nkind = "gear"\nteeth = [30, 30]\ninertia = ["1e-6 kg*m^2", "1e-6 kg*m^2"]\n'
+            'efficiency = 0.999\ntorsional_stiffness = "1.6e6 N*m/rad"\n\n')
+    scene = _scene_file(tmp_path, "chain.toml", "[[drivetrain]]", gear * 1000 + "[[drivetrain]]")
+    extra = ["-o", str(tmp_path / "rep")] if command == "report" else []
+    assert main([command, scene, *extra]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert "drivetrain: the run is estimated at" in line and " h (" in line
+    assert "1004 drivetrain modes" in line and "--force" in line and "(got 1004 stages)" in line
+    assert not (tmp_path / "rep").exists()
+
+
 def test_a_ten_thousand_point_sweep_is_refused(tmp_path, capsys):
     text = Path(EMA).read_text()
     scene = tmp_path / "sweep.toml"

@@ -107,7 +107,7 @@ hinge_moment = "500 N"
 [sensors]
 sample_time = "0.1 ms"
 motor_encoder_counts = 4096
-output_encoder_bits = 16
+output_scale_resolution = "1 um"
 [studies.lin]
 kind = "kv"
 amplitude = "2 mm"

@@ -115,3 +115,32 @@ def test_the_issue_loops_have_one_gain_margin(form):
         m = loop_margins(sys, ct.feedback(sys, 1))
         np.testing.assert_allclose(m.gain_margins_db, [20 * math.log10(gm)], rtol=1e-9)
         np.testing.assert_allclose(m.phase_crossover_hz, [math.sqrt(3) / (2 * math.pi)], rtol=1e-9)
+
+
+def test_a_loop_whose_polynomials_overflow_keeps_its_crossings():
+    """2 / (s (s + 1)) behind ten lightly damped modes from 1 to 1000 krad/s (a drivetrain
+    chain's n-mass plant, 22 states): python-control's polynomial form overflows and raises
+    there; the crossings come from the loop's own response, the gain crossing where
+    |L(jw)| = 1 evaluated from the factors themselves."""
+    from scipy.optimize import brentq
+
+    from servo_toolkit.loop.crossings import crossings
+    modes = np.geomspace(1e3, 1e6, 10)
+    loop = ct.tf([2.0], [1, 1, 0])
+    for w in modes:
+        loop = loop * ct.tf([w * w], [1, 2 * 0.02 * w, w * w])
+    loop = ct.ss(loop)
+
+    def factors(w):
+        s_ = 1j * w
+        return 2.0 / (s_ * (s_ + 1)) * np.prod([m * m / (s_ * s_ + 2 * 0.02 * m * s_ + m * m) for m in modes])
+
+    wgc_true = brentq(lambda w: abs(factors(w)) - 1.0, 0.5, 3.0, xtol=1e-14)
+    with pytest.raises(np.linalg.LinAlgError):  # the premise: python-control alone cannot
+        ct.stability_margins(loop, returnall=True)
+    wpc, gm, wgc, pm = crossings(loop)
+    assert wgc == pytest.approx([wgc_true], rel=1e-9)
+    assert pm[0] == pytest.approx(np.degrees(np.angle(factors(wgc_true))) + 180.0, abs=1e-6)
+    for w, g in zip(wpc, gm):  # every phase crossing is one of the loop's: real, negative, 1 / g
+        lw = factors(w)
+        assert abs(lw.imag) <= 1e-5 * abs(lw) and lw.real < 0 and 1 / g == pytest.approx(abs(lw), rel=1e-5)

@@ -18,6 +18,7 @@ def carriage(ema_dict):
     data = variant(ema_dict)
     data["drivetrain"] = data["drivetrain"][:2]
     data["load"] = {"inertia": "20 kg"}
+    data["sensors"] = {**data["sensors"], "output_encoder_bits": 0, "output_scale_resolution": "1 um"}
     for key in ("studies", "robustness"):
         data.pop(key, None)
     return data

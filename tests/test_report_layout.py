@@ -144,3 +144,62 @@ def test_legend_entries_of_markers_only_are_compared_too():
         return finish(fig)
     assert scatters("C0", "C3") == ()
     assert any("'set 0' and 'set 1' are drawn alike" in p for p in scatters("C3", "C3"))
+
+
+def _style_of(page: str, selector: str) -> dict:
+    """The declarations the page's stylesheet gives ``selector`` (later rules win)."""
+    import re
+    css = re.search(r"<style>(.*?)</style>", page, re.S).group(1)
+    css = re.sub(r"/\*.*?\*/", "", css, flags=re.S)
+    found = {}
+    for selectors, body in re.findall(r"([^{}]+)\{([^{}]*)\}", css):
+        if selector in (s.strip() for s in selectors.split(",")):
+            for decl in body.split(";"):
+                if ":" in decl:
+                    name, value = decl.split(":", 1)
+                    found[name.strip()] = value.strip()
+    return found
+
+
+def test_a_wide_table_scrolls_in_its_wrapper_on_a_narrow_window_and_not_in_the_pdf(stiffness_section):
+    """On the HTML page the stiffness table's wrapper scrolls sideways (its cells keep their
+    numbers on one line, wider than a window below 900 px); in the PDF it stays whole within
+    the page, as before."""
+    import re
+    report = Report("ema_reference", "the stiffness table alone", (stiffness_section,), ())
+    html, pdf = render(report, "html"), render(report, "pdf")
+    assert re.search(r'<div class="wide-table"><table id="stiffness-table">.*?</table></div>', html, re.S)
+    screen = _style_of(html, ".wide-table")
+    assert screen.get("overflow-x") == "auto" and screen.get("max-width") == "100%"
+    printed = _style_of(pdf, ".wide-table")
+    assert printed.get("overflow") == "visible" and printed.get("max-width") == "none"
+
+
+def test_a_narrow_browser_window_scrolls_the_stiffness_table_not_the_page(stiffness_section, tmp_path):
+    """Headless Chromium at 800 px: the page is no wider than the window, the table's wrapper
+    is (so it scrolls) and holds the whole table."""
+    import json
+    import re
+    import shutil
+    import subprocess
+    browser = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome") if shutil.which(n)),
+                   None)
+    if browser is None:
+        pytest.skip("no Chromium found (Debian package chromium)")
+    probe = """<script>window.addEventListener('load', () => {
+      const w = document.querySelector('.wide-table'), t = document.getElementById('stiffness-table');
+      document.body.setAttribute('data-probe', JSON.stringify({window: window.innerWidth,
+        page: document.documentElement.scrollWidth, wrapper: w.clientWidth, scroll: w.scrollWidth,
+        table: t.getBoundingClientRect().width}));});</script>"""
+    report = Report("ema_reference", "the stiffness table alone", (stiffness_section,), ())
+    page = tmp_path / "narrow.html"
+    page.write_text(render(report, "html").replace("</body>", probe + "</body>"), encoding="utf-8")
+    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions",
+           f"--user-data-dir={tmp_path / 'profile'}", "--window-size=800,1000", "--virtual-time-budget=5000",
+           "--dump-dom", page.as_uri()]
+    dom = subprocess.run(cmd, capture_output=True, text=True, timeout=120).stdout
+    found = re.search(r"data-probe=\"([^\"]+)\"", dom)
+    assert found, "the browser did not run the page's load handler"
+    got = json.loads(found.group(1).replace("&quot;", '"'))
+    assert got["window"] <= 800 and got["page"] <= got["window"], got
+    assert got["scroll"] > got["wrapper"] and got["scroll"] >= got["table"] - 1, got

@@ -44,6 +44,10 @@ KV_SAMPLE_STAGE_S = 6e-7
 FIT_LOOP_ROW_PARAM_S = 1.5e-3
 #: settling + estimation cycles of a sine dwell at least (:mod:`.studies.sine_dwell`)
 DWELL_CYCLES = 8
+#: the loop's margins on the n-mass plant, every drivetrain mode (``loop.chain_margins``), per
+#: cubed mode count (s): the design of a chain of 8, 12, 16 and 20 modes took 8, 27, 61 and 260 s
+#: on the 2-core machine (about 0.015 s per cubed mode, faster than the cube beyond); a fifth
+CHAIN_MODE3_S = 3e-3
 
 
 def minutes(seconds: float) -> str:
@@ -118,6 +122,20 @@ KV_CALLS_PER_CASE = 150
 KV_CALL_STAGE2_S = 2.5e-6
 #: one sweep point's fixed cost (model, linear response, dwell set-up; s): 21 points in 9 s
 SWEEP_POINT_S = 0.3
+
+
+def design_seconds(scene) -> tuple[float, str]:
+    """A lower bound of a loop design's (or evaluation's) cost on a chain of many compliances:
+    its margins on the n-mass plant, whose crossings are searched on the response of every
+    mode (0 for a scene without a motor-driven chain of two or more modes)."""
+    if not scene.stages or scene.motor is None or scene.mechanism is not None:
+        return 0.0, ""
+    from ..drivetrain.chain_damping import kept_nodes
+    drive = scene.drivetrain
+    if drive.chain.rigid:
+        return 0.0, ""
+    modes = int(kept_nodes(drive.chain, drive.mid_stroke).size) - 1
+    return modes ** 3 * CHAIN_MODE3_S, f"the loop's margins on the n-mass plant of {modes} drivetrain modes"
 
 
 def kv_seconds(stages: int, cases: int) -> tuple[float, str]:

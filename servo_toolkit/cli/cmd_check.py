@@ -29,8 +29,8 @@ from ..errors import SceneError, SimulationError
 from ..core.files import atomic_file, check_output_file
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
 from .plant_frf import add_plant_frf_options, plant_frf_check, read_plant_frf
-from .common import (add_force, add_json, add_scheduler, bounded, check_robustness_budget, load_scene,
-                     prepare_kernels, scheduler_of, study_executor, to_json)
+from .common import (add_force, add_json, add_scheduler, bounded, check_design_budget, check_robustness_budget,
+                     load_scene, prepare_kernels, scheduler_of, study_executor, to_json)
 
 
 def register(sub) -> None:
@@ -207,6 +207,7 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
         robust = args.robust is True or (args.robust is None and scene.robustness is not None)
         check_robustness_budget(scene, spec, robust, args.samples, args.force)
     _check_tolerance_budget(scene, args)
+    check_design_budget(scene, args.force)
     g = gate(scene, design_from_args(scene, args, spec, executor=executor, design_text=design_text), spec,
              linear_only=getattr(args, "linear_only", False), executor=executor)
     result, ls, robust = g.result, g.large_signal, g.robustness

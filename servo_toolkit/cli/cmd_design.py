@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from ..errors import SceneError
-from .common import (add_force, add_json, add_scene, bounded, check_robustness_budget, emit, load_scene,
-                     prepare_kernels)
+from .common import (add_force, add_json, add_scene, bounded, check_design_budget, check_robustness_budget, emit,
+                     load_scene, prepare_kernels)
 
 
 def design(scene, **options):
@@ -89,6 +89,7 @@ def run(args) -> int:
     from ..loop.requirements import parse_overrides
     parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
     scene = load_scene(args.scene)
+    check_design_budget(scene, args.force)
     if not getattr(args, "design", None):
         from ..loop.design import robust_spec
         spec = robust_spec(scene, args.robust)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from .common import add_force, add_scene, bounded, check_robustness_budget, load_scene, prepare_kernels
+from .common import add_force, add_scene, bounded, check_design_budget, check_robustness_budget, load_scene, prepare_kernels
 
 
 def register(sub) -> None:
@@ -58,6 +58,7 @@ def run(args) -> int:
     start = time.perf_counter()
     scene = load_scene(args.scene)
     out_dir = check_report_folder(args.output, "--output", inputs=[args.scene, args.design, *scene.input_files])  # before any work
+    check_design_budget(scene, args.force)  # before a --design file is evaluated
     given = None
     if args.design:
         from ..loop.tuning import load_design

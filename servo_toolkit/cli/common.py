@@ -66,6 +66,15 @@ def check_robustness_budget(scene, spec, robust_design: bool, samples_option, fo
     check_time(seconds, knob, what, spec.samples, force)
 
 
+def check_design_budget(scene, force: bool) -> None:
+    """Refuse a loop design (or evaluation) on a chain of so many compliances that its margins
+    on the n-mass plant are estimated beyond the work budget, unless ``force``; the knob
+    named is the drivetrain, checked before any design runs."""
+    from .budget import check_time, design_seconds
+    seconds, what = design_seconds(scene)
+    check_time(seconds, "drivetrain", what, f"{len(scene.stages)} stages", force)
+
+
 def emit(args, result, text: str) -> None:
     """Print JSON (``--json``) or the text table on stdout."""
     if getattr(args, "json", False):

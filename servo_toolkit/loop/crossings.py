@@ -222,7 +222,12 @@ def crossings(loop):
         convention).
     """
     with np.errstate(all="ignore"):
-        _, _, _, wpc0, wgc0, _ = ct.stability_margins(loop, returnall=True)
+        try:
+            _, _, _, wpc0, wgc0, _ = ct.stability_margins(loop, returnall=True)
+        except (np.linalg.LinAlgError, ValueError):
+            # a long chain's loop: its polynomial coefficients overflow, so python-control
+            # gives no seeds and the grid alone brackets the crossings
+            wpc0, wgc0 = np.array([]), np.array([])
     lo, hi = _span(loop)
     wpc0 = np.atleast_1d(np.asarray(wpc0, float))
     wpc0 = wpc0[(wpc0 >= lo) & (wpc0 <= hi)]

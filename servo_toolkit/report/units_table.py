@@ -25,7 +25,7 @@ UNITS = {
     "profile_constant": ("mm", 1e3), "follower_mass": ("kg", 1.0), "follower_weight": ("N", 1.0),
     "guide_friction_coefficient": (DIMENSIONLESS, 1.0), "gravity_tilt": ("deg", DEG_PER_RAD),
     "gravity_heading": ("deg", DEG_PER_RAD), "clearance": ("mm", 1e3),
-    "output_encoder_bits": ("bit", 1.0), "motor_encoder_counts": ("counts/rev", 1.0),
+    "output_encoder_bits": ("bit", 1.0), "output_scale_resolution": ("um", 1e6), "motor_encoder_counts": ("counts/rev", 1.0),
     "sample_time": ("ms", 1e3), "bandwidth": ("Hz", 1.0), "max_phase_lag_at_bandwidth": ("deg", DEG_PER_RAD),
     "min_gain_margin": ("dB", 1.0), "min_phase_margin": ("deg", DEG_PER_RAD), "max_sensitivity_peak": ("dB", 1.0),
     "screw_radius": ("mm", 1e3), "roller_radius": ("mm", 1e3), "nut_radius": ("mm", 1e3),

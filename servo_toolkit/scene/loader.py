@@ -235,7 +235,7 @@ def _scene_of(data: dict, source: str | None) -> Scene:
         require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
     linear = bool(stages) and not forward and stage_units(stages)[0][-1] == "m"
     load = Load.from_table(Fields(data["load"], "load"), linear) if "load" in data else Load()
-    sensors = Sensors.from_table(Fields(data["sensors"], "sensors")) if "sensors" in data else Sensors()
+    sensors = Sensors.from_table(Fields(data["sensors"], "sensors"), linear) if "sensors" in data else Sensors()
     req = (Requirements.from_table(Fields(data["requirements"], "requirements"))
            if "requirements" in data else Requirements())
     studies = data.get("studies", {})

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -16,6 +17,16 @@ from .tracking import tracking_error as _tracking_error
 #: the rule of a required yield of 1
 UNPROVABLE_YIELD = ("a yield of 1 cannot be shown by any number of variants (the lower end of its interval, on "
                     "which the gate judges, stays below 1): give less than 1, e.g. 0.999")
+
+#: the rule of an output sensor for the output's dimension (an angle's encoder, a travel's scale)
+OUTPUT_SENSOR_RULE = {
+    "output_encoder_bits": "an output encoder counts 2**bits per revolution of an output angle, and this "
+                           "scene's output is a travel (m): read it with output_scale_resolution, a length "
+                           "per count (e.g. \"1 um\"), or give 0",
+    "output_scale_resolution": "a linear scale's length per count reads an output travel, and this scene's "
+                               "output is an angle (rad): read it with output_encoder_bits (2**bits counts "
+                               "per revolution), or give 0",
+}
 
 #: speed signals the speed loop can use (``[sensors] speed_estimator``)
 SPEED_ESTIMATORS = ("ideal", "difference", "kalman")
@@ -30,7 +41,11 @@ class Sensors:
     Parameters
     ----------
     output_encoder_bits : int
-        Output encoder resolution, counts per revolution = 2**bits (0 = ideal).
+        Output encoder of an output angle, counts per revolution = 2**bits (0 = ideal); an
+        output travel is read by ``output_scale_resolution`` instead.
+    output_scale_resolution : float
+        Linear scale reading an output travel: its length per count (m; 0 = ideal); an
+        output angle is read by ``output_encoder_bits`` instead.
     motor_encoder_counts : int
         Motor encoder counts per revolution (0 = ideal).
     sample_time : float
@@ -43,20 +58,42 @@ class Sensors:
     """
 
     output_encoder_bits: int = 0
+    output_scale_resolution: float = 0.0
     motor_encoder_counts: int = 0
     sample_time: float = 0.0
     speed_estimator: str = "ideal"
 
+    def output_count(self, linear: bool, path: str = "sensors") -> float:
+        """The output sensor's count in the output's unit (rad for an angle, m for a travel;
+        0: the output read ideally): ``2 pi / 2**output_encoder_bits`` of an angle,
+        ``output_scale_resolution`` of a travel.
+
+        Raises
+        ------
+        SceneError
+            The sensor of the other dimension is given (an encoder's bits on a travel, a
+            scale's resolution on an angle), naming its key and the rule.
+        """
+        wrong = "output_encoder_bits" if linear else "output_scale_resolution"
+        require(not getattr(self, wrong), f"{path}.{wrong}", OUTPUT_SENSOR_RULE[wrong])
+        if linear:
+            return self.output_scale_resolution
+        return 2 * math.pi / 2**self.output_encoder_bits if self.output_encoder_bits else 0.0
+
     @classmethod
-    def from_table(cls, f: Fields) -> "Sensors":
-        """Build from a ``[sensors]`` table."""
+    def from_table(cls, f: Fields, linear: bool = False) -> "Sensors":
+        """Build from a ``[sensors]`` table; ``linear``: the output is a travel (its sensor is
+        a linear scale, :meth:`output_count`)."""
         s = cls(output_encoder_bits=f.integer("output_encoder_bits", 0, minimum=0),
+                output_scale_resolution=f.quantity("output_scale_resolution", "m", 0.0, rule="nonnegative",
+                                                   bounds=(1e-12, 0.01), typical=(1e-9, 1e-3)),
                 motor_encoder_counts=f.integer("motor_encoder_counts", 0, minimum=0),
                 sample_time=f.quantity("sample_time", "s", 0.0, rule="nonnegative", typical=(1e-6, 0.02)),
                 speed_estimator=f.text("speed_estimator", "ideal", choices=SPEED_ESTIMATORS))
         f.check_unknown()
         require(s.output_encoder_bits <= 64, f.key("output_encoder_bits"),
                 f"must be at most 64 (got {s.output_encoder_bits}): counts per turn are 2**bits")
+        s.output_count(linear, f.path)
         require(s.motor_encoder_counts <= 2**40, f.key("motor_encoder_counts"),
                 f"must be at most 2**40 (got {s.motor_encoder_counts})")
         require(s.sample_time <= 1.0, f.key("sample_time"), f"must be at most 1 s (got {s.sample_time:g} s)")

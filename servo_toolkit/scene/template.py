@@ -121,8 +121,8 @@ _FILLS = {
     "travel": dict(title="A gearmotor driving a ball screw and a carriage (output travel)",
                    description="DC motor, 2:1 gear, 5 mm ball screw, 20 kg carriage", ratio="2.0",
                    gear_stiffness="1.6e4 N*m/rad", bandwidth="8 Hz", amplitude="1 mm",
-                   output_encoder="output_encoder_bits = 0                  # the carriage's position read "
-                                  "ideally (an output encoder counts per revolution of an angle)",
+                   output_encoder='output_scale_resolution = "1 um"         # linear scale on the carriage, '
+                                  'length per count (0: ideal)',
                    load_inertias='"0 kg", "20 kg"'),
 }
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import layout as lo
-from .integrators import _rk4
+from .integrators import NCARRY, _rk4
 from .kernel import jit, rhs
 from .layout import (F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_DEFLECTION,  # noqa: F401 - re-exported
                      S_END, S_PEAK)
@@ -37,8 +37,9 @@ def variant_run(x, P, T, dt, n_steps, sub, fig, snap):
     out_t = np.empty(2)
     out_x = np.empty((2, x.size))
     out_aux = np.empty((2, lo.NAUX))
-    _rk4(x, P, T, 0.0, dt, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, fig, snap,
-         np.zeros((5, x.size)), np.empty(max(x.size, 1)), np.empty(x.size), np.empty((4, max(P.size, x.size))))
+    _rk4(x, P, T, 0.0, dt, 0, n_steps, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, fig, snap,
+         np.zeros(NCARRY), np.zeros((5, x.size)), np.empty(max(x.size, 1)), np.empty(x.size),
+         np.empty((4, max(P.size, x.size))))
 
 
 def run_variants(X, P, T, tix, dt, n_steps, sub, figs, snaps):

@@ -1,14 +1,19 @@
-"""Many closed-loop variants in one call: the SIMD lanes of :mod:`.batch_lanes` (which equal
-the per-variant loop of :mod:`.batch`), timed after their machine code is loaded."""
+"""Many closed-loop variants: the SIMD lanes of :mod:`.batch_lanes` (which equal the
+per-variant loop of :mod:`.batch`), timed after their machine code is loaded, in calls of
+whole blocks of variants that each take about :data:`~.integrators.CHUNK_S` (Ctrl-C and
+SIGTERM are honoured between two calls; a variant's numbers do not depend on them)."""
 
 from __future__ import annotations
 
+import math
 import time
 
+import numba as nb
 import numpy as np
 
 from .batch import NFIG, NSNAP
-from .batch_lanes import run_lanes
+from .batch_lanes import W, run_lanes
+from .integrators import CHUNK_S
 from .tables import frozen_tables
 
 
@@ -54,5 +59,14 @@ def integrate_variants(P, T, tix, X0, dt: float, n_steps: int, sub: int):
     # warm-up: a zero-step call loads (or compiles) the machine code before the clock starts
     run_lanes(X[:1].copy(), P[:1], T, tix[:1], dt, 0, sub, figs[:1].copy(), snaps[:1].copy())
     start = time.perf_counter()
-    run_lanes(X, P, T, tix, dt, int(n_steps), int(sub), figs, snaps)
+    threads = nb.get_num_threads()
+    v, blocks = 0, threads  # first call: one block per thread; then rounds of that within CHUNK_S
+    while v < nv:
+        end = min(nv, v + blocks * W)  # whole blocks: each variant meets the block-mates of one call
+        began = time.perf_counter()
+        run_lanes(X[v:end], P[v:end], T, tix[v:end], dt, int(n_steps), int(sub), figs[v:end], snaps[v:end])
+        rounds = math.ceil((end - v) / W / threads)
+        per_round = max(time.perf_counter() - began, 1e-9) / rounds
+        blocks = threads * max(1, min(10 * rounds, int(CHUNK_S / per_round)))
+        v = end
     return X, figs, snaps, time.perf_counter() - start

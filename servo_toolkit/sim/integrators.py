@@ -10,6 +10,12 @@ state s) is frozen, the velocities and electrical states take one RK4 step with 
 and the spring moment frozen, positions follow by summation (p += T p'), and the play
 operator (seed eqs 6-8, c = half the play) updates s. It is first order in T.
 
+A run is advanced in chunks of steps, one compiled call each (:func:`integrate`), so that
+Ctrl-C and SIGTERM, which Python acts on only between calls, end a long run within about
+:data:`CHUNK_S`. A chunk carries the loop's counters and running figures to the next one
+(``carry``, slots ``C_*``) and every step's time is ``t0 + step * dt`` with the run's own step
+index, so a run in chunks gives the same numbers, bit for bit, as one call.
+
 The loop compiles in :func:`kernel.rhs` and everything it calls (layout constants, the cam
 kernels); the compiled-code cache is keyed on a hash of all those sources
 (:mod:`servo_toolkit.core.jit_cache`), so editing any of them recompiles the loop.
@@ -18,6 +24,7 @@ kernels); the compiled-code cache is keyed on a hash of all those sources
 from __future__ import annotations
 
 import math
+import time
 
 import numba as nb
 import numpy as np
@@ -38,6 +45,17 @@ from .layout import (AUX_I, AUX_IREF, AUX_TAU, AUX_V, CMODE, CONTINUOUS, F_CUR, 
 loop_jit = nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 
 
+#: wall time (s) a chunk of a long run aims at: an interrupt waits about this long
+CHUNK_S = 0.2
+#: steps of a run's first chunk (later ones scale to :data:`CHUNK_S` by the time it took)
+FIRST_CHUNK = 2000
+#: the loops' state carried from one chunk to the next: held current reference, steps to the
+#: next controller sample and to the next record, records written, peak |motor torque|, and
+#: RK4's running figures (peak |tracking error|, |current|, deflection, a limit reached)
+C_IREF, C_TO_SAMPLE, C_TO_RECORD, C_NREC, C_MAX_TAU, C_MAX_ERR, C_MAX_CUR, C_MAX_DEFL, C_SAT = range(9)
+NCARRY = 9
+
+
 @jit
 def _finite(x):
     """One test per step: a NaN or inf anywhere makes the sum non-finite."""
@@ -47,12 +65,21 @@ def _finite(x):
     return math.isfinite(acc)
 
 
-def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux, fig=None, snap=None):
+def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux, fig=None, snap=None,
+              chunk=None):
     """Advance ``x`` in place by ``n_steps`` fixed steps.
 
     RK4 also fills ``fig`` (``NFIG``: the figures kept at every step, ``F_*`` of
     :mod:`.layout`) and ``snap`` (``(NSNAP, nx + 2)`` snapshots, ``S_*``) when given; the
-    paper's scheme leaves them as they are.
+    paper's scheme leaves them as they are. The steps run in chunks, one compiled call each,
+    so that a KeyboardInterrupt (Ctrl-C, or SIGTERM turned into one) raised between two
+    calls ends a long run; the numbers do not depend on the chunks.
+
+    Parameters
+    ----------
+    chunk : int, optional
+        Steps per compiled call; default: :data:`FIRST_CHUNK`, then as many as take about
+        :data:`CHUNK_S` at the speed measured so far.
 
     Returns
     -------
@@ -73,15 +100,33 @@ def integrate(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_
     loop it uses.
     """
     T = frozen_tables(T)
+    n_steps = int(n_steps)
+    carry = np.zeros(NCARRY)
     if paper:
-        return _paper(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), True, int(rec_every),
-                      out_t, out_x, out_aux)
-    if fig is None:
-        fig = np.zeros(NFIG)
-    if snap is None:
-        snap = np.zeros((NSNAP, x.size + 2))
-    return _rk4(x, P, T, float(t0), float(dt), int(n_steps), int(sub), float(iref), int(rec_every),
-                out_t, out_x, out_aux, fig, snap, *scratch(x.size, P.size))
+        def advance(first, last):
+            return _paper(x, P, T, float(t0), float(dt), first, last, n_steps, int(sub), float(iref), True,
+                          int(rec_every), out_t, out_x, out_aux, carry)
+    else:
+        if fig is None:
+            fig = np.zeros(NFIG)
+        if snap is None:
+            snap = np.zeros((NSNAP, x.size + 2))
+        work = scratch(x.size, P.size)
+
+        def advance(first, last):
+            return _rk4(x, P, T, float(t0), float(dt), first, last, n_steps, int(sub), float(iref),
+                        int(rec_every), out_t, out_x, out_aux, fig, snap, carry, *work)
+    first, size = 0, max(1, int(chunk or FIRST_CHUNK))
+    while True:
+        last = min(first + size, n_steps)
+        start = time.perf_counter()
+        result = advance(first, last)
+        if result[0] != OK or last >= n_steps:
+            return result
+        if chunk is None:  # as many steps as take about CHUNK_S, growing at most tenfold a call
+            spent = max(time.perf_counter() - start, 1e-9)
+            size = max(FIRST_CHUNK, min(10 * size, int(size * CHUNK_S / spent)))
+        first = last
 
 
 def scratch(nx: int, n_par: int):
@@ -133,7 +178,8 @@ def snapshot(snap, k, p, pd, q, qd, cur, xi, s, x, t, iref):
 
 
 @loop_jit
-def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, fig, snap, K, work, x0, PW):
+def _rk4(x, P, T, t0, dt, first, last, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, fig, snap, carry, K, work,
+         x0, PW):
     """Classical RK4 with the physical states x[0:7] held in local scalars (registers).
 
     Same arithmetic as the array form (:func:`kernel.rhs`); x[0:7] is written back before
@@ -143,6 +189,11 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     (``fig``, ``F_*`` of :mod:`.layout`: peak tracking error, current and torque, limits
     reached) and its snapshots (``snap``, ``S_*``) are kept, so that a figure never depends
     on the record interval.
+
+    The call runs the steps ``first`` .. ``last - 1`` of a run of ``n_steps`` (and its end,
+    the record and the check at ``n_steps``, when ``last`` is ``n_steps``); ``carry`` (slots
+    ``C_*``) takes the loop's counters and running figures from the call before it (none when
+    ``first`` is 0: ``iref`` is then the held current reference) and keeps them for the next.
     """
     nx = x.size
     k1, k2, k3, k4, xs = K[0], K[1], K[2], K[3], K[4]  # the stages' slopes and state: zeros
@@ -152,6 +203,13 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     max_cur = -1.0
     max_defl = -1.0
     sat = 0.0
+    to_sample = 0
+    to_record = 0
+    if first > 0:
+        iref, to_sample, to_record = carry[C_IREF], int(carry[C_TO_SAMPLE]), int(carry[C_TO_RECORD])
+        n_rec, max_tau, max_err = int(carry[C_NREC]), carry[C_MAX_TAU], carry[C_MAX_ERR]
+        max_cur, max_defl, sat = carry[C_MAX_CUR], carry[C_MAX_DEFL], carry[C_SAT]
+    stop = n_steps + 1 if last >= n_steps else last
     ilim = P[ILIM]
     vlim = P[VLIM]
     err_mode = P[STROKE_MODE] == 0.0
@@ -161,14 +219,12 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
     stick = P[STICK] > 0.0  # friction that holds: speed reversals are located within the step
     lands = stick and P[NODE_FRIC] > 0.0  # ... at the full chain's intermediate nodes too
     p, pd, q, qd, cur, xi, s = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
-    to_sample = 0
-    to_record = 0
     status = OK
     sixth = dt / 6.0
     g1 = g3 = 0.0
-    step = 0
-    t = t0
-    for step in range(n_steps + 1):
+    step = first
+    t = t0 + first * dt
+    for step in range(first, stop):
         t = t0 + step * dt
         iref, to_sample = sample_hold(t, sub, to_sample, iref, p, pd, q, qd, cur, xi, s, x, P, T, work)
         err = abs(q - reference(t, P))
@@ -255,20 +311,25 @@ def _rk4(x, P, T, t0, dt, n_steps, sub, iref, rec_every, out_t, out_x, out_aux, 
                                  cur + sixth * u4, xi + sixth * u5)
     x[0], x[1], x[2], x[3], x[4], x[5], x[6] = p, pd, q, qd, cur, xi, s
     snapshot(snap, S_END, p, pd, q, qd, cur, xi, s, x, t, iref)
+    carry[C_IREF], carry[C_TO_SAMPLE], carry[C_TO_RECORD] = iref, to_sample, to_record
+    carry[C_NREC], carry[C_MAX_TAU], carry[C_MAX_ERR] = n_rec, max_tau, max_err
+    carry[C_MAX_CUR], carry[C_MAX_DEFL], carry[C_SAT] = max_cur, max_defl, sat
+    done_steps = min(last, n_steps)
     fig[F_STATUS] = status
-    fig[F_STEP] = step if status != OK else n_steps
+    fig[F_STEP] = step if status != OK else done_steps
     fig[F_ERR] = max_err
     fig[F_CUR] = max_cur
     fig[F_SAT] = sat
     fig[F_TAU] = max_tau
     if status != OK:
         return status, step, n_rec, max_tau, iref
-    return OK, n_steps, n_rec, max_tau, iref
+    return OK, done_steps, n_rec, max_tau, iref
 
 
 @jit
-def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux):
-    """The cam paper's scheme (and the array form of RK4 when ``paper`` is False)."""
+def _paper(x, P, T, t0, dt, first, last, n_steps, sub, iref, paper, rec_every, out_t, out_x, out_aux, carry):
+    """The cam paper's scheme (and the array form of RK4 when ``paper`` is False), steps
+    ``first`` .. ``last - 1`` of ``n_steps`` with ``carry`` as :func:`_rk4` takes them."""
     nx = x.size
     k1 = np.empty(nx)
     k2 = np.empty(nx)
@@ -286,7 +347,11 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
     c = P[HALF_PLAY]
     to_sample = 0
     to_record = 0
-    for step in range(n_steps + 1):
+    if first > 0:
+        iref, to_sample, to_record = carry[C_IREF], int(carry[C_TO_SAMPLE]), int(carry[C_TO_RECORD])
+        n_rec, max_tau = int(carry[C_NREC]), carry[C_MAX_TAU]
+    stop = n_steps + 1 if last >= n_steps else last
+    for step in range(first, stop):
         t = t0 + step * dt
         if sub > 0:
             if to_sample == 0:
@@ -342,4 +407,6 @@ def _paper(x, P, T, t0, dt, n_steps, sub, iref, paper, rec_every, out_t, out_x, 
                 x[6] = p - c
             elif p < p_old and p < x[6] - c:
                 x[6] = p + c
-    return OK, n_steps, n_rec, max_tau, iref
+    carry[C_IREF], carry[C_TO_SAMPLE], carry[C_TO_RECORD] = iref, to_sample, to_record
+    carry[C_NREC], carry[C_MAX_TAU] = n_rec, max_tau
+    return OK, min(last, n_steps), n_rec, max_tau, iref

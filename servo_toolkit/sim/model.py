@@ -58,7 +58,6 @@ Simplifications (documented, switchable where a reduction study needs it):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -305,9 +304,13 @@ def build_model(scene, controller=None, options: ModelOptions | None = None) -> 
             raise SceneError("controller", "current loop gains are zero but the motor has inductance")
         if mode == lo.SAMPLED:
             ts = controller.sample_time
-            bits = scene.sensors.output_encoder_bits
-            if options.quantization and bits > 0:
-                P[lo.LSB] = 2 * math.pi / 2**bits
+            count = scene.sensors.output_count(drive.output_is_linear)
+            if options.quantization and count > 0:
+                P[lo.LSB] = count
+                unit = OutputUnit(drive.output_unit)
+                notes.append(f"the controller reads the output in counts of {unit.text(count, 3)} (its "
+                             + ("linear scale's resolution)" if unit.linear else
+                                f"encoder's {scene.sensors.output_encoder_bits} bits per revolution)"))
         base = P.size
         P[lo.OFF_A], P[lo.OFF_B] = base, base + nc * nc
         P[lo.OFF_C], P[lo.OFF_D] = base + nc * nc + 3 * nc, base + nc * nc + 4 * nc

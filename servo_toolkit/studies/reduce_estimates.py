@@ -213,8 +213,8 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         static = abs(scene.load.hinge_moment + scene.load.hinge_stiffness * q0)
         dyn_tf = np.abs((-jl * w**2 + 1j * w * scene.load.damping + scene.load.hinge_stiffness) * t_full)
         dynamic = float(np.max(dyn_tf)) * a_max
-        lsb = 2 * math.pi / 2**scene.sensors.output_encoder_bits if scene.sensors.output_encoder_bits else 0.0
-        res = f", {play / lsb:.3g} encoder counts" if lsb else ""
+        lsb = scene.sensors.output_count(drive.output_is_linear)
+        res = f", {play / lsb:.3g} {'scale' if drive.output_is_linear else 'encoder'} counts" if lsb else ""
         if dynamic < CONTACT_MARGIN * static:
             e = 0.0
             why = (f"lost motion {u.text(play, 3)}{res}; force through the compliance "
