@@ -228,25 +228,27 @@ def nyquist_count(loop, rhp_poles: int) -> int:
     sigma = 1e-7 * scale
     w_pos = np.unique(np.concatenate([np.geomspace(1e-7 * scale, 1e4 * scale, 4000),
                                       np.abs(np.imag(np.concatenate([poles, zeros])))]))
-    w = np.concatenate([-w_pos[::-1], [0.0], w_pos])
-    for _ in range(12):
-        w, f = _finite_points(loop, sigma, w)
+    response = response_of(loop)
+    w, f = _finite_points(response, sigma, np.concatenate([-w_pos[::-1], [0.0], w_pos]))
+    for _ in range(12):  # each refinement evaluates its new points only
         step = np.abs(np.angle(f[1:] / f[:-1]))
         bad = np.nonzero(~(step < np.pi / 4))[0]
         if not bad.size:
             break
-        w = np.sort(np.concatenate([w, 0.5 * (w[bad] + w[bad + 1])]))
-    w, f = _finite_points(loop, sigma, w)
+        wn, fn = _finite_points(response, sigma, 0.5 * (w[bad] + w[bad + 1]))
+        order = np.argsort(np.concatenate([w, wn]), kind="stable")
+        w, f = np.concatenate([w, wn])[order], np.concatenate([f, fn])[order]
     winding = np.sum(np.angle(f[1:] / f[:-1])) / (2 * np.pi)
     return int(rhp_poles - round(winding))
 
 
-def _finite_points(loop, sigma, w):
-    """``(w, 1 + L(sigma + j w))`` at the points where it is finite and nonzero: a point on
-    a pole (``inf``) or one whose value underflows to zero (a loop gain of 1e-30 times a
-    zero at 1e30) turns no measurable phase, and a NaN there would stop the count."""
+def _finite_points(response, sigma, w):
+    """``(w, 1 + L(sigma + j w))`` at the points where it is finite and nonzero (``response``
+    a :func:`.crossings.response_of` callable): a point on a pole (``inf``) or one whose value
+    underflows to zero (a loop gain of 1e-30 times a zero at 1e30) turns no measurable phase,
+    and a NaN there would stop the count."""
     with np.errstate(all="ignore"):
-        f = 1.0 + _evaluate(loop, sigma + 1j * w)
+        f = 1.0 + response(sigma + 1j * w)
     keep = np.isfinite(f) & (f != 0)
     return w[keep], f[keep]
 
@@ -316,7 +318,7 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
                      f"encirclements of -1) disagrees with the closed-loop poles (largest real part "
                      f"{float(np.max(poles.real)):.4g} 1/s); the poles decide")
     if stable:
-        lw = np.asarray(ct.frequency_response(loop, omega).complex).reshape(-1)
+        lw = _evaluate(loop, 1j * omega)
         with np.errstate(divide="ignore"):
             ms = float(20 * np.log10(np.max(np.abs(1 / (1 + lw)))))
         try:
@@ -336,7 +338,7 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
         notes.append("python-control could not compute the closed-loop bandwidth")
     bw = float(bw) / (2 * np.pi) if np.isfinite(bw) else math.inf if stable else math.nan
     w_ph = omega[omega <= 2 * np.pi * phase_hz * (1 + 1e-12)]
-    t = np.asarray(ct.frequency_response(closed_loop, w_ph).complex).reshape(-1)
+    t = _evaluate(closed_loop, 1j * w_ph)
     phase = float(np.degrees(np.unwrap(np.angle(t)))[-1])
     order = np.argsort(np.abs(gm_db)) if gm_db.size else []
     lower, upper = gm_db[gm_db < 0], gm_db[gm_db > 0]
