@@ -30,7 +30,7 @@ from .metrics import grid_closed_loop, grid_margins
 from .requirements import check, requirements_of, unstable_checks
 from .response import loop_response, plant_responses
 from .result import DesignResult
-from .stroke import STROKE_POINTS, operating_point, show_q, stroke_check
+from .stroke import STROKE_POINTS, operating_point, plant_scan, show_q, stroke_check
 from .stroke_design import (StrokePlants, design_points, missed_points, result_slack, speed_references,
                             stroke_filters)
 from .structures import FILTERS, STRUCTURES, Motion
@@ -290,21 +290,23 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         names = FILTERS
     else:
         names = (resonance_filter,)
+    scan = plant_scan(scene, p.q0, STROKE_POINTS, model, structural_damping)  # searched over and checked
     if over_stroke:
-        qd, stroke_params = design_points(scene, p.q0, model, structural_damping)
+        qd, stroke_params = design_points(scene, p.q0, model, structural_damping, scan=scan)
     else:
         qd, stroke_params = np.array([p.q0]), (p,)
 
     def search(kv_cap):
         return _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, (kp_i, ki_i),
-                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap)
+                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap, scan)
 
     return bounded(scene, search(math.inf), search, current_ripple, lambda s: _delay_response(s, sample_time))
 
 
 def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, current_gains, qd, stroke_params,
-             notes, model, structural_damping, over_stroke, kv_cap):
-    """The nominal search over the stroke (a second round adds the first's worst points)."""
+             notes, model, structural_damping, over_stroke, kv_cap, scan=None):
+    """The nominal search over the stroke (a second round adds the first's worst points);
+    ``scan``: the plants along the stroke (:func:`.stroke.plant_scan`) its check reads."""
     unit = scene.drivetrain.output_unit
     best = None
     for round_ in range(2 if over_stroke else 1):
@@ -316,7 +318,7 @@ def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, cur
                   + (", and the worst points of the first search's stroke check" if round_ else "")
                   + "): margins at their worst over them, bandwidth and phase lag at q0"] if over_stroke else [])
         r = evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes + found + where, motion=motion, model=model,
-                     structural_damping=structural_damping, phase_hz=phase_hz)
+                     structural_damping=structural_damping, phase_hz=phase_hz, scan=scan)
         if best is None or result_slack(r) > result_slack(best):
             best = r
         extra = [x for x in missed_points(r) if np.min(np.abs(qd - x)) > 1e-9]
@@ -348,7 +350,7 @@ def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, curr
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
              structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = REQUIREMENT_SINE_HZ, closed=None,
-             require=None, stroke_points: int = STROKE_POINTS) -> DesignResult:
+             require=None, stroke_points: int = STROKE_POINTS, scan=None) -> DesignResult:
     """Margins and requirement checks of a given controller on a scene (python-control).
 
     The margins are those at ``q0`` (default mid-stroke). With ``stroke_points`` (> 0) the
@@ -358,7 +360,8 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     stroke (``gain_margin_over_stroke``, ``phase_margin_over_stroke``,
     ``sensitivity_peak_over_stroke``, each with the required value of its point
     requirement) join the requirements, and the notes name the unstable points and each
-    worst margin that misses, where and by how much.
+    worst margin that misses, where and by how much. ``scan``: the plants along the stroke
+    when the caller has them (:func:`.stroke.plant_scan`).
     """
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require) if reqs is None else reqs
@@ -384,7 +387,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     stroke = None
     if stroke_points:
         stroke = stroke_check(scene, controller, p.q0, points=stroke_points, model=model,
-                              structural_damping=structural_damping, f_req=f_req)
+                              structural_damping=structural_damping, f_req=f_req, scan=scan)
         checks.append(stroke.requirement())
         checks += stroke.margin_requirements(reqs)
         notes = tuple(notes) + stroke.notes(reqs)

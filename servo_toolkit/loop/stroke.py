@@ -69,6 +69,46 @@ def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarr
 
 
 @dataclass(frozen=True)
+class PlantScan:
+    """The plant linearized at the stroke check's points, made once for a design's scan of
+    the stroke (:func:`.stroke_design.design_points`) and its check (:func:`stroke_check`).
+
+    Attributes
+    ----------
+    q : numpy.ndarray
+        The points (rad), :func:`stroke_points` with q0 among them.
+    params : tuple of PlantParameters
+        The plant at each point.
+    model : str
+    structural_damping : float
+        What the plants were made with.
+    """
+
+    q: np.ndarray
+    params: tuple
+    model: str
+    structural_damping: float
+
+
+def plants_at(scene, q, model: str = "auto", structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
+              scan: PlantScan | None = None) -> tuple:
+    """:func:`~servo_toolkit.plant.linear.plant_parameters` at each point of ``q``: ``scan``'s
+    when it was made at these points with this model and damping, else computed."""
+    q = np.asarray(q, float)
+    if (scan is not None and scan.model == model and scan.structural_damping == structural_damping
+            and np.array_equal(scan.q, q)):
+        return scan.params
+    return tuple(plant_parameters(scene, x, model, structural_damping) for x in q)
+
+
+def plant_scan(scene, q0: float, points: int = STROKE_POINTS, model: str = "auto",
+               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> PlantScan:
+    """The plant at the stroke check's ``points`` evenly spaced points (and q0)."""
+    q = stroke_points(scene.drivetrain, int(points), extra=[q0])
+    return PlantScan(q, plants_at(scene, q, model, structural_damping), model, structural_damping)
+
+
+@dataclass(frozen=True)
 class _Rows:
     """Per-point electrical parameters in the shape :func:`.response.current_response` reads."""
 
@@ -312,7 +352,8 @@ class StrokeCheck:
 
 
 def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: str = "auto",
-                 structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, f_req: float = 5.0) -> StrokeCheck:
+                 structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, f_req: float = 5.0,
+                 scan: PlantScan | None = None) -> StrokeCheck:
     """Evaluate ``controller`` (unchanged) on the plant linearized along the stroke.
 
     Parameters
@@ -327,6 +368,8 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
     structural_damping : float
     f_req : float
         Required bandwidth (Hz), added to the frequency grid.
+    scan : PlantScan, optional
+        The plants at these points when the caller has them (:func:`plant_scan`).
 
     Returns
     -------
@@ -342,7 +385,7 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
                                           f"got {points!r}")
     dt = scene.drivetrain
     q = stroke_points(dt, int(points), extra=[q0])
-    params = tuple(plant_parameters(scene, qi, model, structural_damping) for qi in q)
+    params = plants_at(scene, q, model, structural_damping, scan)
     ratio, _ = dt.ratio(q)
     j, _ = dt.inertia(q)
     schedule = getattr(controller, "schedule", None)
