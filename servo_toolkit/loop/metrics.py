@@ -69,6 +69,22 @@ def _crossing_values(f, value, where):
     return rows, value[rows, k] + t * (value[rows, k + 1] - value[rows, k])
 
 
+def unwrap(p) -> np.ndarray:
+    """``numpy.unwrap(p, axis=-1)``, its correction computed only at the steps it applies to
+    (a step of at least pi, or NaN), the rest being zero: the same phases to the last bit."""
+    p = np.asarray(p, float)
+    dd = np.diff(p, axis=-1)
+    correct = np.zeros_like(dd)
+    at = np.nonzero(~(np.abs(dd) < np.pi))
+    d = dd[at]
+    dmod = np.mod(d - (-np.pi), 2 * np.pi) + (-np.pi)
+    np.copyto(dmod, np.pi, where=(dmod == -np.pi) & (d > 0))
+    correct[at] = dmod - d
+    out = p.copy()
+    out[..., 1:] = p[..., 1:] + correct.cumsum(axis=-1)
+    return out
+
+
 def grid_margins(w, L) -> dict:
     """The margins of :func:`grid_figures` interpolated on the grid: minimum gain margin
     (dB, at the crossings of the negative real axis and at the grid's low end), minimum
@@ -86,7 +102,7 @@ def grid_margins(w, L) -> dict:
         rows, mag_at = _crossing_values(np.imag(L2), mag_db, neg)
         gm = np.minimum(_per_row_min(n, rows, np.abs(mag_at)), low_end_margin(L2))
         # phase margins: |L| = 1
-        ph = np.degrees(np.unwrap(np.angle(L2), axis=-1))
+        ph = np.degrees(unwrap(np.angle(L2)))
         rows, ph_at = _crossing_values(mag_db, ph, True)
         pm = _per_row_min(n, rows, (ph_at % 360.0) - 180.0)
         ms = 20 * np.log10(np.nanmax(np.abs(S), axis=-1))

@@ -1,11 +1,12 @@
 """The margins' crossing search and the design search cost a few batched evaluations, and
-give what scalar searches give.
+give what the scalar computations give.
 
 The truth for the batched root finder is scipy's own ``brentq`` with the same tolerances:
-the same roots to the last bit and the same failures. The cost is counted in evaluations
-of the loop (never in seconds): a crossing search refines every bracket at once, the design
-search never holds more than one group of candidates, and the plants along the stroke are
-computed once per design.
+the same roots to the last bit and the same failures; for the disk margins python-control's
+``disk_margins``, for the phase unwrapping numpy's ``unwrap``. The cost is counted in
+evaluations of the loop (never in seconds): a crossing search refines every bracket at once,
+the design search never holds more than one group of candidates, and the plants along the
+stroke are computed once per design.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from scipy.optimize import brentq as scipy_brentq
 import servo_toolkit as st
 from servo_toolkit.loop import crossings as crossings_module
 from servo_toolkit.loop.brent import brentq
-from servo_toolkit.loop.margins import loop_margins
-from servo_toolkit.loop.metrics import grid_closed_loop, grid_figures, grid_margins
+from servo_toolkit.loop.margins import disk_margins, frequency_grid, loop_margins
+from servo_toolkit.loop.metrics import grid_closed_loop, grid_figures, grid_margins, unwrap
 
 from .conftest import SCENES
 
@@ -115,6 +116,27 @@ def test_the_margins_of_a_lightly_damped_loop_are_its_closed_loop_poles():
     for g_db, f in zip(m.gain_margins_db, m.phase_crossover_hz):
         poles = ct.poles(ct.feedback(10 ** (g_db / 20) * loop, 1))
         assert np.min(np.abs(poles - 2j * math.pi * f)) < 1e-6 * 2 * math.pi * f
+
+
+def test_disk_margins_are_python_controls(ema_design):
+    from servo_toolkit.loop.closed_loop import open_loop
+    ema, r = ema_design
+    s = ct.tf("s")
+    loops = [r.loop, open_loop(ema, r.controller, r.q0, "chain", 0.02), _modes_loop(), ct.ss(2 / (s + 1) ** 3),
+             ct.ss(3 * (10 + s) / (2 + s)), ct.ss(((s - 0.1) ** 2 + 1) / ((s + 0.1) * ((s - 0.2) ** 2 + 4)))]
+    omega = frequency_grid(extra=[8.0])
+    for loop in loops:
+        ours, theirs = disk_margins(loop, omega), ct.disk_margins(loop, omega)
+        assert all(a == b for a, b in zip(ours, theirs)), (ours, theirs)
+
+
+def test_phase_unwrapping_is_numpys():
+    rng = np.random.default_rng(5)
+    steps = np.cumsum(rng.uniform(-4, 4, (30, 400)), axis=-1)
+    steps[3, 17] = np.nan
+    exact = np.array([[0.0, np.pi, 0.0, -np.pi, 0.0, 2 * np.pi], [0.0, -np.pi, -2 * np.pi, np.pi, 3 * np.pi, 0.0]])
+    for p in (steps, exact, np.angle(_modes_loop()(1j * np.geomspace(1, 1e5, 3000)))):
+        assert np.array_equal(unwrap(p), np.unwrap(p, axis=-1), equal_nan=True)
 
 
 def test_grid_figures_are_row_by_row():
