@@ -168,8 +168,7 @@ def test_the_design_search_holds_one_group_of_candidates_at_a_time(ema, monkeypa
 
 def test_the_plants_along_the_stroke_are_computed_once_per_design(ema, monkeypatch):
     """The design's scan of the stroke and its stroke check read the same plants."""
-    from servo_toolkit.loop import stroke as stroke_module
-    from servo_toolkit.loop import stroke_design
+    from servo_toolkit.loop import stroke_design, stroke_plants
     from servo_toolkit.plant.linear import plant_parameters
     seen = []
 
@@ -177,7 +176,7 @@ def test_the_plants_along_the_stroke_are_computed_once_per_design(ema, monkeypat
         seen.append(float(q0))
         return plant_parameters(scene, q0, *args, **kwargs)
 
-    monkeypatch.setattr(stroke_module, "plant_parameters", counted)
+    monkeypatch.setattr(stroke_plants, "plant_parameters", counted)
     monkeypatch.setattr(stroke_design, "plant_parameters", counted)
     r = design_module.design(ema)
     assert r.stroke is not None and len(seen) == len(set(seen)) == r.stroke.q.size

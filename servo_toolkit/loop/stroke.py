@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import SceneError
 from ..drivetrain.operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
 from ..core.output_units import OutputUnit
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
 from .metrics import grid_figures
@@ -38,6 +38,7 @@ from .requirements import Check, check, unstable_checks
 from .response import current_response, loop_response, mechanical_response
 from .robustness import _controller_blocks, _controller_response
 from .schedule import crossover_hz
+from .stroke_plants import PlantScan, plants_at
 
 STROKE_POINTS = 25
 """Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
@@ -66,39 +67,6 @@ def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarr
         if np.min(np.abs(q - x)) > 1e-9:  # a grid point already there stays as it is
             q = np.append(q, x)
     return np.sort(q)
-
-
-@dataclass(frozen=True)
-class PlantScan:
-    """The plant linearized at the stroke check's points, made once for a design's scan of
-    the stroke (:func:`.stroke_design.design_points`) and its check (:func:`stroke_check`).
-
-    Attributes
-    ----------
-    q : numpy.ndarray
-        The points (rad), :func:`stroke_points` with q0 among them.
-    params : tuple of PlantParameters
-        The plant at each point.
-    model : str
-    structural_damping : float
-        What the plants were made with.
-    """
-
-    q: np.ndarray
-    params: tuple
-    model: str
-    structural_damping: float
-
-
-def plants_at(scene, q, model: str = "auto", structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-              scan: PlantScan | None = None) -> tuple:
-    """:func:`~servo_toolkit.plant.linear.plant_parameters` at each point of ``q``: ``scan``'s
-    when it was made at these points with this model and damping, else computed."""
-    q = np.asarray(q, float)
-    if (scan is not None and scan.model == model and scan.structural_damping == structural_damping
-            and np.array_equal(scan.q, q)):
-        return scan.params
-    return tuple(plant_parameters(scene, x, model, structural_damping) for x in q)
 
 
 def plant_scan(scene, q0: float, points: int = STROKE_POINTS, model: str = "auto",

@@ -32,7 +32,8 @@ import numpy as np
 
 from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
 from .response import plant_responses
-from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, PlantScan, plants_at, stroke_points
+from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, stroke_points
+from .stroke_plants import PlantScan, plants_at
 
 MAX_DESIGN_POINTS = 7
 """At most this many design points (q0 first)."""
