@@ -5,8 +5,9 @@ The truth for the batched root finder is scipy's own ``brentq`` with the same to
 the same roots to the last bit and the same failures; for the disk margins python-control's
 ``disk_margins``, for the phase unwrapping numpy's ``unwrap``. The cost is counted in
 evaluations of the loop (never in seconds): a crossing search refines every bracket at once,
-the design search never holds more than one group of candidates, and the plants along the
-stroke are computed once per design.
+the design search never holds more than one group of candidates, the plants along the
+stroke are computed once per design, and a plant's parameters compose the drivetrain's
+kinematics at their point once.
 """
 
 from __future__ import annotations
@@ -180,3 +181,22 @@ def test_the_plants_along_the_stroke_are_computed_once_per_design(ema, monkeypat
     monkeypatch.setattr(stroke_design, "plant_parameters", counted)
     r = design_module.design(ema)
     assert r.stroke is not None and len(seen) == len(set(seen)) == r.stroke.q.size
+
+
+def test_a_plants_parameters_compose_the_kinematics_at_their_point_once(ema, monkeypatch):
+    """The chain's inertias, springs, modes and damping at q0 all read one composition of the
+    stages (and the ratio and the chain's layout their own): the same parameters."""
+    from servo_toolkit.drivetrain.reflected import Drivetrain
+    from servo_toolkit.plant.linear import plant_parameters
+    before = [plant_parameters(ema, q) for q in (-0.4, 0.1)]
+    real, points = Drivetrain.kinematics, []
+
+    def counted(self, q):
+        points.append(np.size(q))
+        return real(self, q)
+
+    monkeypatch.setattr(Drivetrain, "kinematics", counted)
+    for q, expected in zip((-0.4, 0.1), before):
+        points.clear()
+        assert plant_parameters(ema, q) == expected
+        assert len(points) <= 3
