@@ -5,7 +5,8 @@ cache against a warm one (at most 4x), and the first and a warm ``report``.
 
 Each figure is the wall time of a new process, as a user meets it, with the CPU time it used
 beside it (user + system, its child processes included): on a busy machine the wall time grows
-with the other jobs, the CPU time much less. "Empty cache" runs use a fresh ``NUMBA_CACHE_DIR``,
+with the other jobs, the CPU time much less, so the warm ``check`` is judged on both (its CPU
+time is what an idle machine's wall time comes near). "Empty cache" runs use a fresh ``NUMBA_CACHE_DIR``,
 "warm" ones run again on the same folder. Run it on an idle machine:
 ``python benchmarks/bench_startup.py`` (4 to 8 minutes on 2 cores); ``--warm`` measures the
 figures that need no empty cache (imports, every ``--help``, the warm ``check``, on the user's
@@ -68,10 +69,11 @@ def sample_load(samples: list, stop: threading.Event, every_s: float = 5.0) -> N
         stop.wait(every_s)
 
 
-def _row(name, figure, target="", limit=None):
-    """A table row: (name, wall s, CPU s, target text, PASS/FAIL or None)."""
+def _row(name, figure, target="", limit=None, on_cpu=False):
+    """A table row: (name, wall s, CPU s, target text, PASS/FAIL or None), judged on the wall
+    time or, ``on_cpu``, on the CPU time (what an idle machine's wall time comes near)."""
     wall, cpu = figure
-    return name, wall, cpu, target, None if limit is None else wall < limit
+    return name, wall, cpu, target, None if limit is None else (cpu if on_cpu else wall) < limit
 
 
 def start_up_rows(cli, cache) -> list:
@@ -86,8 +88,10 @@ def start_up_rows(cli, cache) -> list:
         rows.append(_row(f"{name} --help", timed([*cli, name, "--help"], cache, repeats=3),
                          f"< {TARGET_COMMAND_HELP_S:g} s", TARGET_COMMAND_HELP_S))
     timed([*cli, "check", SCENE], cache)  # loads (or compiles) the kernels once
-    rows.append(_row("check, warm (reference EMA)", timed([*cli, "check", SCENE], cache, repeats=3),
-                     f"< {TARGET_WARM_CHECK_S:g} s", TARGET_WARM_CHECK_S))
+    check = timed([*cli, "check", SCENE], cache, repeats=3)
+    rows.append(_row("check, warm (reference EMA)", check, f"< {TARGET_WARM_CHECK_S:g} s", TARGET_WARM_CHECK_S))
+    rows.append(_row("  the same, judged on CPU", check, f"< {TARGET_WARM_CHECK_S:g} s CPU", TARGET_WARM_CHECK_S,
+                     on_cpu=True))
     return rows
 
 

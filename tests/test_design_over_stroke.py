@@ -190,8 +190,8 @@ def test_a_worst_point_between_design_points_is_added_and_redesigned(ema, monkey
     design_module = importlib.import_module("servo_toolkit.loop.design")  # the module, not the function
     real = design_module.design_points
 
-    def only_q0(scene, q0, model="auto", structural_damping=0.02):
-        q, params = real(scene, q0, model, structural_damping)
+    def only_q0(scene, q0, model="auto", structural_damping=0.02, **kwargs):
+        q, params = real(scene, q0, model, structural_damping, **kwargs)
         return q[:1], params[:1]  # as if the search saw q0 alone
 
     monkeypatch.setattr(design_module, "design_points", only_q0)

@@ -51,6 +51,72 @@ def test_a_commands_help_loads_no_numerical_library(command):
     assert _heavy_loaded([command, "--help"]) == []
 
 
+#: records, in a new process, which module first imported matplotlib during a command
+_FIRST_IMPORTER = """
+import contextlib, io, json, sys
+
+class Watch:
+    importer = None
+
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] == "matplotlib" and Watch.importer is None:
+            frame = sys._getframe(1)
+            while frame is not None and (frame.f_code.co_filename.startswith("<frozen")
+                                         or frame.f_globals.get("__name__") == __name__):
+                frame = frame.f_back
+            Watch.importer = frame.f_globals.get("__name__") if frame is not None else "?"
+        return None
+
+sys.meta_path.insert(0, Watch())
+import servo_toolkit.cli
+with contextlib.redirect_stdout(io.StringIO()):
+    code = servo_toolkit.cli.main(sys.argv[1:])
+toolkit = sorted(m for m in sys.modules if m.startswith("servo_toolkit."))
+print(json.dumps({"code": code, "importer": Watch.importer, "toolkit": toolkit}))
+"""
+
+
+@pytest.fixture(scope="module")
+def check_imports():
+    """What a text verdict of the reference scene imports: ``check`` run in a new process."""
+    proc = subprocess.run([sys.executable, "-c", _FIRST_IMPORTER, "check",
+                           str(ROOT / "servo_toolkit" / "data" / "ema_reference.toml")],
+                          capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_a_text_verdict_loads_no_plotting_of_its_own(check_imports):
+    """``check`` prints a table: it loads no report, tuner or figure module of the toolkit,
+    and no toolkit module imports matplotlib on its way (python-control does, below)."""
+    assert check_imports["code"] == 0
+    plotting = [m for m in check_imports["toolkit"] if m.split(".")[1] in ("report", "tuner") or m.endswith("_plot")]
+    assert plotting == []
+    importer = check_imports["importer"]
+    assert importer is None or not importer.startswith("servo_toolkit"), importer
+
+
+@pytest.mark.xfail(strict=True, reason="python-control 0.10 imports matplotlib.pyplot (and scipy.signal) when it "
+                                       "is imported, and the loop's systems are python-control's")
+def test_a_text_verdict_imports_no_matplotlib(check_imports):
+    assert check_imports["importer"] is None
+
+
+def test_a_commands_process_defers_the_cyclic_collector(tmp_path):
+    """The console script runs one command per process: the collector runs seldom while the
+    libraries load and leaves the objects that live until the end out of its collection at
+    exit."""
+    code = ("import atexit, gc, sys\n"
+            "from servo_toolkit.cli import GC_THRESHOLD, entry\n"
+            "atexit.register(lambda: print(gc.get_threshold()[0] == GC_THRESHOLD, gc.get_freeze_count() > 1000))\n"
+            f"sys.argv = ['servo-toolkit', 'new', {str(tmp_path / 'a.toml')!r}]\n"
+            "entry()\n")
+    proc = _run(code)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split()[-2:] == ["True", "True"]
+    assert (tmp_path / "a.toml").is_file()
+
+
 def test_lazy_names_resolve():
     import servo_toolkit as st
     assert callable(st.design) and callable(st.load_scene) and callable(st.simulate) and callable(st.export)

@@ -5,8 +5,9 @@ takes the real roots of ``Im L(jw)`` and ``|L(jw)| - 1``; at high frequency roun
 those coefficients yields roots that are no crossings of the loop at all (a gain margin of
 572 dB at 2.6 MHz for ``1 / (s^3 + 2 s^2 + 3 s + 4)``). Here every crossing is a root of
 ``Im L(jw)`` (phase) or ``log |L(jw)|`` (gain) bracketed on a grid refined until no step
-turns ``L`` by more than 30 deg, refined by Brent's method, and kept only when ``L`` itself,
-evaluated there, is real and negative (phase crossing) or of unit magnitude (gain crossing).
+turns ``L`` by more than 30 deg, refined by Brent's method (every bracket in one batched
+search), and kept only when ``L`` itself, evaluated there, is real and negative (phase
+crossing) or of unit magnitude (gain crossing).
 python-control's roots are used as extra grid points, never as crossings on their own word.
 
 A crossing is also kept only when double precision resolves it (:func:`resolvable`): the
@@ -21,8 +22,8 @@ from __future__ import annotations
 
 import control as ct
 import numpy as np
-from scipy.optimize import brentq
 
+from .brent import brentq
 from .response import solved_response
 
 #: a phase crossing's ``|Im L| / |L|`` and a gain crossing's ``| |L| - 1 |`` at most this
@@ -80,9 +81,10 @@ def _span(loop):
     return (mags.min() / SPAN, mags.max() * SPAN) if mags.size else (1 / SPAN, SPAN)
 
 
-def _grid(loop, seeds) -> np.ndarray:
+def _grid(loop, seeds, response):
     """Positive frequencies (rad/s) around every pole and zero and every seed, refined where
-    ``L`` turns."""
+    ``L`` turns, and ``L`` there (``response`` a :func:`response_of` callable): each
+    refinement evaluates the new points only."""
     roots = np.concatenate([np.atleast_1d(ct.poles(loop)), np.atleast_1d(ct.zeros(loop))])
     roots = roots[np.isfinite(roots)]
     seeds = np.asarray(seeds, float)
@@ -97,30 +99,31 @@ def _grid(loop, seeds) -> np.ndarray:
     parts += [seeds * (1 - 1e-3), seeds, seeds * (1 + 1e-3)]
     w = np.unique(np.concatenate(parts))
     w = w[(w >= lo) & (w <= hi)]
-    response = response_of(loop)
+    lw = _evaluate(response, w)
     for _ in range(10):
-        lw = _evaluate(response, w)
         with np.errstate(all="ignore"):
             turn = np.abs(np.angle(lw[1:] / lw[:-1]))
         bad = np.nonzero(turn > MAX_TURN)[0]
         if not bad.size:
             break
-        w = np.unique(np.concatenate([w, np.sqrt(w[bad] * w[bad + 1])]))
-    return w
+        new = np.sqrt(w[bad] * w[bad + 1])
+        w, first = np.unique(np.concatenate([w, new]), return_index=True)
+        lw = np.concatenate([lw, _evaluate(response, new)])[first]
+    return w, lw
 
 
-def _roots(fun, w, seeds=()) -> list:
-    """Roots of ``fun`` bracketed by sign changes on ``w`` (Brent's method), plus each seed
-    that no bracketed root lies near (a tangency a sign change cannot show)."""
-    v = fun(w)
+def _roots(fun, w, seeds=(), v=None) -> list:
+    """Roots of ``fun`` bracketed by sign changes on ``w`` (Brent's method, every bracket at
+    once: :func:`.brent.brentq`, scipy's steps and tolerances), plus each seed that no
+    bracketed root lies near (a tangency a sign change cannot show). A bracket where ``fun``
+    turns NaN or that does not converge gives no root. ``v``: ``fun(w)`` when the caller has
+    it."""
+    v = fun(w) if v is None else v
     ok = np.isfinite(v)
     out = [w[i] for i in np.nonzero(ok & (v == 0))[0]]
-    for i in np.nonzero(ok[:-1] & ok[1:] & (np.sign(v[:-1]) * np.sign(v[1:]) < 0))[0]:
-        try:
-            out.append(brentq(lambda x: float(fun(np.array([x]))[0]), w[i], w[i + 1],
-                              xtol=1e-15 * w[i], rtol=4e-15, maxiter=200))
-        except (ValueError, RuntimeError):
-            continue
+    i = np.nonzero(ok[:-1] & ok[1:] & (np.sign(v[:-1]) * np.sign(v[1:]) < 0))[0]
+    roots, solved = brentq(fun, w[i], w[i + 1], xtol=1e-15 * w[i], rtol=4e-15, maxiter=200)
+    out += [float(x) for x in roots[solved]]
     found = np.asarray(out, float)
     out += [x for x in seeds if not np.any(np.abs(found - x) <= SEED_NEAR * x)]
     return out
@@ -231,25 +234,27 @@ def crossings(loop):
     lo, hi = _span(loop)
     wpc0 = np.atleast_1d(np.asarray(wpc0, float))
     wpc0 = wpc0[(wpc0 >= lo) & (wpc0 <= hi)]
-    w = _grid(loop, np.concatenate([wpc0, np.atleast_1d(wgc0)]))
     system, loop = loop, response_of(loop)
+    w, lw = _grid(system, np.concatenate([wpc0, np.atleast_1d(wgc0)]), loop)
 
-    def im(x):
-        lw = _evaluate(loop, x)
-        return lw.imag / np.abs(lw)
-
-    def log_mag(x):
+    def im(x, lw=None):
+        lw = _evaluate(loop, x) if lw is None else lw
         with np.errstate(all="ignore"):
-            return np.log(np.abs(_evaluate(loop, x)))
+            return lw.imag / np.abs(lw)
+
+    def log_mag(x, lw=None):
+        with np.errstate(all="ignore"):
+            return np.log(np.abs(_evaluate(loop, x) if lw is None else lw))
 
     seeds_g = [x for x in np.atleast_1d(wgc0) if np.isfinite(x) and x > 0]
-    wpc = _unique(_roots(im, w[(w >= lo) & (w <= hi)], list(wpc0)))
+    inside = (w >= lo) & (w <= hi)
+    wpc = _unique(_roots(im, w[inside], list(wpc0), im(w[inside], lw[inside])))
     lp = _evaluate(loop, wpc)
     real_negative = np.isfinite(lp) & (lp.real < 0) & (np.abs(lp.imag) <= CROSSING_TOL * np.abs(lp))
     wpc, lp = wpc[real_negative], lp[real_negative]
     keep = resolvable(system, wpc, lp)
     wpc, lp = wpc[keep], lp[keep]
-    wgc = _unique(_roots(log_mag, w, seeds_g))
+    wgc = _unique(_roots(log_mag, w, seeds_g, log_mag(w, lw)))
     lg = _evaluate(loop, wgc)
     unit = np.isfinite(lg) & (np.abs(np.abs(lg) - 1) <= CROSSING_TOL)
     wgc, lg = wgc[unit], lg[unit]

@@ -26,11 +26,11 @@ from .assembly import closed_loop_matrix, controller_matrices
 from .chain_margins import chain_margins
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
-from .metrics import grid_figures
+from .metrics import grid_closed_loop, grid_margins
 from .requirements import check, requirements_of, unstable_checks
 from .response import loop_response, plant_responses
 from .result import DesignResult
-from .stroke import STROKE_POINTS, operating_point, show_q, stroke_check
+from .stroke import STROKE_POINTS, operating_point, plant_scan, show_q, stroke_check
 from .stroke_design import (StrokePlants, design_points, missed_points, result_slack, speed_references,
                             stroke_filters)
 from .structures import FILTERS, STRUCTURES, Motion
@@ -72,22 +72,23 @@ MARGINS = ("gain_margin", "phase_margin", "sensitivity_peak")
 """Requirements judged at their worst over the design points (the others at q0)."""
 
 
-def _slack(figs, reqs, f_req, points: int = 1):
+def _slack(figs, reqs):
     """Smallest normalized slack over the requirements (negative: some requirement missed).
 
-    ``figs`` holds candidates x ``points`` rows (q0 first in each candidate's block): the
-    margins count at their worst over the points, bandwidth and phase lag at q0."""
+    ``figs`` holds the margins per candidate and design point (candidates x points, q0
+    first), which count at their worst over the points, and the bandwidth and phase lag per
+    candidate, at q0."""
     achieved = _achieved(figs)
     cols = []
     for r in reqs:
-        a = np.asarray(achieved[r.name], float).reshape(-1, points)
+        a = np.asarray(achieved[r.name], float)
         if r.name == "bandwidth":
             with np.errstate(divide="ignore", invalid="ignore"):
                 sl = np.log(a / r.value)
         else:
             sl = (a - r.value if r.sense == ">=" else r.value - a) / max(abs(r.value), 1.0)
         sl = np.where(np.isfinite(sl), sl, np.where(sl > 0, 10.0, -10.0))
-        cols.append(sl.min(axis=1) if r.name in MARGINS else sl[:, 0])
+        cols.append(sl.min(axis=1) if r.name in MARGINS else sl)
     return np.min(cols, axis=0)
 
 
@@ -130,18 +131,19 @@ def _speed_gains(p, refs, wb, sample_time, current_gains, kv_cap):
 
 
 def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains, plants, kv_cap=math.inf):
-    """Yield (Motion, L at every design point on the grid) for the scan of one structure."""
+    """Yield the scan of one structure in groups, one per filter and speed-loop gains: (the
+    Motions, L of each at every design point on the grid, shape (motions, points, grid))."""
     n = p.N
     P1, P2, nq = plants.P1, plants.P2, plants.N
     refs = speed_references(p, plants.params)
     for filt, fparams in filters:
         if structure == "cascade":
             for kv, wvi in _speed_gains(p, refs, wb, sample_time, current_gains, kv_cap):
-                for k in GAIN_SCAN:
-                    m = Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wvi}, filt, fparams, n)
-                    cy, cw = m.responses(s)
-                    yield m, loop_response(s, P1, P2, delay, cy, cw, nq)
+                group = [Motion("cascade", {"kp": k * wb, "kv": kv, "wvi": wvi}, filt, fparams, n)
+                         for k in GAIN_SCAN]
+                yield group, _group_loops(group, s, P1, P2, delay, nq)
         else:
+            group = []
             for k in GAIN_SCAN:
                 wc = k * wb
                 gains = {"pid": {"kc": 1.0, "wi": wc / 5, "wz": wc / 3, "wp": 3 * wc},
@@ -152,29 +154,36 @@ def _candidates(structure, p, s, delay, wb, filters, sample_time, current_gains,
                 cy1, _ = unit.responses(sc)
                 P1c, P2c = plant_responses(sc, p, *current_gains)
                 lc = _delay_response(sc, sample_time) * cy1 * P2c
-                gains = dict(gains, kc=float(1.0 / abs(lc[0])))
-                m = Motion(structure, gains, filt, fparams, n)
-                cy, cw = m.responses(s)
-                yield m, loop_response(s, P1, P2, delay, cy, cw, nq)
+                group.append(Motion(structure, dict(gains, kc=float(1.0 / abs(lc[0]))), filt, fparams, n))
+            yield group, _group_loops(group, s, P1, P2, delay, nq)
+
+
+def _group_loops(group, s, P1, P2, delay, nq):
+    """L of every Motion of ``group`` at every design point: (motions, points, grid)."""
+    cy, cw = (np.array(r)[:, None, :] for r in zip(*(m.responses(s) for m in group)))
+    return loop_response(s, P1, P2, delay, cy, cw, nq)
 
 
 def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sample_time, current_gains,
             stroke_params, stable_only=True, kv_cap=math.inf):
     """Best-ranked candidate aiming at ``f_target``, stable at every design point:
     (Motion, CascadeController) or None. ``stroke_params``: the plants at the design points,
-    q0 first (:func:`.stroke_design.design_points`)."""
+    q0 first (:func:`.stroke_design.design_points`). The figures are taken one group of
+    candidates at a time (arrays that stay in cache), the margins at every point, the
+    bandwidth and the phase lag at q0 only (where they are judged)."""
     w = frequency_grid(f_min=0.01, f_max=5e3, points=700, extra=[f_req, phase_hz])
     s = 1j * w
     delay = _delay_response(s, sample_time)
     plants = StrokePlants(stroke_params, s, current_gains)
-    motions, loops = [], []
-    for m, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, sample_time,
-                            current_gains, plants, kv_cap):
-        motions.append(m)
-        loops.append(L)
-    npts = plants.count
-    figs = grid_figures(w, np.array(loops).reshape(-1, w.size), phase_freq=f_req)
-    order = np.argsort(-_slack(figs, reqs, f_req, npts), kind="stable")
+    motions, parts = [], []
+    for group, L in _candidates(structure, p, s, delay, 2 * math.pi * f_target, filters, sample_time,
+                                current_gains, plants, kv_cap):
+        motions += group
+        parts.append({**grid_margins(w, L), **grid_closed_loop(w, L[:, 0], phase_freq=f_req)})
+    if not parts:
+        return None
+    figs = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+    order = np.argsort(-_slack(figs, reqs), kind="stable")
     mats = [plant_matrices(q, inductance=True) for q in stroke_params]
     for idx in order:
         ctrl = CascadeController(motions[idx].state_space(), *current_gains, sample_time, motions[idx].describe())
@@ -281,21 +290,23 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         names = FILTERS
     else:
         names = (resonance_filter,)
+    scan = plant_scan(scene, p.q0, STROKE_POINTS, model, structural_damping)  # searched over and checked
     if over_stroke:
-        qd, stroke_params = design_points(scene, p.q0, model, structural_damping)
+        qd, stroke_params = design_points(scene, p.q0, model, structural_damping, scan=scan)
     else:
         qd, stroke_params = np.array([p.q0]), (p,)
 
     def search(kv_cap):
         return _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, (kp_i, ki_i),
-                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap)
+                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap, scan)
 
     return bounded(scene, search(math.inf), search, current_ripple, lambda s: _delay_response(s, sample_time))
 
 
 def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, current_gains, qd, stroke_params,
-             notes, model, structural_damping, over_stroke, kv_cap):
-    """The nominal search over the stroke (a second round adds the first's worst points)."""
+             notes, model, structural_damping, over_stroke, kv_cap, scan=None):
+    """The nominal search over the stroke (a second round adds the first's worst points);
+    ``scan``: the plants along the stroke (:func:`.stroke.plant_scan`) its check reads."""
     unit = scene.drivetrain.output_unit
     best = None
     for round_ in range(2 if over_stroke else 1):
@@ -307,7 +318,7 @@ def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, cur
                   + (", and the worst points of the first search's stroke check" if round_ else "")
                   + "): margins at their worst over them, bandwidth and phase lag at q0"] if over_stroke else [])
         r = evaluate(scene, ctrl, p.q0, reqs=reqs, notes=notes + found + where, motion=motion, model=model,
-                     structural_damping=structural_damping, phase_hz=phase_hz)
+                     structural_damping=structural_damping, phase_hz=phase_hz, scan=scan)
         if best is None or result_slack(r) > result_slack(best):
             best = r
         extra = [x for x in missed_points(r) if np.min(np.abs(qd - x)) > 1e-9]
@@ -339,7 +350,7 @@ def _best(scene, p, reqs, structure, filters, f_req, phase_hz, sample_time, curr
 
 def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, model="auto",
              structural_damping=DEFAULT_STRUCTURAL_DAMPING, phase_hz: float = REQUIREMENT_SINE_HZ, closed=None,
-             require=None, stroke_points: int = STROKE_POINTS) -> DesignResult:
+             require=None, stroke_points: int = STROKE_POINTS, scan=None) -> DesignResult:
     """Margins and requirement checks of a given controller on a scene (python-control).
 
     The margins are those at ``q0`` (default mid-stroke). With ``stroke_points`` (> 0) the
@@ -349,7 +360,8 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     stroke (``gain_margin_over_stroke``, ``phase_margin_over_stroke``,
     ``sensitivity_peak_over_stroke``, each with the required value of its point
     requirement) join the requirements, and the notes name the unstable points and each
-    worst margin that misses, where and by how much.
+    worst margin that misses, where and by how much. ``scan``: the plants along the stroke
+    when the caller has them (:func:`.stroke.plant_scan`).
     """
     p = plant_parameters(scene, q0, model, structural_damping)
     reqs = requirements_of(scene, require) if reqs is None else reqs
@@ -375,7 +387,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     stroke = None
     if stroke_points:
         stroke = stroke_check(scene, controller, p.q0, points=stroke_points, model=model,
-                              structural_damping=structural_damping, f_req=f_req)
+                              structural_damping=structural_damping, f_req=f_req, scan=scan)
         checks.append(stroke.requirement())
         checks += stroke.margin_requirements(reqs)
         notes = tuple(notes) + stroke.notes(reqs)

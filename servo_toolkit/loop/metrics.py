@@ -15,16 +15,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def _interp_crossings(w, f, value):
-    """Where ``f`` crosses zero between grid points: mask (..., n-1) and the fraction t."""
-    f0, f1 = f[..., :-1], f[..., 1:]
-    mask = (np.sign(f0) != np.sign(f1)) & np.isfinite(f0) & np.isfinite(f1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(mask, f0 / (f0 - f1), 0.0)
-    v = value[..., :-1] + t * (value[..., 1:] - value[..., :-1])
-    return mask, v
-
-
 def low_end_margin(L) -> np.ndarray:
     """|gain margin| (dB) of a crossing at w -> 0: where the loop at the grid's first
     frequency is finite and within 6 deg of the negative real axis, as for an
@@ -52,7 +42,8 @@ def grid_figures(w, L, phase_freq: float | None = None, response=None):
     response : callable, optional
         ``response(rows, w)`` -> the loop response of the given rows (leading axes of ``L``
         flattened) at angular frequencies ``w``; with it every figure is refined
-        (:func:`refined_figures`), without it figures are interpolated on the grid.
+        (:func:`refined_figures`), without it figures are interpolated on the grid
+        (:func:`grid_margins` and :func:`grid_closed_loop`).
 
     Returns
     -------
@@ -63,23 +54,71 @@ def grid_figures(w, L, phase_freq: float | None = None, response=None):
     L = np.asarray(L, complex)
     if response is not None:
         return refined_figures(w, L, response, phase_freq)
-    logw = np.log(w)
+    return {**grid_margins(w, L), **grid_closed_loop(w, L, phase_freq)}
+
+
+def _crossing_values(f, value, where):
+    """At every grid interval where ``f`` (2-D) changes sign, both ends finite, and ``where``
+    holds: (rows, ``value`` interpolated linearly in ``f`` to its zero)."""
+    f0, f1 = f[:, :-1], f[:, 1:]
+    sign = np.sign(f)
+    rows, k = np.nonzero((sign[:, :-1] != sign[:, 1:]) & np.isfinite(f0) & np.isfinite(f1) & where)
+    a, b = f0[rows, k], f1[rows, k]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = a / (a - b)
+    return rows, value[rows, k] + t * (value[rows, k + 1] - value[rows, k])
+
+
+def unwrap(p) -> np.ndarray:
+    """``numpy.unwrap(p, axis=-1)``, its correction computed only at the steps it applies to
+    (a step of at least pi, or NaN), the rest being zero: the same phases to the last bit."""
+    p = np.asarray(p, float)
+    dd = np.diff(p, axis=-1)
+    correct = np.zeros_like(dd)
+    at = np.nonzero(~(np.abs(dd) < np.pi))
+    d = dd[at]
+    dmod = np.mod(d - (-np.pi), 2 * np.pi) + (-np.pi)
+    np.copyto(dmod, np.pi, where=(dmod == -np.pi) & (d > 0))
+    correct[at] = dmod - d
+    out = p.copy()
+    out[..., 1:] = p[..., 1:] + correct.cumsum(axis=-1)
+    return out
+
+
+def grid_margins(w, L) -> dict:
+    """The margins of :func:`grid_figures` interpolated on the grid: minimum gain margin
+    (dB, at the crossings of the negative real axis and at the grid's low end), minimum
+    phase margin (deg, at ``|L| = 1``) and sensitivity peak (dB), each figure computed at the
+    grid intervals that hold a crossing only."""
+    L = np.asarray(L, complex)
+    shape = L.shape[:-1]
+    L2 = L.reshape(-1, len(w))
+    n = L2.shape[0]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        mag_db = 20 * np.log10(np.abs(L))
-        T = L / (1 + L)
-        S = 1 / (1 + L)
-    # gain margins: crossings of the negative real axis
-    mask, mag_at = _interp_crossings(w, np.imag(L), mag_db)
-    neg = (np.real(L[..., :-1]) < 0) | (np.real(L[..., 1:]) < 0)
-    gm = np.minimum(np.where(mask & neg, np.abs(mag_at), np.inf).min(axis=-1), low_end_margin(L))
-    # phase margins: |L| = 1
-    ph = np.degrees(np.unwrap(np.angle(L), axis=-1))
-    mask, ph_at = _interp_crossings(w, mag_db, ph)
-    pm = np.where(mask, (ph_at % 360.0) - 180.0, np.inf).min(axis=-1)
-    ms = 20 * np.log10(np.nanmax(np.abs(S), axis=-1))
+        mag_db = 20 * np.log10(np.abs(L2))
+        S = 1 / (1 + L2)
+        # gain margins: crossings of the negative real axis
+        neg = (np.real(L2[:, :-1]) < 0) | (np.real(L2[:, 1:]) < 0)
+        rows, mag_at = _crossing_values(np.imag(L2), mag_db, neg)
+        gm = np.minimum(_per_row_min(n, rows, np.abs(mag_at)), low_end_margin(L2))
+        # phase margins: |L| = 1
+        ph = np.degrees(unwrap(np.angle(L2)))
+        rows, ph_at = _crossing_values(mag_db, ph, True)
+        pm = _per_row_min(n, rows, (ph_at % 360.0) - 180.0)
+        ms = 20 * np.log10(np.nanmax(np.abs(S), axis=-1))
+    out = {"gain_margin_db": gm, "phase_margin_deg": pm, "sensitivity_peak_db": ms}
+    return {key: v.reshape(shape) for key, v in out.items()}
+
+
+def grid_closed_loop(w, L, phase_freq: float | None = None) -> dict:
+    """The closed-loop figures of :func:`grid_figures` interpolated on the grid: the -3 dB
+    bandwidth (Hz) and, given ``phase_freq`` (Hz), the phase (deg) there."""
+    L = np.asarray(L, complex)
+    logw = np.log(w)
     # bandwidth: first drop of |T| below -3 dB (python-control's drop) of the unit DC gain
     # of a position loop with an integrator
-    t_db = 20 * np.log10(np.abs(T))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        t_db = 20 * np.log10(np.abs(L / (1 + L)))
     below = t_db < -3.0
     first = np.argmax(below, axis=-1)
     anyb = below.any(axis=-1)
@@ -90,7 +129,7 @@ def grid_figures(w, L, phase_freq: float | None = None, response=None):
         t = np.clip((-3.0 - a) / (b - a), 0, 1)
     bw = np.exp(logw[k - 1] + t * (logw[k] - logw[k - 1])) / (2 * np.pi)
     bw = np.where(anyb & (first > 0), bw, np.where(anyb, w[0] / (2 * np.pi), np.inf))
-    out = {"gain_margin_db": gm, "phase_margin_deg": pm, "sensitivity_peak_db": ms, "bandwidth_hz": bw}
+    out = {"bandwidth_hz": bw}
     if phase_freq is not None:
         out["phase_at_freq_deg"] = _phase_at(w, L, phase_freq)
     return out

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import SceneError
 from ..drivetrain.operating_point import INERTIA_SPREAD_LIMIT, SCAN_POINTS, _scan, operating_point, show_q  # noqa: F401
 from ..core.output_units import OutputUnit
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices, plant_parameters
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_matrices
 from .assembly import closed_loop_matrix, controller_matrices
 from .margins import frequency_grid
 from .metrics import grid_figures
@@ -38,6 +38,7 @@ from .requirements import Check, check, unstable_checks
 from .response import current_response, loop_response, mechanical_response
 from .robustness import _controller_blocks, _controller_response
 from .schedule import crossover_hz
+from .stroke_plants import PlantScan, plants_at
 
 STROKE_POINTS = 25
 """Evenly spaced operating points of the stroke check, ends included (one turn of a cam:
@@ -66,6 +67,13 @@ def stroke_points(drivetrain, points: int = STROKE_POINTS, extra=()) -> np.ndarr
         if np.min(np.abs(q - x)) > 1e-9:  # a grid point already there stays as it is
             q = np.append(q, x)
     return np.sort(q)
+
+
+def plant_scan(scene, q0: float, points: int = STROKE_POINTS, model: str = "auto",
+               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> PlantScan:
+    """The plant at the stroke check's ``points`` evenly spaced points (and q0)."""
+    q = stroke_points(scene.drivetrain, int(points), extra=[q0])
+    return PlantScan(q, plants_at(scene, q, model, structural_damping), model, structural_damping)
 
 
 @dataclass(frozen=True)
@@ -312,7 +320,8 @@ class StrokeCheck:
 
 
 def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: str = "auto",
-                 structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, f_req: float = 5.0) -> StrokeCheck:
+                 structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, f_req: float = 5.0,
+                 scan: PlantScan | None = None) -> StrokeCheck:
     """Evaluate ``controller`` (unchanged) on the plant linearized along the stroke.
 
     Parameters
@@ -327,6 +336,8 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
     structural_damping : float
     f_req : float
         Required bandwidth (Hz), added to the frequency grid.
+    scan : PlantScan, optional
+        The plants at these points when the caller has them (:func:`plant_scan`).
 
     Returns
     -------
@@ -342,7 +353,7 @@ def stroke_check(scene, controller, q0, *, points: int = STROKE_POINTS, model: s
                                           f"got {points!r}")
     drive = scene.drivetrain
     q = stroke_points(drive, int(points), extra=[q0])
-    params = tuple(plant_parameters(scene, qi, model, structural_damping) for qi in q)
+    params = plants_at(scene, q, model, structural_damping, scan)
     ratio, _ = drive.ratio(q)
     j, _ = drive.inertia(q)
     schedule = getattr(controller, "schedule", None)

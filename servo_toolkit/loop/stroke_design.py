@@ -33,6 +33,7 @@ import numpy as np
 from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
 from .response import plant_responses
 from .stroke import INERTIA_SPREAD_LIMIT, STROKE_POINTS, stroke_points
+from .stroke_plants import PlantScan, plants_at
 
 MAX_DESIGN_POINTS = 7
 """At most this many design points (q0 first)."""
@@ -42,7 +43,7 @@ filters join the candidates."""
 
 
 def design_points(scene, q0: float, model: str = "auto", structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
-                  scan_points: int = STROKE_POINTS):
+                  scan_points: int = STROKE_POINTS, scan: PlantScan | None = None):
     """The stroke points a nominal design is evaluated on, q0 first.
 
     Parameters
@@ -54,6 +55,8 @@ def design_points(scene, q0: float, model: str = "auto", structural_damping: flo
     structural_damping : float
     scan_points : int
         Evenly spaced points (those of the stroke check) scanned for the extremes.
+    scan : PlantScan, optional
+        The plants at those points when the caller has them (:func:`.stroke.plant_scan`).
 
     Returns
     -------
@@ -66,7 +69,7 @@ def design_points(scene, q0: float, model: str = "auto", structural_damping: flo
     """
     drive = scene.drivetrain
     grid = stroke_points(drive, scan_points, extra=[q0])
-    params = [plant_parameters(scene, q, model, structural_damping) for q in grid]
+    params = plants_at(scene, grid, model, structural_damping, scan)
     motor = drive.motor_inertia(grid)
     fa = np.array([p.antiresonance_hz if not p.rigid else np.inf for p in params])
     picks = [int(np.argmin(np.abs(grid - q0))), 0, grid.size - 1, int(np.argmax(motor)), int(np.argmin(motor))]
@@ -75,7 +78,8 @@ def design_points(scene, q0: float, model: str = "auto", structural_damping: flo
     keep = list(dict.fromkeys(picks))[:MAX_DESIGN_POINTS]
     q = grid[keep]
     q[0] = q0
-    ps = [plant_parameters(scene, q0, model, structural_damping)] + [params[k] for k in keep[1:]]
+    first = params[keep[0]] if grid[keep[0]] == q0 else plant_parameters(scene, q0, model, structural_damping)
+    ps = [first] + [params[k] for k in keep[1:]]
     return q, tuple(ps)
 
 

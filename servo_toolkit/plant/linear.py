@@ -175,6 +175,27 @@ def friction_note(scene) -> tuple:
             "runs the step with friction that holds)",)
 
 
+class _AtOnePoint:
+    """A drivetrain whose kinematics at the points asked for are composed once: the
+    parameters at one operating point read the chain's inertias, springs, modes and damping
+    there, each asking the drivetrain for the same kinematics (some 17 times). Lives for one
+    :func:`plant_parameters` call; everything else is the drivetrain's."""
+
+    def __init__(self, drivetrain):
+        self._drivetrain = drivetrain
+        self._kinematics = {}
+
+    def kinematics(self, q):
+        q = np.atleast_1d(np.asarray(q, dtype=float))
+        key = (q.shape, q.tobytes())
+        if key not in self._kinematics:
+            self._kinematics[key] = self._drivetrain.kinematics(q)
+        return self._kinematics[key]
+
+    def __getattr__(self, name):
+        return getattr(self._drivetrain, name)
+
+
 def plant_parameters(scene, q0=None, model: str = "auto",
                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> PlantParameters:
     """Linear parameters of a scene's drivetrain at ``q0``.
@@ -194,7 +215,8 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     """
     drive = scene.drivetrain
     q0 = drive.mid_stroke if q0 is None else float(q0)
-    split = drive.chain.two_mass([q0], driving=True)
+    chain = replace(drive.chain, drivetrain=_AtOnePoint(drive))
+    split = chain.two_mass([q0], driving=True)
     n = float(drive.ratio([q0])[0][0])
     motor, load = scene.motor, scene.load
     J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])
@@ -203,8 +225,8 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     if model == "two_mass" and not math.isfinite(K):
         raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:
-        J1, J2, K = float(drive.chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
-    zeta = two_mass_damping(drive.chain, q0, structural_damping) if math.isfinite(K) else 0.0
+        J1, J2, K = float(chain.node_inertias([q0], driving=True).sum()), 0.0, math.inf
+    zeta = two_mass_damping(chain, q0, structural_damping) if math.isfinite(K) else 0.0
     motor, load = lumped_friction(scene, q0, not math.isfinite(K), [])  # the stages' viscous friction
     return PlantParameters(J1=J1, J2=J2, K=K, c=float(spring_damping(J1, J2, K, zeta)),
                            b1=motor.viscous_friction * n**2, b2=load.damping, kh=load.hinge_stiffness,
