@@ -17,7 +17,9 @@ class Reference:
     number : int
         Its number in the list, ``[number]``.
     authors, title, where : str
-        As published (the Chinese papers under their English titles and author names).
+        As published (the Chinese papers under their English titles and author names; the
+        year, issue and pages read off each paper's own article number, e.g.
+        ``2095-8110(2018)05-0049-05``: 2018, no. 5, from p. 49, 5 pages).
     method : str
         The method of the toolkit taken from it, in words an engineer reads.
     """
