@@ -8,7 +8,7 @@ import pytest
 from servo_toolkit import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.integrators import _paper, _rk4, scratch
+from servo_toolkit.sim.integrators import NCARRY, _paper, _rk4, scratch
 from servo_toolkit.sim.reference import fill, initial_state
 
 
@@ -23,10 +23,11 @@ def test_scalar_loop_matches_array_loop(mode):
     sub = int(round(model.sample_time / dt)) if mode == "sampled" else 0
     runs = []
     fig, snap = np.zeros(lo.NFIG), np.zeros((lo.NSNAP, model.nx + 2))
-    for loop, extra, tail in ((_rk4, (), (fig, snap, *scratch(model.nx, P.size))), (_paper, (False,), ())):
+    for loop, extra, tail in ((_rk4, (), (fig, snap)), (_paper, (False,), ())):
         x = x0.copy()
         out = (np.empty(60), np.empty((60, model.nx)), np.empty((60, lo.NAUX)))
-        status = loop(x, P, model.T, 0.0, dt, n, sub, 0.0, *extra, 100, *out, *tail)
+        work = scratch(model.nx, P.size) if loop is _rk4 else ()
+        status = loop(x, P, model.T, 0.0, dt, 0, n, n, sub, 0.0, *extra, 100, *out, *tail, np.zeros(NCARRY), *work)
         runs.append((x, status, out))
     (xa, sa, oa), (xb, sb, ob) = runs
     assert sa[:3] == sb[:3] == (lo.OK, n, 51)

@@ -56,7 +56,10 @@ def filtered_speed(scene, speed_gain: float, counts: int, sample_time: float, q0
     jm = float(scene.drivetrain.motor_inertia([q0])[0])
     lsb = 2 * math.pi / counts
     jerk = default_jerk(motor.torque_constant, motor.current_limit, jm, speed_gain, sample_time)
-    F, _, K = steady_state_gain(sample_time, lsb, jerk)
+    try:
+        F, _, K = steady_state_gain(sample_time, lsb, jerk)
+    except (np.linalg.LinAlgError, ValueError):  # no stationary filter at this sample time
+        return None
     fc = abs(speed_gain) * motor.torque_constant / jm / (2 * math.pi)
     z = np.exp(2j * math.pi * fc * sample_time)
     difference = (1 - 1 / z) / (sample_time * 2j * math.pi * fc)

@@ -290,8 +290,8 @@ class MeasuredLoop:
             ax[0].semilogx(f, 20 * np.log10(np.abs(curve)), style, label=label)
             ax[1].semilogx(f, np.degrees(np.unwrap(np.angle(curve))), style, label=label)
         ax[0].semilogx(f[poor], 20 * np.log10(np.abs(self.loop[poor])), "o", mfc="none", label="poor coherence")
-        ax[0].set_ylabel("|L| (dB)")
-        ax[1].set_ylabel("arg L (deg)")
-        ax[1].set_xlabel("frequency (Hz)")
+        ax[0].set_ylabel("|L| [dB]")
+        ax[1].set_ylabel("arg L [deg]")
+        ax[1].set_xlabel("frequency [Hz]")
         ax[0].legend()
         return ax

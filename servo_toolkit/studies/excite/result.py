@@ -252,7 +252,7 @@ class ExcitationResult(RichDisplay):
             ag.semilogx(self.frequency_hz, 20 * np.log10(np.abs(self.linear_plant)), "k-", lw=1, label="linear plant")
             ag.semilogx(self.frequency_hz, 20 * np.log10(np.abs(self.run_plant)), "o", ms=3, label="model's run (H1)")
         ag.set_xlabel("frequency [Hz]")
-        ag.set_ylabel("motor speed / current [dB re 1 (rad/s)/A]")
+        ag.set_ylabel("motor speed per current [dB re 1 rad/s per A]")
         for ax in axes:
             ax.grid(True, which="both", alpha=0.3)
         ag.legend(fontsize="small")
