@@ -1,0 +1,26 @@
+/* What every kernel header shares: the layout, the math library, the tables' type.
+
+   The kernels are C99. Each concern is one header of static inline functions (the Python
+   module it replaced named in its first comment); an api_<concern>.c file includes the headers
+   it needs and exports the entry points the extension module calls (declared in
+   api_<concern>.h, wrapped in wrap_<concern>.pxi). The layout's constants are macros
+   (layout.h, generated from servo_toolkit/sim/layout.py): no identifier in a kernel may take a
+   layout constant's name. */
+#ifndef SERVO_COMMON_H
+#define SERVO_COMMON_H
+
+#include <math.h>
+#include <stddef.h>
+#include "layout.h"
+
+/* The stroke tables: rows of n values (T[row, k] in the Python layout), row-major (tab.h). */
+#include "tab.h"
+
+#define TAB(T, row, k) ((T).v[(long)(row) * (T).n + (long)(k)])
+/* a slot that holds an index or a count (int(P[...]) in the Python layout) */
+#define IX(value) ((long)(value))
+
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+#endif
