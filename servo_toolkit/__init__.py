@@ -1,7 +1,7 @@
 """servo_toolkit: servo control design for electromechanical actuators.
 
 The top-level names are imported on first use, so ``import servo_toolkit`` (and the command
-line's ``--help``) stays quick: python-control, scipy and numba load only when a name that
+line's ``--help``) stays quick: python-control, scipy and the compiled kernels load only when a name that
 needs them is used.
 """
 

@@ -20,20 +20,6 @@ SCENES = ROOT / "scenes"
 SCENE_FILES = sorted(SCENES.glob("*.toml"))
 
 
-def pytest_sessionstart(session):
-    """Under pytest-xdist the first worker compiles (or loads) every simulation kernel while
-    the others wait on a lock in the cache folder, then load what it compiled: without it
-    each worker would compile the same kernels at once."""
-    if not os.environ.get("PYTEST_XDIST_WORKER"):
-        return
-    from servo_toolkit.core.jit_cache import cache_dir
-    from servo_toolkit.studies.warmup import compile_kernels
-    folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    with _file_lock(folder / "warm-up.lock"):
-        compile_kernels()
-
-
 @contextmanager
 def _file_lock(path: Path):
     """Hold an exclusive lock on ``path`` (shared by the pytest-xdist workers) for the block."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, load_scene, prepare_kernels
+from .common import add_force, add_json, add_scene, add_sine_options, amplitudes_si, emit, load_scene
 
 #: accuracy runs are short: the reference restarts at every controller sample
 ACCURACY_DURATION = 0.1
@@ -39,7 +39,6 @@ def run(args) -> int:
     reference, duration, voltage, _, _ = run_spec(scene, args.study, amplitude=amplitudes_si(scene, args.amplitude),
                                                   frequency=args.frequency)
     _check_budget(scene, min(duration, ACCURACY_DURATION), args.force)
-    prepare_kernels(scene)
     if voltage is not None:
         model = build_model(scene, None)
         reference = Reference.voltage(voltage)

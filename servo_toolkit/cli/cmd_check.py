@@ -30,7 +30,7 @@ from ..core.files import atomic_file, check_output_file
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
 from .plant_frf import add_plant_frf_options, plant_frf_check, read_plant_frf
 from .common import (add_force, add_json, add_scheduler, bounded, check_design_budget, check_robustness_budget,
-                     load_scene, prepare_kernels, scheduler_of, study_executor, to_json)
+                     load_scene, scheduler_of, study_executor, to_json)
 
 
 def register(sub) -> None:
@@ -336,10 +336,6 @@ def run(args) -> int:
         except SceneError as exc:
             scenes.append(_tagged(exc, path))
             print(f"servo-toolkit: error: {scenes[-1]}", file=sys.stderr)
-    if not getattr(args, "linear_only", False):
-        loops = [s for s in scenes if not isinstance(s, Exception) and s.stages and s.motor is not None]
-        if loops:
-            prepare_kernels(loops[0])  # one warm-up for every scene's nonlinear rows
     with _executor(scheduler, scenes, args.scenes) as (executor, _):
         entries, errors, skipped, all_ok, out = _check_all(args, scenes, varies, executor, design_text)
     if args.junit is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import SceneError
 from .common import (add_force, add_json, add_scene, bounded, check_design_budget, check_robustness_budget, emit,
-                     load_scene, prepare_kernels)
+                     load_scene)
 
 
 def design(scene, **options):
@@ -98,8 +98,6 @@ def run(args) -> int:
         result = design_from_args(scene, args)  # reads and checks a --design file first
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)
         raise (exc if exc.source or exc.key.startswith("--") else exc.with_source(str(args.scene))) from None
-    if not getattr(args, "linear_only", False):
-        prepare_kernels(scene)  # the large-signal rows simulate: after every input is read
     result, ls = gate_result(scene, args, result)
     data = result.to_dict()
     if ls is not None:

@@ -11,7 +11,7 @@ import sys
 
 from ..errors import SceneError
 from .common import (add_force, add_friction, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, emit,
-                     load_scene, prepare_kernels, scheduler_of, study_executor)
+                     load_scene, scheduler_of, study_executor)
 
 #: most variants of one run (as ``check --samples`` and a scene's ``[robustness] samples``)
 MAX_SAMPLES = 1_000_000
@@ -99,7 +99,6 @@ def run(args) -> int:
                   friction=args.friction)
     n = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     with study_executor(scheduler, args.workers) as (executor, slots):  # a cluster that is not there: before any work
-        prepare_kernels(scene)  # after every input check; the first run after an install says it compiles
         chunk_size = CHUNK_SIZE if slots is None else min(CHUNK_SIZE, -(-n // slots))
         result = montecarlo(scene, variants, executor=executor, chunk_size=chunk_size, **kwargs)
     emit(args, result, f"Monte Carlo of {scene.name}\n" + result.table())

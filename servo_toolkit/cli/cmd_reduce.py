@@ -6,7 +6,7 @@ import math
 import sys
 
 from ..errors import SceneError
-from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, load_scene, prepare_kernels
+from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, load_scene
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 
 
@@ -72,7 +72,6 @@ def run(args) -> int:
         return 0
     alone = [e for e in plan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
     _check_budget(scene, args, amps, 2 + len(alone))
-    prepare_kernels(scene)
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
                  amplitudes=amps,
                  progress=not args.json and sys.stderr.isatty())

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from .common import add_force, add_scene, bounded, check_design_budget, check_robustness_budget, load_scene, prepare_kernels
+from .common import add_force, add_scene, bounded, check_design_budget, check_robustness_budget, load_scene
 
 
 def register(sub) -> None:
@@ -65,8 +65,6 @@ def run(args) -> int:
         given = load_design(scene, args.design)
     _check_budget(scene, args, given is None)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
-    # the accuracy section runs both fixed-step schemes, the Monte Carlo section the batch
-    prepare_kernels(scene)
     report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
     paths = write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()

@@ -6,7 +6,7 @@ import sys
 
 from ..errors import SceneError
 from .common import (add_force, add_friction, add_json, add_scene, add_sine_options, amplitudes_si, bounded, emit,
-                     load_scene, prepare_kernels)
+                     load_scene)
 
 
 def register(sub) -> None:
@@ -109,7 +109,6 @@ def run(args) -> int:
         _, _, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
         method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
         check_budget(scene, args, amplitude)
-        prepare_kernels(scene)
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
                        feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None,
                        friction=args.friction)

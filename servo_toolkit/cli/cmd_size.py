@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 from ..errors import SceneError
-from .common import add_json, add_scene, emit, load_scene, prepare_kernels
+from .common import add_json, add_scene, emit, load_scene
 
 HELP = "size motor and screw along the scene's duty cycle: envelope, RMS, thermal, life, ratio sweep"
 
@@ -48,8 +48,6 @@ def run(args) -> int:
             check_output_file(path, key, FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
     if args.plot and args.sweep_plot and Path(args.plot).resolve() == Path(args.sweep_plot).resolve():
         raise SceneError("--sweep-plot", f"must be another file than --plot (got {args.sweep_plot!r} for both)")
-    if args.closed_loop:
-        prepare_kernels(scene)
     result = size(scene, closed_loop=args.closed_loop, losses=args.losses, sweep=not args.no_sweep,
                   progress=not args.json and sys.stderr.isatty())
     if args.plot or args.sweep_plot:

@@ -7,7 +7,7 @@ import sys
 
 from ..errors import SceneError
 from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
-                     load_scene, prepare_kernels, scheduler_of, study_executor)
+                     load_scene, scheduler_of, study_executor)
 from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
 from . import sweep_multisine
 
@@ -97,7 +97,6 @@ def run(args) -> int:
     if args.method == "multisine":
         return sweep_multisine.run(args, scene, amps, scheduler)
     check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
-    prepare_kernels(scene)
     kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
               progress=not args.json and sys.stderr.isatty())
     try:

@@ -12,7 +12,7 @@ import sys
 
 from ..errors import SceneError
 from .cmd_design import add_design_options, design_from_args
-from .common import (add_force, add_json, add_scene, add_scheduler, bounded, emit, load_scene, prepare_kernels,
+from .common import (add_force, add_json, add_scene, add_scheduler, bounded, emit, load_scene,
                      scheduler_of, study_executor)
 
 #: the sampling methods of ``--method``: those of a scene's ``[tolerances] method``
@@ -73,8 +73,6 @@ def run(args) -> int:
     check_time(seconds, knob, what, f"{args.duration:g} s" if knob == "--duration" else samples, args.force)
     with study_executor(scheduler, args.workers) as (executor, _):
         result = design_from_args(scene, args, executor=executor)  # reads and checks a --design file first
-        if timed:
-            prepare_kernels(scene)
         if args.nonlinear is False and (scene.tolerances.max_tracking_error is not None
                                         or scene.tolerances.max_peak_current is not None):
             print("servo-toolkit: note: --linear-only: the tracking-error and peak-current requirements are not "

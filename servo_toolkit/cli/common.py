@@ -83,23 +83,6 @@ def emit(args, result, text: str) -> None:
         sys.stdout.write(text.rstrip() + "\n")
 
 
-def prepare_kernels(scene) -> None:
-    """Compile every simulation kernel before the timed work of a command when they are not
-    cached yet (the first run after an install), saying so on stderr: one warm-up serves every
-    command that follows (:func:`servo_toolkit.studies.warmup.compile_kernels`). With every
-    kernel cached it does nothing: a command loads the kernels it calls when it first calls
-    them, and no others (a ``check`` without Monte Carlo rows never loads the batch)."""
-    if not (scene.stages and scene.motor is not None):
-        return
-    from ..core.jit_cache import cache_dir
-    from ..studies.warmup import TYPICAL_COMPILE_S, compile_kernels, is_cached
-    if is_cached():
-        return
-    print(f"servo-toolkit: compiling the simulation kernels once (about {TYPICAL_COMPILE_S} s on 2 cores; "
-          f"cached in {cache_dir()})", file=sys.stderr, flush=True)
-    compile_kernels()
-
-
 def bounded(kind=float, low=None, high=None, *, low_open: bool = False, what: str = "a number"):
     """An argparse ``type``: a finite number of ``kind`` within [low, high] (``low_open``:
     above low), else an error naming the rule (argparse names the option; exit 2)."""

@@ -1,5 +1,5 @@
 """Foundations every layer may use: unit parsing, scene-table fields, the output
-coordinate's units, parallel runs and the compiled-code cache.
+coordinate's units, parallel runs and the user's cache folder.
 
 Nothing here imports from another part of the toolkit (except :mod:`servo_toolkit.errors`).
 
@@ -10,6 +10,6 @@ Nothing here imports from another part of the toolkit (except :mod:`servo_toolki
 :mod:`.output_units`      the output coordinate shown in deg or mm
 :mod:`.parallel`          many independent cases: an optional executor, a progress bar
 :mod:`.cluster`           the executor of a running dask.distributed cluster (``--scheduler``)
-:mod:`.jit_cache`         where compiled kernels are cached, and when that is stale
+:mod:`.user_cache`        the user's cache folder (pint's parsed definitions)
 ========================  ==========================================================
 """

@@ -76,10 +76,10 @@ def run_cases(function: Callable, cases: Sequence, *, executor=None, progress: b
 def process_pool(workers: int) -> cf.ProcessPoolExecutor:
     """A process pool of ``workers`` processes started with the ``spawn`` method.
 
-    ``fork`` (Linux's default) copies a process whose OpenMP / BLAS / numba threads are
+    ``fork`` (Linux's default) copies a process whose OpenMP / BLAS threads are
     already running, and GNU OpenMP aborts the child ("fork() called from a process already
-    using GNU OpenMP"): the pool breaks. Spawned workers import the toolkit afresh (and load
-    the compiled kernels from their cache), which is safe with every threaded library.
+    using GNU OpenMP"): the pool breaks. Spawned workers import the toolkit afresh (its compiled
+    kernels are part of the installed package), which is safe with every threaded library.
 
     Parameters
     ----------

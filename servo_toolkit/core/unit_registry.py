@@ -22,12 +22,12 @@ from pathlib import Path
 
 import pint
 
-from .jit_cache import user_cache_root
+from .user_cache import user_cache_root
 
 
 def cache_folder() -> Path:
     """Folder of pint's parsed definitions: ``<user cache>/servo_toolkit/pint/<pint version>``
-    (the user cache as for the compiled kernels: ``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux)."""
+    (:func:`~.user_cache.user_cache_root`: ``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux)."""
     return user_cache_root() / "servo_toolkit" / "pint" / pint.__version__
 
 

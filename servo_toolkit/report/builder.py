@@ -165,8 +165,6 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
         Show a tqdm progress bar (stderr), one step per section.
     section_time_limit : float, None or "auto"
         Wall-time limit per section (s); a section that runs longer is stopped and says so.
-        The simulation kernels are compiled (or loaded from the cache) before the first
-        section, outside every limit.
         ``"auto"``: :data:`LIGHT_SECTION_TIME_LIMIT` with light settings, no limit with full
         ones; None: no limit. Applies in the main thread only (see :mod:`.time_limit`).
     design : DesignResult, optional
@@ -182,9 +180,6 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     ctx = Context(scene, light=light, executor=executor)
     if design is not None:
         ctx.use_design(design)
-    if ctx.has_drivetrain():  # compilation is never charged to a section's time limit
-        from ..studies.warmup import compile_kernels
-        compile_kernels()
     built = []
     # the requirements table first: what the report is signed on is never stopped half-way,
     # and the results it shares with the sections (the design, the large-signal run, the
