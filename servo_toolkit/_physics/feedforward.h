@@ -7,9 +7,7 @@
 #include "common.h"
 #include "vmath.h"
 #include "tables.h"
-/* compliance.h (port-rhs): double blend(const double *P, double sg) and
-   void inertia_beyond_motor(const double *P, Tab T, long kc, double tc, double hc, double ih,
-                             double *total, double *slope) */
+/* the loss blend and the inertia beyond the motor side */
 #include "compliance.h"
 #include "command.h"
 
