@@ -14,6 +14,11 @@ the play, a moment against a breakaway level, the continuous controller's output
 bits into a relative difference larger than a few ulps of its result; the operations and
 branches are the same, so a logic difference (a wrong law, a wrong branch, a parameter off by
 a part in 1e9) is far beyond it (:func:`test_a_small_error_in_a_parameter_fails_the_c_comparison`).
+Measured over 300 seeded examples of each case: the C agreed with the transcription to the last
+bit in every result of 98-100 % of the examples (the rest within 1e-16 of the full scale, 4e-8
+of the tolerance), and with numba within 1.1e-2 of the tolerance (9e-14 of the full scale, the
+largest in the full chain and the continuous controller's cancelling sums; 0-70 % of the
+examples to the last bit).
 
 The laws (contact, slip_friction, stuck_or_breaking, gear_at_rest) are the same operations in
 the same order in both kernels, with no sum that fast-math could contract or reassociate into
