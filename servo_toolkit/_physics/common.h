@@ -20,6 +20,22 @@
 /* a slot that holds an index or a count (int(P[...]) in the Python layout) */
 #define IX(value) ((long)(value))
 
+/* a function the fixed-step loop inlines, so its state stays in registers (as numba's inline
+   did); every other caller calls its out-of-line copy */
+#if defined(__GNUC__) || defined(__clang__)
+#define ST_ALWAYS_INLINE static inline __attribute__((always_inline))
+#define ST_NOINLINE static __attribute__((noinline))
+#define ST_FLATTEN __attribute__((flatten))
+#elif defined(_MSC_VER)
+#define ST_ALWAYS_INLINE static __forceinline
+#define ST_NOINLINE static __declspec(noinline)
+#define ST_FLATTEN
+#else
+#define ST_ALWAYS_INLINE static inline
+#define ST_NOINLINE static
+#define ST_FLATTEN
+#endif
+
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 

@@ -190,6 +190,10 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
         double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
         int done = 0;
         int turned = 0; /* a stage's speed left a node's direction (friction that holds) */
+        /* the four stages unrolled: their coefficients and slope rows become constants */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 4
+#endif
         for (long stage = 0; stage < 4; stage++) {
             double c, w;
             rk4_coefficients(stage, dt, &c, &w);
@@ -201,7 +205,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
             }
             if (stick && stage > 0)
                 turned = turned || stage_turns(pd, pd + c * s1, qd, qd + c * s3);
-            rhs_phys(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s, P, T,
+            rhs_phys_inline(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s, P, T,
                      iref, stage == 0 ? x : xs, kout, d);
             s0 = d[0];
             s1 = d[1];

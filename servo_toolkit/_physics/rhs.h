@@ -51,8 +51,9 @@
    continuous controller with back-calculation gains, AW, adds Kaw g (clamped - unclamped) to
    its derivative while its output is clamped, a law continuous in the state, like the
    current PI's). */
-static inline void rhs_phys(double t, double p, double pd, double q, double qd, double cur, double xi, double s,
-                            const double *P, Tab T, double iref_held, double *x, double *dx, double out[10])
+ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, double q, double qd, double cur, double xi,
+                                      double s, const double *P, Tab T, double iref_held, double *x, double *dx,
+                                      double out[10])
 {
     long kc;
     double tc;
@@ -229,6 +230,16 @@ static inline void rhs_phys(double t, double p, double pd, double q, double qd, 
     out[7] = v;
     out[8] = iref;
     out[9] = tau;
+}
+
+
+/* rhs_phys_inline compiled once as a function of its own: the callers that are not the
+   fixed-step loop's hot path (the array form rhs, the paper's scheme, the switch location)
+   call it instead of inlining their own copy. */
+ST_NOINLINE void rhs_phys(double t, double p, double pd, double q, double qd, double cur, double xi, double s,
+                          const double *P, Tab T, double iref_held, double *x, double *dx, double out[10])
+{
+    rhs_phys_inline(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, out);
 }
 
 /* dx/dt of the closed loop (x of nx states); aux receives current, voltage, i_ref and motor

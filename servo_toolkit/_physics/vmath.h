@@ -6,7 +6,20 @@
 #ifndef SERVO_VMATH_H
 #define SERVO_VMATH_H
 
+#include <stdint.h>
+#include <string.h>
+
 #include "common.h"
+
+/* 2^n for an integer n in the normal range (-1022..1023), built from its exponent bits:
+   exact, and no library call (ldexp is one) */
+static inline double pow2i(int n)
+{
+    uint64_t bits = (uint64_t)(n + 1023) << 52;
+    double v;
+    memcpy(&v, &bits, sizeof v);
+    return v;
+}
 
 /* |a| from which tanh(a) rounds to +-1 in double precision (1 - tanh(22) = 1.6e-19) */
 #define TANH_ONE 22.0
@@ -40,18 +53,18 @@ static inline double expm1_reduced(double r)
 static inline double exp_pos(double y)
 {
     double yc = dmin(dmax(y, 0.0), 2.0 * TANH_ONE); /* NaN: n stays in range */
-    double n = floor(yc * VM_INV_LN2 + 0.5);
+    double n = (double)(long)(yc * VM_INV_LN2 + 0.5); /* floor: the argument is >= 0 (no library call) */
     double r = (y - n * VM_LN2_HI) - n * VM_LN2_LO;
-    return (1.0 + expm1_reduced(r)) * ldexp(1.0, (int)n);
+    return (1.0 + expm1_reduced(r)) * pow2i((int)n);
 }
 
 /* exp(-y) for 0 <= y <= 2 TANH_ONE, as exp_pos with -r and 2^-n */
 static inline double exp_neg(double y)
 {
     double yc = dmin(dmax(y, 0.0), 2.0 * TANH_ONE);
-    double n = floor(yc * VM_INV_LN2 + 0.5);
+    double n = (double)(long)(yc * VM_INV_LN2 + 0.5); /* floor: the argument is >= 0 (no library call) */
     double r = (n * VM_LN2_HI - y) + n * VM_LN2_LO;
-    return (1.0 + expm1_reduced(r)) * ldexp(1.0, -(int)n);
+    return (1.0 + expm1_reduced(r)) * pow2i(-(int)n);
 }
 
 /* Cephes' tanh rational approximation on |a| < 0.625: tanh a = a + a^3 P(a^2) / Q(a^2) */
