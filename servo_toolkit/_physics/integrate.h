@@ -1,0 +1,425 @@
+/* The fixed-step loops: classical RK4 and the cam paper's discrete scheme (seed 002)
+   (was servo_toolkit/sim/integrators.py; its Python driver, integrate, stays there).
+
+   Both loops hold the sampled controller's output between samples (zero-order hold), sample it
+   every sub steps, record every rec_every steps, track the peak motor torque at every step,
+   and stop with a status code on a non-finite state or on the stroke end. No allocation
+   happens inside the loop.
+
+   The paper's scheme (seed 002 section 3): over each step the configuration (p, q, the play
+   state s) is frozen, the velocities and electrical states take one RK4 step with J(p), N(p)
+   and the spring moment frozen, positions follow by summation (p += T p'), and the play
+   operator (seed eqs 6-8, c = half the play) updates s. It is first order in T.
+
+   A run is advanced in chunks of steps, one call each (integrators.integrate), so that Ctrl-C
+   and SIGTERM, which Python acts on only between calls, end a long run within about CHUNK_S. A
+   chunk carries the loop's counters and running figures to the next one (carry, slots C_*)
+   and every step's time is t0 + step * dt with the run's own step index, so a run in chunks
+   gives the same numbers, bit for bit, as one call.
+
+   2-D arrays are row-major: out_x (rows of nx), out_aux (rows of NAUX), snap (NSNAP rows of
+   nx + 2), K (5 rows of nx: the stages' slopes k1..k4 and state xs), PW (4 rows of pw_stride
+   >= max(n_par, nx): the split step's parameter copies). */
+#ifndef SERVO_INTEGRATE_H
+#define SERVO_INTEGRATE_H
+
+#include <stdint.h>
+
+#include "common.h"
+#include "control.h"
+#include "rhs.h"
+#include "split_step.h"
+#include "node_switch.h"
+#include "switch_loop.h"
+
+/* the loops' state carried from one chunk to the next: held current reference, steps to the
+   next controller sample and to the next record, records written, peak |motor torque|, and
+   RK4's running figures (peak |tracking error|, |current|, deflection, a limit reached) */
+#define C_IREF 0
+#define C_TO_SAMPLE 1
+#define C_TO_RECORD 2
+#define C_NREC 3
+#define C_MAX_TAU 4
+#define C_MAX_ERR 5
+#define C_MAX_CUR 6
+#define C_MAX_DEFL 7
+#define C_SAT 8
+#define NCARRY 9
+
+/* What a loop returns: (status, step, n_rec, max_tau, iref) in Python. */
+typedef struct {
+    long status; /* OK, NONFINITE or STROKE_END */
+    long step;   /* steps completed (the failing step when not OK) */
+    long n_rec;  /* records written */
+    double max_tau; /* peak |motor torque| over every step (N*m) */
+    double iref;    /* the held current reference at the end (A) */
+} LoopResult;
+
+/* One test per step: a NaN or inf anywhere makes the sum non-finite. */
+static inline int _finite(const double *x, long nx)
+{
+    double acc = 0.0;
+    for (long j = 0; j < nx; j++)
+        acc += x[j];
+    return isfinite(acc);
+}
+
+/* The zero-order hold of the sampled controller: every sub steps (none when 0) the physical
+   state is written to x[0:7] and the controller sampled. Updates the held i_ref (*iref) and
+   the steps left to the next sample (*to_sample). */
+static inline void sample_hold(double t, long sub, long *to_sample, double *iref, double p, double pd, double q,
+                               double qd, double cur, double xi, double s, double *x, const double *P, Tab T,
+                               double *work)
+{
+    if (sub > 0) {
+        if (*to_sample == 0) {
+            x[0] = p;
+            x[1] = pd;
+            x[2] = q;
+            x[3] = qd;
+            x[4] = cur;
+            x[5] = xi;
+            x[6] = s;
+            *iref = controller_sample(t, x, P, T, work);
+            *to_sample = sub;
+        }
+        *to_sample -= 1;
+    }
+}
+
+/* OK, NONFINITE (one test: a NaN or inf anywhere makes the sum non-finite) or STROKE_END
+   (err_mode: the output left the stroke). */
+static inline long step_status(double p, double pd, double q, double qd, double cur, double xi, double s,
+                               const double *x, long nx, double tau, const double *P, int err_mode, int rigid)
+{
+    double acc = p + pd + q + qd + cur + xi + s;
+    for (long j = NX_PHYS; j < nx; j++)
+        acc += x[j];
+    if (!isfinite(acc) || !isfinite(tau))
+        return NONFINITE;
+    double qo = rigid ? p : q;
+    if (err_mode && (qo > P[STROKE_HI] || qo < P[STROKE_LO]))
+        return STROKE_END;
+    return OK;
+}
+
+/* Row k of a run's snapshots (rows of nx + 2): the physical state, x[7:], the time and the held
+   i_ref. */
+static inline void snapshot(double *snap, long k, double p, double pd, double q, double qd, double cur, double xi,
+                            double s, const double *x, long nx, double t, double iref)
+{
+    double *row = snap + k * (nx + 2);
+    row[0] = p;
+    row[1] = pd;
+    row[2] = q;
+    row[3] = qd;
+    row[4] = cur;
+    row[5] = xi;
+    row[6] = s;
+    for (long j = NX_PHYS; j < nx; j++)
+        row[j] = x[j];
+    row[nx] = t;
+    row[nx + 1] = iref;
+}
+
+/* Classical RK4 with the physical states x[0:7] held in local scalars (registers) (was _rk4).
+
+   Same arithmetic as the array form (rhs); x[0:7] is written back before each controller
+   sample and at the end. The controller and estimator states x[7:] change only at the samples
+   unless the motion controller is continuous. Every rec_every steps the state at the step's
+   start is recorded; at every step the run's figures (fig, F_*: peak tracking error, current
+   and torque, limits reached) and its snapshots (snap, S_*) are kept, so that a figure never
+   depends on the record interval.
+
+   The call runs the steps first .. last - 1 of a run of n_steps (and its end, the record and
+   the check at n_steps, when last is n_steps); carry (slots C_*) takes the loop's counters and
+   running figures from the call before it (none when first is 0: iref is then the held
+   current reference) and keeps them for the next. K: 5 rows of nx, zeros (the stages' slopes
+   and state); work: the controller's (>= max(nx, 1)); x0: nx; PW: 4 rows of pw_stride. */
+static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Tab T, double t0, double dt,
+                             long first, long last, long n_steps, long sub, double iref, long rec_every,
+                             double *out_t, double *out_x, double *out_aux, double *fig, double *snap,
+                             double *carry, double *K, double *work, double *x0, double *PW, long pw_stride)
+{
+    double *k1 = K, *k2 = K + nx, *k3 = K + 2 * nx, *k4 = K + 3 * nx, *xs = K + 4 * nx;
+    long n_rec = 0;
+    double max_tau = 0.0;
+    double max_err = 0.0;
+    double max_cur = -1.0;
+    double max_defl = -1.0;
+    double sat = 0.0;
+    long to_sample = 0;
+    long to_record = 0;
+    if (first > 0) {
+        iref = carry[C_IREF];
+        to_sample = (long)carry[C_TO_SAMPLE];
+        to_record = (long)carry[C_TO_RECORD];
+        n_rec = (long)carry[C_NREC];
+        max_tau = carry[C_MAX_TAU];
+        max_err = carry[C_MAX_ERR];
+        max_cur = carry[C_MAX_CUR];
+        max_defl = carry[C_MAX_DEFL];
+        sat = carry[C_SAT];
+    }
+    long stop = last >= n_steps ? n_steps + 1 : last;
+    double ilim = P[ILIM];
+    double vlim = P[VLIM];
+    int err_mode = P[STROKE_MODE] == 0.0;
+    int rigid = P[RIGID] > 0.0;
+    /* states in x[7:] that move between samples: a continuous controller's, the full chain's nodes */
+    int cont = IX(P[CMODE]) == CONTINUOUS || P[NMID] > 0.0;
+    int stick = P[STICK] > 0.0; /* friction that holds: speed reversals are located within the step */
+    int lands = stick && P[NODE_FRIC] > 0.0; /* ... at the full chain's intermediate nodes too */
+    double p = x[0], pd = x[1], q = x[2], qd = x[3], cur = x[4], xi = x[5], s = x[6];
+    long status = OK;
+    double sixth = dt / 6.0;
+    double g1 = 0.0, g3 = 0.0;
+    long step = first;
+    double t = t0 + first * dt;
+    double d[10];
+    for (long it = first; it < stop; it++) {
+        step = it;
+        t = t0 + step * dt;
+        sample_hold(t, sub, &to_sample, &iref, p, pd, q, qd, cur, xi, s, x, P, T, work);
+        double err = fabs(q - reference(t, P));
+        if (err > max_err)
+            max_err = err;
+        /* stage k evaluates at t + c_k dt from the previous slopes and enters the update with
+           weight w_k; the first stage also records and checks */
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+        double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
+        int done = 0;
+        int turned = 0; /* a stage's speed left a node's direction (friction that holds) */
+        for (long stage = 0; stage < 4; stage++) {
+            double c, w;
+            rk4_coefficients(stage, dt, &c, &w);
+            double *kout = stage == 0 ? k1 : (stage == 1 ? k2 : (stage == 2 ? k3 : k4));
+            if (cont && stage > 0) {
+                const double *kin = stage == 1 ? k1 : (stage == 2 ? k2 : k3);
+                for (long j = NX_PHYS; j < nx; j++)
+                    xs[j] = x[j] + c * kin[j];
+            }
+            if (stick && stage > 0)
+                turned = turned || stage_turns(pd, pd + c * s1, qd, qd + c * s3);
+            rhs_phys(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s, P, T,
+                     iref, stage == 0 ? x : xs, kout, d);
+            s0 = d[0];
+            s1 = d[1];
+            s2 = d[2];
+            s3 = d[3];
+            s4 = d[4];
+            s5 = d[5];
+            if (stage == 0) {
+                double i_ = d[6], v_ = d[7], r_ = d[8], tau_ = d[9];
+                g1 = s1; /* the slopes at the step's start (speed reversals) */
+                g3 = s3;
+                double tau = fabs(tau_);
+                if (tau > max_tau)
+                    max_tau = tau;
+                if (fabs(r_) >= ilim || fabs(v_) >= vlim)
+                    sat = 1.0;
+                if (fabs(i_) > max_cur) {
+                    max_cur = fabs(i_);
+                    snapshot(snap, S_PEAK, p, pd, q, qd, i_, xi, s, x, nx, t, iref);
+                }
+                double defl = fabs(p - q);
+                if (defl > max_defl) {
+                    max_defl = defl;
+                    snapshot(snap, S_DEFLECTION, p, pd, q, qd, cur, xi, s, x, nx, t, iref);
+                }
+                if (to_record == 0 || step == n_steps) {
+                    to_record = rec_every;
+                    double *row = out_x + n_rec * nx, *arow = out_aux + n_rec * NAUX;
+                    out_t[n_rec] = t;
+                    row[0] = p;
+                    row[1] = pd;
+                    row[2] = q;
+                    row[3] = qd;
+                    row[4] = cur;
+                    row[5] = xi;
+                    row[6] = s;
+                    for (long j = NX_PHYS; j < nx; j++)
+                        row[j] = x[j];
+                    arow[AUX_I] = i_;
+                    arow[AUX_V] = v_;
+                    arow[AUX_IREF] = r_;
+                    arow[AUX_TAU] = tau_;
+                    n_rec += 1;
+                }
+                to_record -= 1;
+                status = step_status(p, pd, q, qd, cur, xi, s, x, nx, tau, P, err_mode, rigid);
+                if (status != OK || step == n_steps) {
+                    done = 1;
+                    break;
+                }
+            }
+            u0 += w * s0;
+            u1 += w * s1;
+            u2 += w * s2;
+            u3 += w * s3;
+            u4 += w * s4;
+            u5 += w * s5;
+        }
+        if (done)
+            break;
+        if (stick) {
+            /* a node carrying friction may reverse or break away within the step (the motor side or
+               the load: ends; the full chain's intermediate nodes: mask): split it there */
+            int ends = turned || switch_ahead(pd, pd + sixth * u1, pd + dt * g1, qd, qd + sixth * u3, qd + dt * g3,
+                                              P, rigid);
+            int64_t mask = lands ? node_flags(x, k1, k2, k3, k4, sixth, P) : 0;
+            if (ends || mask) {
+                PhysState r = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, n_par, T, iref, cont, rigid, x, nx,
+                                            xs, k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW, pw_stride,
+                                            ends, mask);
+                p = r.p;
+                pd = r.pd;
+                q = r.q;
+                qd = r.qd;
+                cur = r.cur;
+                xi = r.xi;
+                continue;
+            }
+        }
+        if (cont)
+            for (long j = NX_PHYS; j < nx; j++)
+                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+        p = p + sixth * u0;
+        pd = pd + sixth * u1;
+        q = q + sixth * u2;
+        qd = qd + sixth * u3;
+        cur = cur + sixth * u4;
+        xi = xi + sixth * u5;
+    }
+    x[0] = p;
+    x[1] = pd;
+    x[2] = q;
+    x[3] = qd;
+    x[4] = cur;
+    x[5] = xi;
+    x[6] = s;
+    snapshot(snap, S_END, p, pd, q, qd, cur, xi, s, x, nx, t, iref);
+    carry[C_IREF] = iref;
+    carry[C_TO_SAMPLE] = (double)to_sample;
+    carry[C_TO_RECORD] = (double)to_record;
+    carry[C_NREC] = (double)n_rec;
+    carry[C_MAX_TAU] = max_tau;
+    carry[C_MAX_ERR] = max_err;
+    carry[C_MAX_CUR] = max_cur;
+    carry[C_MAX_DEFL] = max_defl;
+    carry[C_SAT] = sat;
+    long done_steps = last < n_steps ? last : n_steps;
+    fig[F_STATUS] = (double)status;
+    fig[F_STEP] = (double)(status != OK ? step : done_steps);
+    fig[F_ERR] = max_err;
+    fig[F_CUR] = max_cur;
+    fig[F_SAT] = sat;
+    fig[F_TAU] = max_tau;
+    LoopResult res = {status, status != OK ? step : done_steps, n_rec, max_tau, iref};
+    return res;
+}
+
+/* The cam paper's scheme (and the array form of RK4 when paper_scheme is 0), steps first ..
+   last - 1 of n_steps with carry as rk4 takes them (was _paper). scratch: 5 nx + max(nx, 1)
+   doubles (the stages' slopes and state, the controller's work; numba allocated them). */
+static inline LoopResult paper(double *x, long nx, const double *P, Tab T, double t0, double dt, long first,
+                               long last, long n_steps, long sub, double iref, int paper_scheme, long rec_every,
+                               double *out_t, double *out_x, double *out_aux, double *carry, double *scratch)
+{
+    double *k1 = scratch, *k2 = scratch + nx, *k3 = scratch + 2 * nx, *k4 = scratch + 3 * nx;
+    double *xs = scratch + 4 * nx, *work = scratch + 5 * nx;
+    double aux[NAUX], aux2[NAUX];
+    long n_rec = 0;
+    double max_tau = 0.0;
+    double half = 0.5 * dt;
+    int err_mode = P[STROKE_MODE] == 0.0;
+    long qi = P[RIGID] > 0.0 ? 0 : 2;
+    double c = P[HALF_PLAY];
+    long to_sample = 0;
+    long to_record = 0;
+    if (first > 0) {
+        iref = carry[C_IREF];
+        to_sample = (long)carry[C_TO_SAMPLE];
+        to_record = (long)carry[C_TO_RECORD];
+        n_rec = (long)carry[C_NREC];
+        max_tau = carry[C_MAX_TAU];
+    }
+    long stop = last >= n_steps ? n_steps + 1 : last;
+    for (long step = first; step < stop; step++) {
+        double t = t0 + step * dt;
+        if (sub > 0) {
+            if (to_sample == 0) {
+                iref = controller_sample(t, x, P, T, work);
+                to_sample = sub;
+            }
+            to_sample -= 1;
+        }
+        rhs(t, x, nx, P, T, iref, k1, aux);
+        double tau = fabs(aux[AUX_TAU]);
+        if (tau > max_tau)
+            max_tau = tau;
+        if (to_record == 0 || step == n_steps) {
+            to_record = rec_every;
+            out_t[n_rec] = t;
+            for (long j = 0; j < nx; j++)
+                out_x[n_rec * nx + j] = x[j];
+            for (long j = 0; j < NAUX; j++)
+                out_aux[n_rec * NAUX + j] = aux[j];
+            n_rec += 1;
+        }
+        to_record -= 1;
+        if (!_finite(x, nx) || !isfinite(tau)) {
+            LoopResult res = {NONFINITE, step, n_rec, max_tau, iref};
+            return res;
+        }
+        if (err_mode && (x[qi] > P[STROKE_HI] || x[qi] < P[STROKE_LO])) {
+            LoopResult res = {STROKE_END, step, n_rec, max_tau, iref};
+            return res;
+        }
+        if (step == n_steps)
+            break;
+        for (long stage = 0; stage < 3; stage++) { /* stages 2-4 in one loop (see rk4) */
+            double h = stage == 2 ? dt : half;
+            double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);
+            double *kout = stage == 0 ? k2 : (stage == 1 ? k3 : k4);
+            if (paper_scheme) { /* frozen configuration: no position slope enters the later stages */
+                kin[0] = 0.0;
+                kin[2] = 0.0;
+                kin[6] = 0.0;
+            }
+            for (long j = 0; j < nx; j++)
+                xs[j] = x[j] + h * kin[j];
+            rhs(t + h, xs, nx, P, T, iref, kout, aux2);
+        }
+        double p_old = x[0];
+        double q_old = x[2];
+        double p_speed = x[1];
+        for (long j = 0; j < nx; j++)
+            x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+        if (P[STICK] > 0.0 && x[1] * p_speed < 0.0 && (P[TS_M] > 0.0 || P[TS_L] > 0.0)) {
+            /* friction that holds, in the fixed-configuration scheme: a speed reversal ends the
+               step at rest (Karnopp), where the friction decides between stick and slip */
+            x[1] = 0.0;
+            if (qi == 0)
+                x[3] = 0.0;
+        }
+        if (paper_scheme) { /* positions by summation from the new velocities (the RK4 sum above moved them) */
+            x[0] = p_old + dt * x[1];
+            x[2] = q_old + dt * x[3];
+            double p = x[0];
+            if (p > p_old && p > x[6] + c)
+                x[6] = p - c;
+            else if (p < p_old && p < x[6] - c)
+                x[6] = p + c;
+        }
+    }
+    carry[C_IREF] = iref;
+    carry[C_TO_SAMPLE] = (double)to_sample;
+    carry[C_TO_RECORD] = (double)to_record;
+    carry[C_NREC] = (double)n_rec;
+    carry[C_MAX_TAU] = max_tau;
+    LoopResult res = {OK, last < n_steps ? last : n_steps, n_rec, max_tau, iref};
+    return res;
+}
+
+#endif
