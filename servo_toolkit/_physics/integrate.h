@@ -32,19 +32,7 @@
 #include "node_switch.h"
 #include "switch_loop.h"
 
-/* the loops' state carried from one chunk to the next: held current reference, steps to the
-   next controller sample and to the next record, records written, peak |motor torque|, and
-   RK4's running figures (peak |tracking error|, |current|, deflection, a limit reached) */
-#define C_IREF 0
-#define C_TO_SAMPLE 1
-#define C_TO_RECORD 2
-#define C_NREC 3
-#define C_MAX_TAU 4
-#define C_MAX_ERR 5
-#define C_MAX_CUR 6
-#define C_MAX_DEFL 7
-#define C_SAT 8
-#define NCARRY 9
+/* the carry slots C_* and NCARRY, which a chunk passes to the next, are in layout.h */
 
 /* What a loop returns: (status, step, n_rec, max_tau, iref) in Python. */
 typedef struct {

@@ -157,5 +157,20 @@
 #define S_DEFLECTION 1
 #define S_END 2
 #define NSNAP 3
+#define TAU_TOL 1e-12
+#define MAX_ITER 60
+#define MAX_SWITCHES 4
+#define HELD 1e+300
+#define SEED 1e-290
+#define C_IREF 0
+#define C_TO_SAMPLE 1
+#define C_TO_RECORD 2
+#define C_NREC 3
+#define C_MAX_TAU 4
+#define C_MAX_ERR 5
+#define C_MAX_CUR 6
+#define C_MAX_DEFL 7
+#define C_SAT 8
+#define NCARRY 9
 
 #endif

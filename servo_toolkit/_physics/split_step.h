@@ -48,16 +48,7 @@
 #include "common.h"
 #include "rhs.h"
 
-/* the switch's instant is located to this fraction of the step (the Illinois bracket's width) */
-#define TAU_TOL 1e-12
-/* most Illinois iterations per switch (about 6 to 10 are taken) */
-#define MAX_ITER 60
-/* most switches located within one step; the rest of the step after the last is one RK4 step */
-#define MAX_SWITCHES 4
-/* a breakaway level out of reach: the node held at rest */
-#define HELD 1e300
-/* the speed (rad/s, m/s) a node breaking away leaves rest with: its direction only */
-#define SEED 1e-290
+/* TAU_TOL, MAX_ITER, MAX_SWITCHES, HELD and SEED are in layout.h (servo_toolkit/sim/layout.py) */
 
 /* The physical states a step advances (x[0:6]; the play state s is frozen over a step). */
 typedef struct {

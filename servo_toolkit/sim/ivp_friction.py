@@ -34,7 +34,7 @@ there fires on that error (Radau at rtol = atol = 1e-12 stuck and broke the whee
 10,000 times at one instant), so until the next event the node that broke away is watched
 for a reversal beyond the band of the motor side's and the load's watch (1e-9 of the largest
 speed; the node restarts at rest either way). The motor side and the load keep the watch at
-0: they leave rest with a seed of speed (:data:`~.split_step.SEED`) whose sign their friction
+0: they leave rest with a seed of speed (:data:`~.layout.SEED`) whose sign their friction
 takes at once.
 
 An intermediate node that enters a sliding mode at rest (at its breakaway, or sliding on at
@@ -71,7 +71,7 @@ import numpy as np
 
 from . import layout as lo
 from .kernel import rhs
-from .split_step import SEED
+from .layout import SEED
 
 
 def friction_nodes(model, P) -> list:
@@ -173,7 +173,7 @@ class FrictionModes:
 
     def _leave_rest(self, t, x, only=None) -> None:
         """Seed the motor side or the load at rest (or ``only``) that is beyond its band at
-        (t, x): its speed :data:`~.split_step.SEED` towards the side it breaks away to, so
+        (t, x): its speed :data:`~.layout.SEED` towards the side it breaks away to, so
         that the solve integrates the sliding law from 0+ (as the fixed-step split step does)."""
         for i in [n for n in self.nodes if n <= 3] if only is None else [only]:
             if x[i] == 0.0 and (only is not None or self.gauge(t, x, i) > 0.0):
@@ -214,7 +214,7 @@ class FrictionModes:
         their own watch (:meth:`_watch`), their friction held in the direction of their speed
         while they slide (left to the speed at rest); the modes are the intermediate nodes'.
         x changes in place: a node entering a sliding mode at rest takes the speed
-        :data:`~.split_step.SEED` in its direction (module doc), a resting motor side or load
+        :data:`~.layout.SEED` in its direction (module doc), a resting motor side or load
         beyond its band likewise (:meth:`_leave_rest`)."""
         for i in self.nodes:  # sliding nodes first: the moments on the resting ones depend on them
             if i <= 3:

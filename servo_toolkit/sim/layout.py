@@ -18,7 +18,8 @@ State ``x`` (float64)::
              and rate of each, referred to the output like p and q (rad, rad/s; m, m/s for an
              output travel)
 
-Module-level integer constants are compile-time constants inside numba kernels.
+The compiled kernels (``servo_toolkit/_physics``) read every constant below from
+``layout.h``, generated from this module (:mod:`.layout_header`; the tests check the two agree).
 """
 
 from __future__ import annotations
@@ -185,3 +186,21 @@ NFIG = 6
 # |p - q|, at the end
 S_PEAK, S_DEFLECTION, S_END = range(3)
 NSNAP = 3
+
+# friction switches located within a step (``split_step.h``): the switch's instant is located to
+# TAU_TOL of the step (the Illinois bracket's width), in at most MAX_ITER iterations (about 6 to
+# 10 are taken), at most MAX_SWITCHES switches per step (the rest of the step after the last is
+# one RK4 step); HELD, a breakaway level out of reach (the node held at rest); SEED, the speed
+# (rad/s, m/s) a node breaking away leaves rest with: its direction only
+TAU_TOL = 1e-12
+MAX_ITER = 60
+MAX_SWITCHES = 4
+HELD = 1e300
+SEED = 1e-290
+
+# a fixed-step run advanced in chunks (:func:`servo_toolkit.sim.integrators.integrate`): the loops'
+# state carried from one chunk to the next: held current reference, steps to the next
+# controller sample and to the next record, records written, peak |motor torque|, and RK4's
+# running figures (peak |tracking error|, |current|, deflection, a limit reached)
+C_IREF, C_TO_SAMPLE, C_TO_RECORD, C_NREC, C_MAX_TAU, C_MAX_ERR, C_MAX_CUR, C_MAX_DEFL, C_SAT = range(9)
+NCARRY = 9
