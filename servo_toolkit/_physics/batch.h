@@ -1,5 +1,5 @@
-/* Many closed-loop variants: the single run's RK4 loop for each (was servo_toolkit/sim/batch.py,
-   and its SIMD lanes, servo_toolkit/sim/batch_lanes.py, which are gone).
+/* Many closed-loop variants: the single run's RK4 loop for each, the variants shared among
+   threads (the Python face: servo_toolkit.sim.batch and servo_toolkit.sim.batch_run).
 
    Every variant is a row of a parameter matrix P (n_variants, nP) built by the model code
    (sim/variants.py), with its own initial state and, where its tables differ (a rigid chain

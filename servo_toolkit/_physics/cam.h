@@ -1,5 +1,5 @@
-/* Scalar kernels of the cam drive, for the time-stepping loops
-   (was servo_toolkit/components/cam/kernels.py).
+/* Scalar kernels of the cam drive, for the time-stepping loops (the Python face, with the
+   packer of p: servo_toolkit.components.cam.kernels).
 
    They evaluate exactly the physics of servo_toolkit.components.cam.drive (the tests check
    the kernels against the vectorized component law and CamDrive.follower_force).
@@ -7,8 +7,7 @@
 
        [A, m, mu, G_x, G_y, |G_z|, r0, stroke, J_m, M_f, R, c_m, c_e, clearance]
 
-   The numba originals were compiled without fastmath: the same operations in the same order
-   give the same bits. */
+   Each kernel performs the component law's operations in the same order. */
 #ifndef SERVO_CAM_H
 #define SERVO_CAM_H
 
@@ -17,7 +16,7 @@
 /* pi (M_PI is not C99) */
 #define CAM_PI 3.14159265358979323846
 
-/* Python's float modulo (the result takes the divisor's sign), as numba computes it */
+/* Python's float modulo: the result takes the divisor's sign */
 static inline double cam_pymod(double a, double b)
 {
     double r = fmod(a, b);
@@ -156,8 +155,8 @@ static inline long discrete(const double *p, double voltage, long n, double step
    tanh(w / w_s); 0 for the hard sign.
    Out: dw = w' (rad/s^2) and m_g = M_g (N*m).
 
-   The direction's tanh is the C library's, as numba's math.tanh in the original (not the
-   right-hand side's vtanh). */
+   The direction's tanh is the C library's, as in the component law (not the right-hand side's
+   vtanh). */
 static inline void shaft_acceleration(const double *p, double theta, double w, double torque, double inertia,
                                       double velocity_torque, double inv_ws, double *dw, double *m_g)
 {

@@ -1,8 +1,9 @@
-/* Commands and gain schedule inside the kernels (was servo_toolkit/sim/command_kernel.py and
-   servo_toolkit/sim/table_kernel.py): the position reference r(t) and its command (sine, step,
-   ramp, table), the jerk-limited move, the command shaper's impulses and the gain schedule
-   along the stroke (slots in servo_toolkit/sim/layout.py; the host side in
-   servo_toolkit.loop.profile, servo_toolkit.loop.shaper and servo_toolkit.loop.schedule).
+/* Commands and gain schedule inside the kernels: the position reference r(t) and its command
+   (sine, step, ramp, table), the jerk-limited move, the command shaper's impulses and the gain
+   schedule along the stroke (slots in servo_toolkit/sim/layout.py; the host side in
+   servo_toolkit.loop.profile, servo_toolkit.loop.shaper and servo_toolkit.loop.schedule;
+   reference, command and schedule_factors exported by servo_toolkit.sim.kernel, table_rates
+   and move_rates by servo_toolkit._physics._kernels).
 
    The sampled command is the cubic Hermite interpolant of a table of samples stored in P after
    the header, with its exact first and second time derivatives (slots REF_TAB_*; packed by

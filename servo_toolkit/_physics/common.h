@@ -1,7 +1,7 @@
 /* What every kernel header shares: the layout, the math library, the tables' type.
 
-   The kernels are C99. Each concern is one header of static inline functions (the Python
-   module it replaced named in its first comment); an api_<concern>.c file includes the headers
+   The kernels are C99. Each concern is one header of static inline functions (what it computes,
+   and where its equations are, in its first comment); an api_<concern>.c file includes the headers
    it needs and exports the entry points the extension module calls (declared in
    api_<concern>.h, wrapped in wrap_<concern>.pxi). The layout's constants are macros
    (layout.h, generated from servo_toolkit/sim/layout.py): no identifier in a kernel may take a
@@ -20,8 +20,8 @@
 /* a slot that holds an index or a count (int(P[...]) in the Python layout) */
 #define IX(value) ((long)(value))
 
-/* a function the fixed-step loop inlines, so its state stays in registers (as numba's inline
-   did); every other caller calls its out-of-line copy */
+/* a function the fixed-step loop inlines, so its state stays in registers; every other caller
+   calls its out-of-line copy */
 #if defined(__GNUC__) || defined(__clang__)
 #define ST_ALWAYS_INLINE static inline __attribute__((always_inline))
 #define ST_NOINLINE static __attribute__((noinline))

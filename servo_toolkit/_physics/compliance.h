@@ -1,7 +1,7 @@
-/* The drivetrain's compliances and losses inside the kernels (was
-   servo_toolkit/sim/compliance_kernel.py): the elasto-backlash contact law, a compliance's
-   force, the loss coefficient and its folding into the motor side's equation, and the full
-   chain's node accelerations (the equations in rhs.h and servo_toolkit/sim/chain_model.py). */
+/* The drivetrain's compliances and losses inside the kernels: the elasto-backlash contact law
+   (exported as servo_toolkit.sim.kernel.contact), a compliance's force, the loss coefficient
+   and its folding into the motor side's equation, and the full chain's node accelerations (the
+   equations in rhs.h and servo_toolkit/sim/chain_model.py). */
 #ifndef SERVO_COMPLIANCE_H
 #define SERVO_COMPLIANCE_H
 

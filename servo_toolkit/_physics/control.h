@@ -1,5 +1,5 @@
-/* The controller sample update and the motion controller (was the controller part of
-   servo_toolkit/sim/kernel.py; the right-hand side is rhs.h). Layout of x and P in
+/* The controller sample update and the motion controller (the right-hand side is rhs.h; both
+   exported to Python by servo_toolkit.sim.kernel). Layout of x and P in
    servo_toolkit/sim/layout.py.
 
    The motion controller is a discrete (sampled) or continuous state-space system

@@ -1,6 +1,7 @@
-/* The feedforward current inside the kernels (was servo_toolkit/sim/feedforward_kernel.py): the
-   reference's analytic derivatives and the rigid chain's inverse dynamics along the commanded
-   trajectory (servo_toolkit.loop.controller.Feedforward; slots in servo_toolkit/sim/layout.py). */
+/* The feedforward current inside the kernels: the reference's analytic derivatives and the
+   rigid chain's inverse dynamics along the commanded trajectory
+   (servo_toolkit.loop.controller.Feedforward; slots in servo_toolkit/sim/layout.py; exported as
+   servo_toolkit.sim.kernel.feedforward). */
 #ifndef SERVO_FEEDFORWARD_H
 #define SERVO_FEEDFORWARD_H
 

@@ -1,5 +1,5 @@
-/* Friction that holds, inside the kernels (Karnopp-type stick at zero speed; was
-   servo_toolkit/sim/friction_kernel.py).
+/* Friction that holds, inside the kernels (Karnopp-type stick at zero speed; slip_friction,
+   stuck_or_breaking and gear_at_rest are exported to Python by servo_toolkit.sim.kernel).
 
    A node carrying friction (the motor shaft, the load) slides with the Stribeck law
 

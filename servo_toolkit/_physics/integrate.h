@@ -1,5 +1,5 @@
-/* The fixed-step loops: classical RK4 and the cam paper's discrete scheme (seed 002)
-   (was servo_toolkit/sim/integrators.py; its Python driver, integrate, stays there).
+/* The fixed-step loops: classical RK4 and the cam paper's discrete scheme (seed 002); their
+   Python driver, which runs them chunk by chunk, is servo_toolkit.sim.integrators.integrate.
 
    Both loops hold the sampled controller's output between samples (zero-order hold), sample it
    every sub steps, record every rec_every steps, track the peak motor torque at every step,
@@ -110,7 +110,8 @@ static inline void snapshot(double *snap, long k, double p, double pd, double q,
     row[nx + 1] = iref;
 }
 
-/* Classical RK4 with the physical states x[0:7] held in local scalars (registers) (was _rk4).
+/* Classical RK4 with the physical states x[0:7] held in local scalars (registers); exported as
+   servo_toolkit.sim.integrators._rk4.
 
    Same arithmetic as the array form (rhs); x[0:7] is written back before each controller
    sample and at the end. The controller and estimator states x[7:] change only at the samples
@@ -312,8 +313,8 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
 }
 
 /* The cam paper's scheme (and the array form of RK4 when paper_scheme is 0), steps first ..
-   last - 1 of n_steps with carry as rk4 takes them (was _paper). scratch: 5 nx + max(nx, 1)
-   doubles (the stages' slopes and state, the controller's work; numba allocated them). */
+   last - 1 of n_steps with carry as rk4 takes them (servo_toolkit.sim.integrators._paper).
+   scratch: 5 nx + max(nx, 1) doubles (the stages' slopes and state, the controller's work). */
 static inline LoopResult paper(double *x, long nx, const double *P, Tab T, double t0, double dt, long first,
                                long last, long n_steps, long sub, double iref, int paper_scheme, long rec_every,
                                double *out_t, double *out_x, double *out_aux, double *carry, double *scratch)

@@ -1,5 +1,5 @@
-/* RK4 steps split at the switches of the full chain's intermediate nodes' friction
-   (was servo_toolkit/sim/node_switch.py).
+/* RK4 steps split at the switches of the full chain's intermediate nodes' friction (called by
+   switched_step, switch_loop.h, at a switch only).
 
    An intermediate node carrying a stage's friction (NODE_FRIC, node_friction) switches where it
    reverses its speed and where, stuck, the moment on it reaches its breakaway level, as the

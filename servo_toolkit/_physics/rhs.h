@@ -1,4 +1,6 @@
-/* The right-hand side of the closed loop (was servo_toolkit/sim/kernel.py: rhs_phys, rhs).
+/* The right-hand side of the closed loop: rhs_phys (the physical states) and rhs (with the
+   continuous controller), exported to Python by servo_toolkit.sim.kernel, whose docstring keeps
+   the same equations.
 
    One physics, used by every integrator (fixed-step RK4, the cam paper's scheme, the stiff
    reference solver, python-control and the Jacobian estimate). Layout of x and P in layout.h
@@ -30,9 +32,8 @@
    xi' = Kii e + (v - v_c) Kii / Kpi (tracking time constant = the integral time Kpi / Kii):
    continuous in the state, so adaptive solvers integrate through saturation.
 
-   This is numba's rhs_phys with lanes=False, holds=True: friction that holds (STICK) is
-   compiled in, and the batched lanes' branches (the held command part passed in iref_held of
-   an open loop) are not. */
+   Friction that holds (STICK) is compiled in; every integrator, the batch included, runs this
+   one right-hand side. */
 #ifndef SERVO_RHS_H
 #define SERVO_RHS_H
 
@@ -233,7 +234,7 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
 }
 
 
-/* rhs_phys_inline compiled once as a function of its own: the callers that are not the
+/* rhs_phys_inline as a function of its own (out of line): the callers that are not the
    fixed-step loop's hot path (the array form rhs, the paper's scheme, the switch location)
    call it instead of inlining their own copy. */
 ST_NOINLINE void rhs_phys(double t, double p, double pd, double q, double qd, double cur, double xi, double s,

@@ -1,7 +1,7 @@
-/* RK4 steps split at friction's switches, located to high order within the step
-   (was servo_toolkit/sim/split_step.py).
+/* RK4 steps split at friction's switches, located to high order within the step (the motor
+   side and the load; the full chain's intermediate nodes in node_switch.h).
 
-   Friction that holds (friction_kernel) switches where a node carrying it reverses its speed
+   Friction that holds (friction.h) switches where a node carrying it reverses its speed
    (it stops: stick or slide on the other way) and where a stuck node breaks away (the moment
    on it reaches the breakaway level). The right-hand side jumps there, so a step across a
    switch is of low order; the fixed-step loop (integrate.h, rk4) hands such a step to
@@ -16,7 +16,7 @@
      where the friction decides between stick and slip;
    - a breakaway: tau is where the node's signed breakaway distance crosses 0, along the motion
      with the node held (its breakaway level out of reach in the scratch copy), the distance
-     read by the right-hand side with HOLD_GAUGE = 1 in another (friction_kernel.gear_at_rest:
+     read by the right-hand side with HOLD_GAUGE = 1 in another (friction.h, gear_at_rest:
      for the motor side of a lossy gear, how far the torques on the gear are beyond its band,
      asymmetric with the efficiencies; for a node without one, |moment| less its level); the
      node stays at rest exactly up to tau.

@@ -1,6 +1,6 @@
 /* The RK4 step split at every friction switch located within it, at any node carrying friction
-   that holds (was servo_toolkit/sim/switch_loop.py): the motor side and the load (first_switch,
-   split_step.h) and the full chain's intermediate nodes (node_first_switch, node_switch.h).
+   that holds: the motor side and the load (first_switch, split_step.h) and the full chain's
+   intermediate nodes (node_first_switch, node_switch.h).
 
    The fixed-step loop (integrate.h, rk4) hands a step to switched_step when its test sees a
    node switch within it (ends: the motor side or the load, switch_ahead or a stage that left a

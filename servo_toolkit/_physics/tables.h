@@ -1,4 +1,4 @@
-/* Stroke tables (was servo_toolkit/sim/tables.py): the cell of a position and the cubic
+/* Stroke tables (built by servo_toolkit/sim/tables.py): the cell of a position and the cubic
    Hermite interpolation of a table row, values and exact derivatives. Rows in layout.h. */
 #ifndef SERVO_TABLES_H
 #define SERVO_TABLES_H

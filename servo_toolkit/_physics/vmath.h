@@ -1,4 +1,5 @@
-/* Branch-free elementary functions of the right-hand side (was servo_toolkit/sim/vmath.py).
+/* Branch-free elementary functions of the right-hand side (tanh, exp_pos and exp_neg are
+   exported to Python by servo_toolkit.sim.kernel).
 
    The friction's smooth sign is tanh; this one is within 1 ulp of the C library's (whose own
    bound is 2 ulp; tests/test_sim_tanh.py measures both against a 50-digit reference), so a

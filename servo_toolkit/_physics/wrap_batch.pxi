@@ -1,5 +1,5 @@
-# batch.h: many closed-loop variants, each the single run's RK4 loop (was servo_toolkit.sim.batch
-# and its SIMD lanes, servo_toolkit.sim.batch_lanes), on threads without the interpreter lock.
+# batch.h: many closed-loop variants, each the single run's RK4 loop, shared among worker threads
+# that run without the interpreter lock (a variant's numbers do not depend on its thread).
 import itertools as _itertools
 from concurrent.futures import ThreadPoolExecutor as _ThreadPoolExecutor
 

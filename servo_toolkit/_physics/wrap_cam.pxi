@@ -1,4 +1,5 @@
-# cam.h: the cam drive's kernels (were servo_toolkit.components.cam.kernels), same arguments.
+# cam.h: the cam drive's kernels (servo_toolkit.components.cam.kernels imports them under
+# their short names).
 import numpy as np
 
 cdef extern from "api_cam.h":

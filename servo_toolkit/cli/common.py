@@ -2,7 +2,7 @@
 
 The command modules import only this module, :mod:`.budget` and the standard library when
 their parser is built (``servo-toolkit CMD --help``); what a command computes with (the
-scene loader and its unit parser, python-control, scipy, numba, matplotlib) is imported in
+scene loader and its unit parser, python-control, scipy, the compiled kernels, matplotlib) is imported in
 its ``run``, when it runs.
 """
 

@@ -14,7 +14,7 @@ that fits: with the acceleration limit reached, ``D = a_max (Tj + Ta) (2 Tj + Ta
 ``Ta = (sqrt(Tj^2 + 4 D / a_max) - 3 Tj) / 2``; when even that is negative, Ta = 0 and
 ``Tj = (D / (2 j_max))^(1/3)``. The duration is ``T = 4 Tj + 2 Ta + Tv``. Position, speed and
 acceleration are analytic (the kernel evaluates the same formulas,
-:func:`servo_toolkit.sim.command_kernel.move_rates`); r, r' and r'' are continuous and the jerk
+``move_rates`` in ``servo_toolkit/_physics/command.h``); r, r' and r'' are continuous and the jerk
 is bounded by j_max.
 """
 

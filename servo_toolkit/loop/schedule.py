@@ -18,7 +18,7 @@ For a single compensator on the position error (pid, lead-lag, pi), whose loop g
 ``C Kt / (N J_m s^2)``, the same ``g_e`` keeps it. The schedule is a table over the stroke,
 linear between its points and held beyond its ends: the table the drive interpolates at its
 measured output position once per sample (the simulation interpolates the same table,
-:func:`servo_toolkit.sim.command_kernel.schedule_factors`). What it does not keep: the
+:func:`servo_toolkit.sim.kernel.schedule_factors`). What it does not keep: the
 drivetrain mode's own walk along the stroke (stiffness K(q) and the load-to-motor split), so
 the margins it leaves are the mode's; :func:`~.stroke.stroke_check` shows the spread with and
 without it.

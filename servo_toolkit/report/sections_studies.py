@@ -189,6 +189,6 @@ def accuracy(ctx) -> Section:
                 f"off at the difference between its play operator ({REFERENCES[2].cite}, eqs 6-8) and the "
                 "elasto-backlash law of the reference model, not at a step-size error.",
                 "Error is the largest output-angle difference from the reference, relative to the motion "
-                f"amplitude; each wall time is the best of {res.repeats} identical runs (compilation excluded).")
+                f"amplitude; each wall time is the best of {res.repeats} identical runs.")
     return Section("Solver accuracy", text + table(("method", "dt [s]", "wall [ms]", "error / amplitude"), rows),
                    (FigureSpec(fig, "Error of the fixed-step methods against run time and step."),), key="accuracy")

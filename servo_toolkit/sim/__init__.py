@@ -13,7 +13,7 @@ Two levels:
       for f in freqs:
           res = run(model, Reference.sine(a, f), duration=n_cycles / f, method="rk4")
 
-  with no recompilation (the kernels are compiled once per process and cached on disk).
+  with no recompilation (the kernels are C, compiled when the package is installed).
 
 Methods: ``"rk4"`` (compiled fixed step; refuses steps outside RK4's stability region),
 ``"paper"`` (seed 002's frozen-configuration scheme with the play operator, first order),

@@ -74,7 +74,7 @@ def loss_slots(P, drive, motor, q0: float, options, notes: list,
 
 def hold_slots(P, eta: float, eta_b: float) -> None:
     """Fill the loss-at-rest slots (``HOLD_FWD`` = 1/eta - 1, ``HOLD_BACK`` = 1 - max(eta_b, 0)):
-    the band within which a gear at rest holds (:func:`~.friction_kernel.gear_at_rest`), with
+    the band within which a gear at rest holds (:func:`servo_toolkit.sim.kernel.gear_at_rest`), with
     the back-drive efficiency as it is (0 or less: self-locking, the load cannot drive the
     motor), not the moving loss's :data:`MIN_BACKDRIVE`."""
     P[lo.HOLD_FWD] = 1.0 / eta - 1.0

@@ -86,8 +86,7 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     n_rec = n_steps // rec + 2
     out_t, out_x, out_aux = np.empty(n_rec), np.empty((n_rec, model.nx)), np.empty((n_rec, lo.NAUX))
     sub = int(round(model.sample_time / dt)) if P[lo.CMODE] == lo.SAMPLED else 0
-    # warm-up: a zero-step call on copies loads (or compiles) the machine code, so wall_s
-    # measures integration only (result.py: compilation excluded)
+    # a zero-step call on copies first, so wall_s times the run's steps alone
     integrate(x0.copy(), P.copy(), model.T, 0.0, dt, 0, sub, 0.0, paper, rec, out_t[:1].copy(),
               out_x[:1].copy(), out_aux[:1].copy())
     x = x0.copy()

@@ -9,7 +9,8 @@ without the interpreter lock.
 RK4 keeps the physical state in registers, with the right-hand side inlined into it, and
 splits a step where friction that holds switches within it: a speed reversal or a breakaway
 of the motor side, the load or a node of the full chain, located by the Illinois method to
-``TAU_TOL`` of the step (``split_step.h``, ``switch_loop.h``, ``node_switch.h``).
+``TAU_TOL`` of the step (``split_step.h``, ``switch_loop.h`` and ``node_switch.h`` in
+``servo_toolkit/_physics``).
 
 The paper's scheme (seed 002 section 3): over each step the configuration (p, q, the play
 state s) is frozen, the velocities and electrical states take one RK4 step with J(p), N(p)

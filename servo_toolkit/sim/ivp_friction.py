@@ -117,7 +117,7 @@ def _terminal(event, node, direction, reversal=False, breakaway=False):
 def breakaway_gauge(model, P, iref_box):
     """``g(t, y, i, side=False)``: the breakaway distance of node i (x's index of its speed)
     held at rest at (t, y), over its inertia, from the right-hand side with ``HOLD_GAUGE`` set
-    (:func:`~.friction_kernel.gear_at_rest`: > 0 beyond its band, the band the right-hand
+    (:func:`servo_toolkit.sim.kernel.gear_at_rest`: > 0 beyond its band, the band the right-hand
     side holds the node in; with ``side``, > 0 where it would break away forward)."""
     Z = {False: P.copy(), True: P.copy()}
     Z[False][lo.HOLD_GAUGE], Z[True][lo.HOLD_GAUGE] = 1.0, 2.0

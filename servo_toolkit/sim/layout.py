@@ -71,18 +71,17 @@ INV_JD0 = 57
 NMID, OFF_NODE, OFF_SEG = 58, 59, 60
 SEG_STRIDE = 3
 SEG_PLAY, SEG_LOSS, SEG_BETA = range(3)
-# friction that holds (:func:`servo_toolkit.sim.friction_kernel.slip_friction`, STICK = 1): the
+# friction that holds (:func:`servo_toolkit.sim.kernel.slip_friction`, STICK = 1): the
 # motor's breakaway torque (N*m at the motor shaft; TC is its Coulomb level) and 1 / its
 # Stribeck speed (s/rad; inf: the drop from Ts to Tc at once), the load's Coulomb and breakaway
 # moments (N*m, N) and 1 / its Stribeck speed; STICK = 0: the smooth model Tc tanh(w / w_s) of
 # the motor's Coulomb friction alone
 TS_M, INV_VS_M, TC_L, TS_L, INV_VS_L, STICK = range(61, 67)
 # feedforward from the commanded trajectory (:class:`servo_toolkit.loop.controller.Feedforward`,
-# :func:`servo_toolkit.sim.kernel.feedforward_current`): 1 when the controller sample does more
-# than the state-space update (a feedforward, a gain schedule, the clamp's back-calculation;
-# such a variant runs the per-variant loop, not the SIMD lanes; 0: the
-# controller's output alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1 for the model-based
-# torque feedforward, the scale of its inertia relative to the tables', 1 when the speed loop
+# :func:`servo_toolkit.sim.kernel.feedforward`): 1 when the controller sample does more than
+# the state-space update (a feedforward, a gain schedule, the clamp's back-calculation; 0: the
+# controller's output alone), velocity and acceleration gains (A per rad/s, A per rad/s^2), 1
+# for the model-based torque feedforward, the scale of its inertia relative to the tables', 1 when the speed loop
 # takes the motor speed along the commanded trajectory as its reference, and the time (s) by
 # which the feedforward current leads the sample instant (half a sample)
 FF_ON, FF_KV, FF_KA, FF_MODEL, FF_JSCALE, FF_SPEED, FF_LEAD = range(67, 74)
@@ -98,28 +97,27 @@ ROW_JW0, ROW_NODE = 74, 75
 NODE_ROWS = 4
 # 82..89: friction at the chain's nodes. DIR_M, DIR_L: the direction the motor side's and the
 # load's sliding friction is held at (+-1; 0, the default: the sign of the node's speed), set
-# only in the scratch parameter copy with which :mod:`servo_toolkit.sim.split_step` locates a
+# only in the scratch parameter copy with which ``servo_toolkit/_physics/split_step.h`` locates a
 # speed reversal within the step (the motion before it continued smoothly past the zero)
 DIR_M, DIR_L = 82, 83
-# 84..86: the drivetrain's loss at rest (friction that holds, :func:`servo_toolkit.sim.friction_kernel.
+# 84..86: the drivetrain's loss at rest (friction that holds, :func:`servo_toolkit.sim.kernel.
 # gear_at_rest`): 1 / eta - 1 (eta the forward efficiency; 0: lossless) and 1 - max(eta_b, 0)
 # (eta_b the back-drive efficiency, 0 or less for a self-locking chain; 0: lossless, 1:
 # self-locking), and HOLD_GAUGE, set only in the scratch parameter copies with which
-# :mod:`servo_toolkit.sim.split_step` and :mod:`servo_toolkit.sim.ivp` locate a breakaway: 1, a
+# ``servo_toolkit/_physics/split_step.h`` and :mod:`servo_toolkit.sim.ivp` locate a breakaway: 1, a
 # node at rest reports its signed breakaway distance (> 0 beyond the band) in place of its
 # acceleration times its inertia; 2, the side it would break away to (> 0 forward); 87..89 free
 HOLD_FWD, HOLD_BACK, HOLD_GAUGE = 84, 85, 86
-# 90..97: a sampled position command (REF_KIND = REF_TABLE, :mod:`servo_toolkit.sim.table_kernel`):
+# 90..97: a sampled position command (REF_KIND = REF_TABLE, ``servo_toolkit/_physics/command.h``):
 # index in P of its data (values y_0..y_{n-1}, then the slopes m_0..m_{n-1} of the cubic
 # Hermite interpolant through them, rad/s or m/s), the number of samples n, the time of the first
 # sample (s), 1 / the sample spacing (1/s), 1 for a periodic table (its last sample repeats the
 # first: the command wraps with period (n - 1) spacings), and a fingerprint of the data (a
-# 48-bit hash, exact in a float), so that equal slots mean equal commands (the batch's shared
-# reference, :data:`servo_toolkit.sim.batch_lanes.REF_SLOTS`); 96..97 unused
+# 48-bit hash, exact in a float), so that equal slots mean equal commands; 96..97 unused
 REF_TAB_OFF, REF_TAB_N, REF_TAB_T0, REF_TAB_INV_DT, REF_TAB_WRAP, REF_TAB_SUM = range(90, 96)
 # gain scheduling along the stroke and command shaping (slots 98..105;
 # :mod:`servo_toolkit.loop.schedule`, :mod:`servo_toolkit.loop.shaper`,
-# :mod:`servo_toolkit.sim.command_kernel`): index in P of the gain schedule (0: none; its block
+# ``servo_toolkit/_physics/command.h``): index in P of the gain schedule (0: none; its block
 # [points, first position, 1 / step, the position-error factors, the speed factors], linear
 # between its points, its end values held beyond them), the offset (kg*m^2; kg for a travel)
 # of the feedforward's inertia from the model's (the load inertia the feedforward assumes less
@@ -187,10 +185,10 @@ NFIG = 6
 S_PEAK, S_DEFLECTION, S_END = range(3)
 NSNAP = 3
 
-# friction switches located within a step (``split_step.h``): the switch's instant is located to
-# TAU_TOL of the step (the Illinois bracket's width), in at most MAX_ITER iterations (about 6 to
-# 10 are taken), at most MAX_SWITCHES switches per step (the rest of the step after the last is
-# one RK4 step); HELD, a breakaway level out of reach (the node held at rest); SEED, the speed
+# friction switches located within a step (``servo_toolkit/_physics/split_step.h``): the
+# switch's instant is located to TAU_TOL of the step (the Illinois bracket's width), in at most
+# MAX_ITER iterations (about 6 to 10 are taken), at most MAX_SWITCHES switches per step (the
+# rest of the step after the last is one RK4 step); HELD, a breakaway level out of reach (the node held at rest); SEED, the speed
 # (rad/s, m/s) a node breaking away leaves rest with: its direction only
 TAU_TOL = 1e-12
 MAX_ITER = 60

@@ -30,7 +30,8 @@ Simplifications (documented, switchable where a reduction study needs it):
   stroke is a few per cent and is not tabulated);
 - Coulomb friction is smoothed by default, ``Tc tanh(omega_m / w_s)``, so that the
   right-hand side is continuous for RK4; ``ModelOptions(friction="stick")`` sticks exactly
-  (:mod:`.friction_kernel`, switches located within the step by :mod:`.split_step`);
+  (``servo_toolkit/_physics/friction.h``, switches located within the step by
+  ``split_step.h``);
 - the stages' efficiencies are lumped into one loss on the torque transmitted past the rotor
   and the members before the losses (inertia J_w = JW n(p)^2: they turn at a fixed ratio to
   the motor, as a rotor and its pinion do), as Modelica's
@@ -146,7 +147,7 @@ class Model:
     damping: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        # read-only tables, as every kernel is compiled for (a writable copy would compile again)
+        # read-only C-contiguous tables, as every kernel reads them (a run never writes its tables)
         object.__setattr__(self, "T", frozen_tables(self.T))
 
     def parameters(self) -> np.ndarray:

@@ -49,7 +49,7 @@ class ModelOptions:
     friction : {"smooth", "stick", "off"}
         The motor's and the load's Coulomb and static friction: ``"stick"``, exact stick at
         zero speed with the Stribeck law while sliding
-        (:mod:`servo_toolkit.sim.friction_kernel`); ``"smooth"`` (the default), the motor's
+        (``servo_toolkit/_physics/friction.h``); ``"smooth"`` (the default), the motor's
         Coulomb friction alone as ``Tc tanh(w / friction_speed)`` (no stick: a motor below
         breakaway creeps, the load's friction and static levels are left out and the notes
         say so); ``"off"``, left out (viscous friction stays).

@@ -6,7 +6,7 @@ A stage's friction acts at the chain node carrying its output members
 (:mod:`.chain_model`) a node with inertia between the motor side and the load is a state of
 its own, and its stages' friction stays there, reflected to the node's coordinate
 (:func:`~servo_toolkit.drivetrain.stage_friction.node_friction`): it slides with the motor's
-law and sticks by its own breakaway level (:func:`~.friction_kernel.node_moment`). The block
+law and sticks by its own breakaway level (``node_moment``, ``servo_toolkit/_physics/friction.h``). The block
 (``NODE_FRIC``, :mod:`.layout`) holds per intermediate node [Tc, Ts, 1 / v_st, B, direction];
 with friction that does not hold (``ModelOptions.friction`` "smooth" or "off") only the
 viscous part stays, as it does for the load.

@@ -116,7 +116,7 @@ class Reference:
         Before the first sample and after the last the end values are held; a periodic
         table repeats. The run starts in equilibrium at the command's value at t = 0. The
         kernel evaluates the spline and its first two derivatives exactly
-        (:mod:`servo_toolkit.sim.table_kernel`), so the model-based feedforward follows it.
+        (``servo_toolkit/_physics/command.h``), so the model-based feedforward follows it.
 
         Raises
         ------

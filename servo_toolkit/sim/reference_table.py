@@ -1,6 +1,6 @@
 """A sampled position command packed for the kernel: checked samples, the slopes of the cubic
 spline through them and a fingerprint (:func:`pack_table`; the kernel side is
-:mod:`servo_toolkit.sim.table_kernel`, the slots ``REF_TAB_*`` of
+``servo_toolkit/_physics/command.h``, the slots ``REF_TAB_*`` of
 :mod:`servo_toolkit.sim.layout`).
 
 The interpolant is the cubic spline through the samples (not-a-knot ends; periodic for a

@@ -63,7 +63,7 @@ class SimulationResult(RichDisplay):
     max_abs_motor_torque : float
         Peak |Kt i| over every integration step (RK4) or every record (reference).
     wall_s : float
-        Wall time of the integration (s), compilation excluded.
+        Wall time of the integration (s).
     method : str
         What ran: ``"rk4"``, ``"paper"`` or ``"reference:LSODA"`` / ``"reference:Radau"``.
     dt_s : float or None

@@ -1,6 +1,6 @@
 """The speed estimator of the sampled speed loop: scene/option choice -> kernel parameters.
 
-The compiled :func:`servo_toolkit.sim.kernel.speed_estimate` runs it once per sample on
+The compiled ``speed_estimate`` (``servo_toolkit/_physics/control.h``) runs it once per sample on
 the motor-encoder angle z (the motor angle rounded to ``2 pi / motor_encoder_counts``):
 
 * ``"difference"``: omega = (z_k - z_{k-1}) / Ts. Quantization noise: the angle error is

@@ -1,7 +1,7 @@
 """Parameter rows and stroke tables of model variants of any scene keys (a scene's
 ``[tolerances]``), for the batched kernel.
 
-The batched lanes copy every parameter slot of a variant into its lane, so a varied motor
+The batch reads every parameter slot of a variant from its own row, so a varied motor
 resistance, torque constant, friction, voltage or current limit, encoder resolution,
 stage stiffness or mass only needs its row (and, where the stroke tables move, its tables).
 Building each variant's model with :func:`~.model.build_model` is exact but costs ~0.1-0.2 s;

@@ -8,7 +8,7 @@ sign, between two records) and measures RK4's order on the window before the fir
 where the right-hand side is smooth, on the window after the last (where the errors made at
 every switch have carried on) and over the whole run (:func:`switching_note` says what it
 sees). RK4 locates the switches within its steps to high order
-(:mod:`servo_toolkit.sim.split_step`), so all three read about 4.
+(``servo_toolkit/_physics/split_step.h``), so all three read about 4.
 """
 
 from __future__ import annotations

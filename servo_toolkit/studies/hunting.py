@@ -179,7 +179,7 @@ def holding_band(scene, q0: float, efficiency: bool = True) -> float:
 
     A node at rest holds while the motor torque tau stays within the breakaway levels: with the
     lossless chain taken as rigid, Ts + Ts_L / N either side of the torque the load needs. A
-    lossy chain at rest holds more (:func:`~servo_toolkit.sim.friction_kernel.gear_at_rest`):
+    lossy chain at rest holds more (:func:`~servo_toolkit.sim.kernel.gear_at_rest`):
     with M = -(M_h + k q0) the load's moment at the output, eta and eta_b the chain's
     efficiencies (eta_b <= 0: self-locking, taken as 0) and g(m) = eta_b m where the load
     drives the gear, m / eta where it is driven,

@@ -79,7 +79,7 @@ def _chunk(case):
             tix = np.arange(len(P))
     else:
         tix = np.arange(len(P))
-    T = frozen_tables(T)  # as a single run's: its compiled kernels serve the variants too
+    T = frozen_tables(T)  # as a single run's: the same kernels serve the variants
     models = [model] * len(P) if case.get("T") is None else [replace(model, T=t) for t in T]
     X0, refused = _starts(models, P)
     _, figs, snaps, wall = integrate_variants(P, T, tix, X0, dt, n_steps, sub)
@@ -185,8 +185,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         its own), as a drive's does: it does not know a variant's true inertia.
     friction : {"stick", "smooth", "off"}, optional
         The friction model (``ModelOptions.friction``; None: simulate's, smooth). Friction
-        that holds runs in the SIMD lanes as in the single run (a lane's step split at its
-        speed reversals).
+        that holds runs in the batch as in the single run (the same loop: a variant's step
+        split at its speed reversals and breakaways).
 
     Returns
     -------

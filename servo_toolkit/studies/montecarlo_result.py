@@ -36,7 +36,7 @@ class MonteCarloResult:
     abs_lambda_dt : numpy.ndarray
         Largest |lambda dt| found by the variant's step check.
     wall_s : float
-        Integration time (compilation, model building and step checks excluded), summed
+        Integration time (model building and step checks excluded), summed
         over chunks.
     dt_s : float
     steps_per_variant : int

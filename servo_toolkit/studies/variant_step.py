@@ -5,8 +5,8 @@ the nominal run only; its own run may reach stiffer states than the nominal one.
 a state stiff is known: the drivetrain pressed into contact at the edge of its play (and an
 elastic end stop passed), and the motor at a speed reversal, where the smooth Coulomb
 friction's tanh(omega_m / w_s) and the loss's blend between driving and back-driven
-(:func:`servo_toolkit.sim.compliance_kernel.loss_coefficient`, steepest at zero speed and
-scaled by the torque carried) change fastest. The lanes keep three states of each run: its
+(``loss_coefficient``, ``servo_toolkit/_physics/compliance.h``, steepest at zero speed and
+scaled by the torque carried) change fastest. The batch keeps three states of each run: its
 peak current (the largest torque), its largest drivetrain deflection and its end
 (:data:`servo_toolkit.sim.batch.NSNAP`). Each is checked as it is, in contact
 (:func:`~servo_toolkit.sim.stability.contact_states`) and at a speed reversal (both sides at
@@ -65,7 +65,7 @@ def held_nodes(model, P, T, tix, X, times, irefs, owner) -> np.ndarray:
     ``X[m]`` (variant ``owner[m]``) are held by friction that holds: at rest, with the variant's
     ``STICK`` on, and the right-hand side of the friction as it is (not smoothed) keeping
     their acceleration at exactly 0 (the stuck mode of
-    :func:`~servo_toolkit.sim.friction_kernel.gear_at_rest`)."""
+    :func:`~servo_toolkit.sim.kernel.gear_at_rest`)."""
     held = np.zeros((X.shape[0], 2), dtype=bool)
     at_rest = (X[:, 1] == 0.0) | ((X[:, 3] == 0.0) & (not model.rigid))
     rows = np.flatnonzero(at_rest & (P[owner, lo.STICK] > 0.0))
@@ -91,7 +91,7 @@ def step_check(model, P, T, tix, X0, snaps, dt):
     X0 : numpy.ndarray
         Their starts (NaN rows: never run).
     snaps : numpy.ndarray
-        The lanes' snapshots (:func:`servo_toolkit.sim.batch_run.integrate_variants`).
+        The variants' snapshots (:func:`servo_toolkit.sim.batch_run.integrate_variants`).
     dt : float
 
     Returns
