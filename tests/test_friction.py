@@ -17,7 +17,7 @@ from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.scene.loader import Scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.friction_kernel import slip_friction, stuck_or_breaking
+from servo_toolkit.sim.kernel import slip_friction, stuck_or_breaking
 
 from .conftest import SCENES
 
@@ -204,10 +204,10 @@ def test_friction_never_supplies_power(v, tc, extra, vs, applied):
     """Sliding, the friction opposes the speed and lies between Tc and Ts; at rest it takes at
     most the applied moment and never turns it around."""
     ts = tc + extra
-    f = slip_friction.py_func(v, tc, ts, 1.0 / vs, 0.0)
+    f = slip_friction(v, tc, ts, 1.0 / vs, 0.0)
     assert f * v >= 0.0
     assert tc - 1e-12 <= abs(f) <= ts + 1e-12
-    net = stuck_or_breaking.py_func(applied, ts)
+    net = stuck_or_breaking(applied, ts)
     assert abs(net) <= abs(applied) and net * applied >= 0.0
 
 
