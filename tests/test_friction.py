@@ -146,7 +146,7 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring(belt):
 def test_stick_slip_against_an_event_driven_solution(belt):
     """The same run against an independent event-driven solution (``solve_ivp`` between stick
     and slip events at 1e-10, tests/test_hunting.stick_slip), rotor included. RK4 locates each
-    breakaway and each stick within its step (:mod:`servo_toolkit.sim.split_step`): over the
+    breakaway and each stick within its step (``split_step.h``): over the
     11 cycles every one falls in the same step as the reference's event (no drift), and the
     load's trace follows the reference to 1e-5 of the swing (1e-6 seen, the reference's own
     dense output; with the switches at step boundaries and a linear estimate it was 4e-3)."""
