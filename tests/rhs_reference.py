@@ -37,11 +37,11 @@ Covered, as :func:`servo_toolkit.sim.model.build_model` assembles them:
 
 Left out (not part of ``rhs``): the sampled controller's update and the speed estimators
 (:func:`~servo_toolkit.sim.kernel.controller_sample`, once per sample; ``rhs`` holds their
-states, derivative 0), the gain schedule (applied in that update only) and the batched lanes'
-variant of the right-hand side (``lanes=True``).
+states, derivative 0) and the gain schedule (applied in that update only).
 
 Elementary functions: ``math.tanh`` and ``math.exp`` stand for the kernels' branch-free
-:func:`~servo_toolkit.sim.vmath.tanh` and ``exp_neg`` (each within 1 ulp of the library's);
+:func:`~servo_toolkit.sim.kernel.tanh` and ``exp_neg`` (``vmath.h``, each within 1 ulp of the
+library's);
 the cut-offs they document (tanh = +-1 from |a| = 22, the Stribeck exponential 0 beyond
 exp(-44)) are kept, as they decide values, not only their last bit.
 """
@@ -104,7 +104,7 @@ def clip(v, lim):
     return lim if v > lim else (-lim if v < -lim else v)
 
 
-# --- the feedforward (feedforward_kernel) ---------------------------------------------------
+# --- the feedforward (feedforward.h) ---------------------------------------------------------
 
 def inertia_beyond_motor(P, T, q):
     """The inertia beyond the motor side and its slope: JL (two-mass), or the sum of the full
@@ -171,7 +171,7 @@ def motion_controller(x, P, u, dx):
     return y
 
 
-# --- friction (friction_kernel) -------------------------------------------------------------
+# --- friction (friction.h) -------------------------------------------------------------------
 
 def slip_friction(v, tc, ts, inv_vs, direction):
     """Stribeck sliding friction Tc + (Ts - Tc) exp(-(v / v_st)^2), signed with v, or with
@@ -221,7 +221,7 @@ def node_moment(P, j, v, applied):
     return applied
 
 
-# --- the drivetrain's compliance and loss (compliance_kernel) -------------------------------
+# --- the drivetrain's compliance and loss (compliance.h) -------------------------------------
 
 def contact(tau_c, tau_d):
     """Modelica ElastoBacklash: spring part tau_c (0 inside the play), damper part tau_d;

@@ -1,7 +1,7 @@
 """The position command of the transcribed right-hand side (tests/rhs_reference.py): the
-command kinds of :mod:`servo_toolkit.sim.command_kernel` and :mod:`servo_toolkit.sim.table_kernel`
-(hold, sine, step, ramp, sampled table, jerk-limited move) with their analytic first and
-second time derivatives, through the command shaper's impulses. Plain Python, written from
+command kinds of the kernels' ``command.h`` (servo_toolkit/_physics: hold, sine, step, ramp,
+sampled table, jerk-limited move) with their analytic first and second time derivatives,
+through the command shaper's impulses. Plain Python, written from
 the kernels' equations; it calls no kernel."""
 
 from __future__ import annotations

@@ -497,3 +497,62 @@ def test_clearance_study_from_the_command_line(tmp_path, capsys):
     assert cli_main(["simulate", str(path), "--study", "constant_voltage", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert 5.325 <= d["mean_speed_seed_rad_s"] <= 5.545 and "corrected" in d["scheme_failures"]
+
+
+def _angles(rng, n):
+    """Every segment boundary of the law over +-4 turns, an ulp either side of each, n random
+    angles and the edge values."""
+    b = np.arange(-16, 17) * (math.pi / 4)
+    near = np.concatenate([np.nextafter(b, np.inf), np.nextafter(b, -np.inf)])
+    return np.concatenate([b, near, rng.uniform(-30, 30, n), [0.0, -0.0, 2 * math.pi, -2 * math.pi, 1e-300]])
+
+
+@pytest.mark.parametrize("a", [0.035, 1.0, 0.0, -0.2, 3.7])
+def test_compiled_law_is_the_vectorized_law_at_every_segment_edge(a):
+    """The compiled law (cam.h) at the segments' edges, an ulp either side, negative angles and
+    several turns: the vectorized law's s within 2 ulp of its largest term 4 pi |A| (the kernels
+    may fuse a product into a sum), s' and s'' within an ulp of their scales 2 |A| and 4 |A|."""
+    th = _angles(np.random.default_rng(1), 400)
+    jet = modified_constant_velocity(th, a)
+    got = np.array([cam_kernels.law(float(t), a) for t in th])
+    for k, (want, scale) in enumerate(((jet.value, 2 * math.ulp(4 * math.pi * abs(a))),
+                                       (jet.d1, math.ulp(2 * abs(a))), (jet.d2, math.ulp(4 * abs(a))))):
+        assert np.max(np.abs(got[:, k] - want)) <= scale, k
+
+
+def test_compiled_friction_is_the_vectorized_follower_force(drive):
+    """The compiled guide friction's fixed point (seed 002 eq 1) equals the vectorized
+    CamDrive.follower_force's, over drives with other friction coefficients, follower masses,
+    gravity directions and base radii, at random angles, speeds and accelerations."""
+    rng = np.random.default_rng(2)
+    for _ in range(30):
+        cam = replace(drive.cam, guide_friction_coefficient=float(rng.choice([0.0, rng.uniform(0.0, 0.6)])),
+                      follower_mass=drive.cam.follower_mass * rng.uniform(0.1, 5.0),
+                      gravity_tilt=rng.uniform(0.0, math.pi), gravity_heading=rng.uniform(-math.pi, math.pi),
+                      base_radius=drive.cam.pitch_base_radius * rng.uniform(0.8, 2.0))
+        d = replace(drive, cam=cam)
+        p = cam_kernels.pack(d)
+        for _ in range(40):
+            th, v, acc = rng.uniform(-10, 10), rng.normal(0.0, 0.3), rng.normal(0.0, 20.0)
+            jet = d.law(th)
+            force, f = d.follower_force(th, v, acc)
+            kf, kfr = cam_kernels.friction(p, float(jet.value), float(jet.d1), float(np.sign(v)),
+                                           cam.follower_mass * acc - p[3], 0.0)
+            assert kf == pytest.approx(float(force), rel=1e-12, abs=1e-12 * abs(float(f)))
+            assert kfr == pytest.approx(float(f), rel=1e-12, abs=1e-15)
+
+
+def test_discrete_scheme_reports_each_outcome(drive):
+    """The compiled discrete scheme's status: 0 a run to the end, 2 a reversed shaft, 1 a
+    non-finite speed (no rotor inertia: a division by zero in IEEE arithmetic; a vanishing
+    resistance: an infinite current)."""
+    p = cam_kernels.pack(drive)
+    theta, omega, status = cam_kernels.discrete(p, 3.5, 200, 1e-3, True)
+    assert status == 0 and theta.shape == omega.shape == (201,) and np.all(np.isfinite(omega))
+    assert cam_kernels.discrete(p, -3.5, 200, 1e-3, True)[2] == 2
+    q = p.copy()
+    q[8] = 0.0  # J_m
+    assert cam_kernels.discrete(q, 3.5, 10, 1e-3, True)[2] == 1
+    q = p.copy()
+    q[10] = 1e-300  # R
+    assert cam_kernels.discrete(q, 3.5, 10, 1e-3, True)[2] == 1

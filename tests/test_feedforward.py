@@ -14,10 +14,7 @@ from servo_toolkit.loop.controller import Feedforward
 from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, simulate
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.batch import NFIG, NSNAP, run_variants
-from servo_toolkit.sim.batch_lanes import block_kind, run_lanes
 from servo_toolkit.sim.reference import fill, initial_state
-from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.studies.time_run import simulate_study
 
 from .conftest import SCENES
@@ -139,7 +136,11 @@ def test_inertia_error_degrades_as_first_order_sensitivity_predicts(sine_errors)
     assert _peak(e_none) > 2 * _peak(e0)
 
 
-def test_lanes_run_a_feedforward_variant_by_variant(ema):
+def test_the_batch_runs_a_feedforward_variant_as_its_single_run(ema):
+    """Variants with and without the model-based feedforward (one with its inertia off by
+    20 %): the batch on one and two threads gives each variant's single run to the bit, and
+    carries the feedforward."""
+    from .test_batch import assert_as_single_runs
     scene, controller = ema
     ref = Reference.sine(math.radians(2.0), 8.0)
     opts = ModelOptions(chain="two_mass")
@@ -148,19 +149,14 @@ def test_lanes_run_a_feedforward_variant_by_variant(ema):
     out = []
     for model in (plain, on):
         P = np.array([fill(model, ref)] * 3)
-        assert block_kind(P, 0, 3)[0] == (model is plain)
-        runs = []
-        for fn in (run_variants, run_lanes):
-            X = np.array([initial_state(model, p) for p in P])
-            figs = np.zeros((3, NFIG))
-            snaps = np.zeros((3, NSNAP, X.shape[1] + 2))
-            fn(X, P, frozen_tables(model.T[None]), np.zeros(3, dtype=np.int64), 1e-4, 200,
-               int(round(model.sample_time / 1e-4)), figs, snaps)
-            runs.append(X)
-        # the lanes' fast-math flags differ from the single run's in the last bit (test_batch_lanes)
-        np.testing.assert_allclose(runs[1], runs[0], rtol=1e-9, atol=1e-12)
-        out.append(runs[0])
+        assert P[0, lo.FF_ON] == (model is on)
+        P[2, lo.FF_JSCALE] *= 1.2
+        X0 = np.array([initial_state(model, p) for p in P])
+        X = assert_as_single_runs(P, model.T[None], np.zeros(3, dtype=np.int64), X0,
+                                  int(round(model.sample_time / 1e-4)), 200, 1e-4, threads=(1, 2))[0]
+        out.append(X)
     assert not np.allclose(out[0], out[1])  # the feedforward is carried, not dropped
+    assert not np.array_equal(out[1][2], out[1][0])  # and each variant's own
 
 
 def test_cli_simulate_feedforward(capsys):

@@ -17,8 +17,9 @@ from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.scene.loader import Scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.friction_kernel import slip_friction, stuck_or_breaking
+from servo_toolkit.sim.kernel import gear_at_rest, slip_friction, stuck_or_breaking
 
+from . import rhs_reference
 from .conftest import SCENES
 
 KT, R = 0.2, 0.5
@@ -145,7 +146,7 @@ def test_stick_slip_of_a_mass_pulled_through_a_spring(belt):
 def test_stick_slip_against_an_event_driven_solution(belt):
     """The same run against an independent event-driven solution (``solve_ivp`` between stick
     and slip events at 1e-10, tests/test_hunting.stick_slip), rotor included. RK4 locates each
-    breakaway and each stick within its step (:mod:`servo_toolkit.sim.split_step`): over the
+    breakaway and each stick within its step (``split_step.h``): over the
     11 cycles every one falls in the same step as the reference's event (no drift), and the
     load's trace follows the reference to 1e-5 of the swing (1e-6 seen, the reference's own
     dense output; with the switches at step boundaries and a linear estimate it was 4e-3)."""
@@ -204,10 +205,10 @@ def test_friction_never_supplies_power(v, tc, extra, vs, applied):
     """Sliding, the friction opposes the speed and lies between Tc and Ts; at rest it takes at
     most the applied moment and never turns it around."""
     ts = tc + extra
-    f = slip_friction.py_func(v, tc, ts, 1.0 / vs, 0.0)
+    f = slip_friction(v, tc, ts, 1.0 / vs, 0.0)
     assert f * v >= 0.0
     assert tc - 1e-12 <= abs(f) <= ts + 1e-12
-    net = stuck_or_breaking.py_func(applied, ts)
+    net = stuck_or_breaking(applied, ts)
     assert abs(net) <= abs(applied) and net * applied >= 0.0
 
 
@@ -220,3 +221,64 @@ def test_the_reference_ema_holds_its_position_exactly_at_rest():
     res = run(model, Reference.voltage(0.9 * sc.motor.resistance * sc.motor.breakaway_torque
                                        / sc.motor.torque_constant), 0.2, method="rk4", dt=1e-4)
     assert np.all(res.motor_speed == 0.0)
+
+
+# --- the compiled laws against their transcription (tests/rhs_reference.py) -----------------
+
+#: magnitudes across the scales the right-hand side meets, and the edge values
+LAW_VALUES = st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.sampled_from([0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300]))
+LAW_LEVELS = st.one_of(st.floats(0.0, 1e6), st.sampled_from([0.0, math.inf]))
+
+
+def _same(a, b):
+    """The same double (the sign of a zero aside: the kernels ignore signed zeros), or both NaN."""
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
+@settings(max_examples=2000, deadline=None)
+@given(applied=LAW_VALUES, cap=LAW_LEVELS)
+def test_stuck_or_breaking_is_its_transcription(applied, cap):
+    """The stick law compares and subtracts once: the transcription's value exactly."""
+    assert _same(stuck_or_breaking(applied, cap), rhs_reference.stuck_or_breaking(applied, cap))
+
+
+@settings(max_examples=3000, deadline=None)
+@given(torque=LAW_VALUES, moment=LAW_VALUES, cap_t=LAW_LEVELS, cap_m=LAW_LEVELS,
+       fwd_loss=st.one_of(st.just(0.0), st.floats(0.0, 20.0)), back_loss=st.one_of(st.just(0.0), st.floats(0.0, 1.0)),
+       gauge=st.sampled_from([0.0, 1.0, 2.0]))
+def test_gear_at_rest_is_its_transcription(torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge):
+    """The lossy gear at rest: the breakaway distances m + loss m may be fused into a
+    multiply-add (the kernels' floating-point licence): the gauges within that rounding, the
+    net moment the transcription's exactly unless a distance is within that rounding of 0
+    (where the decision may go either way)."""
+    args = (torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge)
+    got, want = gear_at_rest(*args), rhs_reference.gear_at_rest(*args)
+    if not math.isfinite(cap_t + cap_m):
+        assert _same(got, want) or math.isnan(got) or math.isnan(want)
+        return
+    span = 8 * np.finfo(float).eps * (abs(torque) + cap_t + (abs(moment) + cap_m) * (1.0 + fwd_loss))
+    if gauge > 0.0:
+        assert abs(got - want) <= span, args
+    else:
+        fwd, bwd = (rhs_reference.gear_at_rest(*args[:-1], g) for g in (1.0, 2.0))
+        near_zero = min(abs(fwd), abs(fwd - bwd)) <= span or abs(bwd) <= span
+        assert _same(got, want) or near_zero, args
+
+
+@settings(max_examples=3000, deadline=None)
+@given(v=st.one_of(st.floats(-1e3, 1e3, allow_nan=False), st.sampled_from([0.0, -0.0, 1e-12, -1e-12])),
+       tc=st.floats(0.0, 10.0), drop=st.floats(0.0, 10.0), inv_vs=st.one_of(st.floats(0.0, 1e4), st.just(math.inf)),
+       direction=st.sampled_from([0.0, 1.0, -1.0]))
+def test_slip_friction_is_its_transcription(v, tc, drop, inv_vs, direction):
+    """The Stribeck sliding law: the kernels' exponential (within 1 ulp of the C library's,
+    which the transcription calls) and a multiply-add: within 2 ulp of the breakaway level, of
+    the same sign; NaN where v / v_s is (0 times an infinite 1 / v_s)."""
+    ts = tc + drop
+    args = (v, tc, ts, inv_vs, direction)
+    got = slip_friction(*args)
+    if math.isnan(v * inv_vs):
+        assert math.isnan(got)
+        return
+    want = rhs_reference.slip_friction(*args)
+    assert abs(got - want) <= 2 * math.ulp(ts), args
+    assert math.copysign(1.0, got) == math.copysign(1.0, want)

@@ -79,7 +79,7 @@ def test_compiled_sample_applies_the_table(ema):
     the table's factors at the measured angle (linear between the points)."""
     from servo_toolkit.sim import ModelOptions, build_model
     from servo_toolkit.sim import layout as lo
-    from servo_toolkit.sim.command_kernel import schedule_factors
+    from servo_toolkit.sim.kernel import schedule_factors
     from servo_toolkit.sim.kernel import controller_sample
     from servo_toolkit.sim.reference import Reference, fill, initial_state
     scene, result, schedule, _ = ema

@@ -1,7 +1,7 @@
 """A lossy gear at rest holds (LossyGear's stuck mode): with friction that holds, a rigid ball
 screw under a hinge force stays at rest while the motor torque lies within the band the
 efficiencies give, computed here by hand from a force balance at the nut, and breaks away just
-outside it (RK4, the reference solver and the batched lanes); a self-locking screw holds any
+outside it (RK4, the reference solver and the batch of variants); a self-locking screw holds any
 load with no current; the gear never supplies power along a run that sticks, drives and is
 back-driven; the smooth model is untouched."""
 
@@ -17,10 +17,7 @@ from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.scene.loader import Scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.batch import NFIG, NSNAP, run_variants
-from servo_toolkit.sim.batch_lanes import run_lanes
 from servo_toolkit.sim.reference import fill, initial_state
-from servo_toolkit.sim.tables import frozen_tables
 
 R, KT, LEAD = 0.5, 0.2, 0.005
 J_ROTOR, J_SCREW, M_NUT, M_LOAD = 2e-4, 1e-5, 0.5, 10.0
@@ -125,21 +122,18 @@ def test_the_two_mass_motor_side_holds_within_the_band_of_its_spring_moment(eta)
 
 
 @pytest.mark.parametrize("eta", ETAS)
-def test_a_lane_holds_and_breaks_away_as_the_single_run(models, eta):
-    """The same eight torques (with the lossless band's edges, which hold too) in the batched
-    lanes: states equal the per-variant loop, and each lane moves the way the band says."""
+def test_a_variant_holds_and_breaks_away_as_its_single_run(models, eta):
+    """The same eight torques (with the lossless band's edges, which hold too) as variants of
+    the batch: on one and two threads each is its single run to the bit, and moves the way
+    the band says."""
+    from .test_batch import assert_as_single_runs
     model = models[eta]
     cases = _torques(eta) + [((F_H + TS_L) / N + TS_M, 0), ((F_H - TS_L) / N - TS_M, 0)]
     P = np.array([fill(model, Reference.voltage(R * tau / KT)) for tau, _ in cases])
     X0 = np.array([initial_state(model, p) for p in P])
-    out = []
-    for fn in (run_variants, run_lanes):
-        X = X0.copy()
-        figs, snaps = np.zeros((len(X), NFIG)), np.zeros((len(X), NSNAP, X.shape[1] + 2))
-        fn(X, P, frozen_tables(model.T[None]), np.zeros(len(X), dtype=np.int64), 1e-5, 500, 1, figs, snaps)
-        out.append(X)
-    np.testing.assert_allclose(out[1], out[0], rtol=1e-12, atol=1e-15)
-    for (_, way), x, x0 in zip(cases, out[1], X0):
+    X = assert_as_single_runs(P, model.T[None], np.zeros(len(X0), dtype=np.int64), X0, 1, 500, 1e-5,
+                              threads=(1, 2))[0]
+    for (_, way), x, x0 in zip(cases, X, X0):
         if way == 0:
             assert x[1] == 0.0 and x[0] == x0[0]
         else:

@@ -62,7 +62,7 @@ def test_profile_refuses_bad_limits():
 def test_kernel_move_is_the_profile():
     """The kernel's move (REF_MOVE, its block in P's tail) at every time equals the host's."""
     from servo_toolkit.sim import layout as lo
-    from servo_toolkit.sim.command_kernel import move_rates
+    from servo_toolkit._physics._kernels import move_rates
     m = MoveProfile(-0.3, 2.0, 10.0, 100.0)
     P = np.zeros(lo.NP_HEADER + 4)
     P[lo.REF_KIND], P[lo.REF_OFF], P[lo.REF_T0] = lo.REF_MOVE, 0.25, 0.05

@@ -16,8 +16,8 @@ from servo_toolkit.loop.controller import Feedforward
 from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import Reference, build_model, controller_for, run
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.batch_lanes import block_kind
-from servo_toolkit.sim.feedforward_kernel import reference_rates
+from servo_toolkit._physics._kernels import table_rates
+from servo_toolkit.sim.kernel import reference
 from servo_toolkit.sim.reference import fill, initial_state
 
 from .conftest import SCENES
@@ -59,15 +59,17 @@ def test_the_kernel_gives_the_spline_and_its_exact_derivatives(ema):
     scene, controller = ema
     model = build_model(scene, controller)
     P = fill(model, sine_table())
+    assert P[lo.SHAPE_A0] == 0.0  # no command shaper: the reference is the table's spline
     t = np.linspace(0.0, 0.5, 997)  # between and on knots
-    got = np.array([reference_rates(x, P) for x in t])
+    got = np.array([table_rates(x, P) for x in t])
+    np.testing.assert_array_equal(got[:, 0], [reference(x, P) for x in t])
     q0 = model.q0
     exact = np.column_stack([q0 + A * np.sin(W * t), A * W * np.cos(W * t), -A * W * W * np.sin(W * t)])
     err = np.max(np.abs(got - exact), axis=0)
     assert (err < BOUND).all(), (err, BOUND)
     assert err[2] > 1e-3 * BOUND[2]  # the bound is not loose by orders of magnitude
     # before the first sample and after the last the end value is held, at rest
-    r, rd, rdd = reference_rates(-1.0, P)
+    r, rd, rdd = table_rates(-1.0, P)
     assert r == pytest.approx(q0 + A * math.sin(W * -0.01), abs=1e-15) and rd == 0.0 and rdd == 0.0
 
 
@@ -80,10 +82,10 @@ def test_a_periodic_table_wraps_smoothly(ema):
     P = fill(model, Reference.table(t, v, offset=0.0, periodic=True))
     assert P[lo.REF_TAB_WRAP] == 1.0 and P[lo.REF_TAB_N] == n + 1
     for x in (0.0, 0.1234, 0.2499):
-        one, later = reference_rates(x, P), reference_rates(x + 3 * 0.25, P)
+        one, later = table_rates(x, P), table_rates(x + 3 * 0.25, P)
         np.testing.assert_allclose(later, one, rtol=1e-9, atol=1e-9 * A * 1e4)
     # across the wrap the value, slope and curvature are continuous (a periodic spline)
-    before, after = reference_rates(0.25 - 1e-9, P), reference_rates(0.25 + 1e-9, P)
+    before, after = table_rates(0.25 - 1e-9, P), table_rates(0.25 + 1e-9, P)
     np.testing.assert_allclose(after, before, rtol=1e-5, atol=1e-5 * A * 1e4)
     # the start is in equilibrium at the command's value at t = 0
     assert initial_state(model, P)[2] == pytest.approx(v[0] + 0.0)
@@ -114,12 +116,22 @@ def test_the_reference_solver_follows_a_table(ema):
     assert exact.reference_angle[0] == pytest.approx(model.q0 + A * math.sin(0.3), abs=BOUND[0])
 
 
-def test_variants_share_a_table_only_when_it_is_the_same(ema):
+def test_variants_of_sampled_commands_run_in_the_batch_as_alone(ema):
+    """Variants with the same table and a table 1e-9 rad out of phase: the batch on one and two
+    threads gives each its single run to the bit; the table out of phase moves the run, the
+    same table does not, and the table's run ends where the sine's does."""
+    from .test_batch import assert_as_single_runs, batch
     scene, controller = ema
     model = build_model(scene, controller)
-    one, same, other = (fill(model, r) for r in (sine_table(), sine_table(), sine_table(phase=1e-9)))
-    assert block_kind(np.stack([one, same]), 0, 2)[1]
-    assert not block_kind(np.stack([one, other]), 0, 2)[1]
+    P = np.array([fill(model, r) for r in (sine_table(), sine_table(), sine_table(phase=1e-9))])
+    X0 = np.array([initial_state(model, p) for p in P])
+    dt, one = model.sample_time / 10, np.zeros(1, dtype=np.int64)
+    X = assert_as_single_runs(P, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 10, 2000, dt,
+                              threads=(1, 2))[0]
+    assert np.array_equal(X[1], X[0]) and not np.array_equal(X[2], X[0])
+    sine = fill(model, Reference.sine(A, F))
+    x = batch(sine[None], model.T[None], one, initial_state(model, sine)[None], 10, 2000, dt=dt)[0]
+    assert np.max(np.abs(x[0, [0, 2]] - X[0, [0, 2]])) < 2 * BOUND[0]
 
 
 @pytest.mark.parametrize("times, values, key, words", [

@@ -16,10 +16,10 @@ operator.
 The reference EMA runs its designed loop; ema_robust and ema_sizing, the same physics with
 other requirements, run the fallback cascade (``default_controller``), sparing two designs.
 
-Agreement (:func:`_tolerance`): the kernels are compiled with fast-math flags
-(``servo_toolkit.sim.vmath.FASTMATH``: nsz, arcp, contract, afn, reassoc, so reassociated
-sums, fused multiply-adds, reciprocals for divisions) and use their own branch-free tanh and
-exp (within 1 ulp of the C library's, which the transcription uses): the two may round
+Agreement (:func:`_tolerance`): the kernels are compiled with fast-math (-ffast-math
+-fno-finite-math-only: reassociated sums, fused multiply-adds, reciprocals for divisions,
+signed zeros ignored; NaN and infinity kept) and use their own branch-free tanh and exp
+(``vmath.h``, within 1 ulp of the C library's, which the transcription uses): the two may round
 differently in the last bits of every sum. A sum's rounding error is of the order of eps
 times its terms' magnitudes, not its result's: the deflection p - q beyond the play, a moment
 that nearly cancels the hinge moment or a breakaway level lose digits in either program. The

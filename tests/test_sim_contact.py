@@ -12,6 +12,8 @@ import tomllib
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from servo_toolkit import SimulationError
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run
@@ -19,6 +21,7 @@ from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.kernel import contact, hermite, rhs
 from servo_toolkit.sim.reference import fill
 
+from . import rhs_reference
 from .conftest import SCENES, build, open_circuit_run, variant
 
 BASE = tomllib.loads((SCENES / "ema_reference.toml").read_text())
@@ -50,6 +53,18 @@ def test_contact_law_is_spring_plus_damper_away_from_engagement():
     assert contact(-k * 1e-4, -beta * k * 10.0) == pytest.approx(-2 * k * 1e-4)
     assert contact(k * 1e-4, -beta * k * 10.0) == 0.0
     assert contact(-k * 1e-4, beta * k * 10.0) == 0.0
+
+
+#: magnitudes across the scales the right-hand side meets, and the edge values
+MOMENTS = st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.sampled_from([0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300]))
+
+
+@settings(max_examples=2000, deadline=None)
+@given(tau_c=MOMENTS, tau_d=MOMENTS)
+def test_compiled_contact_law_is_its_transcription(tau_c, tau_d):
+    """The compiled law compares and adds once (nothing to reassociate): the transcription's
+    value (tests/rhs_reference.py) exactly."""
+    assert contact(tau_c, tau_d) == rhs_reference.contact(tau_c, tau_d)
 
 
 @pytest.fixture(scope="module")

@@ -322,7 +322,7 @@ def _power_terms(sc, model, res):
     t_free = ((jd - jw_motor) * nts - jw_motor * (-force[0] - 0.5 * dk[0] * z[0] ** 2)) * model.P[lo.INV_JD0]
     sg = np.tanh(t_free * model.P[lo.INV_TAU_S]) * np.tanh(np.abs(n) * pd * model.P[lo.WS])
     # 1 - eta driving (sg = 1), 1 - 1/eta_b back-driven (sg = -1); on this chain (1/eta_b - 1 below
-    # 3 (1 - eta)) blended quadratically in sg (compliance_kernel.blend)
+    # 3 (1 - eta)) blended quadratically in sg (compliance.h's blend)
     c_drive, c_back = 1 - eta, 1 / max(drive.backdrive_efficiency, MIN_BACKDRIVE) - 1
     assert c_back <= 3 * c_drive
     c = 0.5 * (c_drive + c_back) * sg + 0.5 * (c_drive - c_back) * sg**2

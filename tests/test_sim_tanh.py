@@ -7,8 +7,7 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
-from servo_toolkit.sim.vmath import TANH_ONE, tanh
-from servo_toolkit.sim.vmath import TANH_SMALL
+from servo_toolkit.sim.kernel import TANH_ONE, TANH_SMALL, exp_neg, speed_sign, tanh
 
 
 def _exact(a):
@@ -62,7 +61,6 @@ def test_cut_off_is_where_tanh_is_one_in_double():
 def test_exp_neg_within_one_ulp_of_the_exact_value():
     """The Stribeck exponential of friction that holds, exp(-y) on 0..44 without a division or
     a library call: within 1 ulp of the 50-digit value; NaN through."""
-    from servo_toolkit.sim.vmath import exp_neg
     rng = np.random.default_rng(1)
     ys = np.concatenate([np.linspace(0.0, 2 * TANH_ONE, 2001), rng.uniform(0.0, 2 * TANH_ONE, 2000),
                          np.exp(rng.uniform(-40.0, 0.0, 300)), [5e-324, math.log(2) / 2, 2 * TANH_ONE]])
@@ -77,7 +75,6 @@ def test_exp_neg_within_one_ulp_of_the_exact_value():
 def test_the_loss_reads_the_friction_s_smooth_sign_for_either_sign_of_the_ratio():
     """The loss's smooth sign of the output speed, tanh(|N| p' / w_s), is taken from the
     friction's tanh(N p' / w_s) (tanh is odd): the same value for a ratio of either sign."""
-    from servo_toolkit.sim.compliance_kernel import speed_sign
     rng = np.random.default_rng(2)
     for n, pd, ws in zip(rng.uniform(-80.0, 80.0, 400), rng.normal(0.0, 2.0, 400), 10.0 ** rng.uniform(-1, 3, 400)):
         n, pd, ws = float(n), float(pd), float(ws)

@@ -1,5 +1,6 @@
-"""Nonlinear time runs of tolerance variants: every varied parameter reaches the compiled
-lanes, and each batched variant equals ``simulate`` of the scene built with its values."""
+"""Nonlinear time runs of tolerance variants: every varied parameter reaches its variant's row
+of parameters, and each batched variant equals ``simulate`` of the scene built with its
+values."""
 
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ def runs(tmp_path_factory):
     return scene, controller, values, tolerance_runs(scene, values, controller, duration=DURATION, progress=False)
 
 
-def test_every_varied_parameter_is_in_its_lane_row(runs):
+def test_every_varied_parameter_is_in_its_variant_s_row(runs):
     scene, _, values, r = runs
     rows = r.rows
     assert rows.fitted is not None and rows.error < 1e-4 and not rows.inert

@@ -75,27 +75,27 @@ def test_rk4_locates_two_switches_in_one_step_at_fourth_order(case):
     assert errors[-1] < 1e-7 and min(orders) > 3.5, (errors, orders)
 
 
-def test_the_monte_carlo_lanes_split_twice_as_the_single_run(case):
-    """The batched lanes hand a step to the same split step: lanes with the swing varied about
-    the case's equal the per-variant loop, and the case's own lane ends where the reference
-    does at 1e-4 s (2.0e-7 of the swing seen; 6.8e-5 with the second switch left inside a
-    plain step)."""
+def test_the_batch_splits_twice_as_the_single_run(case):
+    """A variant of the batch takes the single run's split steps: variants with the swing
+    varied about the case's give, on one and two threads, their single runs to the bit, and
+    the case's own variant ends where the reference does at 1e-4 s (2.0e-7 of the swing seen;
+    6.8e-5 with the second switch left inside a plain step)."""
     from servo_toolkit.sim import layout as lo
-    from servo_toolkit.sim.batch_lanes import W, block_kind
     from servo_toolkit.sim.reference import fill, initial_state
 
-    from .test_batch_lanes import DT, _assert_equal, _both
+    from .test_batch import DT, assert_as_single_runs
 
     model, ref = case
-    P = np.array([fill(model, SINE)] * (W + 1))
-    P[1:, lo.REF_A] = np.linspace(2.9, 3.1, W)
+    P = np.array([fill(model, SINE)] * 5)
+    P[1:, lo.REF_A] = np.linspace(2.9, 3.1, 4)
     X0 = np.array([initial_state(model, p) for p in P])
-    assert block_kind(np.ascontiguousarray(P), 0, W)[0]  # in lanes
     steps = round(DURATION / DT)
-    one, lanes = _both(P, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 0, steps=steps)
-    _assert_equal(one, lanes)
+    X, figs, _ = assert_as_single_runs(P, model.T[None], np.zeros(len(P), dtype=np.int64), X0, 0, steps, DT,
+                                       threads=(1, 2))
+    assert np.all(figs[:, lo.F_STATUS] == lo.OK)
+    assert len({x.tobytes() for x in X}) == len(X)  # every swing its own run
     amp = np.ptp(ref.states[:, 2])
-    end = np.abs(lanes[0][0, [0, 2]] - ref.states[-1, [0, 2]]).max() / amp
+    end = np.abs(X[0, [0, 2]] - ref.states[-1, [0, 2]]).max() / amp
     assert end < 1e-6, end
 
 

@@ -4,6 +4,10 @@
 
 #include "tab.h"
 
+/* vmath.h's tanh cut-offs: |a| from which tanh(a) is +-1, below which the rational form */
+extern const double st_tanh_one;
+extern const double st_tanh_small;
+
 double st_tanh(double a);
 double st_exp_pos(double y);
 double st_exp_neg(double y);

@@ -18,6 +18,8 @@ void st_rhs_phys(double t, double p, double pd, double q, double qd, double cur,
 
 double st_contact(double tau_c, double tau_d) { return contact(tau_c, tau_d); }
 
+double st_speed_sign(double n, double tw) { return speed_sign(n, tw); }
+
 double st_slip_friction(double v, double tc, double ts, double inv_vs, double direction)
 {
     return slip_friction(v, tc, ts, inv_vs, direction);

@@ -50,12 +50,32 @@ static inline double expm1_reduced(double r)
 #define VM_LN2_LO 1.90821492927058770002e-10
 #define VM_INV_LN2 1.44269504088896338700e+00
 
+/* The reduction's two steps must stay apart: the kernels' licence to reassociate
+   (-ffast-math) would otherwise fold n LN2_HI and n LN2_LO back into one rounded product
+   (up to 39 ulp off). The value passes through an empty asm statement, opaque to the
+   optimizer and free at run time; a volatile copy where there is no GNU asm. */
+#if defined(__GNUC__) && defined(__x86_64__)
+#define VM_OPAQUE(v) __asm__("" : "+x"(v))
+#elif defined(__GNUC__) && defined(__aarch64__)
+#define VM_OPAQUE(v) __asm__("" : "+w"(v))
+#elif defined(__GNUC__)
+#define VM_OPAQUE(v) __asm__("" : "+m"(v))
+#else
+#define VM_OPAQUE(v)                                                                              \
+    do {                                                                                          \
+        volatile double opaque_ = (v);                                                            \
+        (v) = opaque_;                                                                            \
+    } while (0)
+#endif
+
 /* exp(y) for 0 <= y <= 2 TANH_ONE (within 1 ulp; NaN passes through): y = n ln 2 + r */
 static inline double exp_pos(double y)
 {
     double yc = dmin(dmax(y, 0.0), 2.0 * TANH_ONE); /* NaN: n stays in range */
     double n = (double)(long)(yc * VM_INV_LN2 + 0.5); /* floor: the argument is >= 0 (no library call) */
-    double r = (y - n * VM_LN2_HI) - n * VM_LN2_LO;
+    double hi = y - n * VM_LN2_HI;
+    VM_OPAQUE(hi);
+    double r = hi - n * VM_LN2_LO;
     return (1.0 + expm1_reduced(r)) * pow2i((int)n);
 }
 
@@ -64,7 +84,9 @@ static inline double exp_neg(double y)
 {
     double yc = dmin(dmax(y, 0.0), 2.0 * TANH_ONE);
     double n = (double)(long)(yc * VM_INV_LN2 + 0.5); /* floor: the argument is >= 0 (no library call) */
-    double r = (n * VM_LN2_HI - y) + n * VM_LN2_LO;
+    double hi = n * VM_LN2_HI - y;
+    VM_OPAQUE(hi);
+    double r = hi + n * VM_LN2_LO;
     return (1.0 + expm1_reduced(r)) * pow2i(-(int)n);
 }
 

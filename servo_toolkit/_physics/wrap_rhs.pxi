@@ -8,6 +8,7 @@ cdef extern from "api_rhs.h":
     void st_rhs_phys(double t, double p, double pd, double q, double qd, double cur, double xi, double s,
                      const double *P, Tab T, double iref_held, double *x, double *dx, double *out) nogil
     double st_contact(double tau_c, double tau_d) nogil
+    double st_speed_sign(double n, double tw) nogil
     double st_slip_friction(double v, double tc, double ts, double inv_vs, double direction) nogil
     double st_stuck_or_breaking(double applied, double cap) nogil
     double st_gear_at_rest(double torque, double moment, double cap_t, double cap_m, double fwd_loss,
@@ -42,6 +43,12 @@ def rhs_phys(double t, double p, double pd, double q, double qd, double cur, dou
 def contact(double tau_c, double tau_d):
     """The elasto-backlash contact moment from its spring part ``tau_c`` and damper part ``tau_d``."""
     return st_contact(tau_c, tau_d)
+
+
+def speed_sign(double n, double tw):
+    """The output speed's smooth sign tanh(|N| p' / w_s) from the motor speed's
+    ``tw`` = tanh(N p' / w_s), for a ratio ``n`` of either sign."""
+    return st_speed_sign(n, tw)
 
 
 def slip_friction(double v, double tc, double ts, double inv_vs, double direction):

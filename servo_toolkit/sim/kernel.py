@@ -35,12 +35,12 @@ Every function here is the compiled one; arrays are float64 and C-contiguous, th
 
 from __future__ import annotations
 
-from .._physics._kernels import (command, contact, continuous_command, controller_sample,  # noqa: F401
-                                 controller_update, exp_neg, exp_pos, feedforward, gear_at_rest, hermite,
-                                 measured_angle, measured_motor_angle, motion, motor_angle, reference, rhs,
-                                 rhs_phys, schedule_factors, slip_friction, stuck_or_breaking, tanh)
+from .._physics._kernels import (TANH_ONE, TANH_SMALL, command, contact, continuous_command,  # noqa: F401
+                                 controller_sample, controller_update, exp_neg, exp_pos, feedforward, gear_at_rest,
+                                 hermite, measured_angle, measured_motor_angle, motion, motor_angle, reference, rhs,
+                                 rhs_phys, schedule_factors, slip_friction, speed_sign, stuck_or_breaking, tanh)
 
-__all__ = ["command", "contact", "continuous_command", "controller_sample", "controller_update", "exp_neg",
-           "exp_pos", "feedforward", "gear_at_rest", "hermite", "measured_angle", "measured_motor_angle", "motion",
-           "motor_angle", "reference", "rhs", "rhs_phys", "schedule_factors", "slip_friction", "stuck_or_breaking",
-           "tanh"]
+__all__ = ["TANH_ONE", "TANH_SMALL", "command", "contact", "continuous_command", "controller_sample",
+           "controller_update", "exp_neg", "exp_pos", "feedforward", "gear_at_rest", "hermite", "measured_angle",
+           "measured_motor_angle", "motion", "motor_angle", "reference", "rhs", "rhs_phys", "schedule_factors",
+           "slip_friction", "speed_sign", "stuck_or_breaking", "tanh"]
