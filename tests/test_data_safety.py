@@ -44,21 +44,17 @@ def _fake_result():
 @pytest.fixture
 def no_run(monkeypatch):
     """The simulation must not start: a refused output is refused before any work."""
-    import servo_toolkit.cli.cmd_simulate as cmd
     import servo_toolkit.studies.time_run as time_run
 
     def forbidden(*args, **kwargs):
         raise AssertionError("the run started before the output path was refused")
-    monkeypatch.setattr(cmd, "prepare_kernels", lambda *a, **k: None)
     monkeypatch.setattr(time_run, "simulate_study", forbidden)
 
 
 @pytest.fixture
 def fake_run(monkeypatch):
     """A simulation that returns at once (the output handling is what is tested)."""
-    import servo_toolkit.cli.cmd_simulate as cmd
     import servo_toolkit.studies.time_run as time_run
-    monkeypatch.setattr(cmd, "prepare_kernels", lambda *a, **k: None)
     monkeypatch.setattr(time_run, "simulate_study", lambda *a, **k: _fake_result())
 
 
@@ -258,9 +254,7 @@ def _earlier_report(folder: Path) -> dict:
 @pytest.fixture
 def quick_report(monkeypatch):
     """``report`` with the tiny report instead of building the scene's sections."""
-    import servo_toolkit.cli.cmd_report as cmd
     import servo_toolkit.report as report_pkg
-    monkeypatch.setattr(cmd, "prepare_kernels", lambda *a, **k: None)
     monkeypatch.setattr(report_pkg, "build_report", lambda *a, **k: _tiny_report())
 
 

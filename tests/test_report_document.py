@@ -110,7 +110,6 @@ def test_strict_exits_1_when_a_requirement_fails(monkeypatch, tmp_path, capsys):
     monkeypatch.setattr(report_pkg, "build_report", lambda *a, **k: fake)
     monkeypatch.setattr(report_pkg, "write_report", lambda *a, **k: {"html": out / "index.html", "pdf": out / "report.pdf",
                                                                       "pdf_engine": "weasyprint"})
-    monkeypatch.setattr("servo_toolkit.cli.cmd_report.prepare_kernels", lambda *a, **k: None)
     monkeypatch.setattr("servo_toolkit.cli.cmd_report._check_budget", lambda *a, **k: None)
     assert main(["report", str(EMA), "-o", str(out)]) == 0
     assert main(["report", str(EMA), "-o", str(out), "--strict"]) == 1
@@ -252,7 +251,6 @@ def test_without_pango_the_fallback_pdf_says_why(monkeypatch, tmp_path, capsys):
     fake = Report("x", "x", (Section("Requirements", "<p>none</p>", status="n/a", reason="nothing to check",
                                      key="requirements"),), ())
     monkeypatch.setattr(report_pkg, "build_report", lambda *a, **k: fake)
-    monkeypatch.setattr("servo_toolkit.cli.cmd_report.prepare_kernels", lambda *a, **k: None)
     monkeypatch.setattr("servo_toolkit.cli.cmd_report._check_budget", lambda *a, **k: None)
     out = tmp_path / "r"
     assert main(["report", str(EMA), "-o", str(out)]) == 0

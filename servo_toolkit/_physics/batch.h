@@ -20,8 +20,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include "common.h"
-#include "rhs.h"
-#include "integrate.h"
+#include "api_integrate.h"
+#include "api_rhs.h"
 
 /* One variant: the single run's loop (rk4 of integrate.h), keeping its figures and
    snapshots (and two records, its start and end, which are dropped).
@@ -66,10 +66,12 @@ static inline int variant_run(double *x, long nx, const double *P, long n_par, T
         figv[j] = fig[j];
     for (long j = 0; j < ns; j++)
         snapv[j] = snap[j];
-    /* the loop's result is in fig too */
-    LoopResult done = rk4(xv, nx, P, n_par, T, 0.0, dt, 0, n_steps, n_steps, sub, 0.0, n_steps + 1, out_t, out_x,
-                          out_aux, figv, snapv, carry, K, work, x0, PW, wide);
-    (void)done;
+    /* the loop's result is in fig too; the single run's compiled loop itself (st_rk4, not a
+       copy inlined here), so a variant equals its single run to the last bit */
+    long status, step, n_rec;
+    double max_tau, iref_end;
+    st_rk4(xv, nx, P, n_par, T, 0.0, dt, 0, n_steps, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, figv,
+           snapv, carry, K, work, x0, PW, wide, &status, &step, &n_rec, &max_tau, &iref_end);
     for (long j = 0; j < nx; j++)
         x[j] = xv[j];
     for (long j = 0; j < NFIG; j++)
@@ -126,8 +128,8 @@ static inline void jacobians(const double *X, long n_rows, long n_states, const 
             }
             xp[j] += h;
             xm[j] -= h;
-            rhs(times[m], xp, n, pv, tv, irefs[m], f1, aux);
-            rhs(times[m], xm, n, pv, tv, irefs[m], f2, aux);
+            st_rhs(times[m], xp, n, pv, tv, irefs[m], f1, aux); /* the compiled rhs that Python calls */
+            st_rhs(times[m], xm, n, pv, tv, irefs[m], f2, aux);
             for (long k = 0; k < n; k++)
                 out[(m * n + k) * n + j] = (f1[k] - f2[k]) / (2 * h);
         }
