@@ -149,3 +149,32 @@ def test_design_refuses_a_bad_file_before_designing(tmp_path, capsys):
     assert main(["design", GEARED, "--linear-only", "--plant-frf", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--plant-frf" in err[0]
+
+
+def test_a_reversed_sign_is_named_in_one_note_and_decides_no_stability(geared):
+    from servo_toolkit.studies.measured_gate import measured_rows
+    scene, r = geared
+    w = 2 * np.pi * F
+    shifted, _ = _rig(r)
+    cases = ((shifted, "motor_angle_rad", False),  # 15 % off: the phase differs about the mode only
+             (model_response(r, w, "motor_angle_rad"), "motor_angle_rad", False),
+             (-shifted, "motor_angle_rad", True),
+             (-model_response(r, w, "motor_speed_rad_s"), "motor_speed_rad_s", True))
+    for response, signal, reversed_ in cases:
+        m = measured_loop(r, scene.motor, F, response, np.ones_like(F), signal=signal)
+        sign = [n for n in m.notes() if n.startswith("SIGN")]
+        assert m.sign_reversed is reversed_ and len(sign) == int(reversed_), signal
+        if reversed_:
+            assert "reversed sensor or drive sign" in sign[0] and "180 deg" in sign[0]
+            stable = next(x for x in measured_rows(m, r.requirements) if x.id == "measured_closed_loop_stable")
+            assert stable.status == "unavailable" and "sign" in stable.detail
+
+
+@pytest.mark.parametrize("command", ["check", "design"])
+def test_check_and_design_print_the_reversed_sign_once(geared, tmp_path, capsys, command):
+    _, r = geared
+    h, _ = _rig(r)
+    path = _csv(tmp_path / "frf.csv", -h)
+    main([command, GEARED, "--linear-only", "--plant-frf", path])
+    out = capsys.readouterr().out
+    assert sum(line.strip().startswith("note: SIGN:") for line in out.splitlines()) == 1

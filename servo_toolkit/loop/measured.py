@@ -57,7 +57,7 @@ from ..plant.linear import sample_delay
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
 from .measured_mode import _responses, find_mode, model_mechanics, signal_responses
-from .measured_result import Crossing, MeasuredLoop, mismatch_bands
+from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
 
 #: a point with a coherence below this is poor: it is shown and marked, never decides a row
 POOR_COHERENCE = 0.8
@@ -124,7 +124,9 @@ def transmission_ratio(f, measured, model, coherence, signal: str) -> tuple:
     mode = find_mode(f, measured, coherence, signal, POOR_COHERENCE)
     model_mode = find_mode(f, model, np.ones(len(f)), signal, POOR_COHERENCE) if mode is not None else None
     ratio = mode.ratio_to(model_mode) if model_mode is not None else None
-    return (1.0 if ratio is None else ratio), mode, model_mode
+    if ratio is None or abs(ratio - 1.0) < 1e-6:  # the file's rounding: the model's own mode
+        ratio = 1.0
+    return ratio, mode, model_mode
 
 
 def _interp(x, x0, x1, y0, y1):
@@ -281,6 +283,11 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                          for g, x in zip(result.margins.gain_margins_db, result.margins.phase_crossover_hz)
                          if not f[0] <= x <= f[-1])
     z, nyquist_note = nyquist_on_data(result, f, loop, coh)
+    if sign_reversed(*reversed_points(h, model, coh >= POOR_COHERENCE)):
+        z, nyquist_note = None, ("not decided: the measured response's sign is the reverse of the model's, so the "
+                                 "loops inside the position loop are not the model's and neither are the open "
+                                 f"loop's right-half-plane poles the count starts from (the count on them: "
+                                 f"{nyquist_note})")
     dc = abs(complex(ct.dcgain(result.closed_loop))) if result.margins.closed_loop_stable else 1.0
     return MeasuredLoop(frequency_hz=f, response=h, model_response=model, coherence=coh, loop=loop,
                         model_loop=model_loop, closed=closed, model_closed=model_closed, signal=signal,

@@ -10,6 +10,10 @@ import numpy as np
 
 #: at most this many bands in the table of the model's mismatch
 BANDS = 6
+#: a point whose phase is within this (deg) of 180 deg off the model's counts as reversed
+REVERSED_WITHIN_DEG = 45.0
+#: more than this fraction of the good points reversed: a reversed sensor or drive sign
+REVERSED_MOST = 0.5
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,20 @@ def mismatch_bands(f, measured, model, coherence, poor: float, bands: int = BAND
                  else (math.nan,) * 4)
         out.append((float(lo), float(hi), n_in, n_in - n_good) + stats)
     return tuple(out)
+
+
+def reversed_points(measured, model, good) -> tuple[int, int]:
+    """``(reversed, good)``: the points of good coherence (mask ``good``) whose measured
+    phase lies within :data:`REVERSED_WITHIN_DEG` of 180 deg off the model's, and their number."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.degrees(np.abs(np.angle(np.asarray(measured)[good] / np.asarray(model)[good])))
+    return int(np.sum(off >= 180.0 - REVERSED_WITHIN_DEG)), int(np.sum(good))
+
+
+def sign_reversed(n: int, good: int) -> bool:
+    """More than :data:`REVERSED_MOST` of the ``good`` points reversed (``n``): the measured
+    phase is about 180 deg off the model's over most of the band, a reversed sign."""
+    return good > 0 and n > REVERSED_MOST * good
 
 
 def _first_below(f, mag, level, coherence, poor):
@@ -187,6 +205,16 @@ class MeasuredLoop:
             return math.nan if self.phase_crossings else math.inf
         return float(min(gm, key=abs))
 
+    @property
+    def reversed_points(self) -> tuple[int, int]:
+        """:func:`reversed_points` of the measured response against the model's."""
+        return reversed_points(self.response, self.model_response, ~self.poor)
+
+    @property
+    def sign_reversed(self) -> bool:
+        """:func:`sign_reversed` of the measured response against the model's."""
+        return sign_reversed(*self.reversed_points)
+
     def _ms(self, points) -> tuple[float, float]:
         s = np.abs(1.0 / (1.0 + self.loop))
         if not points.any():
@@ -236,6 +264,12 @@ class MeasuredLoop:
                "each with the two points bracketing it; Ms is the largest over the measured points and may be "
                "higher between them",
                f"Nyquist: {self.nyquist_note}"]
+        if self.sign_reversed:
+            n, good = self.reversed_points
+            out.insert(0, f"SIGN: the measured phase is 180 deg off the model's (within {REVERSED_WITHIN_DEG:g} deg) at "
+                          f"{n} of {good} points of good coherence: a reversed sensor or drive sign (the encoder's "
+                          "counting direction, the motor's leads or the logged current's sign); the figures are those "
+                          "of the loop as logged")
         if self.transmission_ratio != 1.0 and self.mode is not None:
             what = "anti-resonance" if self.mode.antiresonance_hz is not None else "resonance"
             seen, model = ((self.mode.antiresonance_hz, self.model_mode.antiresonance_hz) if what == "anti-resonance"
@@ -277,7 +311,7 @@ class MeasuredLoop:
                                              "mean_abs_deg", "max_abs_deg"), (num(v) for v in b))) for b in self.bands],
                 "mode": None if self.mode is None else self.mode.to_dict(),
                 "model_mode": None if self.model_mode is None else self.model_mode.to_dict(),
-                "transmission_ratio": self.transmission_ratio,
+                "transmission_ratio": self.transmission_ratio, "sign_reversed": self.sign_reversed,
                 "notes": list(self.notes())}
 
     def side_by_side(self) -> list:
