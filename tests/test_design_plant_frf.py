@@ -14,7 +14,7 @@ from servo_toolkit.core.spectra import response_csv
 from servo_toolkit.loop.measured import measured_loop, model_response
 from servo_toolkit.loop.measured_mode import MIN_SHIFT, find_mode, plant_system, stiffened
 
-from .conftest import SCENES, memoized_designs
+from .conftest import SCENES
 
 GEARED = str(SCENES.parent / "tests" / "scenes" / "geared_rotary.toml")
 #: 100 points per decade from 0.5 to 500 Hz: neighbours 2.3 % apart, the grid's resolution
@@ -22,12 +22,6 @@ F = np.geomspace(0.5, 500.0, 301)
 STEP = F[1] / F[0] - 1
 #: the rig's drivetrain mode 15 % above the model's: its stiffness 1.15^2 times the scene's
 SHIFT = 1.15
-
-
-@pytest.fixture(scope="module")
-def memo():
-    with memoized_designs():
-        yield
 
 
 @pytest.fixture(scope="module")

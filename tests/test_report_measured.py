@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,21 +10,10 @@ import pytest
 from servo_toolkit.cli import main
 from servo_toolkit.core.spectra import response_csv
 from servo_toolkit.identify.data import FrequencyData
-from servo_toolkit.loop.measured import model_response
-from servo_toolkit.loop.measured_mode import plant_system, stiffened
 from servo_toolkit.report.builder import MEASURED, SECTIONS, sections_of
 from servo_toolkit.report.context import Context
 
-from .conftest import SCENES, memoized_designs
-
-GEARED = str(SCENES.parent / "tests" / "scenes" / "geared_rotary.toml")
-F = np.geomspace(0.5, 500.0, 301)
-
-
-@pytest.fixture(scope="module")
-def memo():
-    with memoized_designs():
-        yield
+from .test_design_plant_frf import GEARED, F, _rig
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +24,7 @@ def rig(memo):
     from servo_toolkit.scene.loader import load_scene
     scene = load_scene(GEARED)
     r = design(scene, progress=False)
-    h = model_response(replace(r, plant=plant_system(stiffened(r.parameters, 1.15 ** 2))), 2 * np.pi * F,
-                       "motor_angle_rad")
+    h, _ = _rig(r)
     coherence = np.where(F > 100, 0.5, 0.99)
     return scene, FrequencyData.from_complex(F, h, coherence, source="rig.csv", averages=8)
 

@@ -56,7 +56,7 @@ from ..errors import SceneError
 from ..plant.linear import sample_delay
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
-from .measured_mode import _responses, find_mode, model_mechanics, signal_responses
+from .measured_mode import find_mode, model_mechanics, signal_responses, system_responses
 from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
 
 #: a point with a coherence below this is poor: it is shown and marked, never decides a row
@@ -102,8 +102,8 @@ def loop_on(result, motor, w, response, signal: str, ratio: float = 1.0):
         cc = c.current_kp + c.current_ki / s
         i_per_cmd = cc / (p.L * s + p.R + cc + p.Ke * mech_omega)
     g_theta, g_omega = g_theta_per_i * i_per_cmd, mech_omega * i_per_cmd
-    k = _responses(c.motion, w)[0]
-    d = _responses(sample_delay(c.sample_time, DELAY_SAMPLES), w)[0, 0]
+    k = system_responses(c.motion, w)[0]
+    d = system_responses(sample_delay(c.sample_time, DELAY_SAMPLES), w)[0, 0]
     k_ref, k_theta, k_omega = k[0], k[1], k[2]
     den = 1.0 - k_omega * d * g_omega
     loop = -k_theta * d * g_theta / den

@@ -145,7 +145,7 @@ def plant_system(p):
     return ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
 
 
-def _responses(system, w) -> np.ndarray:
+def system_responses(system, w) -> np.ndarray:
     """Frequency response of ``system`` at ``w`` (rad/s): (outputs, inputs, points)."""
     with np.errstate(all="ignore"):
         r = np.asarray(ct.frequency_response(system, w).complex)
@@ -161,12 +161,12 @@ def model_mechanics(plant_ss, w, ratio: float = 1.0) -> tuple[np.ndarray, np.nda
     Both come from the voltage-driven plant: with the external load at rest the current and
     the motion answer the same voltage, so their ratio is the mechanics' response to the
     current (the back-EMF cancels out of it)."""
-    r = _responses(plant_ss, w)
+    r = system_responses(plant_ss, w)
     names = list(plant_ss.output_labels)
     theta, omega_m, i = (r[names.index(n), 0] for n in ("theta", "omega_m", "i"))
     transmission = theta / omega_m
     if ratio != 1.0:
-        r = _responses(plant_ss, np.asarray(w) / ratio)
+        r = system_responses(plant_ss, np.asarray(w) / ratio)
         # theta / omega_m = G(s) / (N s): the mode part G moved, the integration kept
         transmission = r[names.index("theta"), 0] / r[names.index("omega_m"), 0] / ratio
     return omega_m / i / (1j * w), transmission
