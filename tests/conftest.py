@@ -161,3 +161,12 @@ def memoized_designs():
         yield
     finally:
         module.design, cmd.design = original, saved
+
+
+
+@pytest.fixture(scope="module")
+def memo():
+    """Within a test module, the loop design runs once per set of inputs
+    (:func:`memoized_designs`)."""
+    with memoized_designs():
+        yield

@@ -14,17 +14,11 @@ from servo_toolkit.loop.crossings import response_of
 from servo_toolkit.loop.measured import loop_on, measured_loop, model_response, sampled_crossings
 from servo_toolkit.studies.measured_gate import measured_rows
 
-from .conftest import SCENES, memoized_designs
+from .conftest import SCENES
 
 EMA = str(SCENES / "ema_reference.toml")
 #: 100 points per decade from 0.5 to 500 Hz (2.3 % between neighbours)
 F = np.geomspace(0.5, 500.0, 301)
-
-
-@pytest.fixture(scope="module")
-def memo():
-    with memoized_designs():
-        yield
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..errors import SceneError
 from .common import (add_force, add_json, add_scene, bounded, check_design_budget, check_robustness_budget, emit,
                      load_scene)
+from .plant_frf import add_plant_frf_options, measured_mode_of, plant_frf_check, read_plant_frf
 
 
 def design(scene, **options):
@@ -56,7 +57,8 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
     """Run the design with the command-line options; ``spec`` (a Robustness) replaces the
     scene's ``[robustness]`` for a robust design (``check --vary``); ``executor`` runs the
     chunks of its variants (``check --scheduler``); ``design_text``, the ``--design`` file's
-    text already read, is not read again."""
+    text already read, is not read again. With ``--plant-frf`` the drivetrain mode of the
+    measured response places the notch (:mod:`servo_toolkit.loop.measured_mode`)."""
     from ..loop.requirements import parse_overrides
     require = parse_overrides(args.require)
     if getattr(args, "design", None):
@@ -67,7 +69,7 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
         robust = spec
     return design(scene, structure=args.structure, resonance_filter=args.resonance_filter, require=require,
                   robust=robust, progress=False, executor=executor,
-                  current_ripple=getattr(args, "current_ripple", None))
+                  current_ripple=getattr(args, "current_ripple", None), measured_mode=measured_mode_of(args))
 
 
 def register(sub) -> None:
@@ -76,6 +78,7 @@ def register(sub) -> None:
     add_scene(p)
     add_design_options(p)
     add_large_signal_option(p)
+    add_plant_frf_options(p)
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
@@ -85,9 +88,12 @@ def run(args) -> int:
     """Run the command; exit 0 when every loop requirement (the large-signal and robustness
     rows included) is met and the closed loop is stable, 1 otherwise, 2 on bad input. The
     rows ``check`` adds for a ``[duty_cycle]`` (sizing), a required yield or Monte Carlo
-    requirements are not judged here."""
+    requirements are not judged here, nor the measured plant's (``--plant-frf``: its margins
+    are printed beside the model's; ``check --plant-frf`` judges them)."""
     from ..loop.requirements import parse_overrides
     parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
+    if getattr(args, "plant_frf", None):
+        read_plant_frf(args.plant_frf)  # a bad file stops before any design
     scene = load_scene(args.scene)
     check_design_budget(scene, args.force)
     if not getattr(args, "design", None):
@@ -105,7 +111,10 @@ def run(args) -> int:
     from ..loop.command_design import command_design
     command = command_design(scene, result)
     data["command"] = command.to_dict()
-    emit(args, data, result.table() + "\ncommand options (feedforward, gain schedule, shapers; "
-                                      "servo-toolkit simulate --feedforward, --schedule, --shaper):\n"
+    text = ""
+    if getattr(args, "plant_frf", None):
+        _, data["measured_plant"], text = plant_frf_check(args, scene, result, rows=False)
+    emit(args, data, result.table() + ("\n" + text if text else "") + "\ncommand options (feedforward, gain schedule, shapers; "
+                                             "servo-toolkit simulate --feedforward, --schedule, --shaper):\n"
          + "\n".join(command.lines()))
     return 0 if result.passed and result.margins.closed_loop_stable else 1

@@ -6,6 +6,7 @@ import sys
 import time
 
 from .common import add_force, add_scene, bounded, check_design_budget, check_robustness_budget, load_scene
+from .plant_frf import add_plant_frf_options, read_plant_frf
 
 
 def register(sub) -> None:
@@ -27,6 +28,7 @@ def register(sub) -> None:
     p.add_argument("--strict", action="store_true",
                    help="exit 1 when a row of the report's requirements table (the rows of servo-toolkit "
                         "check) is not met or could not be evaluated; the report is still written")
+    add_plant_frf_options(p)
     add_force(p)
     p.set_defaults(run=run)
 
@@ -57,7 +59,9 @@ def run(args) -> int:
     from ..report.builder import check_report_folder
     start = time.perf_counter()
     scene = load_scene(args.scene)
-    out_dir = check_report_folder(args.output, "--output", inputs=[args.scene, args.design, *scene.input_files])  # before any work
+    measured = read_plant_frf(args.plant_frf) if args.plant_frf else None  # a bad file: exit 2 before any work
+    out_dir = check_report_folder(args.output, "--output",
+                                  inputs=[args.scene, args.design, args.plant_frf, *scene.input_files])
     check_design_budget(scene, args.force)  # before a --design file is evaluated
     given = None
     if args.design:
@@ -65,7 +69,8 @@ def run(args) -> int:
         given = load_design(scene, args.design)
     _check_budget(scene, args, given is None)
     limit = "auto" if args.section_time_limit is None else (args.section_time_limit or None)
-    report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given)
+    report = build_report(scene, light=not args.full, progress=True, section_time_limit=limit, design=given,
+                          plant_frf=measured, plant_frf_signal=args.plant_frf_signal)
     paths = write_report(report, out_dir, progress=True, key="--output")  # swapped in whole
     report.close()
     if paths["pdf_engine"] != "weasyprint":

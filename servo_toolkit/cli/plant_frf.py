@@ -13,9 +13,11 @@ EXPECTED = "frequency_hz,gain_db,phase_deg,coherence[,averages] (what frf -o wri
 def add_plant_frf_options(p) -> None:
     """The options of a loop closed on a measured plant response."""
     p.add_argument("--plant-frf", metavar="FRF.csv",
-                   help="also check the designed loop on a measured plant: the response from the motor current to "
-                        "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence); rows "
-                        "measured_<requirement>, points of coherence below 0.8 never decide")
+                   help="also close the designed loop on a measured plant: the response from the motor current to "
+                        "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence); its "
+                        "margins beside the model's (check: rows measured_<requirement>), points of coherence below "
+                        "0.8 never decide; with --filter auto a measured drivetrain mode off the model's moves the "
+                        "notch onto it")
     p.add_argument("--plant-frf-signal", default="motor_angle_rad", metavar="COLUMN",
                    help="the signal the measured response is to (frf's --output): motor_angle_rad (default), "
                         "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current")
@@ -38,9 +40,23 @@ def read_plant_frf(path):
     return data
 
 
-def plant_frf_check(args, scene, result):
+def measured_mode_of(args):
+    """The drivetrain mode of the response ``--plant-frf`` names (None: no file, or no mode
+    in it; :mod:`servo_toolkit.loop.measured_mode`)."""
+    if not getattr(args, "plant_frf", None):
+        return None
+    from ..loop.measured import POOR_COHERENCE, SIGNALS
+    from ..loop.measured_mode import find_mode
+    if args.plant_frf_signal not in SIGNALS:
+        return None  # named by measured_loop's own error, after the design
+    data = read_plant_frf(args.plant_frf)
+    return find_mode(data.frequency_hz, data.complex, data.coherence, args.plant_frf_signal, POOR_COHERENCE)
+
+
+def plant_frf_check(args, scene, result, rows: bool = True):
     """``(rows, JSON dict, text)`` of ``result`` (the scene's design) closed on the response
-    ``--plant-frf`` names."""
+    ``--plant-frf`` names; ``rows=False`` (``design``): the figures beside the model's, no
+    verdict on them."""
     import numpy as np
 
     from ..loop.measured import measured_loop
@@ -49,12 +65,15 @@ def plant_frf_check(args, scene, result):
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
                       signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req)
-    rows = measured_rows(m, result.requirements)
+    table = measured_rows(m, result.requirements) if rows else []
     d = m.to_dict()
     d["points_detail"] = [{"frequency_hz": float(f), "loop_gain_db": float(20 * np.log10(abs(lm))),
                            "loop_phase_deg": float(np.degrees(np.angle(lm))), "coherence": float(c),
                            "poor_coherence": bool(c < m.poor_coherence)}
                           for f, lm, c in zip(m.frequency_hz, m.loop, m.coherence)]
-    text = "\n".join([m.table(), *(f"  {r.id:<34}{'ok' if r.passed else r.status.upper()}  {r.message()}" for r in rows),
-                      *(f"  note: {n}" for n in m.notes())])
-    return rows, d, text
+    verdict = ([] if rows else ["  verdict: the model's (the exit code); check --plant-frf judges the measured plant's "
+                                "rows"])
+    text = "\n".join([m.margins_table(), m.table(),
+                      *(f"  {r.id:<34}{'ok' if r.passed else r.status.upper()}  {r.message()}" for r in table),
+                      *verdict, *(f"  note: {n}" for n in m.notes())])
+    return table, d, text

@@ -26,6 +26,7 @@ from .assembly import closed_loop_matrix, controller_matrices
 from .chain_margins import chain_margins
 from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
 from .margins import frequency_grid, loop_margins
+from .measured_mode import stiffened
 from .metrics import grid_closed_loop, grid_margins
 from .requirements import check, requirements_of, unstable_checks
 from .response import loop_response, plant_responses
@@ -200,7 +201,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
            current_bandwidth_hz: float = 1000.0, structural_damping: float = DEFAULT_STRUCTURAL_DAMPING,
            model: str = "auto", require=None, phase_hz: float = REQUIREMENT_SINE_HZ, robust=None,
            progress: bool = True, over_stroke: bool = True, executor=None,
-           current_ripple: float | None = None) -> DesignResult:
+           current_ripple: float | None = None, measured_mode=None) -> DesignResult:
     """Design the position loop of a scene at the operating point ``q0``.
 
     A nominal design maximizes the smallest slack against the requirements on the nominal
@@ -254,6 +255,12 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         of the continuous current, else 5 % of the current limit). Where the chosen
         speed-loop gain costs more, the search is redone with the gain lowered to what the
         allowance permits, and the notes say which bound held it and by how much.
+    measured_mode : MeasuredMode, optional
+        The drivetrain mode of a measured plant response (:mod:`.measured_mode`): with
+        ``resonance_filter="auto"`` and the measured mode off the model's, the nominal search
+        ranks its candidates with the model's mode moved to the measured frequency, so the
+        notch lands on it; the notes give both frequencies in Hz. The margins reported stay
+        the scene model's. A robust design does not use it (its note says so).
 
     Returns
     -------
@@ -269,6 +276,9 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
                            structural_damping=structural_damping, model=model, require=require,
                            phase_hz=phase_hz, progress=progress, resonance_filter=resonance_filter,
                            executor=executor)
+        if measured_mode is not None:
+            r = replace(r, notes=r.notes + (f"the measured resonance at {measured_mode.resonance_hz:.4g} Hz is not "
+                                            "used by the robust design: its filter covers the variants' modes",))
         return r if op_note is None else replace(r, notes=(op_note,) + r.notes)
     if structure not in STRUCTURES:
         from ..errors import SceneError
@@ -295,18 +305,25 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         qd, stroke_params = design_points(scene, p.q0, model, structural_damping, scan=scan)
     else:
         qd, stroke_params = np.array([p.q0]), (p,)
+    factor, search_p = None, p
+    if measured_mode is not None:
+        factor, mode_note = measured_mode.placement(p, resonance_filter)
+        notes.append(mode_note)
+        if factor is not None:  # the search's plants carry the measured mode; the figures stay the model's
+            search_p, stroke_params = stiffened(p, factor), tuple(stiffened(x, factor) for x in stroke_params)
 
     def search(kv_cap):
-        return _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, (kp_i, ki_i),
-                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap, scan)
+        return _nominal(scene, search_p, reqs, structure, names, f_req, phase_hz, sample_time, (kp_i, ki_i),
+                        qd, stroke_params, notes, model, structural_damping, over_stroke, kv_cap, scan, factor)
 
     return bounded(scene, search(math.inf), search, current_ripple, lambda s: _delay_response(s, sample_time))
 
 
 def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, current_gains, qd, stroke_params,
-             notes, model, structural_damping, over_stroke, kv_cap, scan=None):
+             notes, model, structural_damping, over_stroke, kv_cap, scan=None, factor=None):
     """The nominal search over the stroke (a second round adds the first's worst points);
-    ``scan``: the plants along the stroke (:func:`.stroke.plant_scan`) its check reads."""
+    ``scan``: the plants along the stroke (:func:`.stroke.plant_scan`) its check reads;
+    ``factor``: the stiffness factor of the search's plants (a measured mode), None for 1."""
     unit = scene.drivetrain.output_unit
     best = None
     for round_ in range(2 if over_stroke else 1):
@@ -325,7 +342,8 @@ def _nominal(scene, p, reqs, structure, names, f_req, phase_hz, sample_time, cur
         if not extra:
             break
         qd = np.concatenate([qd, extra])
-        stroke_params = stroke_params + tuple(plant_parameters(scene, x, model, structural_damping) for x in extra)
+        added = (plant_parameters(scene, x, model, structural_damping) for x in extra)
+        stroke_params = stroke_params + tuple(x if factor is None else stiffened(x, factor) for x in added)
     return best
 
 

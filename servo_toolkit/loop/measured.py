@@ -56,7 +56,8 @@ from ..errors import SceneError
 from ..plant.linear import sample_delay
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
-from .measured_result import Crossing, MeasuredLoop, mismatch_bands
+from .measured_mode import find_mode, model_mechanics, signal_responses, system_responses
+from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
 
 #: a point with a coherence below this is poor: it is shown and marked, never decides a row
 POOR_COHERENCE = 0.8
@@ -72,26 +73,6 @@ def output_signal(output_unit: str) -> str:
     return "output_travel_m" if output_unit == "m" else "output_angle_rad"
 
 
-def _responses(system, w) -> np.ndarray:
-    """Frequency response of ``system`` at ``w`` (rad/s): (outputs, inputs, points)."""
-    with np.errstate(all="ignore"):
-        r = np.asarray(ct.frequency_response(system, w).complex)
-    return r.reshape(system.noutputs, system.ninputs, len(w))
-
-
-def model_mechanics(plant_ss, w) -> tuple[np.ndarray, np.ndarray]:
-    """The model's response from the motor current to the motor angle (rad/A) and its
-    transmission from the motor speed to the output position (``theta / omega_m``) at ``w``.
-
-    Both come from the voltage-driven plant: with the external load at rest the current and
-    the motion answer the same voltage, so their ratio is the mechanics' response to the
-    current (the back-EMF cancels out of it)."""
-    r = _responses(plant_ss, w)
-    names = list(plant_ss.output_labels)
-    theta, omega_m, i = (r[names.index(n), 0] for n in ("theta", "omega_m", "i"))
-    return omega_m / i / (1j * w), theta / omega_m
-
-
 def _motion_at(result):
     """The motion controller at the design's operating point (a schedule frozen there)."""
     c = result.controller
@@ -100,13 +81,14 @@ def _motion_at(result):
     return c
 
 
-def loop_on(result, motor, w, response, signal: str):
+def loop_on(result, motor, w, response, signal: str, ratio: float = 1.0):
     """``(L, T)`` of the design closed on ``response``, the current's response to ``signal``
-    (a column of :data:`SIGNALS`), at ``w`` (rad/s); see the module notes."""
+    (a column of :data:`SIGNALS`), at ``w`` (rad/s); see the module notes. ``ratio``: the
+    model's transmission with its mode moved by it (:func:`.measured_mode.model_mechanics`)."""
     c = _motion_at(result)
     p = result.parameters
     s = 1j * w
-    _, transmission = model_mechanics(result.plant, w)
+    _, transmission = model_mechanics(result.plant, w, ratio)
     if signal == "motor_speed_rad_s":
         mech_omega = response
     elif signal == "motor_angle_rad":
@@ -120,8 +102,8 @@ def loop_on(result, motor, w, response, signal: str):
         cc = c.current_kp + c.current_ki / s
         i_per_cmd = cc / (p.L * s + p.R + cc + p.Ke * mech_omega)
     g_theta, g_omega = g_theta_per_i * i_per_cmd, mech_omega * i_per_cmd
-    k = _responses(c.motion, w)[0]
-    d = _responses(sample_delay(c.sample_time, DELAY_SAMPLES), w)[0, 0]
+    k = system_responses(c.motion, w)[0]
+    d = system_responses(sample_delay(c.sample_time, DELAY_SAMPLES), w)[0, 0]
     k_ref, k_theta, k_omega = k[0], k[1], k[2]
     den = 1.0 - k_omega * d * g_omega
     loop = -k_theta * d * g_theta / den
@@ -132,12 +114,19 @@ def loop_on(result, motor, w, response, signal: str):
 def model_response(result, w, signal: str) -> np.ndarray:
     """The model's response from the motor current to ``signal`` at ``w`` (what ``frf``
     estimates from the model's own run)."""
-    mech, transmission = model_mechanics(result.plant, w)
-    if signal == "motor_angle_rad":
-        return mech
-    if signal == "motor_speed_rad_s":
-        return 1j * w * mech
-    return 1j * w * mech * transmission
+    return signal_responses(result.plant, w, signal)[0]
+
+
+def transmission_ratio(f, measured, model, coherence, signal: str) -> tuple:
+    """``(ratio, measured mode, model's mode)``: the measured mode frequency over the model's,
+    each read off its response at the measured points (:mod:`.measured_mode`); ratio 1 when
+    either shows no mode."""
+    mode = find_mode(f, measured, coherence, signal, POOR_COHERENCE)
+    model_mode = find_mode(f, model, np.ones(len(f)), signal, POOR_COHERENCE) if mode is not None else None
+    ratio = mode.ratio_to(model_mode) if model_mode is not None else None
+    if ratio is None or abs(ratio - 1.0) < 1e-6:  # the file's rounding: the model's own mode
+        ratio = 1.0
+    return ratio, mode, model_mode
 
 
 def _interp(x, x0, x1, y0, y1):
@@ -282,8 +271,9 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
         raise SceneError(option, f"{f.size} point(s); a loop on measured data needs at least two")
     _check_cover(result, f, option)
     w = 2 * np.pi * f
-    loop, closed = loop_on(result, motor, w, h, signal)
     model = model_response(result, w, signal)
+    ratio, mode, model_mode = transmission_ratio(f, h, model, coh, signal)
+    loop, closed = loop_on(result, motor, w, h, signal, ratio)
     model_loop, model_closed = loop_on(result, motor, w, model, signal)
     gains, phases = sampled_crossings(f, loop, coh)
     if not gains:
@@ -293,6 +283,11 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                          for g, x in zip(result.margins.gain_margins_db, result.margins.phase_crossover_hz)
                          if not f[0] <= x <= f[-1])
     z, nyquist_note = nyquist_on_data(result, f, loop, coh)
+    if sign_reversed(*reversed_points(h, model, coh >= POOR_COHERENCE)):
+        z, nyquist_note = None, ("not decided: the measured response's sign is the reverse of the model's, so the "
+                                 "loops inside the position loop are not the model's and neither are the open "
+                                 f"loop's right-half-plane poles the count starts from (the count on them: "
+                                 f"{nyquist_note})")
     dc = abs(complex(ct.dcgain(result.closed_loop))) if result.margins.closed_loop_stable else 1.0
     return MeasuredLoop(frequency_hz=f, response=h, model_response=model, coherence=coh, loop=loop,
                         model_loop=model_loop, closed=closed, model_closed=model_closed, signal=signal,
@@ -300,4 +295,5 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                         closed_loop_rhp_poles=z, nyquist_note=nyquist_note, poor_coherence=POOR_COHERENCE,
                         reference_gain=dc if math.isfinite(dc) and dc > 0 else 1.0,
                         required_bandwidth_hz=required_bandwidth_hz, model_margins=result.margins,
-                        bands=mismatch_bands(f, h, model, coh, POOR_COHERENCE))
+                        bands=mismatch_bands(f, h, model, coh, POOR_COHERENCE), mode=mode, model_mode=model_mode,
+                        transmission_ratio=ratio)

@@ -10,6 +10,10 @@ import numpy as np
 
 #: at most this many bands in the table of the model's mismatch
 BANDS = 6
+#: a point whose phase is within this (deg) of 180 deg off the model's counts as reversed
+REVERSED_WITHIN_DEG = 45.0
+#: more than this fraction of the good points reversed: a reversed sensor or drive sign
+REVERSED_MOST = 0.5
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,20 @@ def mismatch_bands(f, measured, model, coherence, poor: float, bands: int = BAND
     return tuple(out)
 
 
+def reversed_points(measured, model, good) -> tuple[int, int]:
+    """``(reversed, good)``: the points of good coherence (mask ``good``) whose measured
+    phase lies within :data:`REVERSED_WITHIN_DEG` of 180 deg off the model's, and their number."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.degrees(np.abs(np.angle(np.asarray(measured)[good] / np.asarray(model)[good])))
+    return int(np.sum(off >= 180.0 - REVERSED_WITHIN_DEG)), int(np.sum(good))
+
+
+def sign_reversed(n: int, good: int) -> bool:
+    """More than :data:`REVERSED_MOST` of the ``good`` points reversed (``n``): the measured
+    phase is about 180 deg off the model's over most of the band, a reversed sign."""
+    return good > 0 and n > REVERSED_MOST * good
+
+
 def _first_below(f, mag, level, coherence, poor):
     """First frequency where ``mag`` falls below ``level``, interpolated log-log, with the
     bracket's coherence: ``(f or None, poor, why)``."""
@@ -132,6 +150,11 @@ class MeasuredLoop:
         The model's own margins (python-control, continuous).
     bands : tuple
         :func:`mismatch_bands`.
+    mode, model_mode : MeasuredMode or None
+        The drivetrain mode read off the measured response and off the model's at the same
+        points (:mod:`.measured_mode`).
+    transmission_ratio : float
+        The model's output transmission's mode moved by this factor (1: the model's).
     """
 
     frequency_hz: np.ndarray
@@ -153,6 +176,9 @@ class MeasuredLoop:
     required_bandwidth_hz: float | None
     model_margins: object
     bands: tuple
+    mode: object = None
+    model_mode: object = None
+    transmission_ratio: float = 1.0
 
     @property
     def poor(self) -> np.ndarray:
@@ -178,6 +204,16 @@ class MeasuredLoop:
         if not gm:
             return math.nan if self.phase_crossings else math.inf
         return float(min(gm, key=abs))
+
+    @property
+    def reversed_points(self) -> tuple[int, int]:
+        """:func:`reversed_points` of the measured response against the model's."""
+        return reversed_points(self.response, self.model_response, ~self.poor)
+
+    @property
+    def sign_reversed(self) -> bool:
+        """:func:`sign_reversed` of the measured response against the model's."""
+        return sign_reversed(*self.reversed_points)
 
     def _ms(self, points) -> tuple[float, float]:
         s = np.abs(1.0 / (1.0 + self.loop))
@@ -228,6 +264,20 @@ class MeasuredLoop:
                "each with the two points bracketing it; Ms is the largest over the measured points and may be "
                "higher between them",
                f"Nyquist: {self.nyquist_note}"]
+        if self.sign_reversed:
+            n, good = self.reversed_points
+            out.insert(0, f"SIGN: the measured phase is 180 deg off the model's (within {REVERSED_WITHIN_DEG:g} deg) at "
+                          f"{n} of {good} points of good coherence: a reversed sensor or drive sign (the encoder's "
+                          "counting direction, the motor's leads or the logged current's sign); the figures are those "
+                          "of the loop as logged")
+        if self.transmission_ratio != 1.0 and self.mode is not None:
+            what = "anti-resonance" if self.mode.antiresonance_hz is not None else "resonance"
+            seen, model = ((self.mode.antiresonance_hz, self.model_mode.antiresonance_hz) if what == "anti-resonance"
+                           else (self.mode.resonance_hz, self.model_mode.resonance_hz))
+            other = "the motor speed" if self.signal.startswith("output_") else "the output"
+            out.append(f"the measured {what} lies at {seen:.4g} Hz, the model's at {model:.4g} Hz "
+                       f"({100 * (self.transmission_ratio - 1):+.1f} %): the model's transmission to {other}, "
+                       f"which the rig did not log, is taken with its mode moved alike (a stiffness error)")
         n_poor = int(self.poor.sum())
         if n_poor:
             out.append(f"{n_poor} of {f.size} points have a coherence below {self.poor_coherence:g}: shown and "
@@ -259,7 +309,33 @@ class MeasuredLoop:
                           "bandwidth_hz": num(self.model_margins.bandwidth_hz)},
                 "mismatch_bands": [dict(zip(("low_hz", "high_hz", "points", "poor_points", "mean_abs_db", "max_abs_db",
                                              "mean_abs_deg", "max_abs_deg"), (num(v) for v in b))) for b in self.bands],
+                "mode": None if self.mode is None else self.mode.to_dict(),
+                "model_mode": None if self.model_mode is None else self.model_mode.to_dict(),
+                "transmission_ratio": self.transmission_ratio, "sign_reversed": self.sign_reversed,
                 "notes": list(self.notes())}
+
+    def side_by_side(self) -> list:
+        """``(figure, unit, model, measured)``: the model's figures (python-control, the
+        continuous loop) beside those of the loop on the measured response (None: not
+        decided; NaN: every crossing of poor coherence)."""
+        mm, z = self.model_margins, self.closed_loop_rhp_poles
+        return [("gain margin", "dB", mm.gain_margin_db, self.gain_margin_db),
+                ("phase margin", "deg", mm.phase_margin_deg, self.phase_margin_deg),
+                ("sensitivity peak Ms", "dB", mm.sensitivity_peak_db, self.sensitivity_peak[0]),
+                ("bandwidth (-3 dB)", "Hz", mm.bandwidth_hz, self.bandwidth[0]),
+                ("closed loop stable", "", "yes" if mm.closed_loop_stable else "no",
+                 None if z is None else "yes" if z == 0 else "no")]
+
+    def margins_table(self) -> str:
+        """:meth:`side_by_side` as text."""
+        def cell(x):
+            if x is None or (isinstance(x, float) and math.isnan(x)):
+                return "not decided"
+            return x if isinstance(x, str) else f"{x:.4g}"
+        lines = [f"  {'margins':<28}{'model':>12}{'measured plant':>16}"]
+        lines += [f"  {name + (f' [{unit}]' if unit else ''):<28}{cell(a):>12}{cell(b):>16}"
+                  for name, unit, a, b in self.side_by_side()]
+        return "\n".join(lines)
 
     def table(self) -> str:
         """The crossings and the model's mismatch per band, as text."""

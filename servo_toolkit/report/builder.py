@@ -15,6 +15,7 @@ from ..errors import SceneError
 from . import sections_drivetrain as drv
 from . import sections_export as export_section
 from . import sections_loop as loop
+from . import sections_measured as measured
 from . import sections_montecarlo as montecarlo
 from . import sections_closed as closed
 from . import sections_command as command
@@ -61,6 +62,18 @@ SECTIONS = (
     ("accuracy", "Solver accuracy", studies.accuracy),
 )
 REQUIREMENTS = ("requirements", "Requirements", loop.requirements)
+#: the section of a measured plant response, after :data:`measured.AFTER`, in a report given one
+MEASURED = ("measured", "The loop on the measured plant", measured.measured_plant)
+
+
+def sections_of(plant_frf) -> list:
+    """The section builders of a report, in order: :data:`SECTIONS`, and :data:`MEASURED`
+    when a measured plant response is given."""
+    steps = list(SECTIONS)
+    if plant_frf is not None:
+        at = next(i for i, s in enumerate(steps) if s[0] == measured.AFTER) + 1
+        steps.insert(at, MEASURED)
+    return steps
 
 
 @dataclass(frozen=True, repr=False)
@@ -151,7 +164,8 @@ def run_section(key: str, title: str, builder, ctx: Context, time_limit: float |
 
 
 def build_report(scene, light: bool = True, executor=None, progress: bool = True,
-                 section_time_limit="auto", design=None) -> Report:
+                 section_time_limit="auto", design=None, plant_frf=None,
+                 plant_frf_signal: str = "motor_angle_rad") -> Report:
     """Build every section of the report of ``scene``.
 
     Parameters
@@ -170,6 +184,14 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     design : DesignResult, optional
         The loop to report (e.g. a tuned one, :func:`servo_toolkit.tuned_design`) instead of
         the automatic design.
+    plant_frf : FrequencyData, optional
+        A measured plant response (what ``frf -o`` writes, read with
+        :func:`servo_toolkit.identify.data.read_data`): the design places its notch on its
+        drivetrain mode, the requirements table adds the ``measured_*`` rows and a section
+        shows the loop on it beside the model's.
+    plant_frf_signal : str
+        The signal it is the response to, from the motor current (``motor_angle_rad``,
+        ``motor_speed_rad_s``, ``output_angle_rad``, ``output_travel_m``).
 
     Returns
     -------
@@ -177,14 +199,14 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     """
     if section_time_limit == "auto":
         section_time_limit = LIGHT_SECTION_TIME_LIMIT if light else None
-    ctx = Context(scene, light=light, executor=executor)
+    ctx = Context(scene, light=light, executor=executor, plant_frf=plant_frf, plant_frf_signal=plant_frf_signal)
     if design is not None:
         ctx.use_design(design)
     built = []
     # the requirements table first: what the report is signed on is never stopped half-way,
     # and the results it shares with the sections (the design, the large-signal run, the
     # Monte Carlo runs, the sizing) are computed in full before any section's time limit
-    steps = [REQUIREMENTS] + list(SECTIONS)
+    steps = [REQUIREMENTS] + sections_of(plant_frf)
     with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:
         for key, title, builder in bar:
             bar.set_postfix_str(title[:40])

@@ -21,11 +21,19 @@ class Context:
         report of the reference EMA takes well under a minute.
     executor : concurrent.futures.Executor or None
         Passed to studies that accept one.
+    plant_frf : FrequencyData or None
+        A measured plant response (``report --plant-frf``): the design places its notch on
+        its drivetrain mode (:mod:`servo_toolkit.loop.measured_mode`), the requirements
+        table adds the measured rows and the report a section on it.
+    plant_frf_signal : str
+        The signal the measured response is to, from the motor current.
     """
 
     scene: object
     light: bool = True
     executor: object = None
+    plant_frf: object = None
+    plant_frf_signal: str = "motor_angle_rad"
     _cache: dict = field(default_factory=dict, repr=False)
 
     def result(self, key: str, compute):
@@ -66,7 +74,16 @@ class Context:
         """The designed loop (``servo_toolkit.loop.design``, or the one given)."""
         self.require_drivetrain("loop design")
         from ..loop import design
-        return self.result("design", lambda: design(self.scene))
+        return self.result("design", lambda: design(self.scene, measured_mode=self.measured_mode()))
+
+    def measured_mode(self):
+        """The drivetrain mode of the measured response (None without one, or without a mode)."""
+        if self.plant_frf is None:
+            return None
+        from ..loop.measured import POOR_COHERENCE
+        from ..loop.measured_mode import find_mode
+        d = self.plant_frf
+        return find_mode(d.frequency_hz, d.complex, d.coherence, self.plant_frf_signal, POOR_COHERENCE)
 
 
     def actuator(self):

@@ -107,7 +107,23 @@ def _requirement_rows(ctx):
     if tol_error is not None:
         rows += unavailable_rows([("yield", "yield: built actuators meeting every requirement")],
                                  f"the tolerance study: {tol_error}")
+    rows += _measured_rows(ctx, design)
     return tuple(rows), tuple(g.result.notes)
+
+
+def _measured_rows(ctx, design) -> list:
+    """The rows of the loop on the measured plant response (none without one); without a
+    verdict, saying why, when it cannot be closed on it."""
+    if ctx.plant_frf is None:
+        return []
+    from ..errors import SceneError
+    from ..studies.gate import unavailable_rows
+    from ..studies.measured_gate import measured_rows
+    from .sections_measured import measured_result
+    try:
+        return measured_rows(measured_result(ctx), design.requirements)
+    except SceneError as exc:
+        return unavailable_rows([("measured_closed_loop_stable", "measured plant: closed loop stable")], str(exc))
 
 
 def requirements(ctx) -> Section:
