@@ -156,7 +156,7 @@ def _offsets(loop, sd, kind: str, q: float):
     if kind == "gain":
         off, value, spread = np.abs(ln_mag), np.degrees(np.remainder(phase, 2 * np.pi)) - 180.0, np.degrees(sd)
     else:
-        off = np.abs(np.remainder(phase + np.pi, 2 * np.pi) - np.pi)
+        off = np.abs(np.angle(-loop))  # the phase's distance from -180 deg (mod 360)
         value, spread = -20.0 / _LN10 * ln_mag, 20.0 / _LN10 * sd
     return off, value, spread, off <= q * sd
 

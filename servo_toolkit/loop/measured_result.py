@@ -334,8 +334,8 @@ class MeasuredLoop:
             return x if isinstance(x, str) else f"{x:.4g}"
         spans = self.intervals()
         lines = [f"  {'margins':<28}{'model':>12}{'measured plant':>16}  95 % interval"]
-        lines += [f"  {name + (f' [{unit}]' if unit else ''):<28}{cell(a):>12}{cell(b):>16}  {interval_text(spans.get(name))}"
-                  for name, unit, a, b in self.side_by_side()]
+        lines += [f"  {name + (f' [{unit}]' if unit else ''):<28}{cell(a):>12}{cell(b):>16}  "
+                  f"{interval_text(spans.get(name))}" for name, unit, a, b in self.side_by_side()]
         return "\n".join(lines)
 
     def table(self) -> str:

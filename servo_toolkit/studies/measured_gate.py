@@ -89,8 +89,8 @@ def measured_rows(measured, checks) -> list[RequirementRow]:
                                        "unstable", "", "fail", "closed loop unstable on the measured response: no figure"))
             continue
         if c.name == "phase_margin":
-            rows.append(_margin_row(c, measured.gain_crossings, lambda xs: min((x.margin for x in xs), default=math.inf),
-                                    spans["phase margin"]))
+            rows.append(_margin_row(c, measured.gain_crossings,
+                                    lambda xs: min((x.margin for x in xs), default=math.inf), spans["phase margin"]))
         elif c.name == "gain_margin":
             gm = spans["gain margin"]
             if gm is not None and measured.gain_margin_db < 0:  # the row judges |GM|
