@@ -12,6 +12,7 @@ from servo_toolkit.core.spectra import response_csv
 from servo_toolkit.identify.data import FrequencyData
 from servo_toolkit.report.builder import MEASURED, SECTIONS, sections_of
 from servo_toolkit.report.context import Context
+from servo_toolkit.report.section import fmt
 
 from .test_design_plant_frf import GEARED, F, _rig
 
@@ -41,6 +42,10 @@ def test_the_section_shows_both_margins_the_mismatch_and_the_bode_of_both(rig):
         assert f"{name} [{unit}]" in table
         assert f"{model:.4g} {unit}" in table and f"{measured:.4g} {unit}" in table
     assert 'id="measured-mismatch-table"' in html and "[dB]" in html and "[deg]" in html
+    assert "95 % interval" in table  # from the coherence of 8 averaged spectra
+    for name in ("gain margin", "phase margin"):
+        lo, hi = m.intervals()[name]
+        assert lo < hi and f"{fmt(lo, 4)} .. {fmt(hi, 4)}" in table
     assert "Verdict: the requirements table judges both" in html
     assert "measured anti-resonance" in html and "Hz" in html  # the design's notch note
     (spec,) = section.figures

@@ -14,9 +14,9 @@ def add_plant_frf_options(p) -> None:
     """The options of a loop closed on a measured plant response."""
     p.add_argument("--plant-frf", metavar="FRF.csv",
                    help="also close the designed loop on a measured plant: the response from the motor current to "
-                        "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence); its "
-                        "margins beside the model's (check: rows measured_<requirement>), points of coherence below "
-                        "0.8 never decide; with --filter auto a measured drivetrain mode off the model's moves the "
+                        "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence,averages); its "
+                        "margins beside the model's with their 95 % intervals from the coherence and the averages "
+                        "(check: rows measured_<requirement>), points of coherence below 0.8 never decide; with --filter auto a measured drivetrain mode off the model's moves the "
                         "notch onto it")
     p.add_argument("--plant-frf-signal", default="motor_angle_rad", metavar="COLUMN",
                    help="the signal the measured response is to (frf's --output): motor_angle_rad (default), "
@@ -64,7 +64,8 @@ def plant_frf_check(args, scene, result, rows: bool = True):
     data = read_plant_frf(args.plant_frf)
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
-                      signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req)
+                      signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req,
+                      averages=data.averages)
     table = measured_rows(m, result.requirements) if rows else []
     d = m.to_dict()
     d["points_detail"] = [{"frequency_hz": float(f), "loop_gain_db": float(20 * np.log10(abs(lm))),

@@ -86,6 +86,17 @@ def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None) ->
     return Spectrum(f[keep], h, coh, int(averages), window)
 
 
+def coherence_sd(coherence, averages: int) -> np.ndarray:
+    """Standard deviation (nepers of magnitude, and radians of phase, alike) of an H1 estimate
+    from ``averages`` spectra at each coherence: ``sqrt((1 - coh) / (2 averages coh))`` (Bendat
+    and Piersol, Random Data, the random errors of frequency-response estimates; inf at zero
+    coherence). The error is circular: its real and imaginary parts relative to the response
+    are independent, each of this standard deviation."""
+    c = np.clip(np.asarray(coherence, float), 0.0, 1.0)
+    with np.errstate(divide="ignore"):
+        return np.sqrt((1.0 - c) / (2.0 * averages * c))
+
+
 def welch_segments(n: int, segment: int) -> int:
     """Half-overlapping segments of ``segment`` samples in ``n`` (what scipy.signal.welch
     averages)."""
@@ -210,5 +221,5 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     return None
 
 
-__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "SETTLE_KEY", "Spectrum", "find_period", "periodic_h1",
-           "response_csv", "welch_h1", "welch_segments"]
+__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "SETTLE_KEY", "Spectrum", "coherence_sd", "find_period",
+           "periodic_h1", "response_csv", "welch_h1", "welch_segments"]

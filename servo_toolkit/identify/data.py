@@ -5,7 +5,9 @@ Two kinds of CSV are read, told apart by their header:
 ``frequency_hz,gain_db,phase_deg[,coherence[,averages]]``
     A measured frequency response; frequencies positive and strictly increasing, coherence
     (optional) in [0, 1], and the number of spectra averaged behind it (optional, a whole
-    number >= 1, the same on every row: what ``frf`` writes).
+    number >= 1, the same on every row: what ``frf`` writes). Comment lines before the header
+    may record that number instead (``# averages: N``, or ``# periods: N`` for the periods of
+    a multisine averaged); other comment lines are left alone.
 ``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``
     Time traces of a rig driven by a voltage; times equally spaced and increasing.
 ``time_s,command_m,output_m,current_A`` (``_rad`` for an output angle)
@@ -210,6 +212,31 @@ def _averages(column, src) -> int:
     return int(column[0])
 
 
+#: comment lines of a frequency response that record the number of spectra averaged
+AVERAGES_KEYS = ("averages", "periods")
+
+
+def _comments(lines, src) -> tuple[int | None, list]:
+    """The number of spectra averaged that the comment lines before the header record
+    (``# averages: N`` or ``# periods: N``; None: none), and the lines after them."""
+    found, k = None, 0
+    while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
+        key, sep, value = lines[k].lstrip().lstrip("#").partition(":")
+        key = key.strip().lower()
+        if sep and key in AVERAGES_KEYS:
+            try:
+                n = int(value.strip())
+            except ValueError:
+                n = 0
+            if n < 1:
+                raise SceneError(f"# {key}", f"must be a whole number >= 1 (got {value.strip()!r})", src)
+            if found is not None and n != found:
+                raise SceneError(f"# {key}", f"{n} disagrees with the {found} recorded above", src)
+            found = n
+        k += 1
+    return found, lines[k:]
+
+
 def _stem(name: str) -> str:
     """A column's quantity without its unit (``phase_rad`` -> ``phase``)."""
     return name.rsplit("_", 1)[0].lower() if "_" in name else name.lower()
@@ -262,8 +289,9 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
     """
     src = str(path)
     text = read_input_text(path, "(file)", MAX_DATA_BYTES, source=src, what="data")
+    recorded, lines = _comments(text.splitlines(), src)
     try:
-        rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+        rows = [r for r in csv.reader(lines) if r and any(c.strip() for c in r)]
     except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
         raise SceneError("(file)", f"cannot read data: not a CSV table ({exc})", src) from None
     expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence[,averages]], {','.join(TIME_HEADER)} or "
@@ -293,7 +321,11 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
     cols = np.array(values, float).T
     if kind == "frequency":
         coh = cols[3] if len(header) >= 4 else np.ones(cols.shape[1])
-        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, _averages(cols[4], src) if len(header) == 5 else None)
+        averages = _averages(cols[4], src) if len(header) == 5 else recorded
+        if recorded is not None and averages != recorded:
+            raise SceneError("averages", f"the column's {averages} disagrees with the {recorded} the comment lines "
+                             "record", src)
+        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, averages)
         check_frequency(data)
     elif kind == "time":
         data = TimeData(*cols, source=src)

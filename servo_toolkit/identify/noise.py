@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.angles import DEG_PER_RAD
+from ..core.spectra import coherence_sd
 
 #: fewest points from which the scatter gives a noise estimate
 MIN_POINTS = 12
@@ -66,15 +67,6 @@ class FrequencyNoise:
     def known(self) -> bool:
         """True when the noise was estimated."""
         return self.gain_db is not None
-
-
-def coherence_sd(coherence, averages: int) -> np.ndarray:
-    """Standard deviation (nepers, and radians of phase) of an H1 estimate from ``averages``
-    spectra at each coherence: ``sqrt((1 - coh) / (2 averages coh))`` (inf at zero
-    coherence)."""
-    c = np.clip(np.asarray(coherence, float), 0.0, 1.0)
-    with np.errstate(divide="ignore"):
-        return np.sqrt((1.0 - c) / (2.0 * averages * c))
 
 
 def _truncated_sd_factor(c: float) -> float:

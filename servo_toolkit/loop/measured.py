@@ -48,6 +48,7 @@ turning ``1 + L`` by more than 90 deg makes the count ambiguous (stated, no verd
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import control as ct
 import numpy as np
@@ -56,6 +57,7 @@ from ..errors import SceneError
 from ..plant.linear import sample_delay
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
+from .measured_interval import crossing_sd, point_sd, quantile, sensitivity
 from .measured_mode import find_mode, model_mechanics, signal_responses, system_responses
 from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
 
@@ -63,6 +65,12 @@ from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_po
 POOR_COHERENCE = 0.8
 #: the measured signals ``--plant-frf-signal`` may name (the output's by its unit)
 SIGNALS = ("motor_angle_rad", "motor_speed_rad_s", "output_angle_rad", "output_travel_m")
+#: relative step of the response's magnitude, and of the transmission's ratio, for the
+#: margins' derivatives
+STEP = 1e-6
+#: the points either side of a mode's reading whose error moves it (its parabola's three and
+#: one more, in case the reading's nearest point is not its middle one)
+MODE_POINTS = 2
 #: a step between neighbouring points turning ``1 + L`` more than this (rad) leaves the
 #: encirclement count ambiguous
 MAX_STEP_TURN = math.pi / 2
@@ -127,6 +135,50 @@ def transmission_ratio(f, measured, model, coherence, signal: str) -> tuple:
     if ratio is None or abs(ratio - 1.0) < 1e-6:  # the file's rounding: the model's own mode
         ratio = 1.0
     return ratio, mode, model_mode
+
+
+def ratio_gradient(f, h, coherence, signal: str, mode, model_mode) -> dict:
+    """``d ratio / d ln |H|`` at the points about the measured mode's readings (the ratio of
+    :func:`transmission_ratio`; empty without a mode on both sides)."""
+    if mode is None or model_mode is None:
+        return {}
+    base = mode.ratio_to(model_mode)
+    x = np.log(f)
+    points = set()
+    for hz in (mode.resonance_hz, mode.antiresonance_hz):
+        if hz is not None:
+            j = int(np.argmin(np.abs(x - math.log(hz))))
+            points |= set(range(max(j - MODE_POINTS, 0), min(j + MODE_POINTS + 1, f.size)))
+    out = {}
+    for q in sorted(points):
+        moved = h.copy()
+        moved[q] *= math.exp(STEP)
+        again = find_mode(f, moved, coherence, signal, POOR_COHERENCE)
+        if again is not None and again.ratio_to(model_mode) is not None:
+            out[q] = (again.ratio_to(model_mode) - base) / STEP
+    return out
+
+
+def with_spread(crossings, result, motor, f, h, coherence, signal: str, ratio: float, sens, sd, gradient,
+                q: float) -> tuple:
+    """``crossings`` with their margins' standard deviations (:mod:`.measured_interval`):
+    the two bracketing points' errors through the loop, and the mode's reading's through the
+    model's transmission it moves."""
+    out = []
+    loop = loop_on(result, motor, 2 * np.pi * f, h, signal, ratio)[0]
+    for c in crossings:
+        k = int(np.searchsorted(f, c.low_hz))
+        t = math.log(c.frequency_hz / f[k]) / math.log(f[k + 1] / f[k])
+        per_ratio = 0.0
+        if gradient:
+            moved = loop_on(result, motor, 2 * np.pi * f[k:k + 2], h[k:k + 2], signal, ratio * (1 + STEP))[0]
+            found = sampled_crossings(f[k:k + 2], moved, np.ones(2))[0 if c.kind == "gain" else 1]
+            if found:
+                near = min(found, key=lambda x: abs(x.margin - c.margin))
+                per_ratio = (near.margin - c.margin) / (ratio * STEP)
+        spread = crossing_sd(c.kind, t, k, loop, sens, sd, gradient, per_ratio)
+        out.append(replace(c, sd=spread, quantile=q))
+    return tuple(out)
 
 
 def _interp(x, x0, x1, y0, y1):
@@ -230,7 +282,7 @@ def _check_cover(result, f, signal_option: str) -> None:
 
 def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: str = "motor_angle_rad",
                   source: str | None = None, required_bandwidth_hz: float | None = None,
-                  option: str = "--plant-frf") -> MeasuredLoop:
+                  option: str = "--plant-frf", averages: int | None = None) -> MeasuredLoop:
     """The design ``result`` closed on a measured plant response.
 
     Parameters
@@ -253,6 +305,9 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
         Where the closed-loop phase lag is read (the bandwidth requirement).
     option : str
         The option that named the file (for errors).
+    averages : int, optional
+        The spectra averaged behind the coherence (what ``frf`` records): the margins' 95 %
+        intervals rest on it (:mod:`.measured_interval`); None: unknown, no interval.
 
     Raises
     ------
@@ -276,6 +331,13 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
     loop, closed = loop_on(result, motor, w, h, signal, ratio)
     model_loop, model_closed = loop_on(result, motor, w, model, signal)
     gains, phases = sampled_crossings(f, loop, coh)
+    sd, spread = point_sd(coh, averages), None
+    if sd is not None:
+        sens = sensitivity(lambda x: loop_on(result, motor, w, x, signal, ratio)[0], h)
+        gradient = ratio_gradient(f, h, coh, signal, mode, model_mode)
+        gains, phases = (with_spread(x, result, motor, f, h, coh, signal, ratio, sens, sd, gradient, quantile(averages))
+                         for x in (gains, phases))
+        spread = np.abs(sens) * sd
     if not gains:
         raise SceneError(option, f"|L| of the loop on the measured response does not cross 1 between {f[0]:.4g} and "
                          f"{f[-1]:.4g} Hz: the response must cover the loop's gain crossover")
@@ -296,4 +358,4 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                         reference_gain=dc if math.isfinite(dc) and dc > 0 else 1.0,
                         required_bandwidth_hz=required_bandwidth_hz, model_margins=result.margins,
                         bands=mismatch_bands(f, h, model, coh, POOR_COHERENCE), mode=mode, model_mode=model_mode,
-                        transmission_ratio=ratio)
+                        transmission_ratio=ratio, averages=averages, loop_sd=spread)

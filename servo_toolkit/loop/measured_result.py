@@ -8,63 +8,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .measured_crossing import Crossing, interval_text
+from .measured_interval import basis_note, interval, near_approach, quantile, sensitivity_sd_db
+
 #: at most this many bands in the table of the model's mismatch
 BANDS = 6
 #: a point whose phase is within this (deg) of 180 deg off the model's counts as reversed
 REVERSED_WITHIN_DEG = 45.0
 #: more than this fraction of the good points reversed: a reversed sensor or drive sign
 REVERSED_MOST = 0.5
-
-
-@dataclass(frozen=True)
-class Crossing:
-    """A crossing of the open loop found between two measured points.
-
-    Attributes
-    ----------
-    kind : {"gain", "phase"}
-        ``|L| = 1`` (its margin a phase margin, deg) or ``arg L = -180 deg`` (a gain margin, dB).
-    frequency_hz : float
-        Interpolated between the two points.
-    low_hz, high_hz : float
-        The measured points that bracket it (the grid's resolution there).
-    margin : float
-        Phase margin (deg) or gain margin (dB).
-    coherence : float
-        The lower coherence of the two points.
-    poor : bool
-        The coherence is poor: the crossing is shown, never decides a requirement.
-    source : {"measured", "model"}
-        ``model``: a phase crossing of the model's loop outside the measured band.
-    """
-
-    kind: str
-    frequency_hz: float
-    low_hz: float
-    high_hz: float
-    margin: float
-    coherence: float
-    poor: bool
-    source: str = "measured"
-
-    @property
-    def unit(self) -> str:
-        """The margin's unit."""
-        return "deg" if self.kind == "gain" else "dB"
-
-    def text(self) -> str:
-        """One line: margin, where, between which points, and a mark for poor coherence."""
-        name = "PM" if self.kind == "gain" else "GM"
-        where = (f"{self.frequency_hz:.4g} Hz (model, outside the measured band)" if self.source == "model" else
-                 f"{self.frequency_hz:.4g} Hz (between {self.low_hz:.4g} and {self.high_hz:.4g} Hz)")
-        mark = f"  [poor coherence {self.coherence:.2f}: not used]" if self.poor else ""
-        return f"{name} {self.margin:+.2f} {self.unit} at {where}{mark}"
-
-    def to_dict(self) -> dict:
-        """JSON-ready, units in the key names."""
-        key = "phase_margin_deg" if self.kind == "gain" else "gain_margin_db"
-        return {"kind": self.kind, "frequency_hz": self.frequency_hz, "between_hz": [self.low_hz, self.high_hz],
-                key: self.margin, "coherence": self.coherence, "poor_coherence": self.poor, "source": self.source}
 
 
 def mismatch_bands(f, measured, model, coherence, poor: float, bands: int = BANDS) -> tuple:
@@ -155,6 +107,11 @@ class MeasuredLoop:
         points (:mod:`.measured_mode`).
     transmission_ratio : float
         The model's output transmission's mode moved by this factor (1: the model's).
+    averages : int or None
+        The spectra averaged behind the coherence (None: unknown).
+    loop_sd : numpy.ndarray or None
+        Standard deviation of ``ln L`` at each point from the estimate's random error
+        (:mod:`.measured_interval`; None: ``averages`` unknown).
     """
 
     frequency_hz: np.ndarray
@@ -179,6 +136,8 @@ class MeasuredLoop:
     mode: object = None
     model_mode: object = None
     transmission_ratio: float = 1.0
+    averages: int | None = None
+    loop_sd: np.ndarray | None = None
 
     @property
     def poor(self) -> np.ndarray:
@@ -191,19 +150,57 @@ class MeasuredLoop:
         return None if self.closed_loop_rhp_poles is None else self.closed_loop_rhp_poles == 0
 
     @property
+    def phase_margin_crossing(self):
+        """The crossing of good coherence with the smallest phase margin (None: none)."""
+        return min((c for c in self.gain_crossings if not c.poor), key=lambda c: c.margin, default=None)
+
+    @property
+    def gain_margin_crossing(self):
+        """The crossing of good coherence (or the model's outside the band) with the gain
+        margin smallest in magnitude (None: none)."""
+        return min((c for c in self.phase_crossings if not c.poor), key=lambda c: abs(c.margin), default=None)
+
+    @property
     def phase_margin_deg(self) -> float:
         """Smallest phase margin over the crossings of good coherence (NaN: none)."""
-        pm = [c.margin for c in self.gain_crossings if not c.poor]
-        return float(min(pm)) if pm else math.nan
+        c = self.phase_margin_crossing
+        return math.nan if c is None else float(c.margin)
 
     @property
     def gain_margin_db(self) -> float:
         """Gain margin smallest in magnitude over the phase crossings of good coherence and
         the model's outside the band (``inf`` without one; NaN when every crossing is poor)."""
-        gm = [c.margin for c in self.phase_crossings if not c.poor]
-        if not gm:
+        c = self.gain_margin_crossing
+        if c is None:
             return math.nan if self.phase_crossings else math.inf
-        return float(min(gm, key=abs))
+        return float(c.margin)
+
+    @property
+    def sensitivity_peak_interval(self) -> tuple[float, float] | None:
+        """95 % interval of Ms (dB) at the point where it peaks (None: not known)."""
+        ms, at = self.sensitivity_peak
+        if self.loop_sd is None or not math.isfinite(ms):
+            return None
+        j = int(np.flatnonzero(self.frequency_hz == at)[0])
+        return interval(ms, float(sensitivity_sd_db(self.loop[j], self.loop_sd[j])), quantile(self.averages))
+
+    def _margin_interval(self, crossing, kind: str):
+        """The deciding crossing's interval, its lower end taken down to a near approach's
+        (:func:`.measured_interval.near_approach`)."""
+        bounds = None if crossing is None else crossing.interval
+        if bounds is None:
+            return None
+        crossings = self.gain_crossings if kind == "gain" else self.phase_crossings
+        low = near_approach(self.frequency_hz, self.loop, self.loop_sd, ~self.poor, crossings, kind,
+                            quantile(self.averages))
+        return bounds if low is None or low >= bounds[0] else (low, bounds[1])
+
+    def intervals(self) -> dict:
+        """The 95 % intervals of the figures that have one (gain margin dB, phase margin deg,
+        Ms dB; None where not known)."""
+        return {"gain margin": self._margin_interval(self.gain_margin_crossing, "phase"),
+                "phase margin": self._margin_interval(self.phase_margin_crossing, "gain"),
+                "sensitivity peak Ms": self.sensitivity_peak_interval}
 
     @property
     def reversed_points(self) -> tuple[int, int]:
@@ -263,7 +260,7 @@ class MeasuredLoop:
                "crossings interpolated between measured points (log |L| and unwrapped phase linear in log f), "
                "each with the two points bracketing it; Ms is the largest over the measured points and may be "
                "higher between them",
-               f"Nyquist: {self.nyquist_note}"]
+               basis_note(self.averages), f"Nyquist: {self.nyquist_note}"]
         if self.sign_reversed:
             n, good = self.reversed_points
             out.insert(0, f"SIGN: the measured phase is 180 deg off the model's (within {REVERSED_WITHIN_DEG:g} deg) at "
@@ -298,7 +295,10 @@ class MeasuredLoop:
                 "band_hz": [float(self.frequency_hz[0]), float(self.frequency_hz[-1])],
                 "poor_coherence_below": self.poor_coherence, "poor_points": int(self.poor.sum()),
                 "phase_margin_deg": num(self.phase_margin_deg), "gain_margin_db": num(self.gain_margin_db),
-                "sensitivity_peak_db": num(ms), "sensitivity_peak_hz": num(ms_hz),
+                "sensitivity_peak_db": num(ms), "sensitivity_peak_hz": num(ms_hz), "averages": self.averages,
+                **{key: None if ci is None else list(ci) for key, ci in zip(
+                    ("gain_margin_interval95_db", "phase_margin_interval95_deg", "sensitivity_peak_interval95_db"),
+                    self.intervals().values())},
                 "bandwidth_hz": bw, "bandwidth_poor_coherence": bw_poor, "bandwidth_between": bw_where,
                 "closed_loop_rhp_poles": self.closed_loop_rhp_poles, "nyquist": self.nyquist_note,
                 "gain_crossings": [c.to_dict() for c in self.gain_crossings],
@@ -332,9 +332,10 @@ class MeasuredLoop:
             if x is None or (isinstance(x, float) and math.isnan(x)):
                 return "not decided"
             return x if isinstance(x, str) else f"{x:.4g}"
-        lines = [f"  {'margins':<28}{'model':>12}{'measured plant':>16}"]
-        lines += [f"  {name + (f' [{unit}]' if unit else ''):<28}{cell(a):>12}{cell(b):>16}"
-                  for name, unit, a, b in self.side_by_side()]
+        spans = self.intervals()
+        lines = [f"  {'margins':<28}{'model':>12}{'measured plant':>16}  95 % interval"]
+        lines += [f"  {name + (f' [{unit}]' if unit else ''):<28}{cell(a):>12}{cell(b):>16}  "
+                  f"{interval_text(spans.get(name))}" for name, unit, a, b in self.side_by_side()]
         return "\n".join(lines)
 
     def table(self) -> str:

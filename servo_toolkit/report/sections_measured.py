@@ -27,7 +27,8 @@ def measured_result(ctx):
         d = ctx.design()
         f_req = next((c.required for c in d.requirements if c.name == "bandwidth"), None)
         return measured_loop(d, ctx.scene.motor, data.frequency_hz, data.complex, data.coherence,
-                             signal=ctx.plant_frf_signal, source=data.source, required_bandwidth_hz=f_req)
+                             signal=ctx.plant_frf_signal, source=data.source, required_bandwidth_hz=f_req,
+                             averages=data.averages)
     return ctx.result("measured_loop", compute)
 
 
@@ -90,8 +91,10 @@ def measured_plant(ctx) -> Section:
                "leaves its row without a verdict.")
     mode_notes = [n for n in d.notes if n.startswith(("measured anti-resonance", "measured resonance",
                                                       "the measured response shows"))]
-    margins = table(("figure", "model", "measured plant"),
-                    [(name + (f" [{unit}]" if unit else ""), _cell(a, unit), _cell(b, unit))
+    spans = m.intervals()
+    margins = table(("figure", "model", "measured plant", "95 % interval"),
+                    [(name + (f" [{unit}]" if unit else ""), _cell(a, unit), _cell(b, unit),
+                      "" if spans.get(name) is None else f"{fmt(spans[name][0], 4)} .. {fmt(spans[name][1], 4)} {unit}")
                      for name, unit, a, b in m.side_by_side()], table_id="measured-margins-table")
     bands = table(("band [Hz]", "points", "poor coherence", "mean |gain| [dB]", "max |gain| [dB]",
                    "mean |phase| [deg]", "max |phase| [deg]"),
@@ -102,7 +105,9 @@ def measured_plant(ctx) -> Section:
     notes = "".join(f"<p>Note: {esc(n)}</p>" for n in (*mode_notes, *m.notes()))
     html = (para(intro, verdict) + "<h3>Margins: model and measured plant</h3>" + margins
             + para("Model: python-control's margins of the continuous loop. Measured plant: crossings interpolated "
-                   "between the measured points, each below with the two points bracketing it.") + crossings
+                   "between the measured points, each below with the two points bracketing it. The 95 % interval "
+                   "is the H1 estimate's random error, from the coherence and the number of spectra averaged, "
+                   "carried to the margins (see the notes); a file without that number gets none.") + crossings
             + "<h3>The model against the measurement, per band</h3>"
             + para("The model's response over the measured one (points of good coherence): the mean and largest "
                    "gain difference in dB and phase difference in deg.") + bands + notes)
