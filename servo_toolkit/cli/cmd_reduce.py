@@ -62,7 +62,10 @@ def run(args) -> int:
         from ..studies.time_reference import check_sine_frequency
         for f in args.frequency:
             check_sine_frequency(f, float(scene.sensors.sample_time), None, "--frequency")
-    _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps)
+    from ..sim.simulate import controller_for
+    controller, source = controller_for(scene)  # designed once, here, and handed down
+    _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps,
+                              controller=controller)
     if args.estimate_only:
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         for e in plan.effects:
@@ -73,7 +76,7 @@ def run(args) -> int:
     alone = [e for e in plan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
     _check_budget(scene, args, amps, 2 + len(alone))
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
-                 amplitudes=amps,
+                 amplitudes=amps, controller=controller, controller_source=source,
                  progress=not args.json and sys.stderr.isatty())
     if args.plot:
         import matplotlib

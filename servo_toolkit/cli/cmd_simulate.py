@@ -70,13 +70,15 @@ def _mechanism_dispatch(scene, args):
     return run_study(scene, name, method=args.method, dt=args.dt)
 
 
-def check_budget(scene, args, amplitude) -> None:
+def check_budget(scene, args, amplitude, spec=None) -> None:
     """Refuse (exit 2, naming the knob) a run estimated beyond the work budget, unless
-    ``--force``: checked before any work."""
+    ``--force``: checked before any work. ``spec``: the study's
+    :func:`~servo_toolkit.studies.time_reference.run_spec`, when the caller has it."""
     from .budget import LONG_RUN_S, check_time, time_run_seconds
-    from ..studies.time_reference import run_spec
-    _, duration, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude,
-                                                      frequency=args.frequency)
+    if spec is None:
+        from ..studies.time_reference import run_spec
+        spec = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
+    _, duration, _, study_method, study_dt = spec
     method = args.method or study_method
     dt = args.dt or (study_dt if method in ("rk4", "paper") else None)
     seconds, what, _ = time_run_seconds(scene, duration, dt, method)
@@ -105,13 +107,20 @@ def run(args) -> int:
     if result is None:
         from ..studies.time_reference import run_spec
         from ..studies.time_run import resolve_method
-        # a bad frequency or a --dt the method would ignore: one line, before any work
-        _, _, _, study_method, study_dt = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
-        method, _ = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
-        check_budget(scene, args, amplitude)
+        # a bad frequency or a --dt the method would ignore: one line, before any work; the run
+        # is resolved here once and handed down
+        spec = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
+        reference, duration, voltage, study_method, study_dt = spec
+        method, dt = resolve_method(args.method, study_method, args.dt, study_dt, key="--dt")
+        check_budget(scene, args, amplitude, spec)
+        controller = source = None
+        if voltage is None:  # a closed loop: its controller is designed once, here
+            from ..sim.simulate import controller_for
+            controller, source = controller_for(scene)
         options = dict(method=args.method, dt=args.dt, full=args.full, amplitude=amplitude, frequency=args.frequency,
                        feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None,
-                       friction=args.friction)
+                       friction=args.friction, controller=controller, controller_source=source,
+                       spec=(reference, duration, voltage, method, dt))
         result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()

@@ -97,8 +97,10 @@ def run(args) -> int:
     if args.method == "multisine":
         return sweep_multisine.run(args, scene, amps, scheduler)
     check_sweep_budget(scene, args.study, args.frequency, amps, args.force)
-    kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full,
-              progress=not args.json and sys.stderr.isatty())
+    from ..sim.simulate import controller_for
+    controller, source = controller_for(scene)  # designed once, here, and handed down
+    kw = dict(frequencies=args.frequency, amplitudes=amps, full=args.full, controller=controller,
+              controller_source=source, progress=not args.json and sys.stderr.isatty())
     try:
         with study_executor(scheduler, args.workers) as (executor, _):
             res = _sweep(scene, args.study, executor=executor, **kw)

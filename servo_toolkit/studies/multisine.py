@@ -34,7 +34,6 @@ import numpy as np
 from ..core.parallel import run_cases
 from ..core.spectra import periodic_h1
 from ..errors import SceneError, SimulationError
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
 from .multisine_result import MultisineResult
 from .sweep_points import study_points
 
@@ -191,7 +190,7 @@ def linear_plant_response(scene, q0: float, frequency_hz, structural_damping: fl
 def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, amplitudes=None,
                     periods: int = DEFAULT_PERIODS, settle: int | None = None, response: str = "closed_loop",
                     controller=None, options=None, full: bool = False, method: str = "rk4", executor=None,
-                    progress: bool = True) -> MultisineResult:
+                    progress: bool = True, controller_source: str | None = None) -> MultisineResult:
     """Frequency response of the scene's loop from a periodic multisine command.
 
     Parameters
@@ -212,7 +211,7 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         slowest pole, at least one).
     response : {"closed_loop", "plant"}
         Command -> output position, or motor current -> motor speed.
-    controller, options, full, method, executor, progress
+    controller, options, full, method, executor, progress, controller_source
         As :func:`servo_toolkit.studies.sweep.sweep`.
 
     Returns
@@ -226,8 +225,8 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         is not whole samples, a highest line above an eighth of the sample rate, a response
         that is not one of :data:`RESPONSES`.
     """
-    from ..sim import ModelOptions, build_model, controller_for
-    from .reduce_estimates import plan_reduction
+    from ..sim import controller_for
+    from .model_setup import model_setup
     from .sweep import linear_response
 
     start = time.perf_counter()
@@ -247,25 +246,13 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
     multiples = plan.line_multiples()
     continuous = options is not None and options.controller_mode == "continuous"
     grid(plan, 0.0 if continuous else float(scene.sensors.sample_time or 0.0))  # the band's rules, before any work
-    notes = []
+    source = controller_source
     if controller is None:
         controller, source = controller_for(scene)
-        notes.append(f"controller from {source}")
     freq = plan.band[0] * multiples
-    reduced, left_out = False, ()
-    if options is None:
-        options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
-        if not full:
-            red = plan_reduction(scene, controller, freq, amps, base=options)
-            options, reduced = red.options, True
-            left_out = tuple(f"{o.effect}: {o.reason}" for o in red.omitted)
-            notes.append("reduced model (use full=True / --full for the full model)")
-    model = build_model(scene, controller, options)
-    notes += list(model.notes)
-    from .reduce_estimates import friction_cost_note
-    cost = friction_cost_note(scene, controller, freq, amps, options)
-    if cost:
-        notes.append(cost)
+    setup = model_setup(scene, controller, freq, amps, options=options, full=full, source=source)
+    options, model, reduced, left_out = setup.options, setup.model, setup.reduced, setup.left_out
+    notes = list(setup.notes)
     n, n_rec = grid(plan, model.sample_time)
     closed, decay = linear_response(scene, controller, freq, options.damping_ratio)
     linear = closed if response == "closed_loop" else linear_plant_response(scene, model.q0, freq,

@@ -100,7 +100,7 @@ def _trace_difference(full, red, t_settle):
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
            executor=None, progress: bool = True, frequencies=None, amplitudes=None,
-           per_effect=True) -> ReductionResult:
+           per_effect=True, controller_source: str | None = None) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -124,6 +124,9 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     per_effect : bool or sequence of str
         Also measure each effect left out on its own, and the chain's modes above the first
         (one more run of the study each); a sequence names the effects to measure so.
+    controller_source : str, optional
+        Where a given ``controller`` came from, noted as ``controller from SOURCE`` (the
+        caller designed it once); None: no note for a given controller.
 
     Returns
     -------
@@ -131,10 +134,10 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     """
     from ..sim import ModelOptions, build_model, controller_for
 
-    notes = []
+    source = controller_source
     if controller is None:
         controller, source = controller_for(scene)
-        notes.append(f"controller from {source}")
+    notes = [] if source is None else [f"controller from {source}"]
     if isinstance(study, str):
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":

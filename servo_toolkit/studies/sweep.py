@@ -103,7 +103,7 @@ def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAUL
 
 def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=None, options=None,
           full: bool = False, plan: DwellPlan | None = None, method: str = "rk4", executor=None,
-          progress: bool = True) -> SweepResult:
+          progress: bool = True, controller_source: str | None = None) -> SweepResult:
     """Sine-dwell frequency response of the scene's closed loop.
 
     Every frequency must be one a dwell resolves (:func:`.sweep_points.check_sweep_frequencies`:
@@ -134,13 +134,16 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
         Runs the dwells in parallel (see :func:`servo_toolkit.core.parallel.run_cases`).
     progress : bool
         tqdm progress bar.
+    controller_source : str, optional
+        Where a given ``controller`` came from, noted as ``controller from SOURCE`` (the
+        caller designed it once); None: no note for a given controller.
 
     Returns
     -------
     SweepResult
     """
-    from ..sim import ModelOptions, build_model, controller_for
-    from .reduce_estimates import plan_reduction
+    from ..sim import controller_for
+    from .model_setup import model_setup
 
     start = time.perf_counter()
     name, freqs, amps = study_points(scene, study)
@@ -155,24 +158,12 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     from .sweep_points import check_sweep_frequencies
     check_sweep_frequencies(scene, freqs_arr, "frequencies" if frequencies is not None
                             else f"studies.{name}.frequencies" if name else "frequency", plan)
-    notes = []
+    source = controller_source
     if controller is None:
         controller, source = controller_for(scene)
-        notes.append(f"controller from {source}")
-    reduced, left_out = False, ()
-    if options is None:
-        options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
-        if not full:
-            red = plan_reduction(scene, controller, freqs_arr, amps, base=options)
-            options, reduced = red.options, True
-            left_out = tuple(f"{o.effect}: {o.reason}" for o in red.omitted)
-            notes.append("reduced model (use full=True / --full for the full model)")
-    model = build_model(scene, controller, options)
-    notes += list(model.notes)
-    from .reduce_estimates import friction_cost_note
-    cost = friction_cost_note(scene, controller, freqs_arr, amps, options)
-    if cost:
-        notes.append(cost)
+    setup = model_setup(scene, controller, freqs_arr, amps, options=options, full=full, source=source)
+    options, model, reduced, left_out = setup.options, setup.model, setup.reduced, setup.left_out
+    notes = list(setup.notes)
     lin, decay = linear_response(scene, controller, freqs_arr, options.damping_ratio)
     grid = np.unique(np.concatenate([np.geomspace(freqs_arr[0] / 1.5, freqs_arr[-1] * 1.5, 300), freqs_arr]))
     lin_grid, _ = linear_response(scene, controller, grid, options.damping_ratio)

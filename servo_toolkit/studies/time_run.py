@@ -21,7 +21,8 @@ from .time_reference import run_spec
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
                    full: bool = False, amplitude: float | None = None, frequency: float | None = None,
-                   feedforward=None, shaper=None, schedule=None, friction: str | None = None):
+                   feedforward=None, shaper=None, schedule=None, friction: str | None = None,
+                   controller=None, controller_source: str | None = None, spec=None):
     """Run a scene's time-simulation study (default: the 8 Hz, 2 deg sine for 1 s).
 
     Parameters
@@ -50,6 +51,16 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         The friction model (``ModelOptions.friction``); None: chosen by need, friction that
         holds unless the reduction's estimate allows the smooth model
         (:func:`sine_run_options`); an open-loop voltage run holds (``"stick"``).
+    controller : CascadeController, optional
+        The loop's controller, designed once by the caller; default the designed loop
+        (:func:`servo_toolkit.sim.controller_for`). An open-loop voltage run takes none.
+    controller_source : str, optional
+        Where a given ``controller`` came from, noted as ``controller from SOURCE``
+        (default ``"given"``).
+    spec : tuple, optional
+        The run resolved once by the caller, :func:`resolve_run`'s
+        ``(reference, duration, voltage, method, dt)``: ``study``, ``method``, ``dt``,
+        ``amplitude`` and ``frequency`` are then not read again.
 
     Returns
     -------
@@ -57,19 +68,40 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         Its ``notes`` say which model ran and, for the reduced one, what it left out and
         the a-priori bound on what that costs.
     """
-    reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude, frequency=frequency)
-    method, dt = resolve_method(method, study_method, dt, study_dt)
+    if spec is None:
+        spec = resolve_run(scene, study, method=method, dt=dt, amplitude=amplitude, frequency=frequency)
+    reference, duration, voltage, method, dt = spec
     if voltage is not None:
         return simulate(scene, None, duration=duration, method=method, dt=dt, voltage=voltage,
                         feedforward=feedforward, shaper=shaper, schedule=schedule,
                         options=ModelOptions(friction="stick" if friction is None else check_friction(friction)))
-    controller, source = controller_for(scene)
+    if controller is None:
+        controller, source = controller_for(scene)
+    else:
+        source = controller_source or "given"
     controller = with_feedforward(controller, feedforward, scene, shaper=shaper, schedule=schedule)
     options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
     notes.insert(0, f"controller from {source}")
     result = simulate(scene, controller, reference=reference, duration=duration, method=method, dt=dt,
                       options=options)
     return replace(result, notes=tuple(notes) + tuple(result.notes))
+
+
+def resolve_run(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
+                amplitude: float | None = None, frequency: float | None = None, key: str = "dt"):
+    """The run a time study takes, resolved once: ``(reference, duration, voltage, method, dt)``,
+    :func:`~.time_reference.run_spec` with its method and step from :func:`resolve_method`.
+
+    Raises
+    ------
+    SceneError
+        As :func:`~.time_reference.run_spec` and :func:`resolve_method` (the step's error
+        named ``key``).
+    """
+    reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude,
+                                                                    frequency=frequency)
+    method, dt = resolve_method(method, study_method, dt, study_dt, key=key)
+    return reference, duration, voltage, method, dt
 
 
 def resolve_method(method, study_method, dt, study_dt, key: str = "dt"):
@@ -122,7 +154,8 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
         of the chain's modes (``options.chain_note``: the model does not note it again).
     """
     from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-    from .reduce_estimates import FRICTION_EFFECT, plan_reduction
+    from .model_setup import model_setup
+    from .reduce_estimates import FRICTION_EFFECT
     from .reduce_friction import friction_note
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
@@ -130,7 +163,8 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     if full:
         options = replace(options, chain="full", friction=friction or options.friction)
         return options, ["full model (every modelled effect kept, every drivetrain mode, friction that holds)"] + chosen
-    plan = plan_reduction(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options)
+    plan = model_setup(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options,
+                       build=False).plan
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
     size = output_unit(scene).text(amp, 3)
