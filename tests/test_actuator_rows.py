@@ -167,20 +167,16 @@ def test_a_length_for_an_angle_output_names_the_key():
 
 def test_the_default_sine_is_what_the_emps_axis_can_follow_by_its_published_mass():
     """The EMPS axis (published moving mass M = 95.1089 kg at the cart, 10 mm lead, Kt =
-    0.013984 N*m/A, 0.25 ohm, 40 A, 10 V, its offset 3.1648 N and the motor's Coulomb friction
-    0.0324573 N*m, F = 3.1648 + n 0.0324573 N at the cart): at 5 Hz the rigid-body reach with
-    half the current and half the voltage is the smaller of (s I n Kt - F) / (M w^2) and
-    (s V - R F / (n Kt)) / (w (R M w / (n Kt) + Ke n)), n = 2 pi / 10 mm; the default 1 mm
-    sine lies within it, at 8 Hz it is cut to it."""
+    0.013984 N*m/A, 0.25 ohm, 40 A, 10 V): at 5 Hz the rigid-body reach with half the current
+    and half the voltage is the smaller of s I n Kt / (M w^2) and s V / (w (R M w / (n Kt) +
+    Ke n)), n = 2 pi / 10 mm; the default 1 mm sine lies within it, at 8 Hz it is cut to it."""
     from servo_toolkit.studies.actuator.spec import followable_amplitude
     scene = load_scene(SCENES / "emps.toml")
     n, kt, m = 2 * math.pi / 0.01, 0.013984, 95.1089
-    held = 3.1648 + n * 0.0324573
 
     def reach(f):
         w = 2 * math.pi * f
-        return min((0.5 * 40 * n * kt - held) / (m * w * w),
-                   (0.5 * 10 - 0.25 * held / (n * kt)) / (w * (0.25 * m * w / (n * kt) + kt * n)))
+        return min(0.5 * 40 * n * kt / (m * w * w), 0.5 * 10 / (w * (0.25 * m * w / (n * kt) + kt * n)))
     for f in (5.0, 8.0):
         assert followable_amplitude(scene, scene.drivetrain.mid_stroke, f) == pytest.approx(reach(f), rel=1e-4)
     assert reach(5.0) > 1e-3 > reach(8.0)

@@ -11,6 +11,7 @@ from hypothesis import given, settings, strategies as st
 from servo_toolkit import load_scene
 from servo_toolkit.drivetrain.operating_point import operating_point
 from servo_toolkit.errors import SceneError
+from servo_toolkit.loop.drive_budget import drive_budget
 from servo_toolkit.loop.reach import reach
 from servo_toolkit.scene.loader import scene_from_dict
 from servo_toolkit.studies.actuator.spec import FOLLOW_SHARE, followable_amplitude
@@ -42,9 +43,10 @@ def _emps(efficiency=1.0, load_coulomb=0.0, volts=None):
 @settings(max_examples=40, deadline=None)
 @given(name=st.sampled_from(SHIPPED), f=st.floats(0.2, 40.0), share=st.floats(0.05, 3.0))
 def test_reach_and_followable_amplitude_agree(name, f, share):
-    """A sine at f of amplitude A lies within the followable amplitude exactly when the reach
-    with the same share of the limits, over the stroke the sine sweeps, allows its peak speed
-    A w and peak acceleration A w^2."""
+    """A sine at f of amplitude A lies within the followable amplitude exactly when the drive
+    budget the reach is made of, with the same share of the limits and the loads left to the
+    other share, over the stroke the sine sweeps, allows its peak speed A w and peak
+    acceleration A w^2; with no loads the reach itself says the same."""
     scene = _SCENES[name]
     q0 = operating_point(scene)[0]
     top = followable_amplitude(scene, q0, f)
@@ -52,13 +54,27 @@ def test_reach_and_followable_amplitude_agree(name, f, share):
     w = 2 * math.pi * f
 
     def allowed(a):
+        return drive_budget(scene, q0 - a, q0 + a, FOLLOW_SHARE, loads=False).allows(a * w, a * w * w)
+    if abs(share - 1.0) > 1e-6:
+        assert allowed(amp) == (share < 1.0)
+    assert allowed(top)
+
+
+@settings(max_examples=20, deadline=None)
+@given(f=st.floats(0.2, 40.0), share=st.floats(0.05, 3.0))
+def test_without_loads_the_reach_and_the_followable_amplitude_are_one_rule(f, share):
+    scene = _emps(0.8)
+    top = followable_amplitude(scene, 0.0, f)
+    w = 2 * math.pi * f
+
+    def allowed(a):
         try:
-            r = reach(scene, q0 - a, bandwidth_hz=1.0, fraction=FOLLOW_SHARE, to=q0 + a)
-        except SceneError:   # the share cannot hold the load somewhere along the sweep
+            r = reach(scene, -a, bandwidth_hz=1.0, fraction=FOLLOW_SHARE, to=a)
+        except SceneError:
             return False
         return r.allows(a * w, a * w * w)
     if abs(share - 1.0) > 1e-6:
-        assert allowed(amp) == (share < 1.0)
+        assert allowed(top * share) == (share < 1.0)
     assert allowed(top)
 
 
@@ -91,11 +107,15 @@ def test_efficiency_lowers_the_current_limited_amplitude_by_its_factor():
     assert reach(_emps(eta), 0.0, 1.0).a_max == pytest.approx(factor * reach(_emps(), 0.0, 1.0).a_max, rel=1e-12)
 
 
-def test_coulomb_friction_lowers_the_current_limited_amplitude_by_its_share():
-    """The cart's Coulomb friction F takes F / (s N Kt I_max) of the current share."""
+def test_coulomb_friction_lowers_the_reach_by_its_share_and_is_the_loops_for_a_sine():
+    """The cart's Coulomb friction F takes F / (0.8 N Kt I_max) of the reach's current share;
+    the followable sine leaves it (as the hinge moment) to the loop's share, and its amplitude
+    counts it only when asked (``loads=True``), by F / (s N Kt I_max)."""
+    from servo_toolkit.loop.drive_budget import followable_sine
     f, fc = 30.0, 50.0
     clean = followable_amplitude(_emps(volts=100), 0.0, f)
-    rubbing = followable_amplitude(_emps(load_coulomb=fc, volts=100), 0.0, f)
+    assert followable_amplitude(_emps(load_coulomb=fc, volts=100), 0.0, f) == clean
+    rubbing = followable_sine(_emps(load_coulomb=fc, volts=100), 0.0, f, FOLLOW_SHARE, loads=True)
     assert rubbing == pytest.approx(clean * (1 - fc / (FOLLOW_SHARE * N * KT * IMAX)), rel=1e-10)
     r0, r1 = reach(_emps(), 0.0, 1.0), reach(_emps(load_coulomb=fc), 0.0, 1.0)
     assert r1.a_max == pytest.approx(r0.a_max * (1 - fc / (0.8 * N * KT * IMAX)), rel=1e-12)

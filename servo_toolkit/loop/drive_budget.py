@@ -120,9 +120,13 @@ def _friction(level, static) -> float:
     return max(abs(level), abs(static or 0.0))
 
 
-def drive_budget(scene, lo: float, hi: float | None = None, fraction: float = 1.0) -> DriveBudget:
+def drive_budget(scene, lo: float, hi: float | None = None, fraction: float = 1.0, *,
+                 loads: bool = True) -> DriveBudget:
     """The :class:`DriveBudget` of ``scene`` over the stroke from ``lo`` to ``hi`` (default
-    the point ``lo``), with ``fraction`` of the motor's current and voltage limits."""
+    the point ``lo``), with ``fraction`` of the motor's current and voltage limits.
+    ``loads=False``: the hinge moment and the friction are left to another share of the limits
+    (the followable sine's rule: half for the motion, half for the loop, which holds the loads),
+    the drivetrain's efficiency and inertia still counted."""
     from ..drivetrain.stage_friction import lumped_friction
     drive, load = scene.drivetrain, scene.load
     hi = lo if hi is None else hi
@@ -138,6 +142,8 @@ def drive_budget(scene, lo: float, hi: float | None = None, fraction: float = 1.
     kt = motor.torque_constant
     fm = _friction(motor.coulomb_friction, motor.breakaway_torque)
     m, f = abs(load.hinge_moment), _friction(load.coulomb_friction, load.static_friction)
+    if not loads:
+        m = f = fm = 0.0
     held = m + f + eta * n * fm
     i_share = fraction * motor.current_limit
     back = np.full(q.shape, math.inf)
@@ -150,18 +156,19 @@ def drive_budget(scene, lo: float, hi: float | None = None, fraction: float = 1.
                        emf=float(np.max(motor.back_emf_constant * n)), resistance=motor.resistance)
 
 
-def followable_sine(scene, q0: float, frequency: float, fraction: float) -> float:
+def followable_sine(scene, q0: float, frequency: float, fraction: float, *, loads: bool = False) -> float:
     """The largest amplitude (SI) of a sine about ``q0`` at ``frequency`` (Hz) whose peak
     speed and acceleration stay within ``fraction`` of the limits over the stroke the sine
     sweeps, q0 +- its amplitude (:meth:`DriveBudget.sine_amplitude` at q0, then bisected
-    when the inertia or ratio along the sweep asks more)."""
+    when the inertia or ratio along the sweep asks more). ``loads``: as :func:`drive_budget`
+    (by default the loads are the other share's)."""
     w = 2 * math.pi * frequency
-    top = drive_budget(scene, q0, fraction=fraction).sine_amplitude(frequency)
+    top = drive_budget(scene, q0, fraction=fraction, loads=loads).sine_amplitude(frequency)
     if not (math.isfinite(top) and top > 0):
         return top
 
     def fits(a):
-        return drive_budget(scene, q0 - a, q0 + a, fraction).allows(a * w, a * w * w)
+        return drive_budget(scene, q0 - a, q0 + a, fraction, loads=loads).allows(a * w, a * w * w)
     if fits(top):
         return top
     low = 0.0

@@ -9,8 +9,8 @@ The commands:
   else the scene's sweep study's amplitude, else the output's default (2 deg, 1 mm) reduced to
   what the actuator can follow as a rigid body at that frequency with half its current and
   half its voltage (:func:`followable_amplitude`, the command's reach with that share: the
-  drivetrain's efficiency, the friction and the load's moment counted; the other half is the
-  loop's, for its corrections).
+  drivetrain's efficiency and driving-mode inertia counted; the other half is the loop's, for
+  its corrections, the friction and the load's moment).
 
 The rows (ID, key, default):
 
@@ -123,11 +123,11 @@ def followable_amplitude(scene, q0: float, frequency: float) -> float:
     """The largest output amplitude (SI) a sine about ``q0`` at ``frequency`` (Hz) can have
     for the motor to follow it as a rigid body with :data:`FOLLOW_SHARE` of its current
     limit and of its voltage: the command's reach (:func:`servo_toolkit.loop.reach.reach`)
-    with that share, over the stroke the sine sweeps. Its peak acceleration A w^2 asks the
-    current ``(J_d A w^2 + F) / (eta N Kt)`` (J_d the driving-mode inertia, F the hinge
-    moment and the load's and motor's friction through the drivetrain) and its voltage
-    ``R i + Ke N A w`` (the two parts' peaks added) (:mod:`servo_toolkit.loop.drive_budget`).
-    0 when the share cannot hold the load; infinite without limits."""
+    with that share, over the stroke the sine sweeps, the hinge moment and the friction left
+    to the other share (the loop's). Its peak acceleration A w^2 asks the current
+    ``J_d A w^2 / (eta N Kt)`` (J_d the driving-mode inertia, eta the efficiency) and its
+    voltage ``R i + Ke N A w`` (the two parts' peaks added)
+    (:mod:`servo_toolkit.loop.drive_budget`). Infinite without limits."""
     return followable_sine(scene, q0, frequency, FOLLOW_SHARE)
 
 
