@@ -8,8 +8,9 @@ The commands:
 - the requirement sine at the required bandwidth (as the large-signal rows): ``sine_amplitude``,
   else the scene's sweep study's amplitude, else the output's default (2 deg, 1 mm) reduced to
   what the actuator can follow as a rigid body at that frequency with half its current and
-  half its voltage (:func:`followable_amplitude`; the other half is the loop's, for its
-  corrections, the friction and the load).
+  half its voltage (:func:`followable_amplitude`, the command's reach with that share: the
+  drivetrain's efficiency and driving-mode inertia counted; the other half is the loop's, for
+  its corrections, the friction and the load's moment).
 
 The rows (ID, key, default):
 
@@ -35,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.output_units import output_unit
+from ...loop.drive_budget import followable_sine
 # the default current ripple, of the continuous current else of the current limit: the
 # allowance the loop design keeps the encoder's and the play's ripple within
 from ...loop.actuator_bounds import RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT  # noqa: F401 - re-exported
@@ -118,23 +120,15 @@ class Plan:
 
 
 def followable_amplitude(scene, q0: float, frequency: float) -> float:
-    """The largest output amplitude (SI) a sine at ``frequency`` (Hz) can have for the motor
-    to follow it as a rigid body with :data:`FOLLOW_SHARE` of its current limit and of its
-    voltage. With J the whole inertia at the output (kg*m^2, or kg for a travel) and n the
-    ratio at ``q0`` (motor rad per output unit), the current J A w^2 / (n Kt) and the voltage
-    R J A w^2 / (n Kt) + Ke n A w (its two parts' peaks added) within the shares; friction and
-    load moments are the other share's. Infinite without limits."""
-    m, drive = scene.motor, scene.drivetrain
-    n = abs(float(drive.ratio([q0])[0][0]))
-    j = float(drive.chain.node_inertias([q0], driving=True).sum())
-    w = 2 * math.pi * frequency
-    out = math.inf
-    if math.isfinite(m.current_limit) and j > 0:
-        out = min(out, FOLLOW_SHARE * m.current_limit * n * m.torque_constant / (j * w * w))
-    if math.isfinite(m.voltage_limit):
-        out = min(out, FOLLOW_SHARE * m.voltage_limit / (w * (m.resistance * j * w / (n * m.torque_constant)
-                                                              + m.back_emf_constant * n)))
-    return out
+    """The largest output amplitude (SI) a sine about ``q0`` at ``frequency`` (Hz) can have
+    for the motor to follow it as a rigid body with :data:`FOLLOW_SHARE` of its current
+    limit and of its voltage: the command's reach (:func:`servo_toolkit.loop.reach.reach`)
+    with that share, over the stroke the sine sweeps, the hinge moment and the friction left
+    to the other share (the loop's). Its peak acceleration A w^2 asks the current
+    ``J_d A w^2 / (eta N Kt)`` (J_d the driving-mode inertia, eta the efficiency) and its
+    voltage ``R i + Ke N A w`` (the two parts' peaks added)
+    (:mod:`servo_toolkit.loop.drive_budget`). Infinite without limits."""
+    return followable_sine(scene, q0, frequency, FOLLOW_SHARE)
 
 
 def continuous_current(motor) -> float | None:
