@@ -15,7 +15,7 @@ def add_plant_frf_options(p) -> None:
     p.add_argument("--plant-frf", metavar="FRF.csv",
                    help="also close the designed loop on a measured plant: the response from the motor current to "
                         "--plant-frf-signal as frf -o writes it (frequency_hz,gain_db,phase_deg,coherence,averages); its "
-                        "margins beside the model's with their 95 % intervals from the coherence and the averages "
+                        "margins beside the model's with their 95 %% intervals from the coherence and the averages "
                         "(check: rows measured_<requirement>), points of coherence below 0.8 never decide; with --filter auto a measured drivetrain mode off the model's moves the "
                         "notch onto it")
     p.add_argument("--plant-frf-signal", default="motor_angle_rad", metavar="COLUMN",
