@@ -93,7 +93,7 @@ def test_the_physical_range_bounds_the_fit(scene):
     # the range a key's model is conditioned for bounds the factor 100 box as well
     from servo_toolkit.identify.params import Parameter
     resistance = Parameter("motor.resistance", "motor", "resistance", "ohm", 5e3, bounds=(1e-3, 1e4))
-    hinge = Parameter("load.hinge_moment", "load", "hinge_moment", "N*m", -5e8, signed=True, bounds=(1e-12, 1e9))
+    hinge = Parameter("load.hinge_moment", "load", "hinge_moment", "N*m", -5e8, rule="finite", bounds=(1e-12, 1e9))
     lo, hi = physical_range([resistance, hinge])
     assert (lo[0], hi[0]) == pytest.approx((50.0, 1e4)) and (lo[1], hi[1]) == pytest.approx((-1e9, 1e9))
 

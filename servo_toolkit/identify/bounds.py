@@ -59,8 +59,8 @@ class Coordinates:
     """
 
     def __init__(self, parameters):
-        self.initial = np.array([p.initial for p in parameters], float)
-        self.signed = np.array([getattr(p, "signed", False) for p in parameters], bool)
+        self.initial = np.array([p.value for p in parameters], float)
+        self.signed = np.array([p.signed for p in parameters], bool)
         self.scale = np.abs(self.initial)
         accepted = [getattr(p, "bounds", None) or (0.0, math.inf) for p in parameters]
         low = np.array([b[0] for b in accepted], float)

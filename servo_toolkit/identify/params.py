@@ -9,48 +9,18 @@ scene's ``[tolerances]``); a fit parameter is a positive scalar quantity of the 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 from ..errors import SceneError
-from ..scene.key_paths import SceneKeys
+from ..scene.key_paths import KeyPath, SceneKeys
 from ..scene.loader import read_scene_text, scene_from_dict
 
 
-@dataclass(frozen=True)
-class Parameter:
-    """One scene key to fit.
-
-    Attributes
-    ----------
-    key : str
-        Key path as error messages print it, e.g. ``drivetrain[3].stiffness``.
-    table : str
-        Path of its table, e.g. ``drivetrain[3]``.
-    name : str
-        Key inside the table.
-    unit : str
-        SI unit the loader converts it to.
-    initial : float
-        Value in the scene (SI).
-    written : object
-        The value as the file writes it (None when the loader's default applies).
-    signed : bool
-        The scene accepts any sign (a constant force or moment): fitted as a value, not as a
-        logarithm.
-    bounds : tuple or None
-        ``(low, high)``: the magnitudes the loader accepts for the key, the range its model
-        is conditioned for (:mod:`servo_toolkit.core.ranges`, or the component's own).
-    """
-
-    key: str
-    table: str
-    name: str
-    unit: str
-    initial: float
-    written: object = None
-    signed: bool = False
-    bounds: tuple | None = None
+#: A scene key to fit: its :attr:`~servo_toolkit.scene.key_paths.KeyPath.value` in the scene
+#: is the fit's initial value, :attr:`~servo_toolkit.scene.key_paths.KeyPath.signed` says
+#: whether the fit varies the value or its logarithm, ``bounds`` the magnitudes it may take.
+Parameter = KeyPath
 
 
 class SceneTemplate:
@@ -90,21 +60,19 @@ class SceneTemplate:
             if key.startswith("sensors."):
                 raise SceneError(key, "not a physical parameter of the plant; fit motor, drivetrain or load keys")
             kp = self.keys.resolve(key, integers=False, what="a quantity of this scene; fit one of:")
-            value = kp.value
-            signed = kp.rule == "finite"
+            value, signed = kp.value, kp.signed
             if signed and not (value != 0 and abs(value) < float("inf")):
                 raise SceneError(key, f"must be a nonzero finite scalar to be fitted: its magnitude sets the "
                                  f"search's scale (is {value:g} {kp.unit})")
             if not signed and not (value > 0 and value < float("inf")):
                 raise SceneError(key, f"must be a positive finite scalar to be fitted (is {value:g} {kp.unit})")
-            params.append(Parameter(key, kp.table, kp.name, kp.unit, value, kp.written, signed,
-                                    None if kp.bounds is None else tuple(float(b) for b in kp.bounds)))
+            params.append(replace(kp, bounds=None if kp.bounds is None else tuple(float(b) for b in kp.bounds)))
         self.parameters = tuple(params)
 
     @property
     def initial(self) -> list:
         """Initial values (SI), in parameter order."""
-        return [p.initial for p in self.parameters]
+        return [p.value for p in self.parameters]
 
     def scene(self, values):
         """The scene with the parameters set to ``values`` (SI, in parameter order)."""

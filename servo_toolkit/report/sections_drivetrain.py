@@ -12,6 +12,7 @@ from .section import FigureSpec, Section, esc, fmt, para, table
 from ..display.html import column
 from ..display.units import DIMENSIONLESS, DisplayUnits
 from ..core.angles import DEG_PER_RAD
+from ..studies.stiffness import stiffness_study
 from .units_table import LINEAR_LOAD, rows as unit_rows
 
 TABLE_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
@@ -66,23 +67,30 @@ def _output_units(drive, display: DisplayUnits | None = None):
     return qu, qf, display.stiffness_unit(linear), display.factor("stiffness", linear)
 
 
+def _stiffness_at(scene, values, linear: bool):
+    """The stiffness study at output points given in deg, or in mm for a linear output."""
+    return stiffness_study(scene, positions_mm=values) if linear else stiffness_study(scene, angles_deg=values)
+
+
 def stiffness_chain(ctx) -> Section:
     """Each stage's stiffness at the output, compliance shares, the front-stage criterion
-    (:data:`~servo_toolkit.report.references.NEGLECT_CRITERION`)."""
+    (:data:`~servo_toolkit.report.references.NEGLECT_CRITERION`), all from
+    :func:`~servo_toolkit.studies.stiffness.stiffness_study`: at the table's points and,
+    for the criterion and the figures, along the stroke."""
     ctx.require_drivetrain("the stiffness chain")
     drive = ctx.scene.drivetrain
     qu, qf, ku, kf = _output_units(drive, ctx.scene.display)
+    linear = qu == "mm"
     lo, hi = np.asarray(drive.stroke) * qf
     points = [a for a in TABLE_ANGLES_DEG if qu == "deg" and lo - 1e-9 <= a <= hi + 1e-9] or [drive.mid_stroke * qf]
-    q = np.asarray(points) / qf
-    chain = drive.stiffness(q)
+    chain = _stiffness_at(ctx.scene, points, linear)
     if not chain.names:
         return Section("Stiffness chain", para(
             "No stage of this drivetrain declares a stiffness: the chain is modelled as rigid, so "
             "there is no drivetrain resonance to report."), key="stiffness")
     qs = figures.stroke_grid(drive)
-    along = drive.stiffness(qs)
-    crit = along.criterion()
+    along = _stiffness_at(ctx.scene, qs * qf, linear)
+    crit = along.criterion
     header = ["stage"] + [f"{a:+.4g} {qu}: k [{ku}]" for a in points] + [f"{a:+.4g} {qu}: share" for a in points] \
         + ["max share over stroke", "ratio to later stages (min)", "own stiffness / later (max)",
            f"may be neglected ({REFERENCES[1].cite})"]
@@ -113,7 +121,6 @@ def stiffness_chain(ctx) -> Section:
     names = [n for n, neg in zip(along.names, crit.negligible) if neg]
     text.append(f"It holds for: {', '.join(names)}." if names else "It holds for no stage of this chain.")
     fig1, ax1 = figures.new_figure()
-    linear = qu == "mm"
     figures.shares_along_stroke(along, qs, ax1, linear)
     ax1.set_xlabel(f"{_q_label(drive)} [{qu}]")
     fig2, ax2 = figures.new_figure()

@@ -29,7 +29,8 @@ _INDEX = re.compile(r"\[(\d+)\]")
 
 @dataclass(frozen=True)
 class KeyPath:
-    """One numeric scene key.
+    """One numeric scene key (also a fit parameter,
+    :data:`servo_toolkit.identify.params.Parameter`).
 
     Attributes
     ----------
@@ -65,6 +66,12 @@ class KeyPath:
     rule: str | None = None
     bounds: tuple | None = None
     integer: bool = False
+
+    @property
+    def signed(self) -> bool:
+        """The loader accepts either sign (a constant force or moment, rule ``"finite"``):
+        a fit varies the value itself, not its logarithm."""
+        return self.rule == "finite"
 
 
 def split_key(key: str) -> tuple[str, str]:
