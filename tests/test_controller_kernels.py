@@ -21,13 +21,11 @@ import numpy as np
 import pytest
 
 from servo_toolkit._physics import _kernels as C
-from servo_toolkit.loop.schedule import gain_schedule
-from servo_toolkit.sim import ModelOptions, build_model
+from servo_toolkit.sim import ModelOptions
 from servo_toolkit.sim import layout as lo
-from servo_toolkit.sim.reference import fill
 
 from . import rhs_reference, rhs_reference_command
-from .test_rhs_transcription import CASES, FF, TWO, Case, Draws, _draw_state, _references, _scene, _with_slots
+from .test_rhs_transcription import CASES, TWO, Case, Draws, _draw_state, case_builder
 
 RTOL = 1e-12
 #: examples drawn per parameter variant of a case
@@ -53,43 +51,7 @@ ALL = {**CASES, **EXTRA}
 @pytest.fixture(scope="module")
 def built(ema):
     """``built(case)``: ``(model, parameter variants)`` of a case, built once for the module."""
-    from servo_toolkit.loop.default_controller import default_controller
-    from servo_toolkit.loop.shaper import InputShaper
-    from servo_toolkit.sim import controller_for
-
-    scenes = {"ema_reference": (ema[0], {"designed": ema[1]})}
-    cases = {}
-
-    def controller(scene_name, kind):
-        scene, controllers = scenes[scene_name]
-        if kind not in controllers:
-            base, *extras = kind.split("+")
-            if extras:
-                ctrl = controller(scene_name, base)
-                if "ff" in extras:
-                    ctrl = replace(ctrl, feedforward=FF)
-                if "shaper" in extras:
-                    ctrl = replace(ctrl, shaper=InputShaper.design("zvd", 8.0, 0.05))
-                if "schedule" in extras:
-                    ctrl = replace(ctrl, schedule=gain_schedule(scene))
-                controllers[kind] = ctrl
-            else:
-                controllers[kind] = controller_for(scene)[0] if base == "designed" else default_controller(scene)
-        return controllers[kind]
-
-    def get(name):
-        if name not in cases:
-            case = ALL[name]
-            if case.scene not in scenes:
-                scenes[case.scene] = _scene(case.scene), {}
-            ctrl = None if case.controller is None else controller(case.scene, case.controller)
-            model = build_model(scenes[case.scene][0], ctrl, case.options)
-            params = [p for ref in _references(model, case.refs)
-                      for p in _with_slots(model, fill(model, ref), case.slots)]
-            cases[name] = model, params
-        return cases[name]
-
-    return get
+    return case_builder(ema, ALL, full_scale=False)
 
 
 def _examples(model, params, seed):

@@ -193,10 +193,11 @@ def _with_slots(model, P, slots):
     return out
 
 
-@pytest.fixture(scope="module")
-def built(ema):
-    """``built(case)``: ``(model, parameter variants, full scale of the results)`` of a case,
-    each built once for the module (the reference EMA's designed loop: the session's)."""
+def case_builder(ema, table, full_scale: bool = True):
+    """``get(case)`` of the cases of ``table``: ``(model, parameter variants)``, with the full
+    scale of the results when ``full_scale``, each built once (the reference EMA's designed
+    loop: the session's). A controller kind is ``base[+ff][+shaper][+schedule]``."""
+    from servo_toolkit.loop.schedule import gain_schedule
     scenes = {"ema_reference": (ema[0], {"designed": ema[1]})}  # scene, its controllers by kind
     cases = {}
 
@@ -205,25 +206,38 @@ def built(ema):
         if kind not in controllers:
             base, *extras = kind.split("+")
             if extras:
-                shaper = InputShaper.design("zvd", 8.0, 0.05) if "shaper" in extras else None
-                controllers[kind] = replace(controller(scene_name, base), feedforward=FF, shaper=shaper)
+                ctrl = controller(scene_name, base)
+                if "ff" in extras:
+                    ctrl = replace(ctrl, feedforward=FF)
+                if "shaper" in extras:
+                    ctrl = replace(ctrl, shaper=InputShaper.design("zvd", 8.0, 0.05))
+                if "schedule" in extras:
+                    ctrl = replace(ctrl, schedule=gain_schedule(scene))
+                controllers[kind] = ctrl
             else:
                 controllers[kind] = controller_for(scene)[0] if base == "designed" else default_controller(scene)
         return controllers[kind]
 
     def get(name):
         if name not in cases:
-            case = CASES[name]
+            case = table[name]
             if case.scene not in scenes:
                 scenes[case.scene] = _scene(case.scene), {}
             ctrl = None if case.controller is None else controller(case.scene, case.controller)
             model = build_model(scenes[case.scene][0], ctrl, case.options)
             params = [p for ref in _references(model, case.refs)
                       for p in _with_slots(model, fill(model, ref), case.slots)]
-            cases[name] = model, params, _full_scale(name, model, params)
+            cases[name] = (model, params, _full_scale(name, model, params)) if full_scale else (model, params)
         return cases[name]
 
     return get
+
+
+@pytest.fixture(scope="module")
+def built(ema):
+    """``built(case)``: ``(model, parameter variants, full scale of the results)`` of a case,
+    each built once for the module."""
+    return case_builder(ema, CASES)
 
 
 # --- drawing states -------------------------------------------------------------------------
