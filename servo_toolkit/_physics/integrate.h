@@ -52,6 +52,20 @@ static inline int _finite(const double *x, long nx)
     return isfinite(acc);
 }
 
+/* The physical states x[0:7] written from the loop's scalars into row[0:7]: the state array
+   at a sample and at the end, a record's row, a snapshot's row. */
+static inline void put_state(double *row, double p, double pd, double q, double qd, double cur, double xi,
+                             double s)
+{
+    row[0] = p;
+    row[1] = pd;
+    row[2] = q;
+    row[3] = qd;
+    row[4] = cur;
+    row[5] = xi;
+    row[6] = s;
+}
+
 /* The zero-order hold of the sampled controller: every sub steps (none when 0) the physical
    state is written to x[0:7] and the controller sampled. Updates the held i_ref (*iref) and
    the steps left to the next sample (*to_sample). */
@@ -61,13 +75,7 @@ static inline void sample_hold(double t, long sub, long *to_sample, double *iref
 {
     if (sub > 0) {
         if (*to_sample == 0) {
-            x[0] = p;
-            x[1] = pd;
-            x[2] = q;
-            x[3] = qd;
-            x[4] = cur;
-            x[5] = xi;
-            x[6] = s;
+            put_state(x, p, pd, q, qd, cur, xi, s);
             *iref = controller_sample(t, x, P, T, work);
             *to_sample = sub;
         }
@@ -97,13 +105,7 @@ static inline void snapshot(double *snap, long k, double p, double pd, double q,
                             double s, const double *x, long nx, double t, double iref)
 {
     double *row = snap + k * (nx + 2);
-    row[0] = p;
-    row[1] = pd;
-    row[2] = q;
-    row[3] = qd;
-    row[4] = cur;
-    row[5] = xi;
-    row[6] = s;
+    put_state(row, p, pd, q, qd, cur, xi, s);
     for (long j = NX_PHYS; j < nx; j++)
         row[j] = x[j];
     row[nx] = t;
@@ -224,13 +226,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
                     to_record = rec_every;
                     double *row = out_x + n_rec * nx, *arow = out_aux + n_rec * NAUX;
                     out_t[n_rec] = t;
-                    row[0] = p;
-                    row[1] = pd;
-                    row[2] = q;
-                    row[3] = qd;
-                    row[4] = cur;
-                    row[5] = xi;
-                    row[6] = s;
+                    put_state(row, p, pd, q, qd, cur, xi, s);
                     for (long j = NX_PHYS; j < nx; j++)
                         row[j] = x[j];
                     arow[AUX_I] = i_;
@@ -284,13 +280,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
         cur = cur + sixth * u4;
         xi = xi + sixth * u5;
     }
-    x[0] = p;
-    x[1] = pd;
-    x[2] = q;
-    x[3] = qd;
-    x[4] = cur;
-    x[5] = xi;
-    x[6] = s;
+    put_state(x, p, pd, q, qd, cur, xi, s);
     snapshot(snap, S_END, p, pd, q, qd, cur, xi, s, x, nx, t, iref);
     carry[C_IREF] = iref;
     carry[C_TO_SAMPLE] = (double)to_sample;

@@ -45,6 +45,23 @@
 #include "control.h"
 #include "cam.h"
 
+/* The right-hand side's results into out[10]: the physical states' rates p', pd', q', qd', i',
+   xi', then the current, the voltage, the held or computed i_ref and the motor torque. */
+static inline void put_rates(double *out, double dp, double dpd, double dq, double dqd, double di, double dxi,
+                             double cur, double v, double iref, double tau)
+{
+    out[0] = dp;
+    out[1] = dpd;
+    out[2] = dq;
+    out[3] = dqd;
+    out[4] = di;
+    out[5] = dxi;
+    out[6] = cur;
+    out[7] = v;
+    out[8] = iref;
+    out[9] = tau;
+}
+
 /* dx/dt of the physical states (x[0:7] passed as scalars), returned in out:
    p', pd', q', qd', i', xi', i, v, i_ref, tau_m; s' = 0. Only the continuous motion controller
    and the full chain's intermediate nodes touch the arrays: they read their states in
@@ -159,16 +176,7 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
                 m_p = gear_at_rest(nts, m_load, n * P[TS_M], P[TS_L], P[HOLD_FWD], P[HOLD_BACK], P[HOLD_GAUGE]);
             pdd = m_p / jd;
         }
-        out[0] = pd;
-        out[1] = pdd;
-        out[2] = pd;
-        out[3] = pdd;
-        out[4] = di;
-        out[5] = dxi;
-        out[6] = cur;
-        out[7] = v;
-        out[8] = iref;
-        out[9] = tau;
+        put_rates(out, pd, pdd, pd, pdd, di, dxi, cur, v, iref, tau);
         return;
     }
     if (P[NMID] > 0.0) {
@@ -176,16 +184,7 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
         chain_accelerations(p, pd, q, qd, nts, jd, djd, n, dn, m_load, kc, tc, P, T, x, dx, sw, &pdd, &qdd);
         if (stick)
             stick_nodes(&pdd, &qdd, pd, qd, jd, n, P);
-        out[0] = pd;
-        out[1] = pdd;
-        out[2] = qd;
-        out[3] = qdd;
-        out[4] = di;
-        out[5] = dxi;
-        out[6] = cur;
-        out[7] = v;
-        out[8] = iref;
-        out[9] = tau;
+        put_rates(out, pd, pdd, qd, qdd, di, dxi, cur, v, iref, tau);
         return;
     }
     /* --- compliance with backlash */
@@ -221,16 +220,7 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
     double m_q = f + m_load;
     if (stick)
         stick_moments(&m_p, &m_q, pd, qd, n, nts, -f - 0.5 * dk * z * z, P);
-    out[0] = pd;
-    out[1] = m_p / jd;
-    out[2] = qd;
-    out[3] = m_q * P[INV_JL];
-    out[4] = di;
-    out[5] = dxi;
-    out[6] = cur;
-    out[7] = v;
-    out[8] = iref;
-    out[9] = tau;
+    put_rates(out, pd, m_p / jd, qd, m_q * P[INV_JL], di, dxi, cur, v, iref, tau);
 }
 
 
