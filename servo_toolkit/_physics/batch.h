@@ -19,6 +19,7 @@
 
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 #include "common.h"
 #include "api_integrate.h"
 #include "api_rhs.h"
@@ -60,24 +61,18 @@ static inline int variant_run(double *x, long nx, const double *P, long n_par, T
     double *xv = PW + 4 * wide;
     double *figv = xv + nx;
     double *snapv = figv + NFIG;
-    for (long j = 0; j < nx; j++)
-        xv[j] = x[j];
-    for (long j = 0; j < NFIG; j++)
-        figv[j] = fig[j];
-    for (long j = 0; j < ns; j++)
-        snapv[j] = snap[j];
+    memcpy(xv, x, (size_t)nx * sizeof *x);
+    memcpy(figv, fig, NFIG * sizeof *fig);
+    memcpy(snapv, snap, (size_t)ns * sizeof *snap);
     /* the loop's result is in fig too; the single run's compiled loop itself (st_rk4, not a
        copy inlined here), so a variant equals its single run to the last bit */
     long status, step, n_rec;
     double max_tau, iref_end;
     st_rk4(xv, nx, P, n_par, T, 0.0, dt, 0, n_steps, n_steps, sub, 0.0, n_steps + 1, out_t, out_x, out_aux, figv,
            snapv, carry, K, work, x0, PW, wide, &status, &step, &n_rec, &max_tau, &iref_end);
-    for (long j = 0; j < nx; j++)
-        x[j] = xv[j];
-    for (long j = 0; j < NFIG; j++)
-        fig[j] = figv[j];
-    for (long j = 0; j < ns; j++)
-        snap[j] = snapv[j];
+    memcpy(x, xv, (size_t)nx * sizeof *x);
+    memcpy(fig, figv, NFIG * sizeof *fig);
+    memcpy(snap, snapv, (size_t)ns * sizeof *snap);
     free(buf);
     return 0;
 }
