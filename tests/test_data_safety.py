@@ -160,7 +160,7 @@ def test_a_character_device_is_refused_by_the_check_alone():
 
 
 def test_sweep_plot_onto_a_fifo_is_refused_before_the_sweep(tmp_path, capsys, monkeypatch):
-    import servo_toolkit.studies.sweep as sweep_mod
+    import servo_toolkit.studies.sweep.compute as sweep_mod
 
     def forbidden(*args, **kwargs):
         raise AssertionError("swept before checking --plot")

@@ -18,7 +18,7 @@ from servo_toolkit.sim import Reference, simulate
 from servo_toolkit.studies.kv import kv_study
 from servo_toolkit.studies.reduce import reduce
 from servo_toolkit.studies.stiffness import stiffness_study
-from servo_toolkit.studies.sweep import sweep
+from servo_toolkit.studies.sweep.compute import sweep
 from servo_toolkit.studies.gate import RequirementRow
 
 from .conftest import SCENES

@@ -367,7 +367,7 @@ def test_a_sweep_of_an_unstable_loop_says_it_is_the_designs_verdict():
     from servo_toolkit.errors import SimulationError
     from servo_toolkit.loop import linear_closed_loop
     from servo_toolkit.sim import default_controller
-    from servo_toolkit.studies.sweep import linear_response
+    from servo_toolkit.studies.sweep.compute import linear_response
     data = copy.deepcopy(EMA)
     data["load"]["inertia"] = "1e6 kg*m^2"
     scene = scene_from_dict(data, "ema.toml")

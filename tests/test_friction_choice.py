@@ -142,7 +142,7 @@ def test_a_sweep_without_stick_says_what_its_friction_costs(gearmotor):
     """A frequency sweep runs the smooth model: its notes name the carriage's friction as left
     out, with an estimate over the budget (the same node's 8 at 0.5 mm, 2 Hz is larger at
     0.2 mm), so the sweep's figures are not read as the actuator's."""
-    from servo_toolkit.studies.sweep import sweep
+    from servo_toolkit.studies.sweep.compute import sweep
     res = sweep(gearmotor, frequencies=[2.0], amplitudes=[0.2e-3], progress=False)
     line = next(n for n in res.notes if n.startswith("friction without stick"))
     est = float(line.split("load left out (estimate ")[1].split(")")[0])

@@ -14,7 +14,7 @@ from servo_toolkit.core.parallel import chunks, run_cases
 from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.studies.kv import kv_grid, kv_study
 from servo_toolkit.studies.sine_dwell import DwellPlan
-from servo_toolkit.studies.sweep import sweep
+from servo_toolkit.studies.sweep.compute import sweep
 from servo_toolkit.studies.trajectories import SineMotion
 
 from .conftest import SCENES

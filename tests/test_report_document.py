@@ -195,7 +195,7 @@ def test_plain_text_of_markup():
     assert plain(":data:`UNKNOWN`") == "UNKNOWN"
     assert plain("(:mod:`servo_toolkit.plant.linear`)") == "(servo_toolkit.plant.linear)"
     assert plain(":func:`~.sweep.study_points`, ``x``, `y`") == "study_points, x, y"
-    assert plain(":func:`the sweep <servo_toolkit.studies.sweep>`") == "the sweep"
+    assert plain(":func:`the sweep <servo_toolkit.studies.sweep.compute>`") == "the sweep"
 
 
 # --- the PDF as a document: tests/test_report_pdf.py, for every shipped scene ------------------

@@ -250,7 +250,7 @@ def test_small_commands_stick_in_the_friction_band_of_the_load(ema, ema_controll
     the output (c = 1 - eta driving, 1/eta_b - 1 back-driven): a 0.2 deg, 8 Hz command, whose
     dynamic torques are of that order, loses several dB against the linear loop, while the
     lossless chain follows it; at 2 deg the loss costs well under a dB."""
-    from servo_toolkit.studies.sweep import sweep
+    from servo_toolkit.studies.sweep.compute import sweep
     band = 700.0 * (1 - ema.drivetrain.efficiency)
     j = float(ema.drivetrain.inertia([0.0])[0][0])
     assert j * math.radians(0.2) * (2 * math.pi * 8.0) ** 2 < 2 * band  # same order

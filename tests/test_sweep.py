@@ -12,7 +12,7 @@ from servo_toolkit import SceneError, load_scene
 from servo_toolkit.cli import main
 from servo_toolkit.sim import ModelOptions
 from servo_toolkit.studies.sine_dwell import DwellPlan, fundamental
-from servo_toolkit.studies.sweep import study_points, sweep
+from servo_toolkit.studies.sweep.compute import study_points, sweep
 
 from .conftest import build, variant
 
@@ -167,7 +167,7 @@ def test_summary_is_over_valid_points_and_the_phase_never_jumps_a_turn():
     the summary's largest difference is over the points that ran within the limits and
     settled, naming how many were saturated, unsettled or failed (a saturated row with a
     20 dB error, an unsettled row and a failed one would otherwise dominate it)."""
-    from servo_toolkit.studies.sweep import SweepResult
+    from servo_toolkit.studies.sweep.compute import SweepResult
     f = np.array([5, 10, 20, 24, 26, 27, 28, 29, 31, 35, 40, 45.0])
     lin = _second_order(f, 30.0, 0.05)
     resp = (_second_order(f, 25.0, 0.05) * np.exp(-2j * np.pi * f * 0.006))[None, :]

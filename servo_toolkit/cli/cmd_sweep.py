@@ -58,7 +58,7 @@ def _sweep(scene, name, **options):
     if name:
         from ..studies.run import run_study
         return run_study(scene, name, as_kind="frequency_sweep", **options)
-    from ..studies.sweep import sweep
+    from ..studies.sweep.compute import sweep
     return sweep(scene, None, **options)
 
 
@@ -66,14 +66,14 @@ def check_sweep_budget(scene, study, frequencies, amplitudes, force: bool, runs:
     """Refuse sine dwells estimated beyond the work budget unless ``force`` (before any work);
     the knob named is ``--frequency`` when given, else the study's ``frequencies``."""
     from .budget import check_time, sweep_seconds
-    from ..studies.sweep_points import study_points
+    from ..studies.sweep.points import study_points
     name, freqs, amps = study_points(scene, study)
     freqs = frequencies or freqs
     amps = amplitudes or amps
     seconds, what = sweep_seconds(scene, freqs, amps, runs)
     knob = option if frequencies else f"studies.{name}.frequencies" if name else option
     from ..studies.sine_dwell import DwellPlan
-    from ..studies.sweep_points import check_sweep_frequencies
+    from ..studies.sweep.points import check_sweep_frequencies
     check_sweep_frequencies(scene, freqs, knob, DwellPlan())  # a frequency no dwell resolves: its own rule first
     check_time(seconds, knob, what, f"{len(freqs)} frequencies x {len(amps)} amplitudes", force)
 

@@ -19,12 +19,12 @@ def sweep_settings(ctx):
     """``(study name, frequencies_hz, amplitudes_rad, options)`` of the report's sweep.
 
     Full settings: the scene's sweep study as it stands (see
-    :func:`servo_toolkit.studies.sweep.study_points`). Light settings: at most
+    :func:`servo_toolkit.studies.sweep.compute.study_points`). Light settings: at most
     :data:`LIGHT_SWEEP_POINTS` log-spaced frequencies over the study's range plus 8 Hz and
     the frequencies where the designed loop peaks (:func:`peak_frequencies`), and a shorter
     dwell (3 settling and 2 estimation cycles).
     """
-    from ..studies.sweep import study_points
+    from ..studies.sweep.compute import study_points
     name, freqs, amps = study_points(ctx.scene)
     freqs = np.asarray(freqs, dtype=float)
     options = {}
@@ -56,9 +56,9 @@ def peak_frequencies(design, lo: float, hi: float) -> np.ndarray:
 
 
 def reduced_sweep(ctx):
-    """The report's sweep (reduced model, as :func:`servo_toolkit.studies.sweep.sweep` runs
+    """The report's sweep (reduced model, as :func:`servo_toolkit.studies.sweep.compute.sweep` runs
     it by default), computed once and shared by the sweep and reduction sections."""
-    from ..studies.sweep import sweep as run_sweep
+    from ..studies.sweep.compute import sweep as run_sweep
     controller = ctx.design().controller
     name, _, _, options = sweep_settings(ctx)
     return ctx.result("sweep", lambda: run_sweep(ctx.scene, name, controller=controller, executor=ctx.executor,

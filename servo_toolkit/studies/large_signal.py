@@ -150,7 +150,7 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
 
     from ..errors import SimulationError, StrokeEndReached
     from ..sim import Reference, simulate
-    from .sweep_points import study_points
+    from .sweep.points import study_points
     from ..loop.requirements import requirements_of
     f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
     _, _, amps = study_points(scene)

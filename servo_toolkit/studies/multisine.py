@@ -35,7 +35,7 @@ from ..core.parallel import run_cases
 from ..core.spectra import periodic_h1
 from ..errors import SceneError, SimulationError
 from .multisine_result import MultisineResult
-from .sweep_points import study_points
+from .sweep.points import study_points
 
 RESPONSES = ("closed_loop", "plant")
 #: estimation periods by default
@@ -212,7 +212,7 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
     response : {"closed_loop", "plant"}
         Command -> output position, or motor current -> motor speed.
     controller, options, full, method, executor, progress, controller_source
-        As :func:`servo_toolkit.studies.sweep.sweep`.
+        As :func:`servo_toolkit.studies.sweep.compute.sweep`.
 
     Returns
     -------
@@ -227,7 +227,7 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
     """
     from ..sim import controller_for
     from .model_setup import model_setup
-    from .sweep import linear_response
+    from .sweep.compute import linear_response
 
     start = time.perf_counter()
     if response not in RESPONSES:

@@ -13,7 +13,7 @@ import numpy as np
 from ..core.output_units import OutputUnit
 from ..core.spectra import response_csv
 from ..display.cards import RichDisplay, card, num, svg, table
-from .sweep_result import phase_along_frequency
+from .sweep.result import phase_along_frequency
 
 _LABELS = {"closed_loop": ("position command -> output position", "gain [dB]"),
            "plant": ("motor current -> motor speed", "gain [dB re 1 (rad/s)/A]")}
@@ -53,7 +53,7 @@ class MultisineResult(RichDisplay):
     period_s : float
     lines_asked : int
     reduced, left_out, options, controller, method, wall_s, notes, output_unit
-        As :class:`servo_toolkit.studies.sweep.SweepResult`.
+        As :class:`servo_toolkit.studies.sweep.compute.SweepResult`.
     """
 
     scene: str
@@ -107,7 +107,7 @@ class MultisineResult(RichDisplay):
     @property
     def phase_deg(self) -> np.ndarray:
         """(n_a, n_l) phase (deg): the difference from the linear model's unwrapped phase,
-        unwrapped along frequency (:func:`.sweep_result.phase_along_frequency`), so no line
+        unwrapped along frequency (:func:`.sweep.result.phase_along_frequency`), so no line
         jumps by a turn."""
         return np.degrees(phase_along_frequency(self.response, np.radians(self.linear_phase_deg)))
 

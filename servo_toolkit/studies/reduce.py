@@ -36,7 +36,7 @@ from .reduce_choice import options_without
 from .reduce_estimates import DEFAULT_TOLERANCE, plan_reduction
 from .reduce_result import EffectCost, ReductionResult
 from .sine_dwell import DwellPlan
-from .sweep import linear_response, study_points, sweep
+from .sweep.compute import linear_response, study_points, sweep
 
 TIME_KINDS = ("kv", "simulate")
 

@@ -126,7 +126,7 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
         from .kv import kv_study
         return kv_study(scene, study, **options)
     if kind == "frequency_sweep":
-        from .sweep import sweep
+        from .sweep.compute import sweep
         return sweep(scene, name, **options)
     from .time_run import simulate_study
     return simulate_study(scene, name, **options)

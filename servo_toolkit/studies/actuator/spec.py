@@ -147,7 +147,7 @@ def plan(scene, design) -> Plan:
     """
     import control as ct
 
-    from ..sweep_points import study_points
+    from ..sweep.points import study_points
     u = output_unit(scene)
     given = scene.requirements.time
     given.check_output(u.linear)

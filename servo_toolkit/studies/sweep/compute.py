@@ -26,17 +26,17 @@ import time
 
 import numpy as np
 
-from ..errors import SimulationError
-from ..core.parallel import run_cases
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from .sine_dwell import DwellPlan, dwell_estimate
-from .sweep_points import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY_HZ, study_points
-from .sweep_result import SweepResult
+from ...errors import SimulationError
+from ...core.parallel import run_cases
+from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
+from ..sine_dwell import DwellPlan, dwell_estimate
+from .points import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY_HZ, study_points
+from .result import SweepResult
 
 
 def _dwell_case(case):
     """One sine dwell (module level so that executors can pickle it)."""
-    from ..sim import Reference, run
+    from ...sim import Reference, run
     model, amp, freq, plan, decay, method, limits = case
     settle, est = plan.cycles(freq, decay)
     start = time.perf_counter()
@@ -65,7 +65,7 @@ def _peaks_before_failure(model, amp, freq, method, message):
     The run is repeated up to 99 % of the failure time named in the message ("at t = ... s"),
     so that a point that reached the current or voltage limit before failing is flagged.
     """
-    from ..sim import Reference, run
+    from ...sim import Reference, run
     found = re.search(r"at t = ([0-9.eE+-]+) s", message)
     t_fail = float(found.group(1)) if found else 0.0
     if not t_fail > 0:
@@ -83,8 +83,8 @@ def linear_response(scene, controller, frequencies_hz, structural_damping=DEFAUL
     slowest decay rate of its poles (1/s)."""
     import control as ct
 
-    from ..loop import linear_closed_loop
-    from ..drivetrain.operating_point import operating_point
+    from ...loop import linear_closed_loop
+    from ...drivetrain.operating_point import operating_point
     cl = linear_closed_loop(scene, controller, q0=operating_point(scene)[0], structural_damping=structural_damping)
     sub = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
     w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
@@ -106,7 +106,7 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
           progress: bool = True, controller_source: str | None = None) -> SweepResult:
     """Sine-dwell frequency response of the scene's closed loop.
 
-    Every frequency must be one a dwell resolves (:func:`.sweep_points.check_sweep_frequencies`:
+    Every frequency must be one a dwell resolves (:func:`.points.check_sweep_frequencies`:
     at most a quarter of the controller's sample rate, and a dwell within one run's step
     budget), else SceneError naming ``frequencies`` (given) or ``studies.NAME.frequencies``.
 
@@ -142,8 +142,8 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     -------
     SweepResult
     """
-    from ..sim import controller_for
-    from .model_setup import model_setup
+    from ...sim import controller_for
+    from ..model_setup import model_setup
 
     start = time.perf_counter()
     name, freqs, amps = study_points(scene, study)
@@ -155,7 +155,7 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
         raise ValueError("frequencies and amplitudes must be non-empty and positive")
     freqs_arr = np.asarray(sorted(freqs))
     plan = plan or DwellPlan()
-    from .sweep_points import check_sweep_frequencies
+    from .points import check_sweep_frequencies
     check_sweep_frequencies(scene, freqs_arr, "frequencies" if frequencies is not None
                             else f"studies.{name}.frequencies" if name else "frequency", plan)
     source = controller_source

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from ..errors import SceneError
-from ..core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, output_unit
+from ...errors import SceneError
+from ...core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, output_unit
 
 #: the seed's key frequency, always in the default sweep
 DEFAULT_FREQUENCY_HZ = REQUIREMENT_SINE_HZ
@@ -85,8 +85,8 @@ def check_sweep_frequencies(scene, frequencies, key: str, plan) -> None:
     frequency whose dwell needs more fixed steps at the sample time than one run may take
     (:data:`servo_toolkit.sim.engine.MAX_STEPS`) cannot run at all.
     """
-    from ..sim.engine import MAX_STEPS
-    from .time_reference import check_sine_frequency
+    from ...sim.engine import MAX_STEPS
+    from ..time_reference import check_sine_frequency
     ts = float(scene.sensors.sample_time)
     for f in frequencies:
         check_sine_frequency(float(f), ts, None, key)

@@ -1,4 +1,4 @@
-"""The result of a sine-dwell sweep (:func:`servo_toolkit.studies.sweep.sweep`): the nonlinear
+"""The result of a sine-dwell sweep (:func:`servo_toolkit.studies.sweep.compute.sweep`): the nonlinear
 loop's response per amplitude and frequency against the linear loop, with each point's flags.
 
 The phase of the nonlinear loop is its difference from the linear loop's unwrapped phase,
@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from ..display.cards import RichDisplay, card, num, svg, table
-from .sine_dwell import DwellPlan
+from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, num, svg, table
+from ..sine_dwell import DwellPlan
 
 #: relative change of the estimate between the window's halves above which a point is unsettled
 UNSETTLED = 0.01
