@@ -39,10 +39,10 @@ from servo_toolkit.scene.loader import load_scene  # noqa: E402
 from servo_toolkit.sim import controller_for, run  # noqa: E402
 from servo_toolkit.sim.batch_run import integrate_variants, worker_threads  # noqa: E402
 from servo_toolkit.sim.reference import fill, initial_state  # noqa: E402
-from servo_toolkit.studies.time_reference import run_spec  # noqa: E402
+from servo_toolkit.studies.time.reference import run_spec  # noqa: E402
 from servo_toolkit.sim.variants import VariantBuilder  # noqa: E402
 from servo_toolkit.studies.montecarlo import montecarlo  # noqa: E402
-from servo_toolkit.studies.time_run import sine_run_options  # noqa: E402
+from servo_toolkit.studies.time.run import sine_run_options  # noqa: E402
 
 REPEATS = 5
 RANGES = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}

@@ -23,7 +23,7 @@ from servo_toolkit.sim.kernel import rhs
 from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.sim.variants import VariantBuilder
-from servo_toolkit.studies.time_run import sine_run_options
+from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import SCENES, build, variant
 

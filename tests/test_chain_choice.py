@@ -17,7 +17,7 @@ from servo_toolkit.drivetrain.operating_point import operating_point
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.chain_choice import LUMP_TOLERANCE, choose_chain, working_frequencies
-from servo_toolkit.studies.time_run import sine_run_options
+from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import SCENES, build, variant
 from .test_sim_full_chain import three_mass

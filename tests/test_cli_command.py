@@ -38,7 +38,7 @@ def test_friction_option_on_simulate_and_montecarlo(monkeypatch):
     from servo_toolkit.loop.default_controller import default_controller
     from servo_toolkit.scene import load_scene
     from servo_toolkit.studies import montecarlo as mc
-    from servo_toolkit.studies import time_run
+    from servo_toolkit.studies.time import run as time_run
 
     class Asked(Exception):
         pass

@@ -49,7 +49,7 @@ def test_the_scene_lists_its_points_file_among_its_inputs(points_scene):
 
 
 def test_simulate_never_overwrites_the_scene_s_points_file(points_scene, capsys, monkeypatch):
-    import servo_toolkit.studies.time_run as time_run
+    import servo_toolkit.studies.time.run as time_run
     _forbid(monkeypatch, time_run, "simulate_study")
     pts = points_scene.parent / "pts.csv"
     assert main(["simulate", str(points_scene), "-o", str(pts)]) == 2

@@ -44,7 +44,7 @@ def _fake_result():
 @pytest.fixture
 def no_run(monkeypatch):
     """The simulation must not start: a refused output is refused before any work."""
-    import servo_toolkit.studies.time_run as time_run
+    import servo_toolkit.studies.time.run as time_run
 
     def forbidden(*args, **kwargs):
         raise AssertionError("the run started before the output path was refused")
@@ -54,7 +54,7 @@ def no_run(monkeypatch):
 @pytest.fixture
 def fake_run(monkeypatch):
     """A simulation that returns at once (the output handling is what is tested)."""
-    import servo_toolkit.studies.time_run as time_run
+    import servo_toolkit.studies.time.run as time_run
     monkeypatch.setattr(time_run, "simulate_study", lambda *a, **k: _fake_result())
 
 

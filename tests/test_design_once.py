@@ -20,8 +20,8 @@ def counts(monkeypatch):
     plan, counted wherever they are called from."""
     seen = {}
     for module_name, name in (("servo_toolkit.loop.design", "design"),
-                              ("servo_toolkit.studies.time_reference", "run_spec"),
-                              ("servo_toolkit.studies.time_run", "resolve_method"),
+                              ("servo_toolkit.studies.time.reference", "run_spec"),
+                              ("servo_toolkit.studies.time.run", "resolve_method"),
                               ("servo_toolkit.studies.reduce_estimates", "plan_reduction")):
         module = importlib.import_module(module_name)
         original = getattr(module, name)
@@ -88,7 +88,7 @@ def test_check_with_design_file_designs_nothing(counts, capsys, tmp_path):
 
 def test_study_given_a_controller_does_not_design(counts, ema):
     """A study function given a controller never designs; its note names the given source."""
-    from servo_toolkit.studies.time_run import simulate_study
+    from servo_toolkit.studies.time.run import simulate_study
     scene, controller = ema
     counts.clear()
     res = simulate_study(scene, None, controller=controller, controller_source="my tuning")

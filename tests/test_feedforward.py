@@ -15,7 +15,7 @@ from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, simulate
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.reference import fill, initial_state
-from servo_toolkit.studies.time_run import simulate_study
+from servo_toolkit.studies.time.run import simulate_study
 
 from .conftest import SCENES
 

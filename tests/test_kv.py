@@ -69,7 +69,7 @@ def test_motor_gear_amplitudes_reach_simulations_divided_by_the_ratio(ema_dict):
     """A kv study read at the motor gear moves the output by A / N: the time runs of the
     study (simulate, accuracy via run_spec; reduce via time_points) command that, not A."""
     from servo_toolkit.studies.reduce import time_points
-    from servo_toolkit.studies.time_reference import run_spec
+    from servo_toolkit.studies.time.reference import run_spec
     scene = build(variant(ema_dict, studies__kv_8hz__amplitude_at="motor"))
     n0 = float(scene.drivetrain.ratio([scene.drivetrain.mid_stroke])[0][0])
     expected = [math.radians(a) / n0 for a in (2.0, 3.0, 4.0)]

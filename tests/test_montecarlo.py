@@ -18,7 +18,7 @@ from servo_toolkit.sim.batch_run import integrate_variants
 from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.variants import VariantBuilder, with_load_inertia
 from servo_toolkit.studies.montecarlo import montecarlo
-from servo_toolkit.studies.time_run import sine_run_options
+from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import SCENES
 
@@ -205,7 +205,7 @@ def test_check_command_adds_the_rows_and_fails_on_them(tmp_path, capsys):
 def test_defaults_are_the_simulate_command(ema):
     """Without a command, a duration or a model choice, montecarlo runs what `servo-toolkit
     simulate SCENE` runs: the same sine, the same reduced model, the same step."""
-    from servo_toolkit.studies.time_run import simulate_study
+    from servo_toolkit.studies.time.run import simulate_study
     scene, _, _ = ema
     study = simulate_study(scene)
     r = montecarlo(scene, {"load_inertia": (1.0, 1.0)}, samples=1, progress=False)

@@ -13,7 +13,7 @@ from servo_toolkit.loop.controller import Feedforward
 from servo_toolkit.sim import simulate
 from servo_toolkit.sim.variants import with_load_inertia
 from servo_toolkit.studies.montecarlo import montecarlo
-from servo_toolkit.studies.time_run import sine_run_options
+from servo_toolkit.studies.time.run import sine_run_options
 
 
 DURATION = 0.5

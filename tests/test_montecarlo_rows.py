@@ -145,7 +145,7 @@ def test_rows_poor_only_in_the_low_load_corner_are_built_exactly(ema, monkeypatc
     is not kept (every variant built exactly), though it is exact on every variant drawn."""
     from servo_toolkit.scene.loader import scene_keys
     from servo_toolkit.sim import tolerance_rows
-    from servo_toolkit.studies.time_run import sine_run_options
+    from servo_toolkit.studies.time.run import sine_run_options
     scene, controller = ema
     values = {"load.inertia": np.array([0.0, 4.0, 4.0, 1.0, 2.0]),
               "drivetrain.stiffness_scale": np.array([1.0, 1.3, 0.7, 1.0, 0.85])}

@@ -11,7 +11,7 @@ import pytest
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run
 from servo_toolkit.studies.reduce import reduce, reduced_options
 from servo_toolkit.studies.reduce_estimates import plan_reduction
-from servo_toolkit.studies.time_run import sine_run_options
+from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import build, variant
 

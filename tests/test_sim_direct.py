@@ -121,7 +121,7 @@ def test_trace_file_name_is_checked_before_the_run(tmp_path, monkeypatch, capsys
         raise AssertionError("simulation ran before the output name was checked")
 
     import servo_toolkit.sim as sim
-    import servo_toolkit.studies.time_run as time_run  # imported before patching: it binds simulate
+    import servo_toolkit.studies.time.run as time_run  # imported before patching: it binds simulate
     monkeypatch.setattr(sim, "simulate", no_run)
     monkeypatch.setattr(time_run, "simulate", no_run)
     code = main(["simulate", str(SCENES / "ema_reference.toml"), "-o", str(tmp_path / "tr.txt")])

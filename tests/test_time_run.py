@@ -9,7 +9,7 @@ import pytest
 
 import servo_toolkit as st
 from servo_toolkit.cli import main
-from servo_toolkit.studies.time_run import simulate_study
+from servo_toolkit.studies.time.run import simulate_study
 
 from .conftest import SCENES
 

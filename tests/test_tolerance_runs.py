@@ -104,7 +104,7 @@ def test_a_corner_that_makes_no_scene_is_left_out_of_the_checks(runs, tmp_path):
     from servo_toolkit.scene.loader import scene_keys
     from servo_toolkit.sim import Reference
     from servo_toolkit.sim.tolerance_rows import ToleranceRows, _box, keep_effects
-    from servo_toolkit.studies.time_run import sine_run_options
+    from servo_toolkit.studies.time.run import sine_run_options
     _, controller, _, _ = runs  # the reference EMA's design: the same on every variant
     text = (SCENES / "ema_reference.toml").read_text()
     path = tmp_path / "scene.toml"

@@ -23,7 +23,7 @@ EMA = str(SCENES / "ema_reference.toml")
 
 def test_check_whose_large_signal_run_cannot_run_exits_2_with_the_reason(monkeypatch, tmp_path, capsys):
     import servo_toolkit.sim as sim
-    import servo_toolkit.studies.time_run  # noqa: F401 - binds the real simulate before the patch, not the stub
+    import servo_toolkit.studies.time.run  # noqa: F401 - binds the real simulate before the patch, not the stub
 
     def cannot(*args, **kwargs):
         raise SimulationError("1 s at a step of 1e-09 s is 1e+09 steps, more than the 3e+08 one run may take")

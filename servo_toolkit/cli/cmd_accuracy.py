@@ -33,7 +33,7 @@ def run(args) -> int:
     from ..sim import build_model, controller_for
     from ..studies.accuracy import accuracy_study
     from ..sim.reference import Reference
-    from ..studies.time_reference import run_spec
+    from ..studies.time.reference import run_spec
 
     scene = load_scene(args.scene)
     reference, duration, voltage, _, _ = run_spec(scene, args.study, amplitude=amplitudes_si(scene, args.amplitude),

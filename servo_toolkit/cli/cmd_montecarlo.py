@@ -67,7 +67,7 @@ def _check_args(args):
 def _check_budget(scene, args) -> None:
     """Refuse a run estimated beyond the work budget unless ``--force`` (before any work)."""
     from .budget import LONG_RUN_S, batch_seconds, check_time
-    from ..studies.time_reference import run_spec
+    from ..studies.time.reference import run_spec
     samples = args.samples or (scene.robustness.samples if scene.robustness is not None else 1000)
     duration = args.duration if args.duration is not None else run_spec(scene, None)[1]
     seconds, what = batch_seconds(scene, samples, duration)
@@ -85,7 +85,7 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     reference = None
     if args.amplitude is not None or args.frequency is not None:
-        from ..studies.time_reference import run_spec
+        from ..studies.time.reference import run_spec
         reference = run_spec(scene, None, amplitude=amplitudes_si(scene, args.amplitude),
                              frequency=args.frequency, duration=args.duration)[0]
     _check_budget(scene, args)

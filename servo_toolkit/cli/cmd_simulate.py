@@ -73,10 +73,10 @@ def _mechanism_dispatch(scene, args):
 def check_budget(scene, args, amplitude, spec=None) -> None:
     """Refuse (exit 2, naming the knob) a run estimated beyond the work budget, unless
     ``--force``: checked before any work. ``spec``: the study's
-    :func:`~servo_toolkit.studies.time_reference.run_spec`, when the caller has it."""
+    :func:`~servo_toolkit.studies.time.reference.run_spec`, when the caller has it."""
     from .budget import LONG_RUN_S, check_time, time_run_seconds
     if spec is None:
-        from ..studies.time_reference import run_spec
+        from ..studies.time.reference import run_spec
         spec = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)
     _, duration, _, study_method, study_dt = spec
     method = args.method or study_method
@@ -98,15 +98,15 @@ def run(args) -> int:
     """Run the command."""
     from ..sim.result import check_trace_path
     from ..studies.run import run_study
-    from ..studies.time_run import simulate_study
+    from ..studies.time.run import simulate_study
 
     scene = load_scene(args.scene)
     check_trace_path(args.output, inputs=[args.scene, *scene.input_files])  # a bad -o fails before the run, exit 2
     amplitude = amplitudes_si(scene, args.amplitude)
     result = _mechanism_dispatch(scene, args)
     if result is None:
-        from ..studies.time_reference import run_spec
-        from ..studies.time_run import resolve_method
+        from ..studies.time.reference import run_spec
+        from ..studies.time.run import resolve_method
         # a bad frequency or a --dt the method would ignore: one line, before any work; the run
         # is resolved here once and handed down
         spec = run_spec(scene, args.study, amplitude=amplitude, frequency=args.frequency)

@@ -26,7 +26,7 @@ def tracking_along_stroke(scene, design, kinds=("off", "gains", "model"), durati
     points along the stroke, per feedforward kind: ``(points, {kind: errors})`` (rad or m)."""
     from ..core.output_units import output_unit
     from ..sim import Reference, simulate
-    from ..studies.time_run import sine_run_options
+    from ..studies.time.run import sine_run_options
     u = output_unit(scene)
     points = _points(scene, design.q0)
     duration = 4.0 / SINE_HZ if duration is None else duration

@@ -2,7 +2,7 @@
 amplitudes, the model options, the model and its notes, in one place.
 
 A sine dwell sweep (:mod:`.sweep`), a multisine (:mod:`.multisine`) and a closed-loop sine
-run (:mod:`.time_run`) all take the controller they are given, judge the scene's effects
+run (:mod:`.time.run`) all take the controller they are given, judge the scene's effects
 against their frequencies and amplitudes once (:func:`.reduce_estimates.plan_reduction`)
 unless the full model or explicit options are asked for, and build the model on the result.
 """

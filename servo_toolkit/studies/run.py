@@ -3,7 +3,7 @@ built-in study of a seed-mechanism scene) to the function that runs it.
 
 - kind ``kv``: :func:`.kv.kv_study`, giving a :class:`.kv.KvResult`;
 - kind ``frequency_sweep``: :func:`.sweep.sweep`, giving a :class:`.sweep.SweepResult`;
-- kind ``simulate``: :func:`.time_run.simulate_study`, giving a
+- kind ``simulate``: :func:`.time.run.simulate_study`, giving a
   :class:`~servo_toolkit.sim.result.SimulationResult`;
 - a seed-mechanism study (cam, platform, roller screw; see :mod:`.mechanisms`):
   :func:`.mechanisms.run_mechanism`, giving the mechanism's own result.
@@ -128,7 +128,7 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
     if kind == "frequency_sweep":
         from .sweep.compute import sweep
         return sweep(scene, name, **options)
-    from .time_run import simulate_study
+    from .time.run import simulate_study
     return simulate_study(scene, name, **options)
 
 

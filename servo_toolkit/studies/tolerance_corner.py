@@ -126,8 +126,8 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
 
     from ..sim import simulate
     from ..sim.tolerance_rows import keep_effects
-    from .time_reference import run_spec
-    from .time_run import sine_run_options
+    from .time.reference import run_spec
+    from .time.run import sine_run_options
     values, scale = _split(corner)
     cs = keys.scene(values)
     reference, run_duration, *_ = run_spec(cs, None)

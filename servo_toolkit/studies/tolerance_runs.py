@@ -24,8 +24,8 @@ from ..sim.batch import F_CUR, F_ERR, F_SAT
 from ..sim.reference import initial_state
 from ..sim.tolerance_rows import ToleranceRows, keep_effects
 from .batch_step import batch_step
-from .time_reference import run_spec
-from .time_run import sine_run_options
+from .time.reference import run_spec
+from .time.run import sine_run_options
 
 #: variants per chunk (smaller when every variant carries its own stroke tables)
 CHUNK_SIZE = 2000

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ..core.output_units import output_unit
-from ..errors import SceneError
-from ..sim import ModelOptions, controller_for, simulate
-from ..sim.model_slots import FRICTION_CHOICES
-from ..sim.simulate import with_feedforward
-from .time_reference import run_spec
+from ...core.output_units import output_unit
+from ...errors import SceneError
+from ...sim import ModelOptions, controller_for, simulate
+from ...sim.model_slots import FRICTION_CHOICES
+from ...sim.simulate import with_feedforward
+from .reference import run_spec
 
 
 def simulate_study(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
@@ -90,12 +90,12 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
 def resolve_run(scene, study: str | None = None, *, method: str | None = None, dt: float | None = None,
                 amplitude: float | None = None, frequency: float | None = None, key: str = "dt"):
     """The run a time study takes, resolved once: ``(reference, duration, voltage, method, dt)``,
-    :func:`~.time_reference.run_spec` with its method and step from :func:`resolve_method`.
+    :func:`~.reference.run_spec` with its method and step from :func:`resolve_method`.
 
     Raises
     ------
     SceneError
-        As :func:`~.time_reference.run_spec` and :func:`resolve_method` (the step's error
+        As :func:`~.reference.run_spec` and :func:`resolve_method` (the step's error
         named ``key``).
     """
     reference, duration, voltage, study_method, study_dt = run_spec(scene, study, amplitude=amplitude,
@@ -117,7 +117,7 @@ def resolve_method(method, study_method, dt, study_dt, key: str = "dt"):
         Named ``key``: a step given with a method that chooses its own (``"auto"``,
         ``"reference"``), where it would be ignored.
     """
-    from ..errors import SceneError
+    from ...errors import SceneError
     if dt is not None and method is None and study_method is None:
         return "rk4", dt
     method = method or study_method or "auto"
@@ -153,10 +153,10 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
         friction at each node (held, smoothed or left out, with its estimate), and the choice
         of the chain's modes (``options.chain_note``: the model does not note it again).
     """
-    from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-    from .model_setup import model_setup
-    from .reduce_estimates import FRICTION_EFFECT
-    from .reduce_friction import friction_note
+    from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
+    from ..model_setup import model_setup
+    from ..reduce_estimates import FRICTION_EFFECT
+    from ..reduce_friction import friction_note
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
     chosen = [] if friction is None else [f"friction model {check_friction(friction)} (as asked)"]

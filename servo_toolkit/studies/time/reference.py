@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 
-from ..core.output_units import DEFAULT_RUN_S, REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, REQUIREMENT_SINE_MM
-from ..errors import SceneError
-from ..sim.reference import Reference
+from ...core.output_units import DEFAULT_RUN_S, REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, REQUIREMENT_SINE_MM
+from ...errors import SceneError
+from ...sim.reference import Reference
 
 #: default closed-loop run: the requirement sine of seed 000 (8 Hz, 2 deg) for 1 s
 DEFAULT_SINE = (math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ, DEFAULT_RUN_S)
@@ -115,7 +115,7 @@ def _spec(scene, study_name):
     if amp is None and p.get("amplitudes"):
         amp = p["amplitudes"][0]
     if study.kind == "kv" and amp is not None:  # a motor-gear amplitude moves the output by A / N
-        from .kv import output_amplitudes
+        from ..kv import output_amplitudes
         amp = output_amplitudes(scene, study, [amp])[0]
     if isinstance(p.get("frequencies"), dict):
         freq = freq or p["frequencies"].get("start")
