@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 from servo_toolkit import SceneError, SimulationError, load_scene
 from servo_toolkit.cli import main as cli_main
 from servo_toolkit.components.cam.geometry import modified_constant_velocity
-from servo_toolkit.studies.mechanisms import handles
+from servo_toolkit.studies.mechanisms.dispatch import handles
 from servo_toolkit.studies.run import run_study
 from servo_toolkit.components.cam import kernels as cam_kernels
 from servo_toolkit.components.cam.drive import CamDrive, clearance_hysteresis

@@ -1,7 +1,7 @@
 """Every seed-mechanism study runs by name through ``simulate``, ``kv`` and ``sweep``.
 
-The three commands dispatch a study that :func:`servo_toolkit.studies.mechanisms.handles` claims to
-:func:`servo_toolkit.studies.mechanisms.run_study`, before looking the name up in the scene file, so
+The three commands dispatch a study that :func:`servo_toolkit.studies.mechanisms.dispatch.handles` claims to
+:func:`servo_toolkit.studies.mechanisms.dispatch.run_study`, before looking the name up in the scene file, so
 the built-in roller-screw studies (not in the file) run too. Options that only mean something
 for the sine-dwell sweep are refused with one line and exit 2.
 """
@@ -13,7 +13,7 @@ import json
 import pytest
 
 from servo_toolkit.cli import main
-from servo_toolkit.studies.mechanisms import ROLLER_SCREW_STUDIES
+from servo_toolkit.studies.mechanisms.dispatch import ROLLER_SCREW_STUDIES
 from servo_toolkit.scene.loader import load_scene
 
 from .conftest import SCENES

@@ -12,7 +12,7 @@ from servo_toolkit.components.gear import GearTrain
 from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.drivetrain.reflected import Drivetrain
 from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
 from servo_toolkit.studies.kv import with_load_inertia
 from servo_toolkit.studies.trajectories import SineMotion
 

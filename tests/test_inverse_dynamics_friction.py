@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
 from servo_toolkit.studies.kv import default_kv_study, kv_study
 from servo_toolkit.studies.sizing import size
 

@@ -132,7 +132,7 @@ def test_inverse_dynamics_places_members_and_losses_as_the_plant():
     """Driving a lossy rigid gear (pinion before its loss, wheel beyond it): the Kv inverse
     dynamics' motor torque is the plant's, tau = J1 a / (eta N) with J1 = eta (J_r + J_p) + J_w + J_L,
     i.e. (J_r + J_p) N a + (J_w + J_L) a / (eta N)."""
-    from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+    from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
     from servo_toolkit.studies.trajectories import SineMotion
     eta = 0.8
     sc = scene([GearTrain("gear", ratio=N, inertias=(J_PINION, J_WHEEL), efficiency=eta)], ke=0.0)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from servo_toolkit import load_scene
-from servo_toolkit.studies.mechanisms import handles
+from servo_toolkit.studies.mechanisms.dispatch import handles
 from servo_toolkit.studies.run import run_study
 from servo_toolkit.components.platform.model import PlatformModel
-from servo_toolkit.studies.platform import ramp
+from servo_toolkit.studies.mechanisms.platform import ramp
 
 from .conftest import SCENES
 

@@ -133,7 +133,7 @@ def test_kv_stroke_start_up_saturation_is_outside_the_compared_window():
     with its full slope, so the start-up transient reaches the current limit. Saturation is
     judged over the compared window, as the sweep does: the point is in the linear range and
     its measured difference is within the bound (not NaN)."""
-    from servo_toolkit.studies.inverse_dynamics import inverse_dynamics
+    from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
     from servo_toolkit.loop import design as st_design
     from servo_toolkit.studies.trajectories import SineMotion
     scene = load_scene()

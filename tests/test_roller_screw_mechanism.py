@@ -8,10 +8,10 @@ import pytest
 
 from servo_toolkit import SceneError, load_scene
 from servo_toolkit.components.roller_screw.stages import RollerScrew, efficiency_eq35, steady_efficiency
-from servo_toolkit.studies.mechanisms import handles
+from servo_toolkit.studies.mechanisms.dispatch import handles
 from servo_toolkit.studies.run import run_study
 from servo_toolkit.components.roller_screw.model import RollerScrewModel
-from servo_toolkit.studies.roller_screw import carrier_step
+from servo_toolkit.studies.mechanisms.roller_screw import carrier_step
 
 from .conftest import SCENES, build
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 from ..drivetrain.reflected import Drivetrain
 from ..errors import SceneError
 from ..core.parallel import run_cases
-from .inverse_dynamics import friction_notes, inverse_dynamics
+from .mechanisms.inverse_dynamics import friction_notes, inverse_dynamics
 from ..core.output_units import OutputUnit, output_unit
 from .trajectories import SineMotion
 from ..display.cards import RichDisplay
@@ -351,7 +351,7 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     study : Study or str, optional
         The study or its name; default the scene's first study of kind "kv".
     losses : {"directional", "none"}
-        Stage-loss model (see :mod:`servo_toolkit.studies.inverse_dynamics`).
+        Stage-loss model (see :mod:`servo_toolkit.studies.mechanisms.inverse_dynamics`).
     samples_per_period : int
         Time samples per period for the peak search (a multiple of 4 hits the extremes).
     executor : concurrent.futures.Executor, optional

@@ -20,7 +20,7 @@ command line and the report call these functions; a notebook can too::
 from __future__ import annotations
 
 from ..errors import SceneError
-from .mechanisms import ROLLER_SCREW_STUDIES, handles, run_mechanism
+from .mechanisms.dispatch import ROLLER_SCREW_STUDIES, handles, run_mechanism
 
 #: what each study kind runs by default; ``as_kind`` may ask for another of these
 RUNNERS = ("kv", "frequency_sweep", "simulate")

@@ -1,5 +1,5 @@
 """Crossed-arch deflection platform of seed 003: kinematics, Lagrange dynamics (its ramp
-study is :mod:`servo_toolkit.studies.platform`).
+study is :mod:`servo_toolkit.studies.mechanisms.platform`).
 
 Generalized coordinates q = (alpha, beta): platform tilts about X and Y. Motor angles
 (eq 5): ``theta1 = rx alpha``, ``theta2 = ry atan(tan(beta) / cos(alpha))`` with

@@ -1,5 +1,5 @@
 """Multi-stage planetary roller screw of seed 004: carrier dynamics (its studies are in
-:mod:`servo_toolkit.studies.roller_screw`).
+:mod:`servo_toolkit.studies.mechanisms.roller_screw`).
 
 Reduced rigid-body model (stated, and checked by a power balance in the tests):
 

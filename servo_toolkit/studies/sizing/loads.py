@@ -1,5 +1,5 @@
 """Motor torque, speed, current, voltage and power along a duty cycle, from the Kv inverse
-dynamics (:func:`servo_toolkit.studies.inverse_dynamics.inverse_dynamics`: efficiency by
+dynamics (:func:`servo_toolkit.studies.mechanisms.inverse_dynamics.inverse_dynamics`: efficiency by
 direction of power flow, variable ratio and inertia along the stroke, the motor's, each
 stage's and the load's friction at their Coulomb levels).
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from ...components.ball_screw import BallScrew
 from ...components.roller_screw.stages import RollerScrew
-from ..inverse_dynamics import friction_notes, inverse_dynamics, subchain
+from ..mechanisms.inverse_dynamics import friction_notes, inverse_dynamics, subchain
 
 
 @dataclass(frozen=True)

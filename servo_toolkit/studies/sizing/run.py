@@ -10,7 +10,7 @@ from ...errors import SceneError
 from .cycle import sample_cycle
 from .envelope import Envelope, lower, upper
 from .life import screw_lives
-from ..inverse_dynamics import friction_notes
+from ..mechanisms.inverse_dynamics import friction_notes
 from .loads import cycle_loads, electrical, screw_index
 from .result import SizingResult
 from .sweep import ratio_sweep

@@ -1,14 +1,14 @@
 """The seed mechanisms: cam drive (seed 002), deflection platform (003), roller screw (004).
 
-Two functions dispatch a scene's study to its mechanism model; :func:`.run.run_study` calls
+Two functions dispatch a scene's study to its mechanism model; :func:`servo_toolkit.studies.run.run_study` calls
 them for the studies below (so do the ``simulate``, ``kv`` and ``sweep`` commands).
 
 =====================  ===============================  ====================================
 scene                  study (kind)                     result
 =====================  ===============================  ====================================
-cam drive (a single    ``constant_speed``               :class:`~.cam.constant_speed.CamSweepResult`
+cam drive (a single    ``constant_speed``               :class:`~servo_toolkit.studies.cam.constant_speed.CamSweepResult`
 ``cam`` stage)         (mechanism_sweep)
-                       ``constant_voltage`` (simulate)  :class:`~.cam.voltage_result.CamVoltageResult`
+                       ``constant_voltage`` (simulate)  :class:`~servo_toolkit.studies.cam.voltage_result.CamVoltageResult`
 crossed-arch platform  ``ramp`` (inverse_dynamics)      :class:`~.platform.PlatformRampResult`
 roller-screw           ``efficiency`` (default, built   :class:`~.roller_screw.EfficiencyResult`
 ``[[stages]]``         in: figures 9-10 of the seed)
@@ -25,10 +25,10 @@ study of a cam scene, or ``inverse_dynamics`` study of a platform scene, is hand
 
 from __future__ import annotations
 
-from ..components.cam.geometry import Cam
-from ..components.platform.geometry import CrossedArchPlatform
-from ..errors import SceneError
-from ..plant.platform import platform_plant
+from ...components.cam.geometry import Cam
+from ...components.platform.geometry import CrossedArchPlatform
+from ...errors import SceneError
+from ...plant.platform import platform_plant
 
 #: Built-in studies of roller-screw scenes (which have no ``[studies]`` table).
 ROLLER_SCREW_STUDIES = ("efficiency", "carrier_step")
@@ -93,19 +93,19 @@ def run_mechanism(scene, study, method=None, dt=None, executor=None):
                          f"(cam, platform or roller-screw studies; roller screws: {list(ROLLER_SCREW_STUDIES)})")
     get = st.get if st is not None else (lambda key, default=None: default)
     if _is_cam(scene):
-        from ..components.cam.drive import CamDrive
-        from .cam.constant_speed import constant_speed
+        from ...components.cam.drive import CamDrive
+        from ..cam.constant_speed import constant_speed
         drive = CamDrive.from_scene(scene)
         if kind == "mechanism_sweep":
             return constant_speed(drive, get("speed", 1.0), dt or get("sample_time", 0.01),
                                   get("gravity_tilts", [drive.cam.gravity_tilt]), get("gravity_headings"))
-        from .cam.estimation import estimation_options
-        from .cam.voltage import constant_voltage
+        from ..cam.estimation import estimation_options
+        from ..cam.voltage import constant_voltage
         return constant_voltage(drive, _required(st, "voltage"), get("duration", 3.0),
                                 dt or get("sample_time", 1e-3), method=method or get("method"),
                                 **estimation_options(scene, st))
     if kind == "inverse_dynamics":
-        from ..components.platform.model import PlatformModel
+        from ...components.platform.model import PlatformModel
         from .platform import ramp
         return ramp(PlatformModel.from_scene(scene), _required(st, "rate_alpha"), _required(st, "rate_beta"),
                     _required(st, "duration"), get("external_moments", [[0.0, 0.0]]))

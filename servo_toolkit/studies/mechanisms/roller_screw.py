@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..components.roller_screw.model import RollerScrewModel
-from ..components.roller_screw.stages import efficiency_eq35
-from ..core.parallel import run_cases
-from ..errors import SceneError
+from ...components.roller_screw.model import RollerScrewModel
+from ...components.roller_screw.stages import efficiency_eq35
+from ...core.parallel import run_cases
+from ...errors import SceneError
 
 
 @dataclass(frozen=True)

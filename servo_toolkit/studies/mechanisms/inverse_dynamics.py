@@ -55,11 +55,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..components.ball_screw import BallScrew
-from ..components.linkage import RockerLinkage
-from ..components.roller_screw.stages import RollerScrew
-from ..drivetrain.reflected import Drivetrain
-from ..errors import SimulationError
+from ...components.ball_screw import BallScrew
+from ...components.linkage import RockerLinkage
+from ...components.roller_screw.stages import RollerScrew
+from ...drivetrain.reflected import Drivetrain
+from ...errors import SimulationError
 
 LOSS_MODELS = ("directional", "none")
 

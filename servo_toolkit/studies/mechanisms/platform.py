@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..components.platform.model import PlatformModel
+from ...components.platform.model import PlatformModel
 
 
 @dataclass(frozen=True)
