@@ -15,7 +15,7 @@ from servo_toolkit.loop.robustness import robustness
 from servo_toolkit.report.builder import Report
 from servo_toolkit.report.section import Section
 from servo_toolkit.sim import Reference, simulate
-from servo_toolkit.studies.kv import kv_study
+from servo_toolkit.studies.kv.study import kv_study
 from servo_toolkit.studies.reduce import reduce
 from servo_toolkit.studies.stiffness import stiffness_study
 from servo_toolkit.studies.sweep.compute import sweep

@@ -13,7 +13,7 @@ from servo_toolkit.components.motor import DCMotor
 from servo_toolkit.drivetrain.reflected import Drivetrain
 from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
-from servo_toolkit.studies.kv import with_load_inertia
+from servo_toolkit.studies.kv.study import with_load_inertia
 from servo_toolkit.studies.trajectories import SineMotion
 
 from .conftest import SCENES, build, variant

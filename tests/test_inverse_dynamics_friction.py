@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from servo_toolkit.studies.mechanisms.inverse_dynamics import inverse_dynamics
-from servo_toolkit.studies.kv import default_kv_study, kv_study
+from servo_toolkit.studies.kv.study import default_kv_study, kv_study
 from servo_toolkit.studies.sizing import size
 
 from .conftest import SCENES, build, variant

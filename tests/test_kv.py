@@ -9,7 +9,7 @@ import pytest
 from servo_toolkit.cli import main
 from servo_toolkit.errors import SceneError
 from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.studies.kv import kv_studies, kv_study
+from servo_toolkit.studies.kv.study import kv_studies, kv_study
 
 from .conftest import SCENES, build, variant
 
@@ -156,7 +156,7 @@ def test_a_motion_near_or_above_the_mode_is_flagged(tmp_path):
     the masses, spring 1/(1/(k1 (2 N_s)^2) + 1/(k2 N_s^2)): its mode sqrt(K (1/J1 + 1/J2))
     is 1.69 kHz. A motion above it, or within a factor 2, gets a warning that the rigid Kv
     does not hold; one far below it does not."""
-    from servo_toolkit.studies.kv import default_kv_study
+    from servo_toolkit.studies.kv.study import default_kv_study
     text = LINEAR_THREE_STAGE.replace('ratio = 3.0', 'ratio = 3.0\ntorsional_stiffness = "1000 N*m/rad"')
     path = tmp_path / "lin.toml"
     path.write_text(text.replace('ratio = 2.0', 'ratio = 2.0\ntorsional_stiffness = "5000 N*m/rad"'))

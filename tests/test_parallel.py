@@ -12,7 +12,7 @@ import servo_toolkit as st
 from servo_toolkit.loop.robustness import robustness
 from servo_toolkit.core.parallel import chunks, run_cases
 from servo_toolkit.scene.loader import load_scene
-from servo_toolkit.studies.kv import kv_grid, kv_study
+from servo_toolkit.studies.kv.study import kv_grid, kv_study
 from servo_toolkit.studies.sine_dwell import DwellPlan
 from servo_toolkit.studies.sweep.compute import sweep
 from servo_toolkit.studies.trajectories import SineMotion

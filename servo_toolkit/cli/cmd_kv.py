@@ -28,7 +28,7 @@ def _check_budget(scene, studies, force: bool) -> None:
     """Refuse Kv grids estimated beyond the work budget unless ``--force`` (before any work);
     the knob named is the drivetrain, whose length sets the cost of every case."""
     from .budget import check_time, kv_seconds
-    from ..studies.kv import _motions
+    from ..studies.kv.study import _motions
     cases = 0
     for study in studies:
         if getattr(study, "kind", None) == "kv":
@@ -41,7 +41,7 @@ def _check_budget(scene, studies, force: bool) -> None:
 
 def run(args) -> int:
     """Run the command."""
-    from ..studies.kv import default_kv_study, kv_study
+    from ..studies.kv.study import default_kv_study, kv_study
     from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
     scene = load_scene(args.scene)
     sine = args.amplitude is not None or args.frequency is not None

@@ -63,7 +63,7 @@ def time_points(study, scene=None):
     if study.kind == "kv" and p.get("amplitude_at", "output") != "output":
         if scene is None:
             raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
-        from .kv import output_amplitudes
+        from .kv.study import output_amplitudes
         amps = output_amplitudes(scene, study, amps)
     return np.array([float(freq)]), tuple(float(a) for a in amps)
 

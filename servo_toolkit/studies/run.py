@@ -123,7 +123,7 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
     if kind == "kv":
         if study.kind != "kv":
             raise SceneError(study.key("kind"), f"is {study.kind!r}; only studies of kind 'kv' run as Kv studies")
-        from .kv import kv_study
+        from .kv.study import kv_study
         return kv_study(scene, study, **options)
     if kind == "frequency_sweep":
         from .sweep.compute import sweep

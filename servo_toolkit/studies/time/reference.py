@@ -115,7 +115,7 @@ def _spec(scene, study_name):
     if amp is None and p.get("amplitudes"):
         amp = p["amplitudes"][0]
     if study.kind == "kv" and amp is not None:  # a motor-gear amplitude moves the output by A / N
-        from ..kv import output_amplitudes
+        from ..kv.study import output_amplitudes
         amp = output_amplitudes(scene, study, [amp])[0]
     if isinstance(p.get("frequencies"), dict):
         freq = freq or p["frequencies"].get("start")
