@@ -28,10 +28,11 @@ def _check_budget(scene, studies, force: bool) -> None:
     """Refuse Kv grids estimated beyond the work budget unless ``--force`` (before any work);
     the knob named is the drivetrain, whose length sets the cost of every case."""
     from .budget import check_time, kv_seconds
+    from ..studies.kv.kind import KV
     from ..studies.kv.study import _motions
     cases = 0
     for study in studies:
-        if getattr(study, "kind", None) == "kv":
+        if getattr(study, "kind", None) == KV.name:
             inertias = study.get("load_inertias", [0.0, scene.load.inertia])
             cases += len(_motions(scene, study)[0]) * (len(inertias) + 1 if isinstance(inertias, (list, tuple)) else 2)
     if cases:
@@ -41,6 +42,7 @@ def _check_budget(scene, studies, force: bool) -> None:
 
 def run(args) -> int:
     """Run the command."""
+    from ..studies.kv.kind import KV
     from ..studies.kv.study import default_kv_study, kv_study
     from ..studies.run import default_study, has_motor_drivetrain, is_mechanism_study, run_study, study_of
     scene = load_scene(args.scene)
@@ -59,11 +61,11 @@ def run(args) -> int:
         study_of(scene, args.study)
         names = [args.study]
     else:
-        names = [] if sine else [s.name for s in scene.studies_of_kind("kv")]
+        names = [] if sine else [s.name for s in scene.studies_of_kind(KV.name)]
     if names:
         studies = [study_of(scene, n) for n in names]
         _check_budget(scene, studies, args.force)
-        results = [run_study(scene, n, as_kind="kv", **({} if is_mechanism_study(scene, n) else
+        results = [run_study(scene, n, as_kind=KV.name, **({} if is_mechanism_study(scene, n) else
                                                          dict(losses=args.losses, progress=progress)))
                    for n in names]
     else:
@@ -75,7 +77,7 @@ def run(args) -> int:
     cases = [dict(c, study=n) for n, d in zip(names, dicts) for c in d.get("cases", [])]
     payload = {"scene": scene.name, "studies": dicts, "cases": cases}
     text = "\n\n".join(r.table() if hasattr(r, "table") else str(r) for r in results)
-    kv = all(getattr(st, "kind", None) == "kv" for st in studies)
+    kv = all(getattr(st, "kind", None) == KV.name for st in studies)
     title = f"Kv dynamic-load studies of {scene.name}" if kv else f"Studies of {scene.name}: {', '.join(names)}"
     emit(args, payload, f"{title}\n{text}")
     return 0

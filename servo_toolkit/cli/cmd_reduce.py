@@ -38,9 +38,10 @@ def _check_budget(scene, args, amps, runs: int) -> None:
     without each effect left out), within the work budget unless ``--force`` (other studies
     run one short sine per model)."""
     from .cmd_sweep import check_sweep_budget
+    from ..studies.sweep.kind import SWEEP
     study = scene.studies.get(args.study) if args.study else None
-    if study is None or study.kind == "frequency_sweep":
-        if args.study is None and not scene.studies_of_kind("frequency_sweep") and not args.frequency:
+    if study is None or study.kind == SWEEP.name:
+        if args.study is None and not scene.studies_of_kind(SWEEP.name) and not args.frequency:
             return
         check_sweep_budget(scene, args.study, args.frequency, amps, args.force, runs=runs)
 

@@ -43,7 +43,8 @@ def _check_budget(scene, args, designs: bool) -> None:
     check_robustness_budget(scene, scene.robustness, designs, None, args.force)
     seconds, what, _ = time_run_seconds(scene, 1.0, None, "rk4")
     check_time(seconds, "sensors.sample_time", what, f"{scene.sensors.sample_time:g} s", args.force)
-    if args.full and scene.studies_of_kind("frequency_sweep"):
+    from ..studies.sweep.kind import SWEEP
+    if args.full and scene.studies_of_kind(SWEEP.name):
         from .cmd_sweep import check_sweep_budget
         check_sweep_budget(scene, None, None, None, args.force, runs=3)
 

@@ -98,6 +98,7 @@ def run(args) -> int:
     """Run the command."""
     from ..sim.result import check_trace_path
     from ..studies.run import run_study
+    from ..studies.time.kind import SIMULATE
     from ..studies.time.run import simulate_study
 
     scene = load_scene(args.scene)
@@ -121,7 +122,7 @@ def run(args) -> int:
                        feedforward=args.feedforward, shaper=args.shaper, schedule=args.schedule or None,
                        friction=args.friction, controller=controller, controller_source=source,
                        spec=(reference, duration, voltage, method, dt))
-        result = (run_study(scene, args.study, as_kind="simulate", **options) if args.study
+        result = (run_study(scene, args.study, as_kind=SIMULATE.name, **options) if args.study
                   else simulate_study(scene, None, **options))
         text = f"Simulation of {scene.name}\n" + result.table()
         if args.dt is not None:

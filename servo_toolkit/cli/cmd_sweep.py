@@ -57,7 +57,8 @@ def _sweep(scene, name, **options):
     """The sweep of study ``name``, or of the scene's first frequency_sweep study (and 8 Hz)."""
     if name:
         from ..studies.run import run_study
-        return run_study(scene, name, as_kind="frequency_sweep", **options)
+        from ..studies.sweep.kind import SWEEP
+        return run_study(scene, name, as_kind=SWEEP.name, **options)
     from ..studies.sweep.compute import sweep
     return sweep(scene, None, **options)
 

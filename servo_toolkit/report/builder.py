@@ -32,12 +32,14 @@ from .context import Context
 from .figures import finish
 from .references import reader_words
 from .section import FigureSpec, NotApplicable, NotAvailable, Section
+from .sections_kinds import kind_sections
 from .time_limit import time_limit as _time_limit
 
 #: default wall-time limit per section (s) with light settings; None with full settings
 LIGHT_SECTION_TIME_LIMIT = 60.0
 
 #: Section builders in report order (the requirements table, REQUIREMENTS, is built and shown first).
+#: The study kinds' sections (:mod:`.sections_kinds`) come before :data:`KIND_SECTIONS_BEFORE`.
 SECTIONS = (
     ("scene", "Scene summary", drv.scene_summary),
     ("stiffness", "Stiffness chain and compliance shares", drv.stiffness_chain),
@@ -55,21 +57,27 @@ SECTIONS = (
     ("tolerances", "Tolerances: yield and sensitivity", tolerances.tolerances_section),
     ("time", "Step response and sine tracking", timing.time_responses),
     ("command", "Control that uses the model: feedforward, gain schedule, command shaping", command.command_section),
-    ("sweep", "Nonlinear frequency sweep against the linear loop", studies.sweep),
-    ("kv", "Dynamic-load factor Kv", studies.kv_tables),
+    *kind_sections(),  # each study kind's own section (the sweep, Kv), from its descriptor
     ("sizing", "Sizing along the duty cycle", sizing.sizing),
     ("reduce", "What the model leaves out", limits.leaves_out),
     ("accuracy", "Solver accuracy", studies.accuracy),
 )
+#: the section the study kinds' sections come before
+KIND_SECTIONS_BEFORE = "sizing"
 REQUIREMENTS = ("requirements", "Requirements", loop.requirements)
 #: the section of a measured plant response, after :data:`measured.AFTER`, in a report given one
 MEASURED = ("measured", "The loop on the measured plant", measured.measured_plant)
 
 
-def sections_of(plant_frf) -> list:
-    """The section builders of a report, in order: :data:`SECTIONS`, and :data:`MEASURED`
-    when a measured plant response is given."""
+def sections_of(plant_frf, scene=None) -> list:
+    """The section builders of a report, in order: :data:`SECTIONS`, the sections of the
+    study kinds registered since (a plugin's) and the generic section of each kind without
+    one of its own that ``scene`` has studies of (before :data:`KIND_SECTIONS_BEFORE`), and
+    :data:`MEASURED` when a measured plant response is given."""
     steps = list(SECTIONS)
+    known = {s[0] for s in steps}
+    at = next(i for i, s in enumerate(steps) if s[0] == KIND_SECTIONS_BEFORE)
+    steps[at:at] = [s for s in kind_sections(scene) if s[0] not in known]
     if plant_frf is not None:
         at = next(i for i, s in enumerate(steps) if s[0] == measured.AFTER) + 1
         steps.insert(at, MEASURED)
@@ -206,7 +214,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
     # the requirements table first: what the report is signed on is never stopped half-way,
     # and the results it shares with the sections (the design, the large-signal run, the
     # Monte Carlo runs, the sizing) are computed in full before any section's time limit
-    steps = [REQUIREMENTS] + sections_of(plant_frf)
+    steps = [REQUIREMENTS] + sections_of(plant_frf, scene)
     with progress_bar(steps, show=progress, desc="report", unit="section", file=sys.stderr, leave=False) as bar:
         for key, title, builder in bar:
             bar.set_postfix_str(title[:40])

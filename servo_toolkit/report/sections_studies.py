@@ -67,6 +67,7 @@ def reduced_sweep(ctx):
 
 def sweep(ctx) -> Section:
     """Nonlinear sine-dwell sweep against the linear closed loop."""
+    from ..studies.sweep.kind import SWEEP
     ctx.require_drivetrain("the frequency sweep")
     res = reduced_sweep(ctx)
     fig, axes = figures.new_figure(2, 1, size=(7.5, 5.4), sharex=True)
@@ -106,19 +107,20 @@ def sweep(ctx) -> Section:
         text.append("The sweep ran the reduced model (see 'What the model leaves out'); left out: "
                     + (", ".join(names) or "nothing") + ".")
     text += list(getattr(res, "notes", ()))
-    return Section("Nonlinear frequency sweep against the linear loop", para(*text) + table(head, rows),
+    return Section(SWEEP.section_title, para(*text) + table(head, rows),
                    (FigureSpec(fig, "Closed-loop Bode: linear loop (line) and nonlinear sine dwell (markers)."),),
-                   key="sweep")
+                   key=SWEEP.section_key)
 
 
 def kv_tables(ctx) -> Section:
     """Kv tables of the scene's kv studies (the equivalent-element method, Ref. [1]): inverse
     dynamics along the motion."""
     ctx.require_drivetrain("the Kv study")
+    from ..studies.kv.kind import KV
     from ..studies.run import run_study
-    studies = ctx.scene.studies_of_kind("kv")
+    studies = ctx.scene.studies_of_kind(KV.name)
     if not studies:
-        raise NotApplicable("the scene defines no [studies.NAME] of kind \"kv\"")
+        raise NotApplicable(f"the scene defines no [studies.NAME] of kind \"{KV.name}\"")
     results = [run_study(ctx.scene, s.name, samples_per_period=400 if ctx.light else 2000,
                          executor=ctx.executor, progress=False) for s in studies]
     parts = [para("Kv, the dynamic-load factor: the peak load of a motion with the external inertia over the "
@@ -137,11 +139,11 @@ def kv_tables(ctx) -> Section:
                  fmt(c.kv_rod, 3)) for c in res.cases]
         parts.append(f"<h3>{esc(res.study)}: {esc(res.motion)}</h3>")
         parts.append(para(f"Amplitudes at the {res.amplitude_at}; stage losses: {res.losses}.", *res.notes))
-        parts.append(table(head, rows, cls="kv"))
+        parts.append(table(head, rows, cls=KV.section_key))
         fig, ax = figures.new_figure(size=(6.5, 3.4))
         res.plot(ax=ax)
         figs.append(FigureSpec(fig, f"Kv against the external inertia, study {res.study}."))
-    return Section("Dynamic-load factor Kv", "".join(parts), tuple(figs), key="kv")
+    return Section(KV.section_title, "".join(parts), tuple(figs), key=KV.section_key)
 
 
 #: the fixed-step methods of the accuracy study by name (the solver's keys ``rk4``, ``paper``)

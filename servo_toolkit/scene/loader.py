@@ -21,7 +21,6 @@ from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
 from .tables import ROBUSTNESS_METHODS, SPEED_ESTIMATORS, Requirements, Robustness, Sensors, Study  # noqa: F401
 
-STUDY_KINDS = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_sweep")
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
              "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display", "tolerances"}

@@ -1,6 +1,6 @@
-"""The keys of each ``[studies.NAME]`` kind: their units, ranges and choices, read at load time
-like every other table (a typo, a wrong unit or an impossible value is one line naming the
-key, never a traceback when the study runs).
+"""How a ``[studies.NAME]`` table is read: with its kind's keys (:mod:`.study_kind`), their
+units, ranges and choices, at load time like every other table (a typo, a wrong unit or an
+impossible value is one line naming the key, never a traceback when the study runs).
 
 Amplitudes and offsets are positions of the output: angles for an output angle, lengths for
 an output travel (a chain ending in a screw); a Kv study's load inertias are kg*m^2 for an
@@ -11,10 +11,12 @@ more memory or time than a workstation has.
 from __future__ import annotations
 
 import math
+from types import MappingProxyType
 
 from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import INERTIA_UNIT
+from .study_kind import study_kind
 
 #: longest run a study may ask for (s)
 MAX_DURATION_S = 1000.0
@@ -26,22 +28,14 @@ METHODS = ("rk4", "paper", "reference", "auto")
 POSITION = "position"  # rad or m, after the scene's output
 INERTIA = "inertia"  # kg*m^2 for an output angle, kg (a mass) for an output travel
 
-_AMP = {"amplitude": (POSITION, "positive"), "amplitudes": ([POSITION], "positive")}
-_SINE = {"frequency": ("Hz", "positive"), "period": ("s", "positive"), **_AMP}
-_RUN = {"duration": ("s", "positive"), "sample_time": ("s", "positive"), "method": (METHODS, None)}
-#: kind -> key -> (unit, or [unit] for a list, or a tuple of choices for text; rule)
-SCHEMA = {
-    "kv": {**_SINE, "trajectory": (("sine",), None), "amplitude_at": (("output", "motor"), None),
-           "offset": (POSITION, "finite"), "load_inertias": ([INERTIA], "nonnegative")},
-    "frequency_sweep": {**_SINE, "frequencies": ("sweep", None), **_RUN},
-    "simulate": {**_SINE, **_RUN, "voltage": ("V", "finite"), "frequencies": ("sweep", None),
-                 "speed_estimator": (("true", "difference", "kalman", "ideal"), None),
-                 "encoder_counts": ("count", None), "kalman_jerk": ("rad/s^3", "positive")},
-    "inverse_dynamics": {"rate_alpha": ("rad/s", "finite"), "rate_beta": ("rad/s", "finite"),
-                         "duration": ("s", "positive"), "external_moments": ("moments", None)},
-    "mechanism_sweep": {"speed": ("rad/s", "positive"), "sample_time": ("s", "positive"),
-                        "gravity_tilts": (["rad"], "finite"), "gravity_headings": (["rad"], "finite")},
-}
+#: the building blocks of the kinds' schemas (:class:`~.study_kind.StudyKind`): key -> (unit,
+#: or [unit] for a list, or a tuple of choices for text, or "sweep" / "moments" / "count"; rule)
+AMPLITUDE_KEYS = MappingProxyType({"amplitude": (POSITION, "positive"), "amplitudes": ([POSITION], "positive")})
+#: a sine motion: its frequency or period and its amplitude(s)
+SINE_KEYS = MappingProxyType({"frequency": ("Hz", "positive"), "period": ("s", "positive"), **AMPLITUDE_KEYS})
+#: a time run: its duration, sample time and integration method
+RUN_KEYS = MappingProxyType({"duration": ("s", "positive"), "sample_time": ("s", "positive"),
+                             "method": (METHODS, None)})
 
 
 def _sweep_table(f: Fields, name: str):
@@ -75,21 +69,24 @@ def _moments(f: Fields, name: str):
 
 
 def study_params(name: str, table, output_unit: str = "rad") -> tuple:
-    """``(kind, params)`` of a ``[studies.NAME]`` table: every value checked and in SI
+    """``(kind, params)`` of a ``[studies.NAME]`` table, read with its kind's schema
+    (:func:`~.study_kind.study_kinds`): every value checked and in SI
     (positions in rad or m after ``output_unit``, frequencies in Hz).
 
     Raises
     ------
     SceneError
-        Naming ``studies.NAME.key`` and the rule: an unknown key, a wrong unit, a value out of
-        range, a choice not offered.
+        Naming ``studies.NAME.key`` and the rule: an unknown kind (the message lists the
+        registered ones), an unknown key, a wrong unit, a value out of range, a choice not
+        offered.
     """
     f = Fields(table, f"studies.{name}")
-    kind = f.text("kind", choices=set(SCHEMA))
+    kind = f.text("kind")
+    schema = study_kind(kind, f.key("kind")).schema
     params = {}
-    # a kv study's amplitudes read at the motor gear are angles of the motor gear, whatever the output
-    at_motor = kind == "kv" and table.get("amplitude_at") == "motor"
-    for key, (unit, rule) in SCHEMA[kind].items():
+    # amplitudes read at the motor gear (a Kv study's) are angles of the motor gear, whatever the output
+    at_motor = "amplitude_at" in schema and table.get("amplitude_at") == "motor"
+    for key, (unit, rule) in schema.items():
         if not f.has(key):
             continue
         if unit == POSITION:

@@ -2,9 +2,10 @@
 ``--amplitude``, before any run (a motion past the end stop is the user's figure, named as
 such, not a run that fails later).
 
-A closed-loop sine (``frequency_sweep``, ``simulate``) runs about the design's operating
-point (:func:`~servo_toolkit.drivetrain.operating_point.operating_point`); a Kv sine given at
-the output about its ``offset`` (default mid-stroke). A cam chain's coordinate turns without
+Each kind says about which centre its sine runs (:attr:`~.study_kind.StudyKind.stroke`): a
+closed-loop sine (``frequency_sweep``, ``simulate``) about the design's operating point
+(:func:`~servo_toolkit.drivetrain.operating_point.operating_point`); a Kv sine given at the
+output about its ``offset`` (default mid-stroke). A cam chain's coordinate turns without
 end and has no stroke to leave.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 from ..core.output_units import output_unit
 from ..drivetrain.operating_point import operating_point
 from ..errors import SceneError
+from .study_kind import study_kinds
 
 #: rounding allowance at the stroke ends (rad or m)
 STROKE_TOL = 1e-12
@@ -53,12 +55,14 @@ def check_study_amplitudes(scene) -> None:
     if not scene.stages or scene.motor is None or scene.drivetrain.ends_in_cam:
         return
     center_default = None
+    kinds = study_kinds()
     for study in scene.studies.values():
-        if study.kind in ("frequency_sweep", "simulate"):
+        stroke = kinds[study.kind].stroke
+        if stroke == "operating_point":
             if center_default is None:
                 center_default = operating_point(scene)[0]
             center = center_default
-        elif study.kind == "kv" and study.get("amplitude_at", "output") == "output":
+        elif stroke == "offset" and study.get("amplitude_at", "output") == "output":
             center = study.get("offset", scene.drivetrain.mid_stroke)
         else:
             continue

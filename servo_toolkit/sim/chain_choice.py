@@ -68,17 +68,16 @@ def has_upper_modes(chain, q0: float) -> bool:
     return not chain.rigid and kept_nodes(chain, q0).size > 2
 
 
-#: the studies whose runs a model built for the scene serves (a frequency sweep reduces its
-#: own model at its own frequencies by the same rule)
-TIME_STUDIES = ("kv", "simulate")
-
-
 def study_frequencies(scene) -> list[float]:
-    """The frequencies (Hz) of the scene's time-run studies (:data:`TIME_STUDIES`): a sine's
+    """The frequencies (Hz) of the scene's time-run studies (the kinds whose runs a model
+    built for the scene serves, :attr:`~servo_toolkit.scene.study_kind.StudyKind.time_run`; a
+    frequency sweep reduces its own model at its own frequencies by the same rule): a sine's
     frequency (or 1 / period), the frequencies a study lists."""
+    from ..scene.study_kind import study_kinds
+    kinds = study_kinds()
     out = []
     for study in scene.studies.values():
-        if study.kind not in TIME_STUDIES:
+        if not kinds[study.kind].time_run:
             continue
         p = study.params
         sweep = p.get("frequencies", [])
@@ -217,5 +216,5 @@ def _hz(values, digits: int = 4) -> str:
     return ", ".join(f"{v:.{digits}g}" for v in values) + " Hz"
 
 
-__all__ = ["ChainChoice", "LUMP_TOLERANCE", "TIME_STUDIES", "choose_chain", "crossover_hz", "has_upper_modes", "lumping_cost",
+__all__ = ["ChainChoice", "LUMP_TOLERANCE", "choose_chain", "crossover_hz", "has_upper_modes", "lumping_cost",
            "step_limit", "study_frequencies", "working_frequencies"]

@@ -150,13 +150,14 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
 
     from ..errors import SimulationError, StrokeEndReached
     from ..sim import Reference, simulate
+    from .sweep.kind import SWEEP
     from .sweep.points import study_points
     from ..loop.requirements import requirements_of
     f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
     _, _, amps = study_points(scene)
     from ..core.output_units import output_unit
     unit = output_unit(scene)
-    amp = float(amps[0]) if scene.studies_of_kind("frequency_sweep") else unit.default_amplitude
+    amp = float(amps[0]) if scene.studies_of_kind(SWEEP.name) else unit.default_amplitude
     if actuator is not None:
         f, amp = actuator.plan.frequency, actuator.plan.sine_amplitude
     duration = CYCLES / f

@@ -36,9 +36,10 @@ from .reduce_choice import options_without
 from .reduce_estimates import DEFAULT_TOLERANCE, plan_reduction
 from .reduce_result import EffectCost, ReductionResult
 from .sine_dwell import DwellPlan
+from ..scene.study_kind import study_kinds
+from .kv.kind import KV
 from .sweep.compute import linear_response, study_points, sweep
-
-TIME_KINDS = ("kv", "simulate")
+from .sweep.kind import SWEEP
 
 
 def time_points(study, scene=None):
@@ -60,7 +61,7 @@ def time_points(study, scene=None):
         from .time.reference import check_sine_frequency
         check_sine_frequency(float(freq), float(scene.sensors.sample_time), None,
                              study.key("frequency" if p.get("frequency") is not None else "period"))
-    if study.kind == "kv" and p.get("amplitude_at", "output") != "output":
+    if study.kind == KV.name and p.get("amplitude_at", "output") != "output":
         if scene is None:
             raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
         from .kv.study import output_amplitudes
@@ -140,10 +141,10 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     notes = [] if source is None else [f"controller from {source}"]
     if isinstance(study, str):
         study = scene.study(study)
-    if study is None or study.kind == "frequency_sweep":
+    if study is None or study.kind == SWEEP.name:
         name, freqs, amps = _sweep_points(scene, study, frequencies)
         freqs, measure = np.asarray(freqs), "sweep"
-    elif study.kind in TIME_KINDS:
+    elif study_kinds()[study.kind].time_run:
         _no_frequencies(study, frequencies)
         name = study.name
         freqs, amps = time_points(study, scene)
@@ -277,14 +278,14 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
         controller, _ = controller_for(scene)
     if isinstance(study, str):
         study = scene.study(study)
-    if study is None or study.kind == "frequency_sweep":
+    if study is None or study.kind == SWEEP.name:
         _, freqs, amps = _sweep_points(scene, study, frequencies)
         from .time.reference import check_sine_frequency
         for f in freqs:
             check_sine_frequency(f, float(scene.sensors.sample_time), None,
                                  "frequencies" if frequencies is not None or study is None
                                  else study.key("frequencies"))
-    elif study.kind in TIME_KINDS:
+    elif study_kinds()[study.kind].time_run:
         _no_frequencies(study, frequencies)
         freqs, amps = time_points(study, scene)
     else:

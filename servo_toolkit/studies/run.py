@@ -1,16 +1,21 @@
 """Run study NAME of a scene: the one place that maps a ``[studies.NAME]`` table (or a
 built-in study of a seed-mechanism scene) to the function that runs it.
 
-- kind ``kv``: :func:`.kv.kv_study`, giving a :class:`.kv.KvResult`;
-- kind ``frequency_sweep``: :func:`.sweep.sweep`, giving a :class:`.sweep.SweepResult`;
-- kind ``simulate``: :func:`.time.run.simulate_study`, giving a
+A study runs through its kind's descriptor (:class:`~servo_toolkit.scene.study_kind.StudyKind`,
+registered in :func:`~servo_toolkit.scene.study_kind.study_kinds`): its ``run`` function,
+``run(scene, study, **options)``, gives its ``result``. The built-in kinds:
+
+- ``kv``: :func:`.kv.study.kv_study`, giving a :class:`.kv.result.KvResult`;
+- ``frequency_sweep``: :func:`.sweep.compute.sweep`, giving a :class:`.sweep.result.SweepResult`;
+- ``simulate``: :func:`.time.run.simulate_study`, giving a
   :class:`~servo_toolkit.sim.result.SimulationResult`;
-- a seed-mechanism study (cam, platform, roller screw; see :mod:`.mechanisms`):
-  :func:`.mechanisms.run_mechanism`, giving the mechanism's own result.
+- a seed-mechanism study (cam, platform, roller screw; see :mod:`.mechanisms.dispatch`):
+  :func:`.mechanisms.dispatch.run_mechanism`, giving the mechanism's own result.
 
 ``run_study(scene, name, as_kind="simulate")`` runs a sine study of another kind (a ``kv``
-study's sine) as a time simulation, as ``servo-toolkit simulate --study NAME`` does. The
-command line and the report call these functions; a notebook can too::
+study's sine) as a time simulation, as ``servo-toolkit simulate --study NAME`` does: a kind
+whose descriptor has ``runs_other_kinds`` runs the studies of other kinds. The command line
+and the report call these functions; a notebook can too::
 
     import servo_toolkit as st
     scene = st.load_scene("scenes/ema_reference.toml")
@@ -20,10 +25,14 @@ command line and the report call these functions; a notebook can too::
 from __future__ import annotations
 
 from ..errors import SceneError
+from ..scene.study_kind import study_kind, study_kinds
 from .mechanisms.dispatch import ROLLER_SCREW_STUDIES, handles, run_mechanism
 
-#: what each study kind runs by default; ``as_kind`` may ask for another of these
-RUNNERS = ("kv", "frequency_sweep", "simulate")
+
+def runnable_kinds() -> list:
+    """Names of the registered kinds that run on their own (not only as a seed-mechanism
+    study of a matching scene), in registry order."""
+    return [name for name, kind in study_kinds().items() if not kind.mechanism_only]
 
 
 def has_motor_drivetrain(scene) -> bool:
@@ -92,12 +101,13 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
     name : str
         A ``[studies.NAME]`` of the scene, or a built-in study of a roller-screw scene
         (``"efficiency"``, ``"carrier_step"``).
-    as_kind : {"kv", "frequency_sweep", "simulate"}, optional
+    as_kind : str, optional
         Run the study's motion as this kind instead of its own (e.g. ``"simulate"``: a time
-        simulation of a ``kv`` study's sine). Seed-mechanism studies always run their own
-        model.
+        simulation of a ``kv`` study's sine); a kind whose descriptor has
+        ``runs_other_kinds`` (``frequency_sweep``, ``simulate``). Seed-mechanism studies
+        always run their own model.
     **options
-        Passed to the runner (see the table in this module's documentation): e.g.
+        Passed to the kind's runner (see the list in this module's documentation): e.g.
         ``method``, ``dt``, ``full``, ``amplitude``, ``frequency`` for ``simulate``;
         ``frequencies``, ``amplitudes``, ``full``, ``executor``, ``progress`` for
         ``frequency_sweep``; ``losses``, ``progress`` for ``kv``; ``method``, ``dt``,
@@ -116,21 +126,15 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
     study = study_of(scene, name)
     if handles(scene, study):
         return run_mechanism(scene, study, **options)
-    kind = as_kind or study.kind
-    if kind not in RUNNERS:
+    kind = study_kind(as_kind or study.kind, study.key("kind"))
+    if kind.mechanism_only:
         raise SceneError(study.key("kind"), f"is {study.kind!r}, which runs only as a seed-mechanism study of a "
-                         f"matching scene; runnable kinds: {', '.join(RUNNERS)}")
-    if kind == "kv":
-        if study.kind != "kv":
-            raise SceneError(study.key("kind"), f"is {study.kind!r}; only studies of kind 'kv' run as Kv studies")
-        from .kv.study import kv_study
-        return kv_study(scene, study, **options)
-    if kind == "frequency_sweep":
-        from .sweep.compute import sweep
-        return sweep(scene, name, **options)
-    from .time.run import simulate_study
-    return simulate_study(scene, name, **options)
+                         f"matching scene; runnable kinds: {', '.join(runnable_kinds())}")
+    if kind.name != study.kind and not kind.runs_other_kinds:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; only studies of kind {kind.name!r} run as {kind.name} "
+                         "studies")
+    return kind.resolve("run")(scene, study, **options)
 
 
-__all__ = ["RUNNERS", "builtin_studies", "default_study", "has_motor_drivetrain", "is_mechanism_study",
-           "mechanism_studies", "run_study", "study_names", "study_of"]
+__all__ = ["builtin_studies", "default_study", "has_motor_drivetrain", "is_mechanism_study",
+           "mechanism_studies", "run_study", "runnable_kinds", "study_names", "study_of"]

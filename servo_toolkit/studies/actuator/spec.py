@@ -37,6 +37,7 @@ import numpy as np
 
 from ...core.output_units import output_unit
 from ...loop.drive_budget import followable_sine
+from ..sweep.kind import SWEEP
 # the default current ripple, of the continuous current else of the current limit: the
 # allowance the loop design keeps the encoder's and the play's ripple within
 from ...loop.actuator_bounds import RIPPLE_OF_CONTINUOUS, RIPPLE_OF_LIMIT  # noqa: F401 - re-exported
@@ -158,7 +159,7 @@ def plan(scene, design) -> Plan:
         step = 0.5 * u.default_amplitude
         notes.append(f"step {u.text(step, 3)}: default (half the output's default command)")
     amp = given.sine_amplitude
-    if amp is None and scene.studies_of_kind("frequency_sweep"):
+    if amp is None and scene.studies_of_kind(SWEEP.name):
         amp = float(study_points(scene)[2][0])
         notes.append(f"sine {u.text(amp, 3)} at {f:g} Hz: the amplitude of the scene's sweep study")
     elif amp is None:

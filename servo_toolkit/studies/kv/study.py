@@ -38,6 +38,7 @@ from ...core.parallel import run_cases
 from ..mechanisms.inverse_dynamics import friction_notes, inverse_dynamics
 from ...core.output_units import output_unit
 from ..trajectories import SineMotion
+from .kind import KV
 from .result import KvCase, KvResult
 
 
@@ -212,14 +213,14 @@ def kv_study(scene, study=None, *, losses: str = "directional", samples_per_peri
     KvResult
     """
     if study is None:
-        found = scene.studies_of_kind("kv")
+        found = scene.studies_of_kind(KV.name)
         if not found:
-            raise SceneError("studies", "the scene has no study of kind 'kv'")
+            raise SceneError("studies", f"the scene has no study of kind {KV.name!r}")
         study = found[0]
     elif isinstance(study, str):
         study = scene.study(study)
-    if study.kind != "kv":
-        raise SceneError(study.key("kind"), f"is {study.kind!r}, not 'kv'")
+    if study.kind != KV.name:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}, not {KV.name!r}")
     motions, at = _motions(scene, study)
     inertias = study.get("load_inertias", [0.0, scene.load.inertia])
     if not isinstance(inertias, (list, tuple)) or any(not (j >= 0 and math.isfinite(j)) for j in inertias):
@@ -277,12 +278,12 @@ def default_kv_study(scene, amplitude: float | None = None, frequency: float | N
     amp = output_unit(scene).default_amplitude if amplitude is None else float(amplitude)
     params = {"trajectory": "sine", "amplitude": amp, "frequency": REQUIREMENT_SINE_HZ if frequency is None else float(frequency),
               "offset": operating_point(scene)[0]}
-    return Study("default", "kv", MappingProxyType(params))
+    return Study("default", KV.name, MappingProxyType(params))
 
 
 def kv_studies(scene, **options) -> list[KvResult]:
     """Every study of kind "kv" in the scene, in file order."""
-    return [kv_study(scene, s, **options) for s in scene.studies_of_kind("kv")]
+    return [kv_study(scene, s, **options) for s in scene.studies_of_kind(KV.name)]
 
 
 __all__ = ["KvCase", "KvResult", "default_kv_study", "kv_grid", "kv_study", "kv_studies", "output_amplitudes",

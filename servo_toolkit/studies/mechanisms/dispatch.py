@@ -29,6 +29,8 @@ from ...components.cam.geometry import Cam
 from ...components.platform.geometry import CrossedArchPlatform
 from ...errors import SceneError
 from ...plant.platform import platform_plant
+from ..time.kind import SIMULATE
+from .kind import INVERSE_DYNAMICS, MECHANISM_SWEEP
 
 #: Built-in studies of roller-screw scenes (which have no ``[studies]`` table).
 ROLLER_SCREW_STUDIES = ("efficiency", "carrier_step")
@@ -54,9 +56,9 @@ def handles(scene, study) -> bool:
     """True when ``study`` (a Study or its name) of ``scene`` is a seed-mechanism study."""
     _, kind, _ = _kind(scene, study)
     if _is_cam(scene):
-        return kind in ("mechanism_sweep", "simulate")
+        return kind in (MECHANISM_SWEEP.name, SIMULATE.name)
     if isinstance(scene.mechanism, CrossedArchPlatform):
-        return kind == "inverse_dynamics"
+        return kind == INVERSE_DYNAMICS.name
     if scene.roller_screw:
         return kind in ROLLER_SCREW_STUDIES
     return False
@@ -96,7 +98,7 @@ def run_mechanism(scene, study, method=None, dt=None, executor=None):
         from ...components.cam.drive import CamDrive
         from ..cam.constant_speed import constant_speed
         drive = CamDrive.from_scene(scene)
-        if kind == "mechanism_sweep":
+        if kind == MECHANISM_SWEEP.name:
             return constant_speed(drive, get("speed", 1.0), dt or get("sample_time", 0.01),
                                   get("gravity_tilts", [drive.cam.gravity_tilt]), get("gravity_headings"))
         from ..cam.estimation import estimation_options
@@ -104,7 +106,7 @@ def run_mechanism(scene, study, method=None, dt=None, executor=None):
         return constant_voltage(drive, _required(st, "voltage"), get("duration", 3.0),
                                 dt or get("sample_time", 1e-3), method=method or get("method"),
                                 **estimation_options(scene, st))
-    if kind == "inverse_dynamics":
+    if kind == INVERSE_DYNAMICS.name:
         from ...components.platform.model import PlatformModel
         from .platform import ramp
         return ramp(PlatformModel.from_scene(scene), _required(st, "rate_alpha"), _required(st, "rate_beta"),

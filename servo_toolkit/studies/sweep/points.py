@@ -8,6 +8,7 @@ import numpy as np
 
 from ...errors import SceneError
 from ...core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, output_unit
+from .kind import SWEEP
 
 #: the seed's key frequency, always in the default sweep
 DEFAULT_FREQUENCY_HZ = REQUIREMENT_SINE_HZ
@@ -37,14 +38,14 @@ def study_points(scene, study=None):
     """
     extra = (DEFAULT_FREQUENCY_HZ,)
     if study is None:
-        found = scene.studies_of_kind("frequency_sweep")
+        found = scene.studies_of_kind(SWEEP.name)
         if not found:
             return None, (DEFAULT_FREQUENCY_HZ,), (output_unit(scene).default_amplitude,)
         study = found[0]
     elif isinstance(study, str):
         study = scene.study(study)
-    if study.kind != "frequency_sweep":
-        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind 'frequency_sweep'")
+    if study.kind != SWEEP.name:
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind {SWEEP.name!r}")
     p = study.params
     if p.get("amplitudes"):
         amps = tuple(float(a) for a in p["amplitudes"])

@@ -7,6 +7,8 @@ import math
 from ...core.output_units import DEFAULT_RUN_S, REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, REQUIREMENT_SINE_MM
 from ...errors import SceneError
 from ...sim.reference import Reference
+from ..kv.kind import KV
+from .kind import SIMULATE
 
 #: default closed-loop run: the requirement sine of seed 000 (8 Hz, 2 deg) for 1 s
 DEFAULT_SINE = (math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ, DEFAULT_RUN_S)
@@ -105,7 +107,7 @@ def _spec(scene, study_name):
     study = scene.study(study_name)
     p = study.params
     method = p.get("method")
-    dt = p.get("sample_time") if study.kind == "simulate" else None
+    dt = p.get("sample_time") if study.kind == SIMULATE.name else None
     if "voltage" in p:
         return None, float(p.get("duration", 1.0)), float(p["voltage"]), method, dt
     freq = p.get("frequency")
@@ -114,7 +116,7 @@ def _spec(scene, study_name):
     amp = p.get("amplitude")
     if amp is None and p.get("amplitudes"):
         amp = p["amplitudes"][0]
-    if study.kind == "kv" and amp is not None:  # a motor-gear amplitude moves the output by A / N
+    if study.kind == KV.name and amp is not None:  # a motor-gear amplitude moves the output by A / N
         from ..kv.study import output_amplitudes
         amp = output_amplitudes(scene, study, [amp])[0]
     if isinstance(p.get("frequencies"), dict):

@@ -28,7 +28,7 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
     Parameters
     ----------
     scene : Scene
-    study : str, optional
+    study : str or Study, optional
         A ``[studies.NAME]`` with a sine (``simulate`` or ``kv`` kind) or a ``voltage``.
     method : {"rk4", "paper", "reference", "auto"}, optional
         Default: the study's ``method``, else ``"auto"`` (``"rk4"`` when ``dt`` is given).
@@ -69,6 +69,7 @@ def simulate_study(scene, study: str | None = None, *, method: str | None = None
         the a-priori bound on what that costs.
     """
     if spec is None:
+        study = getattr(study, "name", study)  # a Study or its name
         spec = resolve_run(scene, study, method=method, dt=dt, amplitude=amplitude, frequency=frequency)
     reference, duration, voltage, method, dt = spec
     if voltage is not None:
