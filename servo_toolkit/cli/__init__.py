@@ -47,6 +47,7 @@ COMMANDS = {
     "excite": "an excitation for the rig's drive within the scene's limits, with the model's response to it (a file "
               "frf reads)",
     "frf": "frequency response and coherence from a time log (H1, Welch)",
+    "study": "run one [studies.NAME] of any kind (built in or from an installed package)",
 }
 
 
