@@ -52,6 +52,7 @@ BASE = {
     "excite": [EMA, "-o", "{tmp}/stimulus.csv", "--resolution", "4", "--periods", "1", "--settle", "0"],
     "new": None,  # no numeric option (writes a starting scene)
     "size": None,  # no numeric option (the duty cycle's numbers are scene keys, tested in test_sizing*.py)
+    "study": None,  # no numeric option (a study's numbers are scene keys)
 }
 #: options whose base argument the case replaces
 REPLACES = {("kv", "--frequency"): ["--study", "kv_8hz"], ("kv", "--amplitude"): ["--study", "kv_8hz"],
