@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import import_module, metadata
 from pathlib import Path
 from types import MappingProxyType
@@ -83,6 +83,9 @@ class StudyKind:
         A study of another kind may run as this kind (``run_study(..., as_kind=NAME)``).
     mechanism_only : bool
         It runs only as a seed-mechanism study of a matching scene (no runner of its own).
+    origin : str
+        Where the registry found it (its ``kind.py`` module or its entry point); set by
+        :func:`study_kinds`.
     """
 
     name: str
@@ -142,7 +145,7 @@ def _add(found: dict, kind, origin: str) -> None:
         raise TypeError(f"{origin} gives {type(kind).__name__}, not a StudyKind")
     if kind.name in found:
         raise ValueError(f"study kind {kind.name!r} is registered twice: by {found[kind.name].origin} and by {origin}")
-    found[kind.name] = StudyKind(**{**{f: getattr(kind, f) for f in kind.__dataclass_fields__}, "origin": origin})
+    found[kind.name] = replace(kind, origin=origin)
 
 
 @functools.lru_cache(maxsize=8)

@@ -16,7 +16,7 @@ from types import MappingProxyType
 from ..errors import SceneError
 from ..core.fields import Fields, require
 from ..drivetrain.elements import INERTIA_UNIT
-from .study_kind import study_kind
+from .study_kind import study_kinds
 
 #: longest run a study may ask for (s)
 MAX_DURATION_S = 1000.0
@@ -81,8 +81,8 @@ def study_params(name: str, table, output_unit: str = "rad") -> tuple:
         offered.
     """
     f = Fields(table, f"studies.{name}")
-    kind = f.text("kind")
-    schema = study_kind(kind, f.key("kind")).schema
+    kind = f.text("kind", choices=set(study_kinds()))  # an unknown kind: the registered ones listed
+    schema = study_kinds()[kind].schema
     params = {}
     # amplitudes read at the motor gear (a Kv study's) are angles of the motor gear, whatever the output
     at_motor = "amplitude_at" in schema and table.get("amplitude_at") == "motor"
