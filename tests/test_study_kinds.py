@@ -97,3 +97,21 @@ def test_loading_a_scene_imports_no_study_computation():
     computation = [m for m in loaded if m != "servo_toolkit.studies" and not m.endswith(".kind")
                    and m + ".kind" not in loaded]  # a kind's package: its names load on first use
     assert not computation, f"loading a scene imported {computation}"
+
+
+def test_the_study_command_runs_a_builtin_kind_and_guards_its_inputs(tmp_path, capsys):
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    scene = tmp_path / "platform.toml"
+    scene.write_bytes((SCENES / "deflection_platform.toml").read_bytes())
+    out = tmp_path / "ramp.json"
+    assert main(["study", str(scene), "ramp", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.startswith("Study ramp (inverse_dynamics) of deflection_platform\n") and "[N*m]" in printed
+    data = json.loads(out.read_text(encoding="utf-8"))
+    assert data["study"] == "ramp" and data["cases"]
+    before = scene.read_bytes()
+    assert main(["study", str(scene), "ramp", "--json", str(scene)]) == 2  # never over its own scene
+    err = capsys.readouterr().err
+    assert err.startswith("servo-toolkit: error: --json") and err.count("\n") == 1 and scene.read_bytes() == before
