@@ -212,16 +212,29 @@ def plant_parameters(scene, q0=None, model: str = "auto",
         Damping ratio of each compliance whose stage gives none (``damping_ratio``); the
         two-mass plant's mode has the chain's lowest mode's damping ratio
         (:func:`two_mass_damping`).
+
+    Returns
+    -------
+    PlantParameters
+        Computed once per scene object and argument set (:meth:`Scene.derived
+        <servo_toolkit.scene.loader.Scene.derived>`); later calls return the same object.
     """
+    if model not in ("auto", "two_mass", "rigid"):
+        raise SceneError("model", f"unknown plant model {model!r}; use auto, two_mass or rigid")
     drive = scene.drivetrain
     q0 = drive.mid_stroke if q0 is None else float(q0)
+    # keyed on the exact bits of the floats: -0.0 and 0.0 give results that print apart
+    key = ("plant_parameters", q0.hex(), model, float(structural_damping).hex())
+    return scene.derived(key, lambda: _parameters_at(scene, drive, q0, model, structural_damping))
+
+
+def _parameters_at(scene, drive, q0: float, model: str, structural_damping: float) -> PlantParameters:
+    """The parameters of :func:`plant_parameters`, computed."""
     chain = replace(drive.chain, drivetrain=_AtOnePoint(drive))
     split = chain.two_mass([q0], driving=True)
     n = float(drive.ratio([q0])[0][0])
     motor, load = scene.motor, scene.load
     J1, J2, K = float(split.motor_side[0]), float(split.load_side[0]), float(split.stiffness[0])
-    if model not in ("auto", "two_mass", "rigid"):
-        raise SceneError("model", f"unknown plant model {model!r}; use auto, two_mass or rigid")
     if model == "two_mass" and not math.isfinite(K):
         raise SceneError("drivetrain", "a two-mass plant needs a compliance; this chain is rigid")
     if model == "rigid" or not math.isfinite(K) or J2 <= 0:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import tomllib
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
@@ -24,6 +25,12 @@ from .tables import ROBUSTNESS_METHODS, SPEED_ESTIMATORS, Requirements, Robustne
 MECHANISM_KINDS = {"crossed_arch_platform": CrossedArchPlatform}
 _TOP_KEYS = {"name", "description", "motor", "drivetrain", "load", "sensors", "requirements",
              "studies", "mechanism", "stages", "operating", "robustness", "duty_cycle", "display", "tolerances"}
+#: where a scene keeps its derived quantities (:meth:`Scene.derived`) in its ``__dict__``
+_DERIVED = "_derived"
+#: the entries of a scene's ``__dict__`` that are derived from its fields, not fields
+_CACHED = ("drivetrain", _DERIVED)
+
+
 @dataclass(frozen=True, repr=False)
 class Scene:
     """A validated actuator description. Everything is SI.
@@ -101,11 +108,39 @@ class Scene:
         points = tuple(s.path for s in getattr(self.duty_cycle, "segments", ()) if getattr(s, "path", None))
         return ((self.source,) if self.source else ()) + points
 
-    @property
+    @cached_property
     def drivetrain(self):
-        """The reflected drivetrain (motor, stages, load); see :mod:`servo_toolkit.drivetrain.reflected`."""
+        """The reflected drivetrain (motor, stages, load); see :mod:`servo_toolkit.drivetrain.reflected`.
+        Built once per scene object (a changed scene is a new object: :func:`replace_params`)."""
         from ..drivetrain.reflected import Drivetrain
         return Drivetrain.from_scene(self)
+
+    def derived(self, key, compute):
+        """The scene's derived quantity ``key``: ``compute()`` the first time it is asked
+        for, the same object afterwards (e.g. the linear plant's parameters at an operating
+        point). The values live with this scene object, never in its equality, repr or
+        pickle; a value must be immutable. Two threads asking at once may both compute it,
+        and both get the value stored first.
+
+        Parameters
+        ----------
+        key : hashable
+            Names the quantity and every argument it depends on besides the scene.
+        compute : callable
+            Takes no argument; returns the value.
+        """
+        cache = self.__dict__.get(_DERIVED)
+        if cache is None:
+            cache = self.__dict__.setdefault(_DERIVED, {})
+        try:
+            return cache[key]
+        except KeyError:
+            return cache.setdefault(key, compute())
+
+    def __getstate__(self):
+        """The fields only: a pickled scene (a process pool's, a cluster's) carries none of
+        its derived quantities; its copy computes them again."""
+        return {k: v for k, v in self.__dict__.items() if k not in _CACHED}
 
     def __repr__(self) -> str:
         from .card import scene_line
