@@ -22,7 +22,7 @@ def counts(monkeypatch):
     for module_name, name in (("servo_toolkit.loop.design", "design"),
                               ("servo_toolkit.studies.time_reference", "run_spec"),
                               ("servo_toolkit.studies.time_run", "resolve_method"),
-                              ("servo_toolkit.studies.reduce_estimates", "plan_reduction")):
+                              ("servo_toolkit.studies.reduce.estimates", "plan_reduction")):
         module = importlib.import_module(module_name)
         original = getattr(module, name)
 

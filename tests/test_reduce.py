@@ -168,7 +168,7 @@ def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
     # an effect measured on its own has no figure within the limits either: its line says so
     # rather than printing NaN as "inf dB / inf deg"
     from dataclasses import replace
-    from servo_toolkit.studies.reduce_result import EffectCost
+    from servo_toolkit.studies.reduce import EffectCost
     alone = replace(res, per_effect=(EffectCost("backlash", 0.0, math.nan, 2.12e-4),)).table()
     line = next(s for s in alone.splitlines() if s.lstrip().startswith("backlash") and "measured" in s)
     assert "inf" not in line and not re.search(r"\bnan\b", line), line
@@ -203,7 +203,7 @@ def test_the_backlash_estimate_takes_the_two_mass_reduction_s_load_side():
     from servo_toolkit.components.motor import DCMotor
     from servo_toolkit.scene.loader import Scene
     from servo_toolkit.sim import controller_for
-    from servo_toolkit.studies.reduce_estimates import load_side_inertia, loop_response, plan_reduction
+    from servo_toolkit.studies.reduce.estimates import load_side_inertia, loop_response, plan_reduction
     from servo_toolkit.plant.linear import plant_parameters
     motor = DCMotor(resistance=0.5, inductance=1e-3, torque_constant=0.2, back_emf_constant=0.2,
                     rotor_inertia=2e-4, viscous_friction=1e-4, coulomb_friction=0.0, current_limit=20.0)
@@ -226,7 +226,7 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     by a failure as a non-finite state gives one) has no difference: it is reported as
     failed with its reason in the table, the JSON and the plot, is not counted as saturated,
     and the measured difference and the verdict are over the one point that ran on both."""
-    import servo_toolkit.studies.reduce as reduce_module
+    import servo_toolkit.studies.reduce.run as reduce_module
     true_case, seen = reduce_module._trace_case, []
 
     def failing_case(case):
@@ -255,7 +255,7 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     assert res.failed_text().startswith("8 Hz, 3 deg: reduced model: the state became non-finite")
     # an effect measured on its own counts its failed points too
     from dataclasses import replace
-    from servo_toolkit.studies.reduce_result import EffectCost
+    from servo_toolkit.studies.reduce import EffectCost
     alone = replace(res, per_effect=(EffectCost("backlash", 1e-3, 2e-4, math.nan, failed=1),))
     assert "1 point(s) failed, not compared" in alone.table()
     assert alone.to_dict()["per_effect"][0]["failed_points"] == 1
@@ -266,7 +266,7 @@ def test_a_failed_dwell_is_not_a_saturated_point():
     both is failed, with the models' reasons, and neither saturated nor infinite."""
     from types import SimpleNamespace
 
-    from servo_toolkit.studies.reduce import _difference
+    from servo_toolkit.studies.reduce.run import _difference
     nan = complex(math.nan, math.nan)
     full = SimpleNamespace(response=np.array([[1.0 + 0j, 0.5j, nan]]), saturated=np.array([[False, False, True]]),
                            errors=(None, None, "left its domain at t = 1 s"))

@@ -47,8 +47,7 @@ def _check_budget(scene, args, amps, runs: int) -> None:
 
 def run(args) -> int:
     """Run the command."""
-    from ..studies.reduce import reduce, reduced_options
-    from ..studies.reduce_estimates import DEFAULT_TOLERANCE
+    from ..studies.reduce import DEFAULT_TOLERANCE, reduce, reduced_options
     tol = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
     if not (math.isfinite(tol) and 0 < tol < 1):
         raise SceneError("--tolerance", f"must lie in (0, 1), a relative response difference (got {tol:g})")

@@ -1,5 +1,5 @@
 """The reduced model a study allows: which effects to leave out, and the model options that
-leave out one effect or several (:mod:`.reduce_estimates` judges them).
+leave out one effect or several (:mod:`.estimates` judges them).
 
 The reduced model leaves out effects, smallest estimate first, while the sum of their
 estimates stays within half the tolerance; the drivetrain chain's modes above the first follow
@@ -14,8 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from .reduce_friction import without_stick
+from ...core.output_units import OutputUnit
+from .friction import without_stick
 
 #: switches that leave out a part of the compliance, all left out with the whole of it
 _WITH_COMPLIANCE = ("backlash", "stiffness_scale", "chain")
@@ -50,7 +50,7 @@ class Effect:
         series stiffness by 1 / (1 - share).
     parts : tuple
         The parts of an effect judged node by node (the friction's
-        :class:`~.reduce_friction.FrictionNode`, each with its own estimate; the effect's
+        :class:`~.friction.FrictionNode`, each with its own estimate; the effect's
         estimate is their sum).
     """
 

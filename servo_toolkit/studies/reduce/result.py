@@ -1,4 +1,4 @@
-"""The result of :func:`servo_toolkit.studies.reduce.reduce`: what a study's reduced model
+"""The result of :func:`servo_toolkit.studies.reduce.run.reduce`: what a study's reduced model
 leaves out, the a-priori bound, the measured difference and each effect's own cost."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from ..display.cards import RichDisplay, card, facts, num, svg, table
-from .reduce_estimates import ReductionPlan
+from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, facts, num, svg, table
+from .estimates import ReductionPlan
 
 
 @dataclass(frozen=True)

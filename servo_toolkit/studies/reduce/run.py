@@ -1,7 +1,7 @@
 """Leave out what a study does not need: the reduced model, why, and its measured error.
 
 :func:`reduce` judges every modelled effect against a study's frequencies and amplitudes
-(:func:`.reduce_estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
+(:func:`.estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
 then runs the study on the full and on the reduced model and measures their difference, and
 measures the cost of each effect left out on its own: one more run of the study on the full
 model with only that effect's switch changed, compared with the full model the same way. The
@@ -14,7 +14,7 @@ chain's modes above the first are measured so whether ``simulate``'s rule lumps 
   over the steady part of the run, difference ``RMS(q_reduced - q_full) / RMS(q_full - q0)``
   (for a sinusoid the same measure as above, plus any harmonics).
 
-The a-priori bound is the reduction's tolerance (module :mod:`.reduce_estimates` explains
+The a-priori bound is the reduction's tolerance (module :mod:`.estimates` explains
 why it holds in the linear range); points where a run reached the current or voltage limit
 are outside that statement and are reported separately. A point whose run failed on either
 model (non-finite, out of its domain...) has no difference: it is reported as failed with
@@ -28,15 +28,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from ..core.output_units import output_unit
-from ..core.parallel import run_cases
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from .reduce_choice import options_without
-from .reduce_estimates import DEFAULT_TOLERANCE, plan_reduction
-from .reduce_result import EffectCost, ReductionResult
-from .sine_dwell import DwellPlan
-from .sweep import linear_response, study_points, sweep
+from ...errors import SceneError, SimulationError
+from ...core.output_units import output_unit
+from ...core.parallel import run_cases
+from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
+from ..sine_dwell import DwellPlan
+from ..sweep import linear_response, study_points, sweep
+from .choice import options_without
+from .estimates import DEFAULT_TOLERANCE, plan_reduction
+from .result import EffectCost, ReductionResult
 
 TIME_KINDS = ("kv", "simulate")
 
@@ -57,13 +57,13 @@ def time_points(study, scene=None):
     if freq is None or not amps:
         raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
     if scene is not None:  # a sine the sampled loop cannot track is no study to reduce for
-        from .time_reference import check_sine_frequency
+        from ..time_reference import check_sine_frequency
         check_sine_frequency(float(freq), float(scene.sensors.sample_time), None,
                              study.key("frequency" if p.get("frequency") is not None else "period"))
     if study.kind == "kv" and p.get("amplitude_at", "output") != "output":
         if scene is None:
             raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
-        from .kv import output_amplitudes
+        from ..kv import output_amplitudes
         amps = output_amplitudes(scene, study, amps)
     return np.array([float(freq)]), tuple(float(a) for a in amps)
 
@@ -72,7 +72,7 @@ def _trace_case(case):
     """One closed-loop sine run; returns times, output angle and whether a limit was reached
     in the compared window (``t >= t_settle``, as the sweep flags its dwell window) and
     before it (the start-up transient: the command starts with its full slope)."""
-    from ..sim import Reference, run
+    from ...sim import Reference, run
     model, amp, freq, duration, limits, t_settle = case
     try:
         # RK4 with the step it needs: shrunk where a mode stiffens along the run (an end stop)
@@ -132,7 +132,7 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     -------
     ReductionResult
     """
-    from ..sim import ModelOptions, build_model, controller_for
+    from ...sim import ModelOptions, build_model, controller_for
 
     source = controller_source
     if controller is None:
@@ -272,14 +272,14 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     A time simulation can adopt the reduction with
     ``simulate(scene, options=reduced_options(scene, name)[0], ...)``.
     """
-    from ..sim import ModelOptions, controller_for
+    from ...sim import ModelOptions, controller_for
     if controller is None:
         controller, _ = controller_for(scene)
     if isinstance(study, str):
         study = scene.study(study)
     if study is None or study.kind == "frequency_sweep":
         _, freqs, amps = _sweep_points(scene, study, frequencies)
-        from .time_reference import check_sine_frequency
+        from ..time_reference import check_sine_frequency
         for f in freqs:
             check_sine_frequency(f, float(scene.sensors.sample_time), None,
                                  "frequencies" if frequencies is not None or study is None
