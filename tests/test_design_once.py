@@ -60,11 +60,21 @@ def test_sweep_designs_once(counts, capsys):
 
 
 def test_reduce_designs_once(counts, capsys):
-    """``reduce``: one design for the estimates and the measured runs."""
+    """``reduce``: one design and one reduction plan for the estimates and the measured runs."""
     code, out = _run(["reduce", SCENE, "--frequency", "8", "--json"], capsys)
     assert code == 0
-    assert counts.get("design") == 1
+    assert counts.get("design") == 1 and counts.get("plan_reduction") == 1
     assert "controller from loop.design" in json.loads(out)["notes"]
+
+
+def test_reduce_of_a_time_study_plans_once(counts, capsys):
+    """``reduce`` of a kv study: one plan, whose choice runs on the time runs' full model (the
+    stroke end's stop kept on the reduced model too)."""
+    code, out = _run(["reduce", SCENE, "--study", "kv_8hz", "--amplitude", "2 deg", "--json"], capsys)
+    assert code == 0
+    assert counts.get("design") == 1 and counts.get("plan_reduction") == 1
+    res = json.loads(out)
+    assert res["full_options"]["stroke_end"] == res["reduced_options"]["stroke_end"] == "stop"
 
 
 def test_check_designs_once(counts, capsys):

@@ -55,6 +55,21 @@ def test_a_named_sweep_study_gets_8hz_unless_frequencies_are_given(slow_sweep):
     assert "8 Hz" in comp["8"].quantity
 
 
+def test_a_plan_judged_once_is_handed_to_reduce(slow_sweep):
+    """``reduce`` given the plan of :func:`reduced_options` for the same points reduces as it
+    would have judged itself, and refuses a plan judged for other frequencies or another
+    tolerance (before any run)."""
+    _, plan = reduced_options(slow_sweep, "sweep", frequencies=LOW)
+    given = reduce(slow_sweep, "sweep", frequencies=LOW, reduction=plan, progress=False, per_effect=False)
+    own = reduce(slow_sweep, "sweep", frequencies=LOW, progress=False, per_effect=False)
+    assert given.reduced_options == own.reduced_options
+    assert given.to_dict() == own.to_dict()
+    with pytest.raises(ValueError, match="other frequencies"):
+        reduce(slow_sweep, "sweep", frequencies=[1.0, 4.0], reduction=plan, progress=False)
+    with pytest.raises(ValueError, match="tolerance"):
+        reduce(slow_sweep, "sweep", frequencies=LOW, tolerance=0.01, reduction=plan, progress=False)
+
+
 def test_tighter_tolerance_keeps_more(slow_sweep):
     """A bound below the compliance's estimate keeps the compliance. The measurement meets the
     tighter bound but for one effect the linear estimates do not see, which reduce measures on

@@ -64,7 +64,7 @@ def run(args) -> int:
     from ..sim.simulate import controller_for
     controller, source = controller_for(scene)  # designed once, here, and handed down
     _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps,
-                              controller=controller)
+                              controller=controller)  # judged once, here, and handed down with the controller
     if args.estimate_only:
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         for e in plan.effects:
@@ -75,7 +75,7 @@ def run(args) -> int:
     alone = [e for e in plan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
     _check_budget(scene, args, amps, 2 + len(alone))
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
-                 amplitudes=amps, controller=controller, controller_source=source,
+                 amplitudes=amps, controller=controller, controller_source=source, reduction=plan,
                  progress=not args.json and sys.stderr.isatty())
     if args.plot:
         import matplotlib

@@ -116,6 +116,13 @@ class ReductionPlan:
         """The effects left out."""
         return tuple(e for e in self.effects if e.omitted)
 
+    def on(self, base) -> "ReductionPlan":
+        """The same choice on another full model: ``base`` (ModelOptions) with the effects
+        this plan leaves out left out. The estimates read the full model's damping, chain and
+        friction, not its stroke end: a plan judged once serves a run whose full model stops
+        at the stroke end where the plan's raised an error."""
+        return replace(self, options=chosen_options(base, self.effects))
+
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"effects": [e.to_dict() for e in self.effects],
@@ -149,6 +156,16 @@ def options_without(base, effects):
         opts = replace(opts, variable_inertia=False)
     if "friction" in omitted:
         opts = without_stick(opts)
+    return opts
+
+
+def chosen_options(base, effects):
+    """``base`` (the full model's :class:`~servo_toolkit.sim.ModelOptions`) with the chosen
+    ``effects`` (those marked omitted) left out; the chain's modes kept whole when the choice
+    judged them and kept them."""
+    opts = options_without(base, [e for e in effects if e.omitted])
+    if opts.chain != "two_mass" and any(e.switch == "chain" for e in effects):
+        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
     return opts
 
 
@@ -209,11 +226,8 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
         else:
             out.append(replace(e, reason=f"kept: {e.estimate:.2g} exceeds the remaining budget "
                                          f"{max(budget - used, 0):.2g}"))
-    opts = options_without(base, [e for e in out if e.omitted])
-    if opts.chain != "two_mass" and any(e.switch == "chain" for e in out):
-        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
-    return ReductionPlan(effects=tuple(out), options=opts, tolerance=tol, predicted=used,
+    return ReductionPlan(effects=tuple(out), options=chosen_options(base, out), tolerance=tol, predicted=used,
                          frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes), chain_choice=choice)
 
 
-__all__ = ["Effect", "ReductionPlan", "choose", "options_without"]
+__all__ = ["Effect", "ReductionPlan", "choose", "chosen_options", "options_without"]

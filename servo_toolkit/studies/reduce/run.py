@@ -100,7 +100,7 @@ def _trace_difference(full, red, t_settle):
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
            executor=None, progress: bool = True, frequencies=None, amplitudes=None,
-           per_effect=True, controller_source: str | None = None) -> ReductionResult:
+           per_effect=True, controller_source: str | None = None, reduction=None) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -127,10 +127,19 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     controller_source : str, optional
         Where a given ``controller`` came from, noted as ``controller from SOURCE`` (the
         caller designed it once); None: no note for a given controller.
+    reduction : ReductionPlan, optional
+        The a-priori plan for this study's points, ``controller`` and ``tolerance`` (the
+        caller judged it once, e.g. by :func:`reduced_options`); default: judged here.
 
     Returns
     -------
     ReductionResult
+
+    Raises
+    ------
+    ValueError
+        A ``reduction`` judged for other frequencies, amplitudes, tolerance or another full
+        model than the study's.
     """
     from ...sim import ModelOptions, build_model, controller_for
 
@@ -157,7 +166,10 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
             raise ValueError("amplitudes must be non-empty, positive and finite")
     stop = "stop" if measure == "trace" else "error"
     full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop, chain="full", friction="stick")
-    rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
+    if reduction is None:
+        rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
+    else:
+        rplan = _judged_for(reduction, full, freqs, amps, tolerance)
     reduced = rplan.options
     dwell = plan or DwellPlan()
     if measure == "sweep":
@@ -240,6 +252,20 @@ def _difference(a, b, names):
         failures.append(why or None)
     failed = np.array([f is not None for f in failures], dtype=bool).reshape(diff.shape)
     return np.where(failed, math.nan, diff), sat & ~failed, tuple(failures)
+
+
+def _judged_for(reduction, full, freqs, amps, tolerance):
+    """``reduction`` on the study's full model ``full``, checked to be judged for the same
+    points, tolerance and full model (up to its stroke end: :meth:`ReductionPlan.on`)."""
+    on_full = reduction.on(full)
+    same = (np.array_equal(np.asarray(reduction.frequencies_hz, float), np.sort(np.asarray(freqs, float)))
+            and tuple(reduction.amplitudes_rad) == tuple(float(a) for a in amps)
+            and reduction.tolerance == tolerance
+            and replace(reduction.options, stroke_end=full.stroke_end) == on_full.options)
+    if not same:
+        raise ValueError("the reduction was judged for other frequencies, amplitudes, tolerance or full model "
+                         "than this study's")
+    return on_full
 
 
 def _no_frequencies(study, frequencies) -> None:
