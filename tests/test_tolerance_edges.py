@@ -231,7 +231,7 @@ def test_the_notes_are_printed_with_the_text(small_result):
 
 def test_montecarlo_names_the_tolerances_it_does_not_vary():
     from servo_toolkit.scene.loader import load_scene
-    from servo_toolkit.studies.montecarlo import unvaried_tolerances
+    from servo_toolkit.studies.montecarlo.run import unvaried_tolerances
 
     from .conftest import SCENES
     scene = load_scene(SCENES / "examples" / "ema_tolerances.toml")

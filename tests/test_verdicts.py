@@ -57,7 +57,7 @@ def test_a_nan_figure_is_no_verdict():
 
 def test_monte_carlo_rows_with_a_failed_variant_are_no_verdict():
     from servo_toolkit.loop.requirements import Requirement
-    from servo_toolkit.studies.montecarlo_check import result_checks
+    from servo_toolkit.studies.montecarlo import result_checks
     result = SimpleNamespace(failed=np.array([False, True]), count=2,
                              reasons=("", "step 0.0001 s outside the RK4 stability region"),
                              values={"stiffness": np.array([1.0, 1e-6])},

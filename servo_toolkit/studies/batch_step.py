@@ -9,7 +9,7 @@ checks. A step the study chose is reduced as the single run's ``auto`` reduces i
 the run, rerun and checked again); a step the caller gave that leaves the stability region
 along the nominal run is refused, as the single run refuses it. Each variant is then also
 checked at its own parameters (its start and its snapshots, each also in contact and at a
-speed reversal: :func:`.variant_step.step_check`): a variant whose step lies outside the
+speed reversal: :func:`.montecarlo.variant_step.step_check`): a variant whose step lies outside the
 region there fails with that reason.
 """
 

@@ -334,7 +334,7 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         dynamics of the duty cycle left its validity domain.
     """
     from .large_signal import with_large_signal
-    from .montecarlo_check import montecarlo_checks
+    from .montecarlo import montecarlo_checks
     spec = scene.robustness if spec is None else spec
     ls = None
     if actuator is None and not linear_only and result.margins.closed_loop_stable:
