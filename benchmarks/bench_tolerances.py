@@ -50,7 +50,7 @@ from servo_toolkit.loop.variant_plants import keyed_plants  # noqa: E402
 from servo_toolkit.sim import run  # noqa: E402
 from servo_toolkit.sim.batch_run import integrate_variants, worker_threads  # noqa: E402
 from servo_toolkit.sim.reference import initial_state  # noqa: E402
-from servo_toolkit.studies.tolerance_runs import tolerance_runs  # noqa: E402
+from servo_toolkit.studies.tolerances import tolerance_runs  # noqa: E402
 from servo_toolkit.studies.montecarlo import step_check  # noqa: E402
 
 SCENE = ROOT / "scenes" / "examples" / "ema_tolerances.toml"

@@ -31,7 +31,7 @@ VALUES = {KEYS[0]: np.array([0.0, 3e4, 1e5]), KEYS[1]: np.array([60.0, 60.0, 150
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
     text = (SCENES / "ema_reference.toml").read_text()
     assert text.count("efficiency = 0.90") == 1 and text.count('hinge_moment = "700 N*m"') == 1
     path = tmp_path_factory.mktemp("hinge") / "scene.toml"

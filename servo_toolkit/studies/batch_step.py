@@ -1,4 +1,4 @@
-"""The RK4 step of the batched time runs (:mod:`.montecarlo`, :mod:`.tolerance_runs`),
+"""The RK4 step of the batched time runs (:mod:`.montecarlo`, :mod:`.tolerances.time_runs`),
 chosen and checked by the single run's own step choice (:func:`servo_toolkit.sim.engine.choose_step`,
 the one :func:`servo_toolkit.sim.engine.run` takes).
 
