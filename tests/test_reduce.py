@@ -70,6 +70,27 @@ def test_a_plan_judged_once_is_handed_to_reduce(slow_sweep):
         reduce(slow_sweep, "sweep", frequencies=LOW, tolerance=0.01, reduction=plan, progress=False)
 
 
+def test_the_plan_shows_itself(slow_sweep):
+    """The a-priori plan (what ``reduce --estimate-only`` gives) in one line, a card and a
+    figure: one bar per effect at its estimate, against the budget of the effects left out
+    (half the tolerance) and the tolerance."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from .conftest import closed_tags
+    _, plan = reduced_options(slow_sweep, "sweep", frequencies=LOW)
+    text = repr(plan)
+    assert text.startswith(f"<ReductionPlan: {len(plan.effects)} effects at 1-3 Hz; left out ") and "\n" not in text
+    assert "armature inductance" in text and "of the budget 0.01>" in text
+    html = plan._repr_html_()
+    assert closed_tags(html) and "<svg" in html and all(e.effect in html for e in plan.effects)
+    ax = plan.plot()
+    bars = ax.patches
+    assert len(bars) == len(plan.effects)
+    drawn = [(b.get_x() + b.get_width(), e.estimate) for b, e in zip(bars, plan.effects) if 0 < e.estimate < math.inf]
+    assert drawn and all(end == pytest.approx(est) for end, est in drawn)
+    assert sorted(line.get_xdata()[0] for line in ax.get_lines()) == [plan.tolerance / 2, plan.tolerance]
+
+
 def test_tighter_tolerance_keeps_more(slow_sweep):
     """A bound below the compliance's estimate keeps the compliance. The measurement meets the
     tighter bound but for one effect the linear estimates do not see, which reduce measures on

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, num, svg, table
 from .friction import without_stick
 
 #: switches that leave out a part of the compliance, all left out with the whole of it
@@ -78,8 +79,8 @@ class Effect:
         return [f"{indent}{self.quantity}"] + [f"{indent}  {x.label}: {x.where}" for x in self.parts]
 
 
-@dataclass(frozen=True)
-class ReductionPlan:
+@dataclass(frozen=True, repr=False)
+class ReductionPlan(RichDisplay):
     """The a-priori part of a reduction: effects, the reduced options and the bound.
 
     Attributes
@@ -133,6 +134,42 @@ class ReductionPlan:
                 OutputUnit(self.output_unit).key("amplitudes"):
                     [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
                 "notes": list(self.notes)}
+
+    def plot(self, ax=None):
+        """Each effect's a-priori estimate (relative response error if left out), left out or
+        kept, against the budget of the effects left out (half the tolerance) and the
+        tolerance; an estimate of 0 is drawn at the axis' foot."""
+        if ax is None:
+            import matplotlib.pyplot as plt
+            _, ax = plt.subplots(figsize=(7.0, 0.8 + 0.35 * len(self.effects)))
+        est = np.array([e.estimate for e in self.effects], dtype=float)
+        finite = est[np.isfinite(est) & (est > 0)]
+        foot = min(float(finite.min()) if finite.size else self.tolerance, self.tolerance) / 10
+        shown = np.where(np.isfinite(est) & (est > 0), est, foot)
+        y = np.arange(len(self.effects))[::-1]
+        ax.barh(y, shown - foot, left=foot, color=["C0" if e.omitted else "C7" for e in self.effects])
+        ax.set_xscale("log")
+        ax.set_yticks(y, [f"{e.effect} ({'left out' if e.omitted else 'kept'})" for e in self.effects],
+                      fontsize="small")
+        ax.axvline(self.tolerance / 2, color="k", ls="--", lw=1, label="budget of the effects left out")
+        ax.axvline(self.tolerance, color="r", lw=1, label="tolerance")
+        ax.set_xlabel("a-priori estimate |reduced / full - 1|")
+        ax.set_title(f"Reduction at {self.frequencies_hz[0]:.3g}-{self.frequencies_hz[-1]:.3g} Hz: left out "
+                     f"{num(self.predicted, 3)} of {num(self.tolerance / 2, 3)}", fontsize="small")
+        ax.legend(fontsize="small")
+        return ax
+
+    def _repr_line(self) -> str:
+        left = ", ".join(e.effect for e in self.omitted) or "nothing"
+        return (f"{len(self.effects)} effects at {self.frequencies_hz[0]:.3g}-{self.frequencies_hz[-1]:.3g} Hz; "
+                f"left out {left}: estimates {num(self.predicted, 3)} of the budget {num(self.tolerance / 2, 3)}")
+
+    def _repr_card(self) -> str:
+        rows = [(e.effect, num(e.estimate, 3), num(_db(e.estimate), 3), num(_deg(e.estimate), 3),
+                 "left out" if e.omitted else "kept", e.reason) for e in self.effects]
+        parts = [table(("effect", "estimate (relative)", "[dB]", "[deg]", "decision", "why"), rows),
+                 svg(self.plot, size=(7.0, 0.8 + 0.35 * len(self.effects)))]
+        return card(f"A-priori reduction (tolerance {num(self.tolerance, 3)})", parts=parts, notes=self.notes)
 
 
 def options_without(base, effects):

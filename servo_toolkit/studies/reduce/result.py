@@ -10,6 +10,7 @@ import numpy as np
 
 from ...core.output_units import OutputUnit
 from ...display.cards import RichDisplay, card, facts, num, svg, table
+from .choice import _db, _deg
 from .estimates import ReductionPlan
 
 
@@ -269,14 +270,6 @@ class ReductionResult(RichDisplay):
 
     def _repr_card(self) -> str:
         return _card_html(self)
-
-
-def _db(e):
-    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
-
-
-def _deg(e):
-    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
 
 
 def _card_line(r) -> str:
