@@ -87,7 +87,7 @@ def main(n: int = 10_000, n_one: int = 1000, n_exact: int = 0) -> None:
     print(f"  {result.summary()}")
     print(f"  {[note for note in result.notes if 'variant' in note and 'rows' in note or 'one by one' in note]}")
     if n_exact > 0:
-        import servo_toolkit.studies.montecarlo as mc
+        import servo_toolkit.studies.montecarlo.run as mc
         default, runs = mc.FIT_OVERHEAD, []
         for label, overhead in (("fitted rows", -10**9), ("build_model per variant", 10**9)):
             mc.FIT_OVERHEAD = overhead  # fit even a few variants / never fit

@@ -13,7 +13,7 @@ its designed controller, prints:
   variant on one core (``integrate_variants`` on up to 500 variants, best of 3) against one
   single run of the nominal model, then with each variant's parameter row and
   stroke tables (CPU time per variant), each variant's step check at its start and snapshots
-  (:func:`servo_toolkit.studies.variant_step.step_check`, CPU time per variant), and the
+  (:func:`servo_toolkit.studies.montecarlo.variant_step.step_check`, CPU time per variant), and the
   end-to-end time with the rows' fit. The single run is ``sim.run`` of the rows' nominal
   model (the same reduced model, command, duration and dt as the variants), RK4, warm: its ``wall_s``, the compiled integration
   alone (compilation, the stability probe and the result's traces excluded, as the batch's
@@ -50,8 +50,8 @@ from servo_toolkit.loop.variant_plants import keyed_plants  # noqa: E402
 from servo_toolkit.sim import run  # noqa: E402
 from servo_toolkit.sim.batch_run import integrate_variants, worker_threads  # noqa: E402
 from servo_toolkit.sim.reference import initial_state  # noqa: E402
-from servo_toolkit.studies.tolerance_runs import tolerance_runs  # noqa: E402
-from servo_toolkit.studies.variant_step import step_check  # noqa: E402
+from servo_toolkit.studies.tolerances import tolerance_runs  # noqa: E402
+from servo_toolkit.studies.montecarlo import step_check  # noqa: E402
 
 SCENE = ROOT / "scenes" / "examples" / "ema_tolerances.toml"
 KEYS = ("motor.resistance", "motor.torque_constant", "motor.coulomb_friction", "drivetrain[1].efficiency",

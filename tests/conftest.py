@@ -115,6 +115,21 @@ def build(data: dict):
     return scene_from_dict(data, "test.toml")
 
 
+def closed_tags(html: str) -> bool:
+    """Every div, table and svg an HTML card opens is closed."""
+    from html.parser import HTMLParser
+    depth = {"div": 0, "table": 0, "svg": 0}
+
+    class Tags(HTMLParser):
+        def handle_starttag(self, tag, attrs):
+            depth[tag] = depth.get(tag, 0) + 1
+
+        def handle_endtag(self, tag):
+            depth[tag] = depth.get(tag, 0) - 1
+    Tags().feed(html)
+    return all(depth[t] == 0 for t in ("div", "table", "svg"))
+
+
 def open_circuit_run(model, P, x0, dt: float, n_steps: int, every: int = 1):
     """Fixed-step RK4 from ``x0`` with the armature open (its resistance set to 1e12 ohm in the
     parameter block; a scene refuses such a resistance). Returns the recorded states."""

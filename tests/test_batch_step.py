@@ -62,7 +62,7 @@ def test_a_given_step_outside_the_region_along_the_run_is_refused(mc, lossy_scen
 
 
 def test_tolerance_runs_step_passes_the_single_runs_check(lossy_scene, controller):
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
     values = {"drivetrain[1].efficiency": np.array([0.28, 0.32])}
     r = tolerance_runs(lossy_scene, values, controller, reference=REF, duration=DURATION, progress=False)
     run(r.rows.model, REF, DURATION, "rk4", r.dt_s)  # raises if outside the region along the run

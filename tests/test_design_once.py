@@ -22,7 +22,7 @@ def counts(monkeypatch):
     for module_name, name in (("servo_toolkit.loop.design", "design"),
                               ("servo_toolkit.studies.time.reference", "run_spec"),
                               ("servo_toolkit.studies.time.run", "resolve_method"),
-                              ("servo_toolkit.studies.reduce_estimates", "plan_reduction")):
+                              ("servo_toolkit.studies.reduce.estimates", "plan_reduction")):
         module = importlib.import_module(module_name)
         original = getattr(module, name)
 
@@ -59,12 +59,50 @@ def test_sweep_designs_once(counts, capsys):
     assert "controller from loop.design" in json.loads(out)["notes"]
 
 
+def test_sweep_multisine_designs_once_and_hands_the_controller_down(counts, capsys, monkeypatch):
+    """``sweep --method multisine``: one design, in the command, handed to the multisine (which
+    then designs nothing)."""
+    import servo_toolkit.studies.multisine as package
+    real, given = package.multisine_sweep, []
+
+    def recorded(*args, **kwargs):
+        given.append((kwargs.get("controller"), kwargs.get("controller_source")))
+        return real(*args, **kwargs)
+    monkeypatch.setattr(package, "multisine_sweep", recorded)
+    code, out = _run(["sweep", SCENE, "--method", "multisine", "--band", "2:16", "--lines", "4", "--json"], capsys)
+    assert code == 0
+    assert counts.get("design") == 1 and counts.get("plan_reduction") == 1
+    assert len(given) == 1 and given[0][0] is not None and given[0][1] == "loop.design"
+    assert "controller from loop.design" in json.loads(out)["notes"]
+
+
+def test_multisine_given_a_controller_does_not_design(counts, ema):
+    """A multisine sweep given a controller never designs; its note names the given source."""
+    from servo_toolkit.studies.multisine import multisine_sweep
+    scene, controller = ema
+    counts.clear()
+    res = multisine_sweep(scene, band=(2.0, 16.0), lines=4, amplitudes=[0.01], periods=1, settle=1,
+                          controller=controller, controller_source="my tuning", progress=False)
+    assert counts.get("design", 0) == 0
+    assert res.notes[0] == "controller from my tuning"
+
+
 def test_reduce_designs_once(counts, capsys):
-    """``reduce``: one design for the estimates and the measured runs."""
+    """``reduce``: one design and one reduction plan for the estimates and the measured runs."""
     code, out = _run(["reduce", SCENE, "--frequency", "8", "--json"], capsys)
     assert code == 0
-    assert counts.get("design") == 1
+    assert counts.get("design") == 1 and counts.get("plan_reduction") == 1
     assert "controller from loop.design" in json.loads(out)["notes"]
+
+
+def test_reduce_of_a_time_study_plans_once(counts, capsys):
+    """``reduce`` of a kv study: one plan, whose choice runs on the time runs' full model (the
+    stroke end's stop kept on the reduced model too)."""
+    code, out = _run(["reduce", SCENE, "--study", "kv_8hz", "--amplitude", "2 deg", "--json"], capsys)
+    assert code == 0
+    assert counts.get("design") == 1 and counts.get("plan_reduction") == 1
+    res = json.loads(out)
+    assert res["full_options"]["stroke_end"] == res["reduced_options"]["stroke_end"] == "stop"
 
 
 def test_check_designs_once(counts, capsys):

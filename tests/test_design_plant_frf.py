@@ -146,7 +146,7 @@ def test_design_refuses_a_bad_file_before_designing(tmp_path, capsys):
 
 
 def test_a_reversed_sign_is_named_in_one_note_and_decides_no_stability(geared):
-    from servo_toolkit.studies.measured_gate import measured_rows
+    from servo_toolkit.studies.gate import measured_rows
     scene, r = geared
     w = 2 * np.pi * F
     shifted, _ = _rig(r)

@@ -277,7 +277,7 @@ def test_robustness_and_monte_carlo_show_the_load_inertia_in_the_scene_unit():
     from matplotlib.figure import Figure
 
     from servo_toolkit.loop.robustness import RobustnessResult
-    from servo_toolkit.studies.montecarlo_result import MonteCarloResult
+    from servo_toolkit.studies.montecarlo import MonteCarloResult
     import numpy as np
     values = {"load_inertia": np.array([0.0, 4.0]), "stiffness": np.array([0.7, 1.3])}
     cm = DisplayUnits(inertia="kg*cm^2")

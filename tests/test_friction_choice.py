@@ -12,7 +12,7 @@ import pytest
 
 from servo_toolkit.loop.design import design
 from servo_toolkit.sim import Reference
-from servo_toolkit.studies.reduce_estimates import FRICTION_EFFECT, loop_response, plan_reduction
+from servo_toolkit.studies.reduce.estimates import FRICTION_EFFECT, loop_response, plan_reduction
 from servo_toolkit.studies.time.run import simulate_study, sine_run_options
 
 from .conftest import build

@@ -13,7 +13,7 @@ import pytest
 
 from servo_toolkit.cli import main
 
-from .conftest import ROOT, SCENES
+from .conftest import ROOT, SCENES, closed_tags
 
 HINGE_ARGS = ["--structure", "lead_lag", "--require", "bandwidth=2Hz", "--require", "phase_lag=100deg",
               "--require", "pm=30deg", "--require", "ms=8dB"]
@@ -132,7 +132,7 @@ def test_large_signal_agrees_with_the_linear_loop_on_the_reference(capsys):
     from dataclasses import replace
 
     import servo_toolkit as st
-    from servo_toolkit.studies.large_signal import GAIN_TOLERANCE_DB, PHASE_TOLERANCE_DEG, large_signal
+    from servo_toolkit.studies.gate.large_signal import GAIN_TOLERANCE_DB, PHASE_TOLERANCE_DEG, large_signal
     scene = st.load_scene()
     stages = tuple(replace(s, efficiency=1.0) if hasattr(s, "efficiency") else s for s in scene.stages)
     lossless = replace(scene, stages=stages)
@@ -170,3 +170,47 @@ def test_ctrl_c_is_one_line_and_exit_130():
     assert proc.returncode == 130
     lines = [ln for ln in err.decode().splitlines() if ln.strip()]
     assert lines[-1] == "servo-toolkit: interrupted" and not any("Traceback" in ln for ln in lines)
+
+
+def test_the_large_signal_check_shows_itself():
+    """A large-signal check's views: a one-line repr with both differences against their
+    tolerances, a card with its badge and figure, and a gain-phase plot whose nonlinear point
+    is the phase taken within 180 deg of the linear one (here 355 deg is -5 deg: 4 deg from
+    the linear -1 deg, inside the tolerance box); a run that left the stroke says so and fails."""
+    import math
+
+    import matplotlib
+    matplotlib.use("Agg")
+    from servo_toolkit.studies.gate import LargeSignal
+    ok = LargeSignal(8.0, math.radians(2.0), -0.5, 355.0, -0.3, -1.0, 0.0, 0.0125, 1.0, 40.0, 50.0)
+    text = repr(ok)
+    assert text == ("<LargeSignal: 8 Hz requirement sine: |dG| 0.2 dB (at most 1), |dP| 4 deg (at most 10), met>")
+    assert ok.passed and ok.checks()[1].achieved == pytest.approx(4.0)
+    html = ok._repr_html_()
+    assert closed_tags(html) and "PASS" in html and "<svg" in html and "12.5 ms of 1000 ms" in html
+    ax = ok.plot()
+    (xl, yl), (xn, yn) = (line.get_xydata()[0] for line in ax.get_lines())
+    assert (xl, yl) == (-1.0, -0.3) and xn == pytest.approx(-5.0) and yn == -0.5
+    box = ax.patches[0]
+    assert box.get_x() <= xn <= box.get_x() + box.get_width() and box.get_y() <= yn <= box.get_y() + box.get_height()
+    left = LargeSignal(8.0, 0.03, math.nan, math.nan, -0.3, -1.0, math.nan, math.nan, 1.0, math.nan, math.nan,
+                       failure="the output left the stroke", stroke_end_s=0.42)
+    assert not left.passed and repr(left) == "<LargeSignal: 8 Hz requirement sine: left the stroke at 0.42 s>"
+    assert "FAIL" in left._repr_html_() and len(left.plot().get_lines()) == 1
+
+
+def test_the_requirement_table_shows_itself_as_a_card():
+    """The gate's card: one row per requirement with its badge, a row without a verdict marked
+    n/a (not met), the count of rows not met in the title and the one-line repr."""
+    from types import SimpleNamespace
+
+    from servo_toolkit.studies.gate import Gate, RequirementRow
+    rows = (RequirementRow("bandwidth", "closed-loop bandwidth", ">= 8 Hz", "18 Hz", "", "pass"),
+            RequirementRow("phase_margin", "phase margin", ">= 45 deg", "40 deg", "5 deg", "fail", "at q0"),
+            RequirementRow("yield", "yield", ">= 0.99", "not evaluated", "", "unavailable", "no [tolerances]"))
+    g = Gate(SimpleNamespace(scene_name="ema"), None, None, None, rows)
+    assert repr(g) == "<Gate of ema: 3 requirements, 2 not met>"
+    html = g._repr_html_()
+    assert closed_tags(html) and "ema: 3 requirements, 2 not met" in html
+    assert html.count('class="st-pass"') == 1 and html.count('class="st-fail"') == 3  # two rows and the title
+    assert ">n/a<" in html and "5 deg" in html and "no [tolerances]" in html

@@ -17,7 +17,7 @@ from servo_toolkit.core.spectra import response_csv
 from servo_toolkit.identify.frf import estimate_frf
 from servo_toolkit.loop.measured import measured_loop, model_response, sampled_crossings
 from servo_toolkit.loop.measured_interval import crossing_sd, near_approach, quantile
-from servo_toolkit.studies.measured_gate import measured_rows
+from servo_toolkit.studies.gate import measured_rows
 
 from .conftest import SCENES
 

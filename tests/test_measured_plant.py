@@ -12,7 +12,7 @@ from servo_toolkit.cli import main
 from servo_toolkit.core.spectra import response_csv
 from servo_toolkit.loop.crossings import response_of
 from servo_toolkit.loop.measured import loop_on, measured_loop, model_response, sampled_crossings
-from servo_toolkit.studies.measured_gate import measured_rows
+from servo_toolkit.studies.gate import measured_rows
 
 from .conftest import SCENES
 

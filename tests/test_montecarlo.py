@@ -172,7 +172,7 @@ def test_cli_bad_input_exits_2_with_one_line(args, key, capsys):
 
 def test_check_rows_hold_the_worst_variant_to_the_scene_limits(ema):
     from servo_toolkit.scene.loader import Robustness
-    from servo_toolkit.studies.montecarlo_check import check_cases, montecarlo_checks
+    from servo_toolkit.studies.montecarlo import check_cases, montecarlo_checks
     scene, controller, _ = ema
     spec = Robustness(load_inertia=(0.5, 1.5), stiffness=None, samples=4, max_tracking_error=math.radians(10.0),
                       tracking_error_dimension="angle", max_peak_current=1.0)

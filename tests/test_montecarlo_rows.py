@@ -13,7 +13,7 @@ from servo_toolkit.sim import Reference
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.reference import fill
 from servo_toolkit.sim.tolerance_rows import PRIMARIES, ToleranceRows, _relative
-from servo_toolkit.studies import montecarlo as mc
+from servo_toolkit.studies.montecarlo import run as mc
 
 
 DURATION = 0.1

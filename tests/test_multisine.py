@@ -18,7 +18,7 @@ from servo_toolkit.plant.linear import DEFAULT_STRUCTURAL_DAMPING
 from servo_toolkit.sim import ModelOptions
 from servo_toolkit.studies.multisine import MultisinePlan, multisine_sweep, schroeder
 
-from .conftest import SCENES
+from .conftest import SCENES, closed_tags
 
 EMA = SCENES / "ema_reference.toml"
 BAND = (2.0, 50.0)
@@ -71,6 +71,26 @@ def test_a_linear_loop_gives_its_linear_response(tmp_path, response):
     assert r.distortion_db[0] < -80
     d = r.to_dict()
     assert d["method"] == "multisine" and d["response"] == response and len(d["runs"][0]["points"]) == 10
+
+
+def test_the_result_shows_itself_in_one_line_a_card_a_figure_and_json(ema):
+    """A multisine result's views: a one-line repr naming the lines and the largest gain
+    difference, a closed HTML card with its figure, the figure's gain, phase and coherence
+    axes, and a JSON-ready dict."""
+    import matplotlib
+    matplotlib.use("Agg")
+    scene, controller = ema
+    r = multisine_sweep(scene, band=(2.0, 16.0), lines=4, amplitudes=[math.radians(1.0)], periods=1, settle=1,
+                        controller=controller, progress=False)
+    text = repr(r)
+    assert text.startswith("<MultisineResult: ema_reference: multisine closed_loop, 4 lines 2-16 Hz")
+    assert "\n" not in text and len(text) < 300 and "largest |dG|" in text
+    html = r._repr_html_()
+    assert html.count("<svg") == 1 and closed_tags(html)
+    axes = r.plot()
+    assert len(axes) == 3 and axes[0].get_xscale() == "log"
+    d = json.loads(json.dumps(r.to_dict()))
+    assert d["lines"] == 4 and len(d["runs"][0]["points"]) == 4
 
 
 def test_the_sweep_and_frf_estimate_the_same_log_alike(tmp_path, capsys):

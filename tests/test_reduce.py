@@ -55,6 +55,42 @@ def test_a_named_sweep_study_gets_8hz_unless_frequencies_are_given(slow_sweep):
     assert "8 Hz" in comp["8"].quantity
 
 
+def test_a_plan_judged_once_is_handed_to_reduce(slow_sweep):
+    """``reduce`` given the plan of :func:`reduced_options` for the same points reduces as it
+    would have judged itself, and refuses a plan judged for other frequencies or another
+    tolerance (before any run)."""
+    _, plan = reduced_options(slow_sweep, "sweep", frequencies=LOW)
+    given = reduce(slow_sweep, "sweep", frequencies=LOW, reduction=plan, progress=False, per_effect=False)
+    own = reduce(slow_sweep, "sweep", frequencies=LOW, progress=False, per_effect=False)
+    assert given.reduced_options == own.reduced_options
+    assert given.to_dict() == own.to_dict()
+    with pytest.raises(ValueError, match="other frequencies"):
+        reduce(slow_sweep, "sweep", frequencies=[1.0, 4.0], reduction=plan, progress=False)
+    with pytest.raises(ValueError, match="tolerance"):
+        reduce(slow_sweep, "sweep", frequencies=LOW, tolerance=0.01, reduction=plan, progress=False)
+
+
+def test_the_plan_shows_itself(slow_sweep):
+    """The a-priori plan (what ``reduce --estimate-only`` gives) in one line, a card and a
+    figure: one bar per effect at its estimate, against the budget of the effects left out
+    (half the tolerance) and the tolerance."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from .conftest import closed_tags
+    _, plan = reduced_options(slow_sweep, "sweep", frequencies=LOW)
+    text = repr(plan)
+    assert text.startswith(f"<ReductionPlan: {len(plan.effects)} effects at 1-3 Hz; left out ") and "\n" not in text
+    assert "armature inductance" in text and "of the budget 0.01>" in text
+    html = plan._repr_html_()
+    assert closed_tags(html) and "<svg" in html and all(e.effect in html for e in plan.effects)
+    ax = plan.plot()
+    bars = ax.patches
+    assert len(bars) == len(plan.effects)
+    drawn = [(b.get_x() + b.get_width(), e.estimate) for b, e in zip(bars, plan.effects) if 0 < e.estimate < math.inf]
+    assert drawn and all(end == pytest.approx(est) for end, est in drawn)
+    assert sorted(line.get_xdata()[0] for line in ax.get_lines()) == [plan.tolerance / 2, plan.tolerance]
+
+
 def test_tighter_tolerance_keeps_more(slow_sweep):
     """A bound below the compliance's estimate keeps the compliance. The measurement meets the
     tighter bound but for one effect the linear estimates do not see, which reduce measures on
@@ -168,7 +204,7 @@ def test_no_point_within_the_limits_makes_the_bound_not_applicable(ema_dict):
     # an effect measured on its own has no figure within the limits either: its line says so
     # rather than printing NaN as "inf dB / inf deg"
     from dataclasses import replace
-    from servo_toolkit.studies.reduce_result import EffectCost
+    from servo_toolkit.studies.reduce import EffectCost
     alone = replace(res, per_effect=(EffectCost("backlash", 0.0, math.nan, 2.12e-4),)).table()
     line = next(s for s in alone.splitlines() if s.lstrip().startswith("backlash") and "measured" in s)
     assert "inf" not in line and not re.search(r"\bnan\b", line), line
@@ -203,7 +239,7 @@ def test_the_backlash_estimate_takes_the_two_mass_reduction_s_load_side():
     from servo_toolkit.components.motor import DCMotor
     from servo_toolkit.scene.loader import Scene
     from servo_toolkit.sim import controller_for
-    from servo_toolkit.studies.reduce_estimates import load_side_inertia, loop_response, plan_reduction
+    from servo_toolkit.studies.reduce.estimates import load_side_inertia, loop_response, plan_reduction
     from servo_toolkit.plant.linear import plant_parameters
     motor = DCMotor(resistance=0.5, inductance=1e-3, torque_constant=0.2, back_emf_constant=0.2,
                     rotor_inertia=2e-4, viscous_friction=1e-4, coulomb_friction=0.0, current_limit=20.0)
@@ -226,7 +262,7 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     by a failure as a non-finite state gives one) has no difference: it is reported as
     failed with its reason in the table, the JSON and the plot, is not counted as saturated,
     and the measured difference and the verdict are over the one point that ran on both."""
-    import servo_toolkit.studies.reduce as reduce_module
+    import servo_toolkit.studies.reduce.run as reduce_module
     true_case, seen = reduce_module._trace_case, []
 
     def failing_case(case):
@@ -255,7 +291,7 @@ def test_a_failed_run_is_reported_as_failed_not_saturated(monkeypatch):
     assert res.failed_text().startswith("8 Hz, 3 deg: reduced model: the state became non-finite")
     # an effect measured on its own counts its failed points too
     from dataclasses import replace
-    from servo_toolkit.studies.reduce_result import EffectCost
+    from servo_toolkit.studies.reduce import EffectCost
     alone = replace(res, per_effect=(EffectCost("backlash", 1e-3, 2e-4, math.nan, failed=1),))
     assert "1 point(s) failed, not compared" in alone.table()
     assert alone.to_dict()["per_effect"][0]["failed_points"] == 1
@@ -266,7 +302,7 @@ def test_a_failed_dwell_is_not_a_saturated_point():
     both is failed, with the models' reasons, and neither saturated nor infinite."""
     from types import SimpleNamespace
 
-    from servo_toolkit.studies.reduce import _difference
+    from servo_toolkit.studies.reduce.run import _difference
     nan = complex(math.nan, math.nan)
     full = SimpleNamespace(response=np.array([[1.0 + 0j, 0.5j, nan]]), saturated=np.array([[False, False, True]]),
                            errors=(None, None, "left its domain at t = 1 s"))

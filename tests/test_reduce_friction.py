@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from servo_toolkit.sim import ModelOptions, Reference, build_model, controller_for, run
-from servo_toolkit.studies.reduce import reduce, reduced_options
-from servo_toolkit.studies.reduce_estimates import plan_reduction
+from servo_toolkit.studies.reduce import plan_reduction, reduce, reduced_options
 from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import build, variant

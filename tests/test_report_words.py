@@ -44,7 +44,7 @@ def test_the_reference_list_gives_authors_titles_and_journals():
 
 
 def test_time_at_the_drive_limits_reads_as_a_sentence():
-    from servo_toolkit.studies.large_signal import LargeSignal
+    from servo_toolkit.studies.gate import LargeSignal
     quiet = LargeSignal(8.0, math.radians(2.0), -1.4, -71.1, -1.4, -71.1, 0.0, 0.0, 1.0, 41.3, 53.2)
     note = quiet.note(False)
     assert "the drive reached neither its voltage nor its current limit in the 1000 ms run" in note, note

@@ -212,7 +212,7 @@ def test_multisine_phase_never_jumps_a_turn_and_its_summary_names_the_flags():
     """The same moved resonance as lines of a multisine run at two amplitudes, the larger
     saturated, plus a failed third: the phase difference is the closed form's unwrapped one
     (no 360 deg step between lines), and the summary names each amplitude's flag."""
-    from servo_toolkit.studies.multisine_result import MultisineResult
+    from servo_toolkit.studies.multisine import MultisineResult
     f = np.array([5, 10, 20, 24, 26, 27, 28, 29, 31, 35, 40.0])
     lin = _second_order(f, 30.0, 0.05)
     h = _second_order(f, 25.0, 0.05) * np.exp(-2j * np.pi * f * 0.006)

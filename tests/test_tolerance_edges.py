@@ -78,7 +78,7 @@ def small_result():
     from servo_toolkit.core.sensitivity import rank
     from servo_toolkit.core.yields import Yield
     from servo_toolkit.scene.tolerances import Tolerance, Tolerances
-    from servo_toolkit.studies.tolerance_result import ToleranceResult, WorstCorner
+    from servo_toolkit.studies.tolerances import ToleranceResult, WorstCorner
     items = (Tolerance("motor.resistance", "ohm", 0.5, "uniform", 0.5, 0.7),
              Tolerance("load.inertia", "kg*m^2", 1.0, "uniform", 0.8, 1.2),
              Tolerance("motor.voltage_limit", "V", 270.0, "uniform", 243.0, 297.0),
@@ -231,7 +231,7 @@ def test_the_notes_are_printed_with_the_text(small_result):
 
 def test_montecarlo_names_the_tolerances_it_does_not_vary():
     from servo_toolkit.scene.loader import load_scene
-    from servo_toolkit.studies.montecarlo import unvaried_tolerances
+    from servo_toolkit.studies.montecarlo.run import unvaried_tolerances
 
     from .conftest import SCENES
     scene = load_scene(SCENES / "examples" / "ema_tolerances.toml")
@@ -279,7 +279,7 @@ def test_the_worst_corner_shows_its_time_run_with_units_or_why_it_did_not_run():
     from types import SimpleNamespace
 
     from servo_toolkit.core.output_units import OutputUnit
-    from servo_toolkit.studies.tolerance_result import WorstCorner
+    from servo_toolkit.studies.tolerances import WorstCorner
     t = np.linspace(0.0, 1.0, 11)
     sim = SimpleNamespace(output_angle=np.radians(0.5) * np.ones_like(t), reference_angle=np.zeros_like(t),
                           motor_current=-12.5 * np.ones_like(t), unit=OutputUnit("rad"))
@@ -298,7 +298,7 @@ def test_the_worst_corner_shows_its_time_run_with_units_or_why_it_did_not_run():
 # --- variants whose time run stops: the design's failure or the model's ---------------------
 
 def _runs(reasons):
-    from servo_toolkit.studies.tolerance_runs import ToleranceRuns
+    from servo_toolkit.studies.tolerances import ToleranceRuns
     n = len(reasons)
     return ToleranceRuns(np.full(n, 0.01), np.full(n, 20.0), np.zeros(n, bool), np.array([bool(r) for r in reasons]),
                          tuple(reasons), 1e-4, 0.3, 3000, 0.1)
@@ -306,7 +306,7 @@ def _runs(reasons):
 
 def test_a_variant_that_hits_its_stroke_end_or_diverges_unstable_fails_its_time_requirements():
     from servo_toolkit.loop.requirements import Requirement
-    from servo_toolkit.studies.tolerances import _judge_failed, _meets
+    from servo_toolkit.studies.tolerances.run import _judge_failed, _meets
     runs = _runs(["", "stroke end reached at t = 0.24 s", "non-finite state at t = 0.1 s", ""])
     stable = np.array([True, True, False, True])
     judged, physical = _judge_failed(runs, {"load.inertia": np.ones(4)}, stable)
@@ -321,7 +321,7 @@ def test_a_variant_that_hits_its_stroke_end_or_diverges_unstable_fails_its_time_
                                     "no start: the initial state has no equilibrium"])
 def test_a_variant_the_model_could_not_run_leaves_no_verdict(reason):
     from servo_toolkit.errors import SimulationError
-    from servo_toolkit.studies.tolerances import _judge_failed
+    from servo_toolkit.studies.tolerances.run import _judge_failed
     with pytest.raises(SimulationError, match="could not run 1 of 2 variants"):
         _judge_failed(_runs(["", reason]), {"load.inertia": np.ones(2)}, np.array([True, True]))
 
@@ -329,7 +329,7 @@ def test_a_variant_the_model_could_not_run_leaves_no_verdict(reason):
 def test_an_unstable_worst_corner_says_so_with_its_pole(small_result):
     from dataclasses import replace
 
-    from servo_toolkit.studies.tolerance_result import WorstCorner
+    from servo_toolkit.studies.tolerances import WorstCorner
     worst = WorstCorner({"load.inertia": 1.2}, -np.inf, "stable", 2, {"max_pole_real": 13.05})
     text = replace(small_result, worst=worst).table()
     assert "closed loop unstable (a pole at real part 13.05 1/s) at load.inertia = 1.2 kg*m^2" in text
@@ -362,8 +362,8 @@ def test_the_sobol_time_runs_serve_both_time_figures_once(monkeypatch):
     from types import SimpleNamespace
 
     from servo_toolkit.scene.tolerances import Tolerance, Tolerances
-    from servo_toolkit.studies import tolerance_runs as module
-    from servo_toolkit.studies.tolerances import _time_sobol
+    from servo_toolkit.studies.tolerances import time_runs as module
+    from servo_toolkit.studies.tolerances.run import _time_sobol
     items = (Tolerance("a", "ohm", 1.0, "uniform", 0.5, 1.5), Tolerance("b", "ohm", 1.0, "uniform", 0.5, 1.5))
     tol = Tolerances(items)
     calls = []
@@ -413,7 +413,7 @@ def test_the_time_runs_chunks_travel_to_worker_processes(tmp_path):
     from servo_toolkit.loop.sampling import sample_tolerances
     from servo_toolkit.scene.loader import load_scene
     from servo_toolkit.sim import controller_for
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
 
     from .conftest import SCENES
     path = tmp_path / "runs.toml"
@@ -457,7 +457,7 @@ class _CountingExecutor(_PicklingExecutor):
         self.calls = 0
 
     def submit(self, fn, *args, **kwargs):
-        self.calls += args[0].__module__.endswith("tolerance_runs")  # run_cases sends (function, chunk)
+        self.calls += args[0].__module__.endswith("tolerances.time_runs")  # run_cases sends (function, chunk)
         return super().submit(fn, *args, **kwargs)
 
 
@@ -519,7 +519,7 @@ def test_a_stiffness_and_an_inertia_are_shown_in_the_scenes_display_units_and_th
 
     from servo_toolkit.display.units import DisplayUnits
     from servo_toolkit.scene.tolerances import Tolerance, Tolerances
-    from servo_toolkit.studies.tolerance_result import WorstCorner
+    from servo_toolkit.studies.tolerances import WorstCorner
     k0 = 1696.8 * 180 / math.pi  # the housing's 1696.8 N*m/deg in SI
     items = (Tolerance("drivetrain[3].stiffness", "N*m/rad", k0, "uniform", 0.85 * k0, 1.15 * k0),
              Tolerance("load.inertia", "kg*m^2", 1.0, "uniform", 0.8, 1.2),

@@ -28,7 +28,7 @@ sensors.output_encoder_bits = "10:16"
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     from servo_toolkit.sim import controller_for
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
     path = tmp_path_factory.mktemp("tol") / "scene.toml"
     path.write_text((SCENES / "ema_reference.toml").read_text() + TABLE)
     scene = load_scene(path)
@@ -80,7 +80,7 @@ def test_stiffness_and_inertia_tolerances_keep_the_fitted_rows(tmp_path):
     path. (At +-30 % and +-40 % the separable fit's pair term leaves the damping slot some
     5e-4 off at the box's far corners: every variant is then built exactly.)"""
     from servo_toolkit.sim import controller_for
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
     path = tmp_path / "scene.toml"
     path.write_text((SCENES / "ema_reference.toml").read_text()
                     + '\n[tolerances]\n"drivetrain[3].stiffness" = "+-10 %"\nload.inertia = "+-10 %"\n')

@@ -31,7 +31,7 @@ VALUES = {KEYS[0]: np.array([0.0, 3e4, 1e5]), KEYS[1]: np.array([60.0, 60.0, 150
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    from servo_toolkit.studies.tolerance_runs import tolerance_runs
+    from servo_toolkit.studies.tolerances import tolerance_runs
     text = (SCENES / "ema_reference.toml").read_text()
     assert text.count("efficiency = 0.90") == 1 and text.count('hinge_moment = "700 N*m"') == 1
     path = tmp_path_factory.mktemp("hinge") / "scene.toml"
@@ -78,7 +78,7 @@ def test_the_variant_s_start_and_snapshots_as_they_are_pass(study):
     from servo_toolkit.sim.batch import NSNAP
     from servo_toolkit.sim.batch_run import integrate_variants
     from servo_toolkit.sim.reference import fill, initial_state
-    from servo_toolkit.studies.variant_step import step_check
+    from servo_toolkit.studies.montecarlo import step_check
     scene, controller, runs = study
     variant = scene.tolerances.scene_keys().scene({k: float(VALUES[k][1]) for k in KEYS})
     # the check as it was, on the smooth friction (friction that holds, now chosen by need for
@@ -109,7 +109,7 @@ def test_a_node_held_by_friction_is_judged_without_the_blend_it_never_crosses(st
     through the blend (its snapshot in contact)."""
     from servo_toolkit.sim.batch_run import integrate_variants
     from servo_toolkit.sim.reference import fill, initial_state
-    from servo_toolkit.studies.variant_step import checked_states, held_nodes, step_check
+    from servo_toolkit.studies.montecarlo.variant_step import checked_states, held_nodes, step_check
     scene, controller, runs = study
     assert runs.rows.options.friction == "stick"
     variant = scene.tolerances.scene_keys().scene({k: float(VALUES[k][1]) for k in KEYS})

@@ -94,7 +94,7 @@ def test_report_and_gate_rows_name_the_variant_with_units():
     from servo_toolkit.loop.robustness import RobustnessResult
     from servo_toolkit.loop.requirements import Check
     from servo_toolkit.studies.gate import montecarlo_rows, robust_rows
-    from servo_toolkit.studies.montecarlo_result import MonteCarloResult
+    from servo_toolkit.studies.montecarlo import MonteCarloResult
     values = {"load_inertia": np.array([0.0, 4.0]), "stiffness": np.array([0.7, 1.3])}
     cm = DisplayUnits(inertia="kg*cm^2")
     check = Check("gain_margin", 6.0, 5.0, False, "dB", ">=", "robustness", 1.0)

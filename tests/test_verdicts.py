@@ -43,7 +43,7 @@ def test_check_whose_large_signal_run_cannot_run_exits_2_with_the_reason(monkeyp
 
 
 def test_a_nan_figure_is_no_verdict():
-    from servo_toolkit.studies.large_signal import LargeSignal
+    from servo_toolkit.studies.gate import LargeSignal
     from servo_toolkit.loop.requirements import Requirement, check
     with pytest.raises(SimulationError, match="phase_margin"):
         check([Requirement("phase_margin", ">=", 45.0, "deg", "scene")], {"phase_margin": math.nan})
@@ -57,7 +57,7 @@ def test_a_nan_figure_is_no_verdict():
 
 def test_monte_carlo_rows_with_a_failed_variant_are_no_verdict():
     from servo_toolkit.loop.requirements import Requirement
-    from servo_toolkit.studies.montecarlo_check import result_checks
+    from servo_toolkit.studies.montecarlo import result_checks
     result = SimpleNamespace(failed=np.array([False, True]), count=2,
                              reasons=("", "step 0.0001 s outside the RK4 stability region"),
                              values={"stiffness": np.array([1.0, 1e-6])},
@@ -251,7 +251,7 @@ def test_a_large_signal_run_into_the_end_stop_is_a_failed_row_not_bad_input():
     carried out numerically is exit 2."""
     import math
 
-    from servo_toolkit.studies.large_signal import LargeSignal
+    from servo_toolkit.studies.gate import LargeSignal
     ls = LargeSignal(frequency_hz=8.0, amplitude=0.035, gain_db=math.nan, phase_deg=math.nan, linear_gain_db=0.0,
                      linear_phase_deg=-70.0, time_at_voltage_limit_s=math.nan, time_at_current_limit_s=math.nan,
                      duration_s=1.0, peak_current_A=math.nan, peak_voltage_V=math.nan,

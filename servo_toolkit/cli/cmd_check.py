@@ -12,7 +12,7 @@ cycle, as ``servo-toolkit size --no-sweep``): the motor's envelope (``envelope_p
 ``thermal_margin``, a roller screw's ``static_load_<screw>`` (peak thrust against its static
 rating) and, when the cycle sets ``required_life``, the L10 lives (``life_<part>``).
 A scene that requires a yield (``min_yield`` in ``[tolerances]`` or ``[robustness]``) adds
-the rows of its tolerance study (:mod:`servo_toolkit.studies.tolerances`): ``yield`` (every
+the rows of its tolerance study (:mod:`servo_toolkit.studies.tolerances.run`): ``yield`` (every
 requirement at once) and ``yield_<requirement>``, each met when the lower end of the yield's
 Clopper-Pearson interval reaches ``min_yield``.
 """

@@ -49,7 +49,7 @@ def gate_result(scene, args, result):
     """``result`` with the large-signal rows unless ``--linear-only``: (result, LargeSignal or None)."""
     if getattr(args, "linear_only", False):
         return result, None
-    from ..studies.large_signal import with_large_signal
+    from ..studies.gate import with_large_signal
     return with_large_signal(scene, result)
 
 

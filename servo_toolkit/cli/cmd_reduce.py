@@ -48,8 +48,7 @@ def _check_budget(scene, args, amps, runs: int) -> None:
 
 def run(args) -> int:
     """Run the command."""
-    from ..studies.reduce import reduce, reduced_options
-    from ..studies.reduce_estimates import DEFAULT_TOLERANCE
+    from ..studies.reduce import DEFAULT_TOLERANCE, reduce, reduced_options
     tol = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
     if not (math.isfinite(tol) and 0 < tol < 1):
         raise SceneError("--tolerance", f"must lie in (0, 1), a relative response difference (got {tol:g})")
@@ -66,7 +65,7 @@ def run(args) -> int:
     from ..sim.simulate import controller_for
     controller, source = controller_for(scene)  # designed once, here, and handed down
     _, plan = reduced_options(scene, args.study, tolerance=tol, frequencies=args.frequency, amplitudes=amps,
-                              controller=controller)
+                              controller=controller)  # judged once, here, and handed down with the controller
     if args.estimate_only:
         lines = [f"A-priori reduction of {scene.name}" + (f" for study {args.study}" if args.study else "")]
         for e in plan.effects:
@@ -77,7 +76,7 @@ def run(args) -> int:
     alone = [e for e in plan.effects if e.switch is not None and (e.omitted or e.switch == "chain")]
     _check_budget(scene, args, amps, 2 + len(alone))
     res = reduce(scene, args.study, tolerance=tol, frequencies=args.frequency,
-                 amplitudes=amps, controller=controller, controller_source=source,
+                 amplitudes=amps, controller=controller, controller_source=source, reduction=plan,
                  progress=not args.json and sys.stderr.isatty())
     if args.plot:
         import matplotlib

@@ -1,6 +1,6 @@
 """``--plant-frf FRF.csv``: the designed loop closed on a measured plant response (what
 ``frf -o`` writes), its rows beside the model's (:mod:`servo_toolkit.loop.measured`,
-:mod:`servo_toolkit.studies.measured_gate`)."""
+:mod:`servo_toolkit.studies.gate.measured`)."""
 
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ def plant_frf_check(args, scene, result, rows: bool = True):
     import numpy as np
 
     from ..loop.measured import measured_loop
-    from ..studies.measured_gate import measured_rows
+    from ..studies.gate import measured_rows
     data = read_plant_frf(args.plant_frf)
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,

@@ -57,7 +57,8 @@ def check_options(args) -> None:
 
 def run(args, scene, amps, scheduler) -> int:
     """The multisine sweep of ``sweep``."""
-    from ..studies.multisine import DEFAULT_PERIODS, multisine_sweep
+    from ..sim.simulate import controller_for
+    from ..studies.multisine import DEFAULT_PERIODS, multisine_spec, multisine_sweep
     from .budget import check_time, time_run_seconds
     for option, path, suffixes in (("-o", args.out, (".csv",)), ("--log", args.log, (".csv",))):
         if path is not None:
@@ -78,11 +79,12 @@ def run(args, scene, amps, scheduler) -> int:
         seconds, what, _ = time_run_seconds(scene, (periods + (args.settle or 1)) / band[0], None, "rk4")
         check_time(seconds * (len(amps) if amps else 1), "--band", what, f"a period of {1 / band[0]:g} s",
                    args.force)
-    kw = dict(band=band, lines=lines, amplitudes=amps, periods=periods, settle=args.settle,
-              response=args.response or "closed_loop", full=args.full,
-              progress=not args.json and sys.stderr.isatty())
+    spec = multisine_spec(scene, args.study, band=band, lines=lines, amplitudes=amps, periods=periods,
+                          settle=args.settle, response=args.response or "closed_loop")  # before any work
+    controller, source = controller_for(scene)  # designed once, here, and handed down
     with study_executor(scheduler, args.workers) as (executor, _):
-        res = multisine_sweep(scene, args.study, executor=executor, **kw)
+        res = multisine_sweep(scene, spec=spec, controller=controller, controller_source=source, full=args.full,
+                              executor=executor, progress=not args.json and sys.stderr.isatty())
     if (args.out or args.log) and res.errors[0] is not None:
         raise SimulationError(f"the multisine run failed, nothing written: {res.errors[0]}")
     if args.out:

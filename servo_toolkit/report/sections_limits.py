@@ -90,7 +90,7 @@ def _simulation_simplifications() -> list[str]:
 def _measured_reduction(ctx):
     """The reduction of the report's sweep: the a-priori plan and the measured difference.
 
-    :func:`servo_toolkit.studies.reduce.reduce` on the scene's sweep study, with the report's
+    :func:`servo_toolkit.studies.reduce.run.reduce` on the scene's sweep study, with the report's
     sweep settings: as defined under full settings (each effect left out also measured on its
     own), the report's light points and short dwells otherwise.
     """

@@ -118,7 +118,7 @@ def _measured_rows(ctx, design) -> list:
         return []
     from ..errors import SceneError
     from ..studies.gate import unavailable_rows
-    from ..studies.measured_gate import measured_rows
+    from ..studies.gate import measured_rows
     from .sections_measured import measured_result
     try:
         return measured_rows(measured_result(ctx), design.requirements)

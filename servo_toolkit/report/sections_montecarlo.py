@@ -24,7 +24,7 @@ def montecarlo_results(ctx):
     ctx.require_drivetrain("the Monte Carlo time runs")
 
     def compute():
-        from ..studies.montecarlo_check import montecarlo_requirements, result_checks, spec_montecarlo
+        from ..studies.montecarlo import montecarlo_requirements, result_checks, spec_montecarlo
         requirements = montecarlo_requirements(ctx.scene, spec)
         result = spec_montecarlo(ctx.scene, spec, ctx.design().controller, executor=ctx.executor)
         return result, (result_checks(requirements, result) if requirements else [])

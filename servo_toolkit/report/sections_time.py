@@ -13,7 +13,7 @@ import numpy as np
 from . import figures
 from ..errors import SceneError, SimulationError
 from ..core.output_units import output_unit
-from ..studies.large_signal import fit_sine
+from ..studies.gate import fit_sine
 from .section import FigureSpec, NotAvailable, Section, badge, fmt, para, table
 
 

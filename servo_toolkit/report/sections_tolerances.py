@@ -11,7 +11,7 @@ from .section import FigureSpec, NotApplicable, Section, fmt, para, table
 
 
 def tolerance_results(ctx):
-    """The :class:`~servo_toolkit.studies.tolerance_result.ToleranceResult` of the scene and
+    """The :class:`~servo_toolkit.studies.tolerances.result.ToleranceResult` of the scene and
     the reported design, computed once (shared with the requirement rows)."""
     tol = ctx.scene.tolerances
     if tol is None:

@@ -31,7 +31,7 @@ from ..errors import SceneError
 from .stability import max_stable_dt
 
 #: the largest estimated cost (relative response difference) of lumping the upper modes:
-#: half the reductions' default tolerance (:data:`servo_toolkit.studies.reduce_estimates.DEFAULT_TOLERANCE`)
+#: half the reductions' default tolerance (:data:`servo_toolkit.studies.reduce.estimates.DEFAULT_TOLERANCE`)
 LUMP_TOLERANCE = 0.01
 
 

@@ -1,4 +1,4 @@
-"""The RK4 step of the batched time runs (:mod:`.montecarlo`, :mod:`.tolerance_runs`),
+"""The RK4 step of the batched time runs (:mod:`.montecarlo`, :mod:`.tolerances.time_runs`),
 chosen and checked by the single run's own step choice (:func:`servo_toolkit.sim.engine.choose_step`,
 the one :func:`servo_toolkit.sim.engine.run` takes).
 
@@ -9,7 +9,7 @@ checks. A step the study chose is reduced as the single run's ``auto`` reduces i
 the run, rerun and checked again); a step the caller gave that leaves the stability region
 along the nominal run is refused, as the single run refuses it. Each variant is then also
 checked at its own parameters (its start and its snapshots, each also in contact and at a
-speed reversal: :func:`.variant_step.step_check`): a variant whose step lies outside the
+speed reversal: :func:`.montecarlo.variant_step.step_check`): a variant whose step lies outside the
 region there fails with that reason.
 """
 

@@ -3,7 +3,7 @@ amplitudes, the model options, the model and its notes, in one place.
 
 A sine dwell sweep (:mod:`.sweep`), a multisine (:mod:`.multisine`) and a closed-loop sine
 run (:mod:`.time.run`) all take the controller they are given, judge the scene's effects
-against their frequencies and amplitudes once (:func:`.reduce_estimates.plan_reduction`)
+against their frequencies and amplitudes once (:func:`.reduce.estimates.plan_reduction`)
 unless the full model or explicit options are asked for, and build the model on the result.
 """
 
@@ -80,7 +80,7 @@ def model_setup(scene, controller, frequencies_hz, amplitudes, *, options=None, 
     ModelSetup
     """
     from ..sim import ModelOptions, build_model
-    from .reduce_estimates import friction_cost_note, plan_reduction
+    from .reduce.estimates import friction_cost_note, plan_reduction
 
     notes = [] if source is None else [f"controller from {source}"]
     plan = None

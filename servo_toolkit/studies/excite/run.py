@@ -25,7 +25,7 @@ import numpy as np
 from ...core.spectra import periodic_h1
 from ...errors import SceneError, SimulationError, StrokeEndReached
 from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from ..multisine import TABLE_PER_HIGHEST, linear_plant_response
+from ..multisine.run import TABLE_PER_HIGHEST, linear_plant_response
 from .drive import COLUMNS, INPUTS, UNITS, drive_controller, linear_loop, periodic_response
 from .levels import HEADROOM, backlash_amplitude, bounds, breakaway_current
 from .plan import DEFAULT_PERIODS, default_band, default_resolution, make_plan, settle_periods

@@ -8,7 +8,7 @@ equal cosines in phase sqrt(2 N).
 
 Multisine
     Equal cosines on consecutive lines of the period, Schroeder's phases
-    ``-pi n (n - 1) / N`` for the n-th of N lines (:func:`servo_toolkit.studies.multisine.schroeder`;
+    ``-pi n (n - 1) / N`` for the n-th of N lines (:func:`servo_toolkit.studies.multisine.run.schroeder`;
     M. R. Schroeder, "Synthesis of low-peak-factor signals and binary sequences with low
     autocorrelation", IEEE Trans. Information Theory 16, 1970): the phase grows
     quadratically with frequency, so the signal is nearly a chirp sweeping the band once a

@@ -156,8 +156,8 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
     """
     from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
     from ..model_setup import model_setup
-    from ..reduce_estimates import FRICTION_EFFECT
-    from ..reduce_friction import friction_note
+    from ..reduce.estimates import FRICTION_EFFECT
+    from ..reduce.friction import friction_note
 
     options = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
     chosen = [] if friction is None else [f"friction model {check_friction(friction)} (as asked)"]

@@ -1,4 +1,4 @@
-"""The result of a multisine sweep (:func:`servo_toolkit.studies.multisine.multisine_sweep`):
+"""The result of a multisine sweep (:func:`servo_toolkit.studies.multisine.run.multisine_sweep`):
 the loop's response at the excited lines with its coherence, against the linear model; the
 CSV ``fit`` reads and the time log ``frf`` reads."""
 
@@ -10,10 +10,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from ..core.spectra import response_csv
-from ..display.cards import RichDisplay, card, num, svg, table
-from .sweep.result import phase_along_frequency
+from ...core.output_units import OutputUnit
+from ...core.spectra import response_csv
+from ...display.cards import RichDisplay, card, num, svg, table
+from ..sweep.result import phase_along_frequency
 
 _LABELS = {"closed_loop": ("position command -> output position", "gain [dB]"),
            "plant": ("motor current -> motor speed", "gain [dB re 1 (rad/s)/A]")}

@@ -1,4 +1,4 @@
-"""The result of a nonlinear Monte Carlo run (:func:`servo_toolkit.studies.montecarlo.montecarlo`)."""
+"""The result of a nonlinear Monte Carlo run (:func:`servo_toolkit.studies.montecarlo.run.montecarlo`)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from ..display.html import fmt
-from ..display.units import DisplayUnits
+from ...core.output_units import OutputUnit
+from ...display.html import fmt
+from ...display.units import DisplayUnits
 
 
 @dataclass(frozen=True)
@@ -86,12 +86,12 @@ class MonteCarloResult:
     def ranges_text(self) -> str:
         """The varied parameters' spans with units, e.g. ``load_inertia 0.01..3.99 kg*m^2,
         stiffness 0.7..1.3 x nominal`` (:func:`servo_toolkit.loop.vary.ranges_text`)."""
-        from ..loop.vary import ranges_text
+        from ...loop.vary import ranges_text
         return ranges_text(self.values, self.display, self.unit.linear)
 
     def variant_text(self, i: int) -> str:
         """Variant ``i``'s parameters with their units (:func:`servo_toolkit.loop.vary.variant_text`)."""
-        from ..loop.vary import variant_text
+        from ...loop.vary import variant_text
         return variant_text(self.values, self.display, self.unit.linear, index=int(i))
 
     @property
@@ -145,7 +145,7 @@ class MonteCarloResult:
         """
         from dataclasses import replace
 
-        from ..sim import run
+        from ...sim import run
         builder, P0, reference, *fitted = self.runner
         load = self.values["load_inertia"][i] if "load_inertia" in self.values else None
         stiff = self.values["stiffness"][i] if "stiffness" in self.values else None

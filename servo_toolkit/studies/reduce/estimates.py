@@ -26,7 +26,7 @@ with the design's linear closed loop of :mod:`servo_toolkit.plant.linear` assemb
 - friction that holds (stick), where the full model has it (``friction="stick"``): node by
   node (the motor, each stage's friction, the load's), the relay of its level against the
   output's motion through the loop and against the force its node's motion needs, the stick
-  phases at the sine's reversals and a drive held at rest counted (:mod:`.reduce_friction`);
+  phases at the sine's reversals and a drive held at rest counted (:mod:`.friction`);
   left out, the run uses the smooth model (the motor's Coulomb friction smoothed, the rest
   left out);
 - the current and voltage limits: reported, never left out (the model always clamps); the
@@ -50,13 +50,13 @@ from dataclasses import replace
 import control as ct
 import numpy as np
 
-from ..drivetrain.operating_point import operating_point
-from ..core.output_units import output_unit
-from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
+from ...drivetrain.operating_point import operating_point
+from ...core.output_units import output_unit
+from ...plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
                             plant_parameters, sample_delay, spring_damping)
-from ..sim.chain_choice import choose_chain, has_upper_modes
-from .reduce_choice import Effect, ReductionPlan, choose
-from .reduce_friction import friction_effect
+from ...sim.chain_choice import choose_chain, has_upper_modes
+from .choice import Effect, ReductionPlan, choose
+from .friction import friction_effect
 
 #: the effect of friction that holds (the smooth model without it)
 FRICTION_EFFECT = "friction that holds (stick)"
@@ -89,7 +89,7 @@ def loop_response(p, controller, motor, w, inductance: bool = True, plant_ss=Non
         g = plant_ss
     mot = motor if inductance else replace(motor, inductance=0.0)
     cur = current_controller(controller.current_kp, controller.current_ki, mot)
-    from ..loop.closed_loop import DELAY_SAMPLES
+    from ...loop.closed_loop import DELAY_SAMPLES
     dly = sample_delay(controller.sample_time, DELAY_SAMPLES)
     outs = ["theta", "i", "u", "omega"]
     with warnings.catch_warnings():
@@ -133,7 +133,7 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
     -------
     ReductionPlan
     """
-    from ..sim import ModelOptions
+    from ...sim import ModelOptions
     base = base or ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
     if not tolerance > 0:
         raise ValueError("tolerance must be positive")
@@ -267,9 +267,9 @@ def friction_cost_note(scene, controller, frequencies_hz, amplitudes, options,
                        tolerance: float = DEFAULT_TOLERANCE) -> str | None:
     """The note of a study that runs without friction that holds (``options.friction`` other
     than ``"stick"``): each node's friction smoothed or left out, with its estimate
-    (:func:`~.reduce_friction.judge_nodes`), and whether their sum exceeds half the tolerance;
+    (:func:`~.friction.judge_nodes`), and whether their sum exceeds half the tolerance;
     None when the model holds or the scene has no Coulomb or static friction."""
-    from .reduce_friction import friction_note, judge_nodes
+    from .friction import friction_note, judge_nodes
     if options.friction == "stick":
         return None
     q0 = operating_point(scene)[0]

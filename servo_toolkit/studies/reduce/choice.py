@@ -1,5 +1,5 @@
 """The reduced model a study allows: which effects to leave out, and the model options that
-leave out one effect or several (:mod:`.reduce_estimates` judges them).
+leave out one effect or several (:mod:`.estimates` judges them).
 
 The reduced model leaves out effects, smallest estimate first, while the sum of their
 estimates stays within half the tolerance; the drivetrain chain's modes above the first follow
@@ -14,8 +14,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from .reduce_friction import without_stick
+from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, num, svg, table
+from .friction import without_stick
 
 #: switches that leave out a part of the compliance, all left out with the whole of it
 _WITH_COMPLIANCE = ("backlash", "stiffness_scale", "chain")
@@ -50,7 +51,7 @@ class Effect:
         series stiffness by 1 / (1 - share).
     parts : tuple
         The parts of an effect judged node by node (the friction's
-        :class:`~.reduce_friction.FrictionNode`, each with its own estimate; the effect's
+        :class:`~.friction.FrictionNode`, each with its own estimate; the effect's
         estimate is their sum).
     """
 
@@ -78,8 +79,8 @@ class Effect:
         return [f"{indent}{self.quantity}"] + [f"{indent}  {x.label}: {x.where}" for x in self.parts]
 
 
-@dataclass(frozen=True)
-class ReductionPlan:
+@dataclass(frozen=True, repr=False)
+class ReductionPlan(RichDisplay):
     """The a-priori part of a reduction: effects, the reduced options and the bound.
 
     Attributes
@@ -116,6 +117,13 @@ class ReductionPlan:
         """The effects left out."""
         return tuple(e for e in self.effects if e.omitted)
 
+    def on(self, base) -> "ReductionPlan":
+        """The same choice on another full model: ``base`` (ModelOptions) with the effects
+        this plan leaves out left out. The estimates read the full model's damping, chain and
+        friction, not its stroke end: a plan judged once serves a run whose full model stops
+        at the stroke end where the plan's raised an error."""
+        return replace(self, options=chosen_options(base, self.effects))
+
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"effects": [e.to_dict() for e in self.effects],
@@ -126,6 +134,42 @@ class ReductionPlan:
                 OutputUnit(self.output_unit).key("amplitudes"):
                     [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
                 "notes": list(self.notes)}
+
+    def plot(self, ax=None):
+        """Each effect's a-priori estimate (relative response error if left out), left out or
+        kept, against the budget of the effects left out (half the tolerance) and the
+        tolerance; an estimate of 0 is drawn at the axis' foot."""
+        if ax is None:
+            import matplotlib.pyplot as plt
+            _, ax = plt.subplots(figsize=(7.0, 0.8 + 0.35 * len(self.effects)))
+        est = np.array([e.estimate for e in self.effects], dtype=float)
+        finite = est[np.isfinite(est) & (est > 0)]
+        foot = min(float(finite.min()) if finite.size else self.tolerance, self.tolerance) / 10
+        shown = np.where(np.isfinite(est) & (est > 0), est, foot)
+        y = np.arange(len(self.effects))[::-1]
+        ax.barh(y, shown - foot, left=foot, color=["C0" if e.omitted else "C7" for e in self.effects])
+        ax.set_xscale("log")
+        ax.set_yticks(y, [f"{e.effect} ({'left out' if e.omitted else 'kept'})" for e in self.effects],
+                      fontsize="small")
+        ax.axvline(self.tolerance / 2, color="k", ls="--", lw=1, label="budget of the effects left out")
+        ax.axvline(self.tolerance, color="r", lw=1, label="tolerance")
+        ax.set_xlabel("a-priori estimate |reduced / full - 1|")
+        ax.set_title(f"Reduction at {self.frequencies_hz[0]:.3g}-{self.frequencies_hz[-1]:.3g} Hz: left out "
+                     f"{num(self.predicted, 3)} of {num(self.tolerance / 2, 3)}", fontsize="small")
+        ax.legend(fontsize="small")
+        return ax
+
+    def _repr_line(self) -> str:
+        left = ", ".join(e.effect for e in self.omitted) or "nothing"
+        return (f"{len(self.effects)} effects at {self.frequencies_hz[0]:.3g}-{self.frequencies_hz[-1]:.3g} Hz; "
+                f"left out {left}: estimates {num(self.predicted, 3)} of the budget {num(self.tolerance / 2, 3)}")
+
+    def _repr_card(self) -> str:
+        rows = [(e.effect, num(e.estimate, 3), num(_db(e.estimate), 3), num(_deg(e.estimate), 3),
+                 "left out" if e.omitted else "kept", e.reason) for e in self.effects]
+        parts = [table(("effect", "estimate (relative)", "[dB]", "[deg]", "decision", "why"), rows),
+                 svg(self.plot, size=(7.0, 0.8 + 0.35 * len(self.effects)))]
+        return card(f"A-priori reduction (tolerance {num(self.tolerance, 3)})", parts=parts, notes=self.notes)
 
 
 def options_without(base, effects):
@@ -149,6 +193,16 @@ def options_without(base, effects):
         opts = replace(opts, variable_inertia=False)
     if "friction" in omitted:
         opts = without_stick(opts)
+    return opts
+
+
+def chosen_options(base, effects):
+    """``base`` (the full model's :class:`~servo_toolkit.sim.ModelOptions`) with the chosen
+    ``effects`` (those marked omitted) left out; the chain's modes kept whole when the choice
+    judged them and kept them."""
+    opts = options_without(base, [e for e in effects if e.omitted])
+    if opts.chain != "two_mass" and any(e.switch == "chain" for e in effects):
+        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
     return opts
 
 
@@ -209,11 +263,8 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
         else:
             out.append(replace(e, reason=f"kept: {e.estimate:.2g} exceeds the remaining budget "
                                          f"{max(budget - used, 0):.2g}"))
-    opts = options_without(base, [e for e in out if e.omitted])
-    if opts.chain != "two_mass" and any(e.switch == "chain" for e in out):
-        opts = replace(opts, chain="full")  # kept: every mode, whatever "auto" would choose
-    return ReductionPlan(effects=tuple(out), options=opts, tolerance=tol, predicted=used,
+    return ReductionPlan(effects=tuple(out), options=chosen_options(base, out), tolerance=tol, predicted=used,
                          frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes), chain_choice=choice)
 
 
-__all__ = ["Effect", "ReductionPlan", "choose", "options_without"]
+__all__ = ["Effect", "ReductionPlan", "choose", "chosen_options", "options_without"]

@@ -53,9 +53,9 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
-from ..drivetrain.stage_friction import stage_nodes, stage_output_slope
-from ..plant.linear import PLANT_OUTPUTS, current_controller, plant_matrices, sample_delay
-from .hunting import holding_band
+from ...drivetrain.stage_friction import stage_nodes, stage_output_slope
+from ...plant.linear import PLANT_OUTPUTS, current_controller, plant_matrices, sample_delay
+from ..hunting import holding_band
 
 
 @dataclass(frozen=True)
@@ -125,7 +125,7 @@ def disturbance_response(p, controller, motor, w) -> np.ndarray:
     a, b, c, d, states = plant_matrices(p, True)
     g = ct.ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
     cur = current_controller(controller.current_kp, controller.current_ki, motor)
-    from ..loop.closed_loop import DELAY_SAMPLES
+    from ...loop.closed_loop import DELAY_SAMPLES
     dly = sample_delay(controller.sample_time, DELAY_SAMPLES)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -175,7 +175,7 @@ def judge_nodes(scene, controller, p, w, t_full, amplitudes, options):
     -------
     list of FrictionNode
     """
-    from ..core.output_units import output_unit
+    from ...core.output_units import output_unit
     nodes = friction_nodes(scene, p.q0, p.rigid)
     if not nodes:
         return []
@@ -229,7 +229,7 @@ def friction_effect(scene, controller, p, w, t_full, amplitudes, base):
     nodes = judge_nodes(scene, controller, p, w, t_full, amplitudes, base)
     if not nodes:
         return None
-    from ..core.output_units import output_unit
+    from ...core.output_units import output_unit
     u = output_unit(scene)
     def level(x):
         if x.label == "motor":  # at its own shaft

@@ -31,11 +31,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.parallel import run_cases
-from ..core.spectra import periodic_h1
-from ..errors import SceneError, SimulationError
-from .multisine_result import MultisineResult
-from .sweep.points import study_points
+from ...core.parallel import run_cases
+from ...core.spectra import periodic_h1
+from ...errors import SceneError, SimulationError
+from ..sweep.points import study_points
+from .result import MultisineResult
 
 RESPONSES = ("closed_loop", "plant")
 #: estimation periods by default
@@ -137,7 +137,7 @@ def grid(plan: MultisinePlan, sample_time: float) -> tuple[int, int]:
 
 def _case(case):
     """One amplitude (module level, so that executors can pickle it)."""
-    from ..sim import Reference, run
+    from ...sim import Reference, run
     model, amplitude, plan, multiples, settle, n, n_rec, response, method, limits = case
     period = 1.0 / plan.band[0]
     step = period / n
@@ -180,17 +180,71 @@ def linear_plant_response(scene, q0: float, frequency_hz, structural_damping: fl
     """omega_m / i (rad/s per A) of the linear plant's mechanics at q0, complex."""
     import control as ct
 
-    from ..plant.linear import mechanics
+    from ...plant.linear import mechanics
     m = mechanics(scene, q0, structural_damping=structural_damping)
     sub = m[m.output_labels.index("omega_m"), m.input_labels.index("tau_m")]
     w = 2 * np.pi * np.asarray(frequency_hz, float)
     return scene.motor.torque_constant * np.asarray(ct.frequency_response(sub, w).complex).reshape(-1)
 
 
+@dataclass(frozen=True)
+class MultisineSpec:
+    """What a multisine sweep runs, resolved and checked before any work (:func:`multisine_spec`).
+
+    Parameters
+    ----------
+    study : str
+        The study's name.
+    plan : MultisinePlan
+    amplitudes : tuple of float
+        Peak command amplitudes (rad, or m for an output travel); one run each.
+    response : {"closed_loop", "plant"}
+    """
+
+    study: str
+    plan: MultisinePlan
+    amplitudes: tuple
+    response: str = "closed_loop"
+
+
+def multisine_spec(scene, study=None, *, band=None, lines: int | None = None, amplitudes=None,
+                   periods: int = DEFAULT_PERIODS, settle: int | None = None, response: str = "closed_loop",
+                   options=None) -> MultisineSpec:
+    """The multisine a sweep of ``study`` runs, checked against the band's rules (no design,
+    no run); the parameters are :func:`multisine_sweep`'s.
+
+    Returns
+    -------
+    MultisineSpec
+
+    Raises
+    ------
+    SceneError
+        As :func:`multisine_sweep`.
+    """
+    if response not in RESPONSES:
+        raise SceneError("--response", f"must be one of {', '.join(RESPONSES)} (got {response!r})")
+    name, freqs, amps = study_points(scene, study)
+    if band is None:
+        if len(set(freqs)) < 2:
+            raise SceneError("--band", "a multisine needs a band: give --band LO:HI (Hz) or a frequency_sweep study "
+                             "with at least two frequencies")
+        band = (min(freqs), max(freqs))
+    plan = MultisinePlan(tuple(float(b) for b in band), int(lines or max(len(set(freqs)), 2)), periods, settle)
+    if amplitudes is not None:
+        amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
+    if not amps or min(amps) <= 0:
+        raise ValueError("amplitudes must be non-empty and positive")
+    continuous = options is not None and options.controller_mode == "continuous"
+    grid(plan, 0.0 if continuous else float(scene.sensors.sample_time or 0.0))  # the band's rules
+    return MultisineSpec(name, plan, tuple(amps), response)
+
+
 def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, amplitudes=None,
                     periods: int = DEFAULT_PERIODS, settle: int | None = None, response: str = "closed_loop",
                     controller=None, options=None, full: bool = False, method: str = "rk4", executor=None,
-                    progress: bool = True, controller_source: str | None = None) -> MultisineResult:
+                    progress: bool = True, controller_source: str | None = None,
+                    spec: MultisineSpec | None = None) -> MultisineResult:
     """Frequency response of the scene's loop from a periodic multisine command.
 
     Parameters
@@ -213,6 +267,10 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         Command -> output position, or motor current -> motor speed.
     controller, options, full, method, executor, progress, controller_source
         As :func:`servo_toolkit.studies.sweep.compute.sweep`.
+    spec : MultisineSpec, optional
+        The multisine, resolved once by the caller (:func:`multisine_spec`); ``study``,
+        ``band``, ``lines``, ``amplitudes``, ``periods``, ``settle`` and ``response`` are
+        then not read.
 
     Returns
     -------
@@ -225,27 +283,16 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         is not whole samples, a highest line above an eighth of the sample rate, a response
         that is not one of :data:`RESPONSES`.
     """
-    from ..sim import controller_for
-    from .model_setup import model_setup
-    from .sweep.compute import linear_response
+    from ...sim import controller_for
+    from ..model_setup import model_setup
+    from ..sweep.compute import linear_response
 
     start = time.perf_counter()
-    if response not in RESPONSES:
-        raise SceneError("--response", f"must be one of {', '.join(RESPONSES)} (got {response!r})")
-    name, freqs, amps = study_points(scene, study)
-    if band is None:
-        if len(set(freqs)) < 2:
-            raise SceneError("--band", "a multisine needs a band: give --band LO:HI (Hz) or a frequency_sweep study "
-                             "with at least two frequencies")
-        band = (min(freqs), max(freqs))
-    plan = MultisinePlan(tuple(float(b) for b in band), int(lines or max(len(set(freqs)), 2)), periods, settle)
-    if amplitudes is not None:
-        amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
-    if not amps or min(amps) <= 0:
-        raise ValueError("amplitudes must be non-empty and positive")
+    if spec is None:  # the band's rules, before any work
+        spec = multisine_spec(scene, study, band=band, lines=lines, amplitudes=amplitudes, periods=periods,
+                              settle=settle, response=response, options=options)
+    name, plan, amps, response = spec.study, spec.plan, spec.amplitudes, spec.response
     multiples = plan.line_multiples()
-    continuous = options is not None and options.controller_mode == "continuous"
-    grid(plan, 0.0 if continuous else float(scene.sensors.sample_time or 0.0))  # the band's rules, before any work
     source = controller_source
     if controller is None:
         controller, source = controller_for(scene)
@@ -273,4 +320,5 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         output_unit=scene.drivetrain.output_unit)
 
 
-__all__ = ["MultisinePlan", "RESPONSES", "grid", "linear_plant_response", "multisine_sweep", "schroeder"]
+__all__ = ["MultisinePlan", "MultisineSpec", "RESPONSES", "grid", "linear_plant_response", "multisine_spec",
+           "multisine_sweep", "schroeder"]

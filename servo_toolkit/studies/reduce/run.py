@@ -1,7 +1,7 @@
 """Leave out what a study does not need: the reduced model, why, and its measured error.
 
 :func:`reduce` judges every modelled effect against a study's frequencies and amplitudes
-(:func:`.reduce_estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
+(:func:`.estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
 then runs the study on the full and on the reduced model and measures their difference, and
 measures the cost of each effect left out on its own: one more run of the study on the full
 model with only that effect's switch changed, compared with the full model the same way. The
@@ -14,7 +14,7 @@ chain's modes above the first are measured so whether ``simulate``'s rule lumps 
   over the steady part of the run, difference ``RMS(q_reduced - q_full) / RMS(q_full - q0)``
   (for a sinusoid the same measure as above, plus any harmonics).
 
-The a-priori bound is the reduction's tolerance (module :mod:`.reduce_estimates` explains
+The a-priori bound is the reduction's tolerance (module :mod:`.estimates` explains
 why it holds in the linear range); points where a run reached the current or voltage limit
 are outside that statement and are reported separately. A point whose run failed on either
 model (non-finite, out of its domain...) has no difference: it is reported as failed with
@@ -28,18 +28,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from ..core.output_units import output_unit
-from ..core.parallel import run_cases
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from .reduce_choice import options_without
-from .reduce_estimates import DEFAULT_TOLERANCE, plan_reduction
-from .reduce_result import EffectCost, ReductionResult
-from .sine_dwell import DwellPlan
-from ..scene.study_kind import study_kinds
-from .kv.kind import KV
-from .sweep.compute import linear_response, study_points, sweep
-from .sweep.kind import SWEEP
+from ...errors import SceneError, SimulationError
+from ...core.output_units import output_unit
+from ...core.parallel import run_cases
+from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
+from ...scene.study_kind import study_kinds
+from ..kv.kind import KV
+from ..sine_dwell import DwellPlan
+from ..sweep.compute import linear_response, study_points, sweep
+from ..sweep.kind import SWEEP
+from .choice import options_without
+from .estimates import DEFAULT_TOLERANCE, plan_reduction
+from .result import EffectCost, ReductionResult
 
 
 def time_points(study, scene=None):
@@ -58,13 +58,13 @@ def time_points(study, scene=None):
     if freq is None or not amps:
         raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
     if scene is not None:  # a sine the sampled loop cannot track is no study to reduce for
-        from .time.reference import check_sine_frequency
+        from ..time.reference import check_sine_frequency
         check_sine_frequency(float(freq), float(scene.sensors.sample_time), None,
                              study.key("frequency" if p.get("frequency") is not None else "period"))
     if study.kind == KV.name and p.get("amplitude_at", "output") != "output":
         if scene is None:
             raise ValueError("a kv study with amplitude_at other than 'output' needs the scene")
-        from .kv.study import output_amplitudes
+        from ..kv.study import output_amplitudes
         amps = output_amplitudes(scene, study, amps)
     return np.array([float(freq)]), tuple(float(a) for a in amps)
 
@@ -73,7 +73,7 @@ def _trace_case(case):
     """One closed-loop sine run; returns times, output angle and whether a limit was reached
     in the compared window (``t >= t_settle``, as the sweep flags its dwell window) and
     before it (the start-up transient: the command starts with its full slope)."""
-    from ..sim import Reference, run
+    from ...sim import Reference, run
     model, amp, freq, duration, limits, t_settle = case
     try:
         # RK4 with the step it needs: shrunk where a mode stiffens along the run (an end stop)
@@ -101,7 +101,7 @@ def _trace_difference(full, red, t_settle):
 
 def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controller=None, plan=None,
            executor=None, progress: bool = True, frequencies=None, amplitudes=None,
-           per_effect=True, controller_source: str | None = None) -> ReductionResult:
+           per_effect=True, controller_source: str | None = None, reduction=None) -> ReductionResult:
     """Reduce the scene's model for a study and measure the reduction on that study.
 
     Parameters
@@ -128,12 +128,21 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
     controller_source : str, optional
         Where a given ``controller`` came from, noted as ``controller from SOURCE`` (the
         caller designed it once); None: no note for a given controller.
+    reduction : ReductionPlan, optional
+        The a-priori plan for this study's points, ``controller`` and ``tolerance`` (the
+        caller judged it once, e.g. by :func:`reduced_options`); default: judged here.
 
     Returns
     -------
     ReductionResult
+
+    Raises
+    ------
+    ValueError
+        A ``reduction`` judged for other frequencies, amplitudes, tolerance or another full
+        model than the study's.
     """
-    from ..sim import ModelOptions, build_model, controller_for
+    from ...sim import ModelOptions, build_model, controller_for
 
     source = controller_source
     if controller is None:
@@ -158,7 +167,10 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
             raise ValueError("amplitudes must be non-empty, positive and finite")
     stop = "stop" if measure == "trace" else "error"
     full = ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, stroke_end=stop, chain="full", friction="stick")
-    rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
+    if reduction is None:
+        rplan = plan_reduction(scene, controller, freqs, amps, base=full, tolerance=tolerance)
+    else:
+        rplan = _judged_for(reduction, full, freqs, amps, tolerance)
     reduced = rplan.options
     dwell = plan or DwellPlan()
     if measure == "sweep":
@@ -243,6 +255,20 @@ def _difference(a, b, names):
     return np.where(failed, math.nan, diff), sat & ~failed, tuple(failures)
 
 
+def _judged_for(reduction, full, freqs, amps, tolerance):
+    """``reduction`` on the study's full model ``full``, checked to be judged for the same
+    points, tolerance and full model (up to its stroke end: :meth:`ReductionPlan.on`)."""
+    on_full = reduction.on(full)
+    same = (np.array_equal(np.asarray(reduction.frequencies_hz, float), np.sort(np.asarray(freqs, float)))
+            and tuple(reduction.amplitudes_rad) == tuple(float(a) for a in amps)
+            and reduction.tolerance == tolerance
+            and replace(reduction.options, stroke_end=full.stroke_end) == on_full.options)
+    if not same:
+        raise ValueError("the reduction was judged for other frequencies, amplitudes, tolerance or full model "
+                         "than this study's")
+    return on_full
+
+
 def _no_frequencies(study, frequencies) -> None:
     """SceneError when frequencies are given for a time study (its motion sets its own)."""
     if frequencies is not None:
@@ -273,14 +299,14 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
     A time simulation can adopt the reduction with
     ``simulate(scene, options=reduced_options(scene, name)[0], ...)``.
     """
-    from ..sim import ModelOptions, controller_for
+    from ...sim import ModelOptions, controller_for
     if controller is None:
         controller, _ = controller_for(scene)
     if isinstance(study, str):
         study = scene.study(study)
     if study is None or study.kind == SWEEP.name:
         _, freqs, amps = _sweep_points(scene, study, frequencies)
-        from .time.reference import check_sine_frequency
+        from ..time.reference import check_sine_frequency
         for f in freqs:
             check_sine_frequency(f, float(scene.sensors.sample_time), None,
                                  "frequencies" if frequencies is not None or study is None

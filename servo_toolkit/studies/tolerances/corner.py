@@ -1,7 +1,7 @@
 """The worst corner of a tolerance study: every corner of the tolerance box (each tolerance
 at an end: a range's ends, a normal's mean +- 3 sigma) through the linear study and, when
 the study judges time requirements, through batched time runs too
-(:func:`~.tolerance_runs.tolerance_runs`); the corner that misses a requirement by the most
+(:func:`~.time_runs.tolerance_runs`); the corner that misses a requirement by the most
 (each shortfall divided by its limit) is built exactly, its margins checked with
 python-control and its nonlinear closed loop run on its own (``simulate``'s command)."""
 
@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from .tolerance_result import WorstCorner
-from .tolerance_figures import FIGURES, physical_failures as _physical, relative_margin as _relative_margin, \
+from ...errors import SceneError, SimulationError
+from .result import WorstCorner
+from .figures import FIGURES, physical_failures as _physical, relative_margin as _relative_margin, \
     time_shown as _time_shown
 
 #: corners evaluated one by one up to this many (2**10); beyond, the regression's signs choose
@@ -43,7 +43,7 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
     to a requirement over the linear figures and, when the study judges time requirements
     (``timed``), over the corners' time runs too (each requirement's shortfall divided by its
     limit)."""
-    from ..loop.robustness import variant_figures
+    from ...loop.robustness import variant_figures
     timed = list(timed)
     inert = set(plants.inert) & (set(runs.rows.inert) if timed else set(plants.inert))
     live = [t for t in tol.items if t.key not in inert]
@@ -67,7 +67,7 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
     cf = variant_figures(scene, p, ctrl, vals, f_req, plants=cp, progress=False, structural_damping=zeta)
     shown, undecided, reasons, notes = None, None, None, []
     if timed:
-        from .tolerance_runs import tolerance_runs
+        from .time_runs import tolerance_runs
         cr = tolerance_runs(scene, vals, ctrl, keys=keys, executor=executor, progress=False, duration=runs.duration_s,
                             dt=runs.dt_s, seed=seed)
         physical = _physical(cr, cf["stable"])
@@ -95,7 +95,7 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
 
 
 def _split(corner):
-    from ..scene.tolerances import STIFFNESS_SCALE
+    from ...scene.tolerances import STIFFNESS_SCALE
     return {k: v for k, v in corner.items() if k != STIFFNESS_SCALE}, corner.get(STIFFNESS_SCALE, 1.0)
 
 
@@ -104,13 +104,13 @@ def _corner_margins(keys, corner, p, ctrl, scene, zeta) -> dict:
     path)."""
     import control as ct
 
-    from ..loop.closed_loop import open_loop_of
-    from ..plant.linear import PLANT_OUTPUTS, plant_matrices, plant_parameters
+    from ...loop.closed_loop import open_loop_of
+    from ...plant.linear import PLANT_OUTPUTS, plant_matrices, plant_parameters
     from dataclasses import replace
     values, scale = _split(corner)
     q = plant_parameters(keys.scene(values), p.q0, "rigid" if p.rigid else "two_mass", zeta)
     if not p.rigid:
-        from ..plant.linear import spring_damping
+        from ...plant.linear import spring_damping
         q = replace(q, K=q.K * scale, c=float(spring_damping(q.J1, q.J2, q.K * scale, zeta)))
     A, B, C, D, states = plant_matrices(q)
     g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
@@ -124,10 +124,10 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
     """The corner's nonlinear closed loop: simulate's command on the same model."""
     from dataclasses import replace
 
-    from ..sim import simulate
-    from ..sim.tolerance_rows import keep_effects
-    from .time.reference import run_spec
-    from .time.run import sine_run_options
+    from ...sim import simulate
+    from ...sim.tolerance_rows import keep_effects
+    from ..time.reference import run_spec
+    from ..time.run import sine_run_options
     values, scale = _split(corner)
     cs = keys.scene(values)
     reference, run_duration, *_ = run_spec(cs, None)

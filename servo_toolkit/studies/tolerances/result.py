@@ -7,10 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.sensitivity import R2_LINEAR
-from ..display.cards import RichDisplay, card, facts, svg, table
-from ..display.html import fmt
-from ..display.units import DisplayUnits
+from ...core.sensitivity import R2_LINEAR
+from ...display.cards import RichDisplay, card, facts, svg, table
+from ...display.html import fmt
+from ...display.units import DisplayUnits
 
 #: a ranking's method in words
 METHODS = {"src": "standardized regression", "sobol": "Sobol total indices"}
@@ -36,7 +36,7 @@ def shown_unit(key: str, unit: str, display: DisplayUnits | None = None, linear:
     """
     import pint
 
-    from ..core.units import UREG
+    from ...core.units import UREG
     display = display or DisplayUnits()
     for quantity in ("stiffness", "inertia"):
         if getattr(display, quantity) is None or (quantity == "inertia" and key.startswith("motor.")):

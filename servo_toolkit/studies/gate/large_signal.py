@@ -20,9 +20,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..loop.requirements import Check
-from .actuator.figures import time_at_limit
-from .actuator.runs import JUDGED_CYCLES, SINE_CYCLES
+from ...display.cards import RichDisplay, card, facts, num, svg
+from ...loop.requirements import Check
+from ..actuator.figures import time_at_limit
+from ..actuator.runs import JUDGED_CYCLES, SINE_CYCLES
 
 GAIN_TOLERANCE_DB = 1.0
 PHASE_TOLERANCE_DEG = 10.0
@@ -31,8 +32,8 @@ PHASE_TOLERANCE_DEG = 10.0
 CYCLES, FIT_CYCLES = SINE_CYCLES, JUDGED_CYCLES
 
 
-@dataclass(frozen=True)
-class LargeSignal:
+@dataclass(frozen=True, repr=False)
+class LargeSignal(RichDisplay):
     """The nonlinear closed loop on the requirement sine against the linear loop.
 
     Attributes
@@ -88,7 +89,7 @@ class LargeSignal:
         for name, value, tol, unit in (("large_signal_gain", self.gain_error_db, GAIN_TOLERANCE_DB, "dB"),
                                        ("large_signal_phase", self.phase_error_deg, PHASE_TOLERANCE_DEG, "deg")):
             if math.isnan(value):
-                from ..errors import SimulationError
+                from ...errors import SimulationError
                 raise SimulationError(f"{name}: the large-signal figure is NaN, no verdict can be given on it")
             ok = bool(value <= tol)  # an output that never moved: -inf dB, a real (failing) figure
             out.append(Check(name, tol, float(value), ok, unit, "<=", "large signal",
@@ -114,11 +115,62 @@ class LargeSignal:
             return f"the drive reached neither its voltage nor its current limit in {run}"
         return f"the drive spent {volt:.4g} ms at its voltage limit and {amp:.4g} ms at its current limit in {run}"
 
+    @property
+    def passed(self) -> bool:
+        """Both rows met: the gain and the phase within their tolerances of the linear loop's
+        (False for a run that left the stroke)."""
+        return (not self.failure and bool(self.gain_error_db <= GAIN_TOLERANCE_DB)
+                and bool(self.phase_error_deg <= PHASE_TOLERANCE_DEG))
+
     def to_dict(self) -> dict:
         """JSON-ready, units in the key names."""
         d = dict(self.__dict__)
         d["gain_error_db"], d["phase_error_deg"] = self.gain_error_db, self.phase_error_deg
         return d
+
+    def plot(self, ax=None):
+        """The linear and the nonlinear closed loop at the sine's frequency in the gain-phase
+        plane, with the box of the tolerances about the linear one (the rows are met when the
+        nonlinear point lies in it); the nonlinear phase is shown within 180 deg of the linear."""
+        from matplotlib.patches import Rectangle
+        if ax is None:
+            import matplotlib.pyplot as plt
+            _, ax = plt.subplots(figsize=(5.0, 4.0))
+        lin_ph, lin_g = self.linear_phase_deg, self.linear_gain_db
+        ax.add_patch(Rectangle((lin_ph - PHASE_TOLERANCE_DEG, lin_g - GAIN_TOLERANCE_DB), 2 * PHASE_TOLERANCE_DEG,
+                               2 * GAIN_TOLERANCE_DB, color="C2", alpha=0.15,
+                               label=f"within {GAIN_TOLERANCE_DB:g} dB and {PHASE_TOLERANCE_DEG:g} deg"))
+        ax.plot([lin_ph], [lin_g], "o", color="C0", label="linear closed loop")
+        if math.isfinite(self.gain_db) and math.isfinite(self.phase_deg):
+            phase = lin_ph + (self.phase_deg - lin_ph + 180.0) % 360.0 - 180.0
+            ax.plot([phase], [self.gain_db], "x", ms=9, color="C3", label="nonlinear closed loop")
+        ax.autoscale_view()
+        ax.set_xlabel("phase [deg]")
+        ax.set_ylabel("gain [dB]")
+        ax.set_title(f"Requirement sine at {self.frequency_hz:g} Hz" + (": left the stroke" if self.failure else ""))
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small")
+        return ax
+
+    def _repr_line(self) -> str:
+        if self.failure:
+            return f"{self.frequency_hz:g} Hz requirement sine: left the stroke at {num(self.stroke_end_s, 3)} s"
+        return (f"{self.frequency_hz:g} Hz requirement sine: |dG| {num(self.gain_error_db, 3)} dB "
+                f"(at most {GAIN_TOLERANCE_DB:g}), |dP| {num(self.phase_error_deg, 3)} deg "
+                f"(at most {PHASE_TOLERANCE_DEG:g}), {'met' if self.passed else 'NOT met'}")
+
+    def _repr_card(self) -> str:
+        ms = f" of {num(self.duration_s * 1e3, 4)} ms"
+        rows = [("command", f"requirement sine at {self.frequency_hz:g} Hz"),
+                ("nonlinear closed loop", f"{num(self.gain_db, 3)} dB, {num(self.phase_deg, 3)} deg"),
+                ("linear closed loop", f"{num(self.linear_gain_db, 3)} dB, {num(self.linear_phase_deg, 3)} deg"),
+                ("gain difference", f"{num(self.gain_error_db, 3)} dB (at most {GAIN_TOLERANCE_DB:g} dB)"),
+                ("phase difference", f"{num(self.phase_error_deg, 3)} deg (at most {PHASE_TOLERANCE_DEG:g} deg)"),
+                ("at the voltage limit", f"{num(self.time_at_voltage_limit_s * 1e3, 4)} ms{ms}"),
+                ("at the current limit", f"{num(self.time_at_current_limit_s * 1e3, 4)} ms{ms}"),
+                ("peak current, voltage", f"{num(self.peak_current_A, 3)} A, {num(self.peak_voltage_V, 3)} V")]
+        return card("Large-signal check", status=self.passed, parts=[facts(rows), svg(self.plot, size=(5.0, 4.0))],
+                    notes=(f"the run left the stroke: {self.failure}",) if self.failure else ())
 
 
 def fit_sine(t, y, f):
@@ -148,14 +200,14 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
     """
     import control as ct
 
-    from ..errors import SimulationError, StrokeEndReached
-    from ..sim import Reference, simulate
-    from .sweep.kind import SWEEP
-    from .sweep.points import study_points
-    from ..loop.requirements import requirements_of
+    from ...errors import SimulationError, StrokeEndReached
+    from ...sim import Reference, simulate
+    from ..sweep.kind import SWEEP
+    from ..sweep.points import study_points
+    from ...loop.requirements import requirements_of
     f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
     _, _, amps = study_points(scene)
-    from ..core.output_units import output_unit
+    from ...core.output_units import output_unit
     unit = output_unit(scene)
     amp = float(amps[0]) if scene.studies_of_kind(SWEEP.name) else unit.default_amplitude
     if actuator is not None:

@@ -25,25 +25,25 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from ..loop.robustness import DEFAULT_VARIATIONS, sample_variants
-from ..scene.loader import scene_keys
-from ..scene.tolerances import STIFFNESS_SCALE
-from ..core.parallel import chunks, run_cases
-from ..sim import controller_for
-from ..sim.simulate import with_feedforward
-from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP
-from ..sim.batch_run import integrate_variants
-from ..sim.reference import fill, initial_state
-from ..sim.tables import frozen_tables
-from .time.reference import run_spec
-from ..sim.variants import VariantBuilder
-from ..sim.tolerance_rows import ToleranceRows
-from .batch_step import batch_step
-from .montecarlo_result import MonteCarloResult
+from ...errors import SceneError, SimulationError
+from ...loop.robustness import DEFAULT_VARIATIONS, sample_variants
+from ...scene.loader import scene_keys
+from ...scene.tolerances import STIFFNESS_SCALE
+from ...core.parallel import chunks, run_cases
+from ...sim import controller_for
+from ...sim.simulate import with_feedforward
+from ...sim import layout as lo
+from ...sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP
+from ...sim.batch_run import integrate_variants
+from ...sim.reference import fill, initial_state
+from ...sim.tables import frozen_tables
+from ...sim.variants import VariantBuilder
+from ...sim.tolerance_rows import ToleranceRows
+from ..time.reference import run_spec
+from ..batch_step import batch_step
+from ..time.run import check_friction, sine_run_options
+from .result import MonteCarloResult
 from .variant_step import step_check
-from .time.run import check_friction, sine_run_options
 
 #: variants per chunk (each chunk runs in parallel across the cores of its worker)
 CHUNK_SIZE = 2000

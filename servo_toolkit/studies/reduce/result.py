@@ -1,4 +1,4 @@
-"""The result of :func:`servo_toolkit.studies.reduce.reduce`: what a study's reduced model
+"""The result of :func:`servo_toolkit.studies.reduce.run.reduce`: what a study's reduced model
 leaves out, the a-priori bound, the measured difference and each effect's own cost."""
 
 from __future__ import annotations
@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.output_units import OutputUnit
-from ..display.cards import RichDisplay, card, facts, num, svg, table
-from .reduce_estimates import ReductionPlan
+from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, facts, num, svg, table
+from .choice import _db, _deg
+from .estimates import ReductionPlan
 
 
 @dataclass(frozen=True)
@@ -269,14 +270,6 @@ class ReductionResult(RichDisplay):
 
     def _repr_card(self) -> str:
         return _card_html(self)
-
-
-def _db(e):
-    return 20 * math.log10(1 + e) if math.isfinite(e) else math.inf
-
-
-def _deg(e):
-    return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else math.inf
 
 
 def _card_line(r) -> str:

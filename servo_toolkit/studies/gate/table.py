@@ -31,9 +31,10 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..core.yields import Yield
-from ..display.html import fmt
-from ..loop.requirements import telling_digits
+from ...core.yields import Yield
+from ...display.cards import badge, card, table
+from ...display.html import fmt
+from ...loop.requirements import telling_digits
 
 #: check name -> words of the requirement (``{f}``: the frequency the figure is taken at)
 LABELS = {
@@ -290,6 +291,16 @@ class Gate:
         failed = sum(not r.passed for r in self.rows)
         return f"<Gate of {self.result.scene_name}: {len(self.rows)} requirements, {failed} not met>"
 
+    def _repr_html_(self) -> str:
+        """The requirement table as a card: one row per requirement, its badge (a row without a
+        verdict is marked so and not counted as met)."""
+        rows = [(r.id, r.requirement, r.required, r.achieved, r.shortfall,
+                 badge(r.passed, "n/a" if r.status == "unavailable" else None), r.detail) for r in self.rows]
+        failed = sum(not r.passed for r in self.rows)
+        return card(f"Requirement table of {self.result.scene_name}: {len(self.rows)} requirements, {failed} not met",
+                    status=self.passed, parts=[table(("ID", "requirement", "required", "achieved", "short by", "",
+                                                      "detail"), rows, raw_columns=(5,))])
+
 
 def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None, sizing=None,
          executor=None, tolerances=None, actuator=None) -> Gate:
@@ -334,18 +345,18 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         dynamics of the duty cycle left its validity domain.
     """
     from .large_signal import with_large_signal
-    from .montecarlo_check import montecarlo_checks
+    from ..montecarlo import montecarlo_checks
     spec = scene.robustness if spec is None else spec
     ls = None
     if actuator is None and not linear_only and result.margins.closed_loop_stable:
-        from .actuator import actuator_check
+        from ..actuator import actuator_check
         actuator = actuator_check(scene, result)
     actuator = actuator or None  # False: the caller says the runs were not made
     if not linear_only:
         result, ls = with_large_signal(scene, result, actuator)
     robust = result.robustness
     if robust is None and spec is not None:
-        from ..loop.robustness import robustness
+        from ...loop.robustness import robustness
         robust = robustness(scene, result, spec=spec, progress=False, executor=executor)
     rows = design_rows(result, None if ls is None else ls.frequency_hz)
     if actuator is not None:
@@ -358,7 +369,7 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
     if mc is not None:
         rows += montecarlo_rows(checks, mc)
     if sizing is None and getattr(scene, "duty_cycle", None) is not None:
-        from .sizing import size
+        from ..sizing import size
         sizing = size(scene, sweep=False)
     if isinstance(sizing, Exception):
         rows += unavailable_rows([("sizing", "sizing along the duty cycle")], str(sizing))
@@ -367,7 +378,7 @@ def gate(scene, result, spec=None, *, linear_only: bool = False, montecarlo=None
         rows += sizing_rows(sizing)
     tol = getattr(scene, "tolerances", None)
     if tolerances is None and tol is not None and tol.min_yield is not None:
-        from .tolerances import tolerance_study
+        from ..tolerances import tolerance_study
         tolerances = tolerance_study(scene, result, executor=executor, progress=False)
     if tolerances is not None:
         rows += yield_rows(tolerances)

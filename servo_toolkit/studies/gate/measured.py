@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import math
 
-from ..display.html import fmt
-from ..loop.measured_interval import reaches
-from .gate import LABELS, RequirementRow
+from ...display.html import fmt
+from ...loop.measured_interval import reaches
+from .table import LABELS, RequirementRow
 
 #: the loop requirements a measured response is judged on
 NAMES = ("bandwidth", "phase_lag_at_bandwidth", "gain_margin", "phase_margin", "sensitivity_peak")

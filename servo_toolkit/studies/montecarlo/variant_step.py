@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sim import layout as lo
-from ..sim.batch import NSNAP, jacobians
-from ..sim.kernel import rhs
-from ..sim.stability import IMAG_LIMIT, contact_states, rk4_amplification, smooth_parameters
+from ...sim import layout as lo
+from ...sim.batch import NSNAP, jacobians
+from ...sim.kernel import rhs
+from ...sim.stability import IMAG_LIMIT, contact_states, rk4_amplification, smooth_parameters
 
 
 def reversal_states(model, X) -> np.ndarray:

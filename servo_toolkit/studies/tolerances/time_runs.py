@@ -1,9 +1,9 @@
 """Nonlinear closed-loop time runs of tolerance variants, batched.
 
-The time-domain half of the tolerance study (:mod:`.tolerances`): every variant of a
+The time-domain half of the tolerance study (:mod:`.run`): every variant of a
 scene's ``[tolerances]`` (any scene keys) runs the designed controller on the nonlinear model
 (saturation, friction, backlash, sampling, quantization), through the batched kernel as
-:func:`~.montecarlo.montecarlo` runs its variants, with the same command as ``servo-toolkit
+:func:`~.montecarlo.run.montecarlo` runs its variants, with the same command as ``servo-toolkit
 simulate`` (the 8 Hz, 2 deg sine for 1 s; 1 mm for an output travel) on the same reduced
 model, every toleranced effect kept in it (:func:`~servo_toolkit.sim.tolerance_rows.keep_effects`).
 Each variant's parameter row (and its stroke tables where they move) comes from
@@ -17,15 +17,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import SceneError
-from ..core.parallel import chunks, run_cases
-from ..sim import layout as lo
-from ..sim.batch import F_CUR, F_ERR, F_SAT
-from ..sim.reference import initial_state
-from ..sim.tolerance_rows import ToleranceRows, keep_effects
-from .batch_step import batch_step
-from .time.reference import run_spec
-from .time.run import sine_run_options
+from ...errors import SceneError
+from ...core.parallel import chunks, run_cases
+from ...sim import layout as lo
+from ...sim.batch import F_CUR, F_ERR, F_SAT
+from ...sim.reference import initial_state
+from ...sim.tolerance_rows import ToleranceRows, keep_effects
+from ..batch_step import batch_step
+from ..time.reference import run_spec
+from ..time.run import sine_run_options
 
 #: variants per chunk (smaller when every variant carries its own stroke tables)
 CHUNK_SIZE = 2000
@@ -76,7 +76,7 @@ class ToleranceRuns:
 
 def _chunk(case):
     """One chunk: its rows, then the batched runs (module level: picklable)."""
-    from .montecarlo import _chunk as run_chunk
+    from ..montecarlo.run import _chunk as run_chunk
     P, T, tix = case["built"] if "built" in case else case["rows"].rows(case["X"])
     run = {"model": case["model"], "P": P, "dt": case["dt"], "n_steps": case["n_steps"], "sub": case["sub"]}
     if T.shape[0] == 1 and not np.any(tix):
@@ -100,7 +100,7 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     keys : SceneKeys, optional
         Default: the scene's tolerances'.
     reference, duration, full, dt : optional
-        As :func:`~.montecarlo.montecarlo`.
+        As :func:`~.montecarlo.run.montecarlo`.
     executor : concurrent.futures.Executor, optional
     chunk_size : int, optional
     progress : bool
@@ -140,7 +140,7 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
               **({"rows": shipped, "X": X[idx]} if shipped is not None else {"built": rows.rows(X[idx])})}
              for idx in chunks(np.arange(X.shape[0]), max(1, int(size)))]
     parts = run_cases(_chunk, cases, executor=executor, progress=progress, description="tolerance runs")
-    from .montecarlo import joined
+    from ..montecarlo.run import joined
     figs, _, _, reasons, failed = joined(parts, dt)
     return ToleranceRuns(figs[:, F_ERR], figs[:, F_CUR], figs[:, F_SAT] > 0, failed, reasons,
                          float(dt), duration, n_steps, float(sum(p["wall"] for p in parts)), rows,

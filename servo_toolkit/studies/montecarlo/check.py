@@ -3,7 +3,7 @@
 A scene's ``[robustness]`` may bound the worst tracking error (``max_tracking_error``, an
 angle, or a length for an output travel) and the worst peak motor current
 (``max_peak_current``) over the nonlinear closed-loop time runs of its variants
-(:func:`~.montecarlo.montecarlo`, the checked design's controller). They become the rows
+(:func:`~.run.montecarlo`, the checked design's controller). They become the rows
 ``robust_tracking_error`` and ``robust_peak_current``. A variant whose run failed (a
 non-finite state, the stroke end, or a step outside its stability region) has no figure to
 judge: the check raises :class:`~servo_toolkit.errors.SimulationError` naming the variant
@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from ..loop.requirements import Requirement, check
+from ...errors import SceneError, SimulationError
+from ...loop.requirements import Requirement, check
 
 
 def montecarlo_requirements(scene, spec) -> list[Requirement]:
@@ -65,9 +65,9 @@ def montecarlo_checks(scene, spec, controller, *, progress: bool = False, execut
 
 
 def spec_montecarlo(scene, spec, controller, *, executor=None, progress: bool = False):
-    """The nonlinear time runs (:func:`~.montecarlo.montecarlo`) of the variants ``spec`` (a
+    """The nonlinear time runs (:func:`~.run.montecarlo`) of the variants ``spec`` (a
     :class:`~servo_toolkit.scene.tables.Robustness`) samples, with ``controller``."""
-    from .montecarlo import montecarlo
+    from .run import montecarlo
     return montecarlo(scene, spec.ranges, samples=spec.samples, seed=spec.seed, grid=spec.method == "grid",
                       controller=controller, executor=executor, progress=progress)
 

@@ -8,7 +8,7 @@ linear loop with the designed controller gives its margins
 (:func:`servo_toolkit.loop.robustness.variant_figures` on plants mapped from the keys,
 :mod:`servo_toolkit.loop.variant_plants`); where the scene bounds the tracking error or the
 peak current, each variant also runs in time on the nonlinear model
-(:mod:`.tolerance_runs`). Then:
+(:mod:`.time_runs`). Then:
 
 - the *yield* of every requirement, and of all of them at once, with its Clopper-Pearson
   interval (:mod:`servo_toolkit.core.yields`); ``min_yield`` is met when the interval's lower
@@ -29,12 +29,12 @@ import math
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError
-from ..core.sensitivity import rank, sobol
-from ..core.yields import Yield
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from .tolerance_figures import FIGURES, meets as _meets, physical_failures as _physical, time_shown as _time_shown
-from .tolerance_result import ToleranceResult
+from ...errors import SceneError, SimulationError
+from ...core.sensitivity import rank, sobol
+from ...core.yields import Yield
+from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
+from .figures import FIGURES, meets as _meets, physical_failures as _physical, time_shown as _time_shown
+from .result import ToleranceResult
 
 #: base sample of the Sobol indices of a nonlinear margin figure (n (d + 2) evaluations)
 SOBOL_BASE = 512
@@ -42,8 +42,8 @@ SOBOL_BASE = 512
 
 def _requirements(scene, result, tol):
     """(margin requirements, time requirements) in display units."""
-    from ..loop.requirements import Requirement, robust_requirements
-    from ..scene.loader import Robustness
+    from ...loop.requirements import Requirement, robust_requirements
+    from ...scene.loader import Robustness
     spec = scene.robustness or Robustness(load_inertia=None, stiffness=None)
     margins = [r for r in robust_requirements(spec, result.requirements) if r.name != "stable_fraction"]
     timed = []
@@ -103,11 +103,11 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     SimulationError
         A variant's time run could not be carried out (no verdict on its requirement).
     """
-    from ..loop.robustness import variant_figures
-    from ..loop.sampling import sample_tolerances
-    from ..loop.variant_plants import keyed_plants
-    from ..scene.tolerances import check_ends
-    from .run import has_motor_drivetrain
+    from ...loop.robustness import variant_figures
+    from ...loop.sampling import sample_tolerances
+    from ...loop.variant_plants import keyed_plants
+    from ...scene.tolerances import check_ends
+    from ..run import has_motor_drivetrain
     tol = scene.tolerances
     if tol is None:
         raise SceneError("tolerances", "the scene sets no [tolerances] (nor [robustness] ranges) to vary")
@@ -115,7 +115,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
         raise SceneError("tolerances", "a tolerance study needs a motor-driven drivetrain ([motor] and [[drivetrain]])")
     check_ends(tol)
     if result is None:
-        from ..loop import design
+        from ...loop import design
         result = design(scene, progress=False)
     n = tol.samples if samples is None else int(samples)
     method = method or tol.method
@@ -140,7 +140,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
     notes += sampling_notes(method, n)
     runs = None
     if nonlinear or (nonlinear is None and timed):
-        from .tolerance_runs import tolerance_runs
+        from .time_runs import tolerance_runs
         runs = tolerance_runs(scene, values, ctrl, keys=keys, executor=executor, progress=progress, duration=duration,
                               seed=seed)
         runs, physical = _judge_failed(runs, values, stable)
@@ -168,7 +168,7 @@ def tolerance_study(scene, result=None, *, samples: int | None = None, method: s
                           sobol_runs, seed, executor)
     worst = None
     if worst_corner:
-        from .tolerance_corner import worst_corner as find_worst
+        from .corner import worst_corner as find_worst
         worst = find_worst(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys, structural_damping,
                            runs, duration, timed=timed if runs is not None else (), executor=executor, seed=seed)
         notes += list(worst.notes) if worst is not None else []
@@ -225,7 +225,7 @@ def _log_keys(tol):
 def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ctrl, f_req, zeta, sobol_runs, seed,
                    executor=None):
     """Ranking of the tolerances on each requirement's figure."""
-    from ..loop.robustness import variant_figures
+    from ...loop.robustness import variant_figures
     keys = tol.keys
     X = np.column_stack([values[k] for k in keys])
     inert_linear = np.array([k in plants.inert for k in keys])
@@ -283,7 +283,7 @@ def _time_sobol(tol, scene, runs, name, base, cache, seed, executor=None):
     """Sobol indices of a time figure from ``base (d + 2)`` further time runs (one set of
     runs gives both time figures: ``cache`` keeps it for the second), in chunks on
     ``executor`` as the study's other time runs (the figures do not depend on it)."""
-    from .tolerance_runs import tolerance_runs
+    from .time_runs import tolerance_runs
 
     def run(live):
         live_keys = [k for k, m in zip(tol.keys, live) if m]
