@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+import servo_toolkit
 from servo_toolkit.errors import SceneError
 from servo_toolkit.scene import loader
 from servo_toolkit.scene.study_kind import StudyKind, study_kinds
@@ -115,3 +116,20 @@ def test_the_study_command_runs_a_builtin_kind_and_guards_its_inputs(tmp_path, c
     assert main(["study", str(scene), "ramp", "--json", str(scene)]) == 2  # never over its own scene
     err = capsys.readouterr().err
     assert err.startswith("servo-toolkit: error: --json") and err.count("\n") == 1 and scene.read_bytes() == before
+
+
+def test_a_study_run_by_another_kinds_command_names_the_commands_its_descriptor_gives(tmp_path):
+    """The refusal reads the study's own command from its kind's descriptor."""
+    from servo_toolkit.cli import main
+    from servo_toolkit.studies.kv.kind import KV
+    from servo_toolkit.studies.sweep.kind import SWEEP
+    import contextlib
+    import io
+    scene = str(Path(servo_toolkit.__file__).parent / "data" / "ema_reference.toml")
+    for command, study, kind in (("kv", "sweep", SWEEP), ("sweep", "kv_8hz", KV)):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            assert main([command, scene, "--study", study]) == 2
+        line = err.getvalue().strip()
+        assert line.count("\n") == 0 and f"studies.{study}.kind" in line
+        assert f"servo-toolkit {kind.command} or servo-toolkit study" in line, line

@@ -118,6 +118,12 @@ class StudyKind:
         object.__setattr__(self, "section_title", self.section_title or f"Studies of kind {self.name}")
         object.__setattr__(self, "section_key", self.section_key or self.name)
 
+    @property
+    def commands(self) -> str:
+        """The commands that run a study of this kind, as a user types them: e.g.
+        ``"servo-toolkit kv or servo-toolkit study"``."""
+        return " or ".join(f"servo-toolkit {c}" for c in dict.fromkeys((self.command, GENERIC_COMMAND)))
+
     def resolve(self, name: str):
         """The object named by field ``name`` (``"run"``, ``"result"`` or ``"section"``),
         imported now."""

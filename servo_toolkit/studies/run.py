@@ -132,7 +132,7 @@ def run_study(scene, name: str, *, as_kind: str | None = None, **options):
                          f"matching scene; runnable kinds: {', '.join(runnable_kinds())}")
     if kind.name != study.kind and not kind.runs_other_kinds:
         raise SceneError(study.key("kind"), f"is {study.kind!r}; only studies of kind {kind.name!r} run as {kind.name} "
-                         "studies")
+                         f"studies ({study_kind(study.kind).commands} runs it)")
     return kind.resolve("run")(scene, study, **options)
 
 

@@ -327,11 +327,12 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
     j, _ = drive.inertia(q)
     linear = drive.output_is_linear
     crit = chain.criterion(min_ratio, within) if chain.names else None
-    return StiffnessResult(np.full(q.size, np.nan) if linear else values, chain.names,
-                           chain.stage_stiffness, chain.shares, chain.total, n, j, chain.negligible(),
-                           drive.output_unit, values if linear else None, crit,
-                           chain.native_stiffness, chain.native_units, chain.ratio_to_output,
-                           scene.display)
+    return StiffnessResult(
+        angles_deg=np.full(q.size, np.nan) if linear else values, names=chain.names,
+        stage_stiffness=chain.stage_stiffness, shares=chain.shares, total=chain.total, ratio=n,
+        reflected_inertia=j, negligible=chain.negligible(), output_unit=drive.output_unit,
+        positions_mm=values if linear else None, criterion=crit, native_stiffness=chain.native_stiffness,
+        native_units=chain.native_units, native_ratio=chain.ratio_to_output, display=scene.display)
 
 
 def _card_line(s) -> str:

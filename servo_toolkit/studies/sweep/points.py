@@ -9,6 +9,7 @@ import numpy as np
 from ...errors import SceneError
 from ...core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, output_unit
 from .kind import SWEEP
+from ...scene.study_kind import study_kind
 
 #: the seed's key frequency, always in the default sweep
 DEFAULT_FREQUENCY_HZ = REQUIREMENT_SINE_HZ
@@ -45,7 +46,8 @@ def study_points(scene, study=None):
     elif isinstance(study, str):
         study = scene.study(study)
     if study.kind != SWEEP.name:
-        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind {SWEEP.name!r}")
+        raise SceneError(study.key("kind"), f"is {study.kind!r}; a sweep runs studies of kind {SWEEP.name!r} "
+                         f"({study_kind(study.kind).commands} runs this one)")
     p = study.params
     if p.get("amplitudes"):
         amps = tuple(float(a) for a in p["amplitudes"])
