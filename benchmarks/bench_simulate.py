@@ -6,7 +6,9 @@ method integrates the same ODE in one call). Errors are max |q - q_ref| / amplit
 1 ms grid against LSODA at rtol = atol = 1e-12. Also prints the sampled-controller RK4 rate
 (the default model) in steps per second of wall time and of process CPU time, then each
 target (>= 25x LSODA and >= 100x input_output_response at equal error, >= 5 M RK4 steps/s
-on one core) with PASS/FAIL. Every timing is the best of REPEATS runs, for the toolkit and the
+on one core) with PASS/FAIL. The RK4 rows time the integration (``wall_s``); the rows
+"toolkit run() whole call" time the whole ``run()`` (the parameter fill, the stability scan
+of the states along the run and the result's traces), and their ratios are printed too. Every timing is the best of REPEATS runs, for the toolkit and the
 competitors alike. The RK4 rows show the step actually run (snapped to divide the
 1 ms record interval).
 
@@ -46,6 +48,9 @@ AMP, FREQ, DURATION = math.radians(2.0), 8.0, 1.0
 TARGET_LSODA, TARGET_IOR, TARGET_RATE = 25.0, 100.0, 5e6
 #: the stick case's motor breakaway level (N*m; the scene's Coulomb level is 0.02 N*m)
 STATIC_FRICTION = 0.05
+#: the rows of the toolkit's whole ``run()`` call (the parameter fill, the stability scan
+#: along the run and the result's traces around the integration)
+WHOLE = "toolkit run() whole call"
 #: every timed call (toolkit and competitors alike) is the best of this many repeats
 REPEATS = 5
 
@@ -81,15 +86,15 @@ def step_rate(scene, controller, ref):
     return n / best_w, n / best_c
 
 
-def ratios(rows, names):
+def ratios(rows, names, base="toolkit RK4"):
     """The worst ratio at equal error per competitor (printed): the competitor's wall over
-    RK4's wall interpolated (log-log) along RK4's own error-vs-time curve at the
+    the ``base`` rows' wall interpolated (log-log) along their own error-vs-time curve at the
     competitor's error (a competitor more accurate than every RK4 run is compared with the
     most accurate RK4 run: RK4 then has the smaller error, a conservative ratio)."""
-    rk4 = sorted((r for r in rows if r[0] == "toolkit RK4"), key=lambda r: r[3])
+    rk4 = sorted((r for r in rows if r[0] == base), key=lambda r: r[3])
     e_rk4 = np.log([r[3] for r in rk4])
     w_rk4 = np.log([r[2] for r in rk4])
-    print("\nratios at equal error (competitor wall / RK4 wall at the competitor's error):")
+    print(f"\nratios at equal error (competitor wall / {base} wall at the competitor's error):")
     worst = {}
     for name in names:
         for r in (r for r in rows if r[0] == name):
@@ -177,6 +182,9 @@ def main():
             print(f"toolkit RK4 dt={dt:g}: refused ({str(exc).splitlines()[0]})")
             continue
         rows.append(("toolkit RK4", f"dt={best.dt_s:.4g}", best.wall_s, err(best.output_angle), best.steps))
+        # the whole call: the parameter fill, the stability scan along the run and the traces
+        _, whole = best_of(lambda: run(model, ref, DURATION, "rk4", dt, output_dt=1e-3))
+        rows.append((WHOLE, f"dt={best.dt_s:.4g}", whole, err(best.output_angle), best.steps))
     for method, tols in (("RK45", (1e-5, 1e-7, 1e-9)), ("LSODA", (1e-5, 1e-7, 1e-9))):
         for tol in tols:
             sol, wall = best_of(lambda: solve_ivp(fun, (0, DURATION), x0, method=method, t_eval=t_out,
@@ -199,6 +207,7 @@ def main():
     print(f"EMA reference scene, 8 Hz 2 deg sine, {DURATION} s, controller from {source}, continuous mode")
     print_rows(rows)
     worst = ratios(rows, ("solve_ivp RK45", "solve_ivp LSODA", "control.input_output_response"))
+    whole = ratios(rows, ("solve_ivp LSODA", "control.input_output_response"), base=WHOLE)
     stick = stick_case(scene, controller, ref)
 
     print(f"RK4 steps per second (sampled model, one core): {wall_rate / 1e6:.2f} M (wall), "
@@ -215,6 +224,9 @@ def main():
                stick["solve_ivp LSODA + events"], TARGET_LSODA, "x"),
               (f"with stiction: at equal error >= {TARGET_IOR:g}x faster than control.input_output_response",
                stick["control.input_output_response"], TARGET_IOR, "x")]
+    print(f"  info  the whole run() call (fill, stability scan, traces) at equal error: "
+          f"{whole['solve_ivp LSODA']:.3g}x LSODA, {whole['control.input_output_response']:.3g}x "
+          "input_output_response")
     for text, value, target, unit in checks:
         print(f"  {'PASS' if value >= target else 'FAIL'}  {text}: {value:.3g}{unit}")
 

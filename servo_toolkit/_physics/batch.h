@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "common.h"
+#include "vmath.h"
 #include "api_integrate.h"
 #include "api_rhs.h"
 
@@ -125,8 +126,12 @@ static inline void jacobians(const double *X, long n_rows, long n_states, const 
             xm[j] -= h;
             st_rhs(times[m], xp, n, pv, tv, irefs[m], f1, aux); /* the compiled rhs that Python calls */
             st_rhs(times[m], xm, n, pv, tv, irefs[m], f2, aux);
-            for (long k = 0; k < n; k++)
-                out[(m * n + k) * n + j] = (f1[k] - f2[k]) / (2 * h);
+            for (long k = 0; k < n; k++) {
+                double twice_h = 2 * h;
+                VM_OPAQUE(twice_h); /* a true division each time, not a reciprocal shared by
+                                       the column: the quotients of stability.jacobian */
+                out[(m * n + k) * n + j] = (f1[k] - f2[k]) / twice_h;
+            }
         }
     }
 }

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import layout as lo
+from .batch import jacobians
 from .kernel import hermite, rhs
 
 IMAG_LIMIT = 2.8284271247461903  # RK4 stability boundary on the imaginary axis, 2*sqrt(2)
@@ -81,22 +82,21 @@ def contact_states(model, P, X) -> np.ndarray:
     return Y
 
 
-def max_stable_dt(eigs) -> float:
-    """Largest dt with |R(lambda dt)| <= 1 for every decaying mode (and |z| <= 2.828 for
-    non-decaying ones).
-
-    Along each decaying mode's ray z = s lambda / |lambda| the first exit from the region
-    |R| <= 1 is bracketed on a grid of s in [0.05, 3] and bisected (40 halvings), every mode
-    at once."""
-    lam = np.atleast_1d(np.asarray(eigs, complex)).reshape(-1)
+def mode_limits(eigs) -> np.ndarray:
+    """Each mode's own step limit: the largest dt with |R(lambda dt)| <= 1 for a decaying
+    mode (its ray z = s lambda / |lambda| bracketed on a grid of s in [0.05, 3] and bisected,
+    40 halvings, every mode at once), 2.828 / |lambda| for a non-decaying one, infinity for
+    lambda = 0. Elementwise: the limits of a stack of eigenvalues (any shape) are those of
+    each alone."""
+    lam = np.asarray(eigs, complex)
+    out = np.full(lam.shape, np.inf)
     mag = np.abs(lam)
-    lam, mag = lam[mag != 0], mag[mag != 0]
-    if lam.size == 0:
-        return float(np.inf)
-    decaying = lam.real < -1e-9 * mag
-    best = np.min(IMAG_LIMIT / mag[~decaying]) if np.any(~decaying) else np.inf
+    nonzero = mag != 0
+    decaying = nonzero & (lam.real < -1e-9 * mag)
+    growing = nonzero & ~decaying
+    out[growing] = IMAG_LIMIT / mag[growing]
     if not np.any(decaying):
-        return float(best)
+        return out
     ray, mag = lam[decaying] / mag[decaying], mag[decaying]
     grid = np.linspace(0.05, 3.0, 60)
     bad = np.abs(rk4_amplification(ray[:, None] * grid)) > 1 + 1e-12
@@ -106,16 +106,27 @@ def max_stable_dt(eigs) -> float:
     hi_s = grid[k]
     for _ in range(40):
         mid = 0.5 * (lo_s + hi_s)
-        out = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
-        hi_s = np.where(out, mid, hi_s)
-        lo_s = np.where(out, lo_s, mid)
-    limit = np.where(inside, 3.0, lo_s) / mag
-    return float(min(best, np.min(limit)))
+        out_s = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
+        hi_s = np.where(out_s, mid, hi_s)
+        lo_s = np.where(out_s, lo_s, mid)
+    out[decaying] = np.where(inside, 3.0, lo_s) / mag
+    return out
+
+
+def max_stable_dt(eigs) -> float:
+    """Largest dt with |R(lambda dt)| <= 1 for every decaying mode (and |z| <= 2.828 for
+    non-decaying ones): the smallest of :func:`mode_limits`."""
+    lam = np.atleast_1d(np.asarray(eigs, complex)).reshape(-1)
+    return float(np.min(mode_limits(lam), initial=np.inf))
 
 
 def fastest(model, P, states, times, irefs=None) -> dict:
     """Fastest eigenvalue and the RK4 step limit over a set of states (and their contact
-    variants).
+    variants: :func:`contact_states`).
+
+    The Jacobians of every state and its contact variant are taken in one compiled call
+    (:func:`servo_toolkit.sim.batch.jacobians`, the steps of :func:`jacobian`), their
+    eigenvalues in one stacked call, and every mode's limit at once (:func:`mode_limits`).
 
     Returns
     -------
@@ -124,19 +135,28 @@ def fastest(model, P, states, times, irefs=None) -> dict:
         ``dt_limit_s`` (the smallest stable-step limit found).
     """
     worst = {"max_abs_lambda": 0.0, "lambda": [0.0, 0.0], "t_s": 0.0, "dt_limit_s": np.inf}
-    irefs = np.zeros(len(times)) if irefs is None else irefs
-    for x, t, ir in zip(states, times, irefs):
-        for y in (x, contact_variant(model, P, x)):
-            eigs = np.linalg.eigvals(jacobian(model, P, y, t, ir))
-            if not np.all(np.isfinite(eigs)):
-                continue
-            k = int(np.argmax(np.abs(eigs)))
-            limit = max_stable_dt(eigs)
-            if abs(eigs[k]) > worst["max_abs_lambda"]:
-                worst.update(max_abs_lambda=float(abs(eigs[k])), lam=eigs[k], t_s=float(t),
-                             **{"lambda": [float(eigs[k].real), float(eigs[k].imag)]})
-            worst["dt_limit_s"] = min(worst["dt_limit_s"], limit)
-    worst.pop("lam", None)
+    times = np.asarray(times, float).reshape(-1)
+    if times.size == 0:
+        return worst
+    irefs = np.zeros(times.size) if irefs is None else np.asarray(irefs, float).reshape(-1)
+    X = np.asarray(states, float).reshape(times.size, -1)
+    P = np.asarray(P, float)
+    rows = np.broadcast_to(P, (times.size, P.size))
+    # each state, then its contact variant, in the order of the states
+    Y = np.ascontiguousarray(np.stack([X, contact_states(model, rows, X)], axis=1).reshape(2 * times.size, -1))
+    J = np.empty((Y.shape[0], Y.shape[1], Y.shape[1]))
+    jacobians(Y, np.repeat(times, 2), np.repeat(irefs, 2), smooth_parameters(P)[None], model.T[None],
+              np.zeros(1, np.int64), np.zeros(Y.shape[0], np.int64), J)
+    eigs = np.linalg.eigvals(J)
+    good = np.all(np.isfinite(eigs), axis=1)
+    if not np.any(good):
+        return worst
+    eigs, at = eigs[good], np.repeat(times, 2)[good]
+    k = np.argmax(np.abs(eigs), axis=1)
+    for lam, t in zip(eigs[np.arange(k.size), k], at):  # the first of the largest, in order
+        if abs(lam) > worst["max_abs_lambda"]:
+            worst.update(max_abs_lambda=float(abs(lam)), t_s=float(t), **{"lambda": [float(lam.real), float(lam.imag)]})
+    worst["dt_limit_s"] = float(min(np.inf, np.min(mode_limits(eigs))))
     return worst
 
 
