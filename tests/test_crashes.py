@@ -73,6 +73,41 @@ def test_sigterm_in_process_is_an_interrupt(monkeypatch, capsys):
     assert signal.getsignal(signal.SIGTERM) is before  # restored
 
 
+@pytest.mark.parametrize("signalled, code, line", [("sigterm", 143, "servo-toolkit: terminated"),
+                                                   ("ctrl-c", 130, "servo-toolkit: interrupted")])
+def test_a_signal_landing_in_a_late_imports_class_body_still_ends_the_command(monkeypatch, capsys, signalled,
+                                                                                code, line):
+    """A signal that arrives while a library defines its classes (the report's PDF engine is
+    imported late) reaches the command as the cause of a RuntimeError on Python 3.11: it is
+    still the signal's exit code and one line."""
+    import servo_toolkit.cli.cmd_stiffness as cmd
+    from servo_toolkit.cli import Terminated
+
+    class Described:
+        def __set_name__(self, owner, name):
+            raise Terminated() if signalled == "sigterm" else KeyboardInterrupt()
+
+    def run(args):
+        type("LibraryClass", (), {"attribute": Described()})  # a class body, as an import runs it
+        return 0
+    monkeypatch.setattr(cmd, "run", run)
+    assert main(["stiffness", EMA]) == code
+    assert capsys.readouterr().err.strip() == line
+
+
+def test_an_error_not_caused_by_a_signal_is_not_taken_for_one(monkeypatch):
+    import servo_toolkit.cli.cmd_stiffness as cmd
+
+    def run(args):
+        try:
+            raise ValueError("inner")
+        except ValueError as exc:
+            raise RuntimeError("a defect") from exc
+    monkeypatch.setattr(cmd, "run", run)
+    with pytest.raises(RuntimeError, match="a defect"):
+        main(["stiffness", EMA])
+
+
 # --- closed stdout ------------------------------------------------------------------------
 
 @pytest.mark.parametrize("require, code", [([], 0), (["--require", "phase_margin=179 deg"], 1)])

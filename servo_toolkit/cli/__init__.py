@@ -213,6 +213,19 @@ def main(argv=None) -> int:
         sys.stderr = saved_err
 
 
+def _interruption(exc: BaseException):
+    """The Ctrl-C or SIGTERM (:class:`Terminated`) behind ``exc``, or None. Python wraps what
+    a class body's ``__set_name__`` raises in a RuntimeError, so a signal that lands while a
+    library defines its classes (a late import) arrives as that error's cause."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def _main(argv) -> int:
     parser = build_parser(only=_command(argv))
     args = parser.parse_args(argv)
@@ -242,6 +255,13 @@ def _main(argv) -> int:
     except KeyboardInterrupt:
         print("servo-toolkit: interrupted", file=sys.stderr)
         code = EXIT_INTERRUPTED
+    except Exception as exc:
+        stop = _interruption(exc)
+        if stop is None:
+            raise
+        terminated = isinstance(stop, Terminated)
+        print(f"servo-toolkit: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        code = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     finally:
         sys.stdout = saved
     if out.error is not None:

@@ -76,7 +76,7 @@ def sections_of(plant_frf, scene=None) -> list:
     :data:`MEASURED` when a measured plant response is given."""
     steps = list(SECTIONS)
     known = {s[0] for s in steps}
-    at = next(i for i, s in enumerate(steps) if s[0] == KIND_SECTIONS_BEFORE)
+    at = next((i for i, s in enumerate(steps) if s[0] == KIND_SECTIONS_BEFORE), len(steps))
     steps[at:at] = [s for s in kind_sections(scene) if s[0] not in known]
     if plant_frf is not None:
         at = next(i for i, s in enumerate(steps) if s[0] == measured.AFTER) + 1
