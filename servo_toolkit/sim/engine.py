@@ -378,7 +378,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         method, probe, choice = step.method, step.probe, step.choice
         if method != "reference":
             times, states, aux, max_tau, wall, steps, peaks = step.run
-            aux_t, speed, refs = aux_traces(model, P, times, states, aux[:, lo.AUX_IREF])
+            _, speed, refs = aux_traces(model, P, times, states, aux[:, lo.AUX_IREF], aux=False)
             return make_result(model, times, states, aux, speed, refs, max_tau, wall, method, step.dt, steps,
                            requested, choice, step.stability, reference, notes, peaks)
     # implicit / adaptive reference

@@ -14,18 +14,21 @@ from .kernel import hermite, reference as ref_at, rhs
 from .result import SimulationResult
 
 
-def aux_traces(model, P, times, states, irefs):
-    """Current, voltage, i_ref, torque, motor speed and reference at the records."""
+def aux_traces(model, P, times, states, irefs, *, aux: bool = True):
+    """Current, voltage, i_ref, torque (the auxiliary outputs of the right-hand side), motor
+    speed and reference at the records. ``aux=False``: the speed and reference only (a
+    fixed-step loop records the auxiliary outputs itself); the first item is then None."""
     n = len(times)
-    aux = np.empty((n, lo.NAUX))
+    out = np.empty((n, lo.NAUX)) if aux else None
     dx, a = np.empty(model.nx), np.empty(lo.NAUX)
     speed, refs = np.empty(n), np.empty(n)
     for k in range(n):
-        rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
-        aux[k] = a
+        if aux:
+            rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
+            out[k] = a
         speed[k] = hermite(model.T, lo.T_N, P, states[k, 0])[0] * states[k, 1]
         refs[k] = ref_at(times[k], P) if model.closed_loop else P[lo.REF_OFF]
-    return aux, speed, refs
+    return out, speed, refs
 
 
 def check_finite(model, times, states):

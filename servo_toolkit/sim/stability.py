@@ -82,42 +82,65 @@ def contact_states(model, P, X) -> np.ndarray:
     return Y
 
 
-def mode_limits(eigs) -> np.ndarray:
-    """Each mode's own step limit: the largest dt with |R(lambda dt)| <= 1 for a decaying
-    mode (its ray z = s lambda / |lambda| bracketed on a grid of s in [0.05, 3] and bisected,
-    40 halvings, every mode at once), 2.828 / |lambda| for a non-decaying one, infinity for
-    lambda = 0. Elementwise: the limits of a stack of eigenvalues (any shape) are those of
-    each alone."""
-    lam = np.asarray(eigs, complex)
-    out = np.full(lam.shape, np.inf)
+def _rays(lam):
+    """Each decaying mode's ray and bracket: ``(decaying, ray, mag, lo_s, hi_s, inside)``,
+    the first exit from |R| <= 1 along z = s lambda / |lambda| bracketed on a grid of s in
+    [0.05, 3] (``inside``: no exit up to 3)."""
     mag = np.abs(lam)
-    nonzero = mag != 0
-    decaying = nonzero & (lam.real < -1e-9 * mag)
-    growing = nonzero & ~decaying
-    out[growing] = IMAG_LIMIT / mag[growing]
-    if not np.any(decaying):
-        return out
+    decaying = (mag != 0) & (lam.real < -1e-9 * mag)
     ray, mag = lam[decaying] / mag[decaying], mag[decaying]
     grid = np.linspace(0.05, 3.0, 60)
     bad = np.abs(rk4_amplification(ray[:, None] * grid)) > 1 + 1e-12
     inside = ~bad.any(axis=1)
     k = np.argmax(bad, axis=1)
     lo_s = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0)
-    hi_s = grid[k]
+    return decaying, ray, mag, lo_s, grid[k], inside
+
+
+def _bisect(ray, lo_s, hi_s):
+    """The exit along each ray within its bracket, 40 halvings (the bracket's low end)."""
     for _ in range(40):
         mid = 0.5 * (lo_s + hi_s)
-        out_s = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
-        hi_s = np.where(out_s, mid, hi_s)
-        lo_s = np.where(out_s, lo_s, mid)
-    out[decaying] = np.where(inside, 3.0, lo_s) / mag
+        out = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
+        hi_s = np.where(out, mid, hi_s)
+        lo_s = np.where(out, lo_s, mid)
+    return lo_s
+
+
+def _growing_limits(lam, decaying):
+    """2.828 / |lambda| of each non-decaying mode, infinity for lambda = 0 and the decaying."""
+    mag = np.abs(lam)
+    out = np.full(lam.shape, np.inf)
+    growing = (mag != 0) & ~decaying
+    out[growing] = IMAG_LIMIT / mag[growing]
+    return out
+
+
+def mode_limits(eigs) -> np.ndarray:
+    """Each mode's own step limit: the largest dt with |R(lambda dt)| <= 1 for a decaying
+    mode (its ray bracketed on a grid and bisected), 2.828 / |lambda| for a non-decaying
+    one, infinity for lambda = 0. Elementwise: the limits of a stack of eigenvalues (any
+    shape) are those of each alone."""
+    lam = np.asarray(eigs, complex)
+    decaying, ray, mag, lo_s, hi_s, inside = _rays(lam)
+    out = _growing_limits(lam, decaying)
+    out[decaying] = np.where(inside, 3.0, _bisect(ray, lo_s, hi_s)) / mag
     return out
 
 
 def max_stable_dt(eigs) -> float:
     """Largest dt with |R(lambda dt)| <= 1 for every decaying mode (and |z| <= 2.828 for
-    non-decaying ones): the smallest of :func:`mode_limits`."""
+    non-decaying ones): the smallest of :func:`mode_limits`, bisecting only the modes whose
+    bracket can hold it (the others' brackets lie wholly above another mode's)."""
     lam = np.atleast_1d(np.asarray(eigs, complex)).reshape(-1)
-    return float(np.min(mode_limits(lam), initial=np.inf))
+    decaying, ray, mag, lo_s, hi_s, inside = _rays(lam)
+    best = float(np.min(_growing_limits(lam, decaying), initial=np.inf))
+    if not ray.size:
+        return best
+    low, high = np.where(inside, 3.0, lo_s) / mag, np.where(inside, 3.0, hi_s) / mag
+    keep = low <= min(best, float(np.min(high)))
+    limits = np.where(inside[keep], 3.0, _bisect(ray[keep], lo_s[keep], hi_s[keep])) / mag[keep]
+    return float(min(best, np.min(limits, initial=np.inf)))
 
 
 def fastest(model, P, states, times, irefs=None) -> dict:
@@ -126,7 +149,8 @@ def fastest(model, P, states, times, irefs=None) -> dict:
 
     The Jacobians of every state and its contact variant are taken in one compiled call
     (:func:`servo_toolkit.sim.batch.jacobians`, the steps of :func:`jacobian`), their
-    eigenvalues in one stacked call, and every mode's limit at once (:func:`mode_limits`).
+    eigenvalues in one stacked call, and the step limit of all the modes at once
+    (:func:`max_stable_dt`).
 
     Returns
     -------
@@ -156,7 +180,7 @@ def fastest(model, P, states, times, irefs=None) -> dict:
     for lam, t in zip(eigs[np.arange(k.size), k], at):  # the first of the largest, in order
         if abs(lam) > worst["max_abs_lambda"]:
             worst.update(max_abs_lambda=float(abs(lam)), t_s=float(t), **{"lambda": [float(lam.real), float(lam.imag)]})
-    worst["dt_limit_s"] = float(min(np.inf, np.min(mode_limits(eigs))))
+    worst["dt_limit_s"] = max_stable_dt(eigs)
     return worst
 
 
