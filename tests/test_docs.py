@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 import re
+import textwrap
+import types
 import subprocess
 import sys
 
@@ -116,7 +118,11 @@ def test_python_examples_run(code, tmp_path, monkeypatch):
     (tmp_path / "scenes").symlink_to(ROOT / "scenes")  # examples name the shipped scenes
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    exec(compile(code, "<docs example>", "exec"), {"__name__": "__docs__"})
+    # a block inside a list item is indented with the item; it runs as a module does (a
+    # dataclass looks its module up)
+    module = types.ModuleType("__docs__")
+    monkeypatch.setitem(sys.modules, "__docs__", module)
+    exec(compile(textwrap.dedent(code), "<docs example>", "exec"), module.__dict__)
 
 
 def test_docs_build_without_warnings(tmp_path):
