@@ -19,13 +19,13 @@ from servo_toolkit.sim import ModelOptions, Reference, build_model, run
 from servo_toolkit.sim import layout as lo
 from servo_toolkit.sim.batch import (F_CUR, F_ERR, F_STATUS, F_STEP, F_TAU, NFIG, NSNAP, S_PEAK, jacobians,
                                      run_variants, variant_run)
-from servo_toolkit.sim.kernel import rhs
 from servo_toolkit.sim.reference import fill, initial_state
 from servo_toolkit.sim.tables import frozen_tables
 from servo_toolkit.sim.variants import VariantBuilder
 from servo_toolkit.studies.time.run import sine_run_options
 
 from .conftest import SCENES, build, variant
+from .jacobian_reference import central_differences
 
 REF = Reference.sine(math.radians(2.0), 8.0)
 DT = 1e-4
@@ -334,30 +334,6 @@ def test_more_threads_than_variants_give_the_numbers_of_one_thread(cases):
 # the Jacobians
 
 
-def _differences(X, times, irefs, P, T, tix, vix):
-    """d(rhs)/dx by central differences of :func:`servo_toolkit.sim.kernel.rhs`, the steps of
-    :func:`servo_toolkit.sim.stability.jacobian`; and 1e-12 of each row's full scale over the
-    step (the rounding of f, scaled by its terms, over 2 h), per entry."""
-    m, n = X.shape
-    J, scale = np.empty((m, n, n)), np.empty((m, n))
-    f, fp, fm, aux = np.empty(n), np.empty(n), np.empty(n), np.empty(lo.NAUX)
-    for i in range(m):
-        p, t = P[vix[i]], T[tix[vix[i]]]
-        rhs(times[i], X[i].copy(), p, t, irefs[i], f, aux)
-        scale[i] = np.abs(f)
-        for j in range(n):
-            h = 1e-7 * (1.0 + abs(X[i, j]))
-            xp, xm = X[i].copy(), X[i].copy()
-            xp[j] += h
-            xm[j] -= h
-            rhs(times[i], xp, p, t, irefs[i], fp, aux)
-            rhs(times[i], xm, p, t, irefs[i], fm, aux)
-            J[i, :, j] = (fp - fm) / (2 * h)
-    h = 1e-7 * (1.0 + np.abs(X))
-    tol = 1e-12 * np.maximum(scale, np.max(scale, axis=0))[:, :, None] / h[:, None, :]
-    return J, tol
-
-
 @pytest.mark.parametrize("name", ["own tables and references", "friction that holds, compliant",
                                   "rigid chain, own inertia tables", "kalman speed estimator", "cam chain"])
 def test_the_jacobians_are_the_central_differences_of_the_right_hand_side(cases, name):
@@ -371,7 +347,7 @@ def test_the_jacobians_are_the_central_differences_of_the_right_hand_side(cases,
     P, T, tix = np.ascontiguousarray(P), frozen_tables(T), np.ascontiguousarray(tix, dtype=np.int64)
     J = np.empty((len(XS), nx, nx))
     jacobians(XS, times, irefs, P, T, tix, vix, J)
-    want, tol = _differences(XS, times, irefs, P, T, tix, vix)
+    want, tol = central_differences(XS, times, irefs, P, T, tix, vix)
     assert np.all(np.isfinite(J)) and np.any(J != 0.0)
     diff = np.abs(J - want)
     assert np.all(diff <= tol), float(np.max(diff / np.maximum(tol, 1e-300)))

@@ -11,8 +11,8 @@ error|, peak |current|, whether a limit was reached) and the states where its st
 checked (peak current, largest drivetrain deflection, the end); a non-finite state or the
 stroke end stops that variant only.
 
-:func:`jacobians` gives d(rhs)/dx by central differences at states of the variants (steps as
-:func:`servo_toolkit.sim.stability.jacobian`).
+:func:`jacobians` gives d(rhs)/dx by central differences at states of the variants
+(:func:`servo_toolkit.sim.stability.jacobian` is its face for one state).
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Step-size stability of RK4 from the fastest eigenvalues of the linearized kernel.
 
-The Jacobian of :func:`kernel.rhs` is taken by central differences (the held current
-reference fixed, as between two samples). RK4 applied to y' = lambda y multiplies y by
+The Jacobian of :func:`kernel.rhs` is taken by central differences, compiled
+(:func:`servo_toolkit.sim.batch.jacobians`; the held current reference fixed, as between two
+samples). RK4 applied to y' = lambda y multiplies y by
 R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24, z = lambda dt; a decaying mode must keep
 |R(z)| <= 1 (on the negative real axis this holds up to z = -2.785, on the imaginary axis up
 to |z| = 2.828). Modes that grow physically (Re lambda >= 0) only bound dt through
@@ -14,7 +15,7 @@ import numpy as np
 
 from . import layout as lo
 from .batch import jacobians
-from .kernel import hermite, rhs
+from .kernel import hermite
 
 IMAG_LIMIT = 2.8284271247461903  # RK4 stability boundary on the imaginary axis, 2*sqrt(2)
 REAL_LIMIT = 2.785293563405282   # RK4 stability boundary on the negative real axis
@@ -40,32 +41,21 @@ def smooth_parameters(P) -> np.ndarray:
 
 def jacobian(model, P, x, t=0.0, iref=0.0) -> np.ndarray:
     """d(rhs)/dx at (t, x) by central differences (of the smooth dynamics:
-    :func:`smooth_parameters`)."""
-    P = smooth_parameters(P)
-    n = x.size
-    jac = np.empty((n, n))
-    f1, f2, aux = np.empty(n), np.empty(n), np.empty(lo.NAUX)
-    for j in range(n):
-        h = 1e-7 * (1.0 + abs(x[j]))
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        rhs(t, xp, P, model.T, iref, f1, aux)
-        rhs(t, xm, P, model.T, iref, f2, aux)
-        jac[:, j] = (f1 - f2) / (2 * h)
-    return jac
-
-
-def contact_variant(model, P, x) -> np.ndarray:
-    """The same state in its stiffest configuration: the drivetrain pushed just into contact
-    and closing (there the damper part is capped at the spring part, f = 2 K z, an undamped
-    stiffness 2 K), and at rest against an elastic end stop it has passed (its spring
-    engaged). One state of one parameter row (:func:`contact_states` for many)."""
-    return contact_states(model, np.asarray(P)[None], np.asarray(x)[None])[0]
+    :func:`smooth_parameters`): column j from the right-hand side at x +- h e_j,
+    h = 1e-7 (1 + |x_j|), the held current reference ``iref`` fixed. One row of the compiled
+    :func:`servo_toolkit.sim.batch.jacobians`."""
+    x = np.ascontiguousarray(x, dtype=float)
+    jac = np.empty((1, x.size, x.size))
+    jacobians(x[None], np.array([float(t)]), np.array([float(iref)]), smooth_parameters(P)[None], model.T[None],
+              np.zeros(1, np.int64), np.zeros(1, np.int64), jac)
+    return jac[0]
 
 
 def contact_states(model, P, X) -> np.ndarray:
-    """:func:`contact_variant` of each row of ``X`` (states) with its row of ``P``."""
+    """Each row of ``X`` (states, with its row of ``P``) in its stiffest configuration: the
+    drivetrain pushed just into contact and closing (there the damper part is capped at the
+    spring part, f = 2 K z, an undamped stiffness 2 K), and at rest against an elastic end
+    stop it has passed (its spring engaged)."""
     Y = np.array(X, dtype=float, copy=True)
     qi = 0 if model.rigid else 2
     past = (P[:, lo.STROKE_MODE] == lo.STROKE_STOP) & ~((P[:, lo.STROKE_LO] <= Y[:, qi]) & (Y[:, qi] <= P[:, lo.STROKE_HI]))
@@ -82,65 +72,37 @@ def contact_states(model, P, X) -> np.ndarray:
     return Y
 
 
-def _rays(lam):
-    """Each decaying mode's ray and bracket: ``(decaying, ray, mag, lo_s, hi_s, inside)``,
-    the first exit from |R| <= 1 along z = s lambda / |lambda| bracketed on a grid of s in
-    [0.05, 3] (``inside``: no exit up to 3)."""
+def max_stable_dt(eigs) -> float:
+    """Largest dt with |R(lambda dt)| <= 1 for every decaying mode and |z| <= 2.828 for every
+    non-decaying one.
+
+    Along each decaying mode's ray z = s lambda / |lambda| the first exit from |R| <= 1 is
+    bracketed on a grid of s in [0.05, 3] and bisected (40 halvings), every mode at once; only
+    the modes whose bracket can hold the smallest limit are bisected (the others' brackets
+    lie wholly above another mode's)."""
+    lam = np.atleast_1d(np.asarray(eigs, complex)).reshape(-1)
     mag = np.abs(lam)
     decaying = (mag != 0) & (lam.real < -1e-9 * mag)
+    growing = (mag != 0) & ~decaying
+    best = float(np.min(IMAG_LIMIT / mag[growing], initial=np.inf))
+    if not np.any(decaying):
+        return best
     ray, mag = lam[decaying] / mag[decaying], mag[decaying]
     grid = np.linspace(0.05, 3.0, 60)
     bad = np.abs(rk4_amplification(ray[:, None] * grid)) > 1 + 1e-12
     inside = ~bad.any(axis=1)
     k = np.argmax(bad, axis=1)
     lo_s = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0)
-    return decaying, ray, mag, lo_s, grid[k], inside
-
-
-def _bisect(ray, lo_s, hi_s):
-    """The exit along each ray within its bracket, 40 halvings (the bracket's low end)."""
+    hi_s = grid[k]
+    low, high = np.where(inside, 3.0, lo_s) / mag, np.where(inside, 3.0, hi_s) / mag
+    keep = low <= min(best, float(np.min(high)))
+    ray, mag, lo_s, hi_s, inside = ray[keep], mag[keep], lo_s[keep], hi_s[keep], inside[keep]
     for _ in range(40):
         mid = 0.5 * (lo_s + hi_s)
         out = np.abs(rk4_amplification(ray * mid)) > 1 + 1e-12
         hi_s = np.where(out, mid, hi_s)
         lo_s = np.where(out, lo_s, mid)
-    return lo_s
-
-
-def _growing_limits(lam, decaying):
-    """2.828 / |lambda| of each non-decaying mode, infinity for lambda = 0 and the decaying."""
-    mag = np.abs(lam)
-    out = np.full(lam.shape, np.inf)
-    growing = (mag != 0) & ~decaying
-    out[growing] = IMAG_LIMIT / mag[growing]
-    return out
-
-
-def mode_limits(eigs) -> np.ndarray:
-    """Each mode's own step limit: the largest dt with |R(lambda dt)| <= 1 for a decaying
-    mode (its ray bracketed on a grid and bisected), 2.828 / |lambda| for a non-decaying
-    one, infinity for lambda = 0. Elementwise: the limits of a stack of eigenvalues (any
-    shape) are those of each alone."""
-    lam = np.asarray(eigs, complex)
-    decaying, ray, mag, lo_s, hi_s, inside = _rays(lam)
-    out = _growing_limits(lam, decaying)
-    out[decaying] = np.where(inside, 3.0, _bisect(ray, lo_s, hi_s)) / mag
-    return out
-
-
-def max_stable_dt(eigs) -> float:
-    """Largest dt with |R(lambda dt)| <= 1 for every decaying mode (and |z| <= 2.828 for
-    non-decaying ones): the smallest of :func:`mode_limits`, bisecting only the modes whose
-    bracket can hold it (the others' brackets lie wholly above another mode's)."""
-    lam = np.atleast_1d(np.asarray(eigs, complex)).reshape(-1)
-    decaying, ray, mag, lo_s, hi_s, inside = _rays(lam)
-    best = float(np.min(_growing_limits(lam, decaying), initial=np.inf))
-    if not ray.size:
-        return best
-    low, high = np.where(inside, 3.0, lo_s) / mag, np.where(inside, 3.0, hi_s) / mag
-    keep = low <= min(best, float(np.min(high)))
-    limits = np.where(inside[keep], 3.0, _bisect(ray[keep], lo_s[keep], hi_s[keep])) / mag[keep]
-    return float(min(best, np.min(limits, initial=np.inf)))
+    return float(min(best, np.min(np.where(inside, 3.0, lo_s) / mag, initial=np.inf)))
 
 
 def fastest(model, P, states, times, irefs=None) -> dict:
