@@ -14,7 +14,7 @@ from .integrators import integrate
 from .ivp import MAX_RHS_EVALS, solve_reference
 from .reference import Reference, check_start_on_tables, fill, initial_state
 from .result import SimulationResult
-from .run_result import aux_traces, check_finite, make_result
+from .run_result import aux_traces, check_finite, make_result, speed_and_reference
 from .stability import fastest
 
 METHODS = ("rk4", "paper", "reference", "auto")
@@ -378,7 +378,7 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         method, probe, choice = step.method, step.probe, step.choice
         if method != "reference":
             times, states, aux, max_tau, wall, steps, peaks = step.run
-            _, speed, refs = aux_traces(model, P, times, states, aux[:, lo.AUX_IREF], aux=False)
+            speed, refs = speed_and_reference(model, P, times, states)
             return make_result(model, times, states, aux, speed, refs, max_tau, wall, method, step.dt, steps,
                            requested, choice, step.stability, reference, notes, peaks)
     # implicit / adaptive reference

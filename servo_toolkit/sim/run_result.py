@@ -14,21 +14,26 @@ from .kernel import hermite, reference as ref_at, rhs
 from .result import SimulationResult
 
 
-def aux_traces(model, P, times, states, irefs, *, aux: bool = True):
-    """Current, voltage, i_ref, torque (the auxiliary outputs of the right-hand side), motor
-    speed and reference at the records. ``aux=False``: the speed and reference only (a
-    fixed-step loop records the auxiliary outputs itself); the first item is then None."""
+def speed_and_reference(model, P, times, states):
+    """Motor speed (rad/s) and the reference at the records."""
     n = len(times)
-    out = np.empty((n, lo.NAUX)) if aux else None
-    dx, a = np.empty(model.nx), np.empty(lo.NAUX)
     speed, refs = np.empty(n), np.empty(n)
     for k in range(n):
-        if aux:
-            rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
-            out[k] = a
         speed[k] = hermite(model.T, lo.T_N, P, states[k, 0])[0] * states[k, 1]
         refs[k] = ref_at(times[k], P) if model.closed_loop else P[lo.REF_OFF]
-    return out, speed, refs
+    return speed, refs
+
+
+def aux_traces(model, P, times, states, irefs):
+    """Current, voltage, i_ref, torque (the right-hand side's auxiliary outputs), motor speed
+    and reference at the records (a fixed-step loop records the auxiliary outputs itself:
+    :func:`speed_and_reference` serves it)."""
+    aux = np.empty((len(times), lo.NAUX))
+    dx, a = np.empty(model.nx), np.empty(lo.NAUX)
+    for k in range(len(times)):
+        rhs(times[k], states[k], P, model.T, irefs[k], dx, a)
+        aux[k] = a
+    return (aux, *speed_and_reference(model, P, times, states))
 
 
 def check_finite(model, times, states):
@@ -78,4 +83,4 @@ def limit_notes(model, times, aux) -> list:
             f"(recorded samples){tail}"]
 
 
-__all__ = ["aux_traces", "check_finite", "limit_notes", "make_result"]
+__all__ = ["aux_traces", "check_finite", "limit_notes", "make_result", "speed_and_reference"]
