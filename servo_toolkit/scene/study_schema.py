@@ -81,8 +81,9 @@ def study_params(name: str, table, output_unit: str = "rad") -> tuple:
         offered.
     """
     f = Fields(table, f"studies.{name}")
-    kind = f.text("kind", choices=set(study_kinds()))  # an unknown kind: the registered ones listed
-    schema = study_kinds()[kind].schema
+    kinds = study_kinds()
+    kind = f.text("kind", choices=set(kinds))  # an unknown kind: the registered ones listed
+    schema = kinds[kind].schema
     params = {}
     # amplitudes read at the motor gear (a Kv study's) are angles of the motor gear, whatever the output
     at_motor = "amplitude_at" in schema and table.get("amplitude_at") == "motor"
