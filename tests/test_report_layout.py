@@ -203,3 +203,26 @@ def test_a_narrow_browser_window_scrolls_the_stiffness_table_not_the_page(stiffn
     got = json.loads(found.group(1).replace("&quot;", '"'))
     assert got["window"] <= 800 and got["page"] <= got["window"], got
     assert got["scroll"] > got["wrapper"] and got["scroll"] >= got["table"] - 1, got
+
+
+def test_a_report_figure_is_laid_out_once_and_saved_as_checked(monkeypatch):
+    """:func:`finish` solves the constrained layout once for a figure whose titles fit, checks
+    that drawing and keeps it: both documents' saves (PNG and SVG) draw the checked axes
+    where they were, without solving the layout again."""
+    import matplotlib.layout_engine as engines
+    from servo_toolkit.report.document import figure_src
+    from servo_toolkit.report.figures import finish, new_figure
+    solves = []
+    real = engines.do_constrained_layout
+    monkeypatch.setattr(engines, "do_constrained_layout", lambda *a, **k: solves.append(1) or real(*a, **k))
+    fig, (a, b) = new_figure(1, 2)
+    a.plot([1, 2], [1, 2], label="one")
+    b.semilogx([1, 10, 100], [2, 1, 0], label="two")
+    a.set_title("short")
+    assert finish(fig) == ()
+    assert len(solves) == 1
+    where = [ax.get_position().bounds for ax in fig.axes]
+    figure_src(fig, "html")
+    figure_src(fig, "pdf")
+    assert len(solves) == 1
+    assert [ax.get_position().bounds for ax in fig.axes] == where

@@ -29,8 +29,9 @@ def environment():
 def figure_src(fig, target: str) -> str:
     """A figure as a data URI: PNG for the HTML page, SVG (vector) for the PDF.
 
-    The first save lays the figure out (constrained layout); the layout is then kept, so the
-    other document's copy draws the same axes without solving it again."""
+    A report figure comes laid out and checked (:func:`servo_toolkit.report.figures.finish`
+    keeps its layout); any other figure is laid out by its first save and keeps that layout,
+    so the other document's copy draws the same axes without solving it again."""
     buf = io.BytesIO()
     if target == "pdf":
         fig.savefig(buf, format="svg")

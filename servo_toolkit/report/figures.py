@@ -109,6 +109,10 @@ def finish(fig) -> tuple:
     (:func:`layout_problems`). Every report figure passes through here
     (:func:`servo_toolkit.report.builder.run_section`).
 
+    The layout checked is then kept (the figure's layout engine is set to ``"none"``): the
+    documents draw the figure as it was checked, without solving its constrained layout again
+    at every save.
+
     Returns
     -------
     tuple of str
@@ -117,11 +121,15 @@ def finish(fig) -> tuple:
     legends_outside(fig)
     for ax in fig.axes:
         plain_log_ticks(ax)
+    drawn = False
     for _ in range(3):
         fig.draw_without_rendering()
-        if not _wrap_wide_titles(fig, _renderer(fig)):
+        drawn = not _wrap_wide_titles(fig, _renderer(fig))
+        if drawn:
             break
-    return layout_problems(fig)
+    problems = _drawn_problems(fig) if drawn else layout_problems(fig)
+    fig.set_layout_engine("none")
+    return problems
 
 
 def _boxes(fig, renderer):
@@ -201,6 +209,11 @@ def layout_problems(fig) -> tuple:
     (same colour and line style) for different curves.
     """
     fig.draw_without_rendering()
+    return _drawn_problems(fig)
+
+
+def _drawn_problems(fig) -> tuple:
+    """:func:`layout_problems` of a figure drawn as it stands (no change since its last draw)."""
     renderer = _renderer(fig)
     problems = []
     boxes = _boxes(fig, renderer)
