@@ -168,11 +168,22 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
     long step = first;
     double t = t0 + first * dt;
     double d[10];
+    /* the continuous controller's command at the last time it was evaluated (rhs_phys_inline's
+       cmd); without feedforward it is the reference the step's error check evaluates */
+    double cmd[4] = {-INFINITY, 0.0, 0.0, 0.0};
+    int shares_ref = IX(P[CMODE]) == CONTINUOUS && !(P[FF_ON] > 0.0);
     for (long it = first; it < stop; it++) {
         step = it;
         t = t0 + step * dt;
         sample_hold(t, sub, &to_sample, &iref, p, pd, q, qd, cur, xi, s, x, P, T, work);
-        double err = fabs(q - reference(t, P));
+        double r_t = reference(t, P);
+        if (shares_ref) {
+            cmd[0] = t;
+            cmd[1] = r_t;
+            cmd[2] = 0.0;
+            cmd[3] = 0.0;
+        }
+        double err = fabs(q - r_t);
         if (err > max_err)
             max_err = err;
         /* stage k evaluates at t + c_k dt from the previous slopes and enters the update with
@@ -197,7 +208,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
             if (stick && stage > 0)
                 turned = turned || stage_turns(pd, pd + c * s1, qd, qd + c * s3);
             rhs_phys_inline(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s, P, T,
-                     iref, stage == 0 ? x : xs, kout, d);
+                     iref, stage == 0 ? x : xs, kout, d, cmd);
             s0 = d[0];
             s1 = d[1];
             s2 = d[2];

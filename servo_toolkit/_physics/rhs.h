@@ -68,10 +68,15 @@ static inline void put_rates(double *out, double dp, double dpd, double dq, doub
    x[NX_PHYS:] and write their derivatives into dx[NX_PHYS:] (nothing else is written; a
    continuous controller with back-calculation gains, AW, adds Kaw g (clamped - unclamped) to
    its derivative while its output is clamped, a law continuous in the state, like the
-   current PI's). */
+   current PI's).
+
+   cmd: NULL, or the continuous controller's command kept by the caller, [t, r, i_ff, w_ff]:
+   at the time cmd[0] the command is taken from it, at any other time it is evaluated and
+   kept there (RK4's second and third stages share their time, so the command is
+   evaluated once for both; the numbers are the same either way). */
 ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, double q, double qd, double cur, double xi,
                                       double s, const double *P, Tab T, double iref_held, double *x, double *dx,
-                                      double out[10])
+                                      double out[10], double *cmd)
 {
     long kc;
     double tc;
@@ -100,7 +105,19 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
     } else {
         if (mode == CONTINUOUS) {
             double r, i_ff, w_ff;
-            continuous_command(t, P, T, &r, &i_ff, &w_ff);
+            if (cmd != NULL && cmd[0] == t) {
+                r = cmd[1];
+                i_ff = cmd[2];
+                w_ff = cmd[3];
+            } else {
+                continuous_command(t, P, T, &r, &i_ff, &w_ff);
+                if (cmd != NULL) {
+                    cmd[0] = t;
+                    cmd[1] = r;
+                    cmd[2] = i_ff;
+                    cmd[3] = w_ff;
+                }
+            }
             double y = motion(x, P, r, q, wm - w_ff, dx, NX_PHYS, 1) + i_ff;
             iref = clip(y, P[ILIM]);
             long o = IX(P[AW]);
@@ -230,7 +247,7 @@ ST_ALWAYS_INLINE ST_FLATTEN void rhs_phys_inline(double t, double p, double pd, 
 ST_NOINLINE void rhs_phys(double t, double p, double pd, double q, double qd, double cur, double xi, double s,
                           const double *P, Tab T, double iref_held, double *x, double *dx, double out[10])
 {
-    rhs_phys_inline(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, out);
+    rhs_phys_inline(t, p, pd, q, qd, cur, xi, s, P, T, iref_held, x, dx, out, NULL);
 }
 
 /* dx/dt of the closed loop (x of nx states); aux receives current, voltage, i_ref and motor
