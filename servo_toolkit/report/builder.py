@@ -286,9 +286,10 @@ def write_report(report: Report, out_dir, progress: bool = False, key: str = "ou
     n_fig = sum(len(s.figures) for s in report.sections)
     bar = progress_bar(total=2 * n_fig, show=progress, desc="writing", unit="figure", file=sys.stderr,
                leave=False)
+    sources = {}  # each figure's SVG, rendered once for both documents
     with bar, atomic_folder(out, key, parents=True) as tmp:  # the bar's line is cleared on Ctrl-C too
         bar.set_postfix_str("index.html")
-        (tmp / "index.html").write_text(render_html(report, tick=bar.update), encoding="utf-8")
+        (tmp / "index.html").write_text(render_html(report, tick=bar.update, sources=sources), encoding="utf-8")
         bar.set_postfix_str("report.pdf")
-        engine = write_pdf(report, tmp / "report.pdf", tick=bar.update)
+        engine = write_pdf(report, tmp / "report.pdf", tick=bar.update, sources=sources)
     return {"html": out / "index.html", "pdf": out / "report.pdf", "pdf_engine": engine}

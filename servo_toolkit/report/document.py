@@ -8,7 +8,7 @@ import io
 from pathlib import Path
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
-#: figure resolution of the HTML page (PNG); the PDF's figures are vector (SVG)
+#: the page's pixels per inch of a figure: its width on screen (an SVG's own size is 96 per inch)
 DPI = 110
 
 
@@ -26,21 +26,22 @@ def environment():
     return env
 
 
-def figure_src(fig, target: str) -> str:
-    """A figure as a data URI: PNG for the HTML page, SVG (vector) for the PDF.
+def figure_src(fig, sources: dict | None = None) -> str:
+    """A figure as a data URI of its SVG (vector: sharp at any zoom on the page and in print).
 
-    A report figure comes laid out and checked (:func:`servo_toolkit.report.figures.finish`
-    keeps its layout); any other figure is laid out by its first save and keeps that layout,
-    so the other document's copy draws the same axes without solving it again."""
+    ``sources`` keeps each figure's URI by figure, so that the HTML page and the PDF share one
+    rendering. A report figure comes laid out and checked
+    (:func:`servo_toolkit.report.figures.finish` keeps its layout); any other figure is laid
+    out by its first save and keeps that layout."""
+    if sources is not None and id(fig) in sources:
+        return sources[id(fig)][1]
     buf = io.BytesIO()
-    if target == "pdf":
-        fig.savefig(buf, format="svg")
-        uri = "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-    else:
-        fig.savefig(buf, format="png", dpi=DPI)
-        uri = "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    fig.savefig(buf, format="svg")
+    uri = "data:image/svg+xml;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
     if fig.get_layout_engine() is not None:
         fig.set_layout_engine("none")
+    if sources is not None:
+        sources[id(fig)] = (fig, uri)  # the figure is held so that its id stays its own
     return uri
 
 
@@ -59,9 +60,10 @@ def _verdict(report) -> dict:
     return {"status": "pass", "text": f"all {len(rows)} requirements met"}
 
 
-def context(report, target: str, tick=None) -> dict:
-    """The template's variables: identity, verdict, numbered sections and figures, the
-    reference list (:data:`servo_toolkit.report.references.REFERENCES`)."""
+def context(report, target: str, tick=None, sources: dict | None = None) -> dict:
+    """The template's variables: identity, verdict, numbered sections and figures (each with
+    its SVG, :func:`figure_src`, and its width on the page in pixels), the reference list
+    (:data:`servo_toolkit.report.references.REFERENCES`)."""
     from markupsafe import Markup
     sections = []
     for i, s in enumerate(report.sections, 1):
@@ -69,7 +71,8 @@ def context(report, target: str, tick=None) -> dict:
         figs = []
         for k, spec in enumerate(s.figures, 1):
             figs.append({"number": f"{i}.{k}", "anchor": f"figure-{i}-{k}", "caption": spec.caption,
-                         "src": figure_src(spec.figure, target)})
+                         "src": figure_src(spec.figure, sources),
+                         "width": round(spec.figure.get_figwidth() * DPI)})
             if tick is not None:
                 tick()
         sections.append({"number": i, "anchor": anchor, "title": s.title, "status": s.status, "reason": s.reason,
@@ -92,10 +95,11 @@ def _identity(meta: dict) -> dict:
     return out
 
 
-def render(report, target: str = "html", tick=None) -> str:
+def render(report, target: str = "html", tick=None, sources: dict | None = None) -> str:
     """The report as one HTML document for ``target`` ``"html"`` (a self-contained page) or
-    ``"pdf"`` (A4 pages for a paged-media engine); ``tick()`` after each figure."""
-    return environment().get_template("report.html.j2").render(**context(report, target, tick))
+    ``"pdf"`` (A4 pages for a paged-media engine); ``tick()`` after each figure. ``sources``:
+    the figures' URIs shared between documents (:func:`figure_src`)."""
+    return environment().get_template("report.html.j2").render(**context(report, target, tick, sources))
 
 
 __all__ = ["DPI", "TEMPLATES", "context", "environment", "figure_src", "render"]

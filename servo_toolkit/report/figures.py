@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import base64
-import io
 import math
 import textwrap
 
@@ -13,7 +11,6 @@ from matplotlib.ticker import LogFormatter
 
 from ..display.units import DisplayUnits
 
-DPI = 110
 
 
 def new_figure(nrows: int = 1, ncols: int = 1, size=(7.0, 3.4), **kwargs):
@@ -236,13 +233,6 @@ def _drawn_problems(fig) -> tuple:
                 problems.append(f"legend entries {seen[style]!r} and {label!r} are drawn alike")
             seen.setdefault(style, label)
     return tuple(problems)
-
-
-def png_base64(fig, dpi: int = DPI) -> str:
-    """The figure as a base64-encoded PNG."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def stroke_grid(drivetrain, points: int = 121) -> np.ndarray:

@@ -72,7 +72,7 @@ def engine_problem() -> str | None:
     return None
 
 
-def write_pdf(report, path, tick=None, engine="auto") -> str:
+def write_pdf(report, path, tick=None, engine="auto", sources: dict | None = None) -> str:
     """Write ``report`` to ``path``; ``tick()`` after each figure. Returns the engine used:
     ``"weasyprint"`` (the document from the report template) or ``"matplotlib"`` (the
     fallback: a title page, text pages and one page per figure).
@@ -81,11 +81,14 @@ def write_pdf(report, path, tick=None, engine="auto") -> str:
     ----------
     engine : str
         ``"auto"`` (WeasyPrint when available), ``"weasyprint"`` or ``"matplotlib"``.
+    sources : dict, optional
+        The figures' SVG already rendered for the HTML page
+        (:func:`servo_toolkit.report.document.figure_src`).
     """
     weasyprint = paged_engine() if engine in ("auto", "weasyprint") else None
     if weasyprint is not None:
         from .document import render
-        html = render(report, "pdf", tick)
+        html = render(report, "pdf", tick, sources)
         weasyprint.HTML(string=html, base_url=".").write_pdf(str(path))
         return "weasyprint"
     if engine == "weasyprint":
