@@ -133,3 +133,32 @@ def test_a_study_run_by_another_kinds_command_names_the_commands_its_descriptor_
         line = err.getvalue().strip()
         assert line.count("\n") == 0 and f"studies.{study}.kind" in line
         assert f"servo-toolkit {kind.command} or servo-toolkit study" in line, line
+
+
+def test_the_study_command_without_a_name_lists_the_scenes_studies(capsys):
+    """``servo-toolkit study SCENE`` prints each study of the scene with its kind, the kind's
+    summary and the commands its descriptor names, then every registered kind; a roller-screw
+    scene's built-in studies are listed too; ``--json`` asks for a study's result, so without
+    a name it is one line and exit 2."""
+    from servo_toolkit.cli import main
+    from servo_toolkit.scene.study_kind import study_kinds
+
+    from .conftest import SCENES
+    scene = Path(servo_toolkit.__file__).parent / "data" / "ema_reference.toml"
+    assert main(["study", str(scene)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("Studies of ema_reference\nstudy ")
+    loaded = servo_toolkit.load_scene(scene)
+    assert loaded.studies
+    for name, study in loaded.studies.items():
+        kind = study_kinds()[study.kind]
+        row = next(line for line in out.splitlines() if line.startswith(name + " "))
+        assert kind.name in row and kind.summary in row and row.rstrip().endswith(kind.commands), row
+    assert f"Registered kinds: {', '.join(sorted(study_kinds()))}." in out
+    assert main(["study", str(SCENES / "roller_screw_two_stage.toml")]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert any(r.startswith("efficiency ") and "built in" in r for r in rows)
+    assert any(r.startswith("carrier_step ") and "built in" in r for r in rows)
+    assert main(["study", str(scene), "--json", "out.json"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("servo-toolkit: error: --json") and err.count("\n") == 1
