@@ -231,3 +231,30 @@ def test_a_nominal_variant_prints_what_simulate_prints(capsys):
         assert variant["max_abs_tracking_error_deg"] == pytest.approx(single["max_abs_tracking_error_deg"], rel=1e-9)
         assert variant["peak_current_A"] == pytest.approx(single["max_abs_current_A"], rel=1e-9)
         assert single["max_abs_tracking_error_deg"] > 0.1
+
+
+def test_the_time_requirements_of_both_tables_read_the_tracking_error_in_the_outputs_dimension():
+    """``[robustness]`` and ``[tolerances]`` bound the same time figures with one reader: the
+    tracking error in deg for an output angle (mm for a travel), the peak current in A, and a
+    bound given in the other dimension is one line naming that table's key."""
+    from types import SimpleNamespace
+
+    from servo_toolkit.errors import SceneError
+    from servo_toolkit.loop.requirements import time_requirements
+    rotary = load_scene()
+    linear = load_scene(SCENES / "linear_roller_screw_actuator.toml")
+    assert not rotary.drivetrain.output_is_linear and linear.drivetrain.output_is_linear
+    for table in ("robustness", "tolerances"):
+        spec = SimpleNamespace(max_tracking_error=math.radians(0.5), tracking_error_dimension="angle",
+                               max_peak_current=12.0)
+        rows = time_requirements(rotary, spec, table)
+        assert [(r.name, r.sense, r.unit, r.source) for r in rows] == [
+            ("tracking_error", "<=", "deg", table), ("peak_current", "<=", "A", table)]
+        assert rows[0].value == pytest.approx(0.5, rel=1e-12) and rows[1].value == 12.0
+        with pytest.raises(SceneError, match=rf"^{table}\.max_tracking_error: .*give a length, got an angle"):
+            time_requirements(linear, spec, table)
+        travel = SimpleNamespace(max_tracking_error=2e-4, tracking_error_dimension="length", max_peak_current=None)
+        (row,) = time_requirements(linear, travel, table)
+        assert (row.value, row.unit) == (pytest.approx(0.2, rel=1e-12), "mm")
+        with pytest.raises(SceneError, match=rf"^{table}\.max_tracking_error: .*give an angle, got a length"):
+            time_requirements(rotary, travel, table)

@@ -292,3 +292,30 @@ def robust_requirements(spec, nominal) -> list[Requirement]:
         elif default is not None and default in by_name:
             out.append(Requirement(name, sense, by_name[default], unit, "nominal"))
     return out
+
+
+def time_requirements(scene, spec, table: str) -> list[Requirement]:
+    """The time-run requirements of a ``[robustness]`` or ``[tolerances]`` table ``spec``
+    (named ``table``): its worst tracking error (``max_tracking_error``, in deg, or mm for an
+    output travel) and worst peak current (``max_peak_current``, A); empty when it sets
+    neither.
+
+    Raises
+    ------
+    SceneError
+        ``TABLE.max_tracking_error`` given as an angle for an output travel, or as a length
+        for an output angle.
+    """
+    out = []
+    if spec.max_tracking_error is not None:
+        linear = scene.drivetrain.output_is_linear
+        dim = spec.tracking_error_dimension
+        if dim is not None and dim != ("length" if linear else "angle"):
+            raise SceneError(f"{table}.max_tracking_error",
+                             f"the output is {'a travel: give a length' if linear else 'an angle: give an angle'}, "
+                             f"got {'an angle' if dim == 'angle' else 'a length'}")
+        value = spec.max_tracking_error * 1e3 if linear else math.degrees(spec.max_tracking_error)
+        out.append(Requirement("tracking_error", "<=", value, "mm" if linear else "deg", table))
+    if spec.max_peak_current is not None:
+        out.append(Requirement("peak_current", "<=", spec.max_peak_current, "A", table))
+    return out

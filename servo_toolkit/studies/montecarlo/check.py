@@ -12,17 +12,16 @@ and the reason (exit 2), never a row failed on a non-finite figure.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ...errors import SceneError, SimulationError
-from ...loop.requirements import Requirement, check
+from ...errors import SimulationError
+from ...loop.requirements import Requirement, check, time_requirements
 
 
 def montecarlo_requirements(scene, spec) -> list[Requirement]:
     """The Monte Carlo requirements ``spec`` (a :class:`~servo_toolkit.scene.tables.Robustness`)
-    sets, in display units (deg or mm, A); empty when it sets none.
+    sets, in display units (deg or mm, A); empty when it sets none
+    (:func:`servo_toolkit.loop.requirements.time_requirements` of ``[robustness]``).
 
     Raises
     ------
@@ -30,21 +29,7 @@ def montecarlo_requirements(scene, spec) -> list[Requirement]:
         ``robustness.max_tracking_error`` given as an angle for an output travel, or as a
         length for an output angle.
     """
-    if spec is None:
-        return []
-    out = []
-    if spec.max_tracking_error is not None:
-        linear = scene.drivetrain.output_is_linear
-        dim = spec.tracking_error_dimension
-        if dim is not None and dim != ("length" if linear else "angle"):
-            raise SceneError("robustness.max_tracking_error",
-                             f"the output is {'a travel: give a length' if linear else 'an angle: give an angle'}, "
-                             f"got {'an angle' if dim == 'angle' else 'a length'}")
-        value = spec.max_tracking_error * 1e3 if linear else math.degrees(spec.max_tracking_error)
-        out.append(Requirement("tracking_error", "<=", value, "mm" if linear else "deg", "robustness"))
-    if spec.max_peak_current is not None:
-        out.append(Requirement("peak_current", "<=", spec.max_peak_current, "A", "robustness"))
-    return out
+    return [] if spec is None else time_requirements(scene, spec, "robustness")
 
 
 def montecarlo_checks(scene, spec, controller, *, progress: bool = False, executor=None):

@@ -25,8 +25,6 @@ peak current, each variant also runs in time on the nonlinear model
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ...errors import SceneError, SimulationError
@@ -42,22 +40,11 @@ SOBOL_BASE = 512
 
 def _requirements(scene, result, tol):
     """(margin requirements, time requirements) in display units."""
-    from ...loop.requirements import Requirement, robust_requirements
+    from ...loop.requirements import robust_requirements, time_requirements
     from ...scene.loader import Robustness
     spec = scene.robustness or Robustness(load_inertia=None, stiffness=None)
     margins = [r for r in robust_requirements(spec, result.requirements) if r.name != "stable_fraction"]
-    timed = []
-    if tol.max_tracking_error is not None:
-        linear = scene.drivetrain.output_is_linear
-        dim = tol.tracking_error_dimension
-        if dim is not None and dim != ("length" if linear else "angle"):
-            raise SceneError("tolerances.max_tracking_error",
-                             f"the output is {'a travel: give a length' if linear else 'an angle: give an angle'}")
-        value = tol.max_tracking_error * 1e3 if linear else math.degrees(tol.max_tracking_error)
-        timed.append(Requirement("tracking_error", "<=", value, "mm" if linear else "deg", "tolerances"))
-    if tol.max_peak_current is not None:
-        timed.append(Requirement("peak_current", "<=", tol.max_peak_current, "A", "tolerances"))
-    return margins, timed
+    return margins, time_requirements(scene, tol, "tolerances")
 
 
 def tolerance_study(scene, result=None, *, samples: int | None = None, method: str | None = None,
