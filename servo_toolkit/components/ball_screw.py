@@ -49,7 +49,7 @@ class BallScrew(Stage):
     IO = ("rotary", "travel")
     UNITS = ("rad", "m", "m")
     RATIO_KEYS = "lead"
-    DISPLAY_UNITS = (("backlash", "um", 1e6),)
+    DISPLAY_UNITS = (("backlash", "um", 1e6), ("stroke_range", "mm", 1e3))
 
     name: str
     lead: float

@@ -72,6 +72,20 @@ def _stiffness_at(scene, values, linear: bool):
     return stiffness_study(scene, positions_mm=values) if linear else stiffness_study(scene, angles_deg=values)
 
 
+def _along_stroke(low: str, high: str, unit: str, at_low: str, at_high: str) -> str:
+    """The sentence on the series stiffness along the stroke: its range, or its one value
+    when the lowest and the highest read the same to the digits shown."""
+    if low == high:
+        return f"Along the stroke the series stiffness is constant at {low} {unit}."
+    return f"Along the stroke the series stiffness runs from {low} {unit} at {at_low} to {high} {unit} at {at_high}."
+
+
+def ratio_row(linear: bool) -> tuple[str, str]:
+    """(quantity, unit) of the ratio N in a table: motor rad per output m (rad/m) for an
+    output travel, per output rad (dimensionless: no unit cell) for an output angle."""
+    return (f"ratio N (motor rad per output {'m' if linear else 'rad'})", "rad/m" if linear else DIMENSIONLESS)
+
+
 def stiffness_chain(ctx) -> Section:
     """Each stage's stiffness at the output, compliance shares, the front-stage criterion
     (:data:`~servo_toolkit.report.references.NEGLECT_CRITERION`), all from
@@ -111,8 +125,8 @@ def stiffness_chain(ctx) -> Section:
     text = [
         f"Every stage's stiffness is reflected to the {_q_label(drive)} through the square of its ratio to the "
         f"output, by the {SERIES_STIFFNESS}, its eq 8; compliances in series add.",
-        f"Along the stroke the series stiffness runs from {fmt(along.total[imin] * kf)} {ku} at "
-        f"{qs[imin] * qf:+.4g} {qu} to {fmt(along.total[imax] * kf)} {ku} at {qs[imax] * qf:+.4g} {qu}.",
+        _along_stroke(fmt(along.total[imin] * kf), fmt(along.total[imax] * kf), ku,
+                      f"{qs[imin] * qf:+.4g} {qu}", f"{qs[imax] * qf:+.4g} {qu}"),
         f"The {NEGLECT_CRITERION}: a front stage may be left out when the ratio between it and every later stage "
         f"is large (at least {crit.min_ratio:g} over the whole stroke) and its own stiffness is within an order of "
         f"magnitude of some later stage's (at least 1/{crit.within:g} of it); its compliance is then at most "
@@ -151,10 +165,10 @@ def ratio_and_inertia(ctx) -> Section:
     qu, qf, _, _ = _output_units(drive)
     linear = qu == "mm"
     display = ctx.scene.display
-    out, j_unit, jf = ("m" if linear else "rad"), display.inertia_unit(linear), display.factor("inertia", linear)
+    j_unit, jf = display.inertia_unit(linear), display.factor("inertia", linear)
+    label, n_unit = ratio_row(linear)
     rows = [
-        (f"ratio N (motor rad per output {out})", fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()),
-         "rad/m" if linear else DIMENSIONLESS),
+        (label, fmt(n.min()), fmt(n.max()), fmt(n.max() / n.min()), n_unit),
         ("mass at the output" if linear else "inertia at the output J", fmt(j.min() * jf), fmt(j.max() * jf),
          fmt(j.max() / j.min()), j_unit),
         ("inertia at the motor J / N^2", fmt(jm.min()), fmt(jm.max()), fmt(jm.max() / jm.min()), "kg*m^2"),

@@ -10,6 +10,7 @@ from ..display.units import DIMENSIONLESS
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 from .plain_text import plain
+from .sections_drivetrain import ratio_row
 
 _REQ_TEXT = {
     "bandwidth": ("bandwidth", "closed-loop bandwidth (-3 dB)"),
@@ -192,12 +193,13 @@ def plant_bode(ctx) -> Section:
     what = "output travel" if u.linear else "output angle"
     am.set_title(f"Plant at q0 = {u.text(p.q0)}: armature voltage to {what}")
     shown = ctx.scene.display
+    n_label, n_unit = ratio_row(u.linear)
     rows = [("operating point q0", fmt(u.show(p.q0)), u.shown),
             ("motor-side inertia J1 (at the output)", fmt(shown.show("inertia", p.J1, u.linear)),
              shown.inertia_unit(u.linear)),
             ("load-side inertia J2", fmt(shown.show("inertia", p.J2, u.linear)), shown.inertia_unit(u.linear)),
             ("series stiffness K", fmt(shown.show("stiffness", p.K, u.linear)), shown.stiffness_unit(u.linear)),
-            ("ratio N", fmt(p.N), DIMENSIONLESS), ("efficiency", fmt(p.eta), DIMENSIONLESS),
+            (n_label, fmt(p.N), n_unit), ("efficiency", fmt(p.eta), DIMENSIONLESS),
             ("resonance sqrt(K (1/J1 + 1/J2)) / 2 pi", fmt(p.resonance_hz), "Hz"),
             ("anti-resonance sqrt(K / J2) / 2 pi", fmt(p.antiresonance_hz), "Hz"),
             ("electrical time constant L/R", fmt(p.L / p.R * 1e3), "ms")]

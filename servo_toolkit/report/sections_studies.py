@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..core.output_units import REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ
+from ..core.output_units import REQUIREMENT_SINE_HZ, OutputUnit
 from . import figures
 from .references import EQUIVALENT_ELEMENT, FROZEN_SCHEME, REFERENCES
 from .section import FigureSpec, NotApplicable, Section, esc, fmt, para, table
@@ -112,6 +110,12 @@ def sweep(ctx) -> Section:
                    key=SWEEP.section_key)
 
 
+def _cell(value, digits: int = 4) -> str:
+    """A table cell of a figure the chain may not have (no screw, no rod): ``-`` for None,
+    as ``servo-toolkit kv`` prints it."""
+    return "-" if value is None else fmt(value, digits)
+
+
 def kv_tables(ctx) -> Section:
     """Kv tables of the scene's kv studies (the equivalent-element method, Ref. [1]): inverse
     dynamics along the motion."""
@@ -135,8 +139,8 @@ def kv_tables(ctx) -> Section:
                 "Kv rod")
         rows = [(fmt(u.show(c.amplitude)), fmt(c.frequency), fmt(shown.show("inertia", c.load_inertia, u.linear)),
                  fmt(c.peak_motor_torque),
-                 fmt(c.kv_motor, 3), fmt(c.peak_screw_thrust), fmt(c.kv_screw, 3), fmt(c.peak_rod_force),
-                 fmt(c.kv_rod, 3)) for c in res.cases]
+                 fmt(c.kv_motor, 3), _cell(c.peak_screw_thrust), _cell(c.kv_screw, 3), _cell(c.peak_rod_force),
+                 _cell(c.kv_rod, 3)) for c in res.cases]
         parts.append(f"<h3>{esc(res.study)}: {esc(res.motion)}</h3>")
         parts.append(para(f"Amplitudes at the {res.amplitude_at}; stage losses: {res.losses}.", *res.notes))
         parts.append(table(head, rows, cls=KV.section_key))
@@ -156,11 +160,13 @@ def accuracy(ctx) -> Section:
     ctx.require_drivetrain("the solver accuracy study")
     from ..studies.accuracy import accuracy_study
     from ..sim import build_model
-    from ..sim import Reference as reference
+    from ..studies.time.reference import run_spec
     controller = ctx.design().controller
     model = build_model(ctx.scene, controller)
     duration = 0.05 if ctx.light else 0.2
-    res = accuracy_study(model, reference.sine(math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ), duration, progress=False)
+    command = run_spec(ctx.scene)[0]  # servo-toolkit accuracy's default: 2 deg, or 1 mm for a travel, at 8 Hz
+    res = accuracy_study(model, command, duration, progress=False)
+    u = OutputUnit(res.output_unit)
     rows = [(METHOD_NAMES.get(r["method"], r["method"]), "adaptive" if r["dt_s"] is None else fmt(r["dt_s"]),
              fmt(r["wall_s"] * 1e3), fmt(r["error"], 3)) for r in res.runs]
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
@@ -190,7 +196,8 @@ def accuracy(ctx) -> Section:
                 f"needs no reference. Against the reference the {FROZEN_SCHEME}'s error levels "
                 f"off at the difference between its play operator ({REFERENCES[2].cite}, eqs 6-8) and the "
                 "elasto-backlash law of the reference model, not at a step-size error.",
-                "Error is the largest output-angle difference from the reference, relative to the motion "
-                f"amplitude; each wall time is the best of {res.repeats} identical runs.")
+                f"Error is the largest difference of the output {'travel' if u.linear else 'angle'} from the "
+                f"reference, over the motion amplitude of {u.text(res.amplitude_rad, 3)} (an error of 1e-6 is "
+                f"{fmt(u.show(1e-6 * res.amplitude_rad), 3)} {u.shown}); each wall time is the best of {res.repeats} identical runs.")
     return Section("Solver accuracy", text + table(("method", "dt [s]", "wall [ms]", "error / amplitude"), rows),
                    (FigureSpec(fig, "Error of the fixed-step methods against run time and step."),), key="accuracy")
