@@ -154,3 +154,18 @@ def test_a_start_deflected_beyond_the_stroke_is_refused(chain):
     # the batched Monte Carlo and the tolerance runs start from the same equilibrium
     with pytest.raises(SimulationError, match="outside the stroke"):
         initial_state(model, fill(model, Reference.sine(AMP, 8.0)))
+
+
+def test_a_travel_output_leaving_its_stroke_is_told_in_mm():
+    """A carriage driven past its stroke: the refusal reads the travel in mm, not metres shown
+    as degrees."""
+    from servo_toolkit import load_scene
+    scene = load_scene(SCENES / "linear_roller_screw_actuator.toml")
+    assert scene.drivetrain.output_is_linear
+    lo_q, hi_q = scene.drivetrain.stroke
+    model = build_model(scene, default_controller(scene), ModelOptions(controller_mode="continuous"))
+    ramp = Reference.ramp(20 * (hi_q - lo_q), offset=0.5 * (lo_q + hi_q))
+    with pytest.raises(SimulationError, match=r"stroke end reached at t = [0-9.e-]+ s: output travel "
+                                              r"-?[0-9.]+ mm outside \[") as err:
+        run(model, ramp, 1.0, "auto")
+    assert f"[{lo_q * 1e3:.1f}, {hi_q * 1e3:.1f}] mm" in str(err.value)

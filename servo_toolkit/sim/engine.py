@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.output_units import OutputUnit
 from ..errors import SimulationError, StrokeEndReached
 from . import layout as lo
 from .integrators import integrate
@@ -105,16 +106,18 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
     if status == lo.STROKE_END:
         qi = 0 if model.rigid else 2
         lo_q, hi_q = model.stroke
+        unit = OutputUnit(model.output_unit)  # an angle in deg, a travel in mm
+        what, shown, k = ("travel" if unit.linear else "angle"), unit.shown, unit.factor
         if max(x[qi] - hi_q, lo_q - x[qi]) > hi_q - lo_q:
             # one step cannot carry a physical motion a whole stroke past its end
             scheme = "paper scheme" if paper else "RK4"
             state = ", ".join(f"{n} = {v:.4g}" for n, v in zip(model.state_names[:6], x[:6]))
             raise SimulationError(f"{scheme} diverged at t = {t_fail:.6g} s with step {dt:.3g} s "
-                                  f"(output angle {math.degrees(x[qi]):.4g} deg; {state}); use a "
+                                  f"(output {what} {x[qi] * k:.4g} {shown}; {state}); use a "
                                   f"smaller dt or method='auto'")
-        raise StrokeEndReached(f"stroke end reached at t = {t_fail:.6g} s: output angle "
-                               f"{math.degrees(x[qi]):.3f} deg outside [{math.degrees(model.stroke[0]):.1f}, "
-                               f"{math.degrees(model.stroke[1]):.1f}] deg (use options stroke_end='stop' "
+        raise StrokeEndReached(f"stroke end reached at t = {t_fail:.6g} s: output {what} "
+                               f"{x[qi] * k:.3f} {shown} outside [{model.stroke[0] * k:.1f}, "
+                               f"{model.stroke[1] * k:.1f}] {shown} (use options stroke_end='stop' "
                                f"for an elastic end stop)", t_fail)
     # peaks over every step (RK4 keeps them; the paper's scheme leaves fig NaN: the records)
     peaks = {} if paper or not model.closed_loop else {
