@@ -130,10 +130,13 @@ def _reduction(ctx):
             f"The reduced model leaves out: {left}. Sum of the estimates of what is left out "
             f"{fmt(plan.predicted, 3)}; a-priori bound (tolerance) {fmt(bound, 3)} = {fmt(_db(bound), 3)} dB / "
             f"{fmt(_deg(bound), 3)} deg.",
-            f"Measured full against reduced (sine dwell, over {res.counts()}): largest relative difference {fmt(measured, 3)} = "
-            f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound (run times are not "
-            "compared here: one sweep of each model is too noisy a timing; servo-toolkit accuracy times the solvers "
-            "from the best of repeated runs)."]
+            ("Nothing to measure: the reduced model is the full model (every effect kept, friction that holds "
+             "included), and the sweep ran it." if res.same_model else
+             f"Measured full (every effect kept, friction that holds included) against reduced (sine dwell, over "
+             f"{res.counts()}): largest relative difference {fmt(measured, 3)} = "
+             f"{fmt(_db(measured), 3)} dB / {fmt(_deg(measured), 3)} deg, {verdict} the bound (run times are not "
+             "compared here: one sweep of each model is too noisy a timing; servo-toolkit accuracy times the solvers "
+             "from the best of repeated runs).")]
     if np.any(res.saturated):
         text.append(f"Points where a run reached the current or voltage limit are outside the linear statement; "
                     f"their largest difference is {fmt(res.measured_saturated, 3)}.")

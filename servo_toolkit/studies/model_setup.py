@@ -5,6 +5,9 @@ A sine dwell sweep (:mod:`.sweep`), a multisine (:mod:`.multisine`) and a closed
 run (:mod:`.time.run`) all take the controller they are given, judge the scene's effects
 against their frequencies and amplitudes once (:func:`.reduce.estimates.plan_reduction`)
 unless the full model or explicit options are asked for, and build the model on the result.
+The full model holds friction (``friction="stick"``): the reduction smooths it only where
+its estimate is within the budget, so what a study says it left out is what its runs left
+out (:attr:`ModelSetup.left_out`, also for options given).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ class ModelSetup:
     plan: object
     model: object
     notes: tuple
+    given_left_out: tuple = ()
 
     @property
     def reduced(self) -> bool:
@@ -43,8 +47,12 @@ class ModelSetup:
 
     @property
     def left_out(self) -> tuple:
-        """``"effect: reason"`` of every effect the reduction left out."""
-        return () if self.plan is None else tuple(f"{o.effect}: {o.reason}" for o in self.plan.omitted)
+        """``"effect: reason"`` of every effect the runs leave out: the reduction's choice, or
+        for options given what they switch off against the full model (friction without
+        stick with its estimate and verdict)."""
+        if self.plan is None:
+            return self.given_left_out
+        return tuple(f"{o.effect}: {o.reason}" for o in self.plan.omitted)
 
     def to_dict(self) -> dict:
         """JSON-ready summary: the options, what was left out and the notes."""
@@ -80,25 +88,63 @@ def model_setup(scene, controller, frequencies_hz, amplitudes, *, options=None, 
     ModelSetup
     """
     from ..sim import ModelOptions, build_model
-    from .reduce.estimates import friction_cost_note, plan_reduction
+    from .reduce.estimates import FRICTION_EFFECT, friction_cost_note, plan_reduction
+    from .reduce.friction import friction_note
 
     notes = [] if source is None else [f"controller from {source}"]
     plan = None
+    given = options is not None
     if options is None:
-        options = base or ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING)
+        options = base or ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
         if not full:
             plan = plan_reduction(scene, controller, frequencies_hz, amplitudes, base=options)
             options = plan.options
             if build:
                 notes.append("reduced model (use full=True / --full for the full model)")
     model = None
+    cost = None
+    if build or given:
+        cost = friction_cost_note(scene, controller, frequencies_hz, amplitudes, options)
     if build:
         model = build_model(scene, controller, options)
         notes += list(model.notes)
-        cost = friction_cost_note(scene, controller, frequencies_hz, amplitudes, options)
         if cost:
             notes.append(cost)
-    return ModelSetup(options=options, plan=plan, model=model, notes=tuple(notes))
+        fric = None if plan is None else next((e for e in plan.effects if e.effect == FRICTION_EFFECT), None)
+        if fric is not None and not fric.omitted:  # left out, the cost's note says what it left
+            notes.append(friction_note(fric.parts, False))
+    return ModelSetup(options=options, plan=plan, model=model, notes=tuple(notes),
+                      given_left_out=given_left_out(options, cost) if given else ())
 
 
-__all__ = ["ModelSetup", "model_setup"]
+#: switches of ModelOptions that leave out an effect when False, with the effect's name
+_SWITCHED = (("inductance", "armature inductance"), ("compliance", "drivetrain compliance"),
+             ("backlash", "backlash"), ("variable_inertia", "inertia variation"),
+             ("efficiency", "drivetrain efficiency"))
+
+
+def given_left_out(options, friction_cost: str | None = None) -> tuple:
+    """``"effect: reason"`` of what model options given to a study leave out against the full
+    model: each effect switched off, and friction without stick (``friction_cost``: its
+    estimate and verdict, :func:`.reduce.estimates.friction_cost_note`)."""
+    out = [f"{name}: switched off (options as given)" for key, name in _SWITCHED if not getattr(options, key)]
+    if options.chain == "two_mass":
+        out.append("drivetrain modes above the first: the two-mass reduction (options as given)")
+    if options.friction != "stick":
+        out.append(f"friction that holds (stick): friction model {options.friction!r} (options as given)"
+                   + (f"; {friction_cost}" if friction_cost else ""))
+    return tuple(out)
+
+
+def model_line(reduced: bool, left_out, options: dict) -> str:
+    """The first line under a study's title: the model its runs ran and what they left out
+    (``reduced`` and ``left_out`` of :class:`ModelSetup`, ``options`` its options as a dict)."""
+    if reduced:
+        return "model: " + ("reduced, left out: " + "; ".join(left_out) if left_out else "reduced: nothing left out")
+    if left_out:
+        return "model: options as given, left out: " + "; ".join(left_out)
+    held = " (friction that holds)" if options.get("friction") == "stick" else ""
+    return f"model: full model{held}"
+
+
+__all__ = ["ModelSetup", "given_left_out", "model_line", "model_setup"]

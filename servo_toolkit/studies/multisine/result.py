@@ -13,6 +13,7 @@ import numpy as np
 from ...core.output_units import OutputUnit
 from ...core.spectra import response_csv
 from ...display.cards import RichDisplay, card, num, svg, table
+from ..model_setup import model_line
 from ..sweep.result import phase_along_frequency
 
 _LABELS = {"closed_loop": ("position command -> output position", "gain [dB]"),
@@ -175,8 +176,7 @@ class MultisineResult(RichDisplay):
                  f"{self.frequency_hz.size} lines {self.frequency_hz[0]:.4g}-{self.frequency_hz[-1]:.4g} Hz "
                  f"(Schroeder phases), period {self.period_s:.4g} s, {self.settle} settling + {self.periods} "
                  "estimation periods, rectangular window on each period (H1)"]
-        lines.append("model: " + ("reduced, left out: " + "; ".join(self.left_out) if self.reduced and self.left_out
-                                  else "reduced: nothing left out" if self.reduced else "full model"))
+        lines.append(model_line(self.reduced, self.left_out, self.options))
         lines += [f"note: {n}" for n in self.notes]
         g, p, lg, lp = self.gain_db, self.phase_deg, self.linear_gain_db, self.linear_phase_deg
         for a, amp in enumerate(self.amplitudes):

@@ -106,6 +106,12 @@ class ReductionResult(RichDisplay):
         return ~self.saturated & ~self.failed & ~np.isnan(self.difference)
 
     @property
+    def same_model(self) -> bool:
+        """True when the reduction left nothing out: the reduced model is the full model
+        (friction that holds included), run once, and there is no difference to measure."""
+        return self.full_options == self.reduced_options
+
+    @property
     def bound(self) -> float:
         """The a-priori bound on the relative difference (the tolerance)."""
         return self.plan.tolerance
@@ -157,6 +163,7 @@ class ReductionResult(RichDisplay):
                 "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
                 "measured_saturated_relative": self.measured_saturated,
                 "within_bound": self.within_bound, "bound_applies": self.bound_applies,
+                "same_model": self.same_model,
                 "points_total": int(self.difference.size), "points_compared": int(self.compared.sum()),
                 "points_saturated": int(self.saturated.sum()), "points_failed": int(self.failed.sum()),
                 "points": [{"frequency_hz": float(f), u.key("amplitude"): float(u.show(a)),
@@ -206,7 +213,10 @@ class ReductionResult(RichDisplay):
         lines.append(f"a-priori: sum of estimates of the omissions {p.predicted:.2e}; bound (tolerance) "
                      f"{self.bound:.2e} = {_db(self.bound):.3f} dB / {_deg(self.bound):.2f} deg")
         what = "sine-dwell response" if self.measure == "sweep" else "output-angle RMS"
-        if self.bound_applies:
+        if self.same_model:
+            lines.append(f"measured ({what}): nothing to compare, the reduced model is the full model (every "
+                         "effect kept, friction that holds included)")
+        elif self.bound_applies:
             lines.append(f"measured ({what}, full vs reduced, over {self.counts()}): {self.measured:.2e} = "
                          f"{_db(self.measured):.3f} dB / {_deg(self.measured):.2f} deg -> {self.verdict} the bound")
         elif np.any(self.saturated):

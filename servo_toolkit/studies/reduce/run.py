@@ -2,7 +2,9 @@
 
 :func:`reduce` judges every modelled effect against a study's frequencies and amplitudes
 (:func:`.estimates.plan_reduction`: numbers, a-priori error estimates, the choice),
-then runs the study on the full and on the reduced model and measures their difference, and
+then runs the study on the full model (every effect kept, friction that holds included) and on
+the reduced model (the options the plan chose, which the study's own runs use) and measures
+their difference (nothing left out: the two are one model, run once), and
 measures the cost of each effect left out on its own: one more run of the study on the full
 model with only that effect's switch changed, compared with the full model the same way. The
 chain's modes above the first are measured so whether ``simulate``'s rule lumps them or not
@@ -192,7 +194,8 @@ def reduce(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, controlle
                              executor=executor, progress=progress, description=f"{label} model")
             return _Traces(runs, settle / f)
     s_full = study_on(full, "full")
-    s_red = study_on(reduced, "reduced")
+    # nothing left out: the reduced model is the full one, and a second run would only repeat it
+    s_red = s_full if reduced == full else study_on(reduced, "reduced")
     diff, sat, failures = _difference(s_full, s_red, ("full", "reduced"))
     if measure == "trace":
         notes.append(f"compared over t >= {settle / f:.3g} s of {(settle + est) / f:.3g} s "

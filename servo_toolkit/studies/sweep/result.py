@@ -19,6 +19,8 @@ import numpy as np
 
 from ...core.output_units import OutputUnit
 from ...display.cards import RichDisplay, card, num, svg, table
+from ...display.html import esc
+from ..model_setup import model_line
 from ..sine_dwell import DwellPlan
 
 #: relative change of the estimate between the window's halves above which a point is unsettled
@@ -227,8 +229,7 @@ class SweepResult(RichDisplay):
     def table(self) -> str:
         """Plain-text table, one block per amplitude."""
         lines = [f"Sine-dwell sweep of {self.scene}" + (f", study {self.study}" if self.study else "")]
-        lines.append("model: " + ("reduced, left out: " + "; ".join(self.left_out) if self.reduced and self.left_out
-                                  else "reduced: nothing left out" if self.reduced else "full model"))
+        lines.append(model_line(self.reduced, self.left_out, self.options))
         lines += [f"note: {n}" for n in self.notes]
         g, p, lg, lp = self.gain_db, self.phase_deg, self.linear_gain_db, self.linear_phase_deg
         for a, amp in enumerate(self.amplitudes_rad):
@@ -305,7 +306,7 @@ def _card_html(s) -> str:
              dev["points_saturated"][i], dev["points_unsettled"][i], dev["points_failed"][i])
             for i, (a, g, p) in enumerate(zip(s.amplitudes_rad, dev["max_gain_difference_dB"],
                                               dev["max_phase_difference_deg"]))]
-    model = ("full model" if not s.reduced else "reduced: left out " + ("; ".join(s.left_out) or "nothing"))
+    model = esc(model_line(s.reduced, s.left_out, s.options))
     parts = [table(("amplitude", "largest |dG|", "largest |dP|", "valid points", "saturated", "unsettled", "failed"),
                    rows),
              f'<p class="st-note">{model}</p>', svg(s.plot, size=(7.0, 4.6), rows=2, sharex=True)]
