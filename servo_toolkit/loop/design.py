@@ -439,10 +439,12 @@ def _robust_design(scene, spec, *, q0, structure, current_bandwidth_hz, structur
     """Robust design (cascade search), or a nominal design evaluated over the variants."""
     from .robust_design import confirm_worst_case, robust_search
     from .robustness import robustness
+    from .sampling import variant_count_text
     from .vary import ranges_text
     rng = ranges_text({k: (lo, hi) for k, (lo, hi) in spec.ranges.items()}, scene.display,
                       scene.drivetrain.output_is_linear)
-    header = f"robust design over {rng} ({spec.samples} {spec.method.replace('_', ' ')} variants at q0)"
+    count = variant_count_text(spec.ranges, spec.samples, spec.method == "grid")
+    header = f"robust design over {rng} ({count} at q0)"
     if structure != "cascade" or resonance_filter != "auto":
         r = design(scene, q0, structure=structure, resonance_filter=resonance_filter,
                    current_bandwidth_hz=current_bandwidth_hz, structural_damping=structural_damping, model=model,

@@ -1,0 +1,100 @@
+"""No text beside a verdict contradicts it: a robust design's note claims only the rows it
+judged, the variant counts agree with the rows, ``design`` names the requirements it leaves
+to ``check`` and computes its large-signal rows as ``check`` does, and check's row lines
+keep their columns for long row IDs."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from types import SimpleNamespace
+
+import pytest
+
+import servo_toolkit as st
+from servo_toolkit.cli import main
+
+from .conftest import SCENES
+
+#: a linear EMA written from the docs: DC motor, 5:1 planetary with 18 arcmin of backlash,
+#: 10 mm ball screw, 15 kg carriage with Coulomb and static friction; time requirements set
+LINEAR_EMA = """
+name = "linear_ema"
+
+[motor]
+kind = "dc"
+resistance = "1.2 ohm"
+inductance = "0.3 mH"
+torque_constant = "0.06 N*m/A"
+back_emf_constant = "0.06 V*s/rad"
+rotor_inertia = "140 g*cm^2"
+viscous_friction = "2e-6 N*m*s/rad"
+coulomb_friction = "0.005 N*m"
+voltage_limit = "48 V"
+current_limit = "15 A"
+
+[[drivetrain]]
+kind = "gear"
+name = "planetary gearhead"
+ratio = 5
+inertia = ["2.0e-6 kg*m^2", "1.0e-5 kg*m^2"]
+efficiency = 0.9
+torsional_stiffness = "2000 N*m/rad"
+backlash = "18 arcmin"
+
+[[drivetrain]]
+kind = "ball_screw"
+name = "ball screw 16x10"
+lead = "10 mm"
+screw_inertia = "2.5 kg*cm^2"
+nut_mass = "0.4 kg"
+efficiency = 0.92
+axial_stiffness = "150 N/um"
+backlash = "5 um"
+stroke = ["0 mm", "200 mm"]
+
+[load]
+inertia = "15 kg"
+hinge_moment = "0 N"
+damping = "20 N*s/m"
+coulomb_friction = "30 N"
+static_friction = "40 N"
+stribeck_speed = "5 mm/s"
+
+[sensors]
+output_scale_resolution = "1 um"
+motor_encoder_counts = 2048
+sample_time = "125 us"
+
+[requirements]
+bandwidth = "15 Hz"
+step_amplitude = "1 mm"
+max_overshoot = "10 %"
+max_settling_time = "150 ms"
+sine_amplitude = "0.5 mm"
+max_tracking_error = "0.25 mm"
+"""
+
+
+def test_grid_count_in_words_is_the_count_sampled():
+    from servo_toolkit.loop.sampling import sample_variants, variant_count_text
+    ranges = {"load_inertia": (0.02, 0.1), "stiffness": (0.7, 1.3)}
+    assert variant_count_text(ranges, 200, True) == "196 grid variants (14 x 14, the grid nearest the 200 asked)"
+    assert sample_variants(ranges, 200, grid=True)["stiffness"].size == 196
+    assert variant_count_text(ranges, 225, True) == "225 grid variants"
+    assert variant_count_text(ranges, 1000, False) == "1000 monte carlo variants"
+    # a Monte Carlo sample smaller than the corners grows to them, and says so
+    assert sample_variants(ranges, 3)["stiffness"].size == 4
+    assert variant_count_text(ranges, 3, False).startswith("4 monte carlo variants (the corners")
+
+
+def test_robust_design_note_counts_the_variants_the_rows_count():
+    """[robustness] samples = 8 on a grid over two ranges is 3 x 3 = 9 variants: the design's
+    note says 9 (and why), as the robustness rows do."""
+    scene = st.load_scene(SCENES / "ema_robust.toml")
+    scene = replace(scene, robustness=replace(scene.robustness, samples=8, method="grid"))
+    r = st.design(scene, progress=False, structure="pid")  # nominal pid, evaluated over the variants: fast
+    assert r.robustness.count == 9
+    (header,) = [n for n in r.notes if n.startswith("robust design over")]
+    assert "(9 grid variants (3 x 3, the grid nearest the 8 asked) at q0)" in header
+
