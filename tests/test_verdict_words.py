@@ -76,6 +76,24 @@ max_tracking_error = "0.25 mm"
 """
 
 
+def test_a_robust_design_note_claims_only_the_rows_it_judged():
+    """The note of a robust design that misses nothing names its linear-loop and robustness
+    rows, never "every requirement": check's large-signal, time and sizing rows come later."""
+    from servo_toolkit.loop.design import _failure_notes
+    met = SimpleNamespace(name="bandwidth", passed=True, reason="")
+    result = SimpleNamespace(requirements=[met, replace_name(met, "gain_margin")],
+                             robustness=SimpleNamespace(failures=[], worst={}, count=196,
+                                                        requirements=[met, met, met, met]))
+    (note,) = _failure_notes(result)
+    assert "every requirement" not in note
+    assert "2 linear-loop requirements" in note and "4 robustness requirements" in note
+    assert "196 variants" in note and "judged apart" in note
+
+
+def replace_name(ns, name):
+    return SimpleNamespace(**{**vars(ns), "name": name})
+
+
 def test_grid_count_in_words_is_the_count_sampled():
     from servo_toolkit.loop.sampling import sample_variants, variant_count_text
     ranges = {"load_inertia": (0.02, 0.1), "stiffness": (0.7, 1.3)}
