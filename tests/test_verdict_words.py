@@ -76,6 +76,13 @@ max_tracking_error = "0.25 mm"
 """
 
 
+@pytest.fixture(scope="module")
+def linear_ema(tmp_path_factory):
+    path = tmp_path_factory.mktemp("linear_ema") / "linear_ema.toml"
+    path.write_text(LINEAR_EMA)
+    return path
+
+
 def test_a_robust_design_note_claims_only_the_rows_it_judged():
     """The note of a robust design that misses nothing names its linear-loop and robustness
     rows, never "every requirement": check's large-signal, time and sizing rows come later."""
@@ -115,4 +122,18 @@ def test_robust_design_note_counts_the_variants_the_rows_count():
     assert r.robustness.count == 9
     (header,) = [n for n in r.notes if n.startswith("robust design over")]
     assert "(9 grid variants (3 x 3, the grid nearest the 8 asked) at q0)" in header
+
+
+def test_design_and_check_judge_the_same_large_signal_run(linear_ema):
+    """design runs the requirement sine alone, check judges the actuator's sine: the same
+    command through the same model (full, friction that holds), so the same figures."""
+    from servo_toolkit.studies.actuator import actuator_check
+    from servo_toolkit.studies.gate import with_large_signal
+    scene = st.load_scene(linear_ema)
+    result = st.design(scene, progress=False)
+    _, alone = with_large_signal(scene, result)                                 # design's
+    _, judged = with_large_signal(scene, result, actuator_check(scene, result))  # check's
+    assert (alone.frequency_hz, alone.amplitude) == (judged.frequency_hz, judged.amplitude)
+    assert alone.gain_db == judged.gain_db and alone.phase_deg == judged.phase_deg
+    assert "full model, friction that holds" in alone.note(True)
 
