@@ -124,6 +124,27 @@ def test_robust_design_note_counts_the_variants_the_rows_count():
     assert "(9 grid variants (3 x 3, the grid nearest the 8 asked) at q0)" in header
 
 
+def test_design_names_what_it_leaves_to_check(linear_ema, capsys):
+    """design judges the loop's rows; the scene's time requirements are check's, and a note
+    says so naming each by its row and key."""
+    main(["design", str(linear_ema), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["requirements"]).isdisjoint({"tracking_error", "step_overshoot", "step_settling_time"})
+    (note,) = [n for n in d["notes"] if n.startswith("not judged here")]
+    for words in ("step_overshoot", "step_settling_time", "tracking_error", "max_overshoot", "max_settling_time",
+                  "max_tracking_error", "servo-toolkit check"):
+        assert words in note
+    assert "large_signal" not in note  # design judges those
+
+
+def test_left_to_check_names_the_sizing_yield_and_monte_carlo_rows():
+    from servo_toolkit.studies.gate import left_to_check
+    note = left_to_check(st.load_scene(SCENES / "ema_sizing.toml"), linear_only=True)
+    assert "[duty_cycle]" in note and "large_signal_gain" in note
+    assert "the scene's" not in note  # it sets no time requirement: the defaults are named
+    assert "at their defaults" in note
+
+
 def test_design_and_check_judge_the_same_large_signal_run(linear_ema):
     """design runs the requirement sine alone, check judges the actuator's sine: the same
     command through the same model (full, friction that holds), so the same figures."""
