@@ -158,3 +158,15 @@ def test_design_and_check_judge_the_same_large_signal_run(linear_ema):
     assert alone.gain_db == judged.gain_db and alone.phase_deg == judged.phase_deg
     assert "full model, friction that holds" in alone.note(True)
 
+
+def test_check_row_lines_fit_the_longest_id():
+    from servo_toolkit.cli.cmd_check import row_lines
+    from servo_toolkit.studies.gate import RequirementRow
+    rows = [RequirementRow("tracking_error", "peak tracking error", "<= 1 deg", "0.5 deg", "", "pass"),
+            RequirementRow("life_ball_screw_8x2_bearing", "L10 life", ">= 500 h", "4870 h", "", "pass"),
+            RequirementRow("life_ball_screw_8x2_screw", "L10 life", ">= 500 h", "20 h", "480 h", "fail")]
+    lines = row_lines(rows)
+    columns = {line.index(" ok  " if r.passed else " FAIL  ") for line, r in zip(lines, rows)}
+    assert len(columns) == 1  # the verdicts in one column
+    for line, r in zip(lines, rows):
+        assert line.startswith(f"  {r.id}  ")  # an ID never runs into its verdict
