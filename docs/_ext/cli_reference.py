@@ -40,7 +40,8 @@ def cli_markdown() -> str:
     parser = build_parser()
     out = ["# Command-line reference", "",
            "Generated from the argument parser of `servo-toolkit`; `servo-toolkit COMMAND --help` "
-           "prints the same. Exit codes: 0 done (every requirement met), 1 a requirement not met, "
+           "prints the same. Exit codes: 0 done (every requirement the command judges met: `check` every row, `design` "
+           "its loop's, naming the rest), 1 a requirement not met, "
            "2 bad input or a run outside its validity domain (one line on stderr naming the key or "
            "option and the rule), 130 interrupted. `--json` prints one JSON object on stdout.", ""]
     for name, help_text, sub in _subparsers(parser):

@@ -1,6 +1,8 @@
 """The ``servo-toolkit`` command line; one module per command in this package.
 
-Exit codes: 0 success (and every requirement met for ``check``), 1 requirements not met,
+Exit codes: 0 success (and every requirement met for ``check``; for ``design``, every row it
+judges: the loop's, a note naming the scene's requirements it leaves to ``check``), 1
+requirements not met,
 2 bad input (the message names the scene key) or a simulation that left its validity domain
 (:class:`~servo_toolkit.errors.SimulationError`, e.g. a step too large for an explicit
 scheme); either way one line on stderr, no traceback. 130 interrupted by Ctrl-C (SIGINT,

@@ -181,6 +181,13 @@ def _tagged(exc: SceneError, path) -> SceneError:
     return exc if exc.source else exc.with_source(str(path))
 
 
+def row_lines(rows) -> list[str]:
+    """One text line per requirement row: its ID, ``ok`` or ``FAIL``, and its message, the IDs
+    in a column as wide as the longest (at least 24 characters) so the verdicts line up."""
+    width = max([24] + [len(r.id) + 2 for r in rows])
+    return [f"  {r.id:<{width}}{'ok' if r.passed else 'FAIL'}  {r.message()}" for r in rows]
+
+
 def _check_tolerance_budget(scene, args) -> None:
     """Refuse (exit 2, naming ``tolerances.samples``) a yield study estimated beyond the work
     budget, unless ``--force``: checked before any work."""
@@ -242,10 +249,11 @@ def _check_scene(path, scene, args, varies, executor=None, design_text=None):
         print(requirements_table(result.requirements, stable=bool(result.margins.closed_loop_stable)))
         if robust is not None:
             print(robust.table())
-        for r in g.rows:  # the rows beyond the loop's table, in the gate's order (the actuator's first)
-            if r.id in ACTUATOR_IDS or r.id in ("robust_tracking_error", "robust_peak_current") or r.id in sizing_ids \
-                    or r.id.startswith(("life_", "static_load_", "yield")):
-                print(f"  {r.id:<24}{'ok' if r.passed else 'FAIL'}  {r.message()}")
+        extra = [r for r in g.rows  # the rows beyond the loop's table, in the gate's order (the actuator's first)
+                 if r.id in ACTUATOR_IDS or r.id in ("robust_tracking_error", "robust_peak_current")
+                 or r.id in sizing_ids or r.id.startswith(("life_", "static_load_", "yield"))]
+        for line in row_lines(extra):
+            print(line)
         for n in (*result.notes, *(g.actuator.notes if g.actuator is not None else ())):
             print(f"  note: {n}")
         if measured[2]:

@@ -74,7 +74,8 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
 
 def register(sub) -> None:
     """Register the command."""
-    p = sub.add_parser("design", help="loop design and margins")
+    p = sub.add_parser("design", help="loop design and margins: judges the loop's rows (exit 0 met, 1 not met), "
+                                      "a note names the rows check judges besides")
     add_scene(p)
     add_design_options(p)
     add_large_signal_option(p)
@@ -87,9 +88,11 @@ def register(sub) -> None:
 def run(args) -> int:
     """Run the command; exit 0 when every loop requirement (the large-signal and robustness
     rows included) is met and the closed loop is stable, 1 otherwise, 2 on bad input. The
-    rows ``check`` adds for a ``[duty_cycle]`` (sizing), a required yield or Monte Carlo
-    requirements are not judged here, nor the measured plant's (``--plant-frf``: its margins
-    are printed beside the model's; ``check --plant-frf`` judges them)."""
+    rows ``check`` adds (the nonlinear step and sine's, e.g. ``tracking_error``, the sizing
+    of a ``[duty_cycle]``, a required yield, Monte Carlo requirements) are not judged here: a
+    note names those the scene asks for (:func:`~servo_toolkit.studies.gate.left_to_check`);
+    nor are the measured plant's (``--plant-frf``: its margins are printed beside the
+    model's; ``check --plant-frf`` judges them)."""
     from ..loop.requirements import parse_overrides
     parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
     if getattr(args, "plant_frf", None):
@@ -105,6 +108,10 @@ def run(args) -> int:
     except SceneError as exc:  # e.g. no motor-driven drivetrain: name the file (an option names itself)
         raise (exc if exc.source or exc.key.startswith("--") else exc.with_source(str(args.scene))) from None
     result, ls = gate_result(scene, args, result)
+    from dataclasses import replace
+
+    from ..studies.gate import left_to_check
+    result = replace(result, notes=tuple(result.notes) + (left_to_check(scene, getattr(args, "linear_only", False)),))
     data = result.to_dict()
     if ls is not None:
         data["large_signal"] = ls.to_dict()

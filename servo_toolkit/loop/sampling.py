@@ -51,6 +51,31 @@ def corners(ranges: dict) -> dict:
     return {k: combos[:, j] for j, k in enumerate(ranges)}
 
 
+def grid_per_axis(samples: int, axes: int) -> int:
+    """Points per range of a grid of about ``samples`` points over ``axes`` ranges: the
+    nearest whole ``samples ** (1 / axes)``, at least 2 (each range's ends)."""
+    return max(2, int(round(samples ** (1 / axes))))
+
+
+def variant_count_text(ranges: dict, samples: int, grid: bool) -> str:
+    """The variants :func:`sample_variants` draws over ``ranges`` (name -> (lo, hi)) for
+    ``samples``, in words: ``"200 monte carlo variants"``; a grid's points per range to the
+    power of the ranges (``"196 grid variants (14 x 14, the grid nearest the 200 asked)"``)
+    and a Monte Carlo sample grown to the corners of the ranges say why they are not the
+    number asked."""
+    axes = len(ranges)
+    if grid and axes:
+        per = grid_per_axis(samples, axes)
+        n = per ** axes
+        if n == samples:
+            return f"{n} grid variants"
+        return f"{n} grid variants ({' x '.join([str(per)] * axes)}, the grid nearest the {samples} asked)"
+    m = next(iter(corners(ranges).values())).size if axes else 0
+    if samples < m:
+        return f"{m} monte carlo variants (the corners of the ranges, more than the {samples} asked)"
+    return f"{samples} {'grid' if grid else 'monte carlo'} variants"
+
+
 def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0,
                     defaults=None) -> dict:
     """Arrays of parameter values: explicit arrays are kept; (lo, hi) ranges are sampled on a
@@ -72,7 +97,7 @@ def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed
     ranges = {k: v for k, v in variants.items() if isinstance(v, tuple) and len(v) == 2}
     out = {k: np.asarray(v, float).ravel() for k, v in variants.items() if k not in ranges}
     if grid and ranges:
-        per = max(2, int(round(samples ** (1 / len(ranges)))))
+        per = grid_per_axis(samples, len(ranges))
         mesh = np.meshgrid(*[_spaced(lo, hi, per) for lo, hi in ranges.values()], indexing="ij")
         out.update({k: m.ravel() for k, m in zip(ranges, mesh)})
     elif ranges:

@@ -200,7 +200,9 @@ class Robustness:
     stiffness : tuple of float or None
         (lo, hi) factors, 0 < lo <= hi.
     samples : int
-        Variants in total (Monte Carlo draws, or grid points spread over the axes).
+        Variants in total (Monte Carlo draws, or grid points spread over the axes: the same
+        number on each, the nearest whole root of ``samples``, so 200 over two ranges is a
+        14 x 14 grid of 196; the notes and rows give the count run).
     method : str
         ``"monte_carlo"`` (uniform, seeded) or ``"grid"`` (corners included).
     seed : int

@@ -51,6 +51,12 @@ REST_FRACTION = 0.02
 TRACKING_FACTOR = 1.25
 #: the share of the current and the voltage a default sine may take to follow as a rigid body
 FOLLOW_SHARE = 0.5
+#: row ID -> the ``[requirements]`` key that sets its bound, in the rows' order
+ROW_KEYS = {"step_overshoot": "max_overshoot", "step_settling_time": "max_settling_time",
+            "position_error_at_rest": "max_position_error_at_rest", "limit_cycle": "max_limit_cycle",
+            "tracking_error": "max_tracking_error", "current_ripple": "max_current_ripple",
+            "rms_current": "max_rms_current", "time_at_current_limit": "max_time_at_current_limit",
+            "time_at_voltage_limit": "max_time_at_voltage_limit"}
 
 
 @dataclass(frozen=True)
@@ -175,27 +181,26 @@ def plan(scene, design) -> Plan:
     i_cont = continuous_current(motor)
     pos = (u.shown, u.factor)
     table = [
-        ("step_overshoot", "max_overshoot", DEFAULT_OVERSHOOT, ("%", 100.0), f"{100 * DEFAULT_OVERSHOOT:g} % of the step"),
-        ("step_settling_time", "max_settling_time", SETTLING_PERIODS / f, ("ms", 1e3),
+        ("step_overshoot", DEFAULT_OVERSHOOT, ("%", 100.0), f"{100 * DEFAULT_OVERSHOOT:g} % of the step"),
+        ("step_settling_time", SETTLING_PERIODS / f, ("ms", 1e3),
          f"{SETTLING_PERIODS:g} periods of the required bandwidth {f:g} Hz"),
-        ("position_error_at_rest", "max_position_error_at_rest", REST_FRACTION * abs(step), pos,
-         f"{100 * REST_FRACTION:g} % of the step"),
-        ("limit_cycle", "max_limit_cycle", REST_FRACTION * abs(step), pos, f"{100 * REST_FRACTION:g} % of the step"),
-        ("tracking_error", "max_tracking_error", TRACKING_FACTOR * lin_err, pos,
+        ("position_error_at_rest", REST_FRACTION * abs(step), pos, f"{100 * REST_FRACTION:g} % of the step"),
+        ("limit_cycle", REST_FRACTION * abs(step), pos, f"{100 * REST_FRACTION:g} % of the step"),
+        ("tracking_error", TRACKING_FACTOR * lin_err, pos,
          f"{TRACKING_FACTOR:g} x the linear closed loop's {u.text(lin_err, 3)} on the same sine"),
-        ("current_ripple", "max_current_ripple",
+        ("current_ripple",
          RIPPLE_OF_CONTINUOUS * i_cont if i_cont is not None else RIPPLE_OF_LIMIT * motor.current_limit, ("A", 1.0),
          f"{100 * RIPPLE_OF_CONTINUOUS:g} % of the continuous current" if i_cont is not None
          else f"{100 * RIPPLE_OF_LIMIT:g} % of the current limit"),
-        ("rms_current", "max_rms_current", i_cont, ("A", 1.0), "the motor's continuous current"),
-        ("time_at_current_limit", "max_time_at_current_limit", 0.0 if math.isfinite(motor.current_limit) else None,
+        ("rms_current", i_cont, ("A", 1.0), "the motor's continuous current"),
+        ("time_at_current_limit", 0.0 if math.isfinite(motor.current_limit) else None,
          ("ms", 1e3), "none in the sine"),
-        ("time_at_voltage_limit", "max_time_at_voltage_limit", 0.0 if math.isfinite(motor.voltage_limit) else None,
+        ("time_at_voltage_limit", 0.0 if math.isfinite(motor.voltage_limit) else None,
          ("ms", 1e3), "none in the sine"),
     ]
     bounds = []
-    for name, key, default, (unit, factor), rule in table:
-        value = getattr(given, key)
+    for name, default, (unit, factor), rule in table:
+        value = getattr(given, ROW_KEYS[name])
         if value is not None:
             bounds.append(Bound(name, float(value), unit, factor, "scene"))
         elif default is not None and math.isfinite(default):
@@ -203,5 +208,5 @@ def plan(scene, design) -> Plan:
     return Plan(float(step), float(amp), float(f), tuple(bounds), tuple(notes), float(lin_err))
 
 
-__all__ = ["Bound", "DEFAULT_OVERSHOOT", "FOLLOW_SHARE", "Plan", "REST_FRACTION", "SETTLING_PERIODS", "TRACKING_FACTOR",
-           "continuous_current", "followable_amplitude", "plan"]
+__all__ = ["Bound", "DEFAULT_OVERSHOOT", "FOLLOW_SHARE", "Plan", "REST_FRACTION", "ROW_KEYS", "SETTLING_PERIODS",
+           "TRACKING_FACTOR", "continuous_current", "followable_amplitude", "plan"]

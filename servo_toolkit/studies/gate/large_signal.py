@@ -4,12 +4,14 @@ against the linear loop the margins describe.
 
 A linear check cannot see saturation: a 3 V supply leaves every margin of the reference EMA
 intact while the 2 deg, 8 Hz command pins the voltage and the output lags by tens of
-degrees. The sine runs at the required bandwidth (8 Hz when the scene sets none) with the
-amplitude of the scene's sweep study (2 deg, or 1 mm for an output travel, without one),
-for :data:`CYCLES` cycles; the fundamental of the last :data:`FIT_CYCLES` is compared with
-the linear closed loop at that frequency. Rows: ``large_signal_gain`` (|gain difference|
-at most :data:`GAIN_TOLERANCE_DB`) and ``large_signal_phase`` (|phase difference| at most
-:data:`PHASE_TOLERANCE_DEG`); the time at the voltage and current limits (within 1 % of
+degrees. The run is the actuator's requirement sine (:mod:`servo_toolkit.studies.actuator`:
+the command of :func:`~servo_toolkit.studies.actuator.spec.plan`, at the required bandwidth,
+8 Hz when the scene sets none, through the full model with friction that holds), the same
+for ``design`` and ``check`` (which judges it once for these rows and its
+``tracking_error``), for :data:`CYCLES` cycles; the fundamental of the last
+:data:`FIT_CYCLES` is compared with the linear closed loop at that frequency. Rows:
+``large_signal_gain`` (|gain difference| at most :data:`GAIN_TOLERANCE_DB`) and
+``large_signal_phase`` (|phase difference| at most :data:`PHASE_TOLERANCE_DEG`); the time at the voltage and current limits (within 1 % of
 each, :func:`~.actuator.figures.time_at_limit`) is reported beside them.
 """
 
@@ -102,7 +104,8 @@ class LargeSignal(RichDisplay):
         if self.failure:
             return (f"large signal: the {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop "
                     f"failed: {self.failure}")
-        return (f"large signal: {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop: "
+        return (f"large signal: {amp} sine at {self.frequency_hz:g} Hz through the nonlinear closed loop (full "
+                f"model, friction that holds): "
                 f"{self.gain_db:+.2f} dB / {self.phase_deg:.1f} deg against the linear {self.linear_gain_db:+.2f} dB / "
                 f"{self.linear_phase_deg:.1f} deg; {self.limits_text()}; "
                 f"peak {self.peak_current_A:.3g} A, {self.peak_voltage_V:.3g} V")
@@ -189,8 +192,10 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
     scene : Scene
     result : DesignResult
     actuator : ActuatorCheck, optional
-        The actuator's nonlinear runs (:mod:`.actuator`): its requirement sine (the full model
-        with friction that holds, the same command) is the run judged, not run again.
+        The actuator's nonlinear runs (:mod:`.actuator`): its requirement sine is the run
+        judged, not run again. Without it the same sine is run alone (the command of
+        :func:`servo_toolkit.studies.actuator.spec.plan`, the full model with friction that
+        holds), so the rows do not depend on whether the step was run too.
 
     Raises
     ------
@@ -200,18 +205,13 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
     """
     import control as ct
 
-    from ...errors import SimulationError, StrokeEndReached
-    from ...sim import Reference, simulate
-    from ..sweep.kind import SWEEP
-    from ..sweep.points import study_points
-    from ...loop.requirements import requirements_of
-    f = next(r.value for r in requirements_of(scene) if r.name == "bandwidth")
-    _, _, amps = study_points(scene)
     from ...core.output_units import output_unit
+    from ...errors import SimulationError, StrokeEndReached
+    from ..actuator.runs import sine_run
+    from ..actuator.spec import plan as make_plan
     unit = output_unit(scene)
-    amp = float(amps[0]) if scene.studies_of_kind(SWEEP.name) else unit.default_amplitude
-    if actuator is not None:
-        f, amp = actuator.plan.frequency, actuator.plan.sine_amplitude
+    plan = actuator.plan if actuator is not None else make_plan(scene, result)
+    f, amp = plan.frequency, plan.sine_amplitude
     duration = CYCLES / f
     lin = complex(np.asarray(ct.frequency_response(result.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
     lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
@@ -219,8 +219,7 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
         run = actuator.sine_run if actuator is not None else None
         if actuator is not None and run is None:  # its sine left the stroke
             raise StrokeEndReached(actuator.failure, actuator.stroke_end_s)
-        run = run or simulate(scene, result.controller, reference=Reference.sine(amp, f), duration=duration,
-                              method="rk4")
+        run = run or sine_run(scene, result.controller, plan)
     except StrokeEndReached as exc:  # the actuator ran into its end stop: a failed requirement, not bad input
         return LargeSignal(frequency_hz=float(f), amplitude=amp, gain_db=math.nan, phase_deg=math.nan,
                            linear_gain_db=lin_db, linear_phase_deg=lin_deg, time_at_voltage_limit_s=math.nan,
