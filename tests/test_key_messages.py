@@ -89,3 +89,27 @@ def test_the_command_line_prints_a_note_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"servo-toolkit: note: {scene}: sensors.sample_time = 0.2 has no unit and is read in s (SI): "
                    "0.2 s is outside the typical 1e-06..0.02 s; write the unit if another was meant (e.g. \"0.2 ms\")"]
+
+
+def _emps_dict():
+    import tomllib
+    return tomllib.loads((SCENES / "emps.toml").read_text())
+
+
+def test_a_load_given_as_a_mass_without_a_drivetrain_names_the_rule():
+    data = variant(_emps_dict(), drivetrain=None)
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == "load.inertia"
+    assert "dimension mismatch" not in info.value.rule
+    assert "needs a drivetrain ending in a travel output" in info.value.rule
+    assert "[[drivetrain]] is missing" in info.value.rule
+
+
+def test_a_load_given_as_a_mass_on_a_rotary_output_names_the_last_stage():
+    data = variant(_emps_dict(), drivetrain=[{"kind": "gear", "ratio": 5}])
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == "load.inertia"
+    assert "output is an angle (drivetrain[0] is a gear)" in info.value.rule
+    assert "kg*m^2" in info.value.rule
