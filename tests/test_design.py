@@ -1,5 +1,6 @@
 """Loop design of the reference EMA and the cam drive."""
 
+import json
 import math
 import warnings
 
@@ -134,3 +135,29 @@ def test_robust_design_of_a_rigid_drive_stays_in_its_search_box():
     assert r.parameters.rigid and r.robustness.all_stable and r.passed, r.table()
     assert all(np.isfinite(v) and v < 1e4 for v in r.motion.gains.values())
     assert r.robustness.worst["phase_margin"]["load_inertia"] > 5e-5  # the heaviest variants are the worst
+
+
+@pytest.mark.parametrize("out, kv", [("m", "A*s/m"), ("rad", "A*s/rad")])
+def test_a_controller_line_gives_every_gain_its_unit(out, kv):
+    """The line simulate and design print: each gain with its unit, the speed gain per output
+    m/s for an output travel, per output rad/s for an angle; a notch's frequency in rad/s."""
+    motion = Motion("cascade", {"kp": 84.0, "kv": 223.4, "wvi": 32.81}, "notch",
+                    {"wn": 173.4, "zeta_zero": 0.14, "zeta_pole": 0.7})
+    assert motion.describe(out) == (f"cascade (kp=84 1/s, kv=223.4 {kv}, wvi=32.81 rad/s) + notch wn=173.4 rad/s, "
+                                    "zeta_zero=0.14, zeta_pole=0.7")
+
+
+def test_a_designed_controller_names_its_gains_units_for_an_output_travel(capsys):
+    from servo_toolkit.cli import main
+    main(["simulate", str(SCENES / "emps.toml"), "--json"])
+    controller = json.loads(capsys.readouterr().out)["controller"]
+    assert controller.startswith("cascade (kp=") and " 1/s, kv=" in controller and " A*s/m, wvi=" in controller
+
+
+def test_the_feedforward_line_gives_the_inertia_and_ratio_their_units():
+    from servo_toolkit.loop.command_design import CommandDesign
+    gains = {"velocity": 0.2108, "acceleration": 1.464, "inertia": 276.0, "ratio": 3142.0}
+    (line,) = CommandDesign("s", gains, output_unit="m").lines()[:1]
+    assert line.endswith("(J 276 kg, N 3142 rad/m)")
+    (line,) = CommandDesign("s", gains, output_unit="rad").lines()[:1]
+    assert line.endswith("(J 276 kg*m^2, N 3142 rad/rad)")

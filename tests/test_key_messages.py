@@ -89,3 +89,54 @@ def test_the_command_line_prints_a_note_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"servo-toolkit: note: {scene}: sensors.sample_time = 0.2 has no unit and is read in s (SI): "
                    "0.2 s is outside the typical 1e-06..0.02 s; write the unit if another was meant (e.g. \"0.2 ms\")"]
+
+
+def _emps_dict():
+    import tomllib
+    return tomllib.loads((SCENES / "emps.toml").read_text())
+
+
+def test_a_load_given_as_a_mass_without_a_drivetrain_names_the_rule():
+    data = variant(_emps_dict(), drivetrain=None)
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == "load.inertia"
+    assert "dimension mismatch" not in info.value.rule
+    assert "needs a drivetrain ending in a travel output" in info.value.rule
+    assert "[[drivetrain]] is missing" in info.value.rule
+
+
+def test_a_load_given_as_a_mass_on_a_rotary_output_names_the_last_stage():
+    data = variant(_emps_dict(), drivetrain=[{"kind": "gear", "ratio": 5}])
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == "load.inertia"
+    assert "output is an angle (drivetrain[0] is a gear)" in info.value.rule
+    assert "kg*m^2" in info.value.rule
+
+
+@pytest.mark.parametrize("table", ["requirements", "robustness"])
+@pytest.mark.parametrize("written", [45, "45"])
+def test_a_bare_phase_margin_is_refused_saying_it_was_read_in_rad(written, table):
+    import tomllib
+    data = tomllib.loads((SCENES / "ema_robust.toml").read_text())
+    data[table]["min_phase_margin"] = written
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == f"{table}.min_phase_margin"
+    assert "(got 45, read as 45 rad = 2578 deg: a bare number is in rad; write '45 deg')" in info.value.rule
+
+
+def test_a_phase_margin_with_its_unit_is_refused_in_deg(ema_dict):
+    with pytest.raises(SceneError, match=r"must be below 180 deg.*\(got 190 deg\)"):
+        build(variant(ema_dict, requirements__min_phase_margin="190 deg"))
+
+
+@pytest.mark.parametrize("written", [90, "90"])
+def test_a_bare_phase_lag_far_beyond_a_turn_is_noted_in_rad(ema_dict, written):
+    scene = build(variant(ema_dict, requirements__max_phase_lag_at_bandwidth=written))
+    assert scene.requirements.max_phase_lag_at_bandwidth == 90.0  # read in rad, as documented
+    assert len(scene.notes) == 1
+    assert "max_phase_lag_at_bandwidth = 90 has no unit and is read in rad (SI)" in scene.notes[0]
+    assert 'e.g. "90 deg"' in scene.notes[0]
+    assert build(variant(ema_dict, requirements__max_phase_lag_at_bandwidth=1.2)).notes == ()

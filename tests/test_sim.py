@@ -172,3 +172,20 @@ def test_cam_scene_open_loop_steady_speed():
     scene = dataclasses.replace(scene, stages=(cam,))
     res = simulate(scene, voltage=3.5, duration=3.0, method="rk4", dt=1e-3)
     assert res.motor_speed[-1] == pytest.approx(13.36, rel=2e-3)
+
+
+def test_the_step_choice_and_the_run_say_where_their_eigenvalues_were_taken(ema):
+    """The choice reports the fastest eigenvalue at the start, the run's line the fastest over
+    the start and the states along the run: each names its own, and the figures it prints
+    are of the state it names (|lambda dt| / dt is the start's |lambda|)."""
+    import re
+    model = build_model(ema, default_controller(ema))
+    res = run(model, Reference.sine(AMP, 8.0), 0.05, "auto")
+    m = re.search(r"\(at most the sample time\): \|lambda dt\| = (\S+) for the fastest eigenvalue at the start, "
+                  r"\|lambda\| = (\S+) 1/s", res.choice)
+    assert m, res.choice
+    assert float(m.group(1)) / res.dt_s == pytest.approx(float(m.group(2)), rel=2e-3)
+    line = [ln for ln in res.table().splitlines() if "fastest eigenvalue over the run" in ln]
+    assert len(line) == 1
+    assert f"|lambda| = {res.stability['max_abs_lambda']:.4g} 1/s at t = {res.stability['t_s']:.4g} s" in line[0]
+    assert res.stability["max_abs_lambda"] >= float(m.group(2)) * (1 - 2e-3)

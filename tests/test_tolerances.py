@@ -307,3 +307,13 @@ def test_check_gates_on_the_lower_end_and_the_report_shows_the_same_rows(tmp_pat
     # the housing's stiffness in the scene's [display] unit, as it is written (1696.8 N*m/deg +- 15 %)
     assert "uniform 1442..1951 N*m/deg" in section.html and "N*m/rad" not in section.html
     assert [r.to_dict() for r in yield_rows(tolerance_results(ctx))] == rows
+
+
+def test_the_default_sampling_is_the_one_the_help_names():
+    """A scene with only [robustness] draws its ranges at random (as its Monte Carlo does), a
+    [tolerances] table without a method by Latin hypercube: the --method help says both."""
+    from servo_toolkit.cli import build_parser
+    assert load_scene(SCENES / "ema_robust.toml").tolerances.method == "random"
+    sub = next(a for a in build_parser()._subparsers._group_actions[0].choices["tolerances"]._actions
+               if "--method" in a.option_strings)
+    assert "[tolerances] method, lhs" in sub.help and "random draws" in sub.help and "only [robustness]" in sub.help

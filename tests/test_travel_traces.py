@@ -54,3 +54,29 @@ def test_an_output_travel_is_written_and_shown_in_metres(carriage, tmp_path, cap
     main(["simulate", str(carriage), "--amplitude", "0.5 mm", "--frequency", "2"])
     text = capsys.readouterr().out
     assert "output_travel_m = " in text and "output_angle_rad" not in text
+
+
+def test_the_play_state_is_an_absolute_position_held_outside_the_paper_scheme(tmp_path, capsys):
+    """The play state is the paper scheme's play-operator output, a position at the output:
+    an RK4 run holds it at its start (the output's start travel, mid-stroke, not 0) and says
+    so; the paper scheme moves it with the motor side and needs no such note."""
+    carriage = tmp_path / "stroke.toml"
+    carriage.write_text(carriage_text().replace('backlash = "10 um"', 'backlash = "10 um"\nstroke = ["0 mm", "200 mm"]'))
+    trace = tmp_path / "trace.csv"
+    assert main(["simulate", str(carriage), "--amplitude", "0.5 mm", "--frequency", "2", "-o", str(trace),
+                 "--method", "rk4", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    cols = np.genfromtxt(trace, delimiter=",", names=True)
+    assert np.all(cols["play_state_m"] == cols["play_state_m"][0])
+    assert cols["play_state_m"][0] == pytest.approx(cols["output_travel_m"][0], abs=1e-9)
+    start_mm = cols["play_state_m"][0] * 1e3
+    assert abs(start_mm) > 1.0  # a mid-stroke start: an absolute position, no deflection
+    held = [n for n in out["notes"] if n.startswith("play_state_m is")]
+    assert held == [f"play_state_m is the paper scheme's play-operator output, a position at the output like "
+                    f"output_travel_m (not a deflection): method 'rk4' holds it at its start, {start_mm:.4g} mm"]
+    assert main(["simulate", str(carriage), "--amplitude", "0.5 mm", "--frequency", "2", "-o", str(trace),
+                 "--method", "paper", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert not [n for n in out["notes"] if n.startswith("play_state_m is")]
+    cols = np.genfromtxt(trace, delimiter=",", names=True)
+    assert np.ptp(cols["play_state_m"]) > 0.5e-3  # it follows the 0.5 mm sine

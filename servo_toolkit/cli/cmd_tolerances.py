@@ -29,7 +29,9 @@ def register(sub) -> None:
     p.add_argument("--samples", type=bounded(int, 2, 1_000_000, what="a number of variants"), default=None,
                    help="variants (default: the scene's [tolerances] samples, 1024)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="sampling: Latin hypercube, scrambled Sobol or independent draws (default: the scene's, lhs)")
+                   help="sampling: Latin hypercube, scrambled Sobol or independent draws (default: the "
+                        "scene's [tolerances] method, lhs; random draws, as [robustness]'s Monte Carlo, "
+                        "when the scene gives only [robustness])")
     p.add_argument("--seed", type=bounded(int, 0, 2**63 - 1, what="a seed"), default=None,
                    help="seed of the draws (default: the scene's, 0)")
     mode = p.add_mutually_exclusive_group()

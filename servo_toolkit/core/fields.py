@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from .ranges import conditioned_range, range_rule
-from .units import parse_quantity
+from .units import is_bare_number, parse_quantity
 
 _MISSING = object()
 
@@ -221,7 +221,7 @@ class Fields:
         if value is default and default is not _MISSING and not isinstance(default, str):
             return default
         result = self._checked(parse_quantity(value, unit, self.key(name)), name, rule, unit=unit, bounds=bounds)
-        if typical is not None and isinstance(value, (int, float)) and result != 0 \
+        if typical is not None and is_bare_number(value) and result != 0 \
                 and not typical[0] <= abs(result) <= typical[1]:
             self._note_unusual(name, result, unit, typical)
         return result
@@ -232,7 +232,8 @@ class Fields:
         if notes is not None:
             notes.append(f"{self.key(name)} = {value:g} has no unit and is read in {unit} (SI): "
                          f"{value:g} {unit} is outside the typical {typical[0]:g}..{typical[1]:g} {unit}; "
-                         f"write the unit if another was meant (e.g. \"{value:g} m{unit}\")")
+                         f"write the unit if another was meant (e.g. \"{value:g} "
+                         f"{'deg' if unit == 'rad' else 'm' + unit}\")")
 
     def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None, bounds=None) -> tuple:
         """A list of quantities converted to ``unit``, each checked as :meth:`quantity` does."""

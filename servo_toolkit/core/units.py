@@ -135,6 +135,29 @@ def _reject_angle(q: pint.Quantity, text: str, key: str) -> None:
         raise SceneError(key, f"expected a dimensionless number, got an angle {text!r}: give a bare number")
 
 
+def is_bare_number(value) -> bool:
+    """True for a scene value written without a unit: a number, or a string holding only one
+    (``45`` or ``"45"``); :func:`parse_quantity` reads it in the key's SI unit."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, (int, float)):
+        return True
+    try:
+        float(value.strip()) if isinstance(value, str) else float("x")
+    except ValueError:
+        return False
+    return True
+
+
+def read_as(value, si: float, unit: str) -> str:
+    """How a bare number was read, for a refusal: ``got 45, read as 45 rad = 2578 deg: a bare
+    number is in rad; write '45 deg'`` (an angle), ``got 5, read as 5 m`` (another unit)."""
+    if unit != "rad":
+        return f"got {value}, read as {si:g} {unit}: a bare number is in {unit}"
+    return (f"got {value}, read as {si:g} rad = {math.degrees(si):.4g} deg: a bare number is in rad; "
+            f"write '{str(value).strip()} deg'")
+
+
 def parse_quantity(value, unit: str, key: str) -> float:
     """Convert a scene value to a float in ``unit``.
 

@@ -72,7 +72,8 @@ class CommandDesign(RichDisplay):
         u = "m" if self.output_unit == "m" else "rad"
         g = self.gains
         out = [f"  feedforward gains at q0: velocity {g['velocity']:.4g} A*s/{u}, acceleration "
-               f"{g['acceleration']:.4g} A*s^2/{u} (J {g['inertia']:.4g}, N {g['ratio']:.4g})"]
+               f"{g['acceleration']:.4g} A*s^2/{u} (J {g['inertia']:.4g} {'kg' if u == 'm' else 'kg*m^2'}, "
+               f"N {g['ratio']:.4g} rad/{u})"]
         if self.schedule is not None:
             out.append(f"  {self.schedule.describe()}")
             if self.stroke_fixed is not None and self.stroke_scheduled is not None \

@@ -187,7 +187,8 @@ def _search(scene, p, reqs, structure, filters, f_req, f_target, phase_hz, sampl
     order = np.argsort(-_slack(figs, reqs), kind="stable")
     mats = [plant_matrices(q, inductance=True) for q in stroke_params]
     for idx in order:
-        ctrl = CascadeController(motions[idx].state_space(), *current_gains, sample_time, motions[idx].describe())
+        ctrl = CascadeController(motions[idx].state_space(), *current_gains, sample_time,
+                                 motions[idx].describe(scene.drivetrain.output_unit))
         if not stable_only:
             return motions[idx], ctrl
         kc = controller_matrices(ctrl, scene.motor)

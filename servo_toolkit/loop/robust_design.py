@@ -331,7 +331,8 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
     results = []
     for round_ in range(rounds + 1):
         motion = best[0]
-        ctrl = CascadeController(motion.state_space(), *current_gains, sample_time, motion.describe())
+        ctrl = CascadeController(motion.state_space(), *current_gains, sample_time,
+                                 motion.describe(scene.drivetrain.output_unit))
         nominal_result = evaluate_design(ctrl, motion)
         rb = robustness(scene, nominal_result, spec=spec, requirements=robust, progress=False,
                         structural_damping=structural_damping, executor=executor)

@@ -26,6 +26,21 @@ def lowpass(wn: float, zeta: float = 0.5):
     return np.array([wn**2]), np.array([1.0, 2 * zeta * wn, wn**2])
 
 
+#: gain or filter parameter -> (meaning, unit with OUT for the output's unit, rad or m; "" for
+#: a dimensionless one)
+PARAMETERS = {"kp": ("position gain", "1/s"), "kv": ("speed gain", "A*s/OUT"), "wvi": ("speed PI corner", "rad/s"),
+              "kc": ("controller gain", "A/OUT"), "wi": ("integral corner", "rad/s"), "wz": ("lead zero", "rad/s"),
+              "wp": ("lead pole", "rad/s"), "wn": ("filter frequency", "rad/s"),
+              "zeta_zero": ("notch depth: damping of the zeros", ""),
+              "zeta_pole": ("notch width: damping of the poles", ""),
+              "zeta": ("low-pass damping", "")}
+
+
+def parameter_unit(name: str, out: str = "rad") -> str:
+    """The unit of a gain or filter parameter for an output in ``out`` (``"rad"`` or ``"m"``)."""
+    return PARAMETERS.get(name, (name, ""))[1].replace("OUT", out)
+
+
 @dataclass(frozen=True)
 class Motion:
     """A motion-controller design: structure, gains and resonance filter.
@@ -111,9 +126,10 @@ class Motion:
         return ct.ss(A, B, C, D, inputs=["theta_ref", "theta", "omega_m"], outputs=["i_ref"],
                      states=states, name="motion")
 
-    def describe(self) -> str:
-        """One line for reports."""
-        g = ", ".join(f"{k}={v:.4g}" for k, v in self.gains.items())
-        f = "" if self.filter == "none" else f" + {self.filter} " + ", ".join(
-            f"{k}={v:.4g}" for k, v in self.filter_params.items())
-        return f"{self.structure} ({g}){f}"
+    def describe(self, out: str = "rad") -> str:
+        """One line for reports, each value with its unit; ``out``: the output's unit, ``"rad"``
+        or ``"m"`` (a speed gain is A*s/rad or A*s/m)."""
+        def shown(params):
+            return ", ".join(f"{k}={v:.4g} {parameter_unit(k, out)}".rstrip() for k, v in params.items())
+        f = "" if self.filter == "none" else f" + {self.filter} " + shown(self.filter_params)
+        return f"{self.structure} ({shown(self.gains)}){f}"

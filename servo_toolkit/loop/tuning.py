@@ -159,7 +159,8 @@ def tuned_design(scene, tuning: LoopTuning = LoopTuning(), base=None):
     motion = Motion("cascade", gains, kind, params, m.ratio)
     c = base.controller
     ff = c.feedforward if tuning.feedforward is None else designed_feedforward(scene, tuning.feedforward, base.q0)
-    ctrl = CascadeController(motion.state_space(), c.current_kp, c.current_ki, c.sample_time, motion.describe(),
+    ctrl = CascadeController(motion.state_space(), c.current_kp, c.current_ki, c.sample_time,
+                             motion.describe(scene.drivetrain.output_unit),
                              feedforward=ff, schedule=c.schedule, shaper=c.shaper)
     if (ff is not None) != (c.feedforward is not None):
         changed.append(f"feedforward {'off' if c.feedforward is None else c.feedforward.kind} -> "
@@ -252,7 +253,8 @@ def load_design(scene, path, require=None, text=None):
         raise SceneError(key, f"{str(path)!r} is not a servo_toolkit design file (version {DESIGN_FILE_VERSION})")
     from .design_file import command_options, design_fields
     motion, kp_i, ki_i, ts, q0 = design_fields(data, scene)  # every field checked: one line naming it
-    ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe(), **command_options(data))
+    ctrl = CascadeController(motion.state_space(), kp_i, ki_i, ts, motion.describe(scene.drivetrain.output_unit),
+                             **command_options(data))
     notes = (f"controller from {Path(path).name} (designed for {data.get('scene', '?')})",)
     return evaluate(scene, ctrl, q0, motion=motion, notes=notes, require=require)
 

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..display.units import DIMENSIONLESS
+from ..loop.structures import PARAMETERS, parameter_unit
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 from .plain_text import plain
@@ -211,18 +212,8 @@ def plant_bode(ctx) -> Section:
                    key="plant")
 
 
-#: gain or filter parameter -> (meaning, unit with OUT for the output's unit)
-_PARAMS = {"kp": ("position gain", "1/s"), "kv": ("speed gain", "A*s/OUT"), "wvi": ("speed PI corner", "rad/s"),
-           "kc": ("controller gain", "A/OUT"), "wi": ("integral corner", "rad/s"), "wz": ("lead zero", "rad/s"),
-           "wp": ("lead pole", "rad/s"), "wn": ("filter frequency", "rad/s"),
-           "zeta_zero": ("notch depth: damping of the zeros", DIMENSIONLESS),
-           "zeta_pole": ("notch width: damping of the poles", DIMENSIONLESS),
-           "zeta": ("low-pass damping", DIMENSIONLESS)}
-
-
 def _param_row(kind, name, value, out):
-    meaning, unit = _PARAMS.get(name, (name, ""))
-    unit = unit.replace("OUT", out)
+    meaning, unit = PARAMETERS.get(name, (name, ""))[0], parameter_unit(name, out)
     shown = f"{fmt(value)} {unit}".rstrip()
     if unit == "rad/s":
         shown += f" ({fmt(value / (2 * math.pi))} Hz)"

@@ -18,6 +18,7 @@ from ..components.stage_friction import StageFriction
 from ..components.stages import STAGE_IO, STAGE_KINDS  # noqa: F401 - STAGE_KINDS: the scene's stage kinds
 from ..errors import SceneError, SceneWarning
 from ..core.fields import Fields, collecting_notes, require
+from ..core.units import parse_quantity
 from ..drivetrain.elements import stage_units
 from ..display.units import DisplayUnits, display_units_from_table
 from .tables import ROBUSTNESS_METHODS, SPEED_ESTIMATORS, Requirements, Robustness, Sensors, Study  # noqa: F401
@@ -200,6 +201,27 @@ def _output_is_travel(raw_stages) -> bool:
     return have == "travel"
 
 
+def _check_load_not_mass(table, raw_stages) -> None:
+    """A ``[load]`` whose ``inertia`` is written as a mass (kg) is a load on an output travel:
+    refuse it, naming that rule, when the drivetrain does not end in a travel (or is missing),
+    rather than reporting a dimension mismatch against kg*m^2."""
+    value = table.get("inertia") if isinstance(table, dict) else None
+    if not isinstance(value, str):  # a bare number is in kg*m^2 (SI) for an output angle
+        return
+    try:
+        parse_quantity(value, "kg", "load.inertia")
+    except SceneError:
+        return  # not a mass: Load.from_table reports it
+    if not raw_stages:
+        where = "[[drivetrain]] is missing"
+    else:
+        last = raw_stages[-1].get("kind") if isinstance(raw_stages[-1], dict) else None
+        where = (f"the drivetrain's output is an angle (drivetrain[{len(raw_stages) - 1}] is a {last}): "
+                 "give the load's inertia in kg*m^2")
+    raise SceneError("load.inertia", f"a load given as a mass ({value!r}) needs a drivetrain ending in a "
+                                     f"travel output (a ball screw); {where}")
+
+
 def check_stage_order(raw_stages) -> None:
     """Each stage's input must be what the previous stage delivers (the motor: a rotary
     shaft): a screw turns a shaft into travel, a linkage travel into an angle."""
@@ -268,6 +290,8 @@ def _scene_of(data: dict, source: str | None) -> Scene:
     if stages:
         require(motor is not None, "motor", "missing key (required): a drivetrain needs a motor")
     linear = bool(stages) and not forward and stage_units(stages)[0][-1] == "m"
+    if not linear:
+        _check_load_not_mass(data.get("load"), raw_stages)
     load = Load.from_table(Fields(data["load"], "load"), linear) if "load" in data else Load()
     sensors = Sensors.from_table(Fields(data["sensors"], "sensors"), linear) if "sensors" in data else Sensors()
     req = (Requirements.from_table(Fields(data["requirements"], "requirements"))

@@ -10,9 +10,24 @@ from types import MappingProxyType
 
 from ..core.fields import Fields, require, unknown_key_rule
 from ..core.ranges import VARIED
+from ..core.units import is_bare_number, read_as
 from ..errors import SceneError
 from .time_requirements import TimeRequirements
 from .tracking import tracking_error as _tracking_error
+
+#: the values a bare number (rad) for a phase key is plausible in: 0.5 deg .. 360 deg
+PHASE_TYPICAL = (math.radians(0.5), 2 * math.pi)
+
+
+def check_phase_margin(f: Fields, name: str, value: float | None) -> None:
+    """A phase margin must lie below 180 deg; a refused one says how it was read (a bare
+    number is in rad: ``45`` is 45 rad = 2578 deg)."""
+    if value is None or value < math.pi:
+        return
+    raw = f.table.get(name)
+    got = read_as(raw, value, "rad") if is_bare_number(raw) else f"got {math.degrees(value):.4g} deg"
+    raise SceneError(f.key(name), f"must be below 180 deg: a phase margin lies in [-180, 180) deg ({got})")
+
 
 #: the rule of a required yield of 1
 UNPROVABLE_YIELD = ("a yield of 1 cannot be shown by any number of variants (the lower end of its interval, on "
@@ -170,17 +185,16 @@ class Requirements:
     @classmethod
     def from_table(cls, f: Fields) -> "Requirements":
         """Build from a ``[requirements]`` table."""
-        def opt(name, unit, rule="positive"):
-            return f.quantity(name, unit, rule=rule) if f.has(name) else None
+        def opt(name, unit, rule="positive", typical=None):
+            return f.quantity(name, unit, rule=rule, typical=typical) if f.has(name) else None
         r = cls(bandwidth=opt("bandwidth", "Hz"),
-                max_phase_lag_at_bandwidth=opt("max_phase_lag_at_bandwidth", "rad"),
+                max_phase_lag_at_bandwidth=opt("max_phase_lag_at_bandwidth", "rad", typical=PHASE_TYPICAL),
                 min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
-                min_phase_margin=opt("min_phase_margin", "rad"),
+                min_phase_margin=opt("min_phase_margin", "rad", typical=PHASE_TYPICAL),
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
                 time=TimeRequirements.from_fields(f))
         f.check_unknown()
-        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
-                f.key("min_phase_margin"), "must be below 180 deg: a phase margin lies in [-180, 180) deg")
+        check_phase_margin(f, "min_phase_margin", r.min_phase_margin)
         return r
 
 
@@ -279,7 +293,8 @@ class Robustness:
                 seed=f.integer("seed", 0, minimum=0),
                 min_stable_fraction=f.number("min_stable_fraction", 1.0, rule="nonnegative"),
                 min_gain_margin=opt("min_gain_margin", "dB", "nonnegative"),
-                min_phase_margin=opt("min_phase_margin", "rad"),
+                min_phase_margin=f.quantity("min_phase_margin", "rad", rule="positive", typical=PHASE_TYPICAL)
+                if f.has("min_phase_margin") else None,
                 max_sensitivity_peak=opt("max_sensitivity_peak", "dB"),
                 min_bandwidth=opt("min_bandwidth", "Hz"), max_peak_current=opt("max_peak_current", "A"),
                 min_yield=f.number("min_yield", rule="positive", bounds=(1e-6, 1.0)) if f.has("min_yield") else None,
@@ -287,8 +302,7 @@ class Robustness:
         require(r.min_yield is None or r.min_yield < 1.0, f.key("min_yield"), UNPROVABLE_YIELD)
         require(r.min_stable_fraction <= 1.0, f.key("min_stable_fraction"),
                 f"a fraction of the variants, 0..1 (got {r.min_stable_fraction:g})")
-        require(r.min_phase_margin is None or r.min_phase_margin < 3.141592653589793,
-                f.key("min_phase_margin"), "must be below 180 deg")
+        check_phase_margin(f, "min_phase_margin", r.min_phase_margin)
         return r
 
 

@@ -251,8 +251,12 @@ def choose_step(model, P, x0, duration: float, dt: float | None = None, output_d
                               f"needs dt <= {limit:.3g} s, more than {max_steps} RK4 steps: implicit solver instead",
                               probe, probe, first_dt=auto_dt)
         dt = auto_dt
-        choice = (f"RK4 with dt = {dt:.4g} s: |lambda dt| = {probe['max_abs_lambda'] * dt:.3g} for the "
-                  f"fastest eigenvalue (stability limit dt = {limit:.4g} s)")
+        capped = cap < AUTO_Z / max(probe["max_abs_lambda"], 1e-300)
+        why = ("at most the sample time" if model.sample_time > 0 else "at most the duration / 200") if capped \
+            else f"|lambda dt| = {AUTO_Z:g}"
+        choice = (f"RK4 with dt = {dt:.4g} s ({why}): |lambda dt| = {probe['max_abs_lambda'] * dt:.3g} for the "
+                  f"fastest eigenvalue at the start, |lambda| = {probe['max_abs_lambda']:.3g} 1/s "
+                  f"(stability limit there dt = {limit:.4g} s)")
     elif dt is None:
         dt = auto_dt
         choice = f"default step {dt:.4g} s (|lambda dt| = {probe['max_abs_lambda'] * dt:.3g})"

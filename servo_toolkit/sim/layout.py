@@ -8,7 +8,10 @@ State ``x`` (float64)::
     3 qd     output rate (rad/s)
     4 i      armature current (A); unused (held) without inductance
     5 xi     current-PI integral (V)
-    6 s      play-operator output (rad), used only by the cam paper's discrete scheme
+    6 s      play-operator output (rad): the position of the backlash's load side, an absolute
+             coordinate at the output like p and q (m for an output travel), kept within the
+             half play of p by the cam paper's discrete scheme only; every other method holds
+             it at its start value (the elasto-backlash law needs no state)
     7..      motion-controller states (continuous mode integrates them; sampled mode updates
              them at the sample instants)
     then     speed-estimator states (sampled mode, updated at the sample instants; their

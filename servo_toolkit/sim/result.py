@@ -216,7 +216,8 @@ class SimulationResult(RichDisplay):
                     f"start's transient, t > {self.start_transient_s:.3g} s)" if self.start_transient_s else "")]
         if self.stability:
             lam = self.stability.get("max_abs_lambda", math.nan)
-            lines.append(f"  fastest eigenvalue |lambda| = {lam:.4g} 1/s, RK4 step limit "
+            lines.append(f"  fastest eigenvalue over the run (the start and the states checked along it) "
+                         f"|lambda| = {lam:.4g} 1/s at t = {self.stability.get('t_s', 0.0):.4g} s, RK4 step limit "
                          f"{self.stability.get('dt_limit_s', math.nan):.4g} s")
         lines.append("  final state: " + ", ".join(f"{k} = {v:.6g}" for k, v in d["final_state"].items()))
         lines += [f"  note: {n}" for n in self.notes]

@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import SimulationError
 from . import layout as lo
 from .kernel import hermite, reference as ref_at, rhs
-from .result import SimulationResult
+from .result import SimulationResult, shown_name
 
 
 def speed_and_reference(model, P, times, states):
@@ -49,7 +49,7 @@ def make_result(model, times, states, aux, speed, refs, max_tau, wall, method, d
     stab = {k: v for k, v in probe.items()}
     if dt is not None:
         stab["abs_lambda_dt"] = probe["max_abs_lambda"] * dt
-    notes = [*notes, *limit_notes(model, times, aux)]
+    notes = [*notes, *limit_notes(model, times, aux), *play_note(model, method, states)]
     return SimulationResult(times=times, states=states, state_names=model.state_names,
                             reference_angle=refs, motor_speed=speed, motor_current=aux[:, lo.AUX_I],
                             motor_voltage=aux[:, lo.AUX_V], current_reference=aux[:, lo.AUX_IREF],
@@ -58,6 +58,20 @@ def make_result(model, times, states, aux, speed, refs, max_tau, wall, method, d
                             choice=choice, stability=stab, reference=reference.to_dict(),
                             controller=model.controller, notes=tuple(notes),
                             output_unit=getattr(model, "output_unit", "rad"), peaks=peaks or {})
+
+
+def play_note(model, method: str, states) -> list:
+    """What the recorded play state is where the run held it: the cam paper's play operator's
+    output, an absolute position at the output (the backlash's load side, like the output's
+    own coordinate), which only the paper scheme moves; every other method leaves it at its
+    start value (the elasto-backlash law needs no state)."""
+    if method == "paper" or len(states) == 0:
+        return []
+    unit = getattr(model, "output_unit", "rad")
+    scale, shown = (1e3, "mm") if unit == "m" else (math.degrees(1.0), "deg")
+    return [f"{shown_name('play_state_rad', unit)} is the paper scheme's play-operator output, a position at the "
+            f"output like {shown_name('output_angle_rad', unit)} (not a deflection): method {method!r} holds it "
+            f"at its start, {states[0, 6] * scale:.4g} {shown}"]
 
 
 def limit_notes(model, times, aux) -> list:
@@ -83,4 +97,4 @@ def limit_notes(model, times, aux) -> list:
             f"(recorded samples){tail}"]
 
 
-__all__ = ["aux_traces", "check_finite", "limit_notes", "make_result", "speed_and_reference"]
+__all__ = ["aux_traces", "check_finite", "limit_notes", "make_result", "play_note", "speed_and_reference"]
