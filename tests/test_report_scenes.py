@@ -125,7 +125,8 @@ def test_report_measures_what_the_reduction_costs(tmp_path):
     assert res.full_options != res.reduced_options or not res.plan.omitted
     assert res.within_bound, (res.measured, res.bound)
     section = run_section("reduce", "What the model leaves out", leaves_out, ctx)
-    assert "Measured full against reduced" in section.html and section.figures
+    assert "Measured full (every effect kept, friction that holds included) against reduced" in section.html \
+        and section.figures
 
 
 def test_linear_output_sections_use_travel_units():

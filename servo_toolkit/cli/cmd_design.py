@@ -74,8 +74,9 @@ def design_from_args(scene, args, spec=None, executor=None, design_text=None):
 
 def register(sub) -> None:
     """Register the command."""
-    p = sub.add_parser("design", help="loop design and margins: judges the loop's rows (exit 0 met, 1 not met), "
-                                      "a note names the rows check judges besides")
+    p = sub.add_parser("design", help="loop design and margins",
+                       description="Loop design and margins: judges the loop's rows (exit 0 met, 1 not met); a note "
+                                   "names the rows servo-toolkit check judges besides.")
     add_scene(p)
     add_design_options(p)
     add_large_signal_option(p)
