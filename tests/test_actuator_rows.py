@@ -180,3 +180,30 @@ def test_the_default_sine_is_what_the_emps_axis_can_follow_by_its_published_mass
     for f in (5.0, 8.0):
         assert followable_amplitude(scene, scene.drivetrain.mid_stroke, f) == pytest.approx(reach(f), rel=1e-4)
     assert reach(5.0) > 1e-3 > reach(8.0)
+
+
+def test_the_error_at_rest_is_the_largest_after_the_motion_not_a_mean_that_cancels():
+    """A step still settling through the judged window (its error crosses zero there, as a
+    flap against a hinge moment did) has a mean error near zero; the row takes the largest
+    |error| over the window, so a response that has not come to rest cannot pass on a cancelled
+    mean."""
+    from types import SimpleNamespace
+
+    from servo_toolkit.core.output_units import OutputUnit
+    from servo_toolkit.studies.actuator.result import _step_figures
+    from servo_toolkit.studies.actuator.runs import STEP_AT
+    step, settle = math.radians(1.0), 0.4
+    t = np.linspace(0.0, STEP_AT + 2 * settle, 16001)
+    after = np.clip(t - STEP_AT, 0.0, None)
+    # a slow decaying swing about the command, one full period over the judged last quarter
+    y = np.where(t < STEP_AT, 0.0, step * (1.0 - np.exp(-after / 0.3) * np.cos(2 * np.pi * after / (0.5 * settle))))
+    run = SimpleNamespace(times=t, output_angle=y, motor_current=np.zeros_like(t),
+                          trace=lambda name: y)
+    plan = SimpleNamespace(step=step, rest_band=0.02 * step, settling_time=settle, frequency=8.0)
+    figures, details = {}, {}
+    _step_figures(plan, run, OutputUnit("rad"), figures, details)
+    tail = (t - STEP_AT) >= 0.5 * (settle + (t[-1] - STEP_AT))
+    err = step - y[tail]
+    assert abs(np.mean(err)) < 0.1 * np.max(np.abs(err))  # the mean cancels
+    assert figures["position_error_at_rest"] == pytest.approx(np.max(np.abs(err)), rel=1e-12)
+    assert details["position_error_at_rest"].startswith("largest over ")

@@ -307,3 +307,20 @@ def test_a_stick_slip_that_dies_out_is_rest_not_hunting(hunting_runs):
     rested = analyse(cut)
     assert rested.hunting is None and rested.at_rest
     assert rested.position_error_at_rest == pytest.approx(cut.reference_angle[-1] - cut.output_angle[-1])
+
+
+def test_a_run_still_moving_at_its_end_shows_the_figure_check_judges(hunting_runs):
+    """Where the output is not held by friction at the run's end, the report's rest row leads
+    with check's ``position_error_at_rest`` figure of the same run (the largest error after
+    the motion) and then says it still moves, instead of a bare "not at rest" beside a met row."""
+    from servo_toolkit.core.output_units import OutputUnit
+    from servo_toolkit.report.sections_time import rest_rows
+    _, _, res, _ = hunting_runs
+    moving = replace(analyse(res), position_error_at_rest=None, hunting=None)
+    judged = (math.radians(6.6e-6), "largest over 750-1000 ms after the step")
+    row = dict(rest_rows(moving, OutputUnit("rad"), judged))["position error at rest [deg]"]
+    assert row.startswith("6.6e-6 (largest over 750-1000 ms after the step: the figure check judges); "), row
+    assert f"the output still moves at {moving.times[-1] * 1e3:.4g} ms" in row
+    assert "not at rest" not in row
+    alone = dict(rest_rows(moving, OutputUnit("rad")))["position error at rest [deg]"]
+    assert alone.startswith("the output still moves at ")

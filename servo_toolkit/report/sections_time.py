@@ -76,14 +76,21 @@ def _electrics(runs, motor):
     return fig
 
 
-def rest_rows(rest, u):
+def rest_rows(rest, u, judged=None):
     """Rows (quantity, value) of a step run to rest with friction that holds: the position
-    error at rest and the hunting (amplitude and period of a limit cycle, or none)."""
+    error at rest and the hunting (amplitude and period of a limit cycle, or none).
+
+    ``judged``: ``(figure, detail)`` of the ``position_error_at_rest`` row check judges on the
+    same run (the largest error after the motion, SI); shown first when the output is still
+    moving at the run's end, so the table and the row say the same."""
     from ..studies.hunting import hunting_text
     span = f"{fmt(rest.window * 1e3)}-{fmt(rest.times[-1] * 1e3)} ms"
     err = rest.position_error_at_rest
     if err is None:
-        at_rest = f"not at rest at {fmt(rest.times[-1] * 1e3)} ms (error there {fmt(u.show(rest.error[-1]))})"
+        moving = (f"the output still moves at {fmt(rest.times[-1] * 1e3)} ms, not held by friction "
+                  f"(error there {fmt(u.show(rest.error[-1]))})")
+        at_rest = moving if judged is None else \
+            f"{fmt(u.show(judged[0]))} ({judged[1]}: the figure check judges); {moving}"
     else:
         at_rest = fmt(u.show(err)) + (" (largest while hunting)" if rest.hunting is not None else "")
     hunting = hunting_text(rest.hunting, u)
@@ -92,6 +99,12 @@ def rest_rows(rest, u):
             (f"position error at rest [{u.shown}]", at_rest),
             (f"hunting (amplitude [{u.shown}], period [ms])", f"{hunting} within {span}"),
             ("time stuck (speed exactly 0)", f"{rest.stuck.mean():.0%} ({len(rest.stick_phases)} stick phases)")]
+
+
+def _judged_rest(act):
+    """``(figure, detail)`` of check's ``position_error_at_rest`` row of ``act``, or None."""
+    figure = act.figures.get("position_error_at_rest")
+    return None if figure is None else (figure, act.details.get("position_error_at_rest", "largest after the motion"))
 
 
 def time_title(ctx) -> str:
@@ -171,7 +184,8 @@ def time_responses(ctx) -> Section:
         f"{fmt(motor.coulomb_friction)} N*m, and each stage's and the load's): the loop stops where the moment it "
         "applies no longer breaks the static friction, or hunts when integral action winds up against it. Stick "
         "phases (the speed exactly 0) are shaded on the step plot; rest and hunting are judged after the settling "
-        "allowance.") + table(("friction that holds", "value"), rest_rows(rest, u), table_id="rest-table")
+        "allowance.") + table(("friction that holds", "value"),
+                                 rest_rows(rest, u, _judged_rest(act)), table_id="rest-table")
     fig, (a1, a2) = figures.new_figure(1, 2, size=(10.0, 3.6))
     a1.plot(t[keep] * 1e3, u.show(np.full(keep.sum(), plan.step)), color="0.6", lw=0.8, label="command")
     a1.plot(t[keep] * 1e3, u.show(lin_step), label="linear")
