@@ -173,3 +173,11 @@ def test_kv_table_without_a_rod_shows_a_dash(ctx):
     body = [r for r in rows if r and r[0] == "1"]
     assert body and all(r[-2:] == ("-", "-") for r in body)
     assert "None" not in plain(section.html)
+
+
+def test_a_resonance_near_the_plots_end_keeps_its_label_within_the_axes(ctx):
+    """The carriage's drivetrain resonance (hundreds of Hz, near the Bode plot's 1 kHz end):
+    its label goes left of its line instead of running past the axes."""
+    section = _section(ctx, "plant")
+    assert section.status == "info", section.reason
+    assert section.layout == (), section.layout

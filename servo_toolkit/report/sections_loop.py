@@ -163,12 +163,22 @@ def _bode(ax_mag, ax_ph, f, r, label, **kw):
     ax_ph.semilogx(f, np.degrees(np.unwrap(np.angle(r))), label=label, **kw)
 
 
+#: a label to the right of a mark past this fraction of the log frequency axis goes to its left
+#: (and a line higher), so it stays within the axes
+RIGHT_ROOM = 0.62
+
+
 def _mark(axes, f, text, colour="C3", side="right"):
+    """A dotted line at ``f`` on every axes and its label on the first, beside the line on
+    ``side`` (to the left, a line higher, when the right has no room left)."""
     if math.isfinite(f) and F_MIN < f < F_MAX:
         for ax in axes:
             ax.axvline(f, color=colour, lw=0.9, ls=":")
+        y = 0.04
+        if side == "right" and math.log(f / F_MIN) / math.log(F_MAX / F_MIN) > RIGHT_ROOM:
+            side, y = "left", 0.14
         x = f * (1.04 if side == "right" else 1 / 1.04)
-        axes[0].annotate(text, (x, 0.04), xycoords=("data", "axes fraction"), fontsize="small",
+        axes[0].annotate(text, (x, y), xycoords=("data", "axes fraction"), fontsize="small",
                          ha="left" if side == "right" else "right", va="bottom", color=colour)
 
 
