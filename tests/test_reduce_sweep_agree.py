@@ -15,56 +15,13 @@ from servo_toolkit.studies.reduce.estimates import FRICTION_EFFECT
 from servo_toolkit.studies.sine_dwell import DwellPlan
 from servo_toolkit.studies.sweep.compute import sweep
 
+from .carriage_scene import LOOP_REQUIREMENTS, carriage_scene
 from .conftest import build, variant
 
-#: a DC motor, a 5:1 gearhead with lash and a 10 mm ball screw moving a 15 kg carriage whose
-#: Coulomb friction (30 N, 40 N static) dwarfs the force its own motion needs at 0.5 mm
-CARRIAGE = """
-name = "carriage"
-[motor]
-kind = "dc"
-resistance = "1.2 ohm"
-inductance = "0.3 mH"
-torque_constant = "0.06 N*m/A"
-back_emf_constant = "0.06 V*s/rad"
-rotor_inertia = "140 g*cm^2"
-viscous_friction = "2e-6 N*m*s/rad"
-voltage_limit = "48 V"
-current_limit = "15 A"
-[[drivetrain]]
-kind = "gear"
-name = "planetary gearhead"
-ratio = 5
-inertia = ["2.0e-6 kg*m^2", "1.0e-5 kg*m^2"]
-efficiency = 0.9
-torsional_stiffness = "2000 N*m/rad"
-backlash = "18 arcmin"
-[[drivetrain]]
-kind = "ball_screw"
-name = "ball screw"
-lead = "10 mm"
-screw_inertia = "2.5 kg*cm^2"
-nut_mass = "0.4 kg"
-efficiency = 0.92
-axial_stiffness = "150 N/um"
-backlash = "5 um"
-stroke = ["0 mm", "200 mm"]
-[load]
-inertia = "15 kg"
-damping = "20 N*s/m"
-coulomb_friction = "30 N"
-static_friction = "40 N"
-stribeck_speed = "5 mm/s"
-[sensors]
-output_scale_resolution = "1 um"
-motor_encoder_counts = 2048
-sample_time = "125 us"
-[requirements]
-bandwidth = "15 Hz"
-min_gain_margin = "6 dB"
-min_phase_margin = "45 deg"
-max_sensitivity_peak = "6 dB"
-"""
+#: the carriage with lash, whose Coulomb friction (30 N, 40 N static) dwarfs the force its own
+#: motion needs at 0.5 mm
+CARRIAGE = carriage_scene(lash=True, load_friction=True,
+                          requirements=LOOP_REQUIREMENTS + 'max_sensitivity_peak = "6 dB"\n')
 
 SHORT = DwellPlan(settling_cycles=3, estimation_cycles=2, min_settling_time=0.2)
 

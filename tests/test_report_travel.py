@@ -12,61 +12,17 @@ from servo_toolkit import load_scene
 from servo_toolkit.report import run_section
 from servo_toolkit.report.context import Context
 
-#: gearhead, 10 mm ball screw and a 15 kg carriage over 0..200 mm: a constant ratio and stiffness
-TRAVEL_SCENE = """
-name = "carriage"
-description = "DC motor, 5:1 gearhead, 10 mm ball screw, 15 kg carriage"
+from .carriage_scene import carriage_scene
 
-[motor]
-kind = "dc"
-resistance = "1.2 ohm"
-inductance = "0.3 mH"
-torque_constant = "0.06 N*m/A"
-back_emf_constant = "0.06 V*s/rad"
-rotor_inertia = "140 g*cm^2"
-viscous_friction = "2e-6 N*m*s/rad"
-voltage_limit = "48 V"
-current_limit = "15 A"
-
-[[drivetrain]]
-kind = "gear"
-name = "gearhead"
-ratio = 5
-inertia = ["2.0e-6 kg*m^2", "1.0e-5 kg*m^2"]
-efficiency = 0.9
-torsional_stiffness = "2000 N*m/rad"
-
-[[drivetrain]]
-kind = "ball_screw"
-name = "ball screw"
-lead = "10 mm"
-screw_inertia = "2.5 kg*cm^2"
-nut_mass = "0.4 kg"
-efficiency = 0.92
-axial_stiffness = "150 N/um"
-stroke = ["0 mm", "200 mm"]
-
-[load]
-inertia = "15 kg"
-damping = "20 N*s/m"
-
-[sensors]
-output_scale_resolution = "1 um"
-motor_encoder_counts = 2048
-sample_time = "125 us"
-
-[requirements]
-bandwidth = "15 Hz"
-min_gain_margin = "6 dB"
-min_phase_margin = "45 deg"
-
+#: the carriage with a small Kv study
+TRAVEL_SCENE = carriage_scene(extra='''
 [studies.kv_small]
 kind = "kv"
 trajectory = "sine"
 frequency = "5 Hz"
 amplitudes = ["1 mm"]
 load_inertias = ["0 kg", "15 kg"]
-"""
+''')
 
 
 @pytest.fixture(scope="module")

@@ -14,66 +14,18 @@ import pytest
 import servo_toolkit as st
 from servo_toolkit.cli import main
 
+from .carriage_scene import carriage_scene
 from .conftest import SCENES
 
-#: a linear EMA written from the docs: DC motor, 5:1 planetary with 18 arcmin of backlash,
-#: 10 mm ball screw, 15 kg carriage with Coulomb and static friction; time requirements set
-LINEAR_EMA = """
-name = "linear_ema"
-
-[motor]
-kind = "dc"
-resistance = "1.2 ohm"
-inductance = "0.3 mH"
-torque_constant = "0.06 N*m/A"
-back_emf_constant = "0.06 V*s/rad"
-rotor_inertia = "140 g*cm^2"
-viscous_friction = "2e-6 N*m*s/rad"
-coulomb_friction = "0.005 N*m"
-voltage_limit = "48 V"
-current_limit = "15 A"
-
-[[drivetrain]]
-kind = "gear"
-name = "planetary gearhead"
-ratio = 5
-inertia = ["2.0e-6 kg*m^2", "1.0e-5 kg*m^2"]
-efficiency = 0.9
-torsional_stiffness = "2000 N*m/rad"
-backlash = "18 arcmin"
-
-[[drivetrain]]
-kind = "ball_screw"
-name = "ball screw 16x10"
-lead = "10 mm"
-screw_inertia = "2.5 kg*cm^2"
-nut_mass = "0.4 kg"
-efficiency = 0.92
-axial_stiffness = "150 N/um"
-backlash = "5 um"
-stroke = ["0 mm", "200 mm"]
-
-[load]
-inertia = "15 kg"
-hinge_moment = "0 N"
-damping = "20 N*s/m"
-coulomb_friction = "30 N"
-static_friction = "40 N"
-stribeck_speed = "5 mm/s"
-
-[sensors]
-output_scale_resolution = "1 um"
-motor_encoder_counts = 2048
-sample_time = "125 us"
-
-[requirements]
+#: the carriage with lash, the motor's and the carriage's friction, and time requirements set
+LINEAR_EMA = carriage_scene("linear_ema", lash=True, load_friction=True, motor_friction=True, requirements='''
 bandwidth = "15 Hz"
 step_amplitude = "1 mm"
 max_overshoot = "10 %"
 max_settling_time = "150 ms"
 sine_amplitude = "0.5 mm"
 max_tracking_error = "0.25 mm"
-"""
+''')
 
 
 @pytest.fixture(scope="module")
