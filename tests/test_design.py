@@ -161,3 +161,17 @@ def test_the_feedforward_line_gives_the_inertia_and_ratio_their_units():
     assert line.endswith("(J 276 kg, N 3142 rad/m)")
     (line,) = CommandDesign("s", gains, output_unit="rad").lines()[:1]
     assert line.endswith("(J 276 kg*m^2, N 3142 rad/rad)")
+
+
+def test_the_summary_names_the_lag_at_a_required_bandwidth_other_than_its_headline_phase(ema):
+    """The design summary's headline phase is at 8 Hz; a scene requiring 6 Hz is judged on its
+    lag at 6 Hz, and the line says that figure beside it (the reference, at 8 Hz, needs no
+    second figure)."""
+    from servo_toolkit.loop import design
+    six = design(ema, require={"bandwidth": 6.0})
+    lag = next(c for c in six.requirements if c.name == "phase_lag_at_bandwidth")
+    line = next(s for s in six.table().splitlines() if "closed loop stable: yes" in s)
+    assert f"; phase lag at the required bandwidth 6 Hz {lag.achieved:.1f} deg" in line, line
+    eight = design(ema)
+    line = next(s for s in eight.table().splitlines() if "closed loop stable: yes" in s)
+    assert "required bandwidth" not in line, line

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import control as ct
@@ -143,6 +144,15 @@ class DesignResult(RichDisplay):
                 **({"n_mass_plant": self.chain_margins.to_dict()} if self.chain_margins is not None else {}),
                 **({"actuator_bounds": self.actuator.to_dict()} if self.actuator is not None else {})}
 
+    def _lag_at_required(self) -> str:
+        """``"; phase lag at the required bandwidth F Hz L deg"`` where the rows judge the lag at a
+        required bandwidth other than the frequency of the headline's phase, else ``""``."""
+        rows = {c.name: c for c in self.requirements}
+        f_req, lag = rows.get("bandwidth"), rows.get("phase_lag_at_bandwidth")
+        if f_req is None or lag is None or f_req.required == self.margins.phase_at_hz or not math.isfinite(lag.achieved):
+            return ""
+        return f"; phase lag at the required bandwidth {f_req.required:g} Hz {lag.achieved:.1f} deg"
+
     def table(self) -> str:
         """Requirements and margins as text."""
         m = self.margins
@@ -158,7 +168,7 @@ class DesignResult(RichDisplay):
                  f"{p.antiresonance_hz:.3g} Hz",
                  f"  controller: {self.controller.description}",
                  (f"  closed loop stable: yes; bandwidth {m.bandwidth_hz:.3g} Hz; phase at {m.phase_at_hz:g} Hz "
-                  f"{m.phase_at_freq_deg:.1f} deg" if m.closed_loop_stable else
+                  f"{m.phase_at_freq_deg:.1f} deg{self._lag_at_required()}" if m.closed_loop_stable else
                   f"  closed loop stable: NO, {m.instability}"),
                  f"  {m.headline()}",
                  m.table(), "", requirements_table(self.requirements)]
