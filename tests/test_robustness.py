@@ -30,7 +30,7 @@ def test_nominal_variant_reproduces_the_design(case):
 @pytest.mark.parametrize("load,k", [(0.0, 0.7), (2.5, 1.3), (4.0, 0.7)])
 def test_vectorized_figures_match_python_control(case, load, k):
     scene, r = case
-    rb = robustness(scene, r, {"load_inertia": [load], "stiffness": [k]}, progress=False)
+    rb = robustness(scene, r, {"load_inertia": [load], "stiffness": [k]}, progress=False, exact=False)
     (gm, pm, *_), loop = reference_margins(scene, r, load, k)
     assert rb.figures["stable"][0] == bool(np.all(np.real(__import__("control").poles(
         __import__("control").feedback(loop, 1))) < 0))
@@ -186,9 +186,13 @@ def test_robust_design_keeps_every_sampled_variant_stable_with_margins(robust_sc
     assert rb.all_stable and np.all(rb.figures["max_pole_real"] < 0)
     checks = {c.name: c for c in rb.requirements}
     assert set(checks) == {"stable_fraction", "gain_margin", "phase_margin", "sensitivity_peak"}
-    assert all(c.passed for c in checks.values()), rb.table()
+    assert checks["stable_fraction"].passed and checks["gain_margin"].passed and checks["phase_margin"].passed
     assert checks["gain_margin"].achieved >= 6.0 and checks["phase_margin"].achieved >= 45.0
-    assert checks["sensitivity_peak"].achieved <= 6.0
+    # the search holds its grid's closed-form variants to 6 dB; the row's worst variant, built
+    # from the scene (heavy and soft: the chain's reduction moves with the load), is measured
+    # 0.0056 dB over it, and the row says so rather than the closed form's 5.999 dB
+    ms = checks["sensitivity_peak"]
+    assert 6.0 < ms.achieved < 6.01 and not ms.passed, rb.table()
     # the position loop crosses over below the lowest anti-resonance of the range
     low = mode_range(r.parameters, robust_scene.load.inertia, robust_scene.robustness.ranges)["antiresonance_hz"][0]
     assert max(r.margins.gain_crossover_hz) < low
@@ -197,18 +201,20 @@ def test_robust_design_keeps_every_sampled_variant_stable_with_margins(robust_sc
 
 def test_robust_design_states_what_it_misses(robust_design):
     # measured: with every variant held to 6 dB / 45 deg / 6 dB, the nominal 8 Hz bandwidth
-    # (and the 90 deg lag at 8 Hz) is missed by a few percent; the result must say so
+    # (and the 90 deg lag at 8 Hz) is missed by a few percent, and the worst variant's Ms, built
+    # from the scene, by 0.0056 dB; the result must say so
     r = robust_design
     assert not r.passed
     failing = {c.name for c in r.failures}
-    assert failing and failing <= {"bandwidth", "phase_lag_at_bandwidth"}
-    for c in r.failures:
-        note = next(n for n in r.notes if f"misses {c.name}" in n)
+    assert failing and failing <= {"bandwidth", "phase_lag_at_bandwidth", "robust_sensitivity_peak"}
+    for c in r.failures:  # a robust row's note names its worst case
+        note = next(n for n in r.notes if f"misses {c.name.replace('robust_', 'worst-case ')}" in n)
         assert f"{c.achieved:.4g}" in note and f"short by {c.shortfall:.3g}" in note
     bw = next(c for c in r.requirements if c.name == "bandwidth")
     assert 0 < bw.shortfall < 1.0  # Hz
     d = r.to_dict()
-    assert d["requirements_met"] is False and d["robustness"]["passed"] is True
+    assert d["requirements_met"] is False and d["robustness"]["passed"] is False
+    assert any("misses worst-case sensitivity_peak" in n for n in r.notes)
     confirm = next(n for n in r.notes if "rebuilt with python-control" in n)
     assert "closed loop stable" in confirm and "DISAGREES" not in confirm
 
@@ -217,17 +223,18 @@ def test_worst_case_agrees_with_python_control(robust_scene, robust_design):
     r, rb = robust_design, robust_design.robustness
     at = rb.worst["phase_margin"]
     assert at["load_inertia"] > 3.5 and at["stiffness"] < 0.8  # heavy and soft: the lowest mode
-    (gm, pm, *_), loop = reference_margins(robust_scene, r, at["load_inertia"], at["stiffness"])
+    # each row's worst variant is built from the scene: python-control on that same plant
+    (gm, pm, *_), loop = reference_margins(robust_scene, r, at["load_inertia"], at["stiffness"], exact=True)
     checks = {c.name: c for c in rb.requirements}
     gms, pms, *_ = ct.stability_margins(loop, returnall=True)
     np.testing.assert_allclose(checks["phase_margin"].achieved, np.min(pms), atol=1e-2)
     at_gm = rb.worst["gain_margin"]
-    (_, _, *_), loop_gm = reference_margins(robust_scene, r, at_gm["load_inertia"], at_gm["stiffness"])
+    (_, _, *_), loop_gm = reference_margins(robust_scene, r, at_gm["load_inertia"], at_gm["stiffness"], exact=True)
     gms, _, _, wpc, *_ = ct.stability_margins(loop_gm, returnall=True)
     np.testing.assert_allclose(checks["gain_margin"].achieved, np.min(np.abs(20 * np.log10(gms[wpc > 1e-3]))),
                                atol=1e-3)
     at_ms = rb.worst["sensitivity_peak"]
-    _, loop_ms = reference_margins(robust_scene, r, at_ms["load_inertia"], at_ms["stiffness"])
+    _, loop_ms = reference_margins(robust_scene, r, at_ms["load_inertia"], at_ms["stiffness"], exact=True)
     w = 2 * np.pi * np.logspace(-1, 3, 40000)
     lw = np.asarray(ct.frequency_response(loop_ms, w).complex).reshape(-1)
     # the dense grid (step 2.3e-4 in ln w) samples the peak from below, within ~1e-5 dB
@@ -329,8 +336,8 @@ def test_refined_margins_agree_with_python_control_on_hundreds_of_variants(case,
     # and a dense line where a crossing sits on the resonance (measured: 22-25 Hz)
     values = {"load_inertia": np.concatenate([loads.ravel(), np.linspace(1.3, 1.7, 25)]),
               "stiffness": np.concatenate([ks.ravel(), np.full(25, 1.04)])}
-    rb = robustness(scene, r, values, progress=False)
-    coarse = robustness(scene, r, values, progress=False, refine=False)
+    rb = robustness(scene, r, values, progress=False, exact=False)
+    coarse = robustness(scene, r, values, progress=False, refine=False, exact=False)
     d = {"pm": [], "gm": [], "ms": [], "pm_grid": []}
     near = 0
     with warnings.catch_warnings():

@@ -368,7 +368,7 @@ def confirm_worst_case(scene, result, structural_damping) -> str:
     factor = float(values.get("stiffness", [1.0])[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        _, loop = reference_margins(scene, result, load, factor, structural_damping)
+        _, loop = reference_margins(scene, result, load, factor, structural_damping, exact=True)
         pms = np.atleast_1d(ct.stability_margins(loop, returnall=True)[1])
         stable = bool(np.all(ct.poles(ct.feedback(loop, 1)).real < 0))
     where = rb.variant_text(at)

@@ -113,7 +113,8 @@ def worst_cases(values: dict, figures: dict, requirements) -> tuple[list, dict]:
 
 def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid: bool = False, seed: int = 0,
                spec=None, requirements=None, executor=None, chunk_size: int = 2500, progress: bool = True,
-               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, refine: bool = True) -> RobustnessResult:
+               structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, refine: bool = True,
+               exact: bool = True) -> RobustnessResult:
     """Margins of ``design_result``'s controller over parameter variations.
 
     Parameters
@@ -143,6 +144,10 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     refine : bool
         Solve every crossing, the sensitivity peak and the bandwidth to solver precision
         after the grid brackets them (default); ``False`` interpolates on the grid.
+    exact : bool
+        Build the variant each row is judged on from the scene (:func:`exact_worst`; default);
+        ``False`` keeps every variant's closed-form plant (to test the evaluator against
+        python-control on the same plant).
 
     Returns
     -------
@@ -159,10 +164,57 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     figs = variant_figures(scene, design_result.parameters, design_result.controller, values,
                            _bandwidth_requirement(design_result), executor=executor, chunk_size=chunk_size,
                            progress=progress, structural_damping=structural_damping, refine=refine)
+    if exact:
+        figs = exact_worst(scene, design_result, values, figs, requirements, structural_damping, refine)
     checks, worst = worst_cases(values, figs, requirements)
     settings = {"method": "grid" if grid else "monte_carlo", "samples": int(samples), "seed": int(seed)}
     return RobustnessResult(scene.name, values, figs, checks, worst, settings, scene.drivetrain.output_unit,
                             scene.display)
+
+
+#: rounds of confirming the worst variants exactly (a confirmed variant better than its
+#: closed form can hand the worst figure to another variant, confirmed in the next round)
+EXACT_ROUNDS = 3
+
+
+def exact_worst(scene, design_result, values: dict, figs: dict, requirements, structural_damping: float,
+                refine: bool = True) -> dict:
+    """``figs`` with the variant giving each requirement's worst figure built exactly.
+
+    The variants' plants are the design's two-mass plant with the load's inertia added to J2
+    and K scaled (:func:`~.variant_plants.closed_form_plants`), which is fast but leaves the
+    chain's reduction as it is at the nominal load. The variant each row is judged on is
+    rebuilt from the scene with its load and stiffness (:func:`exact_parameters`, the tolerance
+    study's exact corner) and its figures replace the closed form's, so a row never rests on
+    an approximation at its worst variant. Only the robustness study's own variations
+    (``load_inertia``, ``stiffness``) need it; others are built from the scene already."""
+    if not set(values) <= {"load_inertia", "stiffness"} or not requirements:
+        return figs
+    from .variant_plants import FIELDS, VariantPlants, _plants_of
+    from ..scene.tolerances import STIFFNESS_SCALE
+    figs = {k: np.array(v, copy=True) for k, v in figs.items()}
+    from ..scene.loader import scene_keys
+    p0, done, keys = design_result.parameters, set(), scene_keys(scene)
+    ratio = mode_damping(scene, p0, structural_damping)
+    for _ in range(EXACT_ROUNDS):
+        _, worst = worst_cases(values, figs, requirements)
+        index = {name: int(np.flatnonzero(np.all([values[key] == v for key, v in at.items()], axis=0))[0])
+                 for name, at in worst.items() if name != "stable_fraction"}  # a fraction over all variants
+        todo = sorted(set(index.values()) - done)
+        if not todo:
+            break
+        load = values.get("load_inertia", np.full(len(values[next(iter(values))]), scene.load.inertia))
+        scale = values.get("stiffness", np.ones_like(load))
+        rows = np.array([[getattr(exact_parameters(scene, p0, load[k], 1.0, structural_damping, keys), f)
+                          for f in FIELDS] for k in todo], float)
+        plants = VariantPlants(_plants_of(rows, {STIFFNESS_SCALE: scale[todo]}, p0, ratio), p0.rigid, "exact")
+        exact = variant_figures(scene, p0, design_result.controller, {STIFFNESS_SCALE: scale[todo]},
+                                _bandwidth_requirement(design_result), progress=False,
+                                structural_damping=structural_damping, refine=refine, plants=plants)
+        for key in figs:
+            figs[key][todo] = exact[key]
+        done.update(todo)
+    return figs
 
 
 def _bandwidth_requirement(design_result) -> float:
@@ -201,13 +253,39 @@ def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None
             "stable": figs["max_pole_real"] < 0}
 
 
+def exact_parameters(scene, p0, load_inertia: float, stiffness: float = 1.0,
+                     structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, keys=None):
+    """The plant parameters of one variant built from the scene: the design's reduction (at
+    ``p0``'s operating point, rigid or two-mass) of the scene with the load's inertia
+    ``load_inertia`` and every stiffness times ``stiffness``; the mode keeps the design's
+    damping ratio (:func:`~.variant_plants.mode_damping`), as every variant does. ``keys``:
+    the scene's key paths (:func:`~servo_toolkit.scene.loader.scene_keys`), read once by a
+    caller building several."""
+    from ..plant.linear import plant_parameters
+    if keys is None:
+        from ..scene.loader import scene_keys
+        keys = scene_keys(scene)
+    q = plant_parameters(keys.scene({"load.inertia": float(load_inertia)}), p0.q0,
+                         "rigid" if p0.rigid else "two_mass", structural_damping)
+    if q.rigid or not np.isfinite(q.K):
+        return q
+    K = q.K * stiffness
+    return replace(q, K=K, c=float(spring_damping(q.J1, q.J2, K, mode_damping(scene, p0, structural_damping))))
+
+
 def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
-                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING):
+                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, exact: bool = False):
     """python-control's ``stability_margins`` (gm, pm, sm, wpc, wgc, wms) of one variant,
-    building the plant and the loop as python-control objects (the slow, independent path)."""
-    values = {"load_inertia": np.array([load_inertia]), "stiffness": np.array([stiffness])}
+    building the plant and the loop as python-control objects (the slow, independent path):
+    on the variants' closed-form plant (:func:`varied_parameters`, what the vectorized figures
+    use), or with ``exact`` on the plant built from the scene (:func:`exact_parameters`, what
+    each row's worst variant is judged on)."""
     p0 = design_result.parameters
-    p = varied_parameters(p0, scene.load.inertia, values, 0, mode_damping(scene, p0, structural_damping))
+    if exact:
+        p = exact_parameters(scene, p0, load_inertia, stiffness, structural_damping)
+    else:
+        values = {"load_inertia": np.array([load_inertia]), "stiffness": np.array([stiffness])}
+        p = varied_parameters(p0, scene.load.inertia, values, 0, mode_damping(scene, p0, structural_damping))
     A, B, C, D, states = plant_matrices(p)
     g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
     loop = open_loop_of(g, design_result.controller, scene.motor)
