@@ -154,3 +154,27 @@ def test_export_of_an_unstable_design_says_so_and_exits_1(tmp_path, capsys):
     d = design(scene)
     poles = ct.poles(linear_closed_loop(scene, d.controller, d.q0)["theta", "theta_ref"])
     assert max(poles.real) > 0
+
+
+def test_float_export_of_a_design_missing_a_requirement_exits_1(tmp_path, capsys):
+    """A floating-point export judges the design's requirements as the fixed-point one does:
+    the reference EMA's cascade against a 40 dB gain margin (its design reaches about 20 dB)
+    writes the files, names every row ``design`` misses with the same requirement (the gain
+    margin with the design's own figure) and exits 1."""
+    out = tmp_path / "drive"
+    assert main(["design", str(EMA), "--require", "gain_margin=40", "--json"]) == 1
+    designed = json.loads(capsys.readouterr().out)
+    gm = designed["gain_margin_db"]
+    assert designed["requirements"]["gain_margin"]["passed"] is False and gm < 40
+    assert main(["export", str(EMA), "--require", "gain_margin=40", "-o", str(out), "--json"]) == 1
+    cap = capsys.readouterr()
+    data = json.loads(cap.out)
+    assert data["passed"] is False and data["design"]["closed_loop_stable"] is True
+    assert data["design"]["gain_margin_db"] == pytest.approx(gm, rel=1e-9)
+    missed = [k for k, c in designed["requirements"].items() if not c["passed"]]
+    assert [r.split(":")[0] for r in data["failures"]] == missed  # every row design misses, no other
+    row = f"gain_margin: the design misses it ({gm:.4g} dB, required >= 40 dB)"
+    assert row in data["failures"] and f"servo-toolkit: export: {row}" in cap.err
+    written = json.loads((out / "controller.json").read_text())
+    assert written["passed"] is False and written["failures"] == data["failures"]
+    assert (out / "servo_controller.c").is_file()

@@ -47,9 +47,9 @@ def replace_controller(result, controller):
 
 
 def run(args) -> int:
-    """Run the command: 0 exported, 1 the designed closed loop is unstable or (``--fixed-point``)
-    the quantized controller's loop misses a requirement of the scene (each named; also when the
-    design without quantization already misses it); the files are written either way."""
+    """Run the command: 0 exported, 1 the designed closed loop is unstable, the design misses a
+    requirement of the scene or (``--fixed-point``) the quantized controller's loop misses one
+    (each named); the files are written either way."""
     from ..core.units import parse_quantity
     from ..export import export
     from ..export.writer import check_directory

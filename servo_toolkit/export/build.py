@@ -88,11 +88,20 @@ def _failures(design_result, qdesign, reason=None) -> tuple:
         out.append(f"{c.name}: {c.achieved:.4g} {c.unit} with the quantized controller, required {c.sense} "
                    f"{c.required:g} {c.unit}: {why}")
     missed_q = {c.name for c in qdesign.requirements if not c.passed}
-    for d in design_result.requirements:
-        if not d.passed and d.name not in missed_q:
-            out.append(f"{d.name}: the design without quantization misses it ({d.achieved:.4g} {d.unit}, required "
-                       f"{d.sense} {d.required:g} {d.unit})")
-    return tuple(out)
+    return tuple(out) + requirement_failures(design_result, skip=missed_q)
+
+
+def requirement_failures(design_result, skip=(), quantized: bool = True) -> tuple:
+    """Each requirement of the scene the design itself misses (robustness rows named
+    ``robust_<name>``), named with its figure, in either number format: the exported
+    controller carries a design that fails them. Rows without a figure (an unstable loop's)
+    are left to :func:`design_failures`; ``skip`` names rows already reported; ``quantized``:
+    the export also has a quantized loop (the row then says the design misses it without
+    quantization)."""
+    who = "the design without quantization" if quantized else "the design"
+    return tuple(f"{d.name}: {who} misses it ({d.achieved:.4g} {d.unit}, required "
+                 f"{d.sense} {d.required:g} {d.unit})"
+                 for d in design_result.failures if not d.reason and d.name not in skip)
 
 
 def design_failures(design_result) -> tuple:
@@ -170,7 +179,8 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         coefficients and checked against the design's requirements: ``result.failures``
         names every requirement the quantized loop misses (and whether the design without
         quantization already misses it). In either format, a design whose own closed loop is
-        unstable is a failure (``result.failures`` says so first; the files are still written).
+        unstable is a failure (``result.failures`` says so first), and so is each requirement
+        the design itself misses (:func:`requirement_failures`); the files are still written.
     current_sample_time : float, optional
         Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
     inputs : sequence of path
@@ -191,7 +201,9 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     motion = ct.sample_system(ctrl.motion, ctrl.sample_time, method="tustin")
     result = ExportResult(scene.name, design_result, motion, blocks, bound_horizon_s=bound_horizon_s,
                           failures=design_failures(design_result))
-    if fixed_point is not None:
+    if fixed_point is None:
+        result = replace(result, failures=result.failures + requirement_failures(design_result, quantized=False))
+    else:
         q = quantize(blocks, scene.motor, fixed_point)
         qdesign, reason = evaluate_quantized(scene, design_result, quantized_controller(design_result, q))
         shifts = filter_shifts(blocks, q)

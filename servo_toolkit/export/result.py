@@ -55,8 +55,9 @@ class ExportResult:
     failures : tuple of str
         First, in either format, the design's own closed loop when it is unstable; then the
         requirements the quantized controller's loop misses, each named with its figure
-        and whether the design without quantization already misses it (empty: the loop
-        is stable and the quantized loop meets every requirement of the scene).
+        and whether the design without quantization already misses it; and, in either
+        format, each requirement the design itself misses (empty: the loop is stable and
+        the design, and the quantized loop, meet every requirement of the scene).
     bound_horizon_s : float
         Horizon of the stated fixed-point rounding bound.
     command : CommandExport or None
@@ -80,8 +81,8 @@ class ExportResult:
 
     @property
     def passed(self) -> bool:
-        """The designed loop is stable and (with quantization) the quantized loop holds the
-        requirements."""
+        """The designed loop is stable and meets the scene's requirements, and (with
+        quantization) so does the quantized loop."""
         return not self.failures
 
     @property
