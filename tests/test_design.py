@@ -175,3 +175,26 @@ def test_the_summary_names_the_lag_at_a_required_bandwidth_other_than_its_headli
     eight = design(ema)
     line = next(s for s in eight.table().splitlines() if "closed loop stable: yes" in s)
     assert "required bandwidth" not in line, line
+
+
+def test_design_dict_is_strict_json_and_the_command_line_agrees(ema_design, capsys):
+    """No gain reduction destabilizes the reference EMA's loop (lower gain margin -inf); its
+    dict says so with None, as every result's dict does for a figure that is not finite, and
+    ``design --json`` prints the same null; a rigid plant's infinite stiffness likewise."""
+    from servo_toolkit.cli import main
+    r = ema_design
+    assert r.margins.lower_gain_margin_db == -math.inf and r.margins.closed_loop_stable
+    d = r.to_dict()
+    json.dumps(d, allow_nan=False)  # strict JSON: no -Infinity
+    assert d["margins"]["lower_gain_margin_db"] is None
+    assert d["margins"]["upper_gain_margin_db"] == pytest.approx(r.margins.upper_gain_margin_db)
+    assert main(["design", str(SCENES / "ema_reference.toml"), "--json", "--linear-only"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert cli["margins"]["lower_gain_margin_db"] is None
+    assert cli["margins"].keys() == d["margins"].keys()
+    assert cli["gain_margin_db"] == pytest.approx(d["gain_margin_db"], rel=1e-9)
+    rigid = st.design(st.load_scene(SCENES / "emps.toml"))
+    assert rigid.parameters.K == math.inf
+    dr = rigid.to_dict()
+    json.dumps(dr, allow_nan=False)
+    assert dr["plant"]["stiffness_n_per_m"] is None and dr["plant"]["resonance_hz"] is None

@@ -29,3 +29,16 @@ def _finite(obj):
     if isinstance(obj, (list, tuple)):
         return [_finite(v) for v in obj]
     return obj
+
+
+def nulls(obj):
+    """``obj`` (dicts, lists and tuples, nested) with every non-finite float as None: the form
+    of a figure that does not exist or is unbounded in a result's ``to_dict()`` (strict JSON,
+    ``json.dumps(..., allow_nan=False)``); tuples become lists."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: nulls(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [nulls(v) for v in obj]
+    return obj

@@ -126,17 +126,20 @@ class Margins:
                 f"Ms {self.sensitivity_peak_db:.2f} dB")
 
     def to_dict(self) -> dict:
-        """JSON-ready, units in the key names; a figure not defined is None (JSON null)."""
-        d = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
-        for k, v in d.items():
-            if isinstance(v, float) and math.isnan(v):
-                d[k] = None  # not defined (an unstable closed loop); unstable_reason and notes say why
-        d["delay_margins_s"] = [None if math.isnan(x) else x for x in self.delay_margins_s]
+        """JSON-ready (strict JSON), units in the key names; a figure that is not finite is None
+        (JSON null): not defined (NaN: an unstable closed loop, ``unstable_reason`` and notes say
+        why) or unbounded (inf: no crossing limits it, e.g. ``lower_gain_margin_db`` when no
+        reduction of the gain destabilizes the loop, ``gain_margin_db`` without a phase
+        crossover)."""
+        from ..core.json_text import nulls
+        d = dict(self.__dict__)
         d["unstable_reason"] = self.unstable_reason or None
-        d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg") if self.phase_at_hz == REQUIREMENT_SINE_HZ else None
-        if d["phase_at_8hz_deg"] is None:
-            d["phase_at_freq_deg"] = self.phase_at_freq_deg
-        return d
+        if self.phase_at_hz == REQUIREMENT_SINE_HZ:
+            d["phase_at_8hz_deg"] = d.pop("phase_at_freq_deg")
+        else:
+            d["phase_at_8hz_deg"] = None
+            d["phase_at_freq_deg"] = d.pop("phase_at_freq_deg")
+        return nulls(d)
 
     def table(self) -> str:
         """Every crossing, as text (for an unstable closed loop, where ``L`` crosses and

@@ -110,7 +110,14 @@ class DesignResult(RichDisplay):
         return [c for c in self.requirements if not c.passed] + robust
 
     def to_dict(self) -> dict:
-        """JSON-ready summary; the margin figures are at the top level."""
+        """JSON-ready summary (strict JSON); the margin figures are at the top level. A figure
+        that is not finite is None (JSON null), as in :meth:`Margins.to_dict`: an unbounded
+        margin, a rigid plant's stiffness and resonances, a requirement's figure on an
+        unstable loop."""
+        from ..core.json_text import nulls
+        return nulls(self._dict())
+
+    def _dict(self) -> dict:
         p = self.parameters
         m = self.margins.to_dict()
         top = {k: m[k] for k in ("gain_margin_db", "phase_margin_deg", "delay_margin_s", "disk_margin",
