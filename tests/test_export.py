@@ -696,3 +696,27 @@ def test_a_gain_that_overflows_the_fixed_point_code_is_named(ema, fmt):
     assert abs(n0) * 2.0 ** (s_bits + max(0, guard - f0)) > 2.0**63
     failures = overflow_failures(q)
     assert failures and failures[0].startswith("speed_pi n0 = ") and f"overflows {fmt}" in failures[0], failures
+
+
+def test_a_pure_gain_has_no_root_to_move(ema):
+    """Without a notch the reference EMA's position section is a pure gain (b = [Kp, 0, 0],
+    a = [1, 0, 0]): its poles and zeros at z = 0 are a biquad's padding, so its coefficients
+    move no root (None) and the table's most sensitive coefficient is the speed PI's, whose
+    n1 moves the PI's zero as the first-order perturbation of b0 z^2 + (b1 + e) z + b2 - e says."""
+    scene, _ = ema
+    d = design(scene, resonance_filter="none")
+    res = export(d, scene, fixed_point="q15")
+    pos = next(s for s in res.blocks.sections() if s.name == "position")
+    assert pos.b[1:] == (0.0, 0.0) and tuple(pos.a) == (0.0, 0.0)
+    rows = {(r["section"], r["coefficient"]): r for r in res.sensitivity}
+    assert all(rows[("position", c)]["root_shift_relative_per_lsb"] is None for c in ("n0", "n1", "n2", "d1", "d2"))
+    json.dumps(res.controller_json()["quantized"]["coefficient_sensitivity"], allow_nan=False)
+    sec = next(s for s in res.quantized.sections() if s.name == "speed_pi")
+    b, _ = sec.counts()  # b2 is the rounding of n2 - n1 + n0, near 0: the padding zero near z = 0
+    z0 = max(np.roots(b).real, key=abs)  # the PI's zero
+    ts, e = res.blocks.sample_time, rows[("speed_pi", "n1")]["lsb"]
+    dz = -e * (z0 - 1) / (2 * b[0] * z0 + b[1])  # Newton step: n1 + e adds e (z - 1) to the numerator
+    s0, ds = 2 / ts * (z0 - 1) / (z0 + 1), 2 / ts * 2 / (z0 + 1) ** 2 * dz
+    assert rows[("speed_pi", "n1")]["root_shift_relative_per_lsb"] == pytest.approx(abs(ds / s0), rel=0.02)
+    line = next(x for x in res.table().splitlines() if "most sensitive coefficient" in x)
+    assert "speed_pi" in line and "position" not in line

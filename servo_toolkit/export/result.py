@@ -152,11 +152,14 @@ class ExportResult:
                     continue
                 lines.append(f"  {f['section']} {f['what']}: {f['design_hz']:.4g} Hz -> {f['quantized_hz']:.4g} Hz "
                              f"({100 * f['shift_relative']:+.3g} %)")
-            if self.sensitivity:
-                worst = max(self.sensitivity, key=lambda r: r["root_shift_relative_per_lsb"])
+            moving = [r for r in self.sensitivity if r["root_shift_relative_per_lsb"] is not None]
+            if moving:
+                worst = max(moving, key=lambda r: r["root_shift_relative_per_lsb"])
                 lines.append(f"  most sensitive coefficient: {worst['section']} {worst['coefficient']} "
                              f"({worst['format']}), one LSB moves a root by "
                              f"{100 * worst['root_shift_relative_per_lsb']:.2g} %")
+            elif self.sensitivity:
+                lines.append("  coefficient sensitivity: no section has a pole or zero to move (pure gains)")
             lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantized loop within the requirements (every one met)"]
         else:
             lines += [f"  FAIL: {r}" for r in self.failures]

@@ -3,7 +3,11 @@
 A section's roots are mapped back to the continuous plane with the inverse Tustin map
 ``s = (2 / Ts) (z - 1) / (z + 1)``; a coefficient's sensitivity is the largest move of a root
 (Hz, and relative to that root's own frequency) when the coefficient changes by one LSB of
-its Q format, every other coefficient kept. Roots at z = -1 (s infinite) are left out.
+its Q format, every other coefficient kept. Roots at z = -1 (s infinite) are left out, and so
+are a lower-order section's padding roots: a pure gain or a first-order section stored as a
+biquad has its denominator's trailing coefficients exactly 0, poles at z = 0 (s = -2 / Ts) that
+cancel as many zeros near z = 0 and are no dynamics of the controller. A coefficient whose
+polynomial has no other root (a pure gain's) moves none: its figures are None.
 """
 
 from __future__ import annotations
@@ -18,12 +22,21 @@ from .quantize import direct_form, q_name
 COEFFICIENTS = ("n0", "n1", "n2", "d1", "d2")
 
 
-def _roots_s(poly, sample_time: float) -> np.ndarray:
-    """Continuous roots (rad/s) of a polynomial in z (descending powers), z = -1 left out."""
+def padding(den) -> int:
+    """How many of a section's orders are padding: the trailing exact zeros of its
+    denominator ``(1, a1, a2)`` (2 for a pure gain, 1 for a first-order section)."""
+    den = np.asarray(den, float)
+    return int(den.size - np.trim_zeros(den, "b").size)
+
+
+def _roots_s(poly, sample_time: float, pad: int = 0) -> np.ndarray:
+    """Continuous roots (rad/s) of a polynomial in z (descending powers), z = -1 and the
+    ``pad`` roots nearest z = 0 (a lower-order section's padding) left out."""
     poly = np.trim_zeros(np.asarray(poly, float), "f")
     if poly.size < 2:
         return np.array([], complex)
     z = np.roots(poly)
+    z = z[np.argsort(np.abs(z), kind="stable")][pad:]
     z = z[np.abs(z + 1.0) > 1e-9]
     return 2.0 / sample_time * (z - 1.0) / (z + 1.0)
 
@@ -58,13 +71,15 @@ def section_sensitivity(sec, word: int, sample_time: float) -> list:
         ``section``, ``coefficient`` (n0, n1, n2, d1, d2), ``integer``, ``format``,
         ``value`` (integer domain), ``lsb``, ``root_shift_hz_per_lsb`` and
         ``root_shift_relative_per_lsb`` (largest over the numerator's roots for n0..n2, the
-        denominator's for d1, d2).
+        denominator's for d1, d2; None when that polynomial has no root but padding, as a
+        pure gain's).
     """
     n, d = (list(v) for v in sec.about_one())
     ints = tuple(sec.b_int) + tuple(sec.a_int)
     fracs = tuple(sec.fb) + tuple(sec.fa)
     b, a = direct_form(n, d)
-    base = (_roots_s(b, sample_time), _roots_s((1.0, *a), sample_time))
+    pad = padding((1.0, *a))
+    base = (_roots_s(b, sample_time, pad), _roots_s((1.0, *a), sample_time, pad))
     rows = []
     for k, name in enumerate(COEFFICIENTS):
         lsb = 2.0**-fracs[k]
@@ -74,11 +89,13 @@ def section_sensitivity(sec, word: int, sample_time: float) -> list:
         else:
             dd[k - 3] += lsb
         pb, pa = direct_form(nn, dd)
-        after = _roots_s(pb, sample_time) if k < 3 else _roots_s((1.0, *pa), sample_time)
-        shift, rel = _move(base[0] if k < 3 else base[1], after)
+        after = _roots_s(pb, sample_time, pad) if k < 3 else _roots_s((1.0, *pa), sample_time, pad)
+        before = base[0] if k < 3 else base[1]
+        shift, rel = _move(before, after) if before.size else (None, None)
         rows.append({"section": sec.name, "coefficient": name, "integer": int(ints[k]),
                      "format": q_name(word, fracs[k]), "value": ints[k] * lsb, "lsb": lsb,
-                     "root_shift_hz_per_lsb": shift / (2 * math.pi), "root_shift_relative_per_lsb": rel})
+                     "root_shift_hz_per_lsb": None if shift is None else shift / (2 * math.pi),
+                     "root_shift_relative_per_lsb": rel})
     return rows
 
 
