@@ -18,7 +18,8 @@ compares). ``-o`` writes the CSV that ``fit`` reads.
 from __future__ import annotations
 
 from .common import add_json, bounded, emit, parse_band
-from ..core.files import check_output_file, write_text
+from ..core.files import check_stamped_file, write_text
+from ..core.marks import stamp
 from ..errors import SceneError
 
 
@@ -101,7 +102,7 @@ def run(args) -> int:
     from ..identify.frf import estimate_frf, frf_csv, read_time_log
     band = parse_band(args.band)
     if args.out is not None:
-        check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
+        check_stamped_file(args.out, "-o", "frf", (".csv",), inputs=(args.log,))
     log = read_time_log(args.log)
     _check_columns(args, log)
     notes = list(log.notes)  # printed once the estimate is made: a failing run prints its error alone
@@ -119,7 +120,7 @@ def run(args) -> int:
                         period=period, settle=settle, band=band, derivative=args.derivative,
                         source=str(args.log), lines=lines)
     if args.out is not None:
-        write_text(args.out, frf_csv(data), "-o")
+        write_text(args.out, stamp(frf_csv(data), "frf"), "-o")
     for note in notes:
         print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
