@@ -146,9 +146,10 @@ def unvaried_tolerances(scene, values) -> list:
     if left:
         notes.append(f"the scene's [tolerances] {', '.join(left)} are not varied here (this Monte Carlo varies "
                      f"{', '.join(values)}): servo-toolkit tolerances --nonlinear runs every tolerance in time")
+    given = scene.robustness.ranges if scene.robustness is not None else {}
     for t in tol.items:
         name = covered.get(t.key)
-        if name not in values:
+        if name not in values or name in given:  # [robustness]'s range is the tolerance itself
             continue
         run = (float(np.min(values[name])), float(np.max(values[name])))
         if not np.allclose(run, (t.low, t.high), rtol=1e-9, atol=0.0):
