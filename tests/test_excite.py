@@ -166,6 +166,12 @@ def test_bad_input_is_one_line_naming_the_option(argv, option, tmp_path, capsys)
     assert "Traceback" not in err and not out.exists() and not (tmp_path / "stimulus.txt").exists()
 
 
+def test_a_band_beyond_the_limit_states_the_limit(tmp_path, capsys):
+    """The reference EMA samples at 10 kHz: the line states the highest frequency it takes."""
+    code, _, err = _cli(["excite", EMA, "--band", "1:5000"], capsys)
+    assert code == 2 and "must be at most 1250 Hz, an eighth of the drive's sample rate 10000 Hz" in err, err
+
+
 def test_the_commands_choices_are_the_librarys():
     """``excite --signal`` and ``--input`` offer what the study takes (the parser names them
     without loading the study)."""

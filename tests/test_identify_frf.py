@@ -341,3 +341,15 @@ def test_frf_takes_the_period_a_log_records(tmp_path, capsys):
         _periodic_log(log, head)
         code, _, err = _run(["frf", log], capsys)
         assert code == 2 and err.count("servo-toolkit: error") == 1 and key in err, err
+
+
+@pytest.mark.parametrize("args, option", [(["--band", "500:600"], "--band"), (["--settle", "10"], "--settle")])
+def test_a_failing_estimate_prints_its_error_alone(args, option, tmp_path, capsys):
+    """The note of the period a log records comes with a result, never before the error of
+    a run that fails: stderr is the one error line."""
+    log = tmp_path / "log.csv"
+    _periodic_log(log, "# period_samples: 64\n# settle_periods: 1\n# excited_bins: 4:6\n")
+    code, _, err = _run(["frf", log, *args], capsys)
+    assert code == 2 and err.strip().splitlines() == [err.strip()] and option in err, err
+    code, _, err = _run(["frf", log], capsys)
+    assert code == 0 and "the period as the log records it" in err, err

@@ -154,3 +154,18 @@ def test_a_response_short_of_the_crossover_exits_2_naming_the_rule(designed, tmp
     assert main(["check", EMA, "--linear-only", "--plant-frf", path]) == 2
     err = capsys.readouterr().err
     assert "--plant-frf" in err and "gain crossover" in err
+
+
+@pytest.mark.parametrize("header", ["time_s,current_excitation_A,current_A,voltage_V,motor_angle_rad",
+                                    "t_s,reference_angle_rad,output_angle_rad",
+                                    "time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad"])
+def test_a_time_log_given_for_the_response_is_named_a_time_log(header, tmp_path, capsys):
+    """A rig's log (what excite -o writes, what frf reads) or a trace is not a frequency
+    response: the line says so and names frf, not a column rule of another kind of file."""
+    path = tmp_path / "log.csv"
+    n = len(header.split(","))
+    path.write_text("# servo-toolkit excite: a log\n# period_samples: 2\n" + header + "\n"
+                    + "".join(",".join([f"{k * 1e-3:g}"] + ["0"] * (n - 1)) + "\n" for k in range(4)))
+    assert main(["check", EMA, "--linear-only", "--plant-frf", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--plant-frf: is a time log" in err[0] and "frf LOG -o" in err[0], err

@@ -258,3 +258,40 @@ def test_the_time_requirements_of_both_tables_read_the_tracking_error_in_the_out
         assert (row.value, row.unit) == (pytest.approx(0.2, rel=1e-12), "mm")
         with pytest.raises(SceneError, match=rf"^{table}\.max_tracking_error: .*give an angle, got a length"):
             time_requirements(rotary, travel, table)
+
+
+def _light_load(tmp_path, tolerances: str = ""):
+    """The reference EMA with a 0.2 kg*m^2 load (and ``tolerances`` as its [tolerances])."""
+    text = (SCENES / "ema_reference.toml").read_text().replace('inertia = "1.0 kg*m^2"', 'inertia = "0.2 kg*m^2"')
+    path = tmp_path / "light.toml"
+    path.write_text(text + (f"\n[tolerances]\n{tolerances}\n" if tolerances else ""))
+    return path
+
+
+def test_the_default_load_range_is_relative_to_the_scenes_load(tmp_path):
+    """Without [robustness] the load varies from 0 to four times the scene's own: 0..4
+    kg*m^2 on the reference EMA's 1 kg*m^2 (its defaults unchanged), 0..0.8 kg*m^2 on a
+    0.2 kg*m^2 load, not the reference's absolute 0..4; design --robust takes the same."""
+    from servo_toolkit.loop.design import robust_spec
+    from servo_toolkit.loop.robustness import default_variations
+    assert default_variations(load_scene(EMA)) == {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
+    light = load_scene(_light_load(tmp_path))
+    assert default_variations(light) == {"load_inertia": (0.0, pytest.approx(0.8)), "stiffness": (0.7, 1.3)}
+    assert robust_spec(light, True).ranges == default_variations(light)
+    r = montecarlo(light, samples=4, duration=0.02, progress=False)
+    assert (r.values["load_inertia"].min(), r.values["load_inertia"].max()) == (0.0, pytest.approx(0.8))
+
+
+def test_the_note_on_tolerances_names_only_keys_the_run_leaves_alone(tmp_path):
+    """load.inertia is the Monte Carlo's load_inertia: it is never listed among the keys not
+    varied; varied over the run's own range, the note gives both ranges."""
+    from servo_toolkit.loop.robustness import default_variations, sample_variants
+    from servo_toolkit.studies.montecarlo.run import unvaried_tolerances
+    scene = load_scene(_light_load(tmp_path, 'motor.resistance = "+-10 %"\nload.inertia = [0.15, 0.3]'))
+    notes = unvaried_tolerances(scene, sample_variants(default_variations(scene), 8, False, 0))
+    left = [n for n in notes if "are not varied here" in n]
+    assert len(left) == 1 and "motor.resistance" in left[0] and "load.inertia" not in left[0], notes
+    other = [n for n in notes if "load.inertia is varied over this run's range" in n]
+    assert len(other) == 1 and "0..0.8 kg*m^2" in other[0] and "0.15..0.3 kg*m^2" in other[0], notes
+    same = unvaried_tolerances(scene, sample_variants({"load_inertia": (0.15, 0.3)}, 8, False, 0))
+    assert len(same) == 1 and "load.inertia" not in same[0] and "motor.resistance" in same[0], same

@@ -317,3 +317,25 @@ def test_the_default_sampling_is_the_one_the_help_names():
     sub = next(a for a in build_parser()._subparsers._group_actions[0].choices["tolerances"]._actions
                if "--method" in a.option_strings)
     assert "[tolerances] method, lhs" in sub.help and "random draws" in sub.help and "only [robustness]" in sub.help
+
+
+def test_a_signed_key_takes_the_loaders_rule_finite_and_bounded_in_magnitude(tmp_path):
+    """A hinge spring is signed (``finite, |x| <= 1e+12``): a normal about it is not cut at the
+    smallest magnitude of the unit's range, and an end the loader accepts is accepted."""
+    text = (SCENES / "ema_reference.toml").read_text().replace('hinge_stiffness = "0 N*m/rad"',
+                                                                'hinge_stiffness = "20 N*m/rad"')
+    small = tmp_path / "small.toml"
+    small.write_text(text.replace('hinge_stiffness = "20 N*m/rad"', 'hinge_stiffness = "0.001 N*m/rad"'))
+    load_scene(small)  # the loader's rule: a magnitude below 0.01 N*m/rad is a valid spring
+    path = tmp_path / "spring.toml"
+    path.write_text(text + '\n[tolerances]\nload.hinge_stiffness = { sigma = "200 %" }\n')
+    t = {x.key: x for x in load_scene(path).tolerances.items}
+    k = t["load.hinge_stiffness"]
+    assert (k.distribution, k.mean, k.sigma) == ("normal", 20.0, pytest.approx(40.0))
+    assert (k.low, k.high) == (-1e12, 1e12)
+    path.write_text(text + '\n[tolerances]\nload.hinge_stiffness = "-0.001 N*m/rad:30 N*m/rad"\n')
+    t = {x.key: x for x in load_scene(path).tolerances.items}
+    assert (t["load.hinge_stiffness"].low, t["load.hinge_stiffness"].high) == (-0.001, 30.0)
+    path.write_text(text + '\n[tolerances]\nload.hinge_stiffness = "-2e12 N*m/rad:30 N*m/rad"\n')
+    with pytest.raises(SceneError, match=r"tolerances\.load\.hinge_stiffness: .*within \+-1e\+12"):
+        load_scene(path)

@@ -101,20 +101,22 @@ def amplitude_of(text: str | None, kind: str):
 
 def run(args) -> int:
     """Run the command."""
-    from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure, write_text
+    from ..core.files import check_figure_file, check_stamped_file, save_figure, write_text
+    from ..core.marks import stamp
     band = band_of(args.band)
     resolution = None if args.resolution is None else frequency(args.resolution, "--resolution")
     amplitude = amplitude_of(args.amplitude, args.input)
     scene = load_scene(args.scene)
     inputs = [args.scene, *scene.input_files]
-    for option, path, suffixes in (("-o", args.out, (".csv",)), ("--plot", args.plot, FIGURE_SUFFIXES)):
-        if path is not None:
-            check_output_file(path, option, suffixes, inputs=inputs)
+    if args.out is not None:
+        check_stamped_file(args.out, "-o", "excite", (".csv",), inputs=inputs)
+    if args.plot is not None:
+        check_figure_file(args.plot, "--plot", inputs=inputs)
     from ..studies.excite import excite
     res = excite(scene, signal=args.signal, input=args.input, band=band, resolution=resolution, periods=args.periods,
                  settle=args.settle, amplitude=amplitude, seed=args.seed)
     if args.out:
-        write_text(args.out, res.csv(), "-o")
+        write_text(args.out, stamp(res.csv(), "excite"), "-o")
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

@@ -20,7 +20,8 @@ from pathlib import Path
 
 from ..errors import SceneError
 from .common import add_force, add_json, add_scene, emit, load_scene
-from ..core.files import check_output_file, write_text
+from ..core.files import check_stamped_file, write_text
+from ..core.marks import stamp
 
 
 def register(sub) -> None:
@@ -76,7 +77,7 @@ def run(args) -> int:
     from ..scene import read_scene_text
     scene = load_scene(args.scene)
     if args.output is not None:  # checked before any work
-        check_output_file(args.output, "-o", suffixes=(".toml",), inputs=(args.scene, args.data, *scene.input_files))
+        check_stamped_file(args.output, "-o", "fit", (".toml",), inputs=(args.scene, args.data, *scene.input_files))
         _check_points_files(scene, args.output)
     data = read_data(args.data)
     if isinstance(data, LoopData):  # the nonlinear closed loop runs over the whole log per evaluation
@@ -89,7 +90,7 @@ def run(args) -> int:
     if args.output is not None:
         text = calibrated_text(read_scene_text(Path(scene.source)), result)
         ok = [(k, v) for k, v, (_, hi) in zip(result.keys, result.values, result.ci95) if hi != float("inf")]
-        write_text(args.output, text, "-o", _check_written([k for k, _ in ok], [v for _, v in ok]))
+        write_text(args.output, stamp(text, "fit"), "-o", _check_written([k for k, _ in ok], [v for _, v in ok]))
     out = result.to_dict()
     if args.output is not None:
         out["output"] = str(args.output)

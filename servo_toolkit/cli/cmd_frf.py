@@ -18,7 +18,8 @@ compares). ``-o`` writes the CSV that ``fit`` reads.
 from __future__ import annotations
 
 from .common import add_json, bounded, emit, parse_band
-from ..core.files import check_output_file, write_text
+from ..core.files import check_stamped_file, write_text
+from ..core.marks import stamp
 from ..errors import SceneError
 
 
@@ -101,11 +102,10 @@ def run(args) -> int:
     from ..identify.frf import estimate_frf, frf_csv, read_time_log
     band = parse_band(args.band)
     if args.out is not None:
-        check_output_file(args.out, "-o", suffixes=(".csv",), inputs=(args.log,))
+        check_stamped_file(args.out, "-o", "frf", (".csv",), inputs=(args.log,))
     log = read_time_log(args.log)
     _check_columns(args, log)
-    for note in log.notes:
-        print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
+    notes = list(log.notes)  # printed once the estimate is made: a failing run prints its error alone
     t, columns = log.time_s, log.columns
     period, settle, lines = args.period, args.settle, None
     if log.period_samples is not None and period is None and args.window != "hann" and args.segment is None:
@@ -113,14 +113,16 @@ def run(args) -> int:
         settle = log.settle_periods if settle is None else settle
         if log.excited_bins is not None:
             lines = list(range(log.excited_bins[0], log.excited_bins[1] + 1))
-        print(f"servo-toolkit: note: {args.log}: the period as the log records it, {period} samples"
-              + (f", {settle} settling" if settle is not None else "")
-              + (f", lines {lines[0]} to {lines[-1]} of the period" if lines else ""), file=sys.stderr)
+        notes.append(f"the period as the log records it, {period} samples"
+                     + (f", {settle} settling" if settle is not None else "")
+                     + (f", lines {lines[0]} to {lines[-1]} of the period" if lines else ""))
     data = estimate_frf(t, columns[args.input], columns[args.output], window=args.window, segment=args.segment,
                         period=period, settle=settle, band=band, derivative=args.derivative,
                         source=str(args.log), lines=lines)
     if args.out is not None:
-        write_text(args.out, frf_csv(data), "-o")
+        write_text(args.out, stamp(frf_csv(data), "frf"), "-o")
+    for note in notes:
+        print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
            "time_column": log.time_column, "log_notes": list(log.notes),
            "window": data.window, "averages": data.averages,

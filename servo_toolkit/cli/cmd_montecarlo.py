@@ -23,8 +23,8 @@ def register(sub) -> None:
     add_scene(p)
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LO:HI",
                    help="vary load_inertia (kg*m^2, kg for a travel output: 0 or 1e-12..1e6) or stiffness (a factor, 1e-3..1e3), e.g. load_inertia=0:4 "
-                        "(repeatable; default: the scene's [robustness] ranges, else load_inertia=0:4 "
-                        "stiffness=0.7:1.3; a positive range over a decade is sampled logarithmically, and the "
+                        "(repeatable; default: the scene's [robustness] ranges, else the load inertia from 0 to four "
+                        "times the scene's and stiffness=0.7:1.3; a positive range over a decade is sampled logarithmically, and the "
                         "corners of the ranges are always among the variants)")
     p.add_argument("--samples", type=int, default=None,
                    help="variants (default: the scene's [robustness] samples, else 1000)")

@@ -7,7 +7,7 @@ import sys
 
 from ..errors import SceneError
 from .common import add_force, add_json, add_scene, amplitudes_si, bounded, emit, load_scene
-from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from ..core.files import check_figure_file, save_figure
 
 
 def register(sub) -> None:
@@ -56,7 +56,7 @@ def run(args) -> int:
         raise SceneError("--frequency", "must be positive and finite")
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
+        check_figure_file(args.plot, "--plot", inputs=[args.scene, *scene.input_files])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
     if args.frequency:  # one the sampled loop cannot track fails before any work, with or without runs
         from ..studies.time.reference import check_sine_frequency

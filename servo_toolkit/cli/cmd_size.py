@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from ..core.files import check_figure_file, save_figure
 from ..errors import SceneError
 from .common import add_json, add_scene, emit, load_scene
 
@@ -45,7 +45,7 @@ def run(args) -> int:
     scene = load_scene(args.scene)
     for key, path in (("--plot", args.plot), ("--sweep-plot", args.sweep_plot)):   # checked before any work
         if path:
-            check_output_file(path, key, FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
+            check_figure_file(path, key, inputs=[args.scene, *scene.input_files])
     if args.plot and args.sweep_plot and Path(args.plot).resolve() == Path(args.sweep_plot).resolve():
         raise SceneError("--sweep-plot", f"must be another file than --plot (got {args.sweep_plot!r} for both)")
     result = size(scene, closed_loop=args.closed_loop, losses=args.losses, sweep=not args.no_sweep,

@@ -8,7 +8,7 @@ import sys
 from ..errors import SceneError
 from .common import (add_force, add_json, add_scene, add_scheduler, add_sine_options, amplitudes_si, bounded, emit,
                      load_scene, scheduler_of, study_executor)
-from ..core.files import FIGURE_SUFFIXES, check_output_file, save_figure
+from ..core.files import check_figure_file, save_figure
 from . import sweep_multisine
 
 
@@ -86,7 +86,7 @@ def run(args) -> int:
     sweep_multisine.check_options(args)
     scene = load_scene(args.scene)
     if args.plot:  # checked before any work
-        check_output_file(args.plot, "--plot", FIGURE_SUFFIXES, inputs=[args.scene, *scene.input_files])
+        check_figure_file(args.plot, "--plot", inputs=[args.scene, *scene.input_files])
     name = args.study or default_study(scene)
     if name:
         if not args.study:

@@ -23,6 +23,25 @@ def add_plant_frf_options(p) -> None:
                         "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current")
 
 
+#: the rule a time log (a rig's log, simulate's traces) given for the response breaks
+_TIME_LOG = ("is a time log (first column {}), not a frequency response: estimate the response with frf LOG "
+             "-o FRF.csv and give that file; expected " + EXPECTED)
+
+
+def _time_column(path) -> str | None:
+    """The time column a CSV file's header starts with (a time log), else None."""
+    from ..identify.frf import TIME_COLUMNS
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line.split(",", 1)[0].strip()
+                    return first if first in TIME_COLUMNS else None
+    except OSError:
+        return None
+    return None
+
+
 def read_plant_frf(path):
     """The measured response in ``path`` (FrequencyData), or one SceneError naming
     ``--plant-frf`` and the rule."""
@@ -31,9 +50,11 @@ def read_plant_frf(path):
         data = read_data(path)
     except SceneError as exc:
         rule = exc.rule if exc.key in ("(file)", "header") else f"{exc.key}: {exc.rule}"
+        if exc.key == "header" and _time_column(path):
+            rule = _TIME_LOG.format(_time_column(path))
         raise SceneError("--plant-frf", rule, str(path)) from None
     if not isinstance(data, FrequencyData):
-        raise SceneError("--plant-frf", f"holds time traces; expected a frequency response {EXPECTED}", str(path))
+        raise SceneError("--plant-frf", _TIME_LOG.format(_time_column(path) or "time_s"), str(path))
     if data.points < 2:
         raise SceneError("--plant-frf", f"{data.points} point(s); a loop on measured data needs at least two",
                          str(path))

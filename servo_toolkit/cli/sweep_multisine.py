@@ -12,7 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..core.files import check_output_file, save_figure, write_text
+from ..core.files import check_stamped_file, save_figure, write_text
+from ..core.marks import stamp
 from ..errors import SceneError, SimulationError
 from .common import bounded, emit, parse_band, study_executor
 
@@ -62,7 +63,7 @@ def run(args, scene, amps, scheduler) -> int:
     from .budget import check_time, time_run_seconds
     for option, path, suffixes in (("-o", args.out, (".csv",)), ("--log", args.log, (".csv",))):
         if path is not None:
-            check_output_file(path, option, suffixes, inputs=[args.scene, *scene.input_files])
+            check_stamped_file(path, option, "sweep", suffixes, inputs=[args.scene, *scene.input_files])
     if args.out and args.log and Path(args.out).resolve() == Path(args.log).resolve():
         raise SceneError("--log", "must be another file than -o")
     if (args.out or args.log) and amps is not None and len(amps) > 1:
@@ -88,9 +89,9 @@ def run(args, scene, amps, scheduler) -> int:
     if (args.out or args.log) and res.errors[0] is not None:
         raise SimulationError(f"the multisine run failed, nothing written: {res.errors[0]}")
     if args.out:
-        write_text(args.out, res.csv(0), "-o")
+        write_text(args.out, stamp(res.csv(0), "sweep"), "-o")
     if args.log:
-        write_text(args.log, res.log_csv(0), "--log")
+        write_text(args.log, stamp(res.log_csv(0), "sweep"), "--log")
     if args.plot:
         import matplotlib
         matplotlib.use("Agg")

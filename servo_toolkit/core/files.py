@@ -12,6 +12,8 @@ temporary behind. The rules of an output path:
 - it is never one of the command's inputs (compared after resolving links, and by device
   and inode, so hard links count);
 - a read-only file is refused, and its folder must exist and take a new file (probed);
+- with ``earlier``, an existing file is replaced only when it is an earlier output of the
+  command, told by its content (:mod:`.marks`: a stamped text unchanged, a marked figure);
 - a new file's or folder's mode follows the umask (a replaced file keeps its mode).
 
 Folders are published by :mod:`.folders`; inputs are read by :mod:`.inputs`.
@@ -72,7 +74,7 @@ def check_named(path, key: str, what: str) -> None:
         raise SceneError(key, f"is empty: give the {what} to write")
 
 
-def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
+def check_output_file(path, key: str, suffixes=None, inputs=(), earlier=None) -> Path:
     """Check, before any work, that a file may be written at ``path``.
 
     Parameters
@@ -84,6 +86,10 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
         The file name must end in one of these (lower case, with the dot).
     inputs : sequence of path
         Files the command reads: the output is never one of them.
+    earlier : tuple (callable, str), optional
+        ``(test, what)``: an existing file is replaced only when ``test(path)`` tells it is an
+        earlier output of the command (:mod:`.marks`), ``what`` naming that output; else it
+        is refused (nothing a user has is overwritten). None: any regular file is replaced.
 
     Returns
     -------
@@ -93,8 +99,9 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
     ------
     SceneError
         Naming ``key`` and the rule: a wrong suffix, one of the inputs, a symbolic link, a
-        folder, a device, FIFO or socket, a read-only file, a folder that does not exist or
-        does not take a new file, an empty path.
+        folder, a device, FIFO or socket, a read-only file, an existing file that is not an
+        earlier output (with ``earlier``), a folder that does not exist or does not take a
+        new file, an empty path.
     """
     check_named(path, key, "file")
     p = Path(path)
@@ -116,6 +123,9 @@ def check_output_file(path, key: str, suffixes=None, inputs=()) -> Path:
             raise SceneError(key, f"refusing to write {_q(path)}: it is a device, FIFO or socket, not a regular file")
         if not st.st_mode & 0o222 or not os.access(p, os.W_OK):
             raise SceneError(key, f"refusing to overwrite {_q(path)}: it is read-only")
+        if earlier is not None and not earlier[0](p):
+            raise SceneError(key, f"refusing to overwrite {_q(path)}: it exists and is not {earlier[1]}; give a "
+                                  f"new file name, or remove the file first")
     parent = p.parent
     if not parent.is_dir():
         raise SceneError(key, f"cannot write {_q(path)}: folder {_q(parent)} does not exist")
@@ -299,12 +309,33 @@ def write_text(path, text: str, key: str = "--output", check=None) -> Path:
     return Path(path)
 
 
+def check_figure_file(path, key: str = "--plot", inputs=()) -> Path:
+    """:func:`check_output_file` for a figure: one of :data:`FIGURE_SUFFIXES`, and an
+    existing file only when it is a figure the toolkit wrote (its metadata,
+    :func:`.marks.figure_marked`)."""
+    from .marks import figure_marked
+    return check_output_file(path, key, FIGURE_SUFFIXES, inputs=inputs,
+                             earlier=(figure_marked, "a figure servo-toolkit wrote (PNG, SVG, PDF, PS or EPS)"))
+
+
+def check_stamped_file(path, key: str, command: str, suffixes=None, inputs=()) -> Path:
+    """:func:`check_output_file` for a text output of ``command`` written with
+    :func:`.marks.stamp`: an existing file only when it is that command's output, unchanged."""
+    from .marks import stamped_by
+    return check_output_file(path, key, suffixes, inputs=inputs,
+                             earlier=(lambda p: stamped_by(p, command),
+                                      f"an unchanged output of servo-toolkit {command}"))
+
+
 def save_figure(fig, path, key: str = "--plot") -> Path:
-    """``fig.savefig`` atomically to ``path`` (format from its suffix)."""
+    """``fig.savefig`` atomically to ``path`` (format from its suffix), marked as the
+    toolkit's where the format takes metadata (:func:`.marks.figure_metadata`)."""
+    from .marks import figure_metadata
     with atomic_file(path, key) as tmp:
-        fig.savefig(tmp, bbox_inches="tight")
+        fig.savefig(tmp, bbox_inches="tight", metadata=figure_metadata(Path(path).suffix))
     return Path(path)
 
 
-__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_named", "check_output_file", "check_output_folder", "same_file", "save_figure",
+__all__ = ["FIGURE_SUFFIXES", "atomic_file", "check_figure_file", "check_named", "check_output_file",
+           "check_stamped_file", "check_output_folder", "same_file", "save_figure",
            "write_text"]

@@ -237,7 +237,8 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
     robust : None, bool or Robustness
         ``None``: robust when the scene has ``[robustness]``; ``False``: nominal design;
         ``True``: robust over the scene's ``[robustness]`` or, when it has none, the default
-        ranges (load inertia 0..4 kg*m^2, stiffness 0.7..1.3, 1000 Monte Carlo variants);
+        ranges (load inertia 0 .. 4 times the scene's, stiffness 0.7..1.3, 1000 Monte Carlo
+        variants; :func:`~.robustness.default_variations`);
         a :class:`~servo_toolkit.scene.tables.Robustness`: robust over it.
     progress : bool
         Progress bars for the robust search.
@@ -428,7 +429,11 @@ def robust_spec(scene, robust):
     if robust is False:
         return None
     if robust is True:
-        return scene.robustness if scene.robustness is not None else Robustness()
+        if scene.robustness is not None:
+            return scene.robustness
+        from .robustness import default_variations
+        ranges = default_variations(scene)
+        return Robustness(load_inertia=ranges.get("load_inertia"), stiffness=ranges["stiffness"])
     if isinstance(robust, Robustness):
         return robust
     from ..errors import SceneError

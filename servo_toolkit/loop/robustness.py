@@ -31,7 +31,23 @@ from .vary import PARAMETERS
 from .variant_plants import (VariantLoops, mode_damping, batched_matrices, controller_blocks as _controller_blocks,
                              controller_response as _controller_response, variant_grid, variant_plants)
 
+#: the ranges :func:`sample_variants` takes without a scene: the reference EMA's defaults (its
+#: load of 1 kg*m^2 from none to four times, the series stiffness +-30 %)
 DEFAULT_VARIATIONS = {"load_inertia": (0.0, 4.0), "stiffness": (0.7, 1.3)}
+
+#: a scene without ``[robustness]`` varies its load inertia from none to this many times its own
+DEFAULT_LOAD_FACTOR = 4.0
+
+
+def default_variations(scene) -> dict:
+    """The ranges a scene without ``[robustness]`` is varied over: its load inertia (mass, at
+    an output travel) from 0 to :data:`DEFAULT_LOAD_FACTOR` times its own (the reference EMA's
+    1 kg*m^2 gives 0..4 kg*m^2, a 0.2 kg*m^2 flap 0..0.8 kg*m^2) and the series stiffness
+    0.7..1.3; a scene without load inertia varies the stiffness alone."""
+    load = float(scene.load.inertia)
+    out = {"load_inertia": (0.0, DEFAULT_LOAD_FACTOR * load)} if load > 0 else {}
+    out["stiffness"] = DEFAULT_VARIATIONS["stiffness"]
+    return out
 
 
 def sample_variants(variants=None, samples: int = 1000, grid: bool = False, seed: int = 0) -> dict:
@@ -123,8 +139,8 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     design_result : DesignResult
     variants : dict, optional
         name -> (lo, hi) range or array of values; names ``load_inertia`` (kg*m^2) and
-        ``stiffness`` (factor). Default: ``spec``'s ranges, else load inertia 0..4 kg*m^2,
-        stiffness 0.7..1.3.
+        ``stiffness`` (factor). Default: ``spec``'s ranges, else :func:`default_variations`
+        (load inertia 0 .. 4 times the scene's, stiffness 0.7..1.3).
     samples : int
         Monte Carlo samples (or grid points in total with ``grid=True``) for ranges.
     grid : bool
@@ -158,6 +174,8 @@ def robustness(scene, design_result, variants=None, *, samples: int = 1000, grid
     if spec is not None:
         variants = spec.ranges if variants is None else variants
         samples, grid, seed = spec.samples, spec.method == "grid", spec.seed
+    elif variants is None:
+        variants = default_variations(scene)
     values = sample_variants(variants, samples, grid, seed)
     if requirements is None:
         requirements = robust_requirements(spec or Robustness(), design_result.requirements)

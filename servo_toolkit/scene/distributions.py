@@ -174,6 +174,8 @@ def _physical_range(kp) -> tuple:
     if rng is None:
         return (0.0 if kp.rule in ("positive", "nonnegative") else -math.inf), math.inf
     low, high = rng
+    if kp.rule == "finite":  # signed: bounded in magnitude only, as the loader checks it
+        return -high, high
     if kp.rule == "positive" or kp.bounds is not None:
         return low, high
     if kp.rule == "nonnegative":
@@ -281,7 +283,9 @@ def _check_end(v: float, kp, where: str) -> None:
         require(v > 0, where, f"must be positive over the whole distribution (got an end at {v:g})")
     if kp.rule == "nonnegative":
         require(v >= 0, where, f"must not be negative over the whole distribution (got an end at {v:g})")
-    broken = range_rule(v, kp.rule if kp.rule is not None or v <= 0 else "positive", kp.unit, kp.bounds)
+    # a signed key's range is its magnitude's upper end alone (no component bounds one)
+    bounds = None if kp.rule == "finite" else kp.bounds
+    broken = range_rule(v, kp.rule if kp.rule is not None or v <= 0 else "positive", kp.unit, bounds)
     require(broken is None, where, f"an end of the distribution {broken}")
 
 

@@ -138,8 +138,9 @@ def make_plan(signal: str, band, resolution: float, periods: int, settle: int, s
     if not 0 < lo < hi < math.inf:
         raise SceneError("--band", f"must be LO:HI with 0 < LO < HI (got {lo:g}:{hi:g} Hz)")
     if hi > MAX_BAND_FRACTION * fs * (1 + 1e-9):
-        raise SceneError("--band", f"the highest frequency {hi:.4g} Hz must be at most an eighth of the drive's "
-                         f"sample rate {fs:.4g} Hz (the scene's sensors.sample_time)")
+        raise SceneError("--band", f"the highest frequency {hi:.4g} Hz must be at most "
+                         f"{MAX_BAND_FRACTION * fs:.4g} Hz, an eighth of the drive's sample rate {fs:.6g} Hz "
+                         f"(the scene's sensors.sample_time)")
     if not resolution > 0:
         raise SceneError("--resolution", f"must be positive (got {resolution:g} Hz)")
     bits, clock = 0, 1

@@ -26,7 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...errors import SceneError, SimulationError
-from ...loop.robustness import DEFAULT_VARIATIONS, sample_variants
+from ...loop.robustness import default_variations, sample_variants
 from ...scene.loader import scene_keys
 from ...scene.tolerances import STIFFNESS_SCALE
 from ...core.parallel import chunks, run_cases
@@ -131,17 +131,35 @@ def _reason(status, step, dt, stable, lam_dt):
 
 
 def unvaried_tolerances(scene, values) -> list:
-    """A note naming the scene's ``[tolerances]`` keys this run leaves at their values (the
-    Monte Carlo varies ``load_inertia`` and ``stiffness`` only; ``tolerance_study`` with
-    ``nonlinear=True`` runs every tolerance in time)."""
-    tol, spec = scene.tolerances, scene.robustness
-    covered = {"load.inertia": "load_inertia", STIFFNESS_SCALE: "stiffness"}  # as [robustness] gives them
-    ranges = spec.ranges if spec is not None else {}
-    left = [] if tol is None else [k for k in tol.keys if not (covered.get(k) in values and covered[k] in ranges)]
-    if not left:
+    """Notes on the scene's ``[tolerances]`` keys against this run: the keys it leaves at
+    their values (the Monte Carlo varies ``load_inertia``, which is ``load.inertia``, and
+    ``stiffness``, which is ``drivetrain.stiffness_scale``; ``tolerance_study`` with
+    ``nonlinear=True`` runs every tolerance in time), and a key it varies over its own
+    range rather than the tolerance's."""
+    from ...loop.vary import ranges_text
+    tol = scene.tolerances
+    if tol is None:
         return []
-    return [f"the scene's [tolerances] {', '.join(left)} are not varied here (this Monte Carlo varies "
-            f"{', '.join(values)}): servo-toolkit tolerances --nonlinear runs every tolerance in time"]
+    covered = {"load.inertia": "load_inertia", STIFFNESS_SCALE: "stiffness"}
+    left = [k for k in tol.keys if covered.get(k) not in values]
+    notes = []
+    if left:
+        notes.append(f"the scene's [tolerances] {', '.join(left)} are not varied here (this Monte Carlo varies "
+                     f"{', '.join(values)}): servo-toolkit tolerances --nonlinear runs every tolerance in time")
+    given = scene.robustness.ranges if scene.robustness is not None else {}
+    for t in tol.items:
+        name = covered.get(t.key)
+        if name not in values or name in given:  # [robustness]'s range is the tolerance itself
+            continue
+        run = (float(np.min(values[name])), float(np.max(values[name])))
+        if not np.allclose(run, (t.low, t.high), rtol=1e-9, atol=0.0):
+            shown = {name: np.array(run)}, {name: np.array([t.low, t.high])}
+            linear = scene.drivetrain.output_is_linear
+            notes.append(f"the scene's [tolerances] {t.key} is varied over this run's range "
+                         f"({ranges_text(shown[0], scene.display, linear)}), not over its tolerance "
+                         f"({ranges_text(shown[1], scene.display, linear)}): servo-toolkit tolerances "
+                         f"--nonlinear draws it as the scene states")
+    return notes
 
 
 def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | None = None,
@@ -157,7 +175,8 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     variants : dict, optional
         name -> (lo, hi) range or array of values (``load_inertia`` in kg*m^2 replacing the
         load's, ``stiffness`` a factor on the series stiffness). Default: the scene's
-        ``[robustness]`` ranges, else load inertia 0..4 kg*m^2 and stiffness 0.7..1.3.
+        ``[robustness]`` ranges, else load inertia 0 .. 4 times the scene's and stiffness
+        0.7..1.3 (:func:`~servo_toolkit.loop.robustness.default_variations`).
     samples, seed, grid : optional
         Sampling of ranges as :func:`~servo_toolkit.loop.robustness.sample_variants`
         (default: the scene's ``[robustness]``, else 1000 Monte Carlo draws, seed 0).
@@ -203,7 +222,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         check_friction(friction)  # before any work
     spec = scene.robustness
     if variants is None:
-        variants = spec.ranges if spec is not None else dict(DEFAULT_VARIATIONS)
+        variants = spec.ranges if spec is not None else default_variations(scene)
     samples = samples if samples is not None else (spec.samples if spec is not None else 1000)
     seed = seed if seed is not None else (spec.seed if spec is not None else 0)
     grid = grid if grid is not None else (spec is not None and spec.method == "grid")

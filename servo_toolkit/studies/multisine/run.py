@@ -126,8 +126,8 @@ def grid(plan: MultisinePlan, sample_time: float) -> tuple[int, int]:
         raise SceneError("--band", f"one period of the lowest line {lo:g} Hz holds {n} command samples, more than "
                          f"{MAX_PERIOD_SAMPLES}: a higher lowest line")
     if hi * 4 > 0.5 / (period / n) and sample_time > 0:
-        raise SceneError("--band", f"the highest line {hi:g} Hz must be at most an eighth of the sample rate "
-                         f"({1 / sample_time:g} Hz)")
+        raise SceneError("--band", f"the highest line {hi:g} Hz must be at most {n / period / 8:.4g} Hz, an "
+                         f"eighth of the command's sample rate {n / period:.6g} Hz")
     want = RECORDS_PER_HIGHEST * hi * period  # records per period at least
     d = max(1, int(n // math.ceil(want)))  # the largest decimation that divides the period
     while n % d:
