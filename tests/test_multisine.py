@@ -134,3 +134,25 @@ def test_bad_multisine_options_are_one_line(tmp_path, capsys, monkeypatch, args,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and where in err, err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_band_given_alone_gets_ten_lines_a_decade(tmp_path):
+    """``--band 2:50`` without ``--lines`` on a scene whose sweep study has fewer frequencies:
+    ten log-spaced lines per decade of the band (15 asked over 2-50 Hz, 12 distinct harmonics of 2 Hz),
+    where the study's count gave a two-line multisine; a band from the study keeps its count,
+    and ``lines`` given is taken as it is."""
+    from servo_toolkit.studies.multisine.run import LINES_PER_DECADE, multisine_spec
+    text = EMA.read_text(encoding="utf-8").replace(
+        'frequencies = { start = "0.5 Hz", stop = "40 Hz", points = 30, spacing = "log" }',
+        'frequencies = ["1 Hz", "8 Hz", "20 Hz"]')
+    assert '"20 Hz"]' in text
+    path = tmp_path / "three_lines.toml"
+    path.write_text(text, encoding="utf-8")
+    scene = load_scene(path)
+    spec = multisine_spec(scene, "sweep", band=(2.0, 50.0))
+    assert spec.plan.lines == math.ceil(LINES_PER_DECADE * math.log10(25.0)) + 1 == 15
+    multiples = spec.plan.line_multiples()
+    # the 15 asked for, merged where 2 Hz's harmonics are fewer (12 distinct, 2-50 Hz)
+    assert multiples.size == 12 and multiples[0] == 1 and multiples[-1] == 25
+    assert multisine_spec(scene, "sweep", band=(2.0, 50.0), lines=4).plan.lines == 4
+    assert multisine_spec(scene, "sweep").plan.lines == 3  # the study's own band keeps its count

@@ -34,7 +34,8 @@ def register(p) -> None:
                    help="multisine: lowest and highest line in Hz (default: the --frequency values' or the study's "
                         "range); the lowest is the period's fundamental")
     p.add_argument("--lines", type=bounded(int, 2, 10000, what="a number of lines"), metavar="N",
-                   help="multisine: lines, log-spaced over the band (default: as many as frequencies)")
+                   help="multisine: lines, log-spaced over the band (default: as many as frequencies; with --band "
+                        "alone, 10 per decade of it)")
     p.add_argument("--periods", type=bounded(int, 1, 1000, what="a number of periods"), metavar="N",
                    help="multisine: periods estimated from (default 4)")
     p.add_argument("--settle", type=bounded(int, 0, 1000, what="a number of periods"), metavar="K",

@@ -40,6 +40,9 @@ from .result import MultisineResult
 RESPONSES = ("closed_loop", "plant")
 #: estimation periods by default
 DEFAULT_PERIODS = 4
+#: lines per decade of a band given without a number of lines (log-spaced; lines the period's
+#: harmonics cannot tell apart are merged)
+LINES_PER_DECADE = 10
 #: the records are taken at least this many times per period of the highest line's fourth
 #: harmonic's Nyquist rate (2 x 4 x f_hi): harmonics up to the 4th do not alias onto the lines
 RECORDS_PER_HIGHEST = 8
@@ -225,12 +228,15 @@ def multisine_spec(scene, study=None, *, band=None, lines: int | None = None, am
     if response not in RESPONSES:
         raise SceneError("--response", f"must be one of {', '.join(RESPONSES)} (got {response!r})")
     name, freqs, amps = study_points(scene, study)
+    default = max(len(set(freqs)), 2)
     if band is None:
         if len(set(freqs)) < 2:
             raise SceneError("--band", "a multisine needs a band: give --band LO:HI (Hz) or a frequency_sweep study "
                              "with at least two frequencies")
         band = (min(freqs), max(freqs))
-    plan = MultisinePlan(tuple(float(b) for b in band), int(lines or max(len(set(freqs)), 2)), periods, settle)
+    elif 0 < band[0] < band[1] < math.inf:  # a band of its own: its lines by the decade
+        default = max(default, math.ceil(LINES_PER_DECADE * math.log10(band[1] / band[0])) + 1)
+    plan = MultisinePlan(tuple(float(b) for b in band), int(lines or default), periods, settle)
     if amplitudes is not None:
         amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
     if not amps or min(amps) <= 0:
@@ -257,7 +263,8 @@ def multisine_sweep(scene, study=None, *, band=None, lines: int | None = None, a
         Lowest and highest line (Hz), replacing the study's. The lowest is the period's
         fundamental: one period must hold whole controller samples.
     lines : int, optional
-        Lines asked for (default: the study's number of frequencies).
+        Lines asked for (default: the study's number of frequencies, and with ``band`` given at
+        least :data:`LINES_PER_DECADE` per decade of it).
     amplitudes : sequence of float, optional
         Peak command amplitudes (rad, or m for an output travel); one run each.
     periods, settle : int
