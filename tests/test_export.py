@@ -474,7 +474,7 @@ def test_result_dataclass(ema):
     text = repr(res)
     assert "\n" not in text and "q31" in text and "passed" in text
     assert "<pre>" in res._repr_html_()
-    json.dumps(res.to_dict())
+    json.dumps(res.to_dict(), allow_nan=False)  # strict JSON
     import matplotlib
     matplotlib.use("Agg")
     axes = res.plot(duration=0.1)
@@ -720,3 +720,18 @@ def test_a_pure_gain_has_no_root_to_move(ema):
     assert rows[("speed_pi", "n1")]["root_shift_relative_per_lsb"] == pytest.approx(abs(ds / s0), rel=0.02)
     line = next(x for x in res.table().splitlines() if "most sensitive coefficient" in x)
     assert "speed_pi" in line and "position" not in line
+
+
+def test_an_export_dict_is_strict_json_where_its_figures_are_not_finite(ema):
+    """An unstable loop's export (the reference's position gain 40 times over): its margins do
+    not exist (NaN in the dict ``controller.json`` is written from); ``to_dict()`` writes them
+    as None, as every result does."""
+    from servo_toolkit.loop.tuning import LoopTuning, tuned_design
+    scene, d = ema
+    unstable = tuned_design(scene, LoopTuning(kp=40 * d.motion.gains["kp"]), base=d)
+    assert not unstable.margins.closed_loop_stable
+    res = export(unstable, scene)
+    assert "NaN" in json.dumps(res.controller_json())
+    out = res.to_dict()
+    json.dumps(out, allow_nan=False)
+    assert out["design"]["gain_margin_db"] is None and out["design"]["closed_loop_stable"] is False

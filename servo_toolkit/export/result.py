@@ -122,9 +122,11 @@ class ExportResult:
                 "instability": None if m.closed_loop_stable else m.instability}
 
     def to_dict(self) -> dict:
-        """JSON-ready summary: ``controller.json`` plus where it was written and the verdict."""
-        return {**self.controller_json(), "directory": None if self.directory is None else str(self.directory),
-                "files": sorted(self.files)}
+        """JSON-ready summary (strict JSON: a figure that is not finite is None):
+        ``controller.json`` plus where it was written and the verdict."""
+        from ..core.json_text import nulls
+        return nulls({**self.controller_json(), "directory": None if self.directory is None else str(self.directory),
+                      "files": sorted(self.files)})
 
     def table(self) -> str:
         """Text summary for the command line."""
