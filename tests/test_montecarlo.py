@@ -62,8 +62,9 @@ def test_degenerate_ranges_equal_the_single_simulate_run(ema):
     assert len(lumped) == 1 and "RK4 step limit" in lumped[0]
     assert len(set(r.notes)) == len(r.notes)
     text = repr(r)
-    assert text.startswith("MonteCarloResult(ema_reference: 3 variants") and "\n" not in text
-    assert "<table>" in r._repr_html_() and "worst tracking error" in r.table()
+    assert text.startswith("<MonteCarloResult: ema_reference: 3 variants") and "\n" not in text
+    card = r._repr_html_()  # a card as every result's: the figures, the plot, the notes
+    assert 'class="st-card"' in card and "<table>" in card and "<svg" in card and "worst tracking error" in r.table()
     import matplotlib
     matplotlib.use("Agg")
     assert len(r.plot()) == 2

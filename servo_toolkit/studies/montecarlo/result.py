@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...core.output_units import OutputUnit
+from ...display.cards import RichDisplay, card, facts, svg
 from ...display.html import fmt
 from ...display.units import DisplayUnits
 
 
-@dataclass(frozen=True)
-class MonteCarloResult:
+@dataclass(frozen=True, repr=False)
+class MonteCarloResult(RichDisplay):
     """Figures of every variant's closed-loop time run.
 
     Attributes
@@ -180,18 +180,19 @@ class MonteCarloResult:
                 f"{int(np.sum(self.saturated))} saturated, {int(np.sum(self.failed))} failed, "
                 f"integration {self.wall_s:.3g} s")
 
-    def __repr__(self) -> str:
-        return f"MonteCarloResult({self.summary()})"
+    def _repr_line(self) -> str:
+        return self.summary()
 
-    def _repr_html_(self) -> str:
-        rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>" for k, v in (
-            ("variants", self.count), ("steps per variant", self.steps_per_variant),
-            ("ranges", self.ranges_text()),
-            ("worst tracking error", self._worst_text("tracking_error")),
-            ("worst peak current", self._worst_text("peak_current")),
-            ("saturated / failed", f"{int(np.sum(self.saturated))} / {int(np.sum(self.failed))}"),
-            ("integration", f"{self.wall_s:.3g} s")))
-        return f"<b>Monte Carlo of {html.escape(self.scene_name)}</b><table>{rows}</table>"
+    def _repr_card(self) -> str:
+        """The notebook card: the figures, the plot of every variant and the notes."""
+        rows = (("variants", self.count), ("steps per variant", self.steps_per_variant),
+                ("ranges", self.ranges_text()),
+                ("worst tracking error", self._worst_text("tracking_error")),
+                ("worst peak current", self._worst_text("peak_current")),
+                ("saturated / failed", f"{int(np.sum(self.saturated))} / {int(np.sum(self.failed))}"),
+                ("integration", f"{self.wall_s:.3g} s"))
+        return card(f"Monte Carlo of {self.scene_name}", parts=[facts(rows), svg(self.plot, size=(11.0, 4.0), cols=2)],
+                    notes=self.notes)
 
     def _worst_text(self, figure) -> str:
         i = self.worst_index(figure)
