@@ -473,7 +473,8 @@ def test_result_dataclass(ema):
     res = export(d, scene, fixed_point="q31")
     text = repr(res)
     assert "\n" not in text and "q31" in text and "passed" in text
-    assert "<pre>" in res._repr_html_()
+    card = res._repr_html_()  # a card as every result's: its verdict, the table, the plot
+    assert 'class="st-card"' in card and "<pre>" in card and "<svg" in card and "PASS" in card
     json.dumps(res.to_dict(), allow_nan=False)  # strict JSON
     import matplotlib
     matplotlib.use("Agg")

@@ -354,6 +354,7 @@ def test_result_shows_itself(plant_fit):
     text = repr(r)
     assert "\n" not in text and "load.inertia=" in text and "dB RMS" in text
     assert "<table>" in r._repr_html_() and "motor.resistance" in r._repr_html_()
+    assert 'class="st-card"' in r._repr_html_()  # a card as every result's
     assert "not identified" in r.table() and "warning: motor.resistance" in r.table()
     gain_ax, phase_ax = r.plot()
     assert [line.get_label() for line in gain_ax.get_lines()] == ["measured", "initial", "fitted"]

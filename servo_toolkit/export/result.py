@@ -172,11 +172,16 @@ class ExportResult:
 
     def __repr__(self) -> str:
         fmt = "float64" if self.quantized is None else self.quantized.fmt
-        return (f"ExportResult({self.scene_name!r}, {fmt}, {len(self.blocks.sections())} sections, "
-                f"{'passed' if self.passed else 'FAILED'})")
+        return (f"<ExportResult: {self.scene_name}, {fmt}, {len(self.blocks.sections())} sections, "
+                f"{'passed' if self.passed else 'FAILED'}>")
 
     def _repr_html_(self) -> str:
-        return "<pre>" + html.escape(self.table()) + "</pre>"
+        """The notebook card: the verdict, the coefficients and checks as the command prints
+        them, the step and gain plot."""
+        from ..display.cards import card, svg
+        fmt = "floating point" if self.quantized is None else f"fixed point {self.quantized.fmt}"
+        return card(f"Controller export of {self.scene_name} ({fmt})", status=bool(self.passed),
+                    parts=["<pre>" + html.escape(self.table()) + "</pre>", svg(self.plot, size=(10.0, 3.8), cols=2)])
 
     def plot(self, axes=None, duration: float = 0.5):
         """Closed-loop step response (linear analysis) and the controller's gain from the

@@ -178,8 +178,10 @@ class FitResult:
         warn = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings)
         res = (f"{self.residual_db_rms:.3g} dB RMS gain residual" if self.residual_db_rms is not None
                else f"normalised residual {self.residual_rms:.3g}")
-        return (f"<p><b>Fit of {html.escape(self.scene)}</b> to {html.escape(_RESPONSE_LABEL[self.response])}: "
-                f"{res}; <b>{html.escape(self.verdict_text())}</b></p><table><tr>{head}</tr>{body}</table>" + (f"<ul>{warn}</ul>" if warn else ""))
+        from ..display.cards import card
+        return card(f"Fit of {self.scene} to {_RESPONSE_LABEL[self.response]}",
+                    parts=[f"<p>{res}; <b>{html.escape(self.verdict_text())}</b></p>"
+                           f"<table><tr>{head}</tr>{body}</table>" + (f"<ul>{warn}</ul>" if warn else "")])
 
     def plot_profiles(self, axes=None):
         """The profile of each parameter profiled: the cost rise against the value, with the
