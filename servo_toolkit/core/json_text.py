@@ -22,23 +22,23 @@ def to_json(data) -> str:
 
 
 def _finite(obj):
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    return obj
+    return _each_float(obj, lambda x: None if math.isnan(x) else ("inf" if x > 0 else "-inf"))
 
 
 def nulls(obj):
     """``obj`` (dicts, lists and tuples, nested) with every non-finite float as None: the form
     of a figure that does not exist or is unbounded in a result's ``to_dict()`` (strict JSON,
     ``json.dumps(..., allow_nan=False)``); tuples become lists."""
+    return _each_float(obj, lambda x: None)
+
+
+def _each_float(obj, replace):
+    """``obj`` (dicts, lists and tuples, nested; tuples become lists) with each non-finite
+    float ``x`` as ``replace(x)``."""
     if isinstance(obj, float) and not math.isfinite(obj):
-        return None
+        return replace(obj)
     if isinstance(obj, dict):
-        return {k: nulls(v) for k, v in obj.items()}
+        return {k: _each_float(v, replace) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [nulls(v) for v in obj]
+        return [_each_float(v, replace) for v in obj]
     return obj
