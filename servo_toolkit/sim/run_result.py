@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from ..core.output_units import OutputUnit
 from ..errors import SimulationError
 from . import layout as lo
 from .kernel import hermite, reference as ref_at, rhs
@@ -68,10 +69,10 @@ def play_note(model, method: str, states) -> list:
     if method == "paper" or len(states) == 0:
         return []
     unit = getattr(model, "output_unit", "rad")
-    scale, shown = (1e3, "mm") if unit == "m" else (math.degrees(1.0), "deg")
+    shown = OutputUnit(unit)
     return [f"{shown_name('play_state_rad', unit)} is the paper scheme's play-operator output, a position at the "
             f"output like {shown_name('output_angle_rad', unit)} (not a deflection): method {method!r} holds it "
-            f"at its start, {states[0, 6] * scale:.4g} {shown}"]
+            f"at its start, {shown.show(states[0, 6]):.4g} {shown.shown}"]
 
 
 def limit_notes(model, times, aux) -> list:
