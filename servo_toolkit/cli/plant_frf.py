@@ -50,8 +50,9 @@ def read_plant_frf(path):
         data = read_data(path)
     except SceneError as exc:
         rule = exc.rule if exc.key in ("(file)", "header") else f"{exc.key}: {exc.rule}"
-        if exc.key == "header" and _time_column(path):
-            rule = _TIME_LOG.format(_time_column(path))
+        time_column = _time_column(path) if exc.key == "header" else None
+        if time_column:
+            rule = _TIME_LOG.format(time_column)
         raise SceneError("--plant-frf", rule, str(path)) from None
     if not isinstance(data, FrequencyData):
         raise SceneError("--plant-frf", _TIME_LOG.format(_time_column(path) or "time_s"), str(path))

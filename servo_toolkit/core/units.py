@@ -142,8 +142,10 @@ def is_bare_number(value) -> bool:
         return False
     if isinstance(value, (int, float)):
         return True
+    if not isinstance(value, str):
+        return False
     try:
-        float(value.strip()) if isinstance(value, str) else float("x")
+        float(value.strip())
     except ValueError:
         return False
     return True
