@@ -29,7 +29,7 @@ from .robustness_result import RobustnessResult
 from .sampling import sample_variants as _sample
 from .vary import PARAMETERS
 from .variant_plants import (VariantLoops, mode_damping, batched_matrices, controller_blocks as _controller_blocks,
-                             controller_response as _controller_response, variant_grid, variant_plants)
+                             variant_grid, variant_plants)
 
 #: the ranges :func:`sample_variants` takes without a scene: the reference EMA's defaults (its
 #: load of 1 kg*m^2 from none to four times, the series stiffness +-30 %)
@@ -209,9 +209,9 @@ def exact_worst(scene, design_result, values: dict, figs: dict, requirements, st
     if not set(values) <= {"load_inertia", "stiffness"} or not requirements:
         return figs
     from .variant_plants import FIELDS, VariantPlants, _plants_of
+    from ..scene.loader import scene_keys
     from ..scene.tolerances import STIFFNESS_SCALE
     figs = {k: np.array(v, copy=True) for k, v in figs.items()}
-    from ..scene.loader import scene_keys
     p0, done, keys = design_result.parameters, set(), scene_keys(scene)
     ratio = mode_damping(scene, p0, structural_damping)
     for _ in range(EXACT_ROUNDS):
