@@ -19,7 +19,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "servo_toolkit"
 
 #: the pipeline, first to last; a package may import only from itself and from those before it
-LAYERS = ("errors", "core", "_physics", "display", "components", "drivetrain", "scene", "plant", "loop", "sim",
+LAYERS = ("errors", "core", "lti", "_physics", "display", "components", "drivetrain", "scene", "plant", "loop", "sim",
           "studies", "identify", "export", "report", "tuner", "cli", "__main__")
 
 

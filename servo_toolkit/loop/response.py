@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..lti.response import solved_response
+
 
 #: Largest eigenvector condition number for which :func:`state_space_response` uses the
 #: modal sum (its rounding error grows with the condition number, ~1e-12 relative here).
@@ -96,22 +98,3 @@ def state_space_response(A, B, C, D, s):
     return solved_response(A, B, C, D, s)
 
 
-def solved_response(A, B, C, D, s):
-    """``C (s I - A)^-1 B + D`` at every ``s`` by one batched linear solve (as python-control
-    evaluates a state-space system without Slycot): shape ``s.shape + (outputs, inputs)``.
-    Where a point lies on a pole, the points are solved one by one and that point is
-    ``inf`` (as python-control)."""
-    s = np.asarray(s, complex)
-    n = A.shape[0]
-    M = s[..., None, None] * np.eye(n) - A
-    try:
-        X = np.linalg.solve(M, np.broadcast_to(B, M.shape[:-1] + B.shape[-1:]))
-    except np.linalg.LinAlgError:
-        out = np.empty(s.shape + D.shape, complex)
-        for k in np.ndindex(s.shape):
-            try:
-                out[k] = C @ np.linalg.solve(M[k], B) + D
-            except np.linalg.LinAlgError:
-                out[k] = complex(np.inf, np.nan)
-        return out
-    return C @ X + D
