@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..plant.linear import current_controller, sample_delay
+from ..plant.linear import current_loop_block, sample_delay_block
 from .closed_loop import DELAY_SAMPLES
 
 
@@ -22,10 +22,10 @@ def _abcd(sys):
 def controller_matrices(controller, motor):
     """The whole controller (motion, sampling delay, current loop) as one system from
     ``y = [theta, omega_m, i]`` (reference zero) to ``u``: (A, B, C, D)."""
-    Am, Bm, Cm, Dm = _abcd(controller.motion)          # [theta_ref, theta, omega_m] -> i_ref
+    Am, Bm, Cm, Dm = _abcd(controller.motion_block)          # [theta_ref, theta, omega_m] -> i_ref
     Bm, Dm = Bm[:, 1:], Dm[:, 1:]                      # [theta, omega_m]
-    Ad, Bd, Cd, Dd = _abcd(sample_delay(controller.sample_time, DELAY_SAMPLES))  # i_ref -> i_cmd
-    cur = current_controller(controller.current_kp, controller.current_ki, motor)
+    Ad, Bd, Cd, Dd = _abcd(sample_delay_block(controller.sample_time, DELAY_SAMPLES))  # i_ref -> i_cmd
+    cur = current_loop_block(controller.current_kp, controller.current_ki, motor)
     Ac, Bc, Cc, Dc = _abcd(cur)
     ideal = cur.ninputs == 2                           # [i_cmd, omega_m] else [i_cmd, i, omega_m]
     nm, nd, nc = Am.shape[0], Ad.shape[0], Ac.shape[0]

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..drivetrain.chain_damping import kept_nodes
-from .closed_loop import linear_closed_loop, open_loop
+from .closed_loop import closed_loop_block, open_loop_block
 from .margins import Margins, frequency_grid, loop_margins
 
 #: a lumped mode below this multiple of the loop's gain crossover is near the loop
@@ -96,8 +96,8 @@ def chain_margins(scene, controller, q0: float, damping: float, two_mass: Margin
     modes = tuple(float(m) for m in chain.eigenfrequencies(q0, driving=True)[1:] / (2 * math.pi))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        loop = open_loop(scene, controller, q0, "chain", damping)
-        cl = linear_closed_loop(scene, controller, q0, "chain", damping)["theta", "theta_ref"]
+        loop = open_loop_block(scene, controller, q0, "chain", damping)
+        cl = closed_loop_block(scene, controller, q0, "chain", damping)["theta", "theta_ref"]
     mg = loop_margins(loop, cl, phase_hz=phase_hz, omega=frequency_grid(extra=[phase_hz, f_req, *modes]))
     d_gain = _change(two_mass.gain_margin_db, mg.gain_margin_db)
     d_phase = _change(two_mass.phase_margin_deg, mg.phase_margin_deg)

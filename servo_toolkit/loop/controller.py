@@ -15,8 +15,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import control as ct
 import numpy as np
+
+from ..lti.convert import sample_tustin
+from ..lti.lazy import ControlSystem, block_of
 
 MOTION_INPUTS = ("theta_ref", "theta", "omega_m")
 MOTION_OUTPUTS = ("i_ref",)
@@ -121,7 +123,9 @@ class CascadeController:
     ----------
     motion : control.StateSpace
         Continuous-time motion controller with inputs ``MOTION_INPUTS`` and output
-        ``i_ref`` (A). It is sampled at ``sample_time`` (Tustin) for simulation.
+        ``i_ref`` (A). It is sampled at ``sample_time`` (Tustin) for simulation. Given as a
+        python-control system or a :class:`servo_toolkit.lti.system.StateSpace`, it reads as
+        python-control's (:attr:`motion_block`: the toolkit's own, without python-control).
     current_kp : float
         Current-loop proportional gain (V/A).
     current_ki : float
@@ -142,7 +146,7 @@ class CascadeController:
         outside the loop, it delays the command by its stated delay.
     """
 
-    motion: ct.StateSpace
+    motion: object = ControlSystem()
     current_kp: float
     current_ki: float
     sample_time: float = 0.0
@@ -151,12 +155,17 @@ class CascadeController:
     schedule: object = None
     shaper: object = None
 
+    @property
+    def motion_block(self):
+        """The motion controller as a :class:`servo_toolkit.lti.system.StateSpace`."""
+        return block_of(self, "motion")
+
     def discrete_motion(self):
         """``(Ad, Bd, Cd, Dd)`` of the motion controller sampled at ``sample_time``.
 
         With ``sample_time == 0`` the continuous matrices are returned.
         """
-        sys = self.motion
+        sys = self.motion_block
         if self.sample_time > 0:
-            sys = ct.sample_system(sys, self.sample_time, method="tustin")
+            sys = sample_tustin(sys, self.sample_time)
         return tuple(np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))

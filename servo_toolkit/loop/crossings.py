@@ -20,9 +20,11 @@ phase of ``L`` only wanders in the rounding of an ill-conditioned evaluation is 
 
 from __future__ import annotations
 
-import control as ct
 import numpy as np
 
+from ..lti.analysis import stability_margins
+from ..lti.response import evaluate
+from ..lti.system import as_system
 from .brent import brentq
 from .response import solved_response
 
@@ -45,23 +47,39 @@ RESOLVABLE_DB = float(20 * np.log10(CROSSING_TOL / EPS))
 def response_of(loop):
     """``L(s)`` of the SISO loop as a vectorized callable: complex frequencies -> values (1-D).
 
-    A continuous state-space loop is evaluated as python-control does without Slycot
-    (``C (s I - A)^-1 B + D`` by a linear solve per point), with the matrices read once and
-    every point solved in one batched call; a root search asking for one point at a time
-    pays a few microseconds instead of python-control's call overhead. A point on a pole
-    gives ``inf`` (as python-control). Other systems are called as they are.
+    A continuous state-space loop (the toolkit's own or python-control's) is evaluated as
+    python-control does without Slycot (``C (s I - A)^-1 B + D`` by a linear solve per
+    point), with the matrices read once and every point solved in one batched call; a root
+    search asking for one point at a time pays a few microseconds instead of python-control's
+    call overhead. A point on a pole gives ``inf`` (as python-control). Other systems are
+    called as they are.
     """
-    if not (isinstance(loop, ct.StateSpace) and loop.isctime() and loop.nstates > 1
-            and loop.ninputs == 1 and loop.noutputs == 1):
+    try:
+        loop = as_system(loop)
+    except TypeError:  # a transfer function: python-control evaluates it
         def call(s):
             with np.errstate(all="ignore"):
                 return np.asarray(loop(np.asarray(s, complex)), complex).reshape(-1)
         return call
-    A, B, C, D = (np.asarray(m, float) for m in (loop.A, loop.B, loop.C, loop.D))
+    A, B, C, D = loop.A, loop.B, loop.C, loop.D
+    if not (loop.isctime() and loop.nstates > 1 and loop.issiso()):
+        def call(s):
+            with np.errstate(all="ignore"):
+                return evaluate(A, B, C, D, np.atleast_1d(np.asarray(s, complex)).reshape(-1))[:, 0, 0]
+        return call
 
     def solve(s):
         return solved_response(A, B, C, D, np.atleast_1d(np.asarray(s, complex)).reshape(-1))[:, 0, 0]
     return solve
+
+
+def _poles(loop):
+    """Poles of a state-space loop (the toolkit's or python-control's) or of a transfer function."""
+    return loop.poles()
+
+
+def _zeros(loop):
+    return loop.zeros()
 
 
 def _evaluate(loop, w):
@@ -75,7 +93,7 @@ def _span(loop):
     nonzero pole or zero: outside, the phase of ``L`` is within ~1/SPAN rad of its asymptote
     and moves monotonically towards it, so no phase crossing lies there (an apparent one is
     rounding)."""
-    roots = np.concatenate([np.atleast_1d(ct.poles(loop)), np.atleast_1d(ct.zeros(loop))])
+    roots = np.concatenate([np.atleast_1d(_poles(loop)), np.atleast_1d(_zeros(loop))])
     mags = np.abs(roots[np.isfinite(roots)])
     mags = mags[mags > 0]
     return (mags.min() / SPAN, mags.max() * SPAN) if mags.size else (1 / SPAN, SPAN)
@@ -85,7 +103,7 @@ def _grid(loop, seeds, response):
     """Positive frequencies (rad/s) around every pole and zero and every seed, refined where
     ``L`` turns, and ``L`` there (``response`` a :func:`response_of` callable): each
     refinement evaluates the new points only."""
-    roots = np.concatenate([np.atleast_1d(ct.poles(loop)), np.atleast_1d(ct.zeros(loop))])
+    roots = np.concatenate([np.atleast_1d(_poles(loop)), np.atleast_1d(_zeros(loop))])
     roots = roots[np.isfinite(roots)]
     seeds = np.asarray(seeds, float)
     seeds = seeds[np.isfinite(seeds) & (seeds > 0)]
@@ -161,8 +179,11 @@ def rounding_bound(loop, w) -> np.ndarray:
         ``|dL| / |L|`` per frequency (``inf`` where ``L`` is 0 or not finite).
     """
     w = np.atleast_1d(np.asarray(w, float))
-    if not (isinstance(loop, ct.StateSpace) and loop.isctime() and loop.nstates > 0
-            and loop.ninputs == 1 and loop.noutputs == 1):
+    try:
+        loop = as_system(loop)
+    except TypeError:
+        return np.zeros(w.shape)
+    if not (loop.isctime() and loop.nstates > 0 and loop.issiso()):
         return np.zeros(w.shape)
     A, B, C, D = (np.asarray(m, float) for m in (loop.A, loop.B, loop.C, loop.D))
     n = A.shape[0]
@@ -224,9 +245,10 @@ def crossings(loop):
         ``arg L(jw) + 180 deg`` at each gain crossing, in [-180, 180) (python-control's
         convention).
     """
+    loop = as_system(loop)
     with np.errstate(all="ignore"):
         try:
-            _, _, _, wpc0, wgc0, _ = ct.stability_margins(loop, returnall=True)
+            _, _, _, wpc0, wgc0, _ = stability_margins(loop, returnall=True)
         except (np.linalg.LinAlgError, ValueError):
             # a long chain's loop: its polynomial coefficients overflow, so python-control
             # gives no seeds and the grid alone brackets the crossings

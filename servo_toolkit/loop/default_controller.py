@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 
-import control as ct
 import numpy as np
 
+from ..lti.system import ss
 from .controller import MOTION_INPUTS, MOTION_OUTPUTS, CascadeController
 
 
@@ -44,8 +44,8 @@ def default_controller(scene) -> CascadeController:
     b = np.array([[kpp, -kpp, -1.0]])
     c = np.array([[kiv]])
     d = np.array([[kv * kpp, -kv * kpp, -kv]])
-    motion = ct.ss(a, b, c, d, inputs=list(MOTION_INPUTS), outputs=list(MOTION_OUTPUTS),
-                   states=["speed_error_integral"], name="fallback_motion")
+    motion = ss(a, b, c, d, inputs=list(MOTION_INPUTS), outputs=list(MOTION_OUTPUTS),
+                states=["speed_error_integral"], name="fallback_motion")
     if motor.inductance > 0:
         kp_i, ki_i = motor.inductance * w_i, motor.resistance * w_i
     else:

@@ -19,12 +19,13 @@ import numpy as np
 
 from .controller import CascadeController
 from ..core.output_units import REQUIREMENT_SINE_HZ
-from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant, plant_matrices,
-                            plant_parameters)
+from ..lti.system import as_system
+from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant_block,
+                            plant_matrices, plant_parameters)
 from .actuator_bounds import bounded
 from .assembly import closed_loop_matrix, controller_matrices
 from .chain_margins import chain_margins
-from .closed_loop import DELAY_SAMPLES, linear_closed_loop, open_loop
+from .closed_loop import DELAY_SAMPLES, closed_loop_block, open_loop_block
 from .margins import frequency_grid, loop_margins
 from .measured_mode import stiffened
 from .metrics import grid_closed_loop, grid_margins
@@ -50,14 +51,13 @@ GAIN_SCAN = np.logspace(-0.8, 0.5, 27)
 @functools.lru_cache(maxsize=16)
 def _delay_polys(sample_time: float):
     """Numerator and denominator of :func:`plant.sample_delay` (None without a delay)."""
-    import control as ct
-
-    from ..plant.linear import sample_delay
-    d = sample_delay(sample_time, DELAY_SAMPLES)
+    from ..lti.convert import ss2tf
+    from ..plant.linear import sample_delay_block
+    d = sample_delay_block(sample_time, DELAY_SAMPLES)
     if d.nstates == 0:
         return None
-    tf = ct.ss2tf(d)
-    return np.ravel(tf.num[0][0]), np.ravel(tf.den[0][0])
+    num, den = ss2tf(d)
+    return np.ravel(num), np.ravel(den)
 
 
 def _delay_response(s, sample_time):
@@ -389,9 +389,9 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
     at_q0 = controller if getattr(controller, "schedule", None) is None else controller.schedule.scaled(controller, p.q0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cl = closed if closed is not None else linear_closed_loop(scene, at_q0, p.q0, model,
-                                                                   structural_damping)
-        loop = open_loop(scene, at_q0, p.q0, model, structural_damping)
+        cl = as_system(closed) if closed is not None else closed_loop_block(scene, at_q0, p.q0, model,
+                                                                             structural_damping)
+        loop = open_loop_block(scene, at_q0, p.q0, model, structural_damping)
     cl_siso = cl["theta", "theta_ref"]
     f_req = next(r.value for r in reqs if r.name == "bandwidth")
     mg = loop_margins(loop, cl_siso, phase_hz=phase_hz,
@@ -411,7 +411,7 @@ def evaluate(scene, controller, q0=None, *, reqs=None, notes=(), motion=None, mo
         checks.append(stroke.requirement())
         checks += stroke.margin_requirements(reqs)
         notes = tuple(notes) + stroke.notes(reqs)
-    g = plant(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
+    g = plant_block(scene, p.q0, inductance=True, model=model, structural_damping=structural_damping)
     n_mass = None if p.rigid else chain_margins(scene, controller, p.q0, structural_damping, mg, phase_hz, f_req)
     if n_mass is not None and n_mass.note:
         notes = tuple(notes) + (n_mass.note,)

@@ -1,15 +1,18 @@
-"""Stability margins of a loop with python-control: every crossing, disk margin, Ms,
-closed-loop bandwidth and phase at a given frequency (MATLAB ``allmargin`` in spirit)."""
+"""Stability margins of a loop: every crossing, disk margin, Ms, closed-loop bandwidth and
+phase at a given frequency (MATLAB ``allmargin`` in spirit), with python-control's
+definitions and arithmetic on the toolkit's own state-space blocks (:mod:`servo_toolkit.lti`;
+a python-control system is taken as well)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-import control as ct
 import numpy as np
 
 from ..core.output_units import REQUIREMENT_SINE_HZ
+from ..lti.analysis import bandwidth
+from ..lti.system import as_system
 from .crossings import crossings, response_of
 
 
@@ -226,7 +229,8 @@ def nyquist_count(loop, rhp_poles: int) -> int:
     winding of ``1 + L`` along it is accumulated on a grid refined until no step turns the
     phase by more than 45 deg; Z = P - winding (the contour is clockwise).
     """
-    poles, zeros = ct.poles(loop), ct.zeros(loop)
+    loop = as_system(loop)
+    poles, zeros = loop.poles(), loop.zeros()
     scale = _scale(poles, zeros)
     sigma = 1e-7 * scale
     w_pos = np.unique(np.concatenate([np.geomspace(1e-7 * scale, 1e4 * scale, 4000),
@@ -267,10 +271,10 @@ def disk_margins(loop, omega):
     tuple of float
         Disk margin, disk-based gain margin (dB) and phase margin (deg).
     """
-    if not (isinstance(loop, ct.StateSpace) and loop.issiso()):
-        return ct.disk_margins(loop, omega)
-    one = ct.ss([], [], [], np.eye(1))
-    balanced = one.feedback(loop) + 0.5 * (0.0 - 1) * one  # as python-control builds it
+    loop = as_system(loop)
+    if not loop.issiso():
+        raise ValueError("disk margins of a SISO loop only")
+    balanced = _balanced_sensitivity(loop)
     with np.errstate(all="ignore"):
         dm = 1.0 / np.abs(response_of(balanced)(1j * np.sort(np.array(omega, float, ndmin=1))))
         gamma_min = (1 - 0.5 * dm * (1 - 0.0)) / (1 + 0.5 * dm * (1 + 0.0))
@@ -283,6 +287,27 @@ def disk_margins(loop, omega):
     return np.amin(dm), gm, dpm[np.where(dpm == np.min(dpm))][0]
 
 
+def _balanced_sensitivity(loop):
+    """``S - 1/2`` of the SISO loop, ``S = 1 / (1 + L)``, as python-control builds it for its
+    ``disk_margins`` (``ss(1).feedback(L) - 0.5``, its ``feedback`` arithmetic with a static
+    unit forward path), so the figures are python-control's to the last bit."""
+    from ..lti.system import ss
+    D1 = np.eye(1)
+    A2, B2, C2, D2 = loop.A, loop.B, loop.C, loop.D
+    sign = -1
+    F = np.eye(1) - sign * D2 @ D1
+    if np.linalg.matrix_rank(F) != 1:
+        raise ValueError("I - sign * D2 * D1 is singular to working precision.")
+    E_D2_C2 = np.linalg.solve(F, np.concatenate((D2, C2), axis=1))
+    E_D2, E_C2 = E_D2_C2[:, :1], E_D2_C2[:, 1:]
+    T2 = np.eye(1) + sign * E_D2 @ D1
+    A = A2 + sign * B2 @ D1 @ E_C2
+    B = B2 @ D1 @ T2
+    C = sign * D1 @ E_C2
+    D = D1 @ T2 + 0.5 * (0.0 - 1)
+    return ss(A, B, C, D)
+
+
 def gain_crossings(loop, integrators: int, found=None):
     """Every gain margin (factor) and where (rad/s): the loop's own -180 deg crossings
     (:func:`.crossings.crossings`; never a root of rounded polynomial coefficients),
@@ -290,6 +315,7 @@ def gain_crossings(loop, integrators: int, found=None):
     w -> inf when L(inf) is real and negative. A crossing at w = 0 of a loop with
     integrators is L's asymptote, not a margin, and is left out. ``found`` is the result of
     :func:`.crossings.crossings` when the caller has it."""
+    loop = as_system(loop)
     wpc, gm, _, _ = crossings(loop) if found is None else found
     keep = np.isfinite(gm) & (gm > 0)
     gm, wpc = list(gm[keep]), list(wpc[keep])
@@ -298,7 +324,7 @@ def gain_crossings(loop, integrators: int, found=None):
         if np.isfinite(l0) and l0.real < 0 and abs(l0.imag) <= 1e-9 * abs(l0):
             gm.append(-1.0 / l0.real)
             wpc.append(0.0)
-    d = np.asarray(ct.ss(loop).D, float).reshape(-1)
+    d = loop.D.reshape(-1)
     if d.size == 1 and d[0] < 0:
         gm.append(-1.0 / d[0])
         wpc.append(math.inf)
@@ -330,8 +356,9 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
     if not (math.isfinite(phase_hz) and phase_hz > 0):
         raise ValueError(f"phase_hz must be a positive frequency (got {phase_hz!r})")
     omega = frequency_grid(extra=[phase_hz]) if omega is None else np.asarray(omega, float)
-    ol_poles = ct.poles(loop)
-    scale = _scale(ol_poles, ct.zeros(loop))
+    loop, closed_loop = as_system(loop), as_system(closed_loop)
+    ol_poles = loop.poles()
+    scale = _scale(ol_poles, loop.zeros())
     at_origin = np.abs(ol_poles) <= ORIGIN_TOL * scale
     integrators = int(np.sum(at_origin))
     rhp = int(np.sum((ol_poles.real > ORIGIN_TOL * scale) & ~at_origin))
@@ -339,7 +366,7 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
     gm, wpc = gain_crossings(loop, integrators, found)
     gm_db = 20 * np.log10(gm)
     _, _, wgc, pm = found
-    poles = ct.poles(closed_loop)
+    poles = closed_loop.poles()
     stable = bool(np.all(poles.real < 0))
     notes = []
     z = nyquist_count(loop, rhp)
@@ -355,17 +382,17 @@ def loop_margins(loop, closed_loop, phase_hz: float = REQUIREMENT_SINE_HZ, omega
             dmarg, dgm, dpm = (float(x) for x in disk_margins(loop, omega))
         except (ValueError, np.linalg.LinAlgError) as exc:  # 1 + L(inf) = 0: no proper sensitivity
             dmarg = dgm = dpm = math.nan
-            notes.append(f"python-control could not compute the disk margin ({exc})")
+            notes.append(f"the disk margin could not be computed ({exc})")
     else:
         dmarg = dgm = dpm = ms = math.nan
         notes.append("gain, phase, delay and disk margins, sensitivity peak Ms and bandwidth are not defined for "
                      "an unstable closed loop")
     dm = delay_margins(pm, wgc, stable)
     try:
-        bw = ct.bandwidth(closed_loop) if stable else math.nan
+        bw = bandwidth(closed_loop) if stable else math.nan
     except Exception:  # noqa: BLE001 - python-control raises on degenerate loops
         bw = math.nan
-        notes.append("python-control could not compute the closed-loop bandwidth")
+        notes.append("the closed-loop bandwidth could not be computed")
     bw = float(bw) / (2 * np.pi) if np.isfinite(bw) else math.inf if stable else math.nan
     w_ph = omega[omega <= 2 * np.pi * phase_hz * (1 + 1e-12)]
     t = _evaluate(closed_loop, 1j * w_ph)

@@ -42,8 +42,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import control as ct
 import numpy as np
+
+from ..lti.system import as_system, ss
 
 #: a peak less prominent than this (dB) over the rigid-body line is not a resonance
 MIN_PROMINENCE_DB = 6.0
@@ -142,13 +143,15 @@ def plant_system(p):
     from ..plant.linear import plant_matrices
     from ..plant.signals import PLANT_OUTPUTS
     A, B, C, D, states = plant_matrices(p, True)
-    return ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
+    return ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
 
 
 def system_responses(system, w) -> np.ndarray:
-    """Frequency response of ``system`` at ``w`` (rad/s): (outputs, inputs, points)."""
+    """Frequency response of ``system`` (a python-control system or the toolkit's own) at ``w``
+    (rad/s): (outputs, inputs, points)."""
+    system = as_system(system)
     with np.errstate(all="ignore"):
-        r = np.asarray(ct.frequency_response(system, w).complex)
+        r = np.asarray(system(1j * np.asarray(w, float)))
     return r.reshape(system.noutputs, system.ninputs, len(w))
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import control as ct
 import numpy as np
 
 from .margins import Margins
+from ..lti.lazy import ControlSystem, block_of
 from .requirements import telling_digits
 from ..display.cards import RichDisplay
 from ..core.output_units import OutputUnit
@@ -37,6 +37,10 @@ class DesignResult(RichDisplay):
         Open loop broken at the position error (``theta_error`` -> ``theta``).
     closed_loop : control.StateSpace
         ``theta_ref`` -> ``theta``.
+
+        ``plant``, ``loop``, ``closed_loop`` and ``closed_loop_full`` read as python-control
+        systems, made on first read; :meth:`block` gives the toolkit's own state-space form of
+        each, which needs no python-control.
     margins : Margins
     requirements : list of Check
         One per requirement, and, when the loop was checked along the stroke,
@@ -74,21 +78,27 @@ class DesignResult(RichDisplay):
     scene_name: str
     q0: float
     parameters: object
-    plant: ct.StateSpace
+    plant: object = ControlSystem()
     controller: object
-    loop: ct.StateSpace
-    closed_loop: ct.StateSpace
+    loop: object = ControlSystem()
+    closed_loop: object = ControlSystem()
     margins: Margins
     requirements: list
     motion: object = None
     notes: tuple = ()
-    closed_loop_full: ct.StateSpace | None = None
+    closed_loop_full: object = ControlSystem(None)
     robustness: object = None
     stroke: object = None
     output_unit: str = "rad"
     display: DisplayUnits = DisplayUnits()
     chain_margins: object = None
     actuator: object = None
+
+    def block(self, name: str):
+        """The linear block in field ``name`` (``"plant"``, ``"loop"``, ``"closed_loop"``,
+        ``"closed_loop_full"``) as a :class:`servo_toolkit.lti.system.StateSpace`: the
+        toolkit's own form, read without python-control."""
+        return block_of(self, name)
 
     @property
     def unit(self) -> OutputUnit:
@@ -194,11 +204,11 @@ class DesignResult(RichDisplay):
         if axes is None:
             _, axes = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
         w = 2 * np.pi * np.logspace(-1, 3, 800)
-        for sys, label in ((self.loop, "open loop L"), (self.closed_loop, "closed loop T")):
-            r = np.asarray(ct.frequency_response(sys, w).complex).reshape(-1)
+        for sys, label in ((self.block("loop"), "open loop L"), (self.block("closed_loop"), "closed loop T")):
+            r = sys(1j * w)
             axes[0].semilogx(w / (2 * np.pi), 20 * np.log10(np.abs(r)), label=label)
             axes[1].semilogx(w / (2 * np.pi), np.degrees(np.unwrap(np.angle(r))), label=label)
-        lw = np.asarray(ct.frequency_response(self.loop, w).complex).reshape(-1)
+        lw = self.block("loop")(1j * w)
         axes[0].semilogx(w / (2 * np.pi), 20 * np.log10(np.abs(1 / (1 + lw))), "--", label="sensitivity S")
         axes[0].axhline(-3, color="0.6", lw=0.8)
         axes[1].axhline(-180, color="0.6", lw=0.8)

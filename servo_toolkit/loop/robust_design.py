@@ -41,13 +41,13 @@ import math
 import warnings
 from dataclasses import replace
 
-import control as ct
 import numpy as np
 from scipy.optimize import minimize
 from ..core.progress import progress_bar
 
 from .controller import CascadeController
-from ..plant.linear import sample_delay, spring_damping
+from ..lti.convert import ss2tf
+from ..plant.linear import sample_delay_block, spring_damping
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES
 from .margins import frequency_grid
@@ -133,10 +133,9 @@ class _Search:
         self.f_req = next(r.value for r in nominal if r.name == "bandwidth")
         self.w = frequency_grid(f_min=0.05, f_max=3e3, points=260, extra=[self.f_req])
         self.s = 1j * self.w
-        d = sample_delay(sample_time, DELAY_SAMPLES)
+        d = sample_delay_block(sample_time, DELAY_SAMPLES)
         if d.nstates:
-            tf = ct.ss2tf(d)
-            self.delay_polys = (np.ravel(tf.num[0][0]), np.ravel(tf.den[0][0]))
+            self.delay_polys = tuple(np.ravel(x) for x in ss2tf(d))
         else:
             self.delay_polys = (np.ones(1), np.ones(1))
         self.delay = self.delay_at(self.s)
@@ -357,6 +356,8 @@ def confirm_worst_case(scene, result, structural_damping) -> str:
     """Rebuild the worst phase-margin variant with python-control (``interconnect``,
     ``stability_margins``, closed-loop poles) and compare it with the vectorized figures;
     returns a note (a disagreement is stated, not hidden)."""
+    import control as ct
+
     from .robustness import reference_margins
     rb = result.robustness
     name = "phase_margin" if "phase_margin" in rb.worst else "stable_fraction"

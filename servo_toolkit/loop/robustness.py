@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import control as ct
 import numpy as np
 
 from ..errors import SceneError
@@ -298,6 +297,7 @@ def reference_margins(scene, design_result, load_inertia: float, stiffness: floa
     on the variants' closed-form plant (:func:`varied_parameters`, what the vectorized figures
     use), or with ``exact`` on the plant built from the scene (:func:`exact_parameters`, what
     each row's worst variant is judged on)."""
+    import control as ct
     p0 = design_result.parameters
     if exact:
         p = exact_parameters(scene, p0, load_inertia, stiffness, structural_damping)

@@ -29,10 +29,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import control as ct
 import numpy as np
 
 from ..errors import SceneError
+from ..lti.system import ss
 
 #: points of the schedule table over the stroke (ends included)
 SCHEDULE_POINTS = 17
@@ -97,10 +97,10 @@ class GainSchedule:
         """The controller with its motion controller's inputs scaled by the factors at ``q``
         (frozen there: the linear loop at that operating point); no schedule on it."""
         ge, gw = (float(f) for f in self.factors(q))
-        m = controller.motion
+        m = controller.motion_block
         scale = np.diag([ge, ge, gw])
-        motion = ct.ss(m.A, np.asarray(m.B) @ scale, m.C, np.asarray(m.D) @ scale, inputs=list(m.input_labels),
-                       outputs=list(m.output_labels), states=list(m.state_labels), name=m.name)
+        motion = ss(m.A, m.B @ scale, m.C, m.D @ scale, inputs=m.inputs, outputs=m.outputs, states=m.states,
+                    name=m.name)
         return replace(controller, motion=motion, schedule=None)
 
     def describe(self) -> str:

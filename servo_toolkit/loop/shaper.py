@@ -133,8 +133,6 @@ def drivetrain_modes(scene, controller=None, q0: float | None = None,
     SceneError
         A rigid drivetrain has no mode to shape (key ``drivetrain``).
     """
-    import control as ct
-
     from ..errors import SceneError
     from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_parameters
     from ..drivetrain.operating_point import operating_point
@@ -145,9 +143,9 @@ def drivetrain_modes(scene, controller=None, q0: float | None = None,
         raise SceneError("drivetrain", "has no compliance: there is no mode to shape (got a rigid chain)")
     out = {"free": (p.resonance_hz, zeta), "locked": (p.antiresonance_hz, zeta * math.sqrt(p.J1 / (p.J1 + p.J2)))}
     if controller is not None:
-        from .closed_loop import linear_closed_loop
-        poles = ct.poles(linear_closed_loop(scene, replace(controller, schedule=None, shaper=None,
-                                                           feedforward=None), q0, "auto", zeta))
+        from .closed_loop import closed_loop_block
+        poles = closed_loop_block(scene, replace(controller, schedule=None, shaper=None, feedforward=None), q0,
+                                  "auto", zeta).poles()
         wn = np.abs(poles)
         band = ((poles.imag > 0) & (wn >= 2 * math.pi * 0.5 * p.antiresonance_hz)
                 & (wn <= 2 * math.pi * 2.0 * p.resonance_hz))

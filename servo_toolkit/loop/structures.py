@@ -9,8 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import control as ct
 import numpy as np
+
+from ..lti.convert import tf2ss
+from ..lti.system import StateSpace, ss
 
 STRUCTURES = ("cascade", "pid", "lead_lag", "pi")
 FILTERS = ("none", "notch", "lowpass")
@@ -101,16 +103,17 @@ class Motion:
         cv = np.polyval(speed[0], s) / np.polyval(speed[1], s)
         return cp * cv, cv / self.ratio
 
-    def state_space(self) -> ct.StateSpace:
-        """Inputs ``theta_ref``, ``theta`` (rad), ``omega_m`` (rad/s); output ``i_ref`` (A)."""
+    def state_space(self) -> StateSpace:
+        """Inputs ``theta_ref``, ``theta`` (rad), ``omega_m`` (rad/s); output ``i_ref`` (A), as
+        the toolkit's own state-space block (``.to_control()``: python-control's)."""
         (pn, pd), speed = self.pieces()
         if speed is None:
-            c = ct.ss(ct.tf(pn, pd))
+            c = tf2ss(pn, pd)
             z = np.zeros((c.nstates, 1))
-            return ct.ss(c.A, np.hstack([c.B, -c.B, z]), c.C, np.hstack([c.D, -c.D, [[0.0]]]),
-                         inputs=["theta_ref", "theta", "omega_m"], outputs=["i_ref"], name="motion")
+            return ss(c.A, np.hstack([c.B, -c.B, z]), c.C, np.hstack([c.D, -c.D, [[0.0]]]),
+                      inputs=["theta_ref", "theta", "omega_m"], outputs=["i_ref"], name="motion")
         # x = [position states, speed states]; ev = Cp x_p + Dp (theta_ref - theta) - omega_m / N
-        pos, vel = ct.ss(ct.tf(pn, pd)), ct.ss(ct.tf(*speed))
+        pos, vel = tf2ss(pn, pd), tf2ss(*speed)
         Ap, Bp, Cp, Dp = (np.atleast_2d(np.asarray(m, float)) for m in (pos.A, pos.B, pos.C, pos.D))
         Av, Bv, Cv, Dv = (np.atleast_2d(np.asarray(m, float)) for m in (vel.A, vel.B, vel.C, vel.D))
         npos, nvel = pos.nstates, vel.nstates
@@ -123,8 +126,8 @@ class Motion:
         C = np.hstack([Dv @ Cp, Cv])
         D = Dv @ (Dp @ e_in + w_in)
         states = [f"position[{k}]" for k in range(npos)] + [f"speed[{k}]" for k in range(nvel)]
-        return ct.ss(A, B, C, D, inputs=["theta_ref", "theta", "omega_m"], outputs=["i_ref"],
-                     states=states, name="motion")
+        return ss(A, B, C, D, inputs=["theta_ref", "theta", "omega_m"], outputs=["i_ref"],
+                  states=states, name="motion")
 
     def describe(self, out: str = "rad") -> str:
         """One line for reports, each value with its unit; ``out``: the output's unit, ``"rad"``

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..core.separable import DEFAULT_RTOL
-from ..plant.linear import plant_matrices, plant_parameters, sample_delay, spring_damping, two_mass_damping
+from ..plant.linear import plant_matrices, plant_parameters, sample_delay_block, spring_damping, two_mass_damping
 from .assembly import _abcd
 from .closed_loop import DELAY_SAMPLES
 from .response import loop_response, mechanical_response, state_space_response
@@ -289,9 +289,10 @@ def batched_matrices(cols: dict, rigid: bool, inductance: bool = True):
 def controller_blocks(ctrl):
     """State-space matrices of the motion controller from [theta, omega_m] to i_ref and of
     the sampling delay (Pade) from i_ref to i_cmd."""
-    Am, Bm, Cm, Dm = _abcd(ctrl.motion)
-    cols = [ctrl.motion.input_index[name] for name in ("theta", "omega_m")]
-    return (Am, Bm[:, cols], Cm, Dm[:, cols]), _abcd(sample_delay(ctrl.sample_time, DELAY_SAMPLES))
+    motion = ctrl.motion_block
+    Am, Bm, Cm, Dm = _abcd(motion)
+    cols = [motion.inputs.index(name) for name in ("theta", "omega_m")]
+    return (Am, Bm[:, cols], Cm, Dm[:, cols]), _abcd(sample_delay_block(ctrl.sample_time, DELAY_SAMPLES))
 
 
 def controller_response(blocks, s):

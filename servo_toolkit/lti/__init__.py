@@ -5,4 +5,9 @@ for the loop's analyses, each step the same arithmetic python-control uses witho
 python-control system made from it on request; :mod:`.convert` transfer function to and
 from a block, the Pade delay and Tustin sampling; :mod:`.connect` blocks joined by their
 signal names (python-control's ``interconnect``); :mod:`.analysis` stability margins and
-bandwidth of a loop."""
+bandwidth of a loop; :mod:`.lazy` the field of a result that holds a block and reads as a
+python-control system."""
+
+from .system import StateSpace, as_system, ss
+
+__all__ = ["StateSpace", "as_system", "ss"]

@@ -27,8 +27,17 @@ def solved_response(A, B, C, D, s):
 
 
 def evaluate(A, B, C, D, s):
-    """:func:`solved_response` of a block that may have no states: shape ``s.shape + (outputs, inputs)``."""
+    """``C (s I - A)^-1 B + D`` at every ``s``, shape ``s.shape + (outputs, inputs)``, with
+    python-control's arithmetic: a block without states is ``D``, one with a single state
+    ``C / (s - a) * B + D`` (a point on its pole ``inf``), a larger one
+    :func:`solved_response`."""
     s = np.asarray(s, complex)
+    A, B, C, D = (np.asarray(m, float) for m in (A, B, C, D))
     if A.shape[0] == 0:
-        return np.broadcast_to(np.asarray(D, complex), s.shape + D.shape).copy()
+        return np.broadcast_to(D.astype(complex), s.shape + D.shape).copy()
+    if A.shape[0] == 1:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = C[:, :, None] / (s.reshape(-1) - A[0, 0]) * B[:, :, None] + D[:, :, None]
+        out[np.isnan(out)] = complex(np.inf, np.nan)
+        return np.moveaxis(out, -1, 0).reshape(s.shape + D.shape)
     return solved_response(A, B, C, D, s)

@@ -191,9 +191,13 @@ def ss(A, B, C, D, *, inputs=None, outputs=None, states=None, name: str = "", dt
 
 def as_system(sys) -> StateSpace:
     """A :class:`StateSpace` from one, or from a python-control state-space system (its
-    matrices, names and sample time; python-control itself is not imported)."""
+    matrices, names and sample time; python-control itself is not imported), or from a
+    python-control transfer function (python-control's ``ss`` realization of it)."""
     if isinstance(sys, StateSpace):
         return sys
+    if type(sys).__module__.startswith("control.") and hasattr(sys, "num") and hasattr(sys, "den"):
+        import control as ct  # the caller's own python-control object: it is loaded
+        sys = ct.ss(sys)
     if hasattr(sys, "A") and hasattr(sys, "input_labels"):
         dt = sys.dt
         return StateSpace(sys.A, sys.B, sys.C, sys.D, inputs=sys.input_labels, outputs=sys.output_labels,

@@ -17,17 +17,17 @@ inductance; outputs :data:`~servo_toolkit.plant.linear.PLANT_OUTPUTS` (``theta``
 
 from __future__ import annotations
 
-import control as ct
 import numpy as np
 
 from ..drivetrain.chain_damping import chain_damping, segment_stiffness
 from ..drivetrain.stage_friction import lumped_friction
 from ..errors import SceneError
+from ..lti.system import StateSpace, ss
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
 
 def chain_plant(scene, q0=None, inductance: bool = True,
-                structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+                structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "control.StateSpace":
     """Voltage-driven n-mass plant of the scene's drivetrain chain at ``q0`` (default
     mid-stroke); ``plant(scene, model="chain")`` gives it, or the rigid plant for a rigid
     chain.
@@ -47,6 +47,12 @@ def chain_plant(scene, q0=None, inductance: bool = True,
     -------
     control.StateSpace
     """
+    return chain_plant_block(scene, q0, inductance, structural_damping).to_control()
+
+
+def chain_plant_block(scene, q0=None, inductance: bool = True,
+                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> StateSpace:
+    """:func:`chain_plant` as the toolkit's own state-space block."""
     drive = scene.drivetrain
     chain = drive.chain
     q0 = drive.mid_stroke if q0 is None else float(q0)
@@ -94,7 +100,7 @@ def chain_plant(scene, q0=None, inductance: bool = True,
         D[2, 0] = 1.0 / motor.resistance
     states = [f"theta[{j}]" for j in nodes] + [f"omega[{j}]" for j in nodes] + (["i"] if ind else [])
     outputs = list(PLANT_OUTPUTS) + [f"theta[{j}]" for j in nodes]
-    return ct.ss(A, B, Cm, D, inputs=["u", "tau_ext"], outputs=outputs, states=states, name="chain_plant")
+    return ss(A, B, Cm, D, inputs=["u", "tau_ext"], outputs=outputs, states=states, name="chain_plant")
 
 
-__all__ = ["chain_plant"]
+__all__ = ["chain_plant", "chain_plant_block"]

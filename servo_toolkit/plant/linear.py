@@ -24,6 +24,10 @@ members before them: each motor-side element's inertia counts with eta / Pi_e (P
 efficiency of the losses before it), so a rigid chain accelerates at
 eta N Kt i / (eta J_before + J_after). ``model="chain"`` gives every node and mode
 (:mod:`servo_toolkit.plant.chain_plant`).
+
+Each block is built as the toolkit's own :class:`~servo_toolkit.lti.system.StateSpace`
+(``*_block``, what the loop's analyses use, without python-control); the public functions
+hand the same matrices and names over as python-control systems.
 """
 
 from __future__ import annotations
@@ -31,13 +35,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import control as ct
 import numpy as np
 
 from ..drivetrain.chain_damping import chain_damping
 from ..drivetrain.elements import stage_units
 from ..drivetrain.stage_friction import lumped_friction
 from ..errors import SceneError
+from ..lti.convert import pade, tf2ss
+from ..lti.system import StateSpace, ss
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
 
 
@@ -291,23 +296,22 @@ def plant_matrices(p: PlantParameters, inductance: bool = True):
     return A, B, C, D, states
 
 
-def _plant(p: PlantParameters, inductance: bool, name: str) -> ct.StateSpace:
+def _plant(p: PlantParameters, inductance: bool, name: str) -> StateSpace:
     A, B, C, D, states = plant_matrices(p, inductance)
-    return ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states,
-                 name=name)
+    return ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name=name)
 
 
-def rigid_plant(scene, q0=None, inductance: bool = True) -> ct.StateSpace:
+def rigid_plant(scene, q0=None, inductance: bool = True) -> "control.StateSpace":
     """Rigid drivetrain: the whole reflected inertia J(q0) on one shaft.
 
     Inputs ``u`` (V), ``tau_ext`` (N*m); states ``theta`` (rad), ``omega`` (rad/s) and ``i``
     (A) with inductance; outputs ``theta``, ``omega_m``, ``i``, ``omega`` (see module doc).
     """
-    return _plant(plant_parameters(scene, q0, "rigid"), inductance, "rigid_plant")
+    return _plant(plant_parameters(scene, q0, "rigid"), inductance, "rigid_plant").to_control()
 
 
 def two_mass_plant(scene, q0=None, inductance: bool = True,
-                   structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+                   structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "control.StateSpace":
     """Two-mass drivetrain: motor-side and load-side inertia joined by the series stiffness.
 
     States ``theta_1``, ``omega_1`` (motor side referred to the output), ``theta``, ``omega``
@@ -315,18 +319,24 @@ def two_mass_plant(scene, q0=None, inductance: bool = True,
     sqrt(K (1/J1 + 1/J2)); theta/u has the anti-resonance sqrt(K/J2) of omega_m/u as zeros.
     """
     return _plant(plant_parameters(scene, q0, "two_mass", structural_damping), inductance,
-                  "two_mass_plant")
+                  "two_mass_plant").to_control()
 
 
 def plant(scene, q0=None, inductance: bool = True, model: str = "auto",
-          structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+          structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "control.StateSpace":
     """Two-mass plant when the chain is compliant, else rigid (see :func:`two_mass_plant`);
     ``model="chain"``: every node and mode of the chain
     (:func:`~servo_toolkit.plant.chain_plant.chain_plant`)."""
+    return plant_block(scene, q0, inductance, model, structural_damping).to_control()
+
+
+def plant_block(scene, q0=None, inductance: bool = True, model: str = "auto",
+                structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> StateSpace:
+    """:func:`plant` as the toolkit's own state-space block."""
     if model == "chain":
         if not scene.drivetrain.chain.rigid:
-            from .chain_plant import chain_plant
-            return chain_plant(scene, q0, inductance, structural_damping)
+            from .chain_plant import chain_plant_block
+            return chain_plant_block(scene, q0, inductance, structural_damping)
         model = "rigid"
     p = plant_parameters(scene, q0, model, structural_damping)
     return _plant(p, inductance, "rigid_plant" if p.rigid else "two_mass_plant")
@@ -339,31 +349,41 @@ def current_loop_gains(motor, bandwidth_hz: float = 1000.0) -> tuple[float, floa
     return motor.inductance * wc, motor.resistance * wc
 
 
-def current_controller(kp: float, ki: float, motor=None) -> ct.StateSpace:
+def current_controller(kp: float, ki: float, motor=None) -> "control.StateSpace":
     """Analog current PI: inputs ``i_cmd``, ``i`` (A), ``omega_m`` (rad/s); output ``u`` (V);
     state ``current_integral`` (V). With ``motor`` of zero inductance the loop is ideal:
     u = R * i_cmd + Ke * omega_m (no state, no ``i`` input), as in :class:`CascadeController`."""
+    return current_loop_block(kp, ki, motor).to_control()
+
+
+def current_loop_block(kp: float, ki: float, motor=None) -> StateSpace:
+    """:func:`current_controller` as the toolkit's own state-space block."""
     if motor is not None and motor.inductance == 0:
-        return ct.ss([], [], [], [[motor.resistance, motor.back_emf_constant]],
-                     inputs=["i_cmd", "omega_m"], outputs=["u"], name="current_loop")
-    return ct.ss([[0.0]], [[ki, -ki, 0.0]], [[1.0]], [[kp, -kp, 0.0]],
-                 inputs=["i_cmd", "i", "omega_m"], outputs=["u"], states=["current_integral"],
-                 name="current_loop")
+        return ss([], [], [], [[motor.resistance, motor.back_emf_constant]],
+                  inputs=["i_cmd", "omega_m"], outputs=["u"], name="current_loop")
+    return ss([[0.0]], [[ki, -ki, 0.0]], [[1.0]], [[kp, -kp, 0.0]],
+              inputs=["i_cmd", "i", "omega_m"], outputs=["u"], states=["current_integral"],
+              name="current_loop")
 
 
-def sample_delay(sample_time: float, samples: float = 1.5, order: int = 2) -> ct.StateSpace:
+def sample_delay(sample_time: float, samples: float = 1.5, order: int = 2) -> "control.StateSpace":
     """Sampling as a delay on the current command: ``samples`` * T (half a sample of
     zero-order hold plus one of computation), Pade order ``order``; input ``i_ref``,
     output ``i_cmd`` (A). A zero sample time gives a unit gain."""
+    return sample_delay_block(sample_time, samples, order).to_control()
+
+
+def sample_delay_block(sample_time: float, samples: float = 1.5, order: int = 2) -> StateSpace:
+    """:func:`sample_delay` as the toolkit's own state-space block."""
     delay = samples * sample_time
     if delay <= 0:
-        return ct.ss([], [], [], [[1.0]], inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
-    num, den = ct.pade(delay, order)
-    return ct.ss(ct.tf(num, den), inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
+        return ss([], [], [], [[1.0]], inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
+    num, den = pade(delay, order)
+    return tf2ss(num, den, inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
 
 
 def mechanics(scene, q0=None, model: str = "auto",
-              structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> ct.StateSpace:
+              structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "control.StateSpace":
     """The mechanical part alone: inputs ``tau_m`` (N*m at the motor shaft) and ``tau_ext``;
     outputs ``theta``, ``omega_m``, ``omega``. A current-driven plant is this block with
     tau_m = Kt * i."""
@@ -373,5 +393,5 @@ def mechanics(scene, q0=None, model: str = "auto",
     B = B.copy()
     B[:, 0] *= p.R / p.Kt  # u -> tau_m: with Ke = 0, i = u / R and tau_m = Kt i
     keep = [0, 1, 3]
-    return ct.ss(A, B, C[keep], D[keep] * 0, inputs=["tau_m", "tau_ext"],
-                 outputs=["theta", "omega_m", "omega"], states=states, name="mechanics")
+    return ss(A, B, C[keep], D[keep] * 0, inputs=["tau_m", "tau_ext"],
+              outputs=["theta", "omega_m", "omega"], states=states, name="mechanics").to_control()

@@ -21,10 +21,10 @@ through the platform inertia seen from the small arch.
 
 from __future__ import annotations
 
-import control as ct
 import numpy as np
 
 from ..components.platform.model import PlatformModel
+from ..lti.system import ss
 
 #: Signals of :func:`platform_plant` and their SI units (all deviations from q0).
 PLATFORM_PLANT_UNITS = {
@@ -34,7 +34,7 @@ PLATFORM_PLANT_UNITS = {
 }
 
 
-def platform_plant(scene, q0=(0.0, 0.0), loads: bool = False, name: str = "platform") -> ct.StateSpace:
+def platform_plant(scene, q0=(0.0, 0.0), loads: bool = False, name: str = "platform") -> "control.StateSpace":
     """Linear plant of the deflection platform at rest at ``q0``, motor torques in.
 
     Parameters
@@ -78,9 +78,8 @@ def platform_plant(scene, q0=(0.0, 0.0), loads: bool = False, name: str = "platf
         b = np.hstack([b, np.vstack([zero, -np.linalg.inv(m)])])
         inputs += ["Mx", "My"]
     c = np.block([[eye, zero], [jac, zero]])
-    return ct.ss(a, b, c, np.zeros((4, len(inputs))), inputs=inputs,
-                 outputs=["alpha", "beta", "theta1", "theta2"],
-                 states=["alpha", "beta", "alpha_dot", "beta_dot"], name=name)
+    return ss(a, b, c, np.zeros((4, len(inputs))), inputs=inputs, outputs=["alpha", "beta", "theta1", "theta2"],
+              states=["alpha", "beta", "alpha_dot", "beta_dot"], name=name).to_control()
 
 
 def matrices(model: PlatformModel, q0) -> tuple[np.ndarray, np.ndarray]:

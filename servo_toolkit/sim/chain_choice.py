@@ -115,15 +115,12 @@ def working_frequencies(scene, controller=None) -> tuple[list[float], str]:
 
 def crossover_hz(scene, controller) -> float:
     """Highest 0 dB crossing of the loop broken at the position error (two-mass plant)."""
-    import control as ct
-
-    from ..loop.closed_loop import open_loop
+    from ..loop.closed_loop import open_loop_block
     f = np.logspace(-1, 4, 400)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            mag = np.abs(ct.frequency_response(open_loop(scene, controller, model="two_mass"),
-                                               2 * np.pi * f).complex).ravel()
+            mag = np.abs(open_loop_block(scene, controller, model="two_mass")(2j * np.pi * f)).ravel()
     except (ValueError, np.linalg.LinAlgError, SceneError):
         return math.nan
     above = np.flatnonzero(mag >= 1.0)
@@ -134,22 +131,20 @@ def lumping_cost(scene, controller, q0: float, frequencies_hz, damping: float) -
     """``max_f |T_two_mass / T_chain - 1|``: the closed loop's theta/theta_ref with the
     two-mass plant against the chain plant (no controller: the plant's output speed per
     volt)."""
-    import control as ct
-
-    from ..loop.closed_loop import linear_closed_loop
-    from ..plant.linear import plant
+    from ..loop.closed_loop import closed_loop_block
+    from ..plant.linear import plant_block
     w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
     resp = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for model in ("two_mass", "chain"):
             if controller is None:
-                g = plant(scene, q0, model=model, structural_damping=damping)
-                sys = g[g.output_labels.index("omega"), g.input_labels.index("u")]
+                sys = plant_block(scene, q0, model=model, structural_damping=damping)["omega", "u"]
             else:
-                cl = linear_closed_loop(scene, controller, q0, model=model, structural_damping=damping)
-                sys = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
-            resp.append(np.asarray(ct.frequency_response(sys, w).complex).ravel())
+                sys = closed_loop_block(scene, controller, q0, model=model, structural_damping=damping)["theta",
+                                                                                                      "theta_ref"]
+            with np.errstate(all="ignore"):
+                resp.append(np.asarray(sys(1j * w)).ravel())
     return float(np.max(np.abs(resp[0] / resp[1] - 1.0)))
 
 
@@ -157,16 +152,13 @@ def step_limit(scene, controller, q0: float, model: str, damping: float) -> floa
     """RK4's stability limit (s) of the linear model with the ``model`` plant: the plant with
     its current loop closed (a controller's current PI, as the compiled model integrates
     it), or the voltage-driven plant; at most the controller's sample time."""
-    import control as ct
-
-    from ..plant.linear import current_controller, plant
-    g = plant(scene, q0, model=model, structural_damping=damping)
+    from ..lti.connect import interconnect
+    from ..plant.linear import current_loop_block, plant_block
+    g = plant_block(scene, q0, model=model, structural_damping=damping)
     if controller is None:
         return max_stable_dt(np.linalg.eigvals(g.A))
-    cur = current_controller(controller.current_kp, controller.current_ki, scene.motor)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sys = ct.interconnect([g, cur], inplist=["i_cmd"], outlist=["theta"], check_unused=False)
+    cur = current_loop_block(controller.current_kp, controller.current_ki, scene.motor)
+    sys = interconnect([g, cur], inplist=["i_cmd"], outlist=["theta"], check_unused=False)
     limit = max_stable_dt(np.linalg.eigvals(sys.A))
     return min(limit, controller.sample_time) if controller.sample_time > 0 else limit
 

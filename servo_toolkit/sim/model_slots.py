@@ -165,13 +165,13 @@ def with_table_error(model, drive, q):
 
 def pack_controller(controller, mode):
     """The motion controller's (A, B, C, D): discretized for a sampled loop, continuous otherwise."""
-    names = tuple(controller.motion.input_labels)
+    names = tuple(controller.motion_block.inputs)
     if names != MOTION_INPUTS:
         raise SceneError("controller", f"motion controller inputs must be {MOTION_INPUTS}, got {names}")
     if mode == lo.SAMPLED:
         a, b, c, d = controller.discrete_motion()
     else:
-        s = controller.motion
+        s = controller.motion_block
         a, b, c, d = (np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
     if c.shape[0] != 1:
         raise SceneError("controller", "the motion controller must have one output (i_ref)")

@@ -33,7 +33,7 @@ def default_jerk(scene, controller, q0: float) -> float:
     speed gain and the motor-side inertia at ``q0``."""
     motor = scene.motor
     jm = float(scene.drivetrain.motor_inertia([q0])[0])
-    kv = float(np.asarray(controller.motion.D)[0, 2])
+    kv = float(controller.motion_block.D[0, 2])
     return estimator_jerk(motor.torque_constant, motor.current_limit, jm, kv, controller.sample_time)
 
 

@@ -152,8 +152,6 @@ def plan(scene, design) -> Plan:
     SceneError
         A position requirement given in the other dimension than the output's.
     """
-    import control as ct
-
     from ..sweep.points import study_points
     u = output_unit(scene)
     given = scene.requirements.time
@@ -175,7 +173,7 @@ def plan(scene, design) -> Plan:
             f", reduced from {u.text(u.default_amplitude, 3)} to what the actuator follows as a rigid body at "
             f"{f:g} Hz with half its current and voltage")
         notes.append(f"sine {u.text(amp, 3)} at {f:g} Hz: default{why}")
-    lin = complex(np.asarray(ct.frequency_response(design.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
+    lin = complex(design.block("closed_loop")(2j * np.pi * f))
     lin_err = abs(1.0 - lin) * amp
     motor = scene.motor
     i_cont = continuous_current(motor)

@@ -203,8 +203,6 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
         The run could not be carried out (its step outside the RK4 stability region, a step
         budget spent, a non-finite state, the stroke end): the rows would have no figure.
     """
-    import control as ct
-
     from ...core.output_units import output_unit
     from ...errors import SimulationError, StrokeEndReached
     from ..actuator.runs import sine_run
@@ -213,7 +211,7 @@ def large_signal(scene, result, actuator=None) -> LargeSignal:
     plan = actuator.plan if actuator is not None else make_plan(scene, result)
     f, amp = plan.frequency, plan.sine_amplitude
     duration = CYCLES / f
-    lin = complex(np.asarray(ct.frequency_response(result.closed_loop, [2 * np.pi * f]).complex).reshape(-1)[0])
+    lin = complex(result.block("closed_loop")(2j * np.pi * f))
     lin_db, lin_deg = 20 * math.log10(abs(lin)), math.degrees(np.angle(lin))
     try:
         run = actuator.sine_run if actuator is not None else None
