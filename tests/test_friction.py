@@ -248,7 +248,8 @@ def test_stuck_or_breaking_is_its_transcription(applied, cap):
        gauge=st.sampled_from([0.0, 1.0, 2.0]))
 def test_gear_at_rest_is_its_transcription(torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge):
     """The lossy gear at rest: the breakaway distances m + loss m may be fused into a
-    multiply-add (the kernels' floating-point licence): the gauges within that rounding, the
+    multiply-add (the kernels' floating-point licence): the gauges within that rounding
+    (relative, and absolute at the subnormal scale), the
     net moment the transcription's exactly unless a distance is within that rounding of 0
     (where the decision may go either way)."""
     args = (torque, moment, cap_t, cap_m, fwd_loss, back_loss, gauge)
@@ -256,7 +257,11 @@ def test_gear_at_rest_is_its_transcription(torque, moment, cap_t, cap_m, fwd_los
     if not math.isfinite(cap_t + cap_m):
         assert _same(got, want) or math.isnan(got) or math.isnan(want)
         return
-    span = 8 * np.finfo(float).eps * (abs(torque) + cap_t + (abs(moment) + cap_m) * (1.0 + fwd_loss))
+    # each operation rounds within eps of its value plus, in the subnormal range, half the
+    # smallest subnormal (the standard model's underflow term): a moment of 5e-324 times a
+    # loss of 0.5 is 0 or 5e-324 as the multiply-add is fused or not
+    span = 8 * np.finfo(float).eps * (abs(torque) + cap_t + (abs(moment) + cap_m) * (1.0 + fwd_loss)) \
+        + 4 * math.ulp(0.0)
     if gauge > 0.0:
         assert abs(got - want) <= span, args
     else:
