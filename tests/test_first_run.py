@@ -106,6 +106,16 @@ def test_a_text_verdict_imports_no_matplotlib(check_imports):
     assert check_imports["libraries"] == []
 
 
+def test_a_robust_verdict_imports_no_matplotlib():
+    """A robust design's check (the variants' grid, the worst case rebuilt from the scene)
+    computes on the toolkit's own blocks too."""
+    proc = subprocess.run([sys.executable, "-c", _FIRST_IMPORTER, "check", str(ROOT / "scenes" / "ema_robust.toml")],
+                          capture_output=True, text=True, timeout=900, cwd=ROOT)
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["code"] == 1  # the scene misses its worst-case Ms: a verdict all the same
+    assert got["importer"] is None and got["libraries"] == []
+
+
 def test_a_commands_process_defers_the_cyclic_collector(tmp_path):
     """The console script runs one command per process: the collector runs seldom while the
     libraries load and leaves the objects that live until the end out of its collection at

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from servo_toolkit.lti.analysis import bandwidth, stability_margins
-from servo_toolkit.lti.connect import AlgebraicLoopError, interconnect
-from servo_toolkit.lti.convert import pade, sample_tustin, ss2tf, tf2ss
+from servo_toolkit.lti.connect import AlgebraicLoopError, feedback, interconnect
+from servo_toolkit.lti.convert import pade, sample_tustin, ss2tf, ss2zpk_zeros, tf2ss
 from servo_toolkit.lti.system import StateSpace, as_system, ss
 
 SETTINGS = settings(max_examples=40, deadline=None)
@@ -71,6 +71,16 @@ def test_ss2tf_is_python_controls(seed, n, stable):
     num, den = ss2tf(as_system(sys_))
     np.testing.assert_array_equal(num, tf.num[0][0])
     np.testing.assert_array_equal(den, tf.den[0][0])
+
+
+@SETTINGS
+@given(seeds, st.integers(1, 6), st.booleans())
+def test_ss2zpk_zeros_are_scipys(seed, n, stable):
+    from scipy.signal import ss2zpk
+    g = _random(seed, n, stable=stable)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        np.testing.assert_array_equal(ss2zpk_zeros(g.A, g.B, g.C, g.D), ss2zpk(g.A, g.B, g.C, g.D)[0])
 
 
 @pytest.mark.parametrize("T, n, numdeg", [(0.1, 1, None), (1, 3, -2), (1e-3, 5, 2), (0, 2, None), (2.5, 4, 0), (3e-4, 2, None)])
@@ -146,6 +156,22 @@ def test_interconnect_refuses_unknown_signal_and_algebraic_loop():
         interconnect([c, b], ["r"], ["y"])
     with pytest.raises(RuntimeError, match="algebraic loop"):
         ct.interconnect([c.to_control(), b.to_control()], inplist=["r"], outlist=["y"])
+
+
+@SETTINGS
+@given(seeds, st.integers(0, 5), st.integers(0, 3), st.sampled_from([-1, 1]))
+def test_feedback_is_python_controls(seed, n1, n2, sign):
+    """Each way round and with a static gain on either side: python-control's numbers."""
+    g, h = _random(seed, n1), _random(seed + 1, n2)
+    for a, b in ((g, h), (g, 1.0), (1.0, g), (g, 2.5)):
+        want = (ct.ss([], [], [], [[a]]) if isinstance(a, float) else a).feedback(b, sign=sign)
+        _same(feedback(a if isinstance(a, float) else as_system(a), b if isinstance(b, float) else as_system(b),
+                       sign), want)
+
+
+def test_feedback_refuses_a_loop_without_solution():
+    with pytest.raises(ValueError, match="singular"):
+        feedback(ss([], [], [], [[1.0]]), 1.0, sign=1)  # y = u + y
 
 
 def _ema_blocks(ema):

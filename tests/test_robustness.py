@@ -215,7 +215,7 @@ def test_robust_design_states_what_it_misses(robust_design):
     d = r.to_dict()
     assert d["requirements_met"] is False and d["robustness"]["passed"] is False
     assert any("misses worst-case sensitivity_peak" in n for n in r.notes)
-    confirm = next(n for n in r.notes if "rebuilt with python-control" in n)
+    confirm = next(n for n in r.notes if "rebuilt as a state-space loop" in n)
     assert "closed loop stable" in confirm and "DISAGREES" not in confirm
 
 

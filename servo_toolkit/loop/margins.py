@@ -12,7 +12,8 @@ import numpy as np
 
 from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..lti.analysis import bandwidth
-from ..lti.system import as_system
+from ..lti.connect import feedback
+from ..lti.system import as_system, ss
 from .crossings import crossings, response_of
 
 
@@ -289,23 +290,10 @@ def disk_margins(loop, omega):
 
 def _balanced_sensitivity(loop):
     """``S - 1/2`` of the SISO loop, ``S = 1 / (1 + L)``, as python-control builds it for its
-    ``disk_margins`` (``ss(1).feedback(L) - 0.5``, its ``feedback`` arithmetic with a static
-    unit forward path), so the figures are python-control's to the last bit."""
-    from ..lti.system import ss
-    D1 = np.eye(1)
-    A2, B2, C2, D2 = loop.A, loop.B, loop.C, loop.D
-    sign = -1
-    F = np.eye(1) - sign * D2 @ D1
-    if np.linalg.matrix_rank(F) != 1:
-        raise ValueError("I - sign * D2 * D1 is singular to working precision.")
-    E_D2_C2 = np.linalg.solve(F, np.concatenate((D2, C2), axis=1))
-    E_D2, E_C2 = E_D2_C2[:, :1], E_D2_C2[:, 1:]
-    T2 = np.eye(1) + sign * E_D2 @ D1
-    A = A2 + sign * B2 @ D1 @ E_C2
-    B = B2 @ D1 @ T2
-    C = sign * D1 @ E_C2
-    D = D1 @ T2 + 0.5 * (0.0 - 1)
-    return ss(A, B, C, D)
+    ``disk_margins`` (``ss(1).feedback(L) - 0.5``, with its ``feedback`` arithmetic), so the
+    figures are python-control's to the last bit."""
+    s = feedback(1.0, loop)
+    return ss(s.A, s.B, s.C, s.D + 0.5 * (0.0 - 1))
 
 
 def gain_crossings(loop, integrators: int, found=None):

@@ -353,31 +353,32 @@ def robust_search(scene, p, spec, nominal, current_gains, sample_time, structura
 
 
 def confirm_worst_case(scene, result, structural_damping) -> str:
-    """Rebuild the worst phase-margin variant with python-control (``interconnect``,
-    ``stability_margins``, closed-loop poles) and compare it with the vectorized figures;
-    returns a note (a disagreement is stated, not hidden)."""
-    import control as ct
-
-    from .robustness import reference_margins
+    """Rebuild the worst phase-margin variant from the scene as a state-space loop
+    (interconnection, python-control's ``stability_margins`` arithmetic, closed-loop poles)
+    and compare it with the vectorized figures; returns a note (a disagreement is stated,
+    not hidden)."""
+    from ..lti.analysis import stability_margins
+    from ..lti.connect import feedback
+    from .robustness import reference_loop
     rb = result.robustness
     name = "phase_margin" if "phase_margin" in rb.worst else "stable_fraction"
     at = rb.worst.get(name)
     if not at:
-        return "no stable variant to confirm with python-control"
+        return "no stable variant to confirm with a state-space loop"
     values = {k: np.array([v]) for k, v in at.items()}
     load = float(values.get("load_inertia", [scene.load.inertia])[0])
     factor = float(values.get("stiffness", [1.0])[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        _, loop = reference_margins(scene, result, load, factor, structural_damping, exact=True)
-        pms = np.atleast_1d(ct.stability_margins(loop, returnall=True)[1])
-        stable = bool(np.all(ct.poles(ct.feedback(loop, 1)).real < 0))
+        loop = reference_loop(scene, result, load, factor, structural_damping, exact=True)
+        pms = np.atleast_1d(stability_margins(loop, returnall=True)[1])
+        stable = bool(np.all(feedback(loop, 1.0).poles().real < 0))
     where = rb.variant_text(at)
     k = int(np.flatnonzero(np.all([rb.values[key] == v for key, v in at.items()], axis=0))[0])
     vec_stable = bool(rb.figures["stable"][k])
     pm_vec = float(rb.figures["phase_margin_deg"][k])
-    pm_pc = float(np.min(pms)) if pms.size else math.inf
-    agree = stable == vec_stable and (not stable or abs(pm_pc - pm_vec) < 0.5)
-    return (f"worst case ({where}) rebuilt with python-control: closed loop {'stable' if stable else 'UNSTABLE'}, "
-            f"phase margin {pm_pc:.4g} deg (vectorized {pm_vec:.4g} deg)"
+    pm_ss = float(np.min(pms)) if pms.size else math.inf
+    agree = stable == vec_stable and (not stable or abs(pm_ss - pm_vec) < 0.5)
+    return (f"worst case ({where}) rebuilt as a state-space loop from the scene: closed loop "
+            f"{'stable' if stable else 'UNSTABLE'}, phase margin {pm_ss:.4g} deg (vectorized {pm_vec:.4g} deg)"
             + ("" if agree else "; the vectorized evaluator DISAGREES on this variant"))

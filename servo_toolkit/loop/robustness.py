@@ -5,8 +5,10 @@ Every variant's open loop is evaluated on one frequency grid as array arithmetic
 closed-form plant responses (:mod:`.response`) of its lumped plant
 (:mod:`.variant_plants`) and the designed controller's response, computed once;
 closed-loop stability comes from the eigenvalues of the batched closed-loop matrices
-(:mod:`.assembly`). :func:`reference_margins` does the same for one variant with
-python-control, for checks and for the benchmark.
+(:mod:`.assembly`). :func:`reference_loop` builds one variant's loop as a state-space block
+by interconnection instead (what a robust design's worst case is confirmed on), and
+:func:`reference_margins` takes python-control's margins of it, for checks and for the
+benchmark.
 """
 
 from __future__ import annotations
@@ -17,10 +19,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import SceneError
+from ..lti.system import ss
 from ..core.parallel import chunks, run_cases
 from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, spring_damping
 from .assembly import closed_loop_matrix, controller_matrices
-from .closed_loop import open_loop_of
+from .closed_loop import open_loop_block_of
 from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import check
@@ -290,14 +293,13 @@ def exact_parameters(scene, p0, load_inertia: float, stiffness: float = 1.0,
     return replace(q, K=K, c=float(spring_damping(q.J1, q.J2, K, mode_damping(scene, p0, structural_damping))))
 
 
-def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
-                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, exact: bool = False):
-    """python-control's ``stability_margins`` (gm, pm, sm, wpc, wgc, wms) of one variant,
-    building the plant and the loop as python-control objects (the slow, independent path):
-    on the variants' closed-form plant (:func:`varied_parameters`, what the vectorized figures
-    use), or with ``exact`` on the plant built from the scene (:func:`exact_parameters`, what
-    each row's worst variant is judged on)."""
-    import control as ct
+def reference_loop(scene, design_result, load_inertia: float, stiffness: float = 1.0,
+                   structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, exact: bool = False):
+    """The open loop of one variant as a state-space block (:mod:`servo_toolkit.lti`), built
+    from its plant and the design's controller by interconnection, not by the vectorized
+    evaluator's closed forms: on the variants' closed-form plant (:func:`varied_parameters`,
+    what the vectorized figures use), or with ``exact`` on the plant built from the scene
+    (:func:`exact_parameters`, what each row's worst variant is judged on)."""
     p0 = design_result.parameters
     if exact:
         p = exact_parameters(scene, p0, load_inertia, stiffness, structural_damping)
@@ -305,8 +307,15 @@ def reference_margins(scene, design_result, load_inertia: float, stiffness: floa
         values = {"load_inertia": np.array([load_inertia]), "stiffness": np.array([stiffness])}
         p = varied_parameters(p0, scene.load.inertia, values, 0, mode_damping(scene, p0, structural_damping))
     A, B, C, D, states = plant_matrices(p)
-    g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
-    loop = open_loop_of(g, design_result.controller, scene.motor)
+    g = ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
+    return open_loop_block_of(g, design_result.controller, scene.motor)
+
+
+def reference_margins(scene, design_result, load_inertia: float, stiffness: float = 1.0,
+                      structural_damping: float = DEFAULT_STRUCTURAL_DAMPING, exact: bool = False):
+    """python-control's ``stability_margins`` (gm, pm, sm, wpc, wgc, wms) of one variant and
+    its open loop as a python-control system (the slow, independent path; the loop is
+    :func:`reference_loop`'s)."""
+    import control as ct
+    loop = reference_loop(scene, design_result, load_inertia, stiffness, structural_damping, exact).to_control()
     return ct.stability_margins(loop), loop
-
-

@@ -385,7 +385,7 @@ def variant_grid(cols: dict, rigid: bool, blocks, f_req: float, f_min: float = 0
     over ``f_min..f_max``, :data:`FINE_PER_DECADE` over the band of the drivetrain's
     resonance and antiresonance of all variants and around each lightly damped pole and
     zero of the controller (damping below :data:`LIGHT_DAMPING`), and ``f_req`` (Hz)."""
-    from scipy.signal import ss2zpk
+    from ..lti.convert import ss2zpk_zeros
     bands = []
     if not rigid:
         J1, J2, K, kh = (np.asarray(cols[k], float) for k in ("J1", "J2", "K", "kh"))
@@ -401,7 +401,7 @@ def variant_grid(cols: dict, rigid: bool, blocks, f_req: float, f_min: float = 0
         roots = [np.linalg.eigvals(A)]
         for j in range(B.shape[1]):
             with np.errstate(all="ignore"):
-                roots.append(ss2zpk(A, B[:, j:j + 1], C, D[:, j:j + 1])[0].ravel())
+                roots.append(ss2zpk_zeros(A, B[:, j:j + 1], C, D[:, j:j + 1]).ravel())
         for r in np.concatenate(roots):
             mag = abs(r)
             if np.isfinite(mag) and mag > 0 and abs(r.real) < LIGHT_DAMPING * mag:

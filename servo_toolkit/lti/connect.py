@@ -276,3 +276,38 @@ def interconnect(systems, inplist, outlist, *, inputs=None, outputs=None, name: 
     states = [f"{sysnames[k]}_{x}" for k, s in enumerate(systems) for x in s.states]
     return StateSpace(A, B, C, D, inputs=inputs, outputs=outputs, states=states, name=name,
                       dt=systems[0].dt if systems else 0.0)
+
+
+def feedback(sys1, sys2=1.0, sign: int = -1) -> StateSpace:
+    """``sys1`` with ``sys2`` in its feedback path (negative feedback for ``sign=-1``):
+    python-control's ``StateSpace.feedback``, the same arithmetic (one LU of
+    ``I - sign D2 D1`` for both right-hand sides), so the same numbers. A number for either
+    is a static gain.
+
+    Raises
+    ------
+    ValueError
+        Blocks whose sizes do not close a loop, or ``I - sign D2 D1`` singular (an algebraic
+        loop without a solution).
+    """
+    def block(s):
+        if isinstance(s, (int, float, np.number)):
+            return StateSpace(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[float(s)]])
+        return as_system(s)
+    s1, s2 = block(sys1), block(sys2)
+    if s1.ninputs != s2.noutputs or s1.noutputs != s2.ninputs:
+        raise ValueError("the blocks' inputs and outputs do not close a feedback loop")
+    A1, B1, C1, D1 = s1.A, s1.B, s1.C, s1.D
+    A2, B2, C2, D2 = s2.A, s2.B, s2.C, s2.D
+    F = np.eye(s1.ninputs) - sign * D2 @ D1
+    if np.linalg.matrix_rank(F) != s1.ninputs:
+        raise ValueError("I - sign * D2 * D1 is singular to working precision.")
+    E_D2_C2 = np.linalg.solve(F, np.concatenate((D2, C2), axis=1))
+    E_D2, E_C2 = E_D2_C2[:, :s2.ninputs], E_D2_C2[:, s2.ninputs:]
+    T1 = np.eye(s1.noutputs) + sign * D1 @ E_D2
+    T2 = np.eye(s1.ninputs) + sign * E_D2 @ D1
+    A = np.concatenate((np.concatenate((A1 + sign * B1 @ E_D2 @ C1, sign * B1 @ E_C2), axis=1),
+                        np.concatenate((B2 @ T1 @ C1, A2 + sign * B2 @ D1 @ E_C2), axis=1)), axis=0)
+    B = np.concatenate((B1 @ T2, B2 @ D1 @ T2), axis=0)
+    C = np.concatenate((T1 @ C1, sign * D1 @ E_C2), axis=1)
+    return StateSpace(A, B, C, D1 @ T2, dt=s1.dt if s1.nstates else s2.dt)

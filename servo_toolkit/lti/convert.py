@@ -138,6 +138,17 @@ def ss2tf(sys: StateSpace) -> tuple[np.ndarray, np.ndarray]:
     return clean_tf(num[0], den)
 
 
+def ss2zpk_zeros(A, B, C, D) -> np.ndarray:
+    """Zeros of the SISO block ``(A, B, C, D)`` (``B`` one column, ``C`` one row) as
+    ``scipy.signal.ss2zpk`` finds them: the roots of the numerator of ``ss2tf``, normalised
+    (near-zero leading coefficients dropped with a warning) and made monic; the same numbers."""
+    A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (A, B, C, D))
+    den = np.poly(A)
+    num = np.poly(A - np.dot(B, np.atleast_2d(C[0, :]))) + (D[0] - 1) * den
+    b = _normalize(num, den)[0][0]
+    return np.roots(b / b[0])
+
+
 def pade(T: float, n: int = 1, numdeg: int | None = None) -> tuple[list, list]:
     """Pade approximation of a delay of ``T`` s: numerator and denominator coefficient lists.
 
