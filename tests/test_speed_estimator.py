@@ -12,6 +12,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from servo_toolkit import SceneError
 from servo_toolkit.loop.encoder_estimators import KalmanEstimator, steady_state_covariance
@@ -178,3 +179,12 @@ def test_continuous_mode_and_bad_settings(ema_data, controller):
         ModelOptions(speed_estimator="tachometer")
     with pytest.raises(ValueError):
         ModelOptions(estimator_jerk=-1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(dt=st.floats(1e-7, 1.0), var=st.floats(1e-12, 1e12))
+def test_the_filters_process_noise_is_filterpys(dt, var):
+    """The estimator's process noise is filterpy's ``Q_discrete_white_noise`` to the bit."""
+    from filterpy.common import Q_discrete_white_noise
+    from servo_toolkit.loop.encoder_estimators import white_noise_q
+    assert np.array_equal(white_noise_q(dt, var), Q_discrete_white_noise(dim=3, dt=dt, var=var))

@@ -25,8 +25,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.common import Q_discrete_white_noise
-from filterpy.kalman import KalmanFilter
 from scipy.linalg import solve_discrete_are
 from scipy.optimize import minimize_scalar
 
@@ -46,6 +44,17 @@ def encoder_quantum(counts_per_rev: int) -> float:
     return 2 * math.pi / counts_per_rev
 
 
+def white_noise_q(dt: float, var: float) -> np.ndarray:
+    """Process noise of the constant-acceleration model driven by a piecewise constant jerk:
+    filterpy's ``Q_discrete_white_noise(dim=3, dt=dt, var=var)``, the same expression (and
+    numbers) written out, so a run that needs only the filter's gain does not import
+    filterpy (which loads scipy.stats)."""
+    q = [[.25 * dt**4, .5 * dt**3, .5 * dt**2],
+         [.5 * dt**3, dt**2, dt],
+         [.5 * dt**2, dt, 1]]
+    return np.array(q) * var
+
+
 def _model(sample_time: float, quantum: float, jerk: float):
     if not (sample_time > 0 and quantum > 0 and jerk > 0):
         raise ValueError("sample_time, quantum and jerk must be positive "
@@ -53,7 +62,7 @@ def _model(sample_time: float, quantum: float, jerk: float):
     t = sample_time
     f = np.array([[1.0, t, 0.5 * t * t], [0.0, 1.0, t], [0.0, 0.0, 1.0]])
     h = np.array([[1.0, 0.0, 0.0]])
-    q = Q_discrete_white_noise(dim=3, dt=t, var=(jerk * t) ** 2)
+    q = white_noise_q(t, (jerk * t) ** 2)
     r = np.array([[quantum**2 / 12.0]])
     return f, h, q, r
 
@@ -155,6 +164,7 @@ class KalmanEstimator:
     def __init__(self, sample_time: float, quantum: float, jerk: float, *, position: float = 0.0,
                  speed: float = 0.0, acceleration: float = 0.0):
         self.sample_time, self.quantum, self.jerk = float(sample_time), float(quantum), float(jerk)
+        from filterpy.kalman import KalmanFilter
         f, h, q, r = _model(self.sample_time, self.quantum, self.jerk)
         self.filter = KalmanFilter(dim_x=3, dim_z=1)
         self.filter.F, self.filter.H, self.filter.Q, self.filter.R = f, h, q, r
