@@ -114,6 +114,15 @@ def tf2ss(num, den, *, inputs=None, outputs=None, states=None, name: str = "") -
     return StateSpace(A, B, C, D, inputs=inputs, outputs=outputs, states=states, name=name)
 
 
+def _numerator(A, B, C, D, den) -> np.ndarray:
+    """``scipy.signal.ss2tf``'s numerator of a SISO block, ``den`` its ``numpy.poly(A)``:
+    ``poly(A - B C) + (D - 1) den``."""
+    type_test = A[:, 0] + B[:, 0] + C[0, :] + D + 0.0
+    num = np.empty((1, A.shape[0] + 1), type_test.dtype)
+    num[0] = np.poly(A - np.dot(B, np.atleast_2d(C[0, :]))) + (D[0] - 1) * den
+    return num[0]
+
+
 def ss2tf(sys: StateSpace) -> tuple[np.ndarray, np.ndarray]:
     """Numerator and denominator (descending powers) of a SISO block.
 
@@ -132,10 +141,7 @@ def ss2tf(sys: StateSpace) -> tuple[np.ndarray, np.ndarray]:
     if sys.nstates == 0:
         return clean_tf([D[0, 0]], [1.])
     den = np.poly(A)
-    type_test = A[:, 0] + B[:, 0] + C[0, :] + D + 0.0
-    num = np.empty((1, A.shape[0] + 1), type_test.dtype)
-    num[0] = np.poly(A - np.dot(B, np.atleast_2d(C[0, :]))) + (D[0] - 1) * den
-    return clean_tf(num[0], den)
+    return clean_tf(_numerator(A, B, C, D, den), den)
 
 
 def ss2zpk_zeros(A, B, C, D) -> np.ndarray:
@@ -144,8 +150,7 @@ def ss2zpk_zeros(A, B, C, D) -> np.ndarray:
     (near-zero leading coefficients dropped with a warning) and made monic; the same numbers."""
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (A, B, C, D))
     den = np.poly(A)
-    num = np.poly(A - np.dot(B, np.atleast_2d(C[0, :]))) + (D[0] - 1) * den
-    b = _normalize(num, den)[0][0]
+    b = _normalize(_numerator(A, B, C, D, den), den)[0][0]
     return np.roots(b / b[0])
 
 
