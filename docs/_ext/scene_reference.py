@@ -192,6 +192,10 @@ def scene_markdown(reads=None) -> str:
         if pattern == "drivetrain[]" and kind != "cam":  # every stage's output friction
             from servo_toolkit.components.stage_friction import StageFriction
             desc = {**descriptions(StageFriction), **desc}
+        if pattern == "duty_cycle.segments[]":  # a segment kind takes its own keys; the loader refuses the others
+            from servo_toolkit.scene.duty_cycle import _KEYS, REQUIRED_KEYS
+            keys = {k: ({**d, "required": True} if k in REQUIRED_KEYS.get(kind, ()) else d)
+                    for k, d in keys.items() if k not in _KEYS or kind in _KEYS[k][2]}
         out += [f"## {_title(pattern, kind)}", "",
                 "| key | type | default | rule | example | meaning |", "| --- | --- | --- | --- | --- | --- |"]
         for key, d in keys.items():

@@ -66,6 +66,9 @@ _KEYS = {"duration": ("s", "positive", ("dwell", "ramp", "step")),
          "cycles": ("dimensionless", "positive", ("sine",)),
          "file": ("path", None, ("points",)),
          "load": ("load", "finite", SEGMENT_KINDS)}
+#: the keys each segment kind requires (a sine takes ``frequency`` or ``period`` as well)
+REQUIRED_KEYS = {"dwell": ("duration",), "ramp": ("duration", "to"), "step": ("duration", "to"),
+                 "sine": ("amplitude",), "points": ("file",)}
 
 
 @dataclass(frozen=True)
@@ -199,34 +202,32 @@ def _segment(table, i: int, output_unit: str, folder: Path, source) -> Segment:
             u = output_unit if unit == POSITION else load_unit if unit == "load" else unit
             values[key] = f.quantity(key, u, rule=rule)
     f.check_unknown()
-
-    def need(key):
+    for key in REQUIRED_KEYS[kind]:
         require(key in values, f.key(key), f"missing key (required by a {kind} segment)")
-        return values[key]
 
     if kind == "sine":
         require(("frequency" in values) != ("period" in values), f.key("frequency"),
                 "give either frequency or period (one of them)")
         freq = values.get("frequency") or 1.0 / values["period"]
-        amp, cycles = need("amplitude"), values.get("cycles", 1.0)
+        amp, cycles = values["amplitude"], values.get("cycles", 1.0)
         require(cycles <= 1e6, f.key("cycles"), f"at most 1e6 periods (got {cycles:g})")
         return Segment(kind, cycles / freq, values.get("load"), amplitude=amp, frequency=freq, cycles=cycles)
     if kind == "points":
-        path = Path(need("file"))
+        path = Path(values["file"])
         path = path if path.is_absolute() else folder / path
         times, positions = _csv_points(path, f.key("file"), output_unit, source)
         return Segment(kind, times[-1], values.get("load"), times=times, positions=positions, file=values["file"],
                        path=str(path))
-    duration = need("duration")
+    duration = values["duration"]
     if kind == "ramp":
         accel = values.get("accel_time", duration / 4)
         require(accel <= duration / 2, f.key("accel_time"),
                 f"must be at most half the duration ({duration / 2:g} s) (got {accel:g} s)")
-        return Segment(kind, duration, values.get("load"), to=need("to"), accel_time=accel)
+        return Segment(kind, duration, values.get("load"), to=values["to"], accel_time=accel)
     if kind == "step":
         rise = values.get("rise_time", duration / 10)
         require(rise <= duration, f.key("rise_time"), f"must be at most the duration ({duration:g} s) (got {rise:g} s)")
-        return Segment(kind, duration, values.get("load"), to=need("to"), rise_time=rise)
+        return Segment(kind, duration, values.get("load"), to=values["to"], rise_time=rise)
     return Segment(kind, duration, values.get("load"))
 
 
