@@ -191,15 +191,17 @@ def test_a_multisine_log_is_cut_into_its_periods(far_rig, tmp_path, capsys):
 def linear_rig_log(rig, u, fs):
     """The rig's motor speed under a current ``u`` (the linear plant from rest; python-control
     joins the input's samples by straight lines), and the response a log of it shows: the
-    rig's times that of the first-order hold, sinc^2(f / fs) (real: the triangle is even)."""
+    rig's continuous response times that of the first-order hold, sinc^2(f / fs) (real: the
+    triangle is even; the current is the straight line, not a drive's held steps)."""
     import control as ct
 
     from servo_toolkit.plant.linear import mechanics
+    from servo_toolkit.plant.sampled import drive_plant_response
     m = mechanics(rig)
     sub = rig.motor.torque_constant * m[m.output_labels.index("omega_m"), m.input_labels.index("tau_m")]
     t = np.arange(u.size) / fs
     return t, np.asarray(ct.forced_response(sub, t, u).outputs).reshape(-1), \
-        lambda f: plant_response(rig, f) * np.sinc(f / fs) ** 2
+        lambda f: drive_plant_response(rig, f, sample_time=0.0) * np.sinc(f / fs) ** 2
 
 
 @pytest.mark.parametrize("excitation", ["chirp", "noise"])

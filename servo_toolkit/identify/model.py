@@ -1,9 +1,15 @@
 """Model responses compared with measurements.
 
 ``plant``
-    Motor current -> motor speed (rad/s per A) of the linear plant at mid-stroke: the
-    mechanical block driven by tau_m = Kt * i (a drive's own frequency-response
-    measurement; it runs in current control, so the electrical parameters do not enter).
+    Motor current -> motor speed (rad/s per A) of the linear plant at mid-stroke, as a
+    drive's own frequency-response measurement sees it: the mechanical block driven by
+    tau_m = Kt * i, both signals sampled at the control instants of the scene's sample time
+    (:func:`servo_toolkit.plant.sampled.drive_plant_response`: the current loop steps the
+    current towards each held reference within the sample, which its samples do not carry,
+    a lead of up to half a sample; a scene without a sample time gives the continuous
+    response). The drive's current loop (the design's gains and the winding they act on) is
+    the initial scene's, held fixed while the plant varies, so the winding's values do not
+    enter.
 ``closed_loop``
     Position command -> output position (rad/rad) of the linear closed loop with a given
     controller (designed once on the initial scene and held fixed while the plant varies).
@@ -18,17 +24,18 @@ import control as ct
 import numpy as np
 
 from ..errors import SceneError
-from ..plant.linear import mechanics, plant
+from ..plant.linear import current_loop_gains, plant
+from ..plant.sampled import drive_plant_response
 
 RESPONSES = ("plant", "closed_loop")
 
 
-def plant_response(scene, frequency_hz) -> np.ndarray:
-    """omega_m / i (rad/s per A), complex, at the frequencies."""
-    m = mechanics(scene)
-    sub = m[m.output_labels.index("omega_m"), m.input_labels.index("tau_m")]
-    w = 2 * np.pi * np.asarray(frequency_hz, float)
-    return scene.motor.torque_constant * np.asarray(ct.frequency_response(sub, w).complex).reshape(-1)
+def plant_response(scene, frequency_hz, drive_motor=None) -> np.ndarray:
+    """omega_m / i (rad/s per A), complex, at the frequencies, as a drive logging both at
+    its control instants measures it: its current loop the design's for ``drive_motor``
+    (default the scene's motor) acting on that motor's winding."""
+    motor = scene.motor if drive_motor is None else drive_motor
+    return drive_plant_response(scene, frequency_hz, current_gains=current_loop_gains(motor), drive_motor=motor)
 
 
 def closed_loop_response(scene, controller, frequency_hz) -> np.ndarray:
@@ -43,7 +50,7 @@ def closed_loop_response(scene, controller, frequency_hz) -> np.ndarray:
 def frequency_model(scene, response: str, controller=None):
     """A function ``scene -> complex response at frequencies`` for ``response``."""
     if response == "plant":
-        return plant_response
+        return lambda s, f: plant_response(s, f, scene.motor)
     if response == "closed_loop":
         return lambda s, f: closed_loop_response(s, controller, f)
     raise SceneError("--response", f"must be one of {', '.join(RESPONSES)} (got {response!r})")

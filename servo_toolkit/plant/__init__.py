@@ -2,7 +2,8 @@
 
 Modules: :mod:`.linear` (the motor, current loop, drivetrain and load of an actuator, the
 rigid and two-mass reductions of the drivetrain's chain), :mod:`.chain_plant` (every node and
-mode of the chain), :mod:`.signals` (shared signal names) and
+mode of the chain), :mod:`.sampled` (motor speed per current as a drive's log samples them at
+its control instants), :mod:`.signals` (shared signal names) and
 :mod:`.platform` (the crossed-arch deflection platform of seed 003 as a MIMO plant).
 """
 

@@ -387,6 +387,12 @@ def mechanics(scene, q0=None, model: str = "auto",
     """The mechanical part alone: inputs ``tau_m`` (N*m at the motor shaft) and ``tau_ext``;
     outputs ``theta``, ``omega_m``, ``omega``. A current-driven plant is this block with
     tau_m = Kt * i."""
+    return mechanics_block(scene, q0, model, structural_damping).to_control()
+
+
+def mechanics_block(scene, q0=None, model: str = "auto",
+                    structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> StateSpace:
+    """:func:`mechanics` as the toolkit's own state-space block."""
     p = plant_parameters(scene, q0, model, structural_damping)
     p = replace(p, Ke=0.0, R=1.0, L=0.0)
     A, B, C, D, states = plant_matrices(p, inductance=False)
@@ -394,4 +400,4 @@ def mechanics(scene, q0=None, model: str = "auto",
     B[:, 0] *= p.R / p.Kt  # u -> tau_m: with Ke = 0, i = u / R and tau_m = Kt i
     keep = [0, 1, 3]
     return ss(A, B, C[keep], D[keep] * 0, inputs=["tau_m", "tau_ext"],
-              outputs=["theta", "omega_m", "omega"], states=states, name="mechanics").to_control()
+              outputs=["theta", "omega_m", "omega"], states=states, name="mechanics")

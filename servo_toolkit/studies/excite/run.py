@@ -12,7 +12,8 @@ lowered where the run passes 90 % of one, which the linear loop's prediction may
 current loop's answer to the held samples' steps, the losses; a given one is refused). The run's records
 are the predicted log, and its H1 estimate at the lines (the rectangular window on each
 averaged period, :func:`servo_toolkit.core.spectra.periodic_h1`, as ``frf`` estimates) is
-compared with the linear plant's motor speed per current.
+compared with the linear plant's motor speed per current as the drive samples both at its control
+instants (:func:`servo_toolkit.plant.sampled.drive_plant_response`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ import numpy as np
 from ...core.spectra import periodic_h1
 from ...errors import SceneError, SimulationError, StrokeEndReached
 from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
-from ..multisine.run import TABLE_PER_HIGHEST, linear_plant_response
+from ...plant.sampled import drive_plant_response
+from ..multisine.run import TABLE_PER_HIGHEST
 from .drive import COLUMNS, INPUTS, UNITS, drive_controller, linear_loop, periodic_response
 from .levels import HEADROOM, backlash_amplitude, bounds, breakaway_current
 from .plan import DEFAULT_PERIODS, default_band, default_resolution, make_plan, settle_periods
@@ -222,7 +224,9 @@ def excite(scene, *, signal: str = "multisine", input: str = "current", band=Non
         voltage_limit_V=motor.voltage_limit, breakaway_current_A=breakaway_current(scene, q0),
         current_swing_A=float(a * np.max(np.abs(per[0]))), half_play=half_play,
         motion_amplitude=float(0.5 * a * np.ptp(motion)), backlash_amplitude=backlash_amplitude(half_play),
-        linear_plant=linear_plant_response(scene, q0, f, DEFAULT_STRUCTURAL_DAMPING), run_plant=run_plant,
+        linear_plant=drive_plant_response(scene, f, q0, DEFAULT_STRUCTURAL_DAMPING, sample_time=ts,
+                                          current_gains=(result.controller.current_kp, result.controller.current_ki)),
+        run_plant=run_plant,
         coherence=coherence, log=log, controller=model.controller, notes=tuple(notes),
         output_unit=scene.drivetrain.output_unit, wall_s=time.perf_counter() - start)
     return _with_level_notes(out)

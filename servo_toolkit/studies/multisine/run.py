@@ -180,14 +180,11 @@ def _case(case):
 
 
 def linear_plant_response(scene, q0: float, frequency_hz, structural_damping: float) -> np.ndarray:
-    """omega_m / i (rad/s per A) of the linear plant's mechanics at q0, complex."""
-    import control as ct
-
-    from ...plant.linear import mechanics
-    m = mechanics(scene, q0, structural_damping=structural_damping)
-    sub = m[m.output_labels.index("omega_m"), m.input_labels.index("tau_m")]
-    w = 2 * np.pi * np.asarray(frequency_hz, float)
-    return scene.motor.torque_constant * np.asarray(ct.frequency_response(sub, w).complex).reshape(-1)
+    """omega_m / i (rad/s per A) of the linear plant's mechanics at q0, complex: the
+    continuous response (the sweep's records are not the drive's control instants; a drive's
+    log of them is :func:`servo_toolkit.plant.sampled.drive_plant_response`)."""
+    from ...plant.sampled import drive_plant_response
+    return drive_plant_response(scene, frequency_hz, q0, structural_damping, sample_time=0.0)
 
 
 @dataclass(frozen=True)
