@@ -68,3 +68,27 @@ def test_the_time_at_a_limit_counts_a_current_pinned_at_99_percent():
     pinned = np.where((t > 0.2) & (t < 0.3), 9.93, 3.0)
     assert time_at_limit(t, pinned, lim) == pytest.approx(0.1, abs=1e-4)
     assert time_at_limit(t, pinned, math.inf) == 0.0
+
+
+def test_a_step_still_moving_reads_no_cycle_and_says_it_moves():
+    """A response creeping through the rest window has no limit cycle (figure 0), and the
+    row's words say the output still moves there instead of "none"."""
+    from types import SimpleNamespace
+
+    from servo_toolkit.core.output_units import OutputUnit
+    from servo_toolkit.studies.actuator.result import _step_figures
+    from servo_toolkit.studies.actuator.runs import STEP_AT
+    t = np.linspace(0.0, 0.6, 60001)
+    after = np.clip(t - STEP_AT, 0.0, None)
+    step = math.radians(1.0)
+    for tau, moving in ((0.02, False), (0.5, True)):
+        y = step * (1 - np.exp(-after / tau))
+        run = SimpleNamespace(times=t, output_angle=y, motor_current=np.zeros_like(t),
+                              trace=lambda name, y=y: y)
+        plan = SimpleNamespace(step=step, rest_band=0.02 * step, settling_time=0.2, frequency=8.0)
+        figures, details = {}, {}
+        _step_figures(plan, run, OutputUnit("rad"), figures, details)
+        assert figures["limit_cycle"] == 0.0
+        words = details["limit_cycle"]
+        assert words.startswith("no cycle, but the output still moves") == moving, words
+        assert words.startswith("none") != moving, words

@@ -197,7 +197,13 @@ def _step_figures(plan, run, u, figures, details):
     motor_side = run.trace("motor_side_angle_rad")
     mot = limit_cycle(t[rest], motor_side[rest], resolution)
     figures["limit_cycle"] = 0.0 if cyc is None else cyc.amplitude
-    words = ("none" if cyc is None else f"{u.text(cyc.amplitude, 3)} at {fmt(cyc.frequency, 3)} Hz at the output")
+    if cyc is not None:
+        words = f"{u.text(cyc.amplitude, 3)} at {fmt(cyc.frequency, 3)} Hz at the output"
+    else:  # no cycle; a response moving through the window by a tenth of the rest band is not at rest
+        moved = float(np.max(y[rest]) - np.min(y[rest])) if np.any(rest) else 0.0
+        words = ("none" if not moved > 0.1 * plan.rest_band else
+                 f"no cycle, but the output still moves {u.text(moved, 3)} over the window (a drift or a creep "
+                 "to rest: see position_error_at_rest)")
     if mot is not None:
         words += f"; the motor side oscillates {u.text(mot.amplitude, 3)} (at the output) at {fmt(mot.frequency, 3)} Hz"
     details["limit_cycle"] = f"{words}, over {fmt(t[rest][0] * 1e3)}-{fmt(t[-1] * 1e3)} ms after the step"
