@@ -173,14 +173,7 @@ def test_excite_frf_fit_calibrates_the_scene_to_the_noise(simulated_log, tmp_pat
     then ``fit`` of the load's inertia and the gear's stiffness from a scene 23 % lighter and 25 %
     stiffer gives the truth back within its intervals, and the fit's residual is the noise's."""
     _, log = simulated_log
-    rig = _with_current_noise(log, tmp_path / "rig.csv")
-    frf = tmp_path / "frf.csv"
-    assert main(["frf", str(rig), "--derivative", "-o", str(frf)]) == 0
-    start = _scene_file(tmp_path / "start.toml", stiffness=8e3, inertia=0.2)
-    capsys.readouterr()
-    code = main(["fit", str(start), str(frf), "--param", "load.inertia", "--param",
-                 "drivetrain[0].torsional_stiffness", "--json"])
-    out = json.loads(capsys.readouterr().out)
+    out, _, code = _loop(log, tmp_path, capsys)
     assert out["verdict"] == "fits to the noise", out["verdict"]
     assert code == 0
     truth = {"load.inertia": TRUTH["inertia"], "drivetrain[0].torsional_stiffness": TRUTH["stiffness"]}
@@ -191,15 +184,16 @@ def test_excite_frf_fit_calibrates_the_scene_to_the_noise(simulated_log, tmp_pat
 
 def _loop(log, tmp_path, capsys, counts=0):
     """``frf --derivative`` of the noisy log, then ``fit`` of the load's inertia and the gear's
-    stiffness from a scene 23 % lighter and 25 % stiffer: the fit's JSON."""
+    stiffness from a scene 23 % lighter and 25 % stiffer: the fit's JSON, the response file and
+    the exit code."""
     rig = _with_current_noise(log, tmp_path / "rig.csv", counts=counts)
     frf = tmp_path / "frf.csv"
     assert main(["frf", str(rig), "--derivative", "-o", str(frf)]) == 0
     start = _scene_file(tmp_path / "start.toml", stiffness=8e3, inertia=0.2)
     capsys.readouterr()
-    main(["fit", str(start), str(frf), "--param", "load.inertia", "--param", "drivetrain[0].torsional_stiffness",
-          "--json"])
-    return json.loads(capsys.readouterr().out), frf
+    code = main(["fit", str(start), str(frf), "--param", "load.inertia", "--param",
+                 "drivetrain[0].torsional_stiffness", "--json"])
+    return json.loads(capsys.readouterr().out), frf, code
 
 
 def test_excite_frf_fit_with_the_encoders_counts_fits_to_the_noise(simulated_log, tmp_path, capsys):
@@ -209,7 +203,7 @@ def test_excite_frf_fit_with_the_encoders_counts_fits_to_the_noise(simulated_log
     (residual 2.58 against the floor of 1); with the rounding's error per line (the step the
     log records) the fit reaches the noise and its intervals hold the truth."""
     _, log = simulated_log
-    out, frf = _loop(log, tmp_path, capsys, counts=4096)
+    out, frf, _ = _loop(log, tmp_path, capsys, counts=4096)
     assert out["verdict"] == "fits to the noise", (out["verdict"], out["residual_rms"])
     text = frf.read_text()
     assert "# resolution of motor_angle_rad: 0.00153398 rad, as the log records it" in text
