@@ -12,7 +12,10 @@ The H1 estimator (see :mod:`servo_toolkit.identify.frf`: whole periods of a peri
 excitation in rectangular windows, or Welch averaging of Hann windows) gives the response
 at every excited frequency with its coherence and the number of spectra averaged;
 ``--derivative`` turns an angle's response into the speed's (what ``fit --response plant``
-compares). ``-o`` writes the CSV that ``fit`` reads.
+compares). ``-o`` writes the CSV that ``fit`` reads. The step each of the two columns is
+rounded to (:mod:`servo_toolkit.identify.resolution`: as a ``# resolution_COLUMN: STEP`` line
+records it, else as its values show it) sets the error its rounding leaves in the response,
+written with it (``resolution_db,resolution_deg``) and named in a comment line.
 """
 
 from __future__ import annotations
@@ -100,6 +103,7 @@ def run(args) -> int:
     import sys
 
     from ..identify.frf import estimate_frf, frf_csv, read_time_log
+    from ..identify.resolution import log_resolution
     band = parse_band(args.band)
     if args.out is not None:
         check_stamped_file(args.out, "-o", "frf", (".csv",), inputs=(args.log,))
@@ -116,18 +120,24 @@ def run(args) -> int:
         notes.append(f"the period as the log records it, {period} samples"
                      + (f", {settle} settling" if settle is not None else "")
                      + (f", lines {lines[0]} to {lines[-1]} of the period" if lines else ""))
+    steps = [log_resolution(log, c) for c in (args.input, args.output)]
     data = estimate_frf(t, columns[args.input], columns[args.output], window=args.window, segment=args.segment,
                         period=period, settle=settle, band=band, derivative=args.derivative,
-                        source=str(args.log), lines=lines)
+                        source=str(args.log), lines=lines, resolution=tuple(r.step for r in steps))
+    notes += [r.text() for r in steps]
     if args.out is not None:
-        write_text(args.out, stamp(frf_csv(data), "frf"), "-o")
+        head = "".join(f"# {r.text()}\n" for r in steps)
+        write_text(args.out, stamp(head + frf_csv(data), "frf"), "-o")
     for note in notes:
         print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
            "time_column": log.time_column, "log_notes": list(log.notes),
            "window": data.window, "averages": data.averages,
            "points": data.points, "frequency_hz": data.frequency_hz.tolist(), "gain_db": data.gain_db.tolist(),
-           "phase_deg": data.phase_deg.tolist(), "coherence": data.coherence.tolist()}
+           "phase_deg": data.phase_deg.tolist(), "coherence": data.coherence.tolist(),
+           "resolution": [r.to_dict() for r in steps],
+           "resolution_db": None if data.resolution_db is None else data.resolution_db.tolist(),
+           "resolution_deg": None if data.resolution_deg is None else data.resolution_deg.tolist()}
     if args.out is not None:
         out["output_file"] = str(args.out)
     emit(args, out, _table(data) + (f"\nwritten to {args.out}" if args.out else ""))

@@ -7,7 +7,7 @@ from __future__ import annotations
 from ..errors import SceneError
 
 #: the columns of the measured response; what frf -o writes
-EXPECTED = "frequency_hz,gain_db,phase_deg,coherence[,averages] (what frf -o writes)"
+EXPECTED = "frequency_hz,gain_db,phase_deg,coherence[,averages[,resolution_db,resolution_deg]] (what frf -o writes)"
 
 
 def add_plant_frf_options(p) -> None:

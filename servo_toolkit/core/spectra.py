@@ -40,6 +40,9 @@ MIN_SEGMENT = 16
 PERIOD_KEY = "period_samples"
 SETTLE_KEY = "settle_periods"
 LINES_KEY = "excited_bins"
+#: a time log's comment key (``# resolution_COLUMN: STEP``, before its header) that records the
+#: step a column's values are rounded to, in the column's unit (an encoder's count)
+RESOLUTION_PREFIX = "resolution_"
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,12 @@ class Spectrum:
         Spectra averaged (Welch segments, or periods).
     window : str
         ``"hann"`` or ``"periodic"``.
+    input_power, output_power : numpy.ndarray or None
+        The input's and the output's power at each frequency, per spectrum averaged, in the
+        scale of ``white_power``.
+    white_power : float or None
+        The power a white sequence of unit variance has at each frequency in that scale (the
+        period's length for a period's DFT, 2 / fs for Welch's one-sided density).
     """
 
     frequency_hz: np.ndarray
@@ -64,9 +73,12 @@ class Spectrum:
     coherence: np.ndarray
     averages: int
     window: str
+    input_power: np.ndarray | None = None
+    output_power: np.ndarray | None = None
+    white_power: float | None = None
 
 
-def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None) -> Spectrum:
+def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None, white=None) -> Spectrum:
     if not np.any(suu[f > 0] > 0):
         raise ValueError("the input is constant: nothing excites the response")
     if lines is None:
@@ -83,7 +95,28 @@ def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None) ->
     with np.errstate(invalid="ignore", divide="ignore"):
         coh = np.abs(suy[keep]) ** 2 / (suu[keep] * syy[keep])
     coh = np.clip(np.nan_to_num(coh, nan=0.0), 0.0, 1.0)
-    return Spectrum(f[keep], h, coh, int(averages), window)
+    per = 1.0 if window == "hann" else 1.0 / averages  # Welch's densities are means already
+    return Spectrum(f[keep], h, coh, int(averages), window, suu[keep] * per, syy[keep] * per, white)
+
+
+def resolution_sd(spectrum: Spectrum, input_step: float = 0.0, output_step: float = 0.0) -> np.ndarray:
+    """Standard deviation (nepers of magnitude, and radians of phase, alike) of an estimate's
+    error at each frequency from signals logged in steps of ``input_step`` and
+    ``output_step`` (their units; 0: not rounded).
+
+    Rounding to a step ``q`` leaves an error uniform over one step, of variance ``q^2 / 12``,
+    white when the signal crosses many steps (Widrow's model of quantisation). Under a
+    periodic excitation the signal repeats each period, and so does its rounding error: the
+    same in every spectrum averaged, it is not averaged down and the coherence does not see
+    it (1). Its power at a frequency, over the signal's power there, is the relative error of
+    the response: ``sqrt(white q^2 / (24 P))`` in each of its real and imaginary parts
+    (``white`` the power of unit white noise, ``P`` the signal's, per spectrum); the input's
+    and the output's add in power."""
+    if spectrum.white_power is None:
+        raise ValueError("the spectrum does not carry its powers")
+    var = spectrum.white_power / 2.0 * ((input_step ** 2 / 12.0) / spectrum.input_power
+                                        + (output_step ** 2 / 12.0) / spectrum.output_power)
+    return np.sqrt(var)
 
 
 def coherence_sd(coherence, averages: int) -> np.ndarray:
@@ -133,7 +166,7 @@ def welch_h1(fs: float, u, y, segment: int, *, excited_db: float = EXCITED_DB, b
     f, suu = signal.welch(u, **kw)
     _, syy = signal.welch(y, **kw)
     _, suy = signal.csd(u, y, **kw)
-    return _finish(f, suu, syy, suy, welch_segments(u.size, segment), "hann", excited_db, band)
+    return _finish(f, suu, syy, suy, welch_segments(u.size, segment), "hann", excited_db, band, white=2.0 / fs)
 
 
 def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: float = EXCITED_DB,
@@ -178,17 +211,24 @@ def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: fl
     suu = np.sum(np.abs(uu) ** 2, axis=0)
     syy = np.sum(np.abs(yy) ** 2, axis=0)
     suy = np.sum(np.conj(uu) * yy, axis=0)
-    return _finish(f, suu, syy, suy, periods, "periodic", excited_db, band, lines)
+    return _finish(f, suu, syy, suy, periods, "periodic", excited_db, band, lines, white=float(period))
 
 
-def response_csv(frequency_hz, gain_db, phase_deg, coherence, averages: int | None = None) -> str:
+def response_csv(frequency_hz, gain_db, phase_deg, coherence, averages: int | None = None,
+                 resolution_db=None, resolution_deg=None) -> str:
     """A frequency response as the CSV ``fit`` reads:
-    ``frequency_hz,gain_db,phase_deg,coherence[,averages]`` (the coherence with all its
-    digits: its distance from 1 sets the noise)."""
-    head = "frequency_hz,gain_db,phase_deg,coherence" + (",averages" if averages is not None else "")
+    ``frequency_hz,gain_db,phase_deg,coherence[,averages[,resolution_db,resolution_deg]]``
+    (the coherence with all its digits: its distance from 1 sets the noise; the last two, the
+    standard deviations of the gain and the phase that the logged signals' resolution leaves,
+    with the number of spectra averaged)."""
+    res = averages is not None and resolution_db is not None
+    head = ("frequency_hz,gain_db,phase_deg,coherence" + (",averages" if averages is not None else "")
+            + (",resolution_db,resolution_deg" if res else ""))
     tail = "" if averages is None else f",{int(averages):d}"
-    lines = [head] + [f"{f:.9g},{g:.9g},{p:.9g},{c:.17g}{tail}"
-                      for f, g, p, c in zip(frequency_hz, gain_db, phase_deg, coherence)]
+    rows = zip(frequency_hz, gain_db, phase_deg, coherence)
+    lines = [head] + [f"{f:.9g},{g:.9g},{p:.9g},{c:.17g}{tail}" for f, g, p, c in rows]
+    if res:
+        lines[1:] = [f"{line},{rd:.6g},{rp:.6g}" for line, rd, rp in zip(lines[1:], resolution_db, resolution_deg)]
     return "\n".join(lines) + "\n"
 
 
@@ -221,5 +261,5 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     return None
 
 
-__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "SETTLE_KEY", "Spectrum", "coherence_sd", "find_period",
-           "periodic_h1", "response_csv", "welch_h1", "welch_segments"]
+__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "RESOLUTION_PREFIX", "SETTLE_KEY", "Spectrum",
+           "coherence_sd", "find_period", "periodic_h1", "resolution_sd", "response_csv", "welch_h1", "welch_segments"]

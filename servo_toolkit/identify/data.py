@@ -2,12 +2,14 @@
 
 Two kinds of CSV are read, told apart by their header:
 
-``frequency_hz,gain_db,phase_deg[,coherence[,averages]]``
+``frequency_hz,gain_db,phase_deg[,coherence[,averages[,resolution_db,resolution_deg]]]``
     A measured frequency response; frequencies positive and strictly increasing, coherence
     (optional) in [0, 1], and the number of spectra averaged behind it (optional, a whole
-    number >= 1, the same on every row: what ``frf`` writes). Comment lines before the header
-    may record that number instead (``# averages: N``, or ``# periods: N`` for the periods of
-    a multisine averaged); other comment lines are left alone.
+    number >= 1, the same on every row: what ``frf`` writes), then the standard deviations
+    of the gain and the phase that the logged signals' resolution leaves (optional, >= 0:
+    what ``frf`` writes from a log with a resolution, an encoder's counts). Comment lines
+    before the header may record that number instead (``# averages: N``, or ``# periods: N``
+    for the periods of a multisine averaged); other comment lines are left alone.
 ``time_s,voltage_V,current_A,motor_angle_rad,output_angle_rad``
     Time traces of a rig driven by a voltage; times equally spaced and increasing.
 ``time_s,command_m,output_m,current_A`` (``_rad`` for an output angle)
@@ -20,6 +22,7 @@ Every error names the file and the row (or the header) and the rule.
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +31,14 @@ from ..errors import SceneError
 from ..core.inputs import read_input_text
 
 FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
+#: the optional columns of a frequency response, in their order, in groups that come together
+#: and each with those before it
+FREQUENCY_OPTIONAL = (("coherence",), ("averages",), ("resolution_db", "resolution_deg"))
+#: the headers of a frequency response
+FREQUENCY_HEADERS = tuple(FREQUENCY_HEADER + sum(FREQUENCY_OPTIONAL[:k], ())
+                          for k in range(len(FREQUENCY_OPTIONAL) + 1))
+#: nepers (and radians) to dB
+DB_PER_NEPER = 20 / math.log(10)
 #: largest data file read (bytes)
 MAX_DATA_BYTES = 64 * 1024 * 1024
 TIME_HEADER = ("time_s", "voltage_V", "current_A", "motor_angle_rad", "output_angle_rad")
@@ -50,6 +61,10 @@ class FrequencyData:
         (the coherence then weighs nothing in the noise floor).
     window : str or None
         The estimator's window (``"periodic"`` or ``"hann"``), when known.
+    resolution_db, resolution_deg : numpy.ndarray or None
+        Standard deviations of the gain (dB) and the phase (deg) at each point that the
+        logged signals' resolution leaves (an encoder's counts): an error that repeats in
+        every spectrum averaged, which the coherence does not see; None: none known.
     """
 
     frequency_hz: np.ndarray
@@ -59,6 +74,8 @@ class FrequencyData:
     source: str | None = None
     averages: int | None = None
     window: str | None = None
+    resolution_db: np.ndarray | None = None
+    resolution_deg: np.ndarray | None = None
 
     kind = "frequency"
 
@@ -74,13 +91,17 @@ class FrequencyData:
 
     @classmethod
     def from_complex(cls, frequency_hz, response, coherence=None, source=None, averages=None,
-                     window=None) -> "FrequencyData":
-        """From complex values (e.g. a model's response)."""
+                     window=None, resolution=None) -> "FrequencyData":
+        """From complex values (e.g. a model's response); ``resolution``: the standard
+        deviation (nepers, and radians alike) the logged signals' resolution leaves at each
+        point."""
         f = np.asarray(frequency_hz, float)
         h = np.asarray(response, complex)
         coh = np.ones_like(f) if coherence is None else np.asarray(coherence, float)
+        res = None if resolution is None else np.asarray(resolution, float) * np.ones_like(f)
         data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h))), coh, source,
-                   None if averages is None else int(averages), window)
+                   None if averages is None else int(averages), window,
+                   None if res is None else DB_PER_NEPER * res, None if res is None else np.degrees(res))
         check_frequency(data)
         return data
 
@@ -167,6 +188,12 @@ def check_frequency(data: FrequencyData) -> None:
     if bad.size:
         raise SceneError(f"row {bad[0] + 3}", f"frequency_hz must increase strictly from row to row "
                          f"({f[bad[0] + 1]:g} after {f[bad[0]]:g})", src)
+    for name in ("resolution_db", "resolution_deg"):
+        values = getattr(data, name)
+        bad = np.flatnonzero(~(values >= 0) | ~np.isfinite(values)) if values is not None else []
+        if len(bad):
+            raise SceneError(f"row {bad[0] + 2}", f"{name} must be a finite standard deviation >= 0 "
+                             f"(got {values[bad[0]]:g})", src)
     c = data.coherence
     bad = np.flatnonzero((c < 0) | (c > 1))
     if bad.size:
@@ -247,7 +274,7 @@ def header_rule(header: tuple, expected: str) -> str:
     data it means is recognisable (the quantity of its columns), else the headers read."""
     names = {c.lower() for c in header}
     if header and _stem(header[0]).startswith("freq") or names & {"gain_db", "phase_deg", "coherence"}:
-        kind, template, optional = "a frequency response", FREQUENCY_HEADER, ("coherence", "averages")
+        kind, template, optional = "a frequency response", FREQUENCY_HEADER, FREQUENCY_OPTIONAL
     elif any(_stem(c) == "voltage" for c in header):
         kind, template, optional = "voltage-driven time traces", TIME_HEADER, ()
     elif any(_stem(c) in ("command", "output") for c in header):
@@ -256,11 +283,12 @@ def header_rule(header: tuple, expected: str) -> str:
         kind, optional = "closed-loop time traces", ()
     else:
         return f"expected {expected}, got {','.join(header)!r}"
-    full = template + optional
-    wanted = ",".join(template) + "".join(f"[,{o}" for o in optional) + "]" * len(optional)
+    full = template + sum(optional, ())
+    starts = {len(template) + len(sum(optional[:k], ())) for k in range(len(optional) + 1)}
+    wanted = ",".join(template) + "".join(f"[,{','.join(o)}" for o in optional) + "]" * len(optional)
     for n, name in enumerate(full):
         if n >= len(header):
-            if n < len(template):
+            if n < len(template) or n not in starts:
                 return f"column {n + 1} ({name}) is missing; expected {wanted} ({kind})"
             break
         if header[n] != name:
@@ -294,13 +322,14 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
         rows = [r for r in csv.reader(lines) if r and any(c.strip() for c in r)]
     except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
         raise SceneError("(file)", f"cannot read data: not a CSV table ({exc})", src) from None
-    expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence[,averages]], {','.join(TIME_HEADER)} or "
+    expected = (f"{','.join(FREQUENCY_HEADER)}[,coherence[,averages[,resolution_db,resolution_deg]]], "
+                f"{','.join(TIME_HEADER)} or "
                 f"{','.join(LOOP_HEADERS['m'])} (_rad for an output angle)")
     if not rows:
         raise SceneError("header", f"empty file; expected the header {expected}", src)
     header = tuple(c.strip() for c in rows[0])
     loop_unit = next((u for u, h in LOOP_HEADERS.items() if h == header), None)
-    if header in (FREQUENCY_HEADER, FREQUENCY_HEADER + ("coherence",), FREQUENCY_HEADER + ("coherence", "averages")):
+    if header in FREQUENCY_HEADERS:
         kind = "frequency"
     elif header == TIME_HEADER:
         kind = "time"
@@ -321,11 +350,12 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
     cols = np.array(values, float).T
     if kind == "frequency":
         coh = cols[3] if len(header) >= 4 else np.ones(cols.shape[1])
-        averages = _averages(cols[4], src) if len(header) == 5 else recorded
+        averages = _averages(cols[4], src) if len(header) >= 5 else recorded
         if recorded is not None and averages != recorded:
             raise SceneError("averages", f"the column's {averages} disagrees with the {recorded} the comment lines "
                              "record", src)
-        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, averages)
+        res = (cols[5], cols[6]) if len(header) == 7 else (None, None)
+        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, averages, None, *res)
         check_frequency(data)
     elif kind == "time":
         data = TimeData(*cols, source=src)

@@ -26,18 +26,22 @@ settles over and the bins of the period's DFT its excitation excites (``# period
 10000``, ``# settle_periods: 1``, ``# excited_bins: 2:65``, as ``excite`` writes them): they are
 the periodic window's defaults, the bins estimated at those lines whatever the input's power
 there (an excitation inside a loop reaches the input weakly where the loop's gain is high).
+A comment line ``# resolution_COLUMN: STEP`` records the step a column's values are rounded
+to (:mod:`.resolution`): the error that rounding leaves in the response goes with it
+(:func:`~servo_toolkit.core.spectra.resolution_sd`).
 """
 
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.inputs import read_input_text
-from ..core.spectra import LINES_KEY, MIN_SEGMENT, PERIOD_KEY, SETTLE_KEY, find_period, periodic_h1, response_csv, welch_h1
+from ..core.spectra import (LINES_KEY, MIN_SEGMENT, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY, find_period,
+                             periodic_h1, resolution_sd, response_csv, welch_h1)
 from ..errors import SceneError
 from .data import MAX_DATA_BYTES, FrequencyData
 
@@ -71,6 +75,9 @@ class TimeLog:
         The period and the settling periods its comment lines record (None: not recorded).
     excited_bins : (int, int) or None
         The first and last bin of the period's DFT the excitation excites, as recorded.
+    resolutions : dict of str to float
+        The step each column's values are rounded to, as recorded (``# resolution_COLUMN:
+        STEP``, in the column's unit).
     """
 
     time_s: np.ndarray
@@ -80,6 +87,7 @@ class TimeLog:
     period_samples: int | None = None
     settle_periods: int | None = None
     excited_bins: tuple | None = None
+    resolutions: dict = field(default_factory=dict)
 
 
 def _recorded(lines, src) -> tuple[dict, list]:
@@ -99,6 +107,15 @@ def _recorded(lines, src) -> tuple[dict, list]:
             if not colon or found[key] is None or not 1 <= found[key][0] <= found[key][1]:
                 raise SceneError(f"# {key}", f"must be FIRST:LAST, whole bins with 1 <= FIRST <= LAST (got "
                                  f"{value.strip()!r})", src)
+        elif sep and key.startswith(RESOLUTION_PREFIX):
+            try:
+                step = float(value.strip())
+            except ValueError:
+                step = math.nan
+            if not (math.isfinite(step) and step > 0):
+                raise SceneError(f"# {key}", f"must be the positive step the column's values are rounded to, in its "
+                                 f"unit (got {value.strip()!r})", src)
+            found.setdefault("resolutions", {})[key[len(RESOLUTION_PREFIX):]] = step
         elif sep and key in (PERIOD_KEY, SETTLE_KEY):
             try:
                 found[key] = int(value.strip())
@@ -198,7 +215,7 @@ def read_time_log(path) -> TimeLog:
     if settle is not None and period is not None and settle >= t.size // period:
         raise SceneError(f"# {SETTLE_KEY}", f"must leave at least one of the log's {t.size // period} whole periods "
                          f"(got {settle})", src)
-    return TimeLog(t, columns, column, tuple(notes), period, settle, bins)
+    return TimeLog(t, columns, column, tuple(notes), period, settle, bins, recorded.get("resolutions", {}))
 
 
 def read_log(path) -> tuple[np.ndarray, dict]:
@@ -214,7 +231,7 @@ def _varies(x) -> bool:
 
 def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,
                  settle: int | None = None, band=None, derivative: bool = False,
-                 source: str | None = None, lines=None) -> FrequencyData:
+                 source: str | None = None, lines=None, resolution=None) -> FrequencyData:
     """H1 estimate of the response y / u, with its coherence.
 
     Parameters
@@ -245,6 +262,13 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
         Periodic: the bins of the period's DFT to estimate at (the excitation's lines), in
         place of those whose input power is within
         :data:`~servo_toolkit.core.spectra.EXCITED_DB` of its peak.
+    resolution : (float, float), optional
+        The steps the input's and the output's values are rounded to (their units; 0: not
+        rounded), e.g. from :func:`~.resolution.column_resolution`: the standard deviation
+        of the error their rounding leaves goes with the estimate
+        (:func:`~servo_toolkit.core.spectra.resolution_sd`, the same for the derivative's)
+        when the input repeats (the rounding then repeats with it, unseen by the coherence;
+        a Hann estimate of an input that does not repeat sees it in its coherence).
 
     Returns
     -------
@@ -313,11 +337,17 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
     if derivative:
         h = h * 2j * math.pi * fk
     h = np.where(h == 0, 1e-300, h)
+    # the rounding repeats when the log does; a Hann estimate of an input that does not repeat
+    # sees it change from segment to segment, in its coherence
+    repeats = spec.window == "periodic" or find_period(u) is not None
+    res = None if resolution is None or not any(resolution) or not repeats else resolution_sd(spec, *resolution)
     return FrequencyData.from_complex(fk, h, coherence=spec.coherence, source=source, averages=spec.averages,
-                                      window=spec.window)
+                                      window=spec.window, resolution=res)
 
 
 def frf_csv(data: FrequencyData) -> str:
     """The CSV that ``fit`` reads: ``frequency_hz,gain_db,phase_deg,coherence,averages`` (the
-    last column when the number of spectra averaged is known)."""
-    return response_csv(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence, data.averages)
+    last column when the number of spectra averaged is known), then
+    ``resolution_db,resolution_deg`` when the logged signals' resolution is known."""
+    return response_csv(data.frequency_hz, data.gain_db, data.phase_deg, data.coherence, data.averages,
+                        data.resolution_db, data.resolution_deg)

@@ -5,9 +5,13 @@ From the coherence, when the data carry it with the number of spectra averaged b
 (what ``frf`` and the multisine sweep write): an H1 estimate from ``n`` averaged spectra at
 coherence ``coh`` has a random error of variance ``(1 - coh) / (2 n coh)`` in its
 log-magnitude (nepers^2) and in its phase (rad^2) alike (Bendat and Piersol, Random Data,
-the random errors of frequency-response estimates). This is the whole noise of the estimate (the output's noise is what lowers the
-coherence): nothing is added to it. A single spectrum (``n`` = 1) has a coherence of 1
-whatever the noise, and tells nothing.
+the random errors of frequency-response estimates): the noise that changes from spectrum to
+spectrum (the output's noise is what lowers the coherence). What repeats in every spectrum
+the coherence cannot see: a logged signal's resolution (an encoder's counts) under a periodic
+excitation rounds each period alike. Its standard deviation, when the data carry it
+(``resolution_db``, ``resolution_deg``, what ``frf`` writes from a log with a resolution,
+:func:`servo_toolkit.core.spectra.resolution_sd`), adds to the coherence's in power. A single
+spectrum (``n`` = 1) has a coherence of 1 whatever the noise, and tells nothing.
 
 Else from the scatter of the points about a local fit: each point is predicted by a
 quadratic in log frequency through its :data:`SMOOTH_HALF` neighbours either side (itself
@@ -32,6 +36,7 @@ import numpy as np
 
 from ..core.angles import DEG_PER_RAD
 from ..core.spectra import coherence_sd
+from .data import DB_PER_NEPER
 
 #: fewest points from which the scatter gives a noise estimate
 MIN_POINTS = 12
@@ -43,8 +48,6 @@ SMOOTH_HALF, SMOOTH_DEGREE = 3, 2
 CLIP = 3.0
 #: smallest standard deviation of a gain (dB) or a phase (deg)
 PRECISION_DB = 1e-6
-#: nepers (and radians) to dB and deg
-DB_PER_NEPER = 20 / math.log(10)
 
 
 @dataclass(frozen=True)
@@ -115,8 +118,12 @@ def frequency_noise(data) -> FrequencyNoise:
     n = data.points
     if data.averages is not None and data.averages >= 2:
         sd = coherence_sd(data.coherence, data.averages)
-        return FrequencyNoise(np.maximum(DB_PER_NEPER * sd, PRECISION_DB), np.maximum(DEG_PER_RAD * sd, PRECISION_DB),
-                              f"coherence of {data.averages} averaged spectra")
+        gain, phase = DB_PER_NEPER * sd, DEG_PER_RAD * sd
+        basis = f"coherence of {data.averages} averaged spectra"
+        if data.resolution_db is not None:
+            gain, phase = np.hypot(gain, data.resolution_db), np.hypot(phase, data.resolution_deg)
+            basis += " and the logged signals' resolution"
+        return FrequencyNoise(np.maximum(gain, PRECISION_DB), np.maximum(phase, PRECISION_DB), basis)
     density = per_decade(data.frequency_hz)
     if n < MIN_POINTS or density < MIN_PER_DECADE:
         why = (f"{n} points, fewer than {MIN_POINTS}" if n < MIN_POINTS else

@@ -4,12 +4,12 @@ large as it is, and the model's response to it; the file a rig plays and ``frf``
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...core.output_units import OutputUnit
-from ...core.spectra import LINES_KEY, PERIOD_KEY, SETTLE_KEY
+from ...core.spectra import LINES_KEY, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY
 from ...display.cards import RichDisplay, card, facts, num, svg
 from .drive import COLUMNS, UNITS
 from .plan import ExcitationPlan
@@ -66,6 +66,10 @@ class ExcitationResult(RichDisplay):
     controller : str
     notes : tuple of str
     output_unit : {"rad", "m"}
+    steps : dict of str to float
+        The step the rig's sensors round each logged column to (the scene's encoders: the
+        motor angle's count, the output's), in the column's unit; the model's run is not
+        rounded.
     wall_s : float
     """
 
@@ -98,6 +102,7 @@ class ExcitationResult(RichDisplay):
     notes: tuple = ()
     output_unit: str = "rad"
     wall_s: float = 0.0
+    steps: dict = field(default_factory=dict)
 
     @property
     def unit(self) -> str:
@@ -143,6 +148,9 @@ class ExcitationResult(RichDisplay):
         head = [f"# servo-toolkit excite: {plan.signal} {_WHAT[self.input]}, scene {self.scene}",
                 f"# {PERIOD_KEY}: {plan.period_samples}", f"# {SETTLE_KEY}: {plan.settle}",
                 f"# {LINES_KEY}: {plan.lines[0]}:{plan.lines[-1]}", f"# sample_time_s: {plan.sample_time:.12g}",
+                *(["# the steps the rig's encoders log the angles in (the model's run below is not rounded to "
+                   "them)"] if self.steps else []),
+                *(f"# {RESOLUTION_PREFIX}{name}: {step!r}" for name, step in self.steps.items()),
                 "# columns after the excitation: the model's predicted response (current_A, voltage_V, motor "
                 "angle from the start, motor speed, output position)",
                 ",".join(names)]
@@ -208,7 +216,8 @@ class ExcitationResult(RichDisplay):
                 u.key("motion_amplitude"): float(u.show(self.motion_amplitude)),
                 u.key("backlash_amplitude"): float(u.show(self.backlash_amplitude)),
                 "points": points, "max_gain_difference_dB": dg, "max_phase_difference_deg": dp,
-                "controller": self.controller, "notes": list(self.notes), "wall_s": self.wall_s}
+                "controller": self.controller, "notes": list(self.notes), "wall_s": self.wall_s,
+                "encoder_steps": [{"column": k, "step": v, "unit": k.rsplit("_", 1)[-1]} for k, v in self.steps.items()]}
 
     def table(self) -> str:
         """The summary, units throughout."""

@@ -228,8 +228,22 @@ def excite(scene, *, signal: str = "multisine", input: str = "current", band=Non
                                           current_gains=(result.controller.current_kp, result.controller.current_ki)),
         run_plant=run_plant,
         coherence=coherence, log=log, controller=model.controller, notes=tuple(notes),
-        output_unit=scene.drivetrain.output_unit, wall_s=time.perf_counter() - start)
+        output_unit=scene.drivetrain.output_unit, wall_s=time.perf_counter() - start, steps=_steps(scene))
     return _with_level_notes(out)
+
+
+def _steps(scene) -> dict:
+    """The step the scene's encoders round each logged angle to (rad, or m for a travel), by
+    the log's column; a sensor read ideally has none."""
+    from ...sim.result import shown_name
+    drive, sensors = scene.drivetrain, scene.sensors
+    out = {}
+    if sensors.motor_encoder_counts:
+        out["motor_angle_rad"] = 2 * math.pi / sensors.motor_encoder_counts
+    count = sensors.output_count(drive.output_is_linear)
+    if count:
+        out[shown_name("output_angle_rad", drive.output_unit)] = count
+    return out
 
 
 def _amplitude(given, found, shapes, i0: float, resistance: float, limits: dict, unit: str):
