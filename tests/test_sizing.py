@@ -258,6 +258,17 @@ def test_points_from_a_csv_give_the_ramp_they_sample(tmp_path):
     assert b.rms_torque == pytest.approx(a.rms_torque, rel=0.02)
 
 
+
+def test_a_points_segment_lasts_the_span_of_its_times(tmp_path):
+    """A points file whose times start at 2 s lasts its 0.4 s span (its first point starts
+    the segment), as the scene reference says."""
+    from servo_toolkit.scene.duty_cycle import duty_cycle_from_table
+    (tmp_path / "move.csv").write_text("t [s], angle [deg]\n2.0, 0\n2.2, 5\n2.4, 0\n")
+    cycle = duty_cycle_from_table({"segments": [{"kind": "points", "file": "move.csv"}]},
+                                  source=str(tmp_path / "s.toml"))
+    assert cycle.segments[0].duration == pytest.approx(0.4)
+
+
 BAD = [
     ({"segments": [{"kind": "jump", "duration": "1 s"}]}, "duty_cycle.segments[0].kind"),
     ({"segments": [{"kind": "ramp", "duration": "1 s"}]}, "duty_cycle.segments[0].to"),

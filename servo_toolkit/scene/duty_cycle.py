@@ -80,8 +80,8 @@ class Segment:
     kind : str
         ``"dwell"``, ``"ramp"``, ``"step"``, ``"sine"`` or ``"points"``.
     duration : float
-        Length of the segment (s); a sine's is cycles / frequency, a points file's its last
-        time.
+        Length of the segment (s); a sine's is cycles / frequency, a points file's the span
+        of its times (its first point starts the segment, whatever its time).
     load : float or None
         External moment (N*m; a force, N, for an output travel) the drive supplies, opposing
         positive motion; None: the scene's ``[load] hinge_moment``.
