@@ -303,6 +303,12 @@ GOOD = "frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n8,22,-95\n
     ("time_ms,voltage_V,current_A,motor_angle_rad,output_angle_rad\n0,0,0,0,0\n", "header",
      "column 1 is 'time_ms': the unit of time must be s"),
     ("frequency_hz,gain_db,phase_deg\n1,40,-90\n2,x,-91\n", "row 3", "must be numbers"),
+    # a drive's log (a rig's, excite's) goes through frf first; voltage traces out of order do not
+    ("time_s,current_excitation_A,current_A,voltage_V,motor_angle_rad\n0,0,0,0,0\n", "header",
+     "is a drive's time log (first column time_s, its current logged): estimate its response with frf LOG"),
+    ("time_s,current_A,motor_angle_rad\n0,0,0\n", "header", "is a drive's time log"),
+    ("time_s,current_A,voltage_V,motor_angle_rad,output_angle_rad\n0,0,0,0,0\n", "header",
+     "column 2 is 'current_A': column 2 of voltage-driven time traces is voltage_V"),
 ])
 def test_bad_data_is_refused_with_one_line(tmp_path, capsys, text, where, rule):
     path = tmp_path / "rig.csv"

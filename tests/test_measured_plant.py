@@ -168,4 +168,4 @@ def test_a_time_log_given_for_the_response_is_named_a_time_log(header, tmp_path,
                     + "".join(",".join([f"{k * 1e-3:g}"] + ["0"] * (n - 1)) + "\n" for k in range(4)))
     assert main(["check", EMA, "--linear-only", "--plant-frf", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--plant-frf: is a time log" in err[0] and "frf LOG -o" in err[0], err
+    assert len(err) == 1 and "--plant-frf: is a drive's time log" in err[0] and "frf LOG -o" in err[0], err

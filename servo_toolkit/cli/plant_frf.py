@@ -23,14 +23,17 @@ def add_plant_frf_options(p) -> None:
                         "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current")
 
 
-#: the rule a time log (a rig's log, simulate's traces) given for the response breaks
-_TIME_LOG = ("is a time log (first column {}), not a frequency response: estimate the response with frf LOG "
-             "-o FRF.csv and give that file; expected " + EXPECTED)
+
+
+def _time_log(time_column: str) -> str:
+    """The rule a time log (a rig's log, simulate's traces) given for the response breaks."""
+    from ..identify.data import time_log_rule
+    return f"{time_log_rule(time_column)}; expected {EXPECTED}"
 
 
 def _time_column(path) -> str | None:
     """The time column a CSV file's header starts with (a time log), else None."""
-    from ..identify.frf import TIME_COLUMNS
+    from ..identify.data import TIME_COLUMNS
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
             for line in fh:
@@ -52,10 +55,10 @@ def read_plant_frf(path):
         rule = exc.rule if exc.key in ("(file)", "header") else f"{exc.key}: {exc.rule}"
         time_column = _time_column(path) if exc.key == "header" else None
         if time_column:
-            rule = _TIME_LOG.format(time_column)
+            rule = _time_log(time_column)
         raise SceneError("--plant-frf", rule, str(path)) from None
     if not isinstance(data, FrequencyData):
-        raise SceneError("--plant-frf", _TIME_LOG.format(_time_column(path) or "time_s"), str(path))
+        raise SceneError("--plant-frf", _time_log(_time_column(path) or "time_s"), str(path))
     if data.points < 2:
         raise SceneError("--plant-frf", f"{data.points} point(s); a loop on measured data needs at least two",
                          str(path))

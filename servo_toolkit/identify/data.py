@@ -269,10 +269,28 @@ def _stem(name: str) -> str:
     return name.rsplit("_", 1)[0].lower() if "_" in name else name.lower()
 
 
+#: the columns a time log's time may have
+TIME_COLUMNS = ("time_s", "t_s")
+
+
+def time_log_rule(time_column: str) -> str:
+    """What a drive's time log (a rig's log, ``excite``'s or ``simulate``'s) given where a
+    response is read needs."""
+    return (f"is a drive's time log (first column {time_column}, its current logged): estimate its response "
+            "with frf LOG -o FRF.csv and give that file")
+
+
 def header_rule(header: tuple, expected: str) -> str:
     """The rule a header breaks, naming its first wrong or missing column when the kind of
-    data it means is recognisable (the quantity of its columns), else the headers read."""
+    data it means is recognisable (the quantity of its columns), else the headers read. A
+    drive's time log (its current logged, no voltage to drive a model with nor a command and
+    output of closed-loop traces, or ``excite``'s excitation column) is told to go through
+    ``frf``."""
     names = {c.lower() for c in header}
+    loop = any(_stem(c) in ("command", "output") for c in header)
+    if header and header[0] in TIME_COLUMNS and "current_A" in header and not loop and (
+            "voltage_V" not in header or "current_excitation_A" in header):
+        return f"{time_log_rule(header[0])}; expected {expected}"
     if header and _stem(header[0]).startswith("freq") or names & {"gain_db", "phase_deg", "coherence"}:
         kind, template, optional = "a frequency response", FREQUENCY_HEADER, FREQUENCY_OPTIONAL
     elif any(_stem(c) == "voltage" for c in header):

@@ -43,14 +43,12 @@ from ..core.inputs import read_input_text
 from ..core.spectra import (LINES_KEY, MIN_SEGMENT, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY, find_period,
                              periodic_h1, resolution_sd, response_csv, welch_h1)
 from ..errors import SceneError
-from .data import MAX_DATA_BYTES, FrequencyData
+from .data import MAX_DATA_BYTES, TIME_COLUMNS, FrequencyData
 
 #: fewest Welch segments the default segment length gives
 DEFAULT_AVERAGES = 8
 #: largest deviation of a time step from the mean step (relative)
 SPACING_TOLERANCE = 0.01
-#: the time column of a log: a rig's, or the traces ``simulate -o`` writes
-TIME_COLUMNS = ("time_s", "t_s")
 #: the windows ``estimate_frf`` offers
 WINDOWS = ("auto", "periodic", "hann")
 #: a periodic log with at least this many periods leaves its first one out as settling
