@@ -198,7 +198,8 @@ class SizingResult(RichDisplay):
         ax.set_xlabel("motor speed [rad/s]")
         ax.set_ylabel("motor torque [N*m]")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize="small")
+        # in a row above the axes: the envelope's lines cross every quadrant, no corner is free
+        ax.legend(fontsize="small", loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, frameon=False)
         return ax
 
     def plot_thermal(self, ax):
