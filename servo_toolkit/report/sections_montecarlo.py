@@ -68,6 +68,11 @@ def montecarlo_section(ctx) -> Section:
            if failed else "") + ".")
     if result.notes:
         text += para(*(f"Note: {n}" for n in result.notes))
+    if not checks:
+        text += para("The scene bounds neither the variants' tracking error nor their peak current "
+                     "([robustness] max_tracking_error, max_peak_current): the variants are shown here, not judged. "
+                     "The time rows of the requirements (tracking_error and the others) judge the nominal "
+                     "actuator alone, so a variant above the nominal bound contradicts none of them.")
     worst_rows = []
     for i in result.worst_indices(WORST):
         worst_rows.append((f"#{i}", result.variant_text(i),
