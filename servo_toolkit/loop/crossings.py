@@ -73,15 +73,6 @@ def response_of(loop):
     return solve
 
 
-def _poles(loop):
-    """Poles of a state-space loop (the toolkit's or python-control's) or of a transfer function."""
-    return loop.poles()
-
-
-def _zeros(loop):
-    return loop.zeros()
-
-
 def _evaluate(loop, w):
     """``L(jw)`` at real frequencies ``w`` (rad/s); ``loop`` a :func:`response_of` callable."""
     with np.errstate(all="ignore"):
@@ -93,7 +84,7 @@ def _span(loop):
     nonzero pole or zero: outside, the phase of ``L`` is within ~1/SPAN rad of its asymptote
     and moves monotonically towards it, so no phase crossing lies there (an apparent one is
     rounding)."""
-    roots = np.concatenate([np.atleast_1d(_poles(loop)), np.atleast_1d(_zeros(loop))])
+    roots = np.concatenate([loop.poles(), loop.zeros()])
     mags = np.abs(roots[np.isfinite(roots)])
     mags = mags[mags > 0]
     return (mags.min() / SPAN, mags.max() * SPAN) if mags.size else (1 / SPAN, SPAN)
@@ -103,7 +94,7 @@ def _grid(loop, seeds, response):
     """Positive frequencies (rad/s) around every pole and zero and every seed, refined where
     ``L`` turns, and ``L`` there (``response`` a :func:`response_of` callable): each
     refinement evaluates the new points only."""
-    roots = np.concatenate([np.atleast_1d(_poles(loop)), np.atleast_1d(_zeros(loop))])
+    roots = np.concatenate([loop.poles(), loop.zeros()])
     roots = roots[np.isfinite(roots)]
     seeds = np.asarray(seeds, float)
     seeds = seeds[np.isfinite(seeds) & (seeds > 0)]

@@ -152,13 +152,6 @@ def default_frequencies(sys: StateSpace, number_of_samples: int = 1000) -> np.nd
     return np.logspace(lsp_min, lsp_max, num=number_of_samples, endpoint=True)
 
 
-def _dcgain(sys: StateSpace):
-    zeroresp = sys(0j)
-    if np.all(np.logical_or(np.isreal(zeroresp), np.isnan(zeroresp.imag))):
-        return zeroresp.real
-    return zeroresp
-
-
 def bandwidth(sys: StateSpace, dbdrop: float = -3):
     """The first frequency (rad/s) where the gain falls ``dbdrop`` dB below the DC gain.
 
@@ -184,7 +177,7 @@ def bandwidth(sys: StateSpace, dbdrop: float = -3):
         raise NotImplementedError("bandwidth of a continuous-time block only")
     if (not np.isscalar(dbdrop)) or dbdrop >= 0:
         raise ValueError("expecting dbdrop be a negative scalar in dB")
-    dcgain = _dcgain(sys)
+    dcgain = sys.dcgain()
     if np.isinf(dcgain):
         return np.nan
     omega = np.sort(np.array(default_frequencies(sys), ndmin=1))

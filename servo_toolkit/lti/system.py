@@ -135,8 +135,12 @@ class StateSpace:
         return out[0, 0] if self.issiso() else out
 
     def dcgain(self):
-        """Steady-state gain (``s = 0``, ``z = 1``)."""
-        return self(1.0 + 0j if self.dt else 0j)
+        """Steady-state gain (``s = 0``, ``z = 1``), real when the response there is
+        (python-control's ``dcgain``)."""
+        zeroresp = self(1.0 + 0j if self.dt else 0j)
+        if np.all(np.logical_or(np.isreal(zeroresp), np.isnan(zeroresp.imag))):
+            return zeroresp.real
+        return zeroresp
 
     def _index(self, key, names, what):
         keys = key if isinstance(key, (list, tuple)) else [key]
@@ -162,14 +166,6 @@ class StateSpace:
         return StateSpace(self.A, self.B[:, i], self.C[o, :], self.D[np.ix_(o, i)],
                           inputs=[self.inputs[k] for k in i], outputs=[self.outputs[k] for k in o],
                           states=self.states, name=f"{self.name}$indexed", dt=self.dt)
-
-    def with_names(self, inputs=None, outputs=None, states=None, name=None) -> StateSpace:
-        """The same matrices under other signal names."""
-        return StateSpace(self.A, self.B, self.C, self.D,
-                          inputs=self.inputs if inputs is None else inputs,
-                          outputs=self.outputs if outputs is None else outputs,
-                          states=self.states if states is None else states,
-                          name=self.name if name is None else name, dt=self.dt)
 
     def to_control(self):
         """The python-control ``StateSpace`` with these matrices, names and sample time."""

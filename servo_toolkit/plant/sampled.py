@@ -31,12 +31,18 @@ from ..lti.response import solved_response
 from .linear import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, mechanics_block
 
 
+def _current_to_speed(scene, mech):
+    """``(b, c)``: the mechanics' input column of the motor current (``Kt`` times that of
+    ``tau_m``) and its output row of ``omega_m``."""
+    b = mech.B[:, [mech.inputs.index("tau_m")]] * scene.motor.torque_constant
+    return b, mech.C[[mech.outputs.index("omega_m")], :]
+
+
 def _held_reference_loop(scene, mech, gains, motor):
     """``(A, B, C, D)`` from the current reference to ``[omega_m, i]``, the current loop on
     ``motor``'s winding."""
     A_m = mech.A
-    b = mech.B[:, [mech.inputs.index("tau_m")]] * scene.motor.torque_constant
-    c = mech.C[[mech.outputs.index("omega_m")], :]
+    b, c = _current_to_speed(scene, mech)
     n = A_m.shape[0]
     if motor.inductance == 0:  # the current is the reference
         return A_m, b, np.vstack([c, np.zeros((1, n))]), np.array([[0.0], [1.0]])
@@ -102,8 +108,7 @@ def drive_plant_response(scene, frequency_hz, q0=None, structural_damping: float
     mech = mechanics_block(scene, q0, structural_damping=structural_damping)
     ts = float(scene.sensors.sample_time or 0.0) if sample_time is None else float(sample_time)
     if ts <= 0:
-        b = mech.B[:, [mech.inputs.index("tau_m")]] * scene.motor.torque_constant
-        c = mech.C[[mech.outputs.index("omega_m")], :]
+        b, c = _current_to_speed(scene, mech)
         return solved_response(mech.A, b, c, np.zeros((1, 1)), 2j * np.pi * f)[:, 0, 0]
     motor = scene.motor if drive_motor is None else drive_motor
     gains = current_loop_gains(motor) if current_gains is None else current_gains
