@@ -169,3 +169,21 @@ def test_a_time_log_given_for_the_response_is_named_a_time_log(header, tmp_path,
     assert main(["check", EMA, "--linear-only", "--plant-frf", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--plant-frf: is a drive's time log" in err[0] and "frf LOG -o" in err[0], err
+
+
+def test_a_check_on_a_measured_plant_imports_no_python_control(designed, tmp_path):
+    """``check --plant-frf`` closes the loop on the toolkit's own blocks (the plant, the
+    sampling delay, the design's loop): a new process running it loads neither
+    python-control nor matplotlib."""
+    import subprocess
+    import sys
+
+    from .conftest import ROOT
+    from .test_first_run import _FIRST_IMPORTER
+    _, r = designed
+    path = _csv(tmp_path / "frf.csv", F, model_response(r, 2 * np.pi * F, "motor_angle_rad"), np.ones_like(F))
+    proc = subprocess.run([sys.executable, "-c", _FIRST_IMPORTER, "check", EMA, "--linear-only", "--plant-frf", path],
+                          capture_output=True, text=True, timeout=600, cwd=ROOT)
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["code"] == 0 and got["importer"] is None
+    assert "control" not in got["libraries"] and "matplotlib" not in got["libraries"]

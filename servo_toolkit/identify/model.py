@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import control as ct
 import numpy as np
 
 from ..errors import SceneError
@@ -40,11 +39,9 @@ def plant_response(scene, frequency_hz, drive_motor=None) -> np.ndarray:
 
 def closed_loop_response(scene, controller, frequency_hz) -> np.ndarray:
     """theta / theta_ref of the linear closed loop, complex, at the frequencies."""
-    from ..loop import linear_closed_loop
-    cl = linear_closed_loop(scene, controller)
-    sub = cl[cl.output_labels.index("theta"), cl.input_labels.index("theta_ref")]
-    w = 2 * np.pi * np.asarray(frequency_hz, float)
-    return np.asarray(ct.frequency_response(sub, w).complex).reshape(-1)
+    from ..loop.closed_loop import closed_loop_block
+    sub = closed_loop_block(scene, controller)["theta", "theta_ref"]
+    return np.asarray(sub(2j * np.pi * np.asarray(frequency_hz, float))).reshape(-1)
 
 
 def frequency_model(scene, response: str, controller=None):
@@ -59,6 +56,7 @@ def frequency_model(scene, response: str, controller=None):
 def time_response(scene, time_s, voltage_V) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Current (A), motor angle (rad) and output angle (rad) of the voltage-driven linear
     plant from rest (no external torque) under ``voltage_V``."""
+    import control as ct
     g = plant(scene)
     t = np.asarray(time_s, float)
     u = np.vstack([np.asarray(voltage_V, float), np.zeros_like(t)])

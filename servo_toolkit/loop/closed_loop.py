@@ -43,11 +43,20 @@ def closed_loop_block(scene, controller, q0=None, model: str = "auto",
                       structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> StateSpace:
     """:func:`linear_closed_loop` as the toolkit's own state-space block."""
     g = plant_block(scene, q0, inductance=True, model=model, structural_damping=structural_damping)
-    cur = current_loop_block(controller.current_kp, controller.current_ki, scene.motor)
+    return closed_loop_of(g, controller, scene.motor, ("theta_ref", "tau_ext"), CLOSED_LOOP_OUTPUTS,
+                          name="closed_loop")
+
+
+def closed_loop_of(plant_ss, controller, motor, inputs=("theta_ref", "tau_ext"), outputs=CLOSED_LOOP_OUTPUTS,
+                   name: str = "") -> StateSpace:
+    """The closed loop of a given plant block (a python-control system or the toolkit's own,
+    inputs ``u`` and ``tau_ext``) with ``controller``'s current loop on ``motor``, its
+    sampling delay and its motion controller, from ``inputs`` to ``outputs`` (signal names of
+    the blocks), as :func:`closed_loop_block` assembles the scene's."""
+    cur = current_loop_block(controller.current_kp, controller.current_ki, motor)
     dly = sample_delay_block(controller.sample_time, DELAY_SAMPLES)
-    return interconnect([g, cur, dly, controller.motion_block], inplist=["theta_ref", "tau_ext"],
-                        outlist=list(CLOSED_LOOP_OUTPUTS), inputs=["theta_ref", "tau_ext"],
-                        outputs=list(CLOSED_LOOP_OUTPUTS), name="closed_loop")
+    return interconnect([as_system(plant_ss), cur, dly, controller.motion_block], inplist=list(inputs),
+                        outlist=list(outputs), inputs=list(inputs), outputs=list(outputs), name=name)
 
 
 def open_loop(scene, controller, q0=None, model: str = "auto",

@@ -50,11 +50,10 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import control as ct
 import numpy as np
 
 from ..errors import SceneError
-from ..plant.linear import sample_delay
+from ..plant.linear import sample_delay_block
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
 from .measured_interval import crossing_sd, point_sd, quantile, sensitivity
@@ -96,7 +95,7 @@ def loop_on(result, motor, w, response, signal: str, ratio: float = 1.0):
     c = _motion_at(result)
     p = result.parameters
     s = 1j * w
-    _, transmission = model_mechanics(result.plant, w, ratio)
+    _, transmission = model_mechanics(result.block("plant"), w, ratio)
     if signal == "motor_speed_rad_s":
         mech_omega = response
     elif signal == "motor_angle_rad":
@@ -111,7 +110,7 @@ def loop_on(result, motor, w, response, signal: str, ratio: float = 1.0):
         i_per_cmd = cc / (p.L * s + p.R + cc + p.Ke * mech_omega)
     g_theta, g_omega = g_theta_per_i * i_per_cmd, mech_omega * i_per_cmd
     k = system_responses(c.motion_block, w)[0]
-    d = system_responses(sample_delay(c.sample_time, DELAY_SAMPLES), w)[0, 0]
+    d = system_responses(sample_delay_block(c.sample_time, DELAY_SAMPLES), w)[0, 0]
     k_ref, k_theta, k_omega = k[0], k[1], k[2]
     den = 1.0 - k_omega * d * g_omega
     loop = -k_theta * d * g_theta / den
@@ -122,7 +121,7 @@ def loop_on(result, motor, w, response, signal: str, ratio: float = 1.0):
 def model_response(result, w, signal: str) -> np.ndarray:
     """The model's response from the motor current to ``signal`` at ``w`` (what ``frf``
     estimates from the model's own run)."""
-    return signal_responses(result.plant, w, signal)[0]
+    return signal_responses(result.block("plant"), w, signal)[0]
 
 
 def transmission_ratio(f, measured, model, coherence, signal: str) -> tuple:
@@ -242,7 +241,7 @@ def nyquist_on_data(result, f, loop, coherence, poor: float = POOR_COHERENCE):
     count ambiguous or contradict it."""
     m = result.margins
     z_model = int(m.unstable_closed_loop_poles)
-    response = response_of(result.loop)
+    response = response_of(result.block("loop"))
     model_ends = 1.0 + response(2j * np.pi * np.array([f[0], f[-1]]))
     meas = 1.0 + loop
     steps = _turns(meas)
@@ -350,7 +349,7 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                                  "loops inside the position loop are not the model's and neither are the open "
                                  f"loop's right-half-plane poles the count starts from (the count on them: "
                                  f"{nyquist_note})")
-    dc = abs(complex(ct.dcgain(result.closed_loop))) if result.margins.closed_loop_stable else 1.0
+    dc = abs(complex(result.block("closed_loop").dcgain())) if result.margins.closed_loop_stable else 1.0
     return MeasuredLoop(frequency_hz=f, response=h, model_response=model, coherence=coh, loop=loop,
                         model_loop=model_loop, closed=closed, model_closed=model_closed, signal=signal,
                         source=source, gain_crossings=gains, phase_crossings=phases + model_phases,

@@ -44,16 +44,14 @@ linear estimates at those frequencies: the electrical path (inductance) is then 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import replace
 
-import control as ct
 import numpy as np
 
 from ...drivetrain.operating_point import operating_point
 from ...core.output_units import output_unit
-from ...plant.linear import (DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, current_controller, plant_matrices,
-                            plant_parameters, sample_delay, spring_damping)
+from ...lti.system import ss
+from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS, plant_matrices, plant_parameters, spring_damping
 from ...sim.chain_choice import choose_chain, has_upper_modes
 from .choice import Effect, ReductionPlan, choose
 from .friction import friction_effect
@@ -82,21 +80,16 @@ def loop_response(p, controller, motor, w, inductance: bool = True, plant_ss=Non
         Complex responses at the angular frequencies ``w`` (keys ``theta``, ``i``, ``u``,
         ``omega``) and ``stable`` (bool).
     """
+    from ...loop.closed_loop import closed_loop_of
     if plant_ss is None:
         a, b, c, d, states = plant_matrices(p, inductance)
-        g = ct.ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
+        g = ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
     else:
         g = plant_ss
     mot = motor if inductance else replace(motor, inductance=0.0)
-    cur = current_controller(controller.current_kp, controller.current_ki, mot)
-    from ...loop.closed_loop import DELAY_SAMPLES
-    dly = sample_delay(controller.sample_time, DELAY_SAMPLES)
     outs = ["theta", "i", "u", "omega"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cl = ct.interconnect([g, cur, dly, controller.motion], inplist=["theta_ref"], outlist=outs,
-                             inputs=["theta_ref"], outputs=outs, check_unused=False)
-    resp = np.asarray(ct.frequency_response(cl, w).complex).reshape(len(outs), -1)
+    cl = closed_loop_of(g, controller, mot, ("theta_ref",), outs)
+    resp = np.asarray(cl(1j * np.asarray(w, float))).reshape(len(outs), -1)
     out = {k: resp[j] for j, k in enumerate(outs)}
     out["stable"] = bool(np.all(np.real(cl.poles()) < 0))
     return out

@@ -47,14 +47,13 @@ the full model. ``reduce`` measures the cost by running the study with and witho
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, replace
 
-import control as ct
 import numpy as np
 
 from ...drivetrain.stage_friction import stage_nodes, stage_output_slope
-from ...plant.linear import PLANT_OUTPUTS, current_controller, plant_matrices, sample_delay
+from ...lti.system import ss
+from ...plant.linear import PLANT_OUTPUTS, plant_matrices
 from ..hunting import holding_band
 
 
@@ -122,26 +121,18 @@ def friction_nodes(scene, q0: float, rigid: bool) -> list:
 def disturbance_response(p, controller, motor, w) -> np.ndarray:
     """Closed-loop response of the output angle to a torque at the output (rad per N*m, or
     m per N), at the angular frequencies ``w``, assembled as the reduction's loops are."""
+    from ...loop.closed_loop import closed_loop_of
     a, b, c, d, states = plant_matrices(p, True)
-    g = ct.ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
-    cur = current_controller(controller.current_kp, controller.current_ki, motor)
-    from ...loop.closed_loop import DELAY_SAMPLES
-    dly = sample_delay(controller.sample_time, DELAY_SAMPLES)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cl = ct.interconnect([g, cur, dly, controller.motion], inplist=["theta_ref", "tau_ext"],
-                             outlist=["theta"], inputs=["theta_ref", "tau_ext"], outputs=["theta"],
-                             check_unused=False)
-    return np.asarray(ct.frequency_response(cl[0, 1], w).complex).reshape(-1)
+    g = ss(a, b, c, d, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states, name="plant")
+    cl = closed_loop_of(g, controller, motor, ("theta_ref", "tau_ext"), ("theta",))
+    return np.asarray(cl[0, 1](1j * np.asarray(w, float))).reshape(-1)
 
 
 def position_gain(controller, w) -> np.ndarray:
     """The motion controller's current command per unit of output angle (A/rad, or A/m) at the
     angular frequencies ``w``: with the output held still the loop is open there, and this is
     the current the command's error asks for."""
-    motion = controller.motion
-    path = motion[0, list(motion.input_labels).index("theta")]
-    return np.asarray(ct.frequency_response(path, w).complex).reshape(-1)
+    return np.asarray(controller.motion_block[0, "theta"](1j * np.asarray(w, float))).reshape(-1)
 
 
 def motion_force(p, w, side: str) -> np.ndarray:

@@ -3,7 +3,7 @@ at an end: a range's ends, a normal's mean +- 3 sigma) through the linear study 
 the study judges time requirements, through batched time runs too
 (:func:`~.time_runs.tolerance_runs`); the corner that misses a requirement by the most
 (each shortfall divided by its limit) is built exactly, its margins checked with
-python-control and its nonlinear closed loop run on its own (``simulate``'s command)."""
+python-control's arithmetic on a state-space loop and its nonlinear closed loop run on its own (``simulate``'s command)."""
 
 from __future__ import annotations
 
@@ -100,11 +100,12 @@ def _split(corner):
 
 
 def _corner_margins(keys, corner, p, ctrl, scene, zeta) -> dict:
-    """python-control's margins of the corner's plant, built exactly (the slow, independent
-    path)."""
-    import control as ct
-
-    from ...loop.closed_loop import open_loop_of
+    """The margins of the corner's plant, built exactly as a state-space loop (the slow,
+    independent path; python-control's ``stability_margins`` arithmetic,
+    :func:`servo_toolkit.lti.analysis.stability_margins`)."""
+    from ...lti.analysis import stability_margins
+    from ...lti.system import ss
+    from ...loop.closed_loop import open_loop_block_of
     from ...plant.linear import PLANT_OUTPUTS, plant_matrices, plant_parameters
     from dataclasses import replace
     values, scale = _split(corner)
@@ -113,9 +114,8 @@ def _corner_margins(keys, corner, p, ctrl, scene, zeta) -> dict:
         from ...plant.linear import spring_damping
         q = replace(q, K=q.K * scale, c=float(spring_damping(q.J1, q.J2, q.K * scale, zeta)))
     A, B, C, D, states = plant_matrices(q)
-    g = ct.ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
-    loop = open_loop_of(g, ctrl, scene.motor)
-    gm, pm, *_ = ct.stability_margins(loop)
+    g = ss(A, B, C, D, inputs=["u", "tau_ext"], outputs=list(PLANT_OUTPUTS), states=states)
+    gm, pm, *_ = stability_margins(open_loop_block_of(g, ctrl, scene.motor))
     return {"gain_margin_db": float(20 * np.log10(gm)) if gm and np.isfinite(gm) else math.inf,
             "phase_margin_deg": float(pm) if np.isfinite(pm) else math.inf}
 

@@ -72,7 +72,8 @@ class WorstCorner:
     figures : dict
         The vectorized study's figures at the corner.
     reference : dict
-        python-control's ``stability_margins`` of the corner's plant built exactly
+        python-control's ``stability_margins`` (its arithmetic, :mod:`servo_toolkit.lti`) of the
+        corner's plant built exactly
         (``gain_margin_db``, ``phase_margin_deg``) and its closed-loop stability.
     simulation : SimulationResult or None
         The nonlinear closed-loop run of the corner's scene (``simulate``'s command).

@@ -19,7 +19,7 @@ peak current, each variant also runs in time on the nonlinear model
 - the *worst corner*: every corner of the tolerance box (each tolerance at an end) through
   the linear study and, when the scene bounds a time figure, through batched time runs too;
   the one with the smallest margin to a requirement (each shortfall divided by its limit,
-  over every requirement judged) built exactly, its margins checked with python-control and
+  over every requirement judged) built exactly, its margins checked with python-control's arithmetic and
   its nonlinear closed loop run on its own.
 """
 
