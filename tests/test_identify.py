@@ -399,3 +399,30 @@ def test_every_shipped_scene_fits_or_says_why(path, tmp_path, capsys):
         assert json.loads(out)["parameters"][0]["key"] == "motor.rotor_inertia"
     else:
         assert code == 2 and err.count("\n") == 1 and "drivetrain" in err, err
+
+
+_PACKAGE_NAMES = """
+import json, sys
+import servo_toolkit.identify as identify
+from servo_toolkit.identify import read_data
+light = "scipy.signal" not in sys.modules and "scipy.optimize" not in sys.modules
+import servo_toolkit.identify.fit  # the submodule of the function's name, loaded directly
+from servo_toolkit.identify import fit
+print(json.dumps({"light": light, "fit": type(fit).__name__, "attr": type(identify.fit).__name__,
+                  "all": sorted(n for n in identify.__all__ if getattr(identify, n) is None)}))
+"""
+
+
+def test_the_package_names_are_loaded_on_use_and_fit_stays_the_function():
+    """Reading a measurement loads none of the fit's search (scipy's optimizer and signal
+    processing); ``identify.fit`` is the function even after its submodule was imported
+    by name."""
+    import subprocess
+    import sys
+
+    from .conftest import ROOT
+    proc = subprocess.run([sys.executable, "-c", _PACKAGE_NAMES], capture_output=True, text=True, timeout=300,
+                          cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got == {"light": True, "fit": "function", "attr": "function", "all": []}
