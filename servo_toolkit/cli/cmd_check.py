@@ -28,7 +28,7 @@ from pathlib import Path
 from ..errors import SceneError, SimulationError
 from ..core.files import atomic_file, check_output_file
 from .cmd_design import add_design_options, add_large_signal_option, design_from_args
-from .plant_frf import add_plant_frf_options, plant_frf_check, read_plant_frf
+from .plant_frf import add_plant_frf_options, plant_frf_check, settle_plant_frf
 from .common import (add_force, add_json, add_scheduler, bounded, check_design_budget, check_robustness_budget,
                      load_scene, scheduler_of, study_executor, to_json)
 
@@ -327,7 +327,7 @@ def run(args) -> int:
     varies = dict(parse_vary(text) for text in args.vary)
     parse_overrides(args.require)
     if getattr(args, "plant_frf", None):
-        read_plant_frf(args.plant_frf)  # a bad file stops before any design
+        settle_plant_frf(args)  # a bad file stops before any design
     if args.samples is not None and args.samples < 1:
         raise SceneError("--samples", f"must be at least 1 (got {args.samples})")
     if args.junit is not None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..errors import SceneError
 from .common import (add_force, add_json, add_scene, bounded, check_design_budget, check_robustness_budget, emit,
                      load_scene)
-from .plant_frf import add_plant_frf_options, measured_mode_of, plant_frf_check, read_plant_frf
+from .plant_frf import add_plant_frf_options, measured_mode_of, plant_frf_check, settle_plant_frf
 
 
 def design(scene, **options):
@@ -97,7 +97,7 @@ def run(args) -> int:
     from ..loop.requirements import parse_overrides
     parse_overrides(args.require)  # a bad value: exit 2 before the scene is read
     if getattr(args, "plant_frf", None):
-        read_plant_frf(args.plant_frf)  # a bad file stops before any design
+        settle_plant_frf(args)  # a bad file stops before any design
     scene = load_scene(args.scene)
     check_design_budget(scene, args.force)
     if not getattr(args, "design", None):

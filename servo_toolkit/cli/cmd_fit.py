@@ -70,6 +70,21 @@ def _check_points_files(scene, output) -> None:
                                    f"write it beside the scene, or give the points file's absolute path")
 
 
+def _check_signal(args, data) -> None:
+    """A frequency response whose ``# signal:`` line names another signal than ``--response``
+    compares (the motor speed for ``plant``, the output for ``closed_loop``): one SceneError."""
+    signal = getattr(data, "signal", None)
+    if signal is None:
+        return
+    response = args.response or "plant"
+    if response == "plant" and signal != "motor_speed_rad_s":
+        raise SceneError("DATA.csv", f"records the response to {signal} (its '# signal:' line); --response plant "
+                         "compares the motor speed's: estimate it with frf LOG --derivative -o FRF.csv", str(args.data))
+    if response == "closed_loop" and signal.startswith("motor_"):
+        raise SceneError("DATA.csv", f"records the response to {signal} (its '# signal:' line); --response "
+                         "closed_loop compares the output's", str(args.data))
+
+
 def run(args) -> int:
     """Run the command."""
     from ..identify import calibrated_text, fit, read_data
@@ -80,6 +95,7 @@ def run(args) -> int:
         check_stamped_file(args.output, "-o", "fit", (".toml",), inputs=(args.scene, args.data, *scene.input_files))
         _check_points_files(scene, args.output)
     data = read_data(args.data)
+    _check_signal(args, data)
     if isinstance(data, LoopData):  # the nonlinear closed loop runs over the whole log per evaluation
         from .budget import check_time, fit_seconds
         rows = int(data.time_s.size)

@@ -15,7 +15,9 @@ at every excited frequency with its coherence and the number of spectra averaged
 compares). ``-o`` writes the CSV that ``fit`` reads. The step each of the two columns is
 rounded to (:mod:`servo_toolkit.identify.resolution`: as a ``# resolution_COLUMN: STEP`` line
 records it, else as its values show it) sets the error its rounding leaves in the response,
-written with it (``resolution_db,resolution_deg``) and named in a comment line.
+written with it (``resolution_db,resolution_deg``) and named in a comment line. A ``# signal:
+NAME`` line names the signal the response is to (the output column, or its speed with
+``--derivative``, e.g. ``motor_speed_rad_s``): ``--plant-frf`` takes it from there.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ def run(args) -> int:
     """Run the command."""
     import sys
 
-    from ..identify.frf import estimate_frf, frf_csv, read_time_log
+    from ..identify.frf import estimate_frf, frf_csv, read_time_log, response_signal
     from ..identify.resolution import log_resolution
     band = parse_band(args.band)
     if args.out is not None:
@@ -125,12 +127,14 @@ def run(args) -> int:
                         period=period, settle=settle, band=band, derivative=args.derivative,
                         source=str(args.log), lines=lines, resolution=tuple(r.step for r in steps))
     notes += [r.text() for r in steps]
+    signal = response_signal(args.output, args.derivative)
     if args.out is not None:
-        head = "".join(f"# {r.text()}\n" for r in steps)
+        head = f"# signal: {signal}\n" + "".join(f"# {r.text()}\n" for r in steps)
         write_text(args.out, stamp(head + frf_csv(data), "frf"), "-o")
     for note in notes:
         print(f"servo-toolkit: note: {args.log}: {note}", file=sys.stderr)
     out = {"source": str(args.log), "input": args.input, "output": args.output, "derivative": args.derivative,
+           "signal": signal,
            "time_column": log.time_column, "log_notes": list(log.notes),
            "window": data.window, "averages": data.averages,
            "points": data.points, "frequency_hz": data.frequency_hz.tolist(), "gain_db": data.gain_db.tolist(),

@@ -6,7 +6,7 @@ import sys
 import time
 
 from .common import add_force, add_scene, bounded, check_design_budget, check_robustness_budget, load_scene
-from .plant_frf import add_plant_frf_options, read_plant_frf
+from .plant_frf import add_plant_frf_options, settle_plant_frf
 
 
 def register(sub) -> None:
@@ -60,7 +60,7 @@ def run(args) -> int:
     from ..report.builder import check_report_folder
     start = time.perf_counter()
     scene = load_scene(args.scene)
-    measured = read_plant_frf(args.plant_frf) if args.plant_frf else None  # a bad file: exit 2 before any work
+    measured = settle_plant_frf(args)  # a bad file: exit 2 before any work
     out_dir = check_report_folder(args.output, "--output",
                                   inputs=[args.scene, args.design, args.plant_frf, *scene.input_files])
     check_design_budget(scene, args.force)  # before a --design file is evaluated

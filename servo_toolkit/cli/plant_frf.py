@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from ..errors import SceneError
 
+#: the signal a measured response is to when neither the option nor the file names one
+DEFAULT_SIGNAL = "motor_angle_rad"
 #: the columns of the measured response; what frf -o writes
 EXPECTED = "frequency_hz,gain_db,phase_deg,coherence[,averages[,resolution_db,resolution_deg]] (what frf -o writes)"
 
@@ -18,9 +20,11 @@ def add_plant_frf_options(p) -> None:
                         "margins beside the model's with their 95 %% intervals from the coherence and the averages "
                         "(check: rows measured_<requirement>), points of coherence below 0.8 never decide; with --filter auto a measured drivetrain mode off the model's moves the "
                         "notch onto it")
-    p.add_argument("--plant-frf-signal", default="motor_angle_rad", metavar="COLUMN",
-                   help="the signal the measured response is to (frf's --output): motor_angle_rad (default), "
-                        "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current")
+    p.add_argument("--plant-frf-signal", default=None, metavar="COLUMN",
+                   help="the signal the measured response is to (frf's --output): motor_angle_rad, "
+                        "motor_speed_rad_s, output_angle_rad or output_travel_m; its input is the motor current "
+                        "(default: the one the file's '# signal:' line names, as frf -o writes it, else "
+                        f"{DEFAULT_SIGNAL})")
 
 
 
@@ -62,6 +66,23 @@ def read_plant_frf(path):
     if data.points < 2:
         raise SceneError("--plant-frf", f"{data.points} point(s); a loop on measured data needs at least two",
                          str(path))
+    return data
+
+
+def settle_plant_frf(args):
+    """The measured response ``--plant-frf`` names (:func:`read_plant_frf`; None without one),
+    with ``args.plant_frf_signal`` settled: the option's signal, else the one the file
+    records (``# signal: NAME``), else :data:`DEFAULT_SIGNAL`. An option that names another
+    signal than the file records is one SceneError naming ``--plant-frf-signal``."""
+    if not getattr(args, "plant_frf", None):
+        return None
+    data = read_plant_frf(args.plant_frf)
+    named, recorded = args.plant_frf_signal, data.signal
+    if named is not None and recorded is not None and named != recorded:
+        raise SceneError("--plant-frf-signal", f"{named}, but {args.plant_frf} records the response to {recorded} "
+                         "(its '# signal:' line, as frf -o writes it): leave the option out, or estimate the "
+                         "response to the signal named")
+    args.plant_frf_signal = named or recorded or DEFAULT_SIGNAL
     return data
 
 

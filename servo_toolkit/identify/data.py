@@ -65,6 +65,10 @@ class FrequencyData:
         Standard deviations of the gain (dB) and the phase (deg) at each point that the
         logged signals' resolution leaves (an encoder's counts): an error that repeats in
         every spectrum averaged, which the coherence does not see; None: none known.
+    signal : str or None
+        The signal the response is to (its input the motor current), as a ``# signal: NAME``
+        line before the header records it (``frf -o`` writes it: the output column, or its
+        speed with ``--derivative``); None: not recorded.
     """
 
     frequency_hz: np.ndarray
@@ -76,6 +80,7 @@ class FrequencyData:
     window: str | None = None
     resolution_db: np.ndarray | None = None
     resolution_deg: np.ndarray | None = None
+    signal: str | None = None
 
     kind = "frequency"
 
@@ -243,13 +248,24 @@ def _averages(column, src) -> int:
 AVERAGES_KEYS = ("averages", "periods")
 
 
-def _comments(lines, src) -> tuple[int | None, list]:
-    """The number of spectra averaged that the comment lines before the header record
-    (``# averages: N`` or ``# periods: N``; None: none), and the lines after them."""
-    found, k = None, 0
+#: the comment line of a frequency response that names the signal it is the response to
+SIGNAL_KEY = "signal"
+
+
+def _comments(lines, src) -> tuple[int | None, str | None, list]:
+    """What the comment lines before the header record: the number of spectra averaged
+    (``# averages: N`` or ``# periods: N``; None: none), the signal the response is to
+    (``# signal: NAME``; None: none), and the lines after them."""
+    found, signal, k = None, None, 0
     while k < len(lines) and (not lines[k].strip() or lines[k].lstrip().startswith("#")):
         key, sep, value = lines[k].lstrip().lstrip("#").partition(":")
         key = key.strip().lower()
+        if sep and key == SIGNAL_KEY:
+            name = value.strip()
+            if not name or (signal is not None and name != signal):
+                raise SceneError(f"# {key}", f"must name one signal (got {name!r}"
+                                 + (f" after {signal!r})" if signal is not None else ")"), src)
+            signal = name
         if sep and key in AVERAGES_KEYS:
             try:
                 n = int(value.strip())
@@ -261,7 +277,7 @@ def _comments(lines, src) -> tuple[int | None, list]:
                 raise SceneError(f"# {key}", f"{n} disagrees with the {found} recorded above", src)
             found = n
         k += 1
-    return found, lines[k:]
+    return found, signal, lines[k:]
 
 
 def _stem(name: str) -> str:
@@ -335,7 +351,7 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
     """
     src = str(path)
     text = read_input_text(path, "(file)", MAX_DATA_BYTES, source=src, what="data")
-    recorded, lines = _comments(text.splitlines(), src)
+    recorded, signal, lines = _comments(text.splitlines(), src)
     try:
         rows = [r for r in csv.reader(lines) if r and any(c.strip() for c in r)]
     except csv.Error as exc:  # e.g. a field larger than the csv module's field limit
@@ -373,7 +389,7 @@ def read_data(path) -> FrequencyData | TimeData | LoopData:
             raise SceneError("averages", f"the column's {averages} disagrees with the {recorded} the comment lines "
                              "record", src)
         res = (cols[5], cols[6]) if len(header) == 7 else (None, None)
-        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, averages, None, *res)
+        data = FrequencyData(cols[0], cols[1], cols[2], coh, src, averages, None, *res, signal=signal)
         check_frequency(data)
     elif kind == "time":
         data = TimeData(*cols, source=src)

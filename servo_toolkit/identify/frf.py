@@ -343,6 +343,20 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
                                       window=spec.window, resolution=res)
 
 
+#: the speed whose response ``--derivative`` gives, per angle or travel column
+SPEEDS = {"motor_angle_rad": "motor_speed_rad_s", "output_angle_rad": "output_speed_rad_s",
+          "output_travel_m": "output_speed_m_s"}
+
+
+def response_signal(output: str, derivative: bool) -> str:
+    """The signal a response to the log's column ``output`` is to: the column itself, or with
+    ``derivative`` its speed (:data:`SPEEDS`; ``d(COLUMN)/dt`` for another column). ``frf -o``
+    records it in a ``# signal: NAME`` line, which ``--plant-frf`` reads."""
+    if not derivative:
+        return output
+    return SPEEDS.get(output, f"d({output})/dt")
+
+
 def frf_csv(data: FrequencyData) -> str:
     """The CSV that ``fit`` reads: ``frequency_hz,gain_db,phase_deg,coherence,averages`` (the
     last column when the number of spectra averaged is known), then

@@ -59,6 +59,7 @@ from .crossings import response_of
 from .measured_interval import crossing_sd, point_sd, quantile, sensitivity
 from .measured_mode import find_mode, model_mechanics, signal_responses, system_responses
 from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
+from .measured_signal import check_signal
 
 #: a point with a coherence below this is poor: it is shown and marked, never decides a row
 POOR_COHERENCE = 0.8
@@ -313,7 +314,8 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
     SceneError
         ``signal`` not one of :data:`SIGNALS` (or an output in the other unit), fewer than
         two points, or a band that does not cover the loop's gain crossover, or no gain
-        crossing of the measured loop within it.
+        crossing of the measured loop within it; a response that reads as another signal's
+        than ``signal`` (:func:`.measured_signal.check_signal`).
     """
     if signal not in SIGNALS or (signal.startswith("output_") and signal != output_signal(result.output_unit)):
         allowed = ("motor_angle_rad", "motor_speed_rad_s", output_signal(result.output_unit))
@@ -325,6 +327,8 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
         raise SceneError(option, f"{f.size} point(s); a loop on measured data needs at least two")
     _check_cover(result, f, option)
     w = 2 * np.pi * f
+    check_signal(result.block("plant"), w, h, coh >= POOR_COHERENCE, signal,
+                 ("motor_angle_rad", "motor_speed_rad_s", output_signal(result.output_unit)))
     model = model_response(result, w, signal)
     ratio, mode, model_mode = transmission_ratio(f, h, model, coh, signal)
     loop, closed = loop_on(result, motor, w, h, signal, ratio)
