@@ -209,3 +209,66 @@ def test_a_met_margin_whose_interval_reaches_past_the_limit_says_so(designed):
         row = next(x for x in measured_rows(m, checks) if x.id == "measured_phase_margin")
         assert row.passed and "95 %" in row.achieved
         assert ("reaches past the required" in row.detail) == warned
+
+
+@pytest.fixture(scope="module")
+def rounded_draws(designed):
+    """The noise-free loop on the line grid, and the measured loop of :data:`DRAWS` noise-free
+    rig logs whose angle an encoder rounds (a step of a thirtieth of the angle's RMS, the
+    grid's offset random): each log a multisine of its own random phases, so each rounding
+    error its own; frf's periodic H1 with the step, as excite records it."""
+    scene, r = designed
+    f = BINS * FS / PERIOD
+    h = model_response(r, 2 * np.pi * f, "motor_angle_rad")
+    truth = measured_loop(r, scene.motor, f, h, np.ones_like(f))
+    out = []
+    for seed in range(DRAWS):
+        u_lines = np.zeros(PERIOD // 2 + 1, complex)
+        u_lines[BINS] = np.exp(2j * np.pi * np.random.default_rng(seed).uniform(size=BINS.size)) / np.abs(h)
+        y_lines = np.zeros_like(u_lines)
+        y_lines[BINS] = u_lines[BINS] * h
+        u, y = np.fft.irfft(u_lines, PERIOD), np.fft.irfft(y_lines, PERIOD)
+        step = float(np.std(y)) / 30.0
+        angle = step * np.round(np.tile(y, PERIODS) / step + np.random.default_rng(500 + seed).uniform())
+        t = np.arange(PERIOD * PERIODS) / FS
+        data = estimate_frf(t, np.tile(u, PERIODS), angle, window="periodic", period=PERIOD, lines=BINS,
+                            resolution=(0.0, step))
+        out.append(measured_loop(r, scene.motor, data.frequency_hz, data.complex, data.coherence,
+                                 averages=data.averages, resolution_sd=data.resolution_sd))
+    return truth, out
+
+
+@pytest.mark.parametrize("figure, crossing", [("gain margin", "gain_margin_crossing"),
+                                              ("phase margin", "phase_margin_crossing"),
+                                              ("sensitivity peak Ms", None)])
+def test_the_interval_covers_an_encoders_rounding_at_its_rate(rounded_draws, figure, crossing):
+    """A noise-free log rounded to an encoder's counts has a coherence of 1 (the rounding
+    repeats every period), yet its margins are off: with the rounding's error the file
+    records, the 95 % interval contains the unrounded margin in at least 44 of 50 logs, and
+    the figures scatter as the stated standard deviation (within 0.5..2). Without it the
+    intervals are points and contain it in none."""
+    truth, runs = rounded_draws
+    assert float(np.min(runs[0].coherence)) > 1 - 1e-9 and runs[0].loop_sd_resolution is not None
+    true = {"gain margin": truth.gain_margin_db, "phase margin": truth.phase_margin_deg,
+            "sensitivity peak Ms": truth.sensitivity_peak[0]}[figure]
+    spans = [m.intervals()[figure] for m in runs]
+    covered = sum(lo <= true <= hi for lo, hi in spans)
+    assert covered >= 44, f"{figure}: {covered} of {DRAWS} intervals contain {true:.4g}"
+    if crossing is not None:
+        values = [getattr(m, crossing).margin for m in runs]
+        stated = float(np.median([getattr(m, crossing).sd for m in runs]))
+        ratio = float(np.std(values, ddof=1)) / stated
+        assert 0.5 <= ratio <= 2.0, f"{figure}: the draws scatter {ratio:.2f} times the stated sd {stated:.3g}"
+    assert "rounding" in " ".join(runs[0].notes()) and runs[0].to_dict()["intervals_include_rounding"]
+
+
+def test_the_two_parts_quantile_runs_from_students_to_the_normals():
+    """Welch-Satterthwaite: the coherence's part alone keeps Student's t of 2 (n - 1) degrees
+    of freedom, the rounding's alone (a known variance) the normal's; between, in between."""
+    from servo_toolkit.loop.measured_interval import Z95, combined
+    assert combined(0.3, 0.0, 4) == (0.3, quantile(4))
+    sd, q = combined(0.0, 0.4, 4)
+    assert sd == 0.4 and q == Z95
+    sd, q = combined(0.3, 0.4, 4)
+    assert sd == pytest.approx(0.5) and Z95 < q < quantile(4)
+    assert math.isnan(combined(0.3, 0.4, None)[1])

@@ -111,7 +111,7 @@ def plant_frf_check(args, scene, result, rows: bool = True):
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
                       signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req,
-                      averages=data.averages)
+                      averages=data.averages, resolution_sd=data.resolution_sd)
     table = measured_rows(m, result.requirements) if rows else []
     d = m.to_dict()
     d["points_detail"] = [{"frequency_hz": float(f), "loop_gain_db": float(20 * np.log10(abs(lm))),

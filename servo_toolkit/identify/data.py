@@ -90,6 +90,14 @@ class FrequencyData:
         return len(self.frequency_hz)
 
     @property
+    def resolution_sd(self) -> np.ndarray | None:
+        """The resolution's standard deviation of ``ln H`` at each point, nepers of magnitude
+        and rad of phase alike (``resolution_db`` over 20 / ln 10); None: none known."""
+        if self.resolution_db is None:
+            return None
+        return np.asarray(self.resolution_db, float) * math.log(10.0) / 20.0
+
+    @property
     def complex(self) -> np.ndarray:
         """The response as complex numbers."""
         return 10 ** (self.gain_db / 20) * np.exp(1j * np.radians(self.phase_deg))

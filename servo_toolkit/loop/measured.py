@@ -56,7 +56,7 @@ from ..errors import SceneError
 from ..plant.linear import sample_delay_block
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
-from .measured_interval import crossing_sd, point_sd, quantile, sensitivity
+from .measured_interval import combined, crossing_sd, point_sd, sensitivity
 from .measured_mode import find_mode, model_mechanics, signal_responses, system_responses
 from .measured_result import Crossing, MeasuredLoop, mismatch_bands, reversed_points, sign_reversed
 from .measured_signal import check_signal
@@ -160,10 +160,11 @@ def ratio_gradient(f, h, coherence, signal: str, mode, model_mode) -> dict:
 
 
 def with_spread(crossings, result, motor, f, h, coherence, signal: str, ratio: float, sens, sd, gradient,
-                q: float) -> tuple:
-    """``crossings`` with their margins' standard deviations (:mod:`.measured_interval`):
-    the two bracketing points' errors through the loop, and the mode's reading's through the
-    model's transmission it moves."""
+                averages: int, sd_resolution=None) -> tuple:
+    """``crossings`` with their margins' standard deviations and quantiles
+    (:mod:`.measured_interval`): the two bracketing points' errors through the loop, and the
+    mode's reading's through the model's transmission it moves; ``sd`` the coherence's part
+    of each point's error, ``sd_resolution`` the logged signals' rounding's (None: none)."""
     out = []
     loop = loop_on(result, motor, 2 * np.pi * f, h, signal, ratio)[0]
     for c in crossings:
@@ -177,6 +178,9 @@ def with_spread(crossings, result, motor, f, h, coherence, signal: str, ratio: f
                 near = min(found, key=lambda x: abs(x.margin - c.margin))
                 per_ratio = (near.margin - c.margin) / (ratio * STEP)
         spread = crossing_sd(c.kind, t, k, loop, sens, sd, gradient, per_ratio)
+        rounding = 0.0 if sd_resolution is None else crossing_sd(c.kind, t, k, loop, sens, sd_resolution, gradient,
+                                                                 per_ratio)
+        spread, q = combined(spread, rounding, averages)
         out.append(replace(c, sd=spread, quantile=q))
     return tuple(out)
 
@@ -282,7 +286,8 @@ def _check_cover(result, f, signal_option: str) -> None:
 
 def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: str = "motor_angle_rad",
                   source: str | None = None, required_bandwidth_hz: float | None = None,
-                  option: str = "--plant-frf", averages: int | None = None) -> MeasuredLoop:
+                  option: str = "--plant-frf", averages: int | None = None,
+                  resolution_sd=None) -> MeasuredLoop:
     """The design ``result`` closed on a measured plant response.
 
     Parameters
@@ -308,6 +313,10 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
     averages : int, optional
         The spectra averaged behind the coherence (what ``frf`` records): the margins' 95 %
         intervals rest on it (:mod:`.measured_interval`); None: unknown, no interval.
+    resolution_sd : array_like, optional
+        Standard deviation of ``ln H`` at each point (nepers, and rad of phase) that the
+        logged signals' rounding leaves (what ``frf`` records as ``resolution_db``): added to
+        the coherence's in the intervals; None: none.
 
     Raises
     ------
@@ -334,13 +343,15 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
     loop, closed = loop_on(result, motor, w, h, signal, ratio)
     model_loop, model_closed = loop_on(result, motor, w, model, signal)
     gains, phases = sampled_crossings(f, loop, coh)
-    sd, spread = point_sd(coh, averages), None
+    sd, spread, rounding = point_sd(coh, averages), None, None
+    sd_res = None if resolution_sd is None else np.asarray(resolution_sd, float)
     if sd is not None:
         sens = sensitivity(lambda x: loop_on(result, motor, w, x, signal, ratio)[0], h)
         gradient = ratio_gradient(f, h, coh, signal, mode, model_mode)
-        gains, phases = (with_spread(x, result, motor, f, h, coh, signal, ratio, sens, sd, gradient, quantile(averages))
+        gains, phases = (with_spread(x, result, motor, f, h, coh, signal, ratio, sens, sd, gradient, averages, sd_res)
                          for x in (gains, phases))
         spread = np.abs(sens) * sd
+        rounding = None if sd_res is None else np.abs(sens) * sd_res
     if not gains:
         raise SceneError(option, f"|L| of the loop on the measured response does not cross 1 between {f[0]:.4g} and "
                          f"{f[-1]:.4g} Hz: the response must cover the loop's gain crossover")
@@ -361,4 +372,4 @@ def measured_loop(result, motor, frequency_hz, response, coherence, *, signal: s
                         reference_gain=dc if math.isfinite(dc) and dc > 0 else 1.0,
                         required_bandwidth_hz=required_bandwidth_hz, model_margins=result.margins,
                         bands=mismatch_bands(f, h, model, coh, POOR_COHERENCE), mode=mode, model_mode=model_mode,
-                        transmission_ratio=ratio, averages=averages, loop_sd=spread)
+                        transmission_ratio=ratio, averages=averages, loop_sd=spread, loop_sd_resolution=rounding)

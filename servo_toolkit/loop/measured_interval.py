@@ -39,6 +39,13 @@ within the interval's reach of a crossing without crossing (the phase within its
 -180 deg, or ``|L|`` of 1), the margin a crossing there would have, less its own reach, takes
 the interval's lower end down (:func:`near_approach`).
 
+Where the response file carries the error the logged signals' rounding leaves at each point
+(``resolution_db``, ``resolution_deg``: an encoder's counts, which under a periodic excitation
+repeat in every period, so the coherence does not see them; :mod:`servo_toolkit.identify.resolution`),
+it is a second independent part of ``ln H``'s error, carried the same way and added in power
+(:func:`combined`); its variance is known, not estimated, so the quantile is Student's t of the
+Welch-Satterthwaite degrees of freedom.
+
 The interval states the estimate's random error only: not the grid's (a crossing between
 points, an Ms between them), nor a bias of the estimator (leakage of a window), nor the model's
 parts of the loop. It is first order: with a coherence low enough that the noise makes and
@@ -54,6 +61,11 @@ import numpy as np
 
 from ..core.spectra import coherence_sd
 
+#: what the intervals add when the response file carries the logged signals' rounding
+RESOLUTION_NOTE = (", with the logged signals' rounding added in power (the file's resolution_db and resolution_deg, "
+                   "an error that repeats in every period and that the coherence does not see; Student's t of the "
+                   "Welch-Satterthwaite degrees of freedom, nearer the normal's quantile where the rounding "
+                   "dominates)")
 #: two-sided 95 % quantile of the normal distribution
 Z95 = 1.959963984540054
 #: relative step of the plant response for the loop's sensitivity to it
@@ -78,6 +90,25 @@ def point_sd(coherence, averages: int | None) -> np.ndarray | None:
     if averages is None or averages < 2:
         return None
     return coherence_sd(coherence, averages - 1)
+
+
+def combined(sd_coherence: float, sd_resolution: float, averages: int | None) -> tuple[float, float]:
+    """``(sd, q)``: the standard deviation of an error of two independent parts and its
+    two-sided 95 % quantile. The coherence's part (``sd_coherence``) is estimated with
+    ``2 (averages - 1)`` degrees of freedom; the logged signals' rounding (``sd_resolution``)
+    has a variance known from their steps. Student's t of the Welch-Satterthwaite degrees of
+    freedom, ``2 (n - 1) (v_c + v_r)^2 / v_c^2``: the coherence's quantile without rounding,
+    the normal's where the rounding dominates."""
+    vc, vr = sd_coherence ** 2, sd_resolution ** 2
+    sd = math.sqrt(vc + vr)
+    if not vr > 0:
+        return sd, quantile(averages)
+    if averages is None or averages < 2:
+        return sd, math.nan
+    if not vc > 0:
+        return sd, Z95
+    from scipy.stats import t
+    return sd, float(t.ppf(0.975, 2 * (averages - 1) * (vc + vr) ** 2 / vc ** 2))
 
 
 def sensitivity(loop_of, response) -> np.ndarray:
@@ -192,8 +223,9 @@ def reaches(bounds, required: float, sense: str) -> bool:
     return bounds[0] < required if sense == ">=" else bounds[1] > required
 
 
-def basis_note(averages: int | None) -> str:
-    """What the margins' intervals rest on, or why there are none."""
+def basis_note(averages: int | None, resolution: bool = False) -> str:
+    """What the margins' intervals rest on (``resolution``: the logged signals' rounding is in
+    them), or why there are none."""
     if averages is None:
         return ("no interval on the measured margins: the file does not record the number of spectra averaged "
                 "behind its coherence (an averages column, as frf -o writes, or a '# averages: N' line before "
@@ -205,8 +237,9 @@ def basis_note(averages: int | None) -> str:
             f"of {averages} averaged spectra, sqrt((1 - coh) / (2 ({averages} - 1) coh)) relative in magnitude and in "
             f"rad of phase (Bendat and Piersol), carried through the loop and the crossings' interpolation to first "
             f"order, +-{quantile(averages):.3g} standard deviations (Student's t, {2 * (averages - 1)} degrees of "
-            "freedom); the grid's resolution and the model's parts of the loop are not in them")
+            "freedom)" + (RESOLUTION_NOTE if resolution else "")
+            + "; the grid's resolution and the model's parts of the loop are not in them")
 
 
-__all__ = ["Z95", "basis_note", "bracket_weights", "crossing_sd", "interval", "near_approach", "point_sd", "quantile",
+__all__ = ["RESOLUTION_NOTE", "Z95", "basis_note", "bracket_weights", "combined", "crossing_sd", "interval", "near_approach", "point_sd", "quantile",
            "reaches", "sensitivity", "sensitivity_sd_db"]

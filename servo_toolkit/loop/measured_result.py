@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .measured_crossing import Crossing, interval_text
-from .measured_interval import basis_note, interval, near_approach, quantile, sensitivity_sd_db
+from .measured_interval import basis_note, combined, interval, near_approach, quantile, sensitivity_sd_db
 
 #: at most this many bands in the table of the model's mismatch
 BANDS = 6
@@ -112,6 +112,8 @@ class MeasuredLoop:
     loop_sd : numpy.ndarray or None
         Standard deviation of ``ln L`` at each point from the estimate's random error
         (:mod:`.measured_interval`; None: ``averages`` unknown).
+    loop_sd_resolution : numpy.ndarray or None
+        The same from the logged signals' rounding (None: none recorded, or no ``loop_sd``).
     """
 
     frequency_hz: np.ndarray
@@ -138,6 +140,7 @@ class MeasuredLoop:
     transmission_ratio: float = 1.0
     averages: int | None = None
     loop_sd: np.ndarray | None = None
+    loop_sd_resolution: np.ndarray | None = None
 
     @property
     def poor(self) -> np.ndarray:
@@ -182,7 +185,9 @@ class MeasuredLoop:
         if self.loop_sd is None or not math.isfinite(ms):
             return None
         j = int(np.flatnonzero(self.frequency_hz == at)[0])
-        return interval(ms, float(sensitivity_sd_db(self.loop[j], self.loop_sd[j])), quantile(self.averages))
+        rounding = 0.0 if self.loop_sd_resolution is None else float(self.loop_sd_resolution[j])
+        sd, q = combined(float(self.loop_sd[j]), rounding, self.averages)
+        return interval(ms, float(sensitivity_sd_db(self.loop[j], sd)), q)
 
     def _margin_interval(self, crossing, kind: str):
         """The deciding crossing's interval, its lower end taken down to a near approach's
@@ -191,8 +196,8 @@ class MeasuredLoop:
         if bounds is None:
             return None
         crossings = self.gain_crossings if kind == "gain" else self.phase_crossings
-        low = near_approach(self.frequency_hz, self.loop, self.loop_sd, ~self.poor, crossings, kind,
-                            quantile(self.averages))
+        sd = self.loop_sd if self.loop_sd_resolution is None else np.hypot(self.loop_sd, self.loop_sd_resolution)
+        low = near_approach(self.frequency_hz, self.loop, sd, ~self.poor, crossings, kind, quantile(self.averages))
         return bounds if low is None or low >= bounds[0] else (low, bounds[1])
 
     def intervals(self) -> dict:
@@ -260,7 +265,7 @@ class MeasuredLoop:
                "crossings interpolated between measured points (log |L| and unwrapped phase linear in log f), "
                "each with the two points bracketing it; Ms is the largest over the measured points and may be "
                "higher between them",
-               basis_note(self.averages), f"Nyquist: {self.nyquist_note}"]
+               basis_note(self.averages, self.loop_sd_resolution is not None), f"Nyquist: {self.nyquist_note}"]
         if self.sign_reversed:
             n, good = self.reversed_points
             out.insert(0, f"SIGN: the measured phase is 180 deg off the model's (within {REVERSED_WITHIN_DEG:g} deg) at "
@@ -296,6 +301,7 @@ class MeasuredLoop:
                 "poor_coherence_below": self.poor_coherence, "poor_points": int(self.poor.sum()),
                 "phase_margin_deg": num(self.phase_margin_deg), "gain_margin_db": num(self.gain_margin_db),
                 "sensitivity_peak_db": num(ms), "sensitivity_peak_hz": num(ms_hz), "averages": self.averages,
+                "intervals_include_rounding": self.loop_sd_resolution is not None,
                 **{key: None if ci is None else list(ci) for key, ci in zip(
                     ("gain_margin_interval95_db", "phase_margin_interval95_deg", "sensitivity_peak_interval95_db"),
                     self.intervals().values())},

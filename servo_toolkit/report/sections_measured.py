@@ -28,7 +28,7 @@ def measured_result(ctx):
         f_req = next((c.required for c in d.requirements if c.name == "bandwidth"), None)
         return measured_loop(d, ctx.scene.motor, data.frequency_hz, data.complex, data.coherence,
                              signal=ctx.plant_frf_signal, source=data.source, required_bandwidth_hz=f_req,
-                             averages=data.averages)
+                             averages=data.averages, resolution_sd=data.resolution_sd)
     return ctx.result("measured_loop", compute)
 
 
