@@ -149,3 +149,20 @@ def test_a_hann_estimate_of_an_input_that_does_not_repeat_adds_nothing():
     u, y = _periodic_log()
     again = estimate_frf(np.arange(u.size) / FS, u, np.round(y / q) * q, window="hann", resolution=(0.0, q))
     assert again.resolution_db is not None and np.all(again.resolution_db > 0)
+
+
+def test_a_signal_moving_less_than_half_a_step_rms_is_named_coarse():
+    """Widrow's model of the rounding needs a signal that crosses steps: a sine of 0.3 steps
+    on a drift is named coarse (its line says what the figures may understate), one of three
+    steps is not; the RMS is taken about the trend, so a drift over many steps does not hide
+    a small motion."""
+    t = np.arange(4096)
+    q = 1e-3
+    small = q * np.round((0.3 * np.sin(2 * np.pi * t / 256) + 0.01 * t) + 0.2)
+    large = q * np.round(3.0 * np.sin(2 * np.pi * t / 256) + 0.2)
+    coarse = column_resolution(small, "motor_angle_rad", q)
+    fine = column_resolution(large, "motor_angle_rad", q)
+    assert coarse.step == pytest.approx(q) and coarse.coarse and coarse.rms_steps < 0.5
+    assert "steps RMS" in coarse.text() and coarse.to_dict()["coarse"] is True
+    assert not fine.coarse and fine.rms_steps == pytest.approx(3.0 / math.sqrt(2), rel=0.05)
+    assert "steps RMS" not in fine.text()
