@@ -2,7 +2,8 @@
 
 :func:`fit` takes a scene, a measurement (a frequency response or time traces, see
 :func:`read_data`) and scene key paths, and returns a :class:`FitResult`;
-:func:`calibrated_text` writes the scene file with the fitted values.
+:func:`calibrated_text` writes the scene file with the fitted values; :func:`simulated_log`
+gives a drive's closed-loop log of a scene at its control instants.
 
 The names below are imported on first use, so that reading a measurement (``check
 --plant-frf`` reads one through :mod:`.data`) loads none of the fit's search and residual
@@ -14,7 +15,8 @@ from __future__ import annotations
 import sys as _sys
 from types import ModuleType as _ModuleType
 
-__all__ = ["FitResult", "FrequencyData", "LoopData", "TimeData", "calibrated_text", "fit", "read_data"]
+__all__ = ["FitResult", "FrequencyData", "LoopData", "TimeData", "calibrated_text", "fit", "read_data",
+           "simulated_log"]
 
 
 def __getattr__(name: str):
@@ -24,6 +26,8 @@ def __getattr__(name: str):
         from .result import FitResult as value
     elif name == "calibrated_text":
         from .write import calibrated_text as value
+    elif name == "simulated_log":
+        from .loop_model import simulated_log as value
     elif name in ("FrequencyData", "LoopData", "TimeData", "read_data"):
         from . import data
 

@@ -42,6 +42,7 @@ from .result import FitResult
 from .profile import LOWER_BY, ParameterProfile, noise_variance, profile, threshold
 from .search import Search, global_least_squares, refine
 from .verdict import MISS_FLOORS, bands, judge
+from .whiteness import robust_inflation
 
 __all__ = ["PHASE_DB_PER_DEG", "fit", "wrap_deg"]
 #: relative half-width of the 95 % interval above which a parameter is called unidentified
@@ -65,9 +66,11 @@ def _misses(comparison, resid, floor) -> tuple:
     return tuple(bands(comparison.axis, miss, comparison.unit))
 
 
-def _intervals(jac, resid, dof):
+def _intervals(jac, resid, dof, groups=None):
     """Half-widths of the 95 % intervals of the log-parameters, their correlation, and
-    which parameters have no (independent) influence, from the Jacobian at the solution."""
+    which parameters have no (independent) influence, from the Jacobian at the solution;
+    with ``groups`` (time traces: each residual's stretch of time), at least the
+    cluster-robust interval (:func:`.whiteness.robust_inflation`)."""
     p = jac.shape[1]
     s2 = float(resid @ resid) / dof
     norms = np.linalg.norm(jac, axis=0)
@@ -86,12 +89,16 @@ def _intervals(jac, resid, dof):
             inv = np.linalg.inv(jtj)
             d = np.sqrt(np.abs(np.diag(inv)))
             half[idx] = stats.t.ppf(0.975, dof) * math.sqrt(s2) * d
+            if groups is not None:
+                factor, robust_dof = robust_inflation(ja, resid, groups)
+                robust = stats.t.ppf(0.975, max(robust_dof, 1)) * math.sqrt(s2) * d * factor
+                half[idx] = np.fmax(half[idx], robust)
             # the correlation does not depend on s^2 (an exact fit has s^2 = 0)
             corr[np.ix_(idx, idx)] = np.clip(inv / np.outer(d, d), -1.0, 1.0)
     return half, corr, singular
 
 
-def _assess(sol, coords, template, dof):
+def _assess(sol, coords, template, dof, groups=None):
     """The solution's values, the parameters held by the scene's rules, and the Wald intervals."""
     norms = np.linalg.norm(sol.jac, axis=0)
     # a parameter without influence keeps the scene's value (the search moved it for nothing)
@@ -99,7 +106,7 @@ def _assess(sol, coords, template, dof):
     values = coords.values(z)
     at_limit = _at_scene_limit(template, values)
     jac = np.where(at_limit, 0.0, sol.jac)  # a parameter held by the scene's rule is not estimated
-    half, corr, singular = _intervals(jac, sol.fun, dof)
+    half, corr, singular = _intervals(jac, sol.fun, dof, groups)
     return z, values, at_limit, jac, half, corr, singular
 
 
@@ -266,7 +273,7 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     level = threshold(dof)
     nfev, refined_from = int(sol.nfev), []
     for attempt in range(MAX_RESTARTS + 1):
-        z, values, at_limit, jac, half, corr, singular = _assess(sol, coords, template, dof)
+        z, values, at_limit, jac, half, corr, singular = _assess(sol, coords, template, dof, comparison.clusters)
         profiled = _to_profile(corr, singular, at_limit)
         s2 = noise_variance(sol.fun, dof)
         rss = float(sol.fun @ sol.fun)
@@ -301,7 +308,8 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
     unidentified = [j for j in range(npar) if not at_limit[j] and (singular[j] or wide[j] or unbounded[j])]
     inseparable = [(a, b) for a in range(npar) for b in range(a + 1, npar) if abs(corr[a, b]) > MAX_CORRELATION]
     # a strong correlation alone is no verdict: the intervals (from the same information, or the profile) allow for it
-    verdict = judge(residual_rms, floor, dof, m, not unidentified)
+    white = comparison.whiteness(sol.fun) if comparison.whiteness is not None and floor is not None else None
+    verdict = judge(residual_rms, floor, dof, m, not unidentified, white=white is None or white.white)
     judged = verdict != "model mismatch"  # at a mismatch the intervals mean nothing
     warnings = []
     for j, key in enumerate(keys):
@@ -349,6 +357,8 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
         residual_db_rms = float(np.sqrt(np.mean(gain ** 2)))
         residual_phase_deg_rms = float(np.sqrt(np.mean(phase ** 2)))
     misses = _misses(comparison, sol.fun, floor) if verdict == "model mismatch" else ()
+    if white is not None and not white.white:
+        misses = tuple(dict.fromkeys(misses + white.windows))[:3] if misses else white.windows
     return FitResult(scene=template.base.name, source=template.source, response=kind, keys=tuple(keys),
                      units=tuple(p.unit for p in template.parameters), initial=x0, values=values, ci95=ci,
                      correlation=corr, residual_db_rms=residual_db_rms,
@@ -357,5 +367,5 @@ def fit(scene, data, response: str | None = None, params=(), *, controller=None,
                      data=data, initial_model=initial_model, fitted_model=fitted_model,
                      calibrated=fitted_scene, written=tuple(p.written for p in template.parameters),
                      evaluations=int(nfev), dof=int(dof), verdict=verdict, noise_floor=floor, misses=misses,
-                     noise_basis=comparison.noise,
+                     noise_basis=comparison.noise, correlated="" if white is None else white.text,
                      profiles=tuple(_in_units(p, template, coords, z, values) for p in profiles))

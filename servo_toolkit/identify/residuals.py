@@ -15,9 +15,10 @@ Voltage-driven time traces
     from the model's), so no one sample's noise shifts a trace; features: the steady gain and time constant of the motor speed (:mod:`.trace_features`).
 Closed-loop time traces
     Output position and motor current of the nonlinear closed loop (:mod:`.loop_model`),
-    each divided by its own noise (the scatter of its measurement), so the floor is 1 and
-    the intervals weigh each channel by its noise; features: the inverse-dynamics
-    regression of the current.
+    each divided by its own noise (the scatter of its measurement, at least an encoder
+    count's rounding noise), so the floor is 1 and the intervals weigh each channel by its
+    noise; the residual tested for whiteness and the intervals robust to its correlation in
+    time (:mod:`.whiteness`); features: the inverse-dynamics regression of the current.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ from .loop_model import LoopRun
 from .model import frequency_model, time_response
 from .noise import FrequencyNoise, frequency_noise
 from .trace_features import LoopScales, loop_features, step_features, step_mismatch
-from .verdict import scatter_sd
+from .verdict import bands, scatter_sd
+from .whiteness import block_test, clusters
 
 #: dB of log-magnitude per degree of phase with the weight of the complex logarithm
 PHASE_DB_PER_DEG = 20 / math.log(10) * math.pi / 180
@@ -67,6 +69,12 @@ class Comparison:
     verify : callable or None
         ``scene -> None``: the checks the evaluations of the search leave out, run once on the
         fitted scene (raises SimulationError).
+    whiteness : callable or None
+        ``residual vector -> TraceWhiteness``: whether the residual of time traces is their
+        noise (:mod:`.whiteness`); None where the data have no time order to test.
+    clusters : numpy.ndarray or None
+        Each residual's stretch of time, for intervals robust to a residual correlated in
+        time (:func:`.whiteness.robust_inflation`); None: the intervals of white noise.
     """
 
     evaluate: Callable
@@ -76,6 +84,48 @@ class Comparison:
     unit: str
     noise: str = "scatter of the measurement (third differences)"
     verify: Callable | None = None
+    whiteness: Callable | None = None
+    clusters: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class TraceWhiteness:
+    """The test of the residual of time traces, channel by channel (:func:`.whiteness.block_test`).
+
+    Attributes
+    ----------
+    white : bool
+        Every channel passes as white noise.
+    text : str
+        The worst channel's finding (empty when every channel passes).
+    windows : tuple of str
+        Where the worst channel's block means miss most (times from the start).
+    """
+
+    white: bool
+    text: str = ""
+    windows: tuple = ()
+
+
+def trace_whiteness(names, measured, noise, time_s):
+    """``residual vector -> TraceWhiteness`` of channels ``names`` (their measurements and
+    noise standard deviations), each block of the vector in noise units."""
+    quanta = [quantum_sd(m) / s for m, s in zip(measured, noise)]
+    t = np.asarray(time_s, float) - float(time_s[0])
+
+    def test(residual):
+        parts = np.split(np.asarray(residual, float), len(names))
+        tests = [(name, block_test(r, m, q)) for name, r, m, q in zip(names, parts, measured, quanta)]
+        failed = [(name, bt) for name, bt in tests if bt is not None and not bt.white]
+        if not failed:
+            return TraceWhiteness(True)
+        name, bt = min(failed, key=lambda x: x[1].p_value)
+        span = bt.width * float(t[1] - t[0]) if t.size > 1 else 0.0
+        text = (f"the residual of {name} is not white noise: its means over {bt.width} samples "
+                f"({1e3 * span:.3g} ms) are {bt.ratio:.3g} times what white noise leaves (p = {bt.p_value:.2g})")
+        block_t = t[: bt.missed.size * bt.width: bt.width]
+        return TraceWhiteness(False, text, tuple(bands(block_t, bt.missed.astype(float), "s")))
+    return test
 
 
 def frequency_residual(h, data: FrequencyData, noise: FrequencyNoise) -> np.ndarray:
@@ -138,13 +188,14 @@ def loop_traces(data: LoopData, base, controller) -> Comparison:
     """Closed-loop time traces of the nonlinear model (``controller`` held fixed)."""
     loop = LoopRun.for_log(base, controller, data)
     measured = (data.output, data.current_A)
+    names = (f"output_{data.unit}", "current_A")
     noise = []
-    for name, m in zip(("output", "current_A"), measured):
+    for name, m in zip(names, measured):
         rms = float(np.sqrt(np.mean((m - m.mean()) ** 2)))
         if not rms > 0:
             raise SceneError(name, "is constant in the time traces; nothing to fit it to", data.source)
         sd = scatter_sd(m)
-        noise.append(max(sd if sd is not None else rms, 1e-9 * rms))
+        noise.append(rms if sd is None else max(sd, quantum_sd(m), 1e-9 * rms))
     scales = LoopScales(data.time_s, data.output, data.current_A)
     features = loop_features(data.time_s, data.output, data.current_A)
 
@@ -154,4 +205,6 @@ def loop_traces(data: LoopData, base, controller) -> Comparison:
         return model, r, scales.mismatch(loop_features(data.time_s, *model), features)
     floor = None if scatter_sd(data.output) is None else 1.0
     return Comparison(evaluate, floor, 2, data.time_s - data.time_s[0], "s",
-                      verify=lambda scene: loop.traces(scene, check=True))
+                      verify=lambda scene: loop.traces(scene, check=True),
+                      whiteness=trace_whiteness(names, measured, noise, data.time_s),
+                      clusters=clusters(data.points, 2))

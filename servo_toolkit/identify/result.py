@@ -65,6 +65,9 @@ class FitResult:
         The profile of each parameter whose Wald interval is not trusted (a pair correlated
         beyond 0.99, or an ill-conditioned Fisher matrix; :mod:`servo_toolkit.identify.profile`):
         its ``ci95`` is the profile's.
+    correlated : str
+        Time traces whose residual is not white noise: the worst channel's finding
+        (:mod:`servo_toolkit.identify.whiteness`); empty otherwise.
     """
 
     scene: str
@@ -93,6 +96,7 @@ class FitResult:
     misses: tuple = ()
     noise_basis: str = ""
     profiles: tuple = ()
+    correlated: str = ""
 
     @property
     def mismatch(self) -> bool:
@@ -103,9 +107,10 @@ class FitResult:
         """The verdict as one sentence."""
         if self.verdict == "model mismatch":
             where = f"; it misses most at {', '.join(self.misses)}" if self.misses else ""
+            white = f"; {self.correlated}" if self.correlated else ""
             return (f"model mismatch: residual {self.residual_rms:.3g} against a noise floor of "
-                    f"{self.noise_floor:.3g}{where} (a parameter missing from --param, or the model lacks what "
-                    "the rig does)")
+                    f"{self.noise_floor:.3g}{white}{where} (a parameter missing from --param, or the model lacks "
+                    "what the rig does); the 95 % intervals assume a model that fits the data and do not hold")
         if self.verdict == "noise floor unknown":
             why = self.noise_basis.partition("unknown: ")[2] or "too few points to estimate it"
             return f"noise floor unknown ({why}); residual not judged"
@@ -128,7 +133,7 @@ class FitResult:
                 "correlation": {"keys": list(self.keys), "matrix": corr},
                 "warnings": list(self.warnings), "points": int(self.data.points), "dof": self.dof,
                 "verdict": self.verdict, "noise_floor": self.noise_floor, "noise_basis": self.noise_basis,
-                "misses": list(self.misses), "profiles": [p.to_dict() for p in self.profiles],
+                "misses": list(self.misses), "correlated": self.correlated, "profiles": [p.to_dict() for p in self.profiles],
                 "evaluations": self.evaluations}
 
     def value(self, key: str) -> float:

@@ -14,9 +14,12 @@ reversal) is left out.
     The residual RMS is at most :data:`MISMATCH_RATIO` times the floor (times the share of
     degrees of freedom the fit leaves).
 ``model mismatch``
-    It is larger: the model (or the parameters chosen) cannot follow the data; the
-    frequencies or times where it misses most are named. Intervals and identifiability
-    mean nothing then, and are not judged.
+    It is larger, or (time traces of the closed loop) the residual is not white noise: its
+    means over blocks of a few milliseconds are larger than the noise leaves them
+    (:mod:`.whiteness`; a miss smaller than the noise, that the RMS cannot show, still moves
+    the estimates by more than their intervals). The model (or the parameters chosen)
+    cannot follow the data; the frequencies or times where it misses most are named.
+    Intervals and identifiability mean nothing then, and are not judged.
 ``not identifiable``
     The fit reaches the noise, yet the Fisher information (the Jacobian at the optimum)
     leaves a parameter without an independent influence, or its interval (from the profile
@@ -75,11 +78,14 @@ def bands(x, miss, unit: str, limit: int = 3) -> list[str]:
     return out
 
 
-def judge(residual_rms: float, floor: float | None, dof: int, size: int, identifiable: bool) -> str:
-    """The verdict (one of :data:`VERDICTS`) of a residual against its noise floor."""
+def judge(residual_rms: float, floor: float | None, dof: int, size: int, identifiable: bool,
+          white: bool = True) -> str:
+    """The verdict (one of :data:`VERDICTS`) of a residual against its noise floor; ``white``
+    False (time traces whose residual is not white noise, :mod:`.whiteness`) is a mismatch
+    whatever the residual's RMS."""
     if floor is None:
         return "noise floor unknown"
     expected = floor * math.sqrt(dof / max(size, 1))
-    if residual_rms > MISMATCH_RATIO * expected + 1e-12:
+    if residual_rms > MISMATCH_RATIO * expected + 1e-12 or not white:
         return "model mismatch"
     return "fits to the noise" if identifiable else "not identifiable"
