@@ -23,9 +23,24 @@ def _with_stage(ema_dict, i, table):
 
 def test_a_misspelt_required_key_is_named_with_the_key_it_misspells(ema_dict):
     with pytest.raises(SceneError) as info:
-        build(_with_stage(ema_dict, 0, {"kind": "gear", "gear_ratio": 50}))
-    assert info.value.key == "drivetrain[0].gear_ratio"
+        build(_with_stage(ema_dict, 0, {"kind": "gear", "ratio_": 50}))
+    assert info.value.key == "drivetrain[0].ratio_"
     assert "unknown key; did you mean ratio?" in info.value.rule
+
+
+def test_a_key_holding_a_missing_ones_name_is_named_without_calling_it_unknown(ema_dict):
+    """``gear_ratio`` beside a missing ``ratio`` may be meant for it; ``thermal_resistance_winding``
+    beside a missing ``resistance`` is a key of its own: the missing key is the fact, the
+    holder a suggestion."""
+    with pytest.raises(SceneError) as info:
+        build(_with_stage(ema_dict, 0, {"kind": "gear", "gear_ratio": 50}))
+    assert info.value.key == "drivetrain[0].ratio"
+    assert info.value.rule.startswith("missing key (required)") and "gear_ratio" in info.value.rule
+    data = variant(ema_dict, motor__thermal_resistance_winding="0.3 K/W")
+    del data["motor"]["resistance"]
+    with pytest.raises(SceneError) as info:
+        build(data)
+    assert info.value.key == "motor.resistance" and "unknown" not in info.value.rule
 
 
 @pytest.mark.parametrize("edit, key, near", [

@@ -44,13 +44,17 @@ def _edits(a: str, b: str) -> int:
 
 def misspelling_of(name: str, written) -> str | None:
     """The key of ``written`` (keys a table writes that were not read) that misspells the
-    required key ``name``: a typo (at most one edit per five characters, ``leed``,
-    ``resistanse``) or a longer name holding it (``gear_ratio``); stricter than
-    :func:`nearest_key`, since a key not read yet may be another key of the table
-    (``back_emf_constant`` is no misspelling of ``torque_constant``)."""
+    required key ``name`` by a typo (at most one edit per five characters, ``leed``,
+    ``resistanse``); stricter than :func:`nearest_key`, since a key not read yet may be
+    another key of the table (``back_emf_constant`` is no misspelling of ``torque_constant``)."""
     typos = sorted((_edits(name, k), k) for k in written if k != name and _edits(name, k) <= max(1, len(name) // 5))
-    if typos:
-        return typos[0][1]
+    return typos[0][1] if typos else None
+
+
+def holder_of(name: str, written) -> str | None:
+    """The shortest key of ``written`` whose name holds the required key ``name``
+    (``gear_ratio`` holds ``ratio``): maybe meant for it, maybe another key of the table
+    not read yet (``thermal_resistance_winding`` beside a missing ``resistance``)."""
     holding = sorted((k for k in written if len(name) >= 3 and name in k and k != name), key=len)
     return holding[0] if holding else None
 
@@ -196,10 +200,15 @@ class Fields:
         if name in self.table:
             return self.table[name]
         if default is _MISSING:
-            near = misspelling_of(name, [k for k in self.table if k not in self._used and isinstance(k, str)])
+            written = [k for k in self.table if k not in self._used and isinstance(k, str)]
+            near = misspelling_of(name, written)
             if near is not None:  # a misspelt key is what the user wrote: name it, not the missing one
                 raise SceneError(self.key(near), f"unknown key; did you mean {name}? ({name} is required and "
                                                  "not given)")
+            holder = holder_of(name, written)
+            if holder is not None:  # the table's other keys are not known yet: the missing one is the fact
+                raise SceneError(self.key(name), f"missing key (required); the table writes {holder}: if that "
+                                                 f"was meant for {name}, name it {name}")
             raise SceneError(self.key(name), "missing key (required)")
         return default
 
