@@ -89,3 +89,23 @@ def test_fit_refuses_a_response_to_another_signal_than_it_compares(tmp_path, cap
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "DATA.csv" in err[0] and signal in err[0], err
+
+
+def test_an_output_speeds_response_is_taken_as_its_positions(designed, tmp_path, capsys):
+    """frf --derivative of the output writes the output speed's response: check takes it as
+    the position's (divided by j w), the model's own margins on the model's response."""
+    import json
+    _, r = designed
+    w = 2 * np.pi * F
+    path = _csv(tmp_path / "frf.csv", 1j * w * model_response(r, w, "output_angle_rad"), "output_speed_rad_s")
+    assert main(["check", EMA, "--linear-only", "--plant-frf", path, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)["scenes"][0]["measured_plant"]
+    assert out["signal"] == "output_angle_rad"
+    assert out["phase_margin_deg"] == pytest.approx(r.margins.phase_margin_deg, abs=0.5)
+
+
+def test_a_response_to_a_signal_the_loop_does_not_take_names_the_file(tmp_path, capsys):
+    path = _csv(tmp_path / "frf.csv", np.ones(F.size) * (1 + 1j), "d(encoder_rad)/dt")
+    assert main(["check", EMA, "--linear-only", "--plant-frf", path]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--plant-frf:" in err[0] and "d(encoder_rad)/dt" in err[0], err

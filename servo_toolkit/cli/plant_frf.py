@@ -6,6 +6,9 @@ from __future__ import annotations
 
 from ..errors import SceneError
 
+#: an output speed's response (what frf --derivative writes for the output) is its position's
+#: times j w: the position's is taken
+INTEGRALS = {"output_speed_rad_s": "output_angle_rad", "output_speed_m_s": "output_travel_m"}
 #: the signal a measured response is to when neither the option nor the file names one
 DEFAULT_SIGNAL = "motor_angle_rad"
 #: the columns of the measured response; what frf -o writes
@@ -69,6 +72,26 @@ def read_plant_frf(path):
     return data
 
 
+def plant_response(path):
+    """The measured response in ``path`` (:func:`read_plant_frf`) as the loop takes it: an
+    output speed's response (``frf --derivative`` of the output, its ``# signal:`` line says
+    so) as its position's, divided by ``j w``; a response to a signal the loop does not take
+    is one SceneError naming ``--plant-frf``."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..loop.measured import SIGNALS
+    data = read_plant_frf(path)
+    if data.signal in INTEGRALS:
+        return replace(data, gain_db=data.gain_db - 20 * np.log10(2 * np.pi * data.frequency_hz),
+                       phase_deg=data.phase_deg - 90.0, signal=INTEGRALS[data.signal])
+    if data.signal is not None and data.signal not in SIGNALS:
+        raise SceneError("--plant-frf", f"records the response to {data.signal} (its '# signal:' line); a loop on a "
+                         f"measured plant takes the motor current's response to {', '.join(SIGNALS)}", str(path))
+    return data
+
+
 def settle_plant_frf(args):
     """The measured response ``--plant-frf`` names (:func:`read_plant_frf`; None without one),
     with ``args.plant_frf_signal`` settled: the option's signal, else the one the file
@@ -76,7 +99,7 @@ def settle_plant_frf(args):
     signal than the file records is one SceneError naming ``--plant-frf-signal``."""
     if not getattr(args, "plant_frf", None):
         return None
-    data = read_plant_frf(args.plant_frf)
+    data = plant_response(args.plant_frf)
     named, recorded = args.plant_frf_signal, data.signal
     if named is not None and recorded is not None and named != recorded:
         raise SceneError("--plant-frf-signal", f"{named}, but {args.plant_frf} records the response to {recorded} "
@@ -95,7 +118,7 @@ def measured_mode_of(args):
     from ..loop.measured_mode import find_mode
     if args.plant_frf_signal not in SIGNALS:
         return None  # named by measured_loop's own error, after the design
-    data = read_plant_frf(args.plant_frf)
+    data = plant_response(args.plant_frf)
     return find_mode(data.frequency_hz, data.complex, data.coherence, args.plant_frf_signal, POOR_COHERENCE)
 
 
@@ -107,7 +130,7 @@ def plant_frf_check(args, scene, result, rows: bool = True):
 
     from ..loop.measured import measured_loop
     from ..studies.gate import measured_rows
-    data = read_plant_frf(args.plant_frf)
+    data = plant_response(args.plant_frf)
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
                       signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req,
