@@ -77,11 +77,16 @@ def test_an_expression_is_refused_with_an_example_in_the_keys_unit(ema_dict):
     ({"sensors__sample_time": 0.2}, "sensors.sample_time", "s"),
     ({"drivetrain__1__lead": 5}, "drivetrain[1].lead", "m/turn"),
     ({"motor__inductance": 5}, "motor.inductance", "H"),
+    ({"motor__rotor_inertia": 536}, "motor.rotor_inertia", "kg*m^2"),  # a catalogue's 536 g*cm^2
+    ({"motor__resistance": 500}, "motor.resistance", "ohm"),
+    ({"load__inertia": 2e5}, "load.inertia", "kg*m^2"),
 ])
 def test_a_bare_number_far_from_its_keys_typical_values_is_noted(ema_dict, edit, key, unit):
     scene = build(variant(ema_dict, **edit))
     assert len(scene.notes) == 1
     assert scene.notes[0].startswith(f"{key} = ") and f"read in {unit} (SI)" in scene.notes[0]
+    if key == "motor.rotor_inertia":
+        assert 'e.g. "536 g*cm^2"' in scene.notes[0]
 
 
 def test_a_typical_bare_number_or_a_written_unit_is_not_noted(ema_dict):

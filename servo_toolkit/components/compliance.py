@@ -95,7 +95,8 @@ class Load:
         mass, a force, N/m and N*s/m."""
         units = (("kg", "N", "N/m", "N*s/m", "m/s") if linear else
                  ("kg*m^2", "N*m", "N*m/rad", "N*m*s/rad", "rad/s"))
-        load = cls(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative"),
+        typical = (1e-3, 1e5, "g") if linear else (1e-7, 1e4, "g*cm^2")  # a carriage's mass, a load's inertia
+        load = cls(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative", typical=typical),
                    hinge_moment=f.quantity("hinge_moment", units[1], 0.0, rule="finite"),
                    hinge_stiffness=f.quantity("hinge_stiffness", units[2], 0.0, rule="finite"),
                    damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"),

@@ -46,6 +46,14 @@ PLAUSIBLE_MAX = {"resistance": 1e15, "inductance": 10.0, "torque_constant": 1e4,
 MIN_ELECTRICAL_TIME_CONSTANT = 1e-7
 
 
+#: the values a DC servo motor's catalogue keys take, from a 10 mm coreless motor to a
+#: 10 kW servo (SI; a third element the unit a slip is most likely meant in): a bare number
+#: outside them loads with a note naming the SI unit it was read in
+TYPICAL = {"resistance": (1e-3, 200.0), "torque_constant": (1e-3, 10.0), "back_emf_constant": (1e-3, 10.0),
+           "rotor_inertia": (1e-9, 0.05, "g*cm^2"), "viscous_friction": (1e-9, 0.1),
+           "coulomb_friction": (1e-5, 10.0), "voltage_limit": (1.0, 1000.0), "current_limit": (0.01, 1000.0)}
+
+
 @dataclass(frozen=True)
 class DCMotor:
     """Armature-controlled DC motor, SI units.
@@ -140,15 +148,18 @@ class DCMotor:
         kind = f.text("kind", "dc")
         require(kind == "dc", f.key("kind"), f"only kind = 'dc' is supported (got {kind!r})")
         motor = cls(
-            resistance=f.quantity("resistance", "ohm", rule="positive"),
+            resistance=f.quantity("resistance", "ohm", rule="positive", typical=TYPICAL["resistance"]),
             inductance=f.quantity("inductance", "H", 0.0, rule="nonnegative", typical=(1e-6, 0.5)),
-            torque_constant=f.quantity("torque_constant", "N*m/A", rule="positive"),
-            back_emf_constant=f.quantity("back_emf_constant", "V*s/rad", rule="positive"),
-            rotor_inertia=f.quantity("rotor_inertia", "kg*m^2", rule="positive"),
-            viscous_friction=f.quantity("viscous_friction", "N*m*s/rad", 0.0, rule="nonnegative"),
-            coulomb_friction=f.quantity("coulomb_friction", "N*m", 0.0, rule="nonnegative"),
-            voltage_limit=f.quantity("voltage_limit", "V", math.inf),
-            current_limit=f.quantity("current_limit", "A", math.inf),
+            torque_constant=f.quantity("torque_constant", "N*m/A", rule="positive", typical=TYPICAL["torque_constant"]),
+            back_emf_constant=f.quantity("back_emf_constant", "V*s/rad", rule="positive",
+                                         typical=TYPICAL["back_emf_constant"]),
+            rotor_inertia=f.quantity("rotor_inertia", "kg*m^2", rule="positive", typical=TYPICAL["rotor_inertia"]),
+            viscous_friction=f.quantity("viscous_friction", "N*m*s/rad", 0.0, rule="nonnegative",
+                                        typical=TYPICAL["viscous_friction"]),
+            coulomb_friction=f.quantity("coulomb_friction", "N*m", 0.0, rule="nonnegative",
+                                        typical=TYPICAL["coulomb_friction"]),
+            voltage_limit=f.quantity("voltage_limit", "V", math.inf, typical=TYPICAL["voltage_limit"]),
+            current_limit=f.quantity("current_limit", "A", math.inf, typical=TYPICAL["current_limit"]),
             static_friction=(f.quantity("static_friction", "N*m", rule="nonnegative")
                              if f.has("static_friction") else None),
             stribeck_speed=f.quantity("stribeck_speed", "rad/s", 0.0, rule="nonnegative"),

@@ -223,14 +223,16 @@ class Fields:
         where the rule is None (a rigid stage, no limit). ``typical`` ``(low, high)``: the
         values the key's physics makes plausible; a bare number (no unit written) outside
         them is read in ``unit`` all the same, with a note naming that unit
-        (:func:`collecting_notes`): ``sample_time = 0.2`` is 0.2 s, most likely a slip for 0.2 ms.
+        (:func:`collecting_notes`): ``sample_time = 0.2`` is 0.2 s, most likely a slip for 0.2 ms;
+        a third element is the unit the note's example is written in (default ``deg`` for an
+        angle, else the unit with the prefix ``m``).
         """
         self._note(name, "quantity", default, unit, rule, bounds=_range_of(unit, rule, bounds))
         value = self.raw(name, default)
         if value is default and default is not _MISSING and not isinstance(default, str):
             return default
         result = self._checked(parse_quantity(value, unit, self.key(name)), name, rule, unit=unit, bounds=bounds)
-        if typical is not None and is_bare_number(value) and result != 0 \
+        if typical is not None and is_bare_number(value) and result != 0 and math.isfinite(result) \
                 and not typical[0] <= abs(result) <= typical[1]:
             self._note_unusual(name, result, unit, typical)
         return result
@@ -242,7 +244,7 @@ class Fields:
             notes.append(f"{self.key(name)} = {value:g} has no unit and is read in {unit} (SI): "
                          f"{value:g} {unit} is outside the typical {typical[0]:g}..{typical[1]:g} {unit}; "
                          f"write the unit if another was meant (e.g. \"{value:g} "
-                         f"{'deg' if unit == 'rad' else 'm' + unit}\")")
+                         f"{typical[2] if len(typical) > 2 else ('deg' if unit == 'rad' else 'm' + unit)}\")")
 
     def quantity_list(self, name: str, unit: str, default=_MISSING, *, rule=None, bounds=None) -> tuple:
         """A list of quantities converted to ``unit``, each checked as :meth:`quantity` does."""
