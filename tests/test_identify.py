@@ -279,6 +279,13 @@ def test_cli_text_and_time_traces(tmp_path, truth, capsys):
     assert "model mismatch" in captured.err and " s" in captured.err and captured.err.count("\n") == 1
     assert main(["fit", EMA, str(path), "--response", "closed_loop", "--param", RESISTANCE]) == 2
     assert "--response" in capsys.readouterr().err
+    # a mismatch is no calibration: -o is left unwritten, unless asked for
+    out = tmp_path / "calibrated.toml"
+    assert main(["fit", EMA, str(path), "--param", RESISTANCE, "-o", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert not out.exists() and f"{out}: not written" in captured.out
+    assert main(["fit", EMA, str(path), "--param", RESISTANCE, "-o", str(out), "--write-mismatch", "--json"]) == 1
+    assert out.exists() and json.loads(capsys.readouterr().out)["output"] == str(out)
 
 
 GOOD = "frequency_hz,gain_db,phase_deg\n1,40,-90\n2,34,-91\n4,28,-92\n8,22,-95\n16,16,-100\n"

@@ -41,10 +41,19 @@ def register(sub) -> None:
                         "load.hinge_moment)")
     p.add_argument("-o", "--output", metavar="TOML",
                    help="write the calibrated scene here: the scene file with each fitted value in place and a "
-                        "comment '# fitted: was ...' (never the input file)")
+                        "comment '# fitted: was ...' (never the input file); not at a model mismatch unless "
+                        "--write-mismatch")
+    p.add_argument("--write-mismatch", action="store_true",
+                   help="write -o's calibrated scene even when the verdict is a model mismatch (its values are the "
+                        "model's best at the data, whose intervals do not hold; without it -o is left unwritten)")
     add_force(p)
     add_json(p)
     p.set_defaults(run=run)
+
+
+#: why -o is left unwritten at a model mismatch
+NOT_WRITTEN = ("not written: the model does not fit the data (model mismatch), so its values are no calibration; "
+               "--write-mismatch writes them all the same")
 
 
 def _check_written(keys, values):
@@ -103,14 +112,19 @@ def run(args) -> int:
         check_time(seconds, "DATA.csv", what, f"{rows} rows in {args.data}: fit a shorter window of the log",
                    args.force)
     result = fit(scene, data, args.response, args.param, progress=not args.json and sys.stderr.isatty())
-    if args.output is not None:
+    write = args.output is not None and (not result.mismatch or args.write_mismatch)
+    if write:
         text = calibrated_text(read_scene_text(Path(scene.source)), result)
         ok = [(k, v) for k, v, (_, hi) in zip(result.keys, result.values, result.ci95) if hi != float("inf")]
         write_text(args.output, stamp(text, "fit"), "-o", _check_written([k for k, _ in ok], [v for _, v in ok]))
     out = result.to_dict()
-    if args.output is not None:
+    if write:
         out["output"] = str(args.output)
-    emit(args, out, result.table() + (f"\ncalibrated scene written to {args.output}" if args.output else ""))
+    elif args.output is not None:
+        out["output_not_written"] = NOT_WRITTEN
+    tail = (f"\ncalibrated scene written to {args.output}" if write
+            else f"\n{args.output}: {NOT_WRITTEN}" if args.output is not None else "")
+    emit(args, out, result.table() + tail)
     if result.mismatch:
         print(f"servo-toolkit: {result.verdict_text()}", file=sys.stderr)
         return 1
