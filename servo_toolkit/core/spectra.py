@@ -31,6 +31,9 @@ import numpy as np
 EXCITED_DB = 40.0
 #: largest power of the period-to-period difference of a periodic input, relative to its own
 PERIODIC_TOLERANCE = 1e-2
+#: least mean of that relative difference over the lags shorter than a period (1 for a
+#: periodic signal, near 0 for a slow signal at a short lag)
+REPEAT_MEAN = 0.5
 #: shortest period or segment (samples)
 MIN_SEGMENT = 16
 #: a time log's comment lines (``# KEY: VALUE``, before its header) that record its period
@@ -169,6 +172,25 @@ def welch_h1(fs: float, u, y, segment: int, *, excited_db: float = EXCITED_DB, b
     return _finish(f, suu, syy, suy, welch_segments(u.size, segment), "hann", excited_db, band, white=2.0 / fs)
 
 
+def below_lowest_line(fs: float, u, segment: int) -> tuple[float, float]:
+    """``(share, median_hz)``: the share of the input's power (mean removed, the whole log's
+    DFT) at frequencies below the lowest line ``fs / segment`` of Welch segments of
+    ``segment`` samples, and the median frequency of that power (the lowest frequency up to
+    which it holds half).
+
+    A segment sees what lies below its lowest line as its mean and slow trend: its lines then
+    hold the Hann window's leakage of it, not a response at their frequencies."""
+    u = np.asarray(u, float) - float(np.mean(u))
+    p = np.abs(np.fft.rfft(u)) ** 2
+    f = np.fft.rfftfreq(u.size, 1.0 / fs)
+    total = float(p[1:].sum())
+    if not total > 0:
+        return 0.0, 0.0
+    share = float(p[1:][f[1:] < fs / segment * (1 - 1e-9)].sum()) / total
+    median = float(f[1:][np.searchsorted(np.cumsum(p[1:]) / total, 0.5)])
+    return share, median
+
+
 def periodic_h1(fs: float, u, y, period: int, *, settle: int = 0, excited_db: float = EXCITED_DB,
                 band=None, lines=None) -> Spectrum:
     """H1 from whole periods of a periodic excitation, rectangular window, no overlap.
@@ -236,30 +258,37 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     """The shortest period (samples) with which ``u`` repeats, or None.
 
     A lag L is a period when the energy of ``u[L:] - u[:-L]`` is at most ``tolerance`` times
-    that of the two parts (mean removed; 1 for unrelated parts, 0 for an exact repeat) and
-    the signal holds at least two periods. The lags tried are the peaks of the
-    autocorrelation.
+    that of the two parts (mean removed; 1 for unrelated parts, 0 for an exact repeat), is
+    least there among its neighbouring lags, the signal holds at least two periods, and the
+    signal does not nearly repeat at the shorter lags: over the lags 1 to L - 1 that relative
+    difference averages at least :data:`REPEAT_MEAN` (a periodic signal's autocorrelation,
+    its mean removed, averages zero over a period, so the difference averages 1 there). A
+    slow, smooth signal differs little from itself over a few samples, and a signal held
+    for some samples (a staircase) repeats its values: neither makes a short lag a period.
     """
     u = np.asarray(u, float) - float(np.mean(u))
     n = u.size
     power = float(u @ u)
     if n < 2 * min_period or not power > 0:
         return None
+    last = n // 2 + 1  # one lag past the longest period two of which fit, to compare with its neighbour
     spec = np.fft.rfft(u, 2 * n)
-    acf = np.fft.irfft(np.abs(spec) ** 2)[: n // 2 + 2]
-    lags = np.arange(acf.size)
-    # normalised by the overlap: 1 at a lag that repeats the signal
+    acf = np.fft.irfft(np.abs(spec) ** 2)[: last + 1]
+    lags = np.arange(last + 1)
+    energy = np.concatenate(([0.0], np.cumsum(u * u)))
+    both = (power - energy[lags]) + energy[n - lags]  # of u[L:] and of u[:-L]
     with np.errstate(invalid="ignore", divide="ignore"):
-        rho = acf / (power * (n - lags) / n)
-    inner = rho[1:-1]
-    peak = np.flatnonzero((inner > 1 - 4 * tolerance) & (inner >= rho[:-2]) & (inner >= rho[2:])) + 1
-    for L in peak[peak >= min_period]:
-        a, b = u[L:], u[:-L]
-        d = a - b
-        if float(d @ d) <= tolerance * float(a @ a + b @ b):
+        diff = np.where(both > 0, (both - 2.0 * acf) / both, 1.0)
+    diff[0] = 0.0
+    inner = diff[1:-1]
+    dips = np.flatnonzero((inner <= tolerance) & (inner <= diff[:-2]) & (inner <= diff[2:])) + 1
+    mean_below = np.cumsum(diff) / np.maximum(lags, 1)  # mean over the lags 1 .. L - 1, at index L - 1
+    for L in dips[(dips >= min_period) & (dips <= n // 2)]:
+        if mean_below[L - 1] >= REPEAT_MEAN:
             return int(L)
     return None
 
 
 __all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "RESOLUTION_PREFIX", "SETTLE_KEY", "Spectrum",
-           "coherence_sd", "find_period", "periodic_h1", "resolution_sd", "response_csv", "welch_h1", "welch_segments"]
+           "below_lowest_line", "coherence_sd", "find_period", "periodic_h1", "resolution_sd", "response_csv",
+           "welch_h1", "welch_segments"]

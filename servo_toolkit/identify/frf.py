@@ -12,8 +12,11 @@ Two windows. ``periodic``: a periodic excitation (a multisine) is cut into whole
 each a rectangular window; every excited line falls on a bin, so the estimate has no
 leakage and is exact for a periodic steady state; the first period is left out as settling
 when the log holds three or more. ``hann``: Welch averaging of Hann-windowed,
-half-overlapping segments, for noise and chirps. ``auto`` (the default) takes ``periodic``
-when the input repeats (:func:`~servo_toolkit.core.spectra.find_period`), else ``hann``.
+half-overlapping segments, for noise and chirps; segments whose lowest line lies above most
+of the input's power are refused (their lines would hold only its leakage). ``auto`` (the
+default) takes ``periodic`` when the input repeats
+(:func:`~servo_toolkit.core.spectra.find_period`: a real repeat, not a slow signal's
+smoothness over a few samples), else ``hann``.
 The number of spectra averaged (periods or segments) goes with the estimate: the
 coherence's random error depends on it.
 
@@ -40,8 +43,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.inputs import read_input_text
-from ..core.spectra import (LINES_KEY, MIN_SEGMENT, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY, find_period,
-                             periodic_h1, resolution_sd, response_csv, welch_h1)
+from ..core.spectra import (LINES_KEY, MIN_SEGMENT, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY, below_lowest_line,
+                             find_period, periodic_h1, resolution_sd, response_csv, welch_h1)
 from ..errors import SceneError
 from .data import MAX_DATA_BYTES, TIME_COLUMNS, FrequencyData
 
@@ -53,6 +56,8 @@ SPACING_TOLERANCE = 0.01
 WINDOWS = ("auto", "periodic", "hann")
 #: a periodic log with at least this many periods leaves its first one out as settling
 SETTLE_FROM = 3
+#: largest share of the input's power below the lowest line of Hann segments
+UNRESOLVED_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -227,6 +232,23 @@ def _varies(x) -> bool:
     return bool(np.ptp(x) > 1e-12 * max(float(np.max(np.abs(x))), np.finfo(float).tiny))
 
 
+def _check_resolved(fs: float, u, segment: int, source) -> None:
+    """Refuse Hann segments of ``segment`` samples whose lowest line lies above most of the
+    input's power (:data:`UNRESOLVED_SHARE`): their lines would hold only the window's
+    leakage of it, at frequencies the input does not excite."""
+    share, median = below_lowest_line(fs, u, segment)
+    if share <= UNRESOLVED_SHARE:
+        return
+    need = max(MIN_SEGMENT, math.ceil(fs / median * (1 - 1e-9)))
+    n = np.asarray(u).size
+    fix = (f"give --segment {need} or more (at most {n // 2})" if need <= n // 2 else
+           f"segments would need {need} samples, more than half the log's {n}: record a longer log, or give a "
+           "periodic input's whole periods to --window periodic --period N")
+    raise SceneError("--segment", f"{share:.0%} of the input's power lies below the lowest line of {segment}-sample "
+                     f"Hann segments ({fs / segment:.4g} Hz; its median frequency {median:.4g} Hz): the segments "
+                     f"cannot resolve it and their lines would hold only its leakage; {fix}", source)
+
+
 def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = None, period: int | None = None,
                  settle: int | None = None, band=None, derivative: bool = False,
                  source: str | None = None, lines=None, resolution=None) -> FrequencyData:
@@ -278,7 +300,8 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
     ------
     SceneError
         A segment shorter than :data:`~servo_toolkit.core.spectra.MIN_SEGMENT` or longer
-        than half the log, ``periodic`` on an input that does not repeat (or a period that
+        than half the log, or whose lowest line lies above more than
+        :data:`UNRESOLVED_SHARE` of the input's power, ``periodic`` on an input that does not repeat (or a period that
         leaves no whole one), an option of the other window, a constant input (no
         excitation) or output (no response), a band that keeps no frequency.
     """
@@ -324,6 +347,7 @@ def estimate_frf(time_s, u, y, *, window: str = "auto", segment: int | None = No
             if not MIN_SEGMENT <= segment <= n // 2:
                 raise SceneError("--segment", f"must lie in [{MIN_SEGMENT}, {n // 2}] samples for a log of {n} "
                                  f"(got {segment})", source)
+            _check_resolved(fs, u, segment, source)
             spec = welch_h1(fs, u, y, segment, band=band)
     except LookupError:
         raise SceneError("--band", "keeps no excited frequency of the log", source) from None
