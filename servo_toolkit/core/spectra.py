@@ -34,6 +34,8 @@ PERIODIC_TOLERANCE = 1e-2
 #: least mean of that relative difference over the lags shorter than a period (1 for a
 #: periodic signal, near 0 for a slow signal at a short lag)
 REPEAT_MEAN = 0.5
+#: largest standard deviation (rad) of a line's phase that the unwrapping follows
+UNWRAP_SD = 0.1
 #: shortest period or segment (samples)
 MIN_SEGMENT = 16
 #: a time log's comment lines (``# KEY: VALUE``, before its header) that record its period
@@ -131,6 +133,29 @@ def coherence_sd(coherence, averages: int) -> np.ndarray:
     c = np.clip(np.asarray(coherence, float), 0.0, 1.0)
     with np.errstate(divide="ignore"):
         return np.sqrt((1.0 - c) / (2.0 * averages * c))
+
+
+def measured_phase(response, coherence, averages: int | None) -> np.ndarray:
+    """The phase (rad) of an estimate at increasing frequencies, unwrapped along its
+    well-measured lines and every other line on the branch nearest them.
+
+    A line is well measured when the standard deviation of its phase (:func:`coherence_sd`
+    of ``averages`` spectra, 1 when unknown) is at most :data:`UNWRAP_SD`: two neighbours
+    then differ by a turn's fraction the noise cannot fake, and unwrapping them follows the
+    response. A poorly coherent line's phase is noise of up to half a turn; unwrapped with
+    the others it would shift every line after it by whole turns. It is put on the branch
+    nearest the well-measured phase interpolated to it (the nearest one's, outside them).
+    Without a well-measured line, every line is unwrapped in turn."""
+    h = np.asarray(response, complex)
+    raw = np.angle(h)
+    good = np.flatnonzero(coherence_sd(coherence, averages or 1) <= UNWRAP_SD)
+    if good.size == 0:
+        return np.unwrap(raw)
+    along = np.unwrap(raw[good])
+    near = np.interp(np.arange(raw.size), good, along)
+    phase = near + (raw - near + np.pi) % (2 * np.pi) - np.pi
+    phase[good] = along
+    return phase
 
 
 def welch_segments(n: int, segment: int) -> int:
@@ -290,5 +315,5 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
 
 
 __all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "RESOLUTION_PREFIX", "SETTLE_KEY", "Spectrum",
-           "below_lowest_line", "coherence_sd", "find_period", "periodic_h1", "resolution_sd", "response_csv",
-           "welch_h1", "welch_segments"]
+           "below_lowest_line", "coherence_sd", "find_period", "measured_phase", "periodic_h1", "resolution_sd",
+           "response_csv", "welch_h1", "welch_segments"]

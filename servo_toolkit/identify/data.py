@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..core.inputs import read_input_text
+from ..core.spectra import measured_phase
 
 FREQUENCY_HEADER = ("frequency_hz", "gain_db", "phase_deg")
 #: the optional columns of a frequency response, in their order, in groups that come together
@@ -107,12 +108,15 @@ class FrequencyData:
                      window=None, resolution=None) -> "FrequencyData":
         """From complex values (e.g. a model's response); ``resolution``: the standard
         deviation (nepers, and radians alike) the logged signals' resolution leaves at each
-        point."""
+        point. The phase is unwrapped along the frequencies; with a coherence, along the
+        well-measured ones, the others on the branch nearest them
+        (:func:`~servo_toolkit.core.spectra.measured_phase`)."""
         f = np.asarray(frequency_hz, float)
         h = np.asarray(response, complex)
         coh = np.ones_like(f) if coherence is None else np.asarray(coherence, float)
         res = None if resolution is None else np.asarray(resolution, float) * np.ones_like(f)
-        data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h))), coh, source,
+        phase = np.unwrap(np.angle(h)) if coherence is None else measured_phase(h, coh, averages)
+        data = cls(f, 20 * np.log10(np.abs(h)), np.degrees(phase), coh, source,
                    None if averages is None else int(averages), window,
                    None if res is None else DB_PER_NEPER * res, None if res is None else np.degrees(res))
         check_frequency(data)

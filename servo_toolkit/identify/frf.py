@@ -16,7 +16,8 @@ half-overlapping segments, for noise and chirps; segments whose lowest line lies
 of the input's power are refused (their lines would hold only its leakage). ``auto`` (the
 default) takes ``periodic`` when the input repeats
 (:func:`~servo_toolkit.core.spectra.find_period`: a real repeat, not a slow signal's
-smoothness over a few samples), else ``hann``.
+smoothness over a few samples), else ``hann``. The phase is unwrapped along the
+well-measured lines, the poorly coherent ones on the branch nearest them.
 The number of spectra averaged (periods or segments) goes with the estimate: the
 coherence's random error depends on it.
 
