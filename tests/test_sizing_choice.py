@@ -121,9 +121,9 @@ def test_the_sweep_figure_draws_every_figure_against_its_limit():
     res = size(scene_from_dict(screw_scene(required_life="1 h")))
     axes = res.plot_sweep()
     labels = [ax.get_ylabel() for ax in axes if ax.get_ylabel()]
-    assert labels[:6] == ["RMS current [A]", "peak motor torque [N*m]", "peak motor speed [rad/s]",
-                          "peak winding temperature [degC]", "achievable bandwidth (estimate) [Hz]",
-                          "output stiffness [N/m]"]
+    assert labels[:7] == ["RMS current [A]", "peak motor torque [N*m]", "peak motor speed [rad/s]",
+                          "peak voltage (hot winding) [V]", "peak winding temperature [degC]",
+                          "achievable bandwidth (estimate) [Hz]", "output stiffness [N/m]"]
     assert any(lab.startswith("L10") and lab.endswith("[h]") for lab in labels)
     assert axes[0].get_xlabel() == "" or "overall ratio [rad/m]" in {ax.get_xlabel() for ax in axes}
     # the feasible ratios shaded and the scene's ratio marked on every panel
@@ -131,6 +131,76 @@ def test_the_sweep_figure_draws_every_figure_against_its_limit():
         assert ax.patches and any(np.allclose(line.get_xdata(), res.sweep.scene_ratio) for line in ax.lines)
     import matplotlib.pyplot as plt
     plt.close("all")
+
+
+def _curves_in_view(ax) -> bool:
+    """Whether every line's finite values (the curves and the dashed bound) lie within the
+    panel's y range (the scene's ratio, a vertical line in axes' units, aside)."""
+    lo, hi = sorted(ax.get_ylim())
+    for line in ax.lines:
+        if np.ptp(np.asarray(line.get_xdata(), float)) == 0:
+            continue
+        y = np.asarray(line.get_ydata(), float)
+        y = y[np.isfinite(y)]
+        if y.size and not (lo <= y.min() and y.max() <= hi):
+            return False
+    return True
+
+
+def test_a_panel_held_to_a_lower_bound_shows_its_values_far_above_it():
+    # bandwidth estimates of 11-16 Hz against 1 Hz required, lives of 1e4-2e5 h against 1 h:
+    # what is asked lies far below the values, and the panel spans both
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    data = two_mass_scene()
+    data["requirements"] = {"bandwidth": "1 Hz"}
+    for res, wanted in ((size(scene_from_dict(data)), "achievable bandwidth"),
+                        (size(scene_from_dict(screw_scene(required_life="1 h"))), "L10")):
+        axes = res.plot_sweep()
+        shown = [ax for ax in axes if ax.get_ylabel().startswith(wanted)]
+        assert shown
+        for ax in shown:
+            assert len(ax.lines) >= 3 and _curves_in_view(ax)        # curves, the bound, the scene's ratio
+            assert ax.get_yscale() == "log"                           # more than a decade between them
+        plt.close("all")
+    # a bound within a decade of the values: a linear axis still spanning both
+    data["requirements"] = {"bandwidth": "5 Hz"}
+    axes = size(scene_from_dict(data)).plot_sweep()
+    ax = next(ax for ax in axes if ax.get_ylabel().startswith("achievable bandwidth"))
+    assert ax.get_yscale() == "linear" and _curves_in_view(ax) and min(ax.get_ylim()) < 5
+    plt.close("all")
+
+
+def test_the_feasible_ratios_name_the_limits_that_end_them():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    res = size(SCENES / "ema_sizing.toml")
+    sw = res.sweep
+    low, high = sw.limited_by[0]
+    ok = np.flatnonzero(sw.feasible[0])
+    a, b = ok[0], ok[-1]
+    # the ratio above the highest feasible one exceeds the supply, the highest does not
+    assert high == "peak voltage"
+    assert sw.peak_voltage[0, b + 1] > sw.limits[0]["voltage"] >= sw.peak_voltage[0, b]
+    assert "RMS current" in low and sw.rms_current[0, a - 1] > sw.limits[0]["continuous_current"]
+    text = res.table()
+    assert f"rad/rad (limited by the {low} below, the peak voltage above); RMS-optimal ratio" in text
+    assert sw.to_dict()["feasible_range_limited_by"] == [[low, high]]
+    # the legend says it, and the voltage has its own panel
+    axes = res.plot_sweep()
+    legend = " ".join(t.get_text().replace("\n", " ") for ax in axes if ax.get_legend()
+                      for t in ax.get_legend().get_texts())
+    assert "limited by the" in legend and "the peak voltage above" in legend
+    assert any(ax.get_ylabel() == "peak voltage (hot winding) [V]" for ax in axes)
+    plt.close("all")
+    # a required life between the lives at s = 1 and s = 2 ends the range at s = 1; the
+    # lowest ratio is the sweep's end
+    screw = next(life for life in size(scene_from_dict(screw_scene())).lives if "(screw)" in life.part)
+    limited = size(scene_from_dict(screw_scene(required_life=f"{0.75 * screw.hours} h"))).sweep
+    assert limited.limited_by == ((None, "required life"),)
+    assert limited.limits_text() == "limited by the sweep range below, the required life above"
 
 
 def test_the_sizing_scene_keeps_the_reference_emas_tables():

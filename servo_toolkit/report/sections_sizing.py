@@ -67,10 +67,11 @@ def sizing(ctx) -> Section:
         res.plot_sweep(axes)
         what = "the screw's L10 (its lead swept), " if res.sweep.lives else ""
         figs.append(FigureSpec(fig, f"Ratio sweep ({res.sweep.swept}) over the overall ratio, per motor: RMS "
-                               "current, peak torque and speed, peak winding temperature, the achievable "
-                               f"bandwidth (an estimate from the chain's resonance), {what}the output stiffness "
-                               "(the chain's, the same at every ratio); dashed lines the limits, shaded the "
-                               "feasible ratios (every limit holds), dotted the scene's ratio."))
+                               "current, peak torque and speed, peak voltage (hot winding), peak winding "
+                               "temperature, the achievable bandwidth (an estimate from the chain's resonance), "
+                               f"{what}the output stiffness (the chain's, the same at every ratio); dashed lines "
+                               "the limits, shaded the feasible ratios (every limit holds; the legend names the "
+                               "limits that end them), dotted the scene's ratio."))
     return Section("Sizing along the duty cycle", text, tuple(figs), status="pass" if res.passed else "fail",
                    key="sizing")
 

@@ -136,11 +136,13 @@ class SizingResult(RichDisplay):
             lines.append(f"  {m.name:<34}{m.value:>12.4g}{m.limit:>12.4g}  {m.unit:<6}{margin}  "
                          f"{'ok' if m.passed else 'EXCEEDED'}" + ("  (thermal runaway: no steady state)" * runaway))
         if self.sweep is not None:
-            for i, name in enumerate(self.sweep.motors):
-                rng = self.sweep.feasible_range(i)
-                text = "none" if rng is None else f"{rng[0]:.4g} .. {rng[1]:.4g}"
+            sw = self.sweep
+            unit = sw.ratio_unit
+            for i, name in enumerate(sw.motors):
+                rng = sw.feasible_range(i)
+                text = "none" if rng is None else f"{rng[0]:.4g} .. {rng[1]:.4g} {unit} ({sw.limits_text(i)})"
                 lines.append(f"  {name}: feasible overall ratio {text}; RMS-optimal ratio "
-                             f"{self.sweep.rms_optimal_ratio[i]:.4g}")
+                             f"{sw.rms_optimal_ratio[i]:.4g} {unit}")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 

@@ -87,6 +87,11 @@ class RatioSweep:
         every factor.
     feasible : numpy.ndarray of bool
         Shape (motors, factors): every limit holds.
+    limited_by : tuple of (str or None, str or None)
+        Per motor, the limits that end its feasible ratios: those that fail at the swept ratio
+        just below the lowest feasible one and just above the highest (e.g. ``"RMS
+        current"``, ``"peak voltage"``); None where the feasible ratios reach the sweep's end
+        or none is feasible.
     rms_optimal_ratio : tuple of float
         Per motor, the overall ratio of smallest RMS torque without friction.
     required_bandwidth : float or None
@@ -130,6 +135,12 @@ class RatioSweep:
     output_unit: str = "rad"
     stiffness_unit: str = "N*m/rad"
     stiffness_factor: float = 1.0
+    limited_by: tuple = ()
+
+    @property
+    def ratio_unit(self) -> str:
+        """The overall ratio's unit: motor rad per unit of the output."""
+        return "rad/m" if self.output_unit == "m" else "rad/rad"
 
     @property
     def scene_ratio(self) -> float:
@@ -140,6 +151,12 @@ class RatioSweep:
         """(lowest, highest) feasible overall ratio of a motor, None when none is."""
         ok = self.feasible[motor]
         return (float(self.ratio[ok].min()), float(self.ratio[ok].max())) if ok.any() else None
+
+    def limits_text(self, motor: int = 0) -> str:
+        """What ends a motor's feasible ratios, e.g. ``"limited by the RMS current below, the
+        peak voltage above"`` (an end at the sweep's range says so)."""
+        low, high = self.limited_by[motor] if self.limited_by else (None, None)
+        return f"limited by the {low or 'sweep range'} below, the {high or 'sweep range'} above"
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary."""
@@ -154,6 +171,7 @@ class RatioSweep:
                 "lives_h": {part: arr(hours)[0] for part, hours in self.lives}, "required_life_h": self.required_life,
                 "feasible": self.feasible.tolist(),
                 "feasible_ratio_range": [self.feasible_range(i) for i in range(len(self.motors))],
+                "feasible_range_limited_by": [list(ends) for ends in self.limited_by], "ratio_unit": self.ratio_unit,
                 "rms_optimal_ratio": list(self.rms_optimal_ratio), "required_bandwidth_Hz": self.required_bandwidth}
 
     def plot(self, axes=None):
@@ -248,7 +266,7 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
     w1 = n * motion.qd
     rows = {k: [] for k in ("rms_current", "rms_torque", "peak_torque", "peak_speed", "peak_voltage",
                             "winding_temperature", "bandwidth", "feasible")}
-    optimal, limits = [], []
+    optimal, limits, ends = [], [], []
     life_rows = tuple((life.part, life.hours / s[:, 0]) for life in (lives or ()))
     life_ok = np.full(s.size, bool(fixed_limits_hold))
     if required_life is not None:
@@ -268,13 +286,17 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
         j_shaft_m = float(j_shaft[0]) + extra * float(n[0]) ** 2
         bw = bandwidth_estimate(drivetrain.chain, q0, lambda f: node0 + (f**2 - 1) * j_shaft_m
                                 + extra * float(n[0]) ** 2, s[:, 0])
-        ok = (peak_t <= env.peak_torque) & (peak_u <= motor.voltage_limit) & life_ok
+        # where each limit fails (nan passes only the bandwidth: a rigid chain has no estimate)
+        fails = {"peak torque": ~(peak_t <= env.peak_torque), "peak voltage": ~(peak_u <= motor.voltage_limit),
+                 "required life": ~life_ok}
         if env.continuous_torque is not None:
-            ok &= rms_t <= env.continuous_torque
+            fails["RMS current"] = ~(rms_t <= env.continuous_torque)
         if net is not None:
-            ok &= temp <= motor.max_winding_temperature
+            fails["winding temperature"] = ~(temp <= motor.max_winding_temperature)
         if required_bandwidth is not None:
-            ok &= ~(bw < required_bandwidth)
+            fails["required bandwidth"] = bw < required_bandwidth
+        ok = ~np.any(list(fails.values()), axis=0)
+        ends.append(_limited_by(s[:, 0], ok, fails))
         for key, value in zip(rows, (rms_t / motor.torque_constant, rms_t, peak_t, peak_w, peak_u, temp, bw, ok)):
             rows[key].append(value)
         a2, b2 = motion.mean(rest**2), motion.mean(t_shaft**2)
@@ -292,7 +314,23 @@ def ratio_sweep(drivetrain, motion, loads, motors, factors, *, required_bandwidt
                       lives=life_rows, required_life=None if required_life is None else required_life / 3600,
                       limits=tuple(limits), swept=_swept(drivetrain), output_unit=drivetrain.output_unit,
                       stiffness_unit=display.stiffness_unit(linear),
-                      stiffness_factor=display.factor("stiffness", linear), **arrays)
+                      stiffness_factor=display.factor("stiffness", linear), limited_by=tuple(ends), **arrays)
+
+
+def _limited_by(factors, ok, fails: dict) -> tuple:
+    """(lower, upper): the names of the limits in ``fails`` (name -> where it fails) at the
+    factor next below the lowest feasible one and next above the highest, None at the
+    sweep's end or when no factor is feasible."""
+    order = np.argsort(factors, kind="stable")
+    inside = np.flatnonzero(ok[order])
+    if not inside.size:
+        return None, None
+
+    def at(k):
+        if k < 0 or k >= order.size:
+            return None
+        return " and ".join(name for name, where in fails.items() if where[order[k]]) or None
+    return at(inside[0] - 1), at(inside[-1] + 1)
 
 
 def _figures(motor, env, net, s, rest, t_shaft, w1, motion, thermal_steps: int) -> tuple:
