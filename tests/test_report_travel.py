@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import html as _html
 import re
+import tomllib
 
 import pytest
 
 from servo_toolkit import load_scene
+from servo_toolkit.scene.loader import scene_from_dict
 from servo_toolkit.report import run_section
 from servo_toolkit.report.context import Context
 
@@ -115,6 +117,54 @@ def test_ratio_carries_its_unit(ctx, travel):
     assert n == pytest.approx(5 * 2 * 3.141592653589793 / 0.01)
     inertia_rows = _rows(_section(ctx, "inertia").html)
     assert any(r[0] == row[0] and r[-1] == "rad/m" for r in inertia_rows)
+
+
+def test_the_plant_names_the_two_mass_models_stiffness_beside_the_series_stiffness(ctx, travel):
+    """The design plant's K is the two-mass reduction's (K = w_a^2 J2), not the springs' series
+    stiffness: the screw's inertia between the gearhead's and the screw's springs takes part
+    in the lowest modes, and the two differ by a factor 3.8 on the carriage."""
+    import math
+    import numpy as np
+    from scipy import linalg
+    from servo_toolkit.display.html import fmt
+    from servo_toolkit.plant.linear import plant_parameters
+    plant_rows = _rows(_section(ctx, "plant").html)
+    text = plain(_section(ctx, "plant").html)
+    p = plant_parameters(travel)
+    series = float(travel.drivetrain.stiffness([p.q0]).total[0])
+    labels = [r[0] for r in plant_rows]
+    assert not any("series stiffness K" in lab for lab in labels)
+    assert ["two-mass model's stiffness K = w_a^2 J2", fmt(p.K), "N/m"] in [list(r) for r in plant_rows]
+    assert ["chain's series stiffness (stiffness chain)", fmt(series), "N/m"] in [list(r) for r in plant_rows]
+    # the series stiffness is the springs' compliances summed; K differs from it
+    k = travel.drivetrain.chain.spring_stiffness([p.q0])[:, 0]
+    assert series == pytest.approx(1 / np.sum(1 / k), rel=1e-9)
+    assert p.K / series == pytest.approx(3.8, abs=0.05)
+    assert f"here it is {p.K / series:.3g} times it" in text
+    # outside truth: the driving chain's lowest resonance (free) and anti-resonance (motor
+    # node held) from its own matrices; the two-mass model with J1, J2, K has both, and K = w_a^2 J2
+    M, Kc, _ = travel.drivetrain.chain.condensed(p.q0, True)
+    w_r = math.sqrt(np.sort(linalg.eigh(Kc, M, eigvals_only=True))[1])
+    w_a = math.sqrt(np.sort(linalg.eigh(Kc[1:, 1:], M[1:, 1:], eigvals_only=True))[0])
+    assert p.J1 + p.J2 == pytest.approx(np.trace(M), rel=1e-9)
+    assert math.sqrt(p.K * (1 / p.J1 + 1 / p.J2)) == pytest.approx(w_r, rel=1e-6)
+    assert math.sqrt(p.K / p.J2) == pytest.approx(w_a, rel=1e-6)
+
+
+def test_a_chain_with_one_compliance_has_the_series_stiffness_as_its_k(travel):
+    """With the gearhead made rigid the screw's spring is the chain's one compliance: the
+    two-mass model's K is the series stiffness and the text says so."""
+    import math
+    from servo_toolkit.plant.linear import plant_parameters
+    from servo_toolkit.report.sections_drivetrain import two_mass_stiffness
+    data = tomllib.loads(TRAVEL_SCENE)
+    del data["drivetrain"][0]["torsional_stiffness"]
+    one = scene_from_dict(data)
+    p = plant_parameters(one)
+    series = float(one.drivetrain.stiffness([p.q0]).total[0])
+    assert math.isfinite(series) and p.K == pytest.approx(series, rel=1e-6)
+    rows, text = two_mass_stiffness(one, p, True)
+    assert rows[0][1] == rows[1][1] and "within 1 %" in text
 
 
 def test_ratio_of_an_angle_output_is_per_output_rad():

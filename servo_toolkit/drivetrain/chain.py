@@ -54,8 +54,10 @@ _MASSLESS = 1e-12
 
 @dataclass(frozen=True)
 class TwoMassSplit:
-    """Motor-side and load-side inertia (reflected to the output) and the series stiffness
-    between them, arrays over q (kg*m^2, kg*m^2, N*m/rad; kg and N/m for an output travel);
+    """Motor-side and load-side inertia (reflected to the output) and the stiffness between
+    them (the springs' series stiffness of :meth:`Chain.node_split`, the model's K = w_a^2 J2
+    of :meth:`Chain.two_mass`), arrays over q (kg*m^2, kg*m^2, N*m/rad; kg and N/m for an
+    output travel);
     ``spring`` names the most compliant spring where the chain is split (empty when the chain
     is rigid); ``last_motor_node`` is the chain's last node on the motor side, per q."""
 

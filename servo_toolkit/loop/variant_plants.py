@@ -4,7 +4,7 @@ Variants are named two ways:
 
 - the robustness study's names (``check --vary``, ``[robustness]``): ``load_inertia``
   replaces the load's inertia (added to the load side, J2) and ``stiffness`` multiplies the
-  series stiffness K, in closed form;
+  two-mass model's stiffness K, in closed form;
 - scene key paths (``motor.resistance``, ``drivetrain[3].stiffness``, ``load.inertia``, the
   virtual ``drivetrain.stiffness_scale``: a factor on K), as a scene's ``[tolerances]`` draws
   them. Motor keys enter the plant directly; drivetrain and load keys move the inertias,

@@ -57,7 +57,9 @@ class PlantParameters:
         Motor-side and load-side inertia (kg*m^2); a rigid plant has ``K = inf`` and
         carries the whole inertia in ``J1 + J2``.
     K : float
-        Series stiffness between them (N*m/rad), ``inf`` for a rigid drivetrain.
+        The two-mass model's stiffness between them (N*m/rad), ``K = w_a^2 J2`` of the chain's
+        reduction (:meth:`~servo_toolkit.drivetrain.chain.Chain.two_mass`): the springs' series
+        stiffness only for a chain with one compliance; ``inf`` for a rigid drivetrain.
     c : float
         Damping across the spring (N*m*s/rad).
     b1, b2 : float
@@ -312,7 +314,7 @@ def rigid_plant(scene, q0=None, inductance: bool = True) -> "control.StateSpace"
 
 def two_mass_plant(scene, q0=None, inductance: bool = True,
                    structural_damping: float = DEFAULT_STRUCTURAL_DAMPING) -> "control.StateSpace":
-    """Two-mass drivetrain: motor-side and load-side inertia joined by the series stiffness.
+    """Two-mass drivetrain: motor-side and load-side inertia joined by the reduction's stiffness K.
 
     States ``theta_1``, ``omega_1`` (motor side referred to the output), ``theta``, ``omega``
     (load side), and ``i`` with inductance. Its poles include the resonance

@@ -72,6 +72,39 @@ def _stiffness_at(scene, values, linear: bool):
     return stiffness_study(scene, positions_mm=values) if linear else stiffness_study(scene, angles_deg=values)
 
 
+def two_mass_stiffness(scene, p, linear: bool) -> tuple:
+    """(rows, sentence) on the design plant's K beside the chain's series stiffness at its q0:
+    the two-mass model keeps the chain's total inertia J, lowest resonance w_r and lowest
+    anti-resonance w_a (motor held), J1 = J (w_a / w_r)^2, J2 = J - J1, K = w_a^2 J2; K is the
+    springs' series stiffness only when the load side is the inertia beyond one compliance."""
+    shown = scene.display
+    unit = shown.stiffness_unit(linear)
+    series = float(scene.drivetrain.stiffness([p.q0]).total[0])
+    rows = [("two-mass model's stiffness K = w_a^2 J2", fmt(shown.show("stiffness", p.K, linear)), unit),
+            ("chain's series stiffness (stiffness chain)", fmt(shown.show("stiffness", series, linear)), unit)]
+    text = ("The two-mass model keeps the chain's total inertia J, its lowest resonance w_r and its lowest "
+            "anti-resonance w_a (motor held): J1 = J (w_a/w_r)^2, J2 = J - J1 and K = w_a^2 J2, the stiffness "
+            "that with these inertias puts the model's resonance and anti-resonance where the chain's are. ")
+    if not (math.isfinite(p.K) and math.isfinite(series)):
+        return rows[:1], ""
+    ratio = p.K / series
+    if abs(ratio - 1.0) <= 0.01:
+        return rows, text + ("Here K is the chain's series stiffness within 1 % (exactly so for a chain with one "
+                             "compliance).")
+    beyond = float(scene.drivetrain.chain.node_split([p.q0], driving=True).load_side[0])
+    j_unit = shown.inertia_unit(linear)
+    return rows, text + (
+        f"K is the springs' series stiffness only when the inertia beyond one compliance alone swings in the "
+        f"lowest modes (a chain with one compliance); here it is {ratio:.3g} times it "
+        f"({fmt(shown.show('stiffness', p.K, linear))} against {fmt(shown.show('stiffness', series, linear))} "
+        f"{unit}): the members between the compliances take part in the chain's lowest modes and shift w_a "
+        f"against w_r, so the model's load side J2 = J (1 - (w_a/w_r)^2) = "
+        f"{fmt(shown.show('inertia', p.J2, linear))} {j_unit} is not the inertia beyond the most compliant "
+        f"spring ({fmt(shown.show('inertia', beyond, linear))} {j_unit}), and K = w_a^2 J2 follows it. The "
+        f"design and the two-mass simulation use K; the series stiffness is the chain's static stiffness at "
+        f"the output.")
+
+
 def _along_stroke(low: str, high: str, unit: str, at_low: str, at_high: str) -> str:
     """The sentence on the series stiffness along the stroke: its range, or its one value
     when the lowest and the highest read the same to the digits shown."""

@@ -11,7 +11,7 @@ from ..loop.structures import PARAMETERS, parameter_unit
 from . import figures
 from .section import FigureSpec, NotAvailable, Section, badge, esc, fmt, para, table
 from .plain_text import plain
-from .sections_drivetrain import ratio_row
+from .sections_drivetrain import ratio_row, two_mass_stiffness
 
 _REQ_TEXT = {
     "bandwidth": ("bandwidth", "closed-loop bandwidth (-3 dB)"),
@@ -205,18 +205,18 @@ def plant_bode(ctx) -> Section:
     am.set_title(f"Plant at q0 = {u.text(p.q0)}: armature voltage to {what}")
     shown = ctx.scene.display
     n_label, n_unit = ratio_row(u.linear)
+    k_rows, k_text = two_mass_stiffness(ctx.scene, p, u.linear)
     rows = [("operating point q0", fmt(u.show(p.q0)), u.shown),
             ("motor-side inertia J1 (at the output)", fmt(shown.show("inertia", p.J1, u.linear)),
              shown.inertia_unit(u.linear)),
             ("load-side inertia J2", fmt(shown.show("inertia", p.J2, u.linear)), shown.inertia_unit(u.linear)),
-            ("series stiffness K", fmt(shown.show("stiffness", p.K, u.linear)), shown.stiffness_unit(u.linear)),
-            (n_label, fmt(p.N), n_unit), ("efficiency", fmt(p.eta), DIMENSIONLESS),
+            *k_rows, (n_label, fmt(p.N), n_unit), ("efficiency", fmt(p.eta), DIMENSIONLESS),
             ("resonance sqrt(K (1/J1 + 1/J2)) / 2 pi", fmt(p.resonance_hz), "Hz"),
             ("anti-resonance sqrt(K / J2) / 2 pi", fmt(p.antiresonance_hz), "Hz"),
             ("electrical time constant L/R", fmt(p.L / p.R * 1e3), "ms")]
-    text = para("The linear plant at the operating point: motor electrics, the motor side and the load side "
-                "joined by the series stiffness of the chain (two-mass model) or rigidly coupled. The "
-                "resonance is where the loop will meet the drivetrain.")
+    text = para("The linear plant at the operating point: motor electrics, the motor side J1 and the load side "
+                "J2 joined by the two-mass model's stiffness K, or rigidly coupled. The resonance is where the "
+                "loop will meet the drivetrain.", *filter(None, [k_text]))
     return Section("Plant Bode with the drivetrain resonance", text + table(("quantity", "value", "unit"), rows),
                    (FigureSpec(fig, f"Plant from armature voltage to {what}, with the rigid model for comparison."),),
                    key="plant")

@@ -161,8 +161,8 @@ def rigid_model_effect(scene, frequency: float, load_inertias) -> tuple[float, f
     """What the rigid inverse dynamics leaves out: ``(lowest drivetrain mode (Hz), effect)``.
 
     With the two-mass split at mid-stroke (:func:`servo_toolkit.plant.linear.plant_parameters`;
-    motor side J1, load side J2, series stiffness K, mode ``w_n^2 = K (1/J1 + 1/J2)``) and the
-    output prescribed as a sine of angular frequency w, the spring carries ``-J2 w^2 q`` and
+    motor side J1, load side J2, the two-mass model's stiffness K, mode
+    ``w_n^2 = K (1/J1 + 1/J2)``) and the output prescribed as a sine of angular frequency w, the spring carries ``-J2 w^2 q`` and
     the motor side winds it up, ``p = q (1 - J2 w^2 / K)``, so the motor's inertial torque is
     the rigid one times ``1 - (w / w_n)^2``. ``effect`` is the largest ``(f / f_n)^2`` over
     the load inertias (0 for a rigid chain; the mode falls as the load inertia grows).
