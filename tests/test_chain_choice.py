@@ -110,3 +110,36 @@ def test_the_reference_ema_s_upper_modes_leave_its_margins_as_they_are():
     assert n is not None and not n.near and n.note is None
     assert abs(n.gain_change_db) < 0.1 and abs(n.phase_change_deg) < 0.1 and abs(n.peak_change_db) < 0.1
     assert n.margins.closed_loop_stable
+
+
+def test_steps_capped_by_the_sample_time_are_said_to_be_so():
+    """On the carriage (a gearhead's and a screw's spring, the mode at 635 Hz lumped) both
+    models' stability limits lie above the 0.125 ms sample time: the note gives the one step
+    both take and each limit, not the same number twice as a comparison."""
+    import tomllib
+    from servo_toolkit.scene.loader import scene_from_dict
+    from servo_toolkit.sim.chain_choice import stability_limit
+    from .carriage_scene import carriage_scene
+    sc = scene_from_dict(tomllib.loads(carriage_scene()))
+    ctrl = controller_for(sc)[0]
+    freqs, what = working_frequencies(sc, ctrl)
+    damping = ModelOptions().damping_ratio
+    choice = choose_chain(sc, ctrl, 0.1, freqs, damping, what)
+    sample = sc.sensors.sample_time
+    assert choice.dt_full == choice.dt_reduced == sample == choice.sample_time
+    full, red = (stability_limit(sc, ctrl, 0.1, m, damping) for m in ("chain", "two_mass"))
+    assert min(full, red) > sample and (choice.limit_full, choice.limit_reduced) == (full, red)
+    assert (f"RK4 step {sample:.3g} s, the sample time, for both models (stability limits {red:.3g} s "
+            f"two-mass, {full:.3g} s full chain)") in choice.note
+    assert f"{sample:.3g} s against {sample:.3g} s" not in choice.note
+
+
+def test_steps_that_differ_are_told_apart():
+    from servo_toolkit.sim.chain_choice import steps_text
+    # the reduction capped by the sample time, the full chain below it
+    assert steps_text(2e-4, 1.18e-4, 4.4e-4, 1.18e-4, 2e-4) == (
+        "RK4 step limit 0.0002 s (the sample time) for the two-mass reduction against 0.000118 s for the full chain")
+    # equal to three digits but not equal: enough digits to show the difference
+    text = steps_text(1.2341e-4, 1.2347e-4, 1.2341e-4, 1.2347e-4, 0.0)
+    assert text == ("RK4 step limit 0.0001234 s for the two-mass reduction against 0.0001235 s for the "
+                    "full chain")

@@ -196,8 +196,8 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         choice = choose_chain(scene, controller, q0, freqs, zeta, "the study's frequencies", tolerance / 2)
         effects.append(Effect("drivetrain modes above the first", "chain",
                               f"modes {', '.join(f'{m:.4g}' for m in choice.modes_hz)} Hz vs study up to "
-                              f"{freqs[-1]:.3g} Hz (full chain against its two-mass reduction); RK4 step "
-                              f"{choice.dt_full:.3g} s full, {choice.dt_reduced:.3g} s reduced", choice.cost))
+                              f"{freqs[-1]:.3g} Hz (full chain against its two-mass reduction); "
+                              f"{choice.steps_text()}", choice.cost))
 
     # backlash
     play = float(drive.backlash([q0])[0])
