@@ -34,6 +34,19 @@ def test_the_scene_loads_as_written(written, output, unit):
 
 
 @pytest.mark.parametrize("output", OUTPUTS)
+def test_each_study_is_named_for_what_it_runs(written, output):
+    """The simulate study runs a sine command: it is named ``sine``, not ``step``, and the
+    commands in the comment name the studies the file has."""
+    scene = load_scene(written[output])
+    assert set(scene.studies) == {"sine", "kv"}
+    assert scene.studies["sine"].kind == "simulate" and "amplitude" in scene.studies["sine"].params
+    text = written[output].read_text()
+    for name in re.findall(r"--study ([a-z_]+)", text):
+        assert name in scene.studies
+    assert "[studies.step]" not in text
+
+
+@pytest.mark.parametrize("output", OUTPUTS)
 def test_the_scene_passes_check_as_written(written, output, capsys):
     assert main(["check", str(written[output])]) == 0, capsys.readouterr().out
 

@@ -96,10 +96,10 @@ min_gain_margin = "6 dB"
 min_phase_margin = "45 deg"
 max_sensitivity_peak = "6 dB"
 
-# Named studies: `servo-toolkit simulate {file} --study step`, `kv ... --study kv`.
-[studies.step]
-kind = "simulate"
-amplitude = "{amplitude}"                      # a sine of this amplitude about the operating point
+# Named studies: `servo-toolkit simulate {file} --study sine`, `kv ... --study kv`.
+[studies.sine]
+kind = "simulate"                        # a sine command, closed loop
+amplitude = "{amplitude}"                      # its amplitude about the operating point
 frequency = "2 Hz"
 duration = "1 s"
 
