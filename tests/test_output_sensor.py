@@ -101,7 +101,7 @@ def test_reduce_counts_the_lost_motion_in_the_scale_s_counts(tmp_path, capsys):
     the 1 um scale."""
     path = tmp_path / "carriage.toml"
     path.write_text(scene_template("travel", "carriage"))
-    assert main(["reduce", str(path), "--study", "step", "--estimate-only", "--json"]) == 0
+    assert main(["reduce", str(path), "--study", "sine", "--estimate-only", "--json"]) == 0
     effect = next(e for e in json.loads(capsys.readouterr().out)["effects"] if e["effect"] == "backlash")
     play = build(TRAVEL).drivetrain.backlash([0.0])[0]
     assert f"{play / 1e-6:.3g} scale counts" in effect["quantity"]

@@ -34,13 +34,13 @@ def add_plant_frf_options(p) -> None:
 
 def _time_log(time_column: str) -> str:
     """The rule a time log (a rig's log, simulate's traces) given for the response breaks."""
-    from ..identify.data import time_log_rule
+    from ..identify.headers import time_log_rule
     return f"{time_log_rule(time_column)}; expected {EXPECTED}"
 
 
 def _time_column(path) -> str | None:
     """The time column a CSV file's header starts with (a time log), else None."""
-    from ..identify.data import TIME_COLUMNS
+    from ..identify.headers import TIME_COLUMNS
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
             for line in fh:

@@ -47,7 +47,8 @@ from ..core.inputs import read_input_text
 from ..core.spectra import (LINES_KEY, MIN_SEGMENT, PERIOD_KEY, RESOLUTION_PREFIX, SETTLE_KEY, below_lowest_line,
                              find_period, periodic_h1, resolution_sd, response_csv, welch_h1)
 from ..errors import SceneError
-from .data import MAX_DATA_BYTES, TIME_COLUMNS, FrequencyData
+from .data import MAX_DATA_BYTES, FrequencyData
+from .headers import TIME_COLUMNS
 
 #: fewest Welch segments the default segment length gives
 DEFAULT_AVERAGES = 8
