@@ -74,16 +74,10 @@ def draws(designed):
     return truth, out
 
 
-@pytest.mark.parametrize("figure, crossing", [("gain margin", "gain_margin_crossing"),
-                                              ("phase margin", "phase_margin_crossing"),
-                                              ("sensitivity peak Ms", None)])
-def test_the_interval_covers_the_noise_free_margin_at_its_rate(draws, figure, crossing):
-    """Over 50 noisy logs (coherence about 0.97 from 4 averaged periods) the 95 % interval
-    contains the noise-free margin in at least 44 (the binomial band of 95 % of 50: 47.5 +-
-    2.4 sd), and the figures scatter as the standard deviation the interval rests on states
-    (within 0.5..2)."""
-    truth, runs = draws
-    assert runs[0].averages == 4 and 0.95 < float(np.median(runs[0].coherence)) < 0.99
+def _covers_at_its_rate(truth, runs, figure: str, crossing) -> None:
+    """The 95 % interval of ``figure`` contains ``truth``'s in at least 44 of the runs (the
+    binomial band of 95 % of 50: 47.5 +- 2.4 sd), and the deciding crossing's margins
+    scatter as the standard deviation the interval rests on states (within 0.5..2)."""
     true = {"gain margin": truth.gain_margin_db, "phase margin": truth.phase_margin_deg,
             "sensitivity peak Ms": truth.sensitivity_peak[0]}[figure]
     spans = [m.intervals()[figure] for m in runs]
@@ -95,6 +89,19 @@ def test_the_interval_covers_the_noise_free_margin_at_its_rate(draws, figure, cr
         stated = float(np.median([getattr(m, crossing).sd for m in runs]))
         ratio = float(np.std(values, ddof=1)) / stated
         assert 0.5 <= ratio <= 2.0, f"{figure}: the draws scatter {ratio:.2f} times the stated sd {stated:.3g}"
+
+
+@pytest.mark.parametrize("figure, crossing", [("gain margin", "gain_margin_crossing"),
+                                              ("phase margin", "phase_margin_crossing"),
+                                              ("sensitivity peak Ms", None)])
+def test_the_interval_covers_the_noise_free_margin_at_its_rate(draws, figure, crossing):
+    """Over 50 noisy logs (coherence about 0.97 from 4 averaged periods) the 95 % interval
+    contains the noise-free margin in at least 44 (the binomial band of 95 % of 50: 47.5 +-
+    2.4 sd), and the figures scatter as the standard deviation the interval rests on states
+    (within 0.5..2)."""
+    truth, runs = draws
+    assert runs[0].averages == 4 and 0.95 < float(np.median(runs[0].coherence)) < 0.99
+    _covers_at_its_rate(truth, runs, figure, crossing)
 
 
 def test_the_interval_narrows_with_the_coherence_and_the_averages(designed):
@@ -249,16 +256,7 @@ def test_the_interval_covers_an_encoders_rounding_at_its_rate(rounded_draws, fig
     intervals are points and contain it in none."""
     truth, runs = rounded_draws
     assert float(np.min(runs[0].coherence)) > 1 - 1e-9 and runs[0].loop_sd_resolution is not None
-    true = {"gain margin": truth.gain_margin_db, "phase margin": truth.phase_margin_deg,
-            "sensitivity peak Ms": truth.sensitivity_peak[0]}[figure]
-    spans = [m.intervals()[figure] for m in runs]
-    covered = sum(lo <= true <= hi for lo, hi in spans)
-    assert covered >= 44, f"{figure}: {covered} of {DRAWS} intervals contain {true:.4g}"
-    if crossing is not None:
-        values = [getattr(m, crossing).margin for m in runs]
-        stated = float(np.median([getattr(m, crossing).sd for m in runs]))
-        ratio = float(np.std(values, ddof=1)) / stated
-        assert 0.5 <= ratio <= 2.0, f"{figure}: the draws scatter {ratio:.2f} times the stated sd {stated:.3g}"
+    _covers_at_its_rate(truth, runs, figure, crossing)
     assert "rounding" in " ".join(runs[0].notes()) and runs[0].to_dict()["intervals_include_rounding"]
 
 

@@ -35,14 +35,22 @@ def test_the_signal_line_is_read_with_the_response(tmp_path):
     assert read_data(_csv(tmp_path / "bare.csv", np.ones(F.size) * (1 + 1j))).signal is None
 
 
-def test_a_check_takes_the_signal_the_file_records(designed, tmp_path, capsys):
-    """A speed response that says so is closed as the speed's: the model's own margins."""
-    _, r = designed
-    path = _csv(tmp_path / "frf.csv", model_response(r, 2 * np.pi * F, "motor_speed_rad_s"), "motor_speed_rad_s")
-    assert main(["check", EMA, "--linear-only", "--plant-frf", path, "--json"]) == 0
+@pytest.mark.parametrize("model_signal, recorded, taken", [
+    ("motor_speed_rad_s", "motor_speed_rad_s", "motor_speed_rad_s"),
+    # frf --derivative of the output: the output speed's response, taken as the position's / (j w)
+    ("output_speed", "output_speed_rad_s", "output_angle_rad"),
+])
+def test_a_check_takes_the_signal_the_file_records(designed, tmp_path, capsys, model_signal, recorded, taken):
+    """A response that says what it measured is closed as that signal's: the model's own
+    margins on the model's response."""
     import json
+    _, r = designed
+    w = 2 * np.pi * F
+    h = (1j * w * model_response(r, w, "output_angle_rad") if model_signal == "output_speed"
+         else model_response(r, w, model_signal))
+    assert main(["check", EMA, "--linear-only", "--plant-frf", _csv(tmp_path / "frf.csv", h, recorded), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)["scenes"][0]["measured_plant"]
-    assert out["signal"] == "motor_speed_rad_s"
+    assert out["signal"] == taken
     assert out["phase_margin_deg"] == pytest.approx(r.margins.phase_margin_deg, abs=0.5)
 
 
@@ -89,19 +97,6 @@ def test_fit_refuses_a_response_to_another_signal_than_it_compares(tmp_path, cap
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "DATA.csv" in err[0] and signal in err[0], err
-
-
-def test_an_output_speeds_response_is_taken_as_its_positions(designed, tmp_path, capsys):
-    """frf --derivative of the output writes the output speed's response: check takes it as
-    the position's (divided by j w), the model's own margins on the model's response."""
-    import json
-    _, r = designed
-    w = 2 * np.pi * F
-    path = _csv(tmp_path / "frf.csv", 1j * w * model_response(r, w, "output_angle_rad"), "output_speed_rad_s")
-    assert main(["check", EMA, "--linear-only", "--plant-frf", path, "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)["scenes"][0]["measured_plant"]
-    assert out["signal"] == "output_angle_rad"
-    assert out["phase_margin_deg"] == pytest.approx(r.margins.phase_margin_deg, abs=0.5)
 
 
 def test_a_response_to_a_signal_the_loop_does_not_take_names_the_file(tmp_path, capsys):
