@@ -147,3 +147,31 @@ def test_the_phase_keeps_its_branch_across_poorly_coherent_lines(tmp_path):
     from servo_toolkit.identify.frf import frf_csv
     written = np.genfromtxt(frf_csv(data).splitlines(), delimiter=",", names=True)
     assert np.max(np.abs(written["phase_deg"][good] - truth[good])) < 3.0
+
+
+def test_a_tones_hann_leakage_is_not_taken_for_excited_lines():
+    """A sine half a line off the lines of Hann segments (2048 samples at 1 kHz: 0.49 Hz
+    lines) leaks into lines 1.5 and 2.5 lines away at -15 and -32 dB, within 40 dB of its
+    peak, and the segments' leftover mean into the lowest line: their H1 is another line's
+    response put at their frequencies. Only the tone's own two lines are kept. Noise, white
+    or low-passed on an offset, loses no line over 40 logs."""
+    from scipy import signal as sig
+
+    from servo_toolkit.core.spectra import hann_leakage, leakage_lines, welch_h1
+    assert hann_leakage([0.0, 1.0, 2.0]) == pytest.approx([1.0, 0.25, 0.0], abs=1e-12)
+    fs, n, segment = 1000.0, 40960, 2048
+    step = fs / segment
+    f0 = 15.5 * step
+    t = np.arange(n) / fs
+    tone = welch_h1(fs, np.sin(2 * np.pi * f0 * t), 0.5 * np.sin(2 * np.pi * f0 * t - 0.3), segment)
+    assert tone.frequency_hz == pytest.approx([f0 - step / 2, f0 + step / 2])
+    _, suu = sig.welch(np.sin(2 * np.pi * f0 * t), fs=fs, window="hann", nperseg=segment, noverlap=segment // 2)
+    within = (suu >= suu.max() * 1e-4)[1:]
+    assert int(within.sum()) == 7  # the 40 dB threshold alone: the lowest line and the leakage 1.5 and 2.5 off too
+    rng = np.random.default_rng(3)
+    b, a = sig.butter(4, 0.05)
+    for _ in range(20):
+        noise = rng.normal(size=n)
+        for x in (noise, sig.lfilter(b, a, noise) + 3.0):
+            _, suu = sig.welch(x, fs=fs, window="hann", nperseg=1024, noverlap=512)
+            assert not leakage_lines(suu)[suu >= suu[1:].max() * 1e-4].any()

@@ -14,8 +14,8 @@ Two estimators of the H1 response ``H = S_uy / S_uu`` with its coherence
     period's DFT, no leakage), and the coherence measures only what does not repeat from
     period to period (noise, drift, a transient not yet settled).
 
-Both keep only the frequencies the input excites (power within ``excited_db`` of its peak)
-and report how many spectra they averaged (segments or periods): the coherence's random
+Both keep only the frequencies the input excites (power within ``excited_db`` of its peak,
+and for the Hann window not merely a stronger line's leakage, :func:`leakage_lines`) and report how many spectra they averaged (segments or periods): the coherence's random
 error depends on it (:mod:`servo_toolkit.identify.verdict`). :func:`find_period` recognises a
 periodic input.
 """
@@ -83,11 +83,55 @@ class Spectrum:
     white_power: float | None = None
 
 
+def hann_leakage(x):
+    """The power a Hann window's spectrum of a tone puts ``x`` bins from it, relative to the
+    tone's own bin: ``(sinc(x) / (1 - x^2))^2`` (0.72 at half a bin, 0.25 at one, 0.029 at
+    1.5, 0 at 2, 5.9e-4 at 2.5)."""
+    x = np.abs(np.asarray(x, float))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(np.abs(x - 1.0) < 1e-9, 0.5, np.sinc(x) / (1.0 - x * x))
+    return w * w
+
+
+#: how far (lines) a line's power is compared with a stronger line's leakage (a Hann tone's
+#: falls below 1e-9 of its peak beyond it)
+LEAKAGE_REACH = 32
+#: a line within this factor of the most a stronger line's leakage can put on it counts as
+#: that leakage (the floating point of an exact half-line tone)
+LEAKAGE_MARGIN = 1.05
+
+
+def leakage_lines(suu) -> np.ndarray:
+    """The lines of a Hann estimate whose input power a stronger line's leakage explains.
+
+    A tone puts at most ``P_j / W(1/2) W(d - 1/2)`` on a line ``d >= 2`` lines from the line
+    ``j`` it shows at with power ``P_j`` (:func:`hann_leakage` ``W``: the tone lies within half
+    a line of ``j`` and its own power is at most ``P_j / W(1/2)``, Hann's scalloping), and the
+    segments' leftover mean (the DC line, a source exactly on its line, whose one-sided
+    density is not doubled) ``2 P_0 W(d)`` on line ``d``. A line at or below that (within :data:`LEAKAGE_MARGIN`) holds the stronger one's
+    leakage: its H1 is that one's response, not one at its own frequency. A broadband input
+    (noise, a chirp) has no line that far below another two lines off: nothing is dropped
+    there."""
+    p = np.asarray(suu, float)
+    n = p.size
+    drop = np.zeros(n, bool)
+    for d in range(1, min(LEAKAGE_REACH, n - 1) + 1):
+        if d >= 2:
+            bound = LEAKAGE_MARGIN * float(hann_leakage(d - 0.5) / hann_leakage(0.5))
+            drop[d:] |= p[d:] <= bound * p[:-d]  # below a stronger line d lines lower ...
+            drop[:-d] |= p[:-d] <= bound * p[d:]  # ... or d lines higher
+        drop[d] |= p[d] <= LEAKAGE_MARGIN * float(hann_leakage(d)) * 2.0 * p[0]  # a one-sided DC line is not doubled
+    drop[0] = False
+    return drop
+
+
 def _finish(f, suu, syy, suy, averages, window, excited_db, band, lines=None, white=None) -> Spectrum:
     if not np.any(suu[f > 0] > 0):
         raise ValueError("the input is constant: nothing excites the response")
     if lines is None:
         keep = (f > 0) & (suu >= suu[f > 0].max() * 10 ** (-excited_db / 10))
+        if window == "hann":  # a tone's Hann leakage into its neighbours is not their excitation
+            keep &= ~leakage_lines(suu)
     else:
         keep = np.zeros(f.size, bool)
         keep[np.asarray(lines, int)] = True
@@ -314,6 +358,6 @@ def find_period(u, *, min_period: int = MIN_SEGMENT, tolerance: float = PERIODIC
     return None
 
 
-__all__ = ["EXCITED_DB", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "RESOLUTION_PREFIX", "SETTLE_KEY", "Spectrum",
-           "below_lowest_line", "coherence_sd", "find_period", "measured_phase", "periodic_h1", "resolution_sd",
+__all__ = ["EXCITED_DB", "LEAKAGE_MARGIN", "LEAKAGE_REACH", "LINES_KEY", "MIN_SEGMENT", "PERIOD_KEY", "RESOLUTION_PREFIX", "SETTLE_KEY", "Spectrum",
+           "below_lowest_line", "coherence_sd", "find_period", "hann_leakage", "leakage_lines", "measured_phase", "periodic_h1", "resolution_sd",
            "response_csv", "welch_h1", "welch_segments"]
