@@ -198,3 +198,31 @@ def test_design_dict_is_strict_json_and_the_command_line_agrees(ema_design, caps
     dr = rigid.to_dict()
     json.dumps(dr, allow_nan=False)
     assert dr["plant"]["stiffness_n_per_m"] is None and dr["plant"]["resonance_hz"] is None
+
+
+def test_an_operating_point_outside_the_stroke_is_refused(ema):
+    """``q0`` is in rad: ``q0=10`` is 573 deg, far beyond the EMA's +-30 deg stroke, and was
+    designed and reported "requirements met" on a ratio the actuator never has."""
+    from servo_toolkit.errors import SceneError
+    from servo_toolkit.loop.tuning import LoopTuning, tuned_design
+    with pytest.raises(SceneError, match=r"q0: must lie within the drivetrain stroke \[-30 deg, 30 deg\] "
+                                         r"\(got 10 rad = 572\.958 deg"):
+        st.design(ema, q0=10.0, progress=False)
+    with pytest.raises(SceneError, match=r"^tuning\.q0: must lie within"):
+        tuned_design(ema, LoopTuning(q0=-1.0))
+    with pytest.raises(SceneError, match="finite"):
+        st.design(ema, q0=float("nan"), progress=False)
+
+
+def test_a_design_is_exported_and_judged_only_with_its_own_scene(ema_design):
+    """Another actuator's limits, sensors and stroke with this design's gains would mix both."""
+    from servo_toolkit import load_scene
+    from servo_toolkit.errors import SceneError
+    from servo_toolkit.export import export
+    from servo_toolkit.studies.actuator import actuator_check
+    from .conftest import SCENES
+    other = load_scene(SCENES / "linear_roller_screw_actuator.toml")
+    with pytest.raises(SceneError, match=r"^design_result: was designed for the scene 'ema_reference'"):
+        export(ema_design, other)
+    with pytest.raises(SceneError, match=r"^design: was designed for the scene 'ema_reference'"):
+        actuator_check(other, ema_design)

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from ..errors import SceneError
+
 INERTIA_SPREAD_LIMIT = 1.5
 """Largest max/min ratio of the motor-side reflected inertia along the stroke for which the
 loop is designed at mid-stroke; above it, at the largest inertia."""
@@ -41,6 +43,24 @@ def _plateau_middle(q, j) -> float:
     return float(q[run[len(run) // 2]])
 
 
+def checked_q0(scene, q0, key: str = "q0") -> float:
+    """An operating point given by its caller (rad, or m for a travel), as a float: finite
+    and within the drivetrain's stroke (any angle of a chain ending in a cam, whose law is
+    periodic), else one SceneError naming ``key`` (a bare number is rad: ``q0 = 10`` is 573
+    deg, most likely a slip for 10 deg)."""
+    value = float(q0)
+    drive = scene.drivetrain
+    unit = drive.output_unit
+    if not math.isfinite(value):
+        raise SceneError(key, f"must be a finite operating point (got {value:g})")
+    lo, hi = drive.stroke
+    if drive.ends_in_cam or lo - 1e-9 * (hi - lo) <= value <= hi + 1e-9 * (hi - lo):
+        return value
+    si = "m" if unit == "m" else "rad"
+    raise SceneError(key, f"must lie within the drivetrain stroke [{show_q(lo, unit, 6)}, {show_q(hi, unit, 6)}] "
+                          f"(got {value:g} {si} = {show_q(value, unit, 6)}; a bare number is in {si})")
+
+
 def operating_point(scene, q0=None) -> tuple[float, str | None]:
     """The design's operating point and, when it is not mid-stroke by default, why.
 
@@ -53,7 +73,7 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
     ----------
     scene : Scene
     q0 : float, optional
-        Operating point (rad).
+        Operating point (rad; m for a travel), within the stroke (:func:`checked_q0`).
 
     Returns
     -------
@@ -64,7 +84,7 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
     """
     drive = scene.drivetrain
     if q0 is not None:
-        return float(q0), None
+        return checked_q0(scene, q0), None
     q, j = _scan(drive)
     spread = float(j.max() / j.min())
     if spread <= INERTIA_SPREAD_LIMIT:
@@ -77,4 +97,4 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
                 f"than {INERTIA_SPREAD_LIMIT:g}x, else mid-stroke); the loop is designed and checked over the stroke")
 
 
-__all__ = ["INERTIA_SPREAD_LIMIT", "SCAN_POINTS", "operating_point", "show_q"]
+__all__ = ["INERTIA_SPREAD_LIMIT", "SCAN_POINTS", "checked_q0", "operating_point", "show_q"]

@@ -169,7 +169,8 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     Parameters
     ----------
     design_result : DesignResult
-        From :func:`servo_toolkit.design` on ``scene``.
+        From :func:`servo_toolkit.design` on ``scene`` (another scene's is refused:
+        :meth:`~servo_toolkit.loop.result.DesignResult.require_scene`).
     scene : Scene
         The scene it was designed for (limits, sensors, speed estimator).
     directory : str or Path, optional
@@ -192,6 +193,7 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
     -------
     ExportResult
     """
+    design_result.require_scene(scene, "design_result")
     if directory is not None:
         directory = check_directory(directory, inputs)
     if not (math.isfinite(bound_horizon_s) and bound_horizon_s > 0):

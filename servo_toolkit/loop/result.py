@@ -15,6 +15,7 @@ from ..core.output_units import OutputUnit
 from ..display.cards import card, esc_lines, facts, num, svg
 from ..display.cards import requirements_table as requirements_html
 from ..display.units import DisplayUnits
+from ..errors import SceneError
 
 
 @dataclass(frozen=True, repr=False)
@@ -93,6 +94,17 @@ class DesignResult(RichDisplay):
     display: DisplayUnits = DisplayUnits()
     chain_margins: object = None
     actuator: object = None
+
+    def require_scene(self, scene, key: str = "design") -> None:
+        """One SceneError naming ``key`` unless ``scene`` is the one this design was made for
+        (its name and its output's unit; a variant made with ``dataclasses.replace`` keeps
+        both): a controller of one actuator exported or judged with another's limits,
+        sensors and stroke would mix the two."""
+        if scene.name == self.scene_name and scene.drivetrain.output_unit == self.output_unit:
+            return
+        raise SceneError(key, f"was designed for the scene {self.scene_name!r} (output in {self.output_unit}), not "
+                              f"{scene.name!r} (output in {scene.drivetrain.output_unit}): pass the scene it was "
+                              "designed for, or design this one")
 
     def block(self, name: str):
         """The linear block in field ``name`` (``"plant"``, ``"loop"``, ``"closed_loop"``,

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..drivetrain.operating_point import checked_q0
 from .controller import FEEDFORWARD_KINDS, CascadeController
 from .feedforward import designed_feedforward
 from ..errors import SceneError
@@ -165,7 +166,7 @@ def tuned_design(scene, tuning: LoopTuning = LoopTuning(), base=None):
     if (ff is not None) != (c.feedforward is not None):
         changed.append(f"feedforward {'off' if c.feedforward is None else c.feedforward.kind} -> "
                        f"{'off' if ff is None else ff.kind}")
-    q0 = base.q0 if tuning.q0 is None else float(tuning.q0)
+    q0 = base.q0 if tuning.q0 is None else checked_q0(scene, tuning.q0, "tuning.q0")
     require = {"bandwidth": float(tuning.bandwidth_hz)} if tuning.bandwidth_hz is not None else None
     notes = (f"tuned from the automatic design{' at ' + format(tuning.bandwidth_hz, 'g') + ' Hz' if tuning.bandwidth_hz else ''}: "
              + ("; ".join(changed) if changed else "no change"),)

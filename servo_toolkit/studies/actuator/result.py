@@ -270,10 +270,12 @@ def actuator_check(scene, design, options=None) -> ActuatorCheck:
     SimulationError
         A run could not be carried out numerically (no verdict on it).
     SceneError
-        A position requirement given in the other dimension than the output's.
+        A position requirement given in the other dimension than the output's, or a design
+        made for another scene.
     """
     from .runs import run_both
     from .spec import plan as make_plan
+    design.require_scene(scene)
     p = make_plan(scene, design)
     step, sine, failure, end = run_both(scene, design.controller, p, options)
     return evaluate(scene, design, p, step, sine, failure, end)
