@@ -63,7 +63,7 @@ def _results(ema, designed):
         "scene": ema,
         "design": designed,
         "simulation": simulate(ema, designed.controller, reference=Reference.sine(math.radians(2.0), 8.0),
-                               duration=0.1),
+                               duration=0.125),
         "sweep": sweep(ema, frequencies=[8.0], progress=False),
         "kv": kv_study(ema, "kv_8hz", progress=False),
         "stiffness": stiffness_study(ema),

@@ -14,7 +14,7 @@ from servo_toolkit.sim import layout as lo
 
 from .conftest import SCENES
 
-DURATION = 0.1
+DURATION = 0.125  # one period of the 8 Hz sine, the shortest run simulate takes
 TABLE = """
 [tolerances]
 motor.resistance = "+-20 %"

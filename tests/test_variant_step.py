@@ -23,7 +23,7 @@ from servo_toolkit.sim.stability import IMAG_LIMIT, jacobian, rk4_amplification
 
 from .conftest import SCENES
 
-DURATION = 0.08  # past the sine's first reversal (1/32 s) and the variants' lagging ones
+DURATION = 0.125  # one period of the sine (simulate's shortest run), past its reversals and the variants' lagging ones
 REF = Reference.sine(math.radians(2.0), 8.0)
 KEYS = ("load.hinge_stiffness", "motor.current_limit")
 VALUES = {KEYS[0]: np.array([0.0, 3e4, 1e5]), KEYS[1]: np.array([60.0, 60.0, 150.0])}

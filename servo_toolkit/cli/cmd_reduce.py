@@ -59,7 +59,7 @@ def run(args) -> int:
         check_figure_file(args.plot, "--plot", inputs=[args.scene, *scene.input_files])
     amps = amplitudes_si(scene, args.amplitude)  # a bad amplitude fails before any work
     if args.frequency:  # one the sampled loop cannot track fails before any work, with or without runs
-        from ..studies.time.reference import check_sine_frequency
+        from ..sim.reference_checks import check_sine_frequency
         for f in args.frequency:
             check_sine_frequency(f, float(scene.sensors.sample_time), None, "--frequency")
     from ..sim.simulate import controller_for

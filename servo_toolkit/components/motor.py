@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..core.fields import Fields, require
+from ..core.fields import Fields, field_value, require
 
 
 #: Kt (N*m/A) and Ke (V*s/rad) of a DC motor are one constant in SI (the power balance
@@ -52,6 +52,25 @@ MIN_ELECTRICAL_TIME_CONSTANT = 1e-7
 TYPICAL = {"resistance": (1e-3, 200.0), "torque_constant": (1e-3, 10.0), "back_emf_constant": (1e-3, 10.0),
            "rotor_inertia": (1e-9, 0.05, "g*cm^2"), "viscous_friction": (1e-9, 0.1),
            "coulomb_friction": (1e-5, 10.0), "voltage_limit": (1.0, 1000.0), "current_limit": (0.01, 1000.0)}
+
+
+#: each field's SI unit and sign rule (:func:`~servo_toolkit.core.fields.check_rule`), checked
+#: however a motor is made (the scene file, ``dataclasses.replace``); the file's stricter
+#: rules (a rotor inertia above 0, plausible magnitudes, Kt = Ke) are the loader's
+FIELD_RULES = {"resistance": ("ohm", "positive"), "inductance": ("H", "nonnegative"),
+               "torque_constant": ("N*m/A", "positive"), "back_emf_constant": ("V*s/rad", "positive"),
+               "rotor_inertia": ("kg*m^2", "nonnegative"), "viscous_friction": ("N*m*s/rad", "nonnegative"),
+               "coulomb_friction": ("N*m", "nonnegative"), "voltage_limit": ("V", "limit"),
+               "current_limit": ("A", "limit"), "static_friction": ("N*m", "nonnegative"),
+               "stribeck_speed": ("rad/s", "nonnegative"), "continuous_torque": ("N*m", "positive"),
+               "peak_torque": ("N*m", "positive"), "thermal_resistance_winding": ("K/W", "positive"),
+               "thermal_resistance_housing": ("K/W", "positive"), "thermal_time_constant_winding": ("s", "positive"),
+               "thermal_time_constant_housing": ("s", "positive"), "max_winding_temperature": ("K", "positive"),
+               "ambient_temperature": ("K", "positive"), "resistance_temperature": ("K", "positive"),
+               "copper_temperature_coefficient": ("1/K", "nonnegative")}
+#: the fields that may be None (not given)
+OPTIONAL_FIELDS = ("static_friction", "continuous_torque", "peak_torque", "thermal_resistance_winding",
+                   "thermal_resistance_housing", "thermal_time_constant_winding", "thermal_time_constant_housing")
 
 
 @dataclass(frozen=True)
@@ -111,10 +130,6 @@ class DCMotor:
     static_friction: float | None = None
     stribeck_speed: float = 0.0
 
-    @property
-    def breakaway_torque(self) -> float:
-        """Ts: the static friction, or the Coulomb friction where none is given (N*m)."""
-        return self.coulomb_friction if self.static_friction is None else self.static_friction
     continuous_torque: float | None = None
     peak_torque: float | None = None
     thermal_resistance_winding: float | None = None
@@ -125,6 +140,17 @@ class DCMotor:
     ambient_temperature: float = 298.15
     resistance_temperature: float = 298.15
     copper_temperature_coefficient: float = 0.00393
+
+    def __post_init__(self):
+        for name, (unit, rule) in FIELD_RULES.items():
+            value = getattr(self, name)
+            if value is not None or name not in OPTIONAL_FIELDS:
+                object.__setattr__(self, name, field_value(value, unit, rule, f"motor.{name}"))
+
+    @property
+    def breakaway_torque(self) -> float:
+        """Ts: the static friction, or the Coulomb friction where none is given (N*m)."""
+        return self.coulomb_friction if self.static_friction is None else self.static_friction
 
     @property
     def has_thermal_network(self) -> bool:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from ..errors import SceneError
 from .ranges import conditioned_range, range_rule
-from .units import is_bare_number, parse_quantity
+from .units import argument_value, is_bare_number, parse_quantity
 
 _MISSING = object()
 
@@ -286,14 +286,7 @@ class Fields:
     def _checked(self, value: float, name: str, rule, key: str | None = None, *, unit=None,
                  bounds=None) -> float:
         key = key or self.key(name)
-        if math.isnan(value):
-            raise SceneError(key, "value is NaN")
-        if rule == "positive" and not value > 0:
-            raise SceneError(key, f"must be positive (got {value:g})")
-        if rule == "nonnegative" and not value >= 0:
-            raise SceneError(key, f"must not be negative (got {value:g})")
-        if rule in ("positive", "nonnegative", "finite") and math.isinf(value):
-            raise SceneError(key, "must be finite")
+        check_rule(value, rule, key)
         if math.isfinite(value) and unit is not None:
             broken = range_rule(value, rule if rule is not None or value <= 0 else "positive", unit, bounds)
             if broken:
@@ -305,6 +298,29 @@ class Fields:
         unknown = sorted(set(self.table) - self._used)
         if unknown:
             raise SceneError(self.key(unknown[0]), unknown_key_rule(unknown[0], self._used - {"kind"}))
+
+
+def check_rule(value: float, rule: str | None, key: str) -> None:
+    """SceneError naming ``key`` when ``value`` breaks a key's sign rule: ``"positive"``,
+    ``"nonnegative"``, ``"finite"`` (each finite), ``"limit"`` (positive, infinity for none)
+    or None (any number but NaN)."""
+    if math.isnan(value):
+        raise SceneError(key, "value is NaN")
+    if rule in ("positive", "limit") and not value > 0:
+        raise SceneError(key, f"must be positive (got {value:g})")
+    if rule == "nonnegative" and not value >= 0:
+        raise SceneError(key, f"must not be negative (got {value:g})")
+    if rule in ("positive", "nonnegative", "finite") and math.isinf(value):
+        raise SceneError(key, "must be finite")
+
+
+def field_value(value, unit: str, rule: str | None, key: str) -> float:
+    """A component's field as set from Python (a dataclass's ``__post_init__``, so that
+    ``dataclasses.replace`` meets the scene file's rule): a real number in SI or a pint
+    Quantity (converted), checked with :func:`check_rule`; SceneError naming ``key``."""
+    value = argument_value(value, unit, key, finite=False)
+    check_rule(value, rule, key)
+    return value
 
 
 def require(condition: bool, key: str, rule: str) -> None:

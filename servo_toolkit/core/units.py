@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+import numbers
 import re
 
+import numpy as np
 import pint
 
 from ..errors import SceneError
@@ -243,3 +245,73 @@ def parse_si(value, key: str):
     if isinstance(value, float) and math.isnan(value):
         raise SceneError(key, "value is NaN")
     return value
+
+
+def argument_value(value, unit, name: str, finite: bool = True) -> float:
+    """A Python argument as a finite float in ``unit``: a real number is already in it, a
+    pint Quantity (of any registry) is converted with the scene's rules for angles
+    (:func:`parse_quantity`: pint's radian is dimensionless, a hertz is a turn per second).
+
+    Parameters
+    ----------
+    value : float, int, numpy scalar or pint.Quantity
+    unit : str or tuple of str
+        The unit a bare number is in (SI), e.g. ``"s"``, ``"rad"``; a tuple gives the units
+        a Quantity may be in (``("rad", "m")``: an angle or a travel), the first that its
+        dimension fits is taken.
+    name : str
+        The argument's name, for the error.
+    finite : bool
+        Refuse NaN and infinity (False: the caller checks the value).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    SceneError
+        Naming ``name``: a str (a Python argument is not parsed: pass a number in the SI
+        unit or a Quantity), a bool or another type, a Quantity of another dimension, a value
+        that is NaN or infinite.
+    """
+    units = (unit,) if isinstance(unit, str) else tuple(unit)
+    wanted = " or ".join(units)
+    if isinstance(value, pint.Quantity):
+        magnitude = value.magnitude
+        if np.ndim(magnitude) != 0 or isinstance(magnitude, bool):
+            raise SceneError(name, f"expected one quantity in {wanted}, got {value!r}")
+        q = UREG.Quantity(float(magnitude), str(value.units))
+        for i, u in enumerate(units):
+            try:
+                result = _convert(q, u, str(value), name)
+                break
+            except pint.errors.DimensionalityError:
+                if i == len(units) - 1:
+                    raise SceneError(name, f"dimension mismatch: expected a quantity in {wanted}, got {value}") from None
+            except SceneError:
+                if i == len(units) - 1:
+                    raise
+    elif isinstance(value, str):
+        raise SceneError(name, f"expected a number (in {wanted}) or a pint Quantity, got the str {value!r}: a Python "
+                               f"argument is not parsed (pint: ureg.Quantity({value!r}))")
+    elif isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        result = float(value)
+    else:
+        raise SceneError(name, f"expected a number (in {wanted}) or a pint Quantity, got {type(value).__name__}")
+    if finite and not math.isfinite(result):
+        raise SceneError(name, f"must be a finite number (got {result:g} {units[0]})")
+    return result
+
+
+def argument_values(values, unit, name: str) -> np.ndarray:
+    """A Python argument holding one value or a sequence of them (a list of numbers or of
+    Quantities, an array, an array Quantity) as a float array in ``unit``, each value as
+    :func:`argument_value` reads it."""
+    if isinstance(values, pint.Quantity):
+        items = list(values) if np.ndim(values.magnitude) else [values]
+    elif isinstance(values, (str, bytes)) or np.ndim(values) == 0 and not isinstance(values, (list, tuple)):
+        items = [values]
+    else:
+        items = list(values)
+    return np.array([argument_value(v, unit, name) for v in items], dtype=float)

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..errors import SceneError
+from ..core.units import argument_value
 
 INERTIA_SPREAD_LIMIT = 1.5
 """Largest max/min ratio of the motor-side reflected inertia along the stroke for which the
@@ -48,8 +49,8 @@ def checked_q0(scene, q0, key: str = "q0") -> float:
     and within the drivetrain's stroke (any angle of a chain ending in a cam, whose law is
     periodic), else one SceneError naming ``key`` (a bare number is rad: ``q0 = 10`` is 573
     deg, most likely a slip for 10 deg)."""
-    value = float(q0)
     drive = scene.drivetrain
+    value = argument_value(q0, drive.output_unit, key)
     unit = drive.output_unit
     if not math.isfinite(value):
         raise SceneError(key, f"must be a finite operating point (got {value:g})")
@@ -72,8 +73,9 @@ def operating_point(scene, q0=None) -> tuple[float, str | None]:
     Parameters
     ----------
     scene : Scene
-    q0 : float, optional
-        Operating point (rad; m for a travel), within the stroke (:func:`checked_q0`).
+    q0 : float or pint.Quantity, optional
+        Operating point (rad, or m for an output travel; a Quantity is converted), within the
+        stroke (:func:`checked_q0`).
 
     Returns
     -------

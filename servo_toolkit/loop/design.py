@@ -20,6 +20,7 @@ import numpy as np
 from .controller import CascadeController
 from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..lti.system import as_system
+from ..scene.argument import as_scene
 from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant_block,
                             plant_matrices, plant_parameters)
 from .actuator_bounds import bounded
@@ -213,9 +214,10 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
 
     Parameters
     ----------
-    scene : Scene
-    q0 : float, optional
-        Operating point (rad). Default: mid-stroke, or, when the motor-side reflected
+    scene : Scene or path-like
+        A path is read with :func:`~servo_toolkit.scene.load_scene`.
+    q0 : float or pint.Quantity, optional
+        Operating point (rad, or m for an output travel; a Quantity is converted). Default: mid-stroke, or, when the motor-side reflected
         inertia varies along the stroke by more than 1.5x, where it is largest (see
         :func:`servo_toolkit.loop.stroke.operating_point`; the notes say so). Whatever the
         operating point, the loop is then checked along the stroke (``result.stroke``, the
@@ -271,6 +273,7 @@ def design(scene, q0=None, *, structure: str = "cascade", resonance_filter: str 
         candidate meets everything the best one is returned and its notes say which
         requirement fails and by how much.
     """
+    scene = as_scene(scene)
     spec = robust_spec(scene, robust)
     q0, op_note = operating_point(scene, q0)
     if spec is not None:

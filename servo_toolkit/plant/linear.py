@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..core.units import argument_value
 from ..drivetrain.chain_damping import chain_damping
 from ..drivetrain.elements import stage_units
 from ..drivetrain.stage_friction import lumped_friction
@@ -229,7 +230,7 @@ def plant_parameters(scene, q0=None, model: str = "auto",
     if model not in ("auto", "two_mass", "rigid"):
         raise SceneError("model", f"unknown plant model {model!r}; use auto, two_mass or rigid")
     drive = scene.drivetrain
-    q0 = drive.mid_stroke if q0 is None else float(q0)
+    q0 = drive.mid_stroke if q0 is None else argument_value(q0, drive.output_unit, "q0")
     # keyed on the exact bits of the floats: -0.0 and 0.0 give results that print apart
     key = ("plant_parameters", q0.hex(), model, float(structural_damping).hex())
     return scene.derived(key, lambda: _parameters_at(scene, drive, q0, model, structural_damping))

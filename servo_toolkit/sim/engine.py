@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.output_units import OutputUnit
-from ..errors import SimulationError, StrokeEndReached
+from ..errors import SceneError, SimulationError, StrokeEndReached
 from . import layout as lo
 from .integrators import integrate
 from .ivp import MAX_RHS_EVALS, solve_reference
@@ -361,9 +361,11 @@ def run(model, reference: Reference, duration: float, method: str = "rk4", dt: f
         the stability region of the fastest mode.
     """
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise SceneError("method", f"must be one of {', '.join(METHODS)} (got {method!r})")
     if not duration > 0:
-        raise ValueError("duration must be positive")
+        raise SceneError("duration", f"must be positive (got {duration:g} s)")
+    if dt is not None and not dt > 0:
+        raise SceneError("dt", f"must be positive (got {dt:g} s)")
     if method == "paper" and model.P[lo.NMID] > 0:
         raise SimulationError("the cam paper's scheme integrates a two-mass or rigid model; this one is the "
                               "full drivetrain chain: use method 'rk4' or build it with chain='two_mass'")

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..core.units import argument_value
+from ..errors import SceneError, SimulationError
 from ..loop.profile import MoveProfile
 from . import layout as lo
 from .kernel import hermite, measured_angle, measured_motor_angle, reference as reference_at
@@ -20,6 +21,12 @@ from .reference_table import duration_of, pack_table, table_span
 
 KINDS = {"hold": lo.REF_CONST, "sine": lo.REF_SINE, "step": lo.REF_STEP, "ramp": lo.REF_RAMP,
          "move": lo.REF_MOVE, "table": lo.REF_TABLE}
+#: the units a position argument is given in: an output angle (rad) or an output travel (m)
+POSITION = ("rad", "m")
+#: and a rate of it
+RATE = ("rad/s", "m/s")
+#: the unit of each kind's ``amplitude``
+AMPLITUDE_UNITS = {"ramp": RATE, "voltage": "V"}
 
 
 @dataclass(frozen=True)
@@ -70,32 +77,50 @@ class Reference:
             raise ValueError(f"reference kind must be one of {sorted(KINDS) + ['voltage']}, got {self.kind!r}")
         if (self.kind == "move") != (self.profile is not None):
             raise ValueError("a move reference needs its profile (Reference.move), and only a move has one")
+        for name, unit in (("amplitude", AMPLITUDE_UNITS.get(self.kind, POSITION)), ("frequency", "Hz"),
+                           ("offset", POSITION), ("t0", "s"), ("swing", "V"), ("spacing", "s")):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, argument_value(value, unit, name))
+        if self.frequency < 0 or (self.kind == "sine" and self.frequency == 0):
+            raise SceneError("frequency", f"must be {'positive' if self.kind == 'sine' else 'at least 0'} "
+                                          f"(got {self.frequency:g} Hz)")
         if self.kind == "table":
             times = self.t0 + self.spacing * np.arange(len(self.samples))
             object.__setattr__(self, "_packed", pack_table(times, self.samples, periodic=self.periodic))
 
     @classmethod
     def sine(cls, amplitude: float, frequency: float, offset: float | None = None) -> "Reference":
-        """offset + amplitude sin(2 pi f t)."""
-        return cls("sine", amplitude, frequency, offset)
+        """offset + amplitude sin(2 pi f t).
+
+        Each argument is a number in SI (rad, or m for an output travel; Hz) or a pint
+        Quantity, converted. A SceneError names the argument that is not a finite number
+        (a str is not parsed) or a frequency that is not positive.
+        """
+        frequency = argument_value(frequency, "Hz", "frequency")
+        if not frequency > 0:
+            raise SceneError("frequency", f"must be positive (got {frequency:g} Hz)")
+        return cls("sine", argument_value(amplitude, POSITION, "amplitude"), frequency, _position(offset))
 
     @classmethod
     def step(cls, size: float, at: float = 0.0, offset: float | None = None) -> "Reference":
-        """offset, then offset + size from t = at."""
-        return cls("step", size, 0.0, offset, at)
+        """offset, then offset + size from t = at (arguments as :meth:`sine`'s)."""
+        return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset), argument_value(at, "s", "at"))
 
     @classmethod
     def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
-        """offset + rate * max(t - at, 0)."""
-        return cls("ramp", rate, 0.0, offset, at)
+        """offset + rate * max(t - at, 0) (rad/s or m/s; arguments as :meth:`sine`'s)."""
+        return cls("ramp", argument_value(rate, RATE, "rate"), 0.0, _position(offset), argument_value(at, "s", "at"))
 
     @classmethod
     def move(cls, distance: float, v_max: float, a_max: float, j_max: float, at: float = 0.0,
              offset: float | None = None) -> "Reference":
         """A jerk-limited move of ``distance`` from ``offset`` starting at ``at`` (s), within the
-        speed, acceleration and jerk limits (:class:`~servo_toolkit.loop.profile.MoveProfile`)."""
-        profile = MoveProfile(distance, v_max, a_max, j_max)
-        return cls("move", profile.distance, 0.0, offset, at, profile=profile)
+        speed, acceleration and jerk limits (:class:`~servo_toolkit.loop.profile.MoveProfile`;
+        arguments as :meth:`sine`'s)."""
+        profile = MoveProfile(*(argument_value(value, (f"rad{per}", f"m{per}"), name) for value, per, name in (
+            (distance, "", "distance"), (v_max, "/s", "v_max"), (a_max, "/s^2", "a_max"), (j_max, "/s^3", "j_max"))))
+        return cls("move", profile.distance, 0.0, _position(offset), argument_value(at, "s", "at"), profile=profile)
 
     @classmethod
     def table(cls, time_s, values, offset: float | None = None, periodic: bool = False) -> "Reference":
@@ -126,14 +151,15 @@ class Reference:
         """
         from .reference_table import check_samples
         t0, step, v = check_samples(time_s, values, periodic=periodic)
-        return cls("table", 0.0, 0.0, offset, t0, samples=tuple(float(x) for x in v), spacing=step,
+        return cls("table", 0.0, 0.0, _position(offset), t0, samples=tuple(float(x) for x in v), spacing=step,
                    periodic=bool(periodic))
 
     @classmethod
     def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
         """Open loop: armature voltage ``volts + swing sin(2 pi frequency t)`` (clamped at the
         voltage limit)."""
-        return cls("voltage", volts, frequency, swing=swing)
+        return cls("voltage", argument_value(volts, "V", "volts"), argument_value(frequency, "Hz", "frequency"),
+                   swing=argument_value(swing, "V", "swing"))
 
     def describe(self, output_unit: str = "rad") -> str:
         """One line in engineering units: deg for an output angle, mm for an output travel
@@ -180,6 +206,11 @@ class Reference:
             out.update(samples=len(self.samples), step_s=self.spacing, periodic=self.periodic, duration_s=self.duration,
                        values_min=lo_, values_max=hi_)
         return out
+
+
+def _position(offset):
+    """A constructor's ``offset``: None (the model's q0) or a finite position."""
+    return None if offset is None else argument_value(offset, POSITION, "offset")
 
 
 def fill(model, ref: Reference) -> np.ndarray:

@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from ..core.units import argument_value
 from ..errors import SceneError
-from ..loop.controller import FEEDFORWARD_KINDS, Feedforward
+from ..loop.controller import FEEDFORWARD_KINDS, CascadeController, Feedforward
+from ..loop.result import DesignResult
+from ..scene.argument import as_scene
 from .engine import run
 from .model import ModelOptions, build_model
 from .reference import Reference
+from .reference_checks import check_sine_frequency
 
 
 #: the source of a designed controller whose linear closed loop is unstable
@@ -59,25 +63,41 @@ def with_feedforward(controller, feedforward, scene=None, *, shaper=None, schedu
     return with_command(controller, scene, feedforward=feedforward, shaper=shaper, schedule=schedule)
 
 
+def _controller_argument(controller):
+    """``simulate``'s controller: None, a CascadeController, or a DesignResult's."""
+    if controller is None or isinstance(controller, CascadeController):
+        return controller
+    if isinstance(controller, DesignResult):
+        return controller.controller
+    raise SceneError("controller", f"expected a CascadeController (a design's .controller) or a DesignResult, "
+                                   f"got {type(controller).__name__}")
+
+
 def simulate(scene, controller=None, *, reference: Reference | None = None, duration: float = 1.0,
              method: str = "rk4", dt: float | None = None, voltage: float | None = None,
              options: ModelOptions | None = None, feedforward=None, shaper=None, schedule=None,
              **run_options):
     """Simulate a scene in closed loop (or open loop at a constant voltage).
 
+    Numbers are in SI (s, V); a pint Quantity is converted.
+
     Parameters
     ----------
-    scene : Scene
-    controller : CascadeController, optional
-        None with ``voltage`` given: open loop. None otherwise: :func:`controller_for`.
+    scene : Scene or path-like
+        A path is read with :func:`~servo_toolkit.scene.load_scene`.
+    controller : CascadeController or DesignResult, optional
+        None with ``voltage`` given: open loop. None otherwise: :func:`controller_for`. A
+        DesignResult runs its ``.controller``.
     reference : Reference, optional
-        Position command; default: hold the mid-stroke angle.
-    duration : float
+        Position command; default: hold the mid-stroke angle. A sine must be one the run
+        resolves (:func:`~.reference_checks.check_sine_frequency`): at most a quarter of the
+        controller's sample rate, and at least one whole period in ``duration``.
+    duration : float or pint.Quantity
         Seconds.
     method : {"rk4", "paper", "reference", "auto"}
-    dt : float, optional
+    dt : float or pint.Quantity, optional
         Fixed step (s).
-    voltage : float, optional
+    voltage : float or pint.Quantity, optional
         Open-loop armature voltage (V).
     options : ModelOptions, optional
     feedforward : Feedforward or {"off", "gains", "model"}, optional
@@ -93,7 +113,29 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     Returns
     -------
     SimulationResult
+
+    Raises
+    ------
+    SceneError
+        Before any work, naming the argument: a scene or controller of another type, a
+        duration or step that is not a positive number, a sine command the run cannot
+        resolve (``reference`` above a quarter of the sample rate, ``duration`` shorter
+        than its period).
     """
+    scene = as_scene(scene)
+    controller = _controller_argument(controller)
+    duration = argument_value(duration, "s", "duration")
+    if not duration > 0:
+        raise SceneError("duration", f"must be positive (got {duration:g} s)")
+    dt = None if dt is None else argument_value(dt, "s", "dt")
+    if dt is not None and not dt > 0:
+        raise SceneError("dt", f"must be positive (got {dt:g} s)")
+    if reference is not None and not isinstance(reference, Reference):
+        raise SceneError("reference", f"expected a Reference (servo_toolkit.sim.Reference.sine ...), "
+                                      f"got {type(reference).__name__}")
+    if reference is not None and reference.kind == "sine":
+        sample_time = scene.sensors.sample_time if controller is None else controller.sample_time
+        check_sine_frequency(reference.frequency, sample_time, duration, "reference", duration_key="duration")
     source = "given"
     if voltage is not None:
         if controller is not None:
@@ -101,7 +143,7 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
         if feedforward not in (None, "off") or shaper not in (None, "off") or schedule not in (None, False):
             raise SceneError("feedforward", "a feedforward, shaper or schedule needs a closed loop, not an open-loop "
                                             "voltage")
-        reference = Reference.voltage(voltage)
+        reference = Reference.voltage(argument_value(voltage, "V", "voltage"))
     elif controller is None:
         controller, source = controller_for(scene)
     if controller is not None:

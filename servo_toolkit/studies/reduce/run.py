@@ -60,7 +60,7 @@ def time_points(study, scene=None):
     if freq is None or not amps:
         raise SceneError(study.key("kind"), "needs a frequency (or period) and amplitude(s)")
     if scene is not None:  # a sine the sampled loop cannot track is no study to reduce for
-        from ..time.reference import check_sine_frequency
+        from ...sim.reference_checks import check_sine_frequency
         check_sine_frequency(float(freq), float(scene.sensors.sample_time), None,
                              study.key("frequency" if p.get("frequency") is not None else "period"))
     if study.kind == KV.name and p.get("amplitude_at", "output") != "output":
@@ -309,7 +309,7 @@ def reduced_options(scene, study=None, *, tolerance: float = DEFAULT_TOLERANCE, 
         study = scene.study(study)
     if study is None or study.kind == SWEEP.name:
         _, freqs, amps = _sweep_points(scene, study, frequencies)
-        from ..time.reference import check_sine_frequency
+        from ...sim.reference_checks import check_sine_frequency
         for f in freqs:
             check_sine_frequency(f, float(scene.sensors.sample_time), None,
                                  "frequencies" if frequencies is not None or study is None

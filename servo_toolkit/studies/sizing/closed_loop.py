@@ -120,7 +120,7 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
     """
     from ...core.progress import progress_bar
     from ...scene.duty_cycle import segment_end
-    from ...sim import ModelOptions, simulate
+    from ...sim import ModelOptions, build_model, run
     from ...sim.simulate import controller_for
     duty = scene.duty_cycle
     kt = scene.motor.torque_constant
@@ -138,8 +138,9 @@ def closed_loop_loads(scene, motion, loads, *, progress: bool = False, controlle
         idx = np.flatnonzero(motion.segment == i)
         load = scene.load.hinge_moment if seg.load is None else seg.load
         run_scene = replace(hot, load=replace(hot.load, hinge_moment=load))
-        res = simulate(run_scene, controller, reference=_reference(seg, q0), duration=seg.duration,
-                       method="auto", options=ModelOptions(stroke_end="stop", friction="stick"))
+        # a sine segment may hold part of a period: run the model itself, not simulate's whole-period rule
+        model = build_model(run_scene, controller, ModelOptions(stroke_end="stop", friction="stick"))
+        res = run(model, _reference(seg, q0), seg.duration, "auto")
         local = motion.t[idx] - t_start
         current[idx] = np.interp(local, res.times, res.motor_current)
         torque[idx] = kt * current[idx]

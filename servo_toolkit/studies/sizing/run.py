@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ...errors import SceneError
+from ...scene.argument import as_scene
 from .cycle import sample_cycle
 from .envelope import Envelope, lower, upper
 from .life import screw_lives
@@ -20,11 +21,6 @@ from .thermal import ThermalNetwork, cycle_temperatures
 KELVIN = 273.15
 #: how the motor's loads are found
 METHODS = ("inverse_dynamics", "closed_loop")
-
-
-def _scene(scene):
-    from ...scene import Scene, load_scene
-    return scene if isinstance(scene, Scene) else load_scene(scene)
 
 
 def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep: bool = True,
@@ -69,7 +65,7 @@ def size(scene, *, closed_loop: bool = False, losses: str = "directional", sweep
     >>> result.margins[0].name                            # doctest: +SKIP
     'peak torque'
     """
-    scene = _scene(scene)
+    scene = as_scene(scene)
     duty = scene.duty_cycle
     if duty is None:
         raise SceneError("duty_cycle", "missing table: size needs a [duty_cycle] with [[duty_cycle.segments]]")

@@ -15,6 +15,7 @@ import numpy as np
 
 from ...errors import SceneError
 from ...core.angles import RAD_PER_DEG
+from ...core.units import argument_values
 from .result import StiffnessResult
 
 DEFAULT_ANGLES_DEG = (-30.0, 0.0, 10.0, 30.0)
@@ -38,10 +39,10 @@ def output_points(drive, angles_deg=None, positions_mm=None) -> tuple[np.ndarray
     Parameters
     ----------
     drive : Drivetrain
-    angles_deg : sequence of float, optional
-        Output angles (deg) of a rotary output; default -30, 0, 10, 30.
-    positions_mm : sequence of float, optional
-        Output travels (mm) of a linear output; default mid-stroke.
+    angles_deg : sequence of float or pint.Quantity, optional
+        Output angles (deg, a Quantity converted) of a rotary output; default -30, 0, 10, 30.
+    positions_mm : sequence of float or pint.Quantity, optional
+        Output travels (mm, a Quantity converted) of a linear output; default mid-stroke.
 
     Returns
     -------
@@ -67,12 +68,9 @@ def output_points(drive, angles_deg=None, positions_mm=None) -> tuple[np.ndarray
                              "in deg (--angle DEG)")
         key, unit, scale = "angle", "deg", RAD_PER_DEG
         values = (default_angles_deg(drive) if angles_deg is None else angles_deg)
-    values = np.atleast_1d(np.asarray(values, dtype=float))
+    values = argument_values(values, unit, key)
     if values.size == 0:
         raise SceneError(key, "give at least one value")
-    bad = values[~np.isfinite(values)]
-    if bad.size:
-        raise SceneError(key, f"must be a finite number (got {bad[0]:g} {unit})")
     q = values * scale
     if not drive.ends_in_cam:  # a cam law is periodic: any finite cam angle is fine
         tol = 1e-9 * max(1.0, hi - lo)
@@ -90,10 +88,11 @@ def stiffness_study(scene, angles_deg=None, positions_mm=None, *, min_ratio: flo
     Parameters
     ----------
     scene : Scene
-    angles_deg : sequence of float, optional
-        Output angles (deg) of a rotary output (q for a cam chain); default -30, 0, 10, 30.
-    positions_mm : sequence of float, optional
-        Output travels (mm) of a linear output; default mid-stroke.
+    angles_deg : sequence of float or pint.Quantity, optional
+        Output angles (deg: a bare number is in deg here, a Quantity is converted) of a rotary
+        output (q for a cam chain); default -30, 0, 10, 30.
+    positions_mm : sequence of float or pint.Quantity, optional
+        Output travels (mm, a Quantity converted) of a linear output; default mid-stroke.
     min_ratio, within : float
         Thresholds of seed 001's neglect criterion (see :class:`NeglectCriterion`).
 

@@ -27,6 +27,7 @@ import time
 import numpy as np
 
 from ...errors import SimulationError
+from ...core.units import argument_values
 from ...core.parallel import run_cases
 from ...plant.linear import DEFAULT_STRUCTURAL_DAMPING
 from ..sine_dwell import DwellPlan, dwell_estimate
@@ -116,11 +117,11 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     study : str or Study, optional
         A ``frequency_sweep`` study (8 Hz is added to its frequencies); default the scene's
         first one (see :func:`study_points`).
-    frequencies : sequence of float, optional
-        Hz, replacing the study's.
-    amplitudes : sequence of float, optional
-        Command amplitudes (rad, or m for an output travel), replacing the study's; one
-        curve each.
+    frequencies : sequence of float or pint.Quantity, optional
+        Hz, replacing the study's (a Quantity is converted).
+    amplitudes : sequence of float or pint.Quantity, optional
+        Command amplitudes (rad, or m for an output travel; a Quantity is converted),
+        replacing the study's; one curve each.
     controller : CascadeController, optional
         Default: the designed loop (:func:`servo_toolkit.sim.controller_for`).
     options : ModelOptions, optional
@@ -148,9 +149,9 @@ def sweep(scene, study=None, *, frequencies=None, amplitudes=None, controller=No
     start = time.perf_counter()
     name, freqs, amps = study_points(scene, study)
     if frequencies is not None:
-        freqs = tuple(float(f) for f in np.atleast_1d(frequencies))
+        freqs = tuple(argument_values(frequencies, "Hz", "frequencies"))
     if amplitudes is not None:
-        amps = tuple(float(a) for a in np.atleast_1d(amplitudes))
+        amps = tuple(argument_values(amplitudes, ("rad", "m"), "amplitudes"))
     if not freqs or not amps or min(freqs) <= 0 or min(amps) <= 0:
         raise ValueError("frequencies and amplitudes must be non-empty and positive")
     freqs_arr = np.asarray(sorted(freqs))

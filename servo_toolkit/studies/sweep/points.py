@@ -83,13 +83,13 @@ def check_sweep_frequencies(scene, frequencies, key: str, plan) -> None:
     """SceneError naming ``key`` unless every dwell frequency is one the sweep resolves.
 
     A frequency above a quarter of the controller's sample rate is refused as a time run's
-    (:func:`servo_toolkit.studies.time.reference.check_sine_frequency`); below, a dwell lasts its
+    (:func:`servo_toolkit.sim.reference_checks.check_sine_frequency`); below, a dwell lasts its
     settling and estimation cycles (``plan``, a :class:`~.sine_dwell.DwellPlan`), and a
     frequency whose dwell needs more fixed steps at the sample time than one run may take
     (:data:`servo_toolkit.sim.engine.MAX_STEPS`) cannot run at all.
     """
     from ...sim.engine import MAX_STEPS
-    from ..time.reference import check_sine_frequency
+    from ...sim.reference_checks import check_sine_frequency
     ts = float(scene.sensors.sample_time)
     for f in frequencies:
         check_sine_frequency(float(f), ts, None, key)

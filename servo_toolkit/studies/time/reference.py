@@ -7,6 +7,7 @@ import math
 from ...core.output_units import DEFAULT_RUN_S, REQUIREMENT_SINE_DEG, REQUIREMENT_SINE_HZ, REQUIREMENT_SINE_MM
 from ...errors import SceneError
 from ...sim.reference import Reference
+from ...sim.reference_checks import check_sine_frequency
 from ..kv.kind import KV
 from .kind import SIMULATE
 
@@ -14,48 +15,6 @@ from .kind import SIMULATE
 DEFAULT_SINE = (math.radians(REQUIREMENT_SINE_DEG), REQUIREMENT_SINE_HZ, DEFAULT_RUN_S)
 #: its amplitude for an output travel (m): 1 mm
 DEFAULT_LINEAR_AMPLITUDE = REQUIREMENT_SINE_MM * 1e-3
-
-
-#: a sine command is tracked meaningfully up to this fraction of the controller's sample
-#: rate (4 samples per period; the Nyquist limit itself, 0.5 / Ts, samples a sine at its zeros)
-NYQUIST_FRACTION = 0.25
-#: fewest whole periods of a sine command a time run must hold
-MIN_PERIODS = 1.0
-
-
-def check_sine_frequency(frequency: float, sample_time: float, duration: float | None, key: str,
-                         min_periods: float = MIN_PERIODS) -> None:
-    """SceneError naming ``key`` unless a sine command at ``frequency`` (Hz) is one the run
-    can resolve.
-
-    Parameters
-    ----------
-    frequency : float
-    sample_time : float
-        The controller's sample time (s); 0 for a continuous controller (no upper limit).
-    duration : float or None
-        The run's length (s); None: no lower limit checked here.
-    key : str
-        The option or scene key named in the error (``--frequency``,
-        ``studies.NAME.frequency``).
-    min_periods : float
-
-    Raises
-    ------
-    SceneError
-        ``frequency`` above :data:`NYQUIST_FRACTION` of the sample rate (at or above its
-        Nyquist limit the sampled controller sees an alias, e.g. the sine at its zeros), or
-        fewer than ``min_periods`` periods in ``duration``.
-    """
-    if sample_time > 0:
-        top = NYQUIST_FRACTION / sample_time
-        if not frequency <= top:
-            raise SceneError(key, f"must be at most {top:g} Hz, a quarter of the controller's {1 / sample_time:g} Hz "
-                                  f"sample rate (its Nyquist limit is {0.5 / sample_time:g} Hz; a sine there is sampled "
-                                  f"at fixed phases, not tracked) (got {frequency:g} Hz)")
-    if duration is not None and not frequency * duration >= min_periods * (1 - 1e-9):
-        raise SceneError(key, f"must be at least {min_periods / duration:g} Hz: the run of {duration:g} s must hold "
-                              f"{min_periods:g} whole period(s) of the command (got {frequency:g} Hz)")
 
 
 def run_spec(scene, study_name=None, *, amplitude=None, frequency=None, duration=None):

@@ -121,10 +121,11 @@ def _corner_margins(keys, corner, p, ctrl, scene, zeta) -> dict:
 
 
 def _corner_run(scene, keys, corner, ctrl, runs, duration):
-    """The corner's nonlinear closed loop: simulate's command on the same model."""
+    """The corner's nonlinear closed loop: simulate's command on the same model, over the
+    batch runs' duration (the model itself, as the batch runs it: no whole-period rule)."""
     from dataclasses import replace
 
-    from ...sim import simulate
+    from ...sim import build_model, run
     from ...sim.tolerance_rows import keep_effects
     from ..time.reference import run_spec
     from ..time.run import sine_run_options
@@ -135,8 +136,8 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
     options, _ = keep_effects(options, corner)
     options = replace(options, stiffness_scale=options.stiffness_scale * scale)
     try:
-        return simulate(cs, ctrl, reference=reference, duration=duration or run_duration, method="rk4",
-                        dt=None if runs is None else runs.dt_s, options=options), ""
+        return run(build_model(cs, ctrl, options), reference, duration or run_duration, "rk4",
+                   None if runs is None else runs.dt_s), ""
     except (SimulationError, SceneError) as exc:
         return None, str(exc)
 
