@@ -130,6 +130,7 @@ def test_stiffness_study_converts_a_quantity_to_its_degrees(ema):
 def test_the_operating_point_converts_a_quantity_to_rad(ema):
     from servo_toolkit.drivetrain.operating_point import operating_point
     assert operating_point(ema[0], 10 * UREG.deg)[0] == pytest.approx(math.radians(10.0))
+    assert operating_point(ema[0], np.array(0.1))[0] == operating_point(ema[0], np.float64(0.1))[0] == 0.1
     _refused("q0", lambda: operating_point(ema[0], 10 * UREG.mm))
 
 

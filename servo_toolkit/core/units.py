@@ -277,6 +277,8 @@ def argument_value(value, unit, name: str, finite: bool = True) -> float:
     """
     units = (unit,) if isinstance(unit, str) else tuple(unit)
     wanted = " or ".join(units)
+    if isinstance(value, np.ndarray) and value.ndim == 0:  # a 0-d array is its one number
+        value = value.item()
     if isinstance(value, pint.Quantity):
         magnitude = value.magnitude
         if np.ndim(magnitude) != 0 or isinstance(magnitude, bool):
