@@ -47,12 +47,13 @@ def facts(pairs) -> str:
     return "<table>" + "".join(f"<tr><td>{esc(k)}</td><td>{esc(v)}</td></tr>" for k, v in pairs) + "</table>"
 
 
-def svg(draw, size=(7.0, 4.2), rows: int = 1, cols: int = 1, sharex: bool = False) -> str:
+def svg(draw, size=(7.0, 4.2), rows: int = 1, cols: int = 1, sharex: bool = False, height_ratios=None) -> str:
     """Inline SVG of ``draw(axes)`` on a fresh figure (no pyplot state: nothing else is
-    displayed); empty when the drawing fails (a card never breaks on its plot)."""
+    displayed; ``height_ratios``: the rows' relative heights); empty when the drawing fails
+    (a card never breaks on its plot)."""
     from matplotlib.figure import Figure
     fig = Figure(figsize=size)
-    axes = fig.subplots(rows, cols, sharex=sharex)
+    axes = fig.subplots(rows, cols, sharex=sharex, height_ratios=height_ratios)
     try:
         draw(axes)
         fig.tight_layout()

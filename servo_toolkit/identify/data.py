@@ -30,15 +30,21 @@ import numpy as np
 from ..errors import SceneError
 from ..core.inputs import read_input_text
 from ..core.spectra import measured_phase
+from ..display.cards import RichDisplay
+from . import frequency_view
 from .headers import FREQUENCY_HEADER, FREQUENCY_HEADERS, LOOP_HEADERS, TIME_HEADER, header_rule
 
 #: nepers (and radians) to dB
 DB_PER_NEPER = 20 / math.log(10)
 #: largest data file read (bytes)
 MAX_DATA_BYTES = 64 * 1024 * 1024
-@dataclass(frozen=True)
-class FrequencyData:
-    """A measured frequency response.
+
+
+@dataclass(frozen=True, repr=False)
+class FrequencyData(RichDisplay):
+    """A measured frequency response; ``repr`` is one line, a notebook shows a card, and
+    :meth:`to_dict` and :meth:`plot` give its JSON form and its Bode plot
+    (:mod:`.frequency_view`).
 
     Attributes
     ----------
@@ -91,6 +97,23 @@ class FrequencyData:
     def complex(self) -> np.ndarray:
         """The response as complex numbers."""
         return 10 ** (self.gain_db / 20) * np.exp(1j * np.radians(self.phase_deg))
+
+    def to_dict(self) -> dict:
+        """JSON-ready (strict JSON), units in the key names: ``frequency_hz``, ``gain_db``,
+        ``phase_deg``, ``coherence``, ``averages``, ``window``, ``signal``,
+        ``resolution_db``, ``resolution_deg`` (None: not known), ``source``."""
+        return frequency_view.to_dict(self)
+
+    def plot(self, axes=None):
+        """Bode plot (gain dB, phase deg against log frequency) and the coherence below, the
+        lines of coherence under 0.8 marked; returns the three axes."""
+        return frequency_view.plot(self, axes)
+
+    def _repr_line(self) -> str:
+        return frequency_view.repr_line(self)
+
+    def _repr_card(self) -> str:
+        return frequency_view.card_html(self)
 
     @classmethod
     def from_complex(cls, frequency_hz, response, coherence=None, source=None, averages=None,

@@ -17,9 +17,9 @@ from ..lti.system import as_system, ss
 from .crossings import crossings, response_of
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Margins:
-    """Margins of an open loop ``L`` with negative unit feedback.
+    """Margins of an open loop ``L`` with negative unit feedback; ``repr`` is one line.
 
     Attributes
     ----------
@@ -128,6 +128,11 @@ class Margins:
         return (f"GM {self.gain_margin_db:.2f} dB, PM {self.phase_margin_deg:.1f} deg, delay margin "
                 f"{self.delay_margin_s * 1e3:.3g} ms, disk margin {self.disk_margin:.3f}, "
                 f"Ms {self.sensitivity_peak_db:.2f} dB")
+
+    def __repr__(self) -> str:
+        if not self.closed_loop_stable:
+            return f"<Margins: {self.unstable_reason}>"
+        return f"<Margins: {self.headline()}, bandwidth {self.bandwidth_hz:.3g} Hz>"
 
     def to_dict(self) -> dict:
         """JSON-ready (strict JSON), units in the key names; a figure that is not finite is None

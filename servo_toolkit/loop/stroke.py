@@ -47,6 +47,9 @@ the end that repeats the start is dropped), plus q0 and the inertia extremes."""
 #: margin requirement -> its figure over the stroke
 _MARGIN_FIGURES = {"gain_margin": "gain_margin_db", "phase_margin": "phase_margin_deg",
                    "sensitivity_peak": "sensitivity_peak_db"}
+#: the figures a one-line repr names: key, name, unit
+_REPR_FIGURES = (("gain_margin_db", "GM", "dB"), ("phase_margin_deg", "PM", "deg"), ("sensitivity_peak_db", "Ms", "dB"),
+                 ("bandwidth_hz", "bandwidth", "Hz"))
 _FIGURES = ("gain_margin_db", "phase_margin_deg", "sensitivity_peak_db", "bandwidth_hz")
 #: figure -> worst is its minimum or its maximum (over the stable points)
 _WORST = {"gain_margin_db": "min", "phase_margin_deg": "min", "sensitivity_peak_db": "max",
@@ -118,9 +121,10 @@ class StrokeLoops:
         return loop_response(s, tg * g1 * ic, tg * g2 * ic, delay, cy * col["ge"], cw * col["gw"], col["N"])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class StrokeCheck:
-    """A fixed controller on the plant linearized at operating points along the stroke.
+    """A fixed controller on the plant linearized at operating points along the stroke;
+    ``repr`` is one line (the span, stability and the worst margins with their units).
 
     Attributes
     ----------
@@ -169,6 +173,15 @@ class StrokeCheck:
     def show(self, q: float) -> str:
         """Operating point ``q`` as text (deg, or mm for a travel)."""
         return show_q(q, self.output_unit)
+
+    def __repr__(self) -> str:
+        unstable = int(np.sum(~self.stable))
+        worst = self.worst()
+        parts = [f"{name} {worst[key]['value']:.3g} {unit} at {self.show(worst[key]['q'])}"
+                 for key, name, unit in _REPR_FIGURES if key in worst]
+        return (f"<StrokeCheck: {self.q.size} points {self.show(self.q.min())}..{self.show(self.q.max())}, "
+                + ("stable at every point" if unstable == 0 else f"{unstable} points UNSTABLE")
+                + (f", worst {', '.join(parts)}" if parts else "") + ">")
 
     @property
     def all_stable(self) -> bool:
