@@ -53,12 +53,13 @@ def legend_faults(fig) -> list:
                 hit = int(np.sum(_inside(pts, box)))
                 if hit:
                     faults.append(f"{name} covers {hit} points of axes {i}'s line {line.get_label()!r}")
+            bars = {id(p): c.get_label() for c in ax.containers for p in getattr(c, "patches", ())}
             for patch in ax.patches:
                 bar = patch.get_window_extent(renderer)
                 x0, x1 = max(bar.x0, frame.x0, box.x0), min(bar.x1, frame.x1, box.x1)
                 y0, y1 = max(bar.y0, frame.y0, box.y0), min(bar.y1, frame.y1, box.y1)
                 if patch.get_visible() and x1 - x0 > SLACK_PX and y1 - y0 > SLACK_PX:
-                    faults.append(f"{name} covers axes {i}'s bar {patch.get_label()!r}")
+                    faults.append(f"{name} covers axes {i}'s bar {bars.get(id(patch), patch.get_label())!r}")
     return faults
 
 

@@ -12,6 +12,7 @@ from ..errors import SceneError
 from ..core.files import atomic_file, check_named, check_output_file
 from ..core.output_units import OutputUnit
 from ..display.cards import RichDisplay
+from ..display.legends import legend_above
 from ..display.cards import card, facts, num, svg
 
 
@@ -240,17 +241,17 @@ class SimulationResult(RichDisplay):
         """Output vs reference (deg or mm), current, voltage (three stacked axes)."""
         import matplotlib.pyplot as plt
         if axes is None:
-            _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
+            _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6), layout="constrained")
         a0, a1, a2 = axes
         u = self.unit
         a0.plot(self.times, u.show(self.reference_angle), "k--", lw=1, label="reference")
         a0.plot(self.times, u.show(self.output_angle), label=f"output ({self.method})")
         a0.set_ylabel(f"{'travel' if u.linear else 'angle'} [{u.shown}]")
-        a0.legend(loc="best")
-        a1.plot(self.times, self.current_reference, "k--", lw=1, label="i_ref")
-        a1.plot(self.times, self.motor_current, label="i")
+        legend_above(a0)  # a sine fills every corner of the axes
+        a1.plot(self.times, self.current_reference, "--", color="0.45", lw=1, label="i_ref")
+        a1.plot(self.times, self.motor_current, color="C1", label="i")
         a1.set_ylabel("current [A]")
-        a1.legend(loc="best")
+        legend_above(a1)
         a2.plot(self.times, self.motor_voltage)
         a2.set_ylabel("voltage [V]")
         a2.set_xlabel("time [s]")

@@ -10,6 +10,7 @@ import numpy as np
 
 from ...core.output_units import OutputUnit
 from ...display.cards import RichDisplay, card, facts, svg
+from ...display.legends import legend_beside
 from ...display.html import fmt, telling_digits
 from .figures import HARMONICS, LimitCycle, limit_cycle, ripple, rms, step_figures, time_at_limit
 from .runs import JUDGED_CYCLES, SINE_CYCLES, STEP_AT, TRANSIENT_CYCLES, window
@@ -164,7 +165,9 @@ class ActuatorCheck(RichDisplay):
                                                   f"{fmt(self.plan.frequency)} Hz")
         for ax in (a1, a2, a3, a4):
             ax.grid(True, alpha=0.3)
-            ax.legend(fontsize="x-small", loc="lower right")
+        # one legend per row, right of it: the sine and the current limits cross every corner
+        legend_beside(a2, [a1], fontsize="x-small")
+        legend_beside(a4, [a3], fontsize="x-small")
         return axes
 
     def _repr_line(self) -> str:

@@ -137,7 +137,7 @@ class KvResult(RichDisplay):
         """Kv of the motor torque and screw thrust against external inertia; returns the Axes."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(6, 3.5))
+            _, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
         for a in self.amplitudes:
             cs = [c for c in self.cases if c.amplitude == a]
             j = [self.display.show("inertia", c.load_inertia, self.unit.linear) for c in cs]

@@ -4,6 +4,7 @@ leaves out, the a-priori bound, the measured difference and each effect's own co
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -12,6 +13,9 @@ from ...core.output_units import OutputUnit
 from ...display.cards import RichDisplay, card, facts, num, svg, table
 from .choice import _db, _deg
 from .estimates import ReductionPlan
+
+#: characters per line of the plot's title (a long list of effects left out wraps)
+TITLE_CHARS = 80
 
 
 @dataclass(frozen=True)
@@ -252,7 +256,7 @@ class ReductionResult(RichDisplay):
         """Measured relative difference per point, with the bound and the a-priori sum."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(7, 3.5))
+            _, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
         for i, a in enumerate(self.amplitudes_rad):
             d = np.where(np.isnan(self.difference[i]), np.nan, np.maximum(self.difference[i], 1e-12))
             line, = ax.loglog(self.frequencies_hz, d, "o-", ms=4, label=f"measured, {OutputUnit(self.output_unit).text(a, 3)}")
@@ -269,8 +273,8 @@ class ReductionResult(RichDisplay):
             ax.axhline(self.plan.predicted, color="k", ls="--", lw=1, label="sum of estimates")
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("|reduced / full - 1|")
-        ax.set_title(f"{self.scene}: reduced model left out " +
-                     (", ".join(e.effect for e in self.plan.omitted) or "nothing"), fontsize="small")
+        left_out = ", ".join(e.effect for e in self.plan.omitted) or "nothing"  # several lines when long
+        ax.set_title(textwrap.fill(f"{self.scene}: reduced model left out {left_out}", TITLE_CHARS), fontsize="small")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize="small")
         return ax

@@ -11,6 +11,7 @@ import numpy as np
 from ...core.angles import RAD_PER_DEG
 from ...drivetrain.elements import NeglectCriterion
 from ...display.cards import RichDisplay
+from ...display.legends import legend_beside
 from ...display.cards import card, esc, num
 from ...display.html import column
 from ...display.units import DisplayUnits
@@ -206,7 +207,7 @@ class StiffnessResult(RichDisplay):
         """Bar chart of compliance shares per point; returns the Axes."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(7, 3.5))
+            _, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
         bottom = np.zeros_like(self.total)
         labels = ([f"{p:+.1f} mm" for p in self.positions_mm] if self.linear
                   else [f"{a:+.0f} deg" for a in self.angles_deg])
@@ -215,7 +216,7 @@ class StiffnessResult(RichDisplay):
             bottom = bottom + s
         ax.set_ylabel("share of compliance [%]")
         ax.set_title("Series compliance at the output")
-        ax.legend(fontsize="small")
+        legend_beside(ax)  # the bars fill the axes to 100 %
         return ax
 
     def _repr_line(self) -> str:

@@ -290,7 +290,7 @@ class ToleranceResult(RichDisplay):
         figure with a ranking), with their intervals."""
         import matplotlib.pyplot as plt
         if ax is None:
-            _, ax = plt.subplots(figsize=(7, 3.6))
+            _, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
         ranked = [s for s in self.sensitivities if s.method != "none"]
         if not ranked:
             ax.text(0.5, 0.5, "no figure varies over the variants", ha="center", va="center",
