@@ -27,13 +27,10 @@ matplotlib.use("Agg")
 
 
 @pytest.fixture(scope="module")
-def ema():
-    return load_scene(SCENES / "ema_reference.toml")
-
-
-@pytest.fixture(scope="module")
-def designed(ema):
-    return design(ema, progress=False)
+def designed():
+    """(scene, design) of the reference EMA."""
+    scene = load_scene(SCENES / "ema_reference.toml")
+    return scene, design(scene, progress=False)
 
 
 PLOTS = {
@@ -55,9 +52,9 @@ PLOTS = {
 
 
 @pytest.mark.parametrize("kind", sorted(PLOTS))
-def test_a_saved_plot_keeps_its_texts_inside_and_its_legends_off_the_data(ema, designed, kind):
+def test_a_saved_plot_keeps_its_texts_inside_and_its_legends_off_the_data(designed, kind):
     import matplotlib.pyplot as plt
-    fig = np.ravel(PLOTS[kind](ema, designed).plot())[0].figure
+    fig = np.ravel(PLOTS[kind](*designed).plot())[0].figure
     try:
         assert layout_faults(fig) == []
         assert fig.get_layout_engine() is not None  # whatever size the figure is saved at
