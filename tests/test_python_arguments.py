@@ -86,6 +86,14 @@ def test_a_controller_of_another_type_is_named(ema):
     assert "got str" in rule
 
 
+def test_a_design_of_another_scene_is_named(ema, scenes_dir):
+    """Another actuator's design run on this one would mix two controllers' worth of physics."""
+    other = st.load_scene(scenes_dir / "linear_roller_screw_actuator.toml")
+    design = dataclasses.replace(st.design(ema[0], progress=False), controller=ema[1])
+    rule = _refused("controller", lambda: simulate(other, design, duration=0.01))
+    assert "designed for the scene 'ema_reference'" in rule
+
+
 def test_design_reads_a_scene_path_and_names_another_type(scenes_dir):
     path = scenes_dir / "ema_reference.toml"
     assert st.design(str(path), progress=False).scene_name == "ema_reference"

@@ -39,6 +39,9 @@ def test_low_frequency_study_leaves_out_the_compliance_within_its_bound(slow_swe
     assert res.measured <= res.bound
     assert 0.5 * res.plan.predicted <= res.measured <= 2.0 * res.plan.predicted
     assert res.to_dict()["within_bound"] is True
+    assert math.isnan(res.measured_saturated)  # no saturated point: no figure, written as null
+    strict = json.loads(json.dumps(res.to_dict(), allow_nan=False, default=str))
+    assert strict["measured_saturated_relative"] is None
     # no timing of one noisy run in any view (a reduced model once "ran slower" than the full one)
     for view in (res.table(), json.dumps(res.to_dict(), default=str), res._repr_html_(), repr(res)):
         assert not re.search(r"wall|\d s / \d", view), view[:200]

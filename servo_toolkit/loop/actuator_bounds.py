@@ -144,12 +144,12 @@ class ActuatorBounds:
             lsb = 2 * math.pi / self.counts
             text = (f"motor encoder {self.counts} counts/rev at {self.sample_time * 1e3:.3g} ms: its quantization "
                     f"(LSB {lsb:.3g} rad, variance LSB^2/12, differenced over one sample) reaches the current "
-                    f"through the speed gain {kv:.4g} A*s/rad as {self.quantization:.3g} A rms")
+                    f"through the speed gain {kv:.4g} A*s/rad (per motor rad/s) as {self.quantization:.3g} A rms")
             if self.quantization > self.allowance:
                 need = math.ceil(self.counts * self.quantization / self.allowance)
                 text += (f", over the {self.allowance:.3g} A allowance by {self.quantization - self.allowance:.3g} A: "
                          f"the encoder limits the speed-loop gain to {kv * self.allowance / self.quantization:.4g} "
-                         f"A*s/rad; {need} counts/rev (or a filtered speed estimate) would allow {kv:.4g}")
+                         f"A*s/rad (per motor rad/s); {need} counts/rev (or a filtered speed estimate) would allow {kv:.4g}")
             else:
                 text += f", within the {self.allowance:.3g} A allowance"
             out.append(text)
@@ -157,7 +157,7 @@ class ActuatorBounds:
         at = self.capped_from if self.capped_from is not None else kv
         if fs is not None and quantization_ripple(at, self.counts, self.sample_time) > self.allowance:
             out.append(f"a Kalman speed estimate ([sensors] speed_estimator = \"kalman\", jerk {fs.jerk:.3g} rad/s^3) "
-                       f"at the speed gain {at:.4g} A*s/rad would carry {fs.ripple:.3g} A rms of the quantization "
+                       f"at the speed gain {at:.4g} A*s/rad (per motor rad/s) would carry {fs.ripple:.3g} A rms of the quantization "
                        f"({'within' if fs.ripple <= self.allowance else 'over'} the {self.allowance:.3g} A allowance) "
                        f"at {abs(fs.extra_lag_deg):.3g} deg {'more' if fs.extra_lag_deg >= 0 else 'less'} phase lag than the "
                        f"difference at the speed loop's crossover ({fs.crossover_hz:.3g} Hz)")
@@ -174,7 +174,7 @@ class ActuatorBounds:
                         f"{self._show(lc.load_amplitude)}), costing {lc.current_rms:.3g} A rms")
                 if lc.current_rms > self.allowance:
                     text += (f", over the {self.allowance:.3g} A allowance: the play limits the speed-loop gain to "
-                             f"about {kv * self.allowance / lc.current_rms:.3g} A*s/rad; the current scales with the "
+                             f"about {kv * self.allowance / lc.current_rms:.3g} A*s/rad (per motor rad/s); the current scales with the "
                              f"play (a play of {self._show(2 * self.half_play * self.allowance / lc.current_rms)} "
                              "would meet it), and a position measured on the motor side takes the play out of the "
                              f"loop (no limit cycle, a position error up to +-{self._show(self.half_play)})")
@@ -184,7 +184,7 @@ class ActuatorBounds:
     def table(self) -> str:
         """Text rows for :meth:`DesignResult.table`."""
         rows = [f"  actuator bounds on the speed loop (allowance {self.allowance:.3g} A rms, {self.allowance_source}):",
-                f"    speed gain {self.speed_gain:.4g} A*s/rad; encoder ripple {self.quantization:.3g} A rms; "
+                f"    speed gain {self.speed_gain:.4g} A*s/rad per motor rad/s; encoder ripple {self.quantization:.3g} A rms; "
                 + ("no play limit cycle" if self.limit_cycle is None else
                    f"play limit cycle {self.limit_cycle.frequency_hz:.3g} Hz, {self.limit_cycle_current:.3g} A rms")
                 + f"; {'met' if self.met else 'NOT met'}"]

@@ -63,11 +63,13 @@ def with_feedforward(controller, feedforward, scene=None, *, shaper=None, schedu
     return with_command(controller, scene, feedforward=feedforward, shaper=shaper, schedule=schedule)
 
 
-def _controller_argument(controller):
-    """``simulate``'s controller: None, a CascadeController, or a DesignResult's."""
+def _controller_argument(controller, scene):
+    """``simulate``'s controller: None, a CascadeController, or a DesignResult's (made for
+    ``scene``: :meth:`~servo_toolkit.loop.result.DesignResult.require_scene`)."""
     if controller is None or isinstance(controller, CascadeController):
         return controller
     if isinstance(controller, DesignResult):
+        controller.require_scene(scene, "controller")
         return controller.controller
     raise SceneError("controller", f"expected a CascadeController (a design's .controller) or a DesignResult, "
                                    f"got {type(controller).__name__}")
@@ -123,7 +125,7 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
         than its period).
     """
     scene = as_scene(scene)
-    controller = _controller_argument(controller)
+    controller = _controller_argument(controller, scene)
     duration = argument_value(duration, "s", "duration")
     if not duration > 0:
         raise SceneError("duration", f"must be positive (got {duration:g} s)")

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core.json_text import nulls
 from ...core.output_units import OutputUnit
 from ...display.cards import RichDisplay, card, facts, num, svg, table
 from .choice import _db, _deg
@@ -43,9 +44,9 @@ class EffectCost:
     failed: int = 0
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
-        return {"effect": self.effect, "estimate_relative": self.estimate, "measured_relative": self.measured,
-                "measured_saturated_relative": self.measured_saturated, "failed_points": self.failed}
+        """JSON-ready (strict: a figure that does not exist is None)."""
+        return nulls({"effect": self.effect, "estimate_relative": self.estimate, "measured_relative": self.measured,
+                      "measured_saturated_relative": self.measured_saturated, "failed_points": self.failed})
 
 
 @dataclass(frozen=True, repr=False)
@@ -154,14 +155,14 @@ class ReductionResult(RichDisplay):
         return {True: "within", False: "NOT within", None: "not applicable"}[self.within_bound]
 
     def to_dict(self) -> dict:
-        """JSON-ready."""
+        """JSON-ready (strict: a figure that does not exist is None)."""
         def db(e):
             return 20 * math.log10(1 + e) if math.isfinite(e) else e
 
         def deg(e):
             return math.degrees(math.asin(min(e, 1.0))) if math.isfinite(e) else e
         u = OutputUnit(self.output_unit)
-        return {"scene": self.scene, "study": self.study, "measure": self.measure,
+        return nulls({"scene": self.scene, "study": self.study, "measure": self.measure,
                 **self.plan.to_dict(),
                 "bound_relative": self.bound, "measured_relative": self.measured,
                 "measured_dB": db(self.measured), "measured_deg": deg(self.measured),
@@ -177,7 +178,7 @@ class ReductionResult(RichDisplay):
                            for i, a in enumerate(self.amplitudes_rad) for k, f in enumerate(self.frequencies_hz)],
                 "full_options": self.full_options, "reduced_options": self.reduced_options,
                 "per_effect": [c.to_dict() for c in self.per_effect],
-                "notes": list(self.notes)}
+                "notes": list(self.notes)})
 
     def _failure(self, i: int, k: int):
         """Why point (amplitude i, frequency k) failed, or None."""
