@@ -56,9 +56,10 @@ TYPICAL = {"resistance": (1e-3, 200.0), "torque_constant": (1e-3, 10.0), "back_e
 
 #: each field's SI unit and sign rule (:func:`~servo_toolkit.core.fields.check_rule`), checked
 #: however a motor is made (the scene file, ``dataclasses.replace``); the file's stricter
-#: rules (a rotor inertia above 0, plausible magnitudes, Kt = Ke) are the loader's
+#: rules (a rotor inertia and a back EMF above 0, plausible magnitudes, Kt = Ke) are the
+#: loader's (a model may leave the back EMF out, as the chain's modal tests do)
 FIELD_RULES = {"resistance": ("ohm", "positive"), "inductance": ("H", "nonnegative"),
-               "torque_constant": ("N*m/A", "positive"), "back_emf_constant": ("V*s/rad", "positive"),
+               "torque_constant": ("N*m/A", "positive"), "back_emf_constant": ("V*s/rad", "nonnegative"),
                "rotor_inertia": ("kg*m^2", "nonnegative"), "viscous_friction": ("N*m*s/rad", "nonnegative"),
                "coulomb_friction": ("N*m", "nonnegative"), "voltage_limit": ("V", "limit"),
                "current_limit": ("A", "limit"), "static_friction": ("N*m", "nonnegative"),
