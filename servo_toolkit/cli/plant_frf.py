@@ -93,8 +93,8 @@ def plant_response(path):
 
 
 def settle_plant_frf(args):
-    """The measured response ``--plant-frf`` names (:func:`read_plant_frf`; None without one),
-    with ``args.plant_frf_signal`` settled: the option's signal, else the one the file
+    """The measured response ``--plant-frf`` names (:func:`plant_response`; None without one),
+    kept in ``args.plant_frf_response``, with ``args.plant_frf_signal`` settled: the option's signal, else the one the file
     records (``# signal: NAME``), else :data:`DEFAULT_SIGNAL`. An option that names another
     signal than the file records is one SceneError naming ``--plant-frf-signal``."""
     if not getattr(args, "plant_frf", None):
@@ -106,7 +106,14 @@ def settle_plant_frf(args):
                          "(its '# signal:' line, as frf -o writes it): leave the option out, or estimate the "
                          "response to the signal named")
     args.plant_frf_signal = named or recorded or DEFAULT_SIGNAL
+    args.plant_frf_response = data  # read once: the mode, the check and the report take it from here
     return data
+
+
+def _settled(args):
+    """The response :func:`settle_plant_frf` read (read and settled now when it has not run)."""
+    data = getattr(args, "plant_frf_response", None)
+    return data if data is not None else settle_plant_frf(args)
 
 
 def measured_mode_of(args):
@@ -116,9 +123,9 @@ def measured_mode_of(args):
         return None
     from ..loop.measured import POOR_COHERENCE, SIGNALS
     from ..loop.measured_mode import find_mode
+    data = _settled(args)
     if args.plant_frf_signal not in SIGNALS:
         return None  # named by measured_loop's own error, after the design
-    data = plant_response(args.plant_frf)
     return find_mode(data.frequency_hz, data.complex, data.coherence, args.plant_frf_signal, POOR_COHERENCE)
 
 
@@ -130,7 +137,7 @@ def plant_frf_check(args, scene, result, rows: bool = True):
 
     from ..loop.measured import measured_loop
     from ..studies.gate import measured_rows
-    data = plant_response(args.plant_frf)
+    data = _settled(args)
     f_req = next((c.required for c in result.requirements if c.name == "bandwidth"), None)
     m = measured_loop(result, scene.motor, data.frequency_hz, data.complex, data.coherence,
                       signal=args.plant_frf_signal, source=str(args.plant_frf), required_bandwidth_hz=f_req,

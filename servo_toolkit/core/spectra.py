@@ -22,7 +22,6 @@ periodic input.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,8 +107,9 @@ def leakage_lines(suu) -> np.ndarray:
     ``j`` it shows at with power ``P_j`` (:func:`hann_leakage` ``W``: the tone lies within half
     a line of ``j`` and its own power is at most ``P_j / W(1/2)``, Hann's scalloping), and the
     segments' leftover mean (the DC line, a source exactly on its line, whose one-sided
-    density is not doubled) ``2 P_0 W(d)`` on line ``d``. A line at or below that (within :data:`LEAKAGE_MARGIN`) holds the stronger one's
-    leakage: its H1 is that one's response, not one at its own frequency. A broadband input
+    density is not doubled) ``2 P_0 W(d)`` on line ``d``. A line at or below that (within
+    :data:`LEAKAGE_MARGIN`) holds the stronger one's leakage: its H1 is that one's response,
+    not one at its own frequency. A broadband input
     (noise, a chirp) has no line that far below another two lines off: nothing is dropped
     there."""
     p = np.asarray(suu, float)

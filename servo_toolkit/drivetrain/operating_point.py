@@ -50,10 +50,8 @@ def checked_q0(scene, q0, key: str = "q0") -> float:
     periodic), else one SceneError naming ``key`` (a bare number is rad: ``q0 = 10`` is 573
     deg, most likely a slip for 10 deg)."""
     drive = scene.drivetrain
-    value = argument_value(q0, drive.output_unit, key)
     unit = drive.output_unit
-    if not math.isfinite(value):
-        raise SceneError(key, f"must be a finite operating point (got {value:g})")
+    value = argument_value(q0, unit, key)  # a finite float (a Quantity converted), else one SceneError
     lo, hi = drive.stroke
     if drive.ends_in_cam or lo - 1e-9 * (hi - lo) <= value <= hi + 1e-9 * (hi - lo):
         return value

@@ -88,10 +88,10 @@ class FrequencyData(RichDisplay):
     @property
     def resolution_sd(self) -> np.ndarray | None:
         """The resolution's standard deviation of ``ln H`` at each point, nepers of magnitude
-        and rad of phase alike (``resolution_db`` over 20 / ln 10); None: none known."""
+        and rad of phase alike (``resolution_db`` over :data:`DB_PER_NEPER`); None: none known."""
         if self.resolution_db is None:
             return None
-        return np.asarray(self.resolution_db, float) * math.log(10.0) / 20.0
+        return np.asarray(self.resolution_db, float) / DB_PER_NEPER
 
     @property
     def complex(self) -> np.ndarray:
