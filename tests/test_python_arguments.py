@@ -155,3 +155,42 @@ def test_a_motor_field_takes_a_quantity(ema):
     motor = dataclasses.replace(ema[0].motor, resistance=2 * UREG.kohm, rotor_inertia=2 * UREG.g * UREG.cm ** 2)
     assert (motor.resistance, motor.rotor_inertia) == pytest.approx((2000.0, 2e-7))
     assert dataclasses.replace(ema[0].motor, voltage_limit=math.inf).voltage_limit == math.inf
+
+
+#: (stage index in the reference EMA, its class's name, field, bad value)
+STAGE_MISUSES = [(0, "GearTrain", "efficiency", 1.5), (0, "GearTrain", "ratio", 0.0),
+                 (0, "GearTrain", "backlash", -1e-3), (0, "GearTrain", "torsional_stiffness", -5.0),
+                 (1, "BallScrew", "lead", "5 mm"), (1, "BallScrew", "nut_mass", math.nan),
+                 (1, "BallScrew", "axial_stiffness", 1 * UREG.N),
+                 (2, "RockerLinkage", "arm_length", -0.1), (2, "RockerLinkage", "efficiency", 0.0),
+                 (3, "Compliance", "stiffness", math.inf), (3, "Compliance", "damping_ratio", -0.1)]
+
+
+@pytest.mark.parametrize("index, name, field, value", STAGE_MISUSES)
+def test_replacing_a_stage_field_meets_the_scene_file_s_rule(ema, index, name, field, value):
+    stage = ema[0].stages[index]
+    assert type(stage).__name__ == name
+    _refused(f"{name}.{field}", lambda: dataclasses.replace(stage, **{field: value}))
+
+
+def test_a_stage_field_takes_a_quantity_and_a_gear_s_inertias_each_meet_the_rule(ema):
+    gear, screw = ema[0].stages[:2]
+    assert dataclasses.replace(screw, lead=4 * UREG.mm).lead == pytest.approx(4e-3)
+    assert dataclasses.replace(gear, backlash=0.2 * UREG.deg).backlash == pytest.approx(math.radians(0.2))
+    assert dataclasses.replace(gear, inertias=[1e-5, 2e-5]).inertias == (1e-5, 2e-5)
+    _refused("GearTrain.inertias[1]", lambda: dataclasses.replace(gear, inertias=(1e-5, -2e-5)))
+    _refused("BallScrew.stroke_range", lambda: dataclasses.replace(screw, stroke_range=(0.1, 0.0)))
+
+
+@pytest.mark.parametrize("field, value", [("inertia", -1.0), ("inertia", "2 kg*m^2"), ("damping", math.inf),
+                                          ("coulomb_friction", -0.5), ("static_friction", 0.0)])
+def test_replacing_a_load_field_meets_the_scene_file_s_rule(ema, field, value):
+    load = dataclasses.replace(ema[0].load, coulomb_friction=1.0)
+    _refused(f"load.{field}", lambda: dataclasses.replace(load, **{field: value}))
+
+
+def test_a_load_field_takes_a_quantity_of_a_shaft_or_a_travel(ema):
+    load = ema[0].load
+    assert dataclasses.replace(load, inertia=3 * UREG.kg * UREG.m ** 2).inertia == pytest.approx(3.0)
+    assert dataclasses.replace(load, inertia=3 * UREG.g).inertia == pytest.approx(3e-3)  # a carriage's mass
+    _refused("load.inertia", lambda: dataclasses.replace(load, inertia=3 * UREG.N))

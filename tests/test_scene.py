@@ -97,12 +97,17 @@ def test_printed_platform_inertia_is_rejected():
 
 
 def test_indefinite_drivetrain_inertia_is_rejected(ema_dict):
-    # Components refuse negative inertias on their own; the drivetrain check is the last
-    # line of defence for descriptions built in code (here a negative load inertia).
+    # Components refuse negative inertias on their own, however they are made; the
+    # drivetrain check is the last line of defence for a description whose field was set
+    # behind the dataclass's back (here a negative load inertia).
     from dataclasses import replace
 
     scene = build(ema_dict)
-    bad = replace(scene, load=replace(scene.load, inertia=-100.0))
+    with pytest.raises(SceneError, match="load.inertia: must not be negative"):
+        replace(scene.load, inertia=-100.0)
+    load = replace(scene.load)
+    object.__setattr__(load, "inertia", -100.0)
+    bad = replace(scene, load=load)
     with pytest.raises(SceneError, match="indefinite"):
         bad.drivetrain.check()
 

@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio, read_stroke,
-                   screw_backdrive_efficiency)
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, read_damping_ratio,
+                   read_stroke, screw_backdrive_efficiency)
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,19 @@ class BallScrew(Stage):
     damping_ratio: float | None = None
     stroke_range: tuple | None = None
 
+    #: each field's SI unit and rule (:func:`~servo_toolkit.components.base.check_fields`),
+    #: checked however the stage is made
+    FIELD_RULES = {"lead": ("m/turn", "positive"), "screw_inertia": ("kg*m^2", "nonnegative"),
+                   "nut_mass": ("kg", "nonnegative"), "efficiency": ("dimensionless", "efficiency"),
+                   "axial_stiffness": ("N/m", "limit"), "backlash": ("m", "nonnegative"),
+                   "dynamic_load_rating": ("N", "positive"), "bearing_dynamic_load_rating": ("N", "positive"),
+                   "damping_ratio": ("dimensionless", "nonnegative"), "stroke_range": ("m", "stroke")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "BallScrew")
+        require(self.bearing_kind in ("ball", "roller"), "BallScrew.bearing_kind",
+                f"must be 'ball' or 'roller' (got {self.bearing_kind!r})")
+
     @property
     def stroke(self):
         return self.stroke_range
@@ -96,13 +109,15 @@ class BallScrew(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "BallScrew":
         """Build from a ``[[drivetrain]]`` table of kind ``ball_screw``."""
+        stiffness = f.quantity("axial_stiffness", "N/m", math.inf)
+        require(stiffness > 0, f.key("axial_stiffness"), "must be positive")
         stage = cls(
             name=f.text("name", "ball screw"),
             lead=f.quantity("lead", "m/turn", rule="positive", typical=(1e-4, 0.1)),
             screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
             nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
-            axial_stiffness=f.quantity("axial_stiffness", "N/m", math.inf),
+            axial_stiffness=stiffness,
             backlash=f.quantity("backlash", "m", 0.0, rule="nonnegative"),
             dynamic_load_rating=(f.quantity("dynamic_load_rating", "N", rule="positive")
                                  if f.has("dynamic_load_rating") else None),
@@ -113,7 +128,5 @@ class BallScrew(Stage):
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.axial_stiffness,
                                                                 f.key("axial_stiffness")))
-        require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
-        require(stage.axial_stiffness > 0, f.key("axial_stiffness"), "must be positive")
         f.check_unknown()
         return stage

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.fields import require
+from ..core.fields import field_value, require
 
 #: efficiencies the loss models are conditioned for: below 1 % a stage's loss torque dwarfs
 #: what it transmits and the lumped chain becomes singular
@@ -44,6 +44,41 @@ def read_stroke(f, unit: str, what: str):
     require(len(stroke) == 2 and stroke[0] < stroke[1], f.key("stroke"),
             f"must be [lowest, highest] {what} with lowest < highest")
     return stroke
+
+
+def check_fields(component, rules: dict, prefix: str) -> None:
+    """Check and convert, in place, the fields of a frozen ``component`` that ``rules`` names
+    (``{field: (unit, rule)}``), however it was made (the scene file, ``dataclasses.replace``,
+    a constructor call): each value a real number in SI or a pint Quantity (converted, a tuple
+    of units: the first its dimension fits), a tuple field element by element; ``rule`` as
+    :func:`~servo_toolkit.core.fields.check_rule`, or ``"efficiency"`` (within
+    :data:`EFFICIENCY_RANGE`) or ``"stroke"`` (two finite ends, lowest < highest). A field
+    that is None (not given) is left as it is. SceneError naming ``prefix.field``."""
+    for name, (unit, rule) in rules.items():
+        value = getattr(component, name)
+        if value is None:
+            continue
+        key = f"{prefix}.{name}"
+        if isinstance(value, (tuple, list)):
+            each = "finite" if rule == "stroke" else rule
+            value = tuple(field_value(v, unit, each, f"{key}[{i}]") for i, v in enumerate(value))
+            require(rule != "stroke" or len(value) == 2 and value[0] < value[1], key,
+                    f"must be (lowest, highest) with lowest < highest (got {value})")
+        elif rule == "efficiency":
+            value = field_value(value, unit, "positive", key)
+            low, high = EFFICIENCY_RANGE
+            require(low <= value <= high, key, f"must be within [{low:g}, {high:g}] (got {value:g})")
+        else:
+            value = field_value(value, unit, rule, key)
+        object.__setattr__(component, name, value)
+
+
+def check_breakaway(friction, key: str) -> None:
+    """SceneError naming ``key`` unless ``friction``'s breakaway level (its
+    ``static_friction``, or its ``coulomb_friction`` where none is given) is at least its
+    Coulomb level."""
+    require(friction.breakaway >= friction.coulomb_friction, key,
+            f"must be at least the coulomb_friction {friction.coulomb_friction:g} (got {friction.breakaway:g})")
 
 
 @dataclass(frozen=True)

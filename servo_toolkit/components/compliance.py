@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from ..core.fields import Fields, require
-from .base import DAMPING_RATIO_RANGE, Jet, Spring, Stage
+from .base import DAMPING_RATIO_RANGE, Jet, Spring, Stage, check_breakaway, check_fields
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,13 @@ class Compliance(Stage):
     stiffness: float
     at: str = "output"
     damping_ratio: float | None = None
+
+    #: each field's SI unit (at a shaft, at a travel) and rule
+    #: (:func:`~servo_toolkit.components.base.check_fields`)
+    FIELD_RULES = {"stiffness": (("N*m/rad", "N/m"), "positive"), "damping_ratio": ("dimensionless", "nonnegative")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "Compliance")
 
     def map(self, z) -> Jet:
         return Jet.linear(z, 1.0)
@@ -84,6 +91,18 @@ class Load:
     static_friction: float | None = None
     stribeck_speed: float = 0.0
 
+    #: each field's SI unit (an output angle, an output travel) and rule
+    #: (:func:`~servo_toolkit.components.base.check_fields`)
+    FIELD_RULES = {"inertia": (("kg*m^2", "kg"), "nonnegative"), "hinge_moment": (("N*m", "N"), "finite"),
+                   "hinge_stiffness": (("N*m/rad", "N/m"), "finite"),
+                   "damping": (("N*m*s/rad", "N*s/m"), "nonnegative"),
+                   "coulomb_friction": (("N*m", "N"), "nonnegative"), "static_friction": (("N*m", "N"), "nonnegative"),
+                   "stribeck_speed": (("rad/s", "m/s"), "nonnegative")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "load")
+        check_breakaway(self, "load.static_friction")
+
     @property
     def breakaway(self) -> float:
         """Ts: the static friction, or the Coulomb friction where none is given."""
@@ -96,18 +115,19 @@ class Load:
         units = (("kg", "N", "N/m", "N*s/m", "m/s") if linear else
                  ("kg*m^2", "N*m", "N*m/rad", "N*m*s/rad", "rad/s"))
         typical = (1e-3, 1e5, "g") if linear else (1e-7, 1e4, "g*cm^2")  # a carriage's mass, a load's inertia
-        load = cls(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative", typical=typical),
-                   hinge_moment=f.quantity("hinge_moment", units[1], 0.0, rule="finite"),
-                   hinge_stiffness=f.quantity("hinge_stiffness", units[2], 0.0, rule="finite"),
-                   damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"),
-                   coulomb_friction=f.quantity("coulomb_friction", units[1], 0.0, rule="nonnegative"),
-                   static_friction=(f.quantity("static_friction", units[1], rule="nonnegative")
-                                    if f.has("static_friction") else None),
-                   stribeck_speed=f.quantity("stribeck_speed", units[4], 0.0, rule="nonnegative"))
-        require(math.isfinite(load.inertia), f.key("inertia"), "must be finite")
-        for key in ("coulomb_friction", "stribeck_speed"):
-            require(math.isfinite(getattr(load, key)), f.key(key), "must be finite")
-        require(math.isfinite(load.breakaway) and load.breakaway >= load.coulomb_friction, f.key("static_friction"),
-                f"must be finite and at least the coulomb_friction {load.coulomb_friction:g} (got {load.breakaway:g})")
+        values = dict(inertia=f.quantity("inertia", units[0], 0.0, rule="nonnegative", typical=typical),
+                      hinge_moment=f.quantity("hinge_moment", units[1], 0.0, rule="finite"),
+                      hinge_stiffness=f.quantity("hinge_stiffness", units[2], 0.0, rule="finite"),
+                      damping=f.quantity("damping", units[3], 0.0, rule="nonnegative"),
+                      coulomb_friction=f.quantity("coulomb_friction", units[1], 0.0, rule="nonnegative"),
+                      static_friction=(f.quantity("static_friction", units[1], rule="nonnegative")
+                                       if f.has("static_friction") else None),
+                      stribeck_speed=f.quantity("stribeck_speed", units[4], 0.0, rule="nonnegative"))
+        for key in ("inertia", "coulomb_friction", "stribeck_speed"):
+            require(math.isfinite(values[key]), f.key(key), "must be finite")
+        coulomb = values["coulomb_friction"]
+        breakaway = coulomb if values["static_friction"] is None else values["static_friction"]
+        require(math.isfinite(breakaway) and breakaway >= coulomb, f.key("static_friction"),
+                f"must be finite and at least the coulomb_friction {coulomb:g} (got {breakaway:g})")
         f.check_unknown()
-        return load
+        return cls(**values)

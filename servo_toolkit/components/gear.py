@@ -7,7 +7,8 @@ from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
 from ..core.angles import DEG_PER_RAD
-from .base import EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, read_damping_ratio, read_stroke
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, read_damping_ratio,
+                   read_stroke)
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,16 @@ class GearTrain(Stage):
     backlash: float = 0.0
     damping_ratio: float | None = None
     stroke_range: tuple | None = None
+
+    #: each field's SI unit and rule (:func:`~servo_toolkit.components.base.check_fields`),
+    #: checked however the stage is made
+    FIELD_RULES = {"ratio": ("dimensionless", "positive"), "inertias": ("kg*m^2", "nonnegative"),
+                   "efficiency": ("dimensionless", "efficiency"), "torsional_stiffness": ("N*m/rad", "limit"),
+                   "backlash": ("rad", "nonnegative"), "damping_ratio": ("dimensionless", "nonnegative"),
+                   "stroke_range": ("rad", "stroke")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "GearTrain")
 
     @property
     def stroke(self):
@@ -102,16 +113,16 @@ class GearTrain(Stage):
                     f"give one inertia per gear ({len(teeth)}), got {len(inertias)}")
         else:
             require(len(inertias) <= 2, f.key("inertia"), "with a ratio only, give at most [input, output]")
+        stiffness = f.quantity("torsional_stiffness", "N*m/rad", math.inf)
+        require(stiffness > 0, f.key("torsional_stiffness"), "must be positive")
         stage = cls(
             name=f.text("name", "gear train"), ratio=ratio, teeth=teeth, inertias=inertias,
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
-            torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
+            torsional_stiffness=stiffness,
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
             stroke_range=read_stroke(f, "rad", "output angle"),
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.torsional_stiffness,
                                                                 f.key("torsional_stiffness")))
-        require(stage.efficiency <= 1, f.key("efficiency"), "must be in (0, 1]")
-        require(stage.torsional_stiffness > 0, f.key("torsional_stiffness"), "must be positive")
         f.check_unknown()
         return stage

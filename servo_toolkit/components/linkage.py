@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.fields import Fields, require
-from .base import Element, Jet, Spring, Stage, read_damping_ratio
+from .base import Element, Jet, Spring, Stage, check_fields, read_damping_ratio
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,17 @@ class RockerLinkage(Stage):
     stroke_range: tuple = (-math.pi / 6, math.pi / 6)
     efficiency: float = 1.0
     damping_ratio: float | None = None
+
+    #: each field's SI unit and rule (:func:`~servo_toolkit.components.base.check_fields`),
+    #: checked however the stage is made
+    FIELD_RULES = {"arm_length": ("m", "positive"), "rod_length": ("m", "positive"), "rod_offset": ("m", "finite"),
+                   "rod_mass": ("kg", "nonnegative"), "output_shaft_mass": ("kg", "nonnegative"),
+                   "output_shaft_inertia": ("kg*m^2", "nonnegative"), "rod_axial_stiffness": ("N/m", "limit"),
+                   "stroke_range": ("rad", "stroke"), "efficiency": ("dimensionless", "efficiency"),
+                   "damping_ratio": ("dimensionless", "nonnegative")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "RockerLinkage")
 
     @property
     def stroke(self):
@@ -115,6 +126,8 @@ class RockerLinkage(Stage):
                 "each end must lie within (-180, 180) deg of the arm's reference position")
         require(len(stroke) == 2 and stroke[0] < stroke[1], f.key("stroke"),
                 "must be [min, max] with min < max")
+        stiffness = f.quantity("rod_axial_stiffness", "N/m", math.inf)
+        require(stiffness > 0, f.key("rod_axial_stiffness"), "must be positive")
         stage = cls(
             name=f.text("name", "rocker linkage"),
             arm_length=f.quantity("arm_length", "m", rule="positive"),
@@ -123,12 +136,11 @@ class RockerLinkage(Stage):
             rod_mass=f.quantity("rod_mass", "kg", 0.0, rule="nonnegative"),
             output_shaft_mass=f.quantity("output_shaft_mass", "kg", 0.0, rule="nonnegative"),
             output_shaft_inertia=f.quantity("output_shaft_inertia", "kg*m^2", 0.0, rule="nonnegative"),
-            rod_axial_stiffness=f.quantity("rod_axial_stiffness", "N/m", math.inf),
+            rod_axial_stiffness=stiffness,
             stroke_range=tuple(stroke),
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.rod_axial_stiffness,
                                                                 f.key("rod_axial_stiffness")))
-        require(stage.rod_axial_stiffness > 0, f.key("rod_axial_stiffness"), "must be positive")
         phi = np.linspace(stroke[0], stroke[1], 721)
         w, _, _ = stage._w(phi)
         need = float(np.max(np.abs(w)))

@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 from ..core.fields import require
+from .base import check_breakaway, check_fields
 
 #: the scene keys of a stage's friction
 KEYS = ("coulomb_friction", "static_friction", "stribeck_speed", "viscous_friction")
@@ -34,6 +35,16 @@ class StageFriction:
     stribeck_speed: float = 0.0
     viscous_friction: float = 0.0
 
+    #: each field's SI unit (at a shaft, at a travel) and rule
+    #: (:func:`~servo_toolkit.components.base.check_fields`)
+    FIELD_RULES = {"coulomb_friction": (("N*m", "N"), "nonnegative"), "static_friction": (("N*m", "N"), "nonnegative"),
+                   "stribeck_speed": (("rad/s", "m/s"), "nonnegative"),
+                   "viscous_friction": (("N*m*s/rad", "N*s/m"), "nonnegative")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "StageFriction")
+        check_breakaway(self, "StageFriction.static_friction")
+
     @property
     def breakaway(self) -> float:
         """Ts: the static friction, or the Coulomb friction where none is given."""
@@ -44,16 +55,19 @@ class StageFriction:
         """The friction keys of a ``[[drivetrain]]`` table (None when it gives none);
         ``travel``: the stage's output is a travel (N, m/s, N*s/m), else a shaft angle."""
         units = ("N", "m/s", "N*s/m") if travel else ("N*m", "rad/s", "N*m*s/rad")
-        fr = cls(coulomb_friction=f.quantity("coulomb_friction", units[0], 0.0, rule="nonnegative"),
-                 static_friction=(f.quantity("static_friction", units[0], rule="nonnegative")
-                                  if f.has("static_friction") else None),
-                 stribeck_speed=f.quantity("stribeck_speed", units[1], 0.0, rule="nonnegative"),
-                 viscous_friction=f.quantity("viscous_friction", units[2], 0.0, rule="nonnegative"))
+        values = dict(coulomb_friction=f.quantity("coulomb_friction", units[0], 0.0, rule="nonnegative"),
+                      static_friction=(f.quantity("static_friction", units[0], rule="nonnegative")
+                                       if f.has("static_friction") else None),
+                      stribeck_speed=f.quantity("stribeck_speed", units[1], 0.0, rule="nonnegative"),
+                      viscous_friction=f.quantity("viscous_friction", units[2], 0.0, rule="nonnegative"))
         for key in ("coulomb_friction", "stribeck_speed", "viscous_friction"):
-            require(math.isfinite(getattr(fr, key)), f.key(key), "must be finite")
-        require(math.isfinite(fr.breakaway) and fr.breakaway >= fr.coulomb_friction, f.key("static_friction"),
-                f"must be finite and at least the coulomb_friction {fr.coulomb_friction:g} {units[0]} "
-                f"(got {fr.breakaway:g} {units[0]})")
+            require(math.isfinite(values[key]), f.key(key), "must be finite")
+        coulomb = values["coulomb_friction"]
+        breakaway = coulomb if values["static_friction"] is None else values["static_friction"]
+        require(math.isfinite(breakaway) and breakaway >= coulomb, f.key("static_friction"),
+                f"must be finite and at least the coulomb_friction {coulomb:g} {units[0]} "
+                f"(got {breakaway:g} {units[0]})")
+        fr = cls(**values)
         return None if fr == cls() else fr
 
 

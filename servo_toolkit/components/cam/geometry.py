@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.fields import Fields, require
-from ..base import Element, Jet, Lash, Stage
+from ..base import Element, Jet, Lash, Stage, check_fields
 
 LAWS = ("modified_constant_velocity",)
 
@@ -86,6 +86,20 @@ class Cam(Stage):
     clearance: float = 0.0
     law: str = "modified_constant_velocity"
     base_radius: float = 0.0
+
+    #: each field's SI unit and rule (:func:`~servo_toolkit.components.base.check_fields`),
+    #: checked however the cam is made
+    FIELD_RULES = {"profile_constant": ("m", "positive"), "follower_mass": ("kg", "nonnegative"),
+                   "follower_weight": ("N", "nonnegative"),
+                   "guide_friction_coefficient": ("dimensionless", "nonnegative"),
+                   "gravity_tilt": ("rad", "finite"), "gravity_heading": ("rad", "finite"),
+                   "clearance": ("m", "nonnegative"), "base_radius": ("m", "nonnegative")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "Cam")
+        require(self.guide_friction_coefficient < 1, "Cam.guide_friction_coefficient",
+                f"must be below 1 (got {self.guide_friction_coefficient:g})")
+        require(self.law in LAWS, "Cam.law", f"must be one of {', '.join(LAWS)} (got {self.law!r})")
     direction = "forward"
 
     @property
@@ -118,18 +132,19 @@ class Cam(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "Cam":
         """Build from a ``[[drivetrain]]`` table of kind ``cam``."""
+        mu = f.number("guide_friction_coefficient", 0.0, rule="nonnegative")
+        require(mu < 1, f.key("guide_friction_coefficient"), "must be below 1")
         cam = cls(
             name=f.text("name", "cam"),
             law=f.text("law", LAWS[0], choices=set(LAWS)),
             profile_constant=f.quantity("profile_constant", "m", rule="positive"),
             follower_mass=f.quantity("follower_mass", "kg", rule="nonnegative"),
             follower_weight=f.quantity("follower_weight", "N", 0.0, rule="nonnegative"),
-            guide_friction_coefficient=f.number("guide_friction_coefficient", 0.0, rule="nonnegative"),
+            guide_friction_coefficient=mu,
             gravity_tilt=f.quantity("gravity_tilt", "rad", 0.0, rule="finite"),
             gravity_heading=f.quantity("gravity_heading", "rad", 0.0, rule="finite"),
             clearance=f.quantity("clearance", "m", 0.0, rule="nonnegative"),
             base_radius=f.quantity("base_radius", "m", 0.0, rule="nonnegative"),
         )
-        require(cam.guide_friction_coefficient < 1, f.key("guide_friction_coefficient"), "must be below 1")
         f.check_unknown()
         return cam

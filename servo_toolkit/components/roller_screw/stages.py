@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.fields import Fields, require
-from ..base import EFFICIENCY_RANGE, Element, Jet, Stage, read_stroke, screw_backdrive_efficiency
+from ..base import EFFICIENCY_RANGE, Element, Jet, Stage, check_fields, read_stroke, screw_backdrive_efficiency
 
 
 @dataclass(frozen=True)
@@ -287,6 +287,19 @@ class RollerScrew(Stage):
     static_load_rating: float | None = None
     bearing_dynamic_load_rating: float | None = None
     bearing_kind: str = "ball"
+
+    #: each field's SI unit and rule (:func:`~servo_toolkit.components.base.check_fields`),
+    #: checked however the screw is made
+    FIELD_RULES = {"efficiency": ("dimensionless", "efficiency"), "stroke_range": ("m", "stroke"),
+                   "dynamic_load_rating": ("N", "positive"), "static_load_rating": ("N", "positive"),
+                   "bearing_dynamic_load_rating": ("N", "positive")}
+
+    def __post_init__(self):
+        check_fields(self, self.FIELD_RULES, "RollerScrew")
+        for name in ("roller_screw_friction", "screw_screw_friction", "nut_screw_friction"):
+            _coefficient(getattr(self, name), f"RollerScrew.{name}")
+        require(self.bearing_kind in ("ball", "roller"), "RollerScrew.bearing_kind",
+                f"must be 'ball' or 'roller' (got {self.bearing_kind!r})")
 
     @property
     def nut_mass(self) -> float:
