@@ -194,3 +194,10 @@ def test_a_load_field_takes_a_quantity_of_a_shaft_or_a_travel(ema):
     assert dataclasses.replace(load, inertia=3 * UREG.kg * UREG.m ** 2).inertia == pytest.approx(3.0)
     assert dataclasses.replace(load, inertia=3 * UREG.g).inertia == pytest.approx(3e-3)  # a carriage's mass
     _refused("load.inertia", lambda: dataclasses.replace(load, inertia=3 * UREG.N))
+
+
+@pytest.mark.parametrize("field, value, words", [("rod_length", 1e-3, "rod too short"),
+                                                 ("stroke_range", (-3.3, 0.0), "(-180, 180) deg"),
+                                                 ("stroke_range", (-1.4, 1.4), "dead point")])
+def test_replacing_a_linkage_field_meets_its_geometry_s_rule(ema, field, value, words):
+    assert words in _refused(f"RockerLinkage.{field}", lambda: dataclasses.replace(ema[0].stages[2], **{field: value}))

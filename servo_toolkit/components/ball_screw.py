@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
-from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, read_damping_ratio,
-                   read_stroke, screw_backdrive_efficiency)
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, made,
+                   read_damping_ratio, read_stroke, screw_backdrive_efficiency)
 
 
 @dataclass(frozen=True)
@@ -109,15 +109,14 @@ class BallScrew(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "BallScrew":
         """Build from a ``[[drivetrain]]`` table of kind ``ball_screw``."""
-        stiffness = f.quantity("axial_stiffness", "N/m", math.inf)
-        require(stiffness > 0, f.key("axial_stiffness"), "must be positive")
-        stage = cls(
+        stage = made(
+            cls, f,
             name=f.text("name", "ball screw"),
             lead=f.quantity("lead", "m/turn", rule="positive", typical=(1e-4, 0.1)),
             screw_inertia=f.quantity("screw_inertia", "kg*m^2", 0.0, rule="nonnegative"),
             nut_mass=f.quantity("nut_mass", "kg", 0.0, rule="nonnegative"),
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
-            axial_stiffness=stiffness,
+            axial_stiffness=f.quantity("axial_stiffness", "N/m", math.inf),
             backlash=f.quantity("backlash", "m", 0.0, rule="nonnegative"),
             dynamic_load_rating=(f.quantity("dynamic_load_rating", "N", rule="positive")
                                  if f.has("dynamic_load_rating") else None),

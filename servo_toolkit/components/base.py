@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.fields import field_value, require
+from ..errors import SceneError
 
 #: efficiencies the loss models are conditioned for: below 1 % a stage's loss torque dwarfs
 #: what it transmits and the lumped chain becomes singular
@@ -71,6 +72,22 @@ def check_fields(component, rules: dict, prefix: str) -> None:
         else:
             value = field_value(value, unit, rule, key)
         object.__setattr__(component, name, value)
+
+
+def made(cls, f, **fields):
+    """``cls(**fields)`` for a scene table read by ``f``: a rule the component's
+    ``__post_init__`` finds broken (named ``ClassName.field``) is named by the table's key
+    (``drivetrain[0].efficiency``; ``stroke_range`` is the key ``stroke``, ``inertias`` the
+    key ``inertia``)."""
+    try:
+        return cls(**fields)
+    except SceneError as exc:
+        prefix, _, field = exc.key.partition(".")
+        if prefix != cls.__name__:
+            raise
+        name, bracket, index = field.partition("[")
+        key = f.key({"stroke_range": "stroke", "inertias": "inertia"}.get(name, name))
+        raise SceneError(key + bracket + index, exc.rule) from None
 
 
 def check_breakaway(friction, key: str) -> None:

@@ -7,8 +7,8 @@ from dataclasses import dataclass, replace
 
 from ..core.fields import Fields, require
 from ..core.angles import DEG_PER_RAD
-from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, read_damping_ratio,
-                   read_stroke)
+from .base import (EFFICIENCY_RANGE, Element, Jet, Lash, Spring, Stage, check_fields, made,
+                   read_damping_ratio, read_stroke)
 
 
 @dataclass(frozen=True)
@@ -113,12 +113,10 @@ class GearTrain(Stage):
                     f"give one inertia per gear ({len(teeth)}), got {len(inertias)}")
         else:
             require(len(inertias) <= 2, f.key("inertia"), "with a ratio only, give at most [input, output]")
-        stiffness = f.quantity("torsional_stiffness", "N*m/rad", math.inf)
-        require(stiffness > 0, f.key("torsional_stiffness"), "must be positive")
-        stage = cls(
-            name=f.text("name", "gear train"), ratio=ratio, teeth=teeth, inertias=inertias,
+        stage = made(
+            cls, f, name=f.text("name", "gear train"), ratio=ratio, teeth=teeth, inertias=inertias,
             efficiency=f.number("efficiency", 1.0, rule="positive", bounds=EFFICIENCY_RANGE),
-            torsional_stiffness=stiffness,
+            torsional_stiffness=f.quantity("torsional_stiffness", "N*m/rad", math.inf),
             backlash=f.quantity("backlash", "rad", 0.0, rule="nonnegative"),
             stroke_range=read_stroke(f, "rad", "output angle"),
         )

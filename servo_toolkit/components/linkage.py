@@ -14,7 +14,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.fields import Fields, require
-from .base import Element, Jet, Spring, Stage, check_fields, read_damping_ratio
+from ..errors import SceneError
+from .base import Element, Jet, Spring, Stage, check_fields, made, read_damping_ratio
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,26 @@ class RockerLinkage(Stage):
 
     def __post_init__(self):
         check_fields(self, self.FIELD_RULES, "RockerLinkage")
+        broken = self.geometry_rule()
+        if broken is not None:
+            raise SceneError(f"RockerLinkage.{broken[0]}", broken[1])
+
+    def geometry_rule(self) -> tuple | None:
+        """``(field, rule)`` of the geometry's first broken rule, None when it holds: each
+        end of the stroke within (-180, 180) deg of the arm's reference position, a rod
+        longer than the stroke needs, no dead point inside the stroke."""
+        lo, hi = self.stroke_range
+        if not (abs(lo) < math.pi and abs(hi) < math.pi):
+            return "stroke_range", "each end must lie within (-180, 180) deg of the arm's reference position"
+        phi = np.linspace(lo, hi, 721)
+        w, _, _ = self._w(phi)
+        need = float(np.max(np.abs(w)))
+        if not self.rod_length > need * 1.0001:
+            return "rod_length", (f"rod too short for the geometry: the stroke needs l > |h - r cos(phi)| = "
+                                  f"{need * 1e3:.3f} mm (got {self.rod_length * 1e3:.3f} mm)")
+        if not bool(np.all(self.map(phi).d1 > 0)):
+            return "stroke_range", "the linkage passes a dead point (dx_A/dphi <= 0) inside the stroke"
+        return None
 
     @property
     def stroke(self):
@@ -122,13 +143,10 @@ class RockerLinkage(Stage):
     def from_table(cls, f: Fields) -> "RockerLinkage":
         """Build from a ``[[drivetrain]]`` table of kind ``rocker_linkage``."""
         stroke = f.quantity_list("stroke", "rad", (-math.pi / 6, math.pi / 6), rule="finite")
-        require(all(abs(x) < math.pi for x in stroke), f.key("stroke"),
-                "each end must lie within (-180, 180) deg of the arm's reference position")
         require(len(stroke) == 2 and stroke[0] < stroke[1], f.key("stroke"),
                 "must be [min, max] with min < max")
-        stiffness = f.quantity("rod_axial_stiffness", "N/m", math.inf)
-        require(stiffness > 0, f.key("rod_axial_stiffness"), "must be positive")
-        stage = cls(
+        stage = made(
+            cls, f,
             name=f.text("name", "rocker linkage"),
             arm_length=f.quantity("arm_length", "m", rule="positive"),
             rod_length=f.quantity("rod_length", "m", rule="positive"),
@@ -136,19 +154,10 @@ class RockerLinkage(Stage):
             rod_mass=f.quantity("rod_mass", "kg", 0.0, rule="nonnegative"),
             output_shaft_mass=f.quantity("output_shaft_mass", "kg", 0.0, rule="nonnegative"),
             output_shaft_inertia=f.quantity("output_shaft_inertia", "kg*m^2", 0.0, rule="nonnegative"),
-            rod_axial_stiffness=stiffness,
+            rod_axial_stiffness=f.quantity("rod_axial_stiffness", "N/m", math.inf),
             stroke_range=tuple(stroke),
         )
         stage = replace(stage, damping_ratio=read_damping_ratio(f, stage.rod_axial_stiffness,
                                                                 f.key("rod_axial_stiffness")))
-        phi = np.linspace(stroke[0], stroke[1], 721)
-        w, _, _ = stage._w(phi)
-        need = float(np.max(np.abs(w)))
-        require(stage.rod_length > need * 1.0001, f.key("rod_length"),
-                f"rod too short for the geometry: the stroke needs l > |h - r cos(phi)| = "
-                f"{need * 1e3:.3f} mm (got {stage.rod_length * 1e3:.3f} mm)")
-        ratio = stage.map(phi).d1
-        require(bool(np.all(ratio > 0)), f.key("stroke"),
-                "the linkage passes a dead point (dx_A/dphi <= 0) inside the stroke")
         f.check_unknown()
         return stage

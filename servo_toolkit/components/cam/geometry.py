@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.fields import Fields, require
-from ..base import Element, Jet, Lash, Stage, check_fields
+from ..base import Element, Jet, Lash, Stage, check_fields, made
 
 LAWS = ("modified_constant_velocity",)
 
@@ -132,15 +132,14 @@ class Cam(Stage):
     @classmethod
     def from_table(cls, f: Fields) -> "Cam":
         """Build from a ``[[drivetrain]]`` table of kind ``cam``."""
-        mu = f.number("guide_friction_coefficient", 0.0, rule="nonnegative")
-        require(mu < 1, f.key("guide_friction_coefficient"), "must be below 1")
-        cam = cls(
+        cam = made(
+            cls, f,
             name=f.text("name", "cam"),
             law=f.text("law", LAWS[0], choices=set(LAWS)),
             profile_constant=f.quantity("profile_constant", "m", rule="positive"),
             follower_mass=f.quantity("follower_mass", "kg", rule="nonnegative"),
             follower_weight=f.quantity("follower_weight", "N", 0.0, rule="nonnegative"),
-            guide_friction_coefficient=mu,
+            guide_friction_coefficient=f.number("guide_friction_coefficient", 0.0, rule="nonnegative"),
             gravity_tilt=f.quantity("gravity_tilt", "rad", 0.0, rule="finite"),
             gravity_heading=f.quantity("gravity_heading", "rad", 0.0, rule="finite"),
             clearance=f.quantity("clearance", "m", 0.0, rule="nonnegative"),
