@@ -16,6 +16,7 @@ from ..errors import SceneError
 from .blocks import blocks_of, tustin_to_continuous
 from .c_code import HEADER_NAME, SOURCE_NAME, header, source
 from .command import command_export
+from .position_count import position_count
 from .quantize import filter_shifts, quantize
 from .result import ExportResult
 from .sensitivity import coefficient_sensitivity
@@ -182,6 +183,8 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
         quantization already misses it). In either format, a design whose own closed loop is
         unstable is a failure (``result.failures`` says so first), and so is each requirement
         the design itself misses (:func:`requirement_failures`); the files are still written.
+        A fixed-point position count whose half reaches the error at rest or the limit cycle
+        that ``check`` requires is a failure too (:mod:`.position_count`).
     current_sample_time : float, optional
         Sample time (s) of the current PI; default: see :func:`.blocks.current_loop`.
     inputs : sequence of path
@@ -213,7 +216,10 @@ def export(design_result, scene, directory=None, *, fixed_point: str | None = No
                          sensitivity=coefficient_sensitivity(q, blocks.sample_time),
                          failures=result.failures + _failures(design_result, qdesign, reason)
                          + _lost_filters(shifts))
-        result = replace(result, failures=overflow_failures(q) + result.failures + resolution_failures(result))
+        count = position_count(q, scene, design_result)
+        result = replace(result, position_count=count,
+                         failures=overflow_failures(q) + result.failures + resolution_failures(result)
+                         + count.failures())
     command = command_export(design_result, scene, fixed_point)
     result = replace(result, command=None if command.empty else command)
     files = {"controller.json": to_json(result.controller_json()) + "\n",

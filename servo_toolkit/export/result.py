@@ -60,6 +60,9 @@ class ExportResult:
         the design, and the quantized loop, meet every requirement of the scene).
     bound_horizon_s : float
         Horizon of the stated fixed-point rounding bound.
+    position_count : PositionCount or None
+        The fixed-point position count against the error at rest and the limit cycle that
+        ``check`` requires (:mod:`.position_count`; None in floating point).
     command : CommandExport or None
         The controller's feedforward gains, gain schedule and command shaper as exported
         (:mod:`.command`; None when it has none).
@@ -78,6 +81,7 @@ class ExportResult:
     failures: tuple = ()
     bound_horizon_s: float = 0.1
     command: object = None
+    position_count: object = None
 
     @property
     def passed(self) -> bool:
@@ -111,6 +115,7 @@ class ExportResult:
                                 "bandwidth_hz": m.bandwidth_hz,
                                 "requirements": {c.name: c.to_dict() for c in qd.requirements},
                                 "i_ref_error_bound_A": self.error_bound,
+                                "position_count": self.position_count.to_dict(),
                                 "bound_horizon_s": self.bound_horizon_s,
                                 "passed": self.passed, "failures": list(self.failures)}
         return out
@@ -148,6 +153,7 @@ class ExportResult:
                     f"closed loop UNSTABLE, {m.instability}: no margins")
             lines.append(f"  quantized: {loop}; i_ref rounding bound {self.error_bound:.3g} A over "
                          f"{self.bound_horizon_s:g} s")
+            lines.append(f"  {self.position_count.describe()}")
             for f in self.filters:
                 if math.isnan(f["quantized_hz"]):
                     lines.append(f"  {f['section']} {f['what']}s: {f['design_hz']:.4g} Hz -> real pair (filter lost)")
@@ -162,7 +168,10 @@ class ExportResult:
                              f"{100 * worst['root_shift_relative_per_lsb']:.2g} %")
             elif self.sensitivity:
                 lines.append("  coefficient sensitivity: no section has a pole or zero to move (pure gains)")
-            lines += [f"  FAIL: {r}" for r in self.failures] or ["  quantized loop within the requirements (every one met)"]
+            lines += [f"  FAIL: {r}" for r in self.failures] or [
+                f"  quantized loop within the requirements: the design's {len(self.quantized_design.requirements)} "
+                "linear rows, and half a position count within the error at rest and the limit cycle (check's "
+                "time rows run the floating-point controller)"]
         else:
             lines += [f"  FAIL: {r}" for r in self.failures]
         if self.command is not None:
