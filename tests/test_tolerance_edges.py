@@ -264,8 +264,9 @@ def test_a_key_that_cannot_vary_or_is_misspelt_is_told_apart(line, rule, tmp_pat
     key = line.split(" = ")[0].strip('"')
     assert len(err) == 1 and f"tolerances.{key}:" in err[0] and rule in err[0], err
     if "did you mean" in rule:  # the keys it lists are the ones that can vary: not the refused ones
-        listed = err[0].split("toleranced keys are:")[1]
+        listed = err[0].split("motor has ")[1]
         assert "motor.inductance" in listed and "sensors.sample_time" not in listed, err
+        assert "load.inertia" not in listed and len(err[0]) < 700, err  # the table's keys only
 
 
 def test_a_share_interval_stops_at_all_of_the_variance():
@@ -563,3 +564,23 @@ def test_a_distribution_written_as_a_table_reads_back_as_the_scene_gives_it():
             tables += 1
             assert tomllib.loads(f"x = {t.written}")["x"] == given, t.written
     assert tables >= 1
+
+
+@pytest.mark.parametrize("line, hint, listed", [
+    ('"load.mass" = "+-5 %"', "did you mean load.inertia?", "load has load.coulomb_friction"),
+    ('"motor.kt" = "+-5 %"', "did you mean motor.torque_constant?", "motor has motor.ambient_temperature"),
+    ('"gearbox.ratio" = "+-5 %"', "", "the tables with numeric keys are drivetrain[0]"),
+])
+def test_an_unknown_key_is_told_its_usual_name_and_its_table_s_keys(line, hint, listed, tmp_path, capsys):
+    """A travel's carriage mass is the load's inertia, a catalogue's Kt the torque constant: the
+    line says so and lists the keys of the table named (the tables, for a table the scene does
+    not have), not every key of the scene (a line of 1400 characters)."""
+    from servo_toolkit.cli import main
+
+    from .conftest import SCENES
+    path = tmp_path / "keys.toml"
+    path.write_text((SCENES / "ema_reference.toml").read_text() + f"\n[tolerances]\n{line}\n")
+    assert main(["tolerances", str(path)]) == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert hint in err and listed in err and len(err) < 800, err
+    assert "not a numeric key of this scene that can take a tolerance" in err

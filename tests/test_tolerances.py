@@ -69,7 +69,7 @@ def test_robustness_ranges_are_tolerances_and_a_wide_range_is_log_uniform():
 
 
 BAD = {
-    "unknown key": ('motor.resistence = "+-5 %"', "tolerances.motor.resistence", "toleranced keys are"),
+    "unknown key": ('motor.resistence = "+-5 %"', "tolerances.motor.resistence", "motor has motor.ambient"),
     "bad distribution": ('motor.resistance = "about 5 %"', "tolerances.motor.resistance", "expected a range"),
     "negative sigma": ('motor.resistance = { sigma = "-0.1 ohm" }', "tolerances.motor.resistance",
                        "sigma must be positive"),

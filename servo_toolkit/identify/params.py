@@ -59,7 +59,7 @@ class SceneTemplate:
         for key in keys:
             if key.startswith("sensors."):
                 raise SceneError(key, "not a physical parameter of the plant; fit motor, drivetrain or load keys")
-            kp = self.keys.resolve(key, integers=False, what="a quantity of this scene; fit one of:")
+            kp = self.keys.resolve(key, integers=False, what="a quantity of this scene that fit can estimate")
             value, signed = kp.value, kp.signed
             if signed and not (value != 0 and abs(value) < float("inf")):
                 raise SceneError(key, f"must be a nonzero finite scalar to be fitted: its magnitude sets the "

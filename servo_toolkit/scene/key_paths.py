@@ -24,6 +24,11 @@ PHYSICAL_TABLES = ("motor", "drivetrain", "load", "sensors")
 #: tables that never hold a physical parameter
 NOT_PHYSICAL = ("studies", "requirements", "robustness", "tolerances", "display", "duty_cycle", "name",
                 "description")
+#: usual other names of a key (the load's mass of an output travel is its ``inertia``; the
+#: motor's catalogue symbols), suggested for a key the scene does not have
+SYNONYMS = {"mass": "inertia", "moment_of_inertia": "inertia", "j": "inertia", "kt": "torque_constant",
+            "ke": "back_emf_constant", "r": "resistance", "l": "inductance", "friction": "coulomb_friction",
+            "stiction": "static_friction", "k": "stiffness"}
 _INDEX = re.compile(r"\[(\d+)\]")
 
 
@@ -143,8 +148,26 @@ class SceneKeys:
             keys += [k for k, r in self._integers.items() if _physical(r.table)]
         return sorted(set(keys))
 
+    @staticmethod
+    def _unknown_rule(key: str, what: str, known: list) -> str:
+        """The rule for a key that is not known: the nearest known key (by spelling, or by a
+        usual other name of the same table's key: a travel's ``load.mass`` is
+        ``load.inertia``), then the known keys of the same table, or the tables that have
+        some when the table has none."""
+        import difflib
+        table, _, name = key.rpartition(".")
+        same = [k for k in known if k.rpartition(".")[0] == table]
+        alias = f"{table}.{SYNONYMS[name]}" if name in SYNONYMS and table else None
+        close = [alias] if alias in known else difflib.get_close_matches(key, known, n=1, cutoff=0.8)
+        hint = f"did you mean {close[0]}? " if close else ""
+        if same:
+            return f"{hint}not {what}; {table} has {', '.join(same)}"
+        tables = sorted({k.rpartition(".")[0] for k in known})
+        return (f"{hint}not {what}; the tables with numeric keys are {', '.join(tables)} "
+                "(docs/reference/scene_keys.md lists every key)")
+
     def resolve(self, key: str, *, where: str | None = None, integers: bool = True,
-                what: str = "a numeric key of this scene; known:", excluded=()) -> KeyPath:
+                what: str = "a numeric key of this scene", excluded=()) -> KeyPath:
         """The key path ``key``.
 
         Parameters
@@ -155,7 +178,8 @@ class SceneKeys:
         integers : bool
             Accept integer keys.
         what : str
-            What the key must be, for the error message (the known keys follow it).
+            What the key must be, for the error message (the known keys of its table, or the
+            tables, follow it).
         excluded : collection of str
             Keys left out of the known keys the error lists (keys the caller refuses).
 
@@ -181,11 +205,7 @@ class SceneKeys:
             if key.split(".")[0].split("[")[0] in NOT_PHYSICAL:
                 raise SceneError(where, "not a physical parameter of the actuator; name motor, drivetrain, load "
                                         "or sensors keys")
-            import difflib
-            known = [k for k in self.known(integers) if k not in excluded]
-            close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
-            hint = f"did you mean {close[0]}? " if close else ""
-            raise SceneError(where, f"{hint}not {what} {', '.join(known)}")
+            raise SceneError(where, self._unknown_rule(key, what, [k for k in self.known(integers) if k not in excluded]))
         if not _physical(read.table):
             raise SceneError(where, "not a physical parameter of the actuator; name motor, drivetrain, load or "
                                     "sensors keys")

@@ -181,7 +181,7 @@ def tolerances_of(data: dict, source, robust, scene, build):
         where = f"tolerances.{key}"
         require(key not in where_of, where, "given twice")
         kp = _virtual(key) if key in VIRTUAL else keys.resolve(
-            key, where=where, what="a numeric key of this scene; toleranced keys are:", excluded=FIXED)
+            key, where=where, what="a numeric key of this scene that can take a tolerance", excluded=FIXED)
         require(kp.key not in FIXED, where, FIXED.get(kp.key, ""))
         items.append(parse_distribution(raw, kp, where))
         where_of[key] = where
