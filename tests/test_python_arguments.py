@@ -201,3 +201,8 @@ def test_a_load_field_takes_a_quantity_of_a_shaft_or_a_travel(ema):
                                                  ("stroke_range", (-1.4, 1.4), "dead point")])
 def test_replacing_a_linkage_field_meets_its_geometry_s_rule(ema, field, value, words):
     assert words in _refused(f"RockerLinkage.{field}", lambda: dataclasses.replace(ema[0].stages[2], **{field: value}))
+
+
+@pytest.mark.parametrize("path", [123, b"name = 'x'", ["ema.toml"]])
+def test_load_scene_names_a_path_of_another_type(path):
+    assert "expected a file path" in _refused("path", lambda: st.load_scene(path))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 import warnings
 from dataclasses import dataclass, field
@@ -376,6 +377,10 @@ def load_scene(path=None) -> Scene:
     >>> scene.motor.torque_constant
     0.2
     """
+    if path is not None and not isinstance(path, (str, os.PathLike)):
+        hint = " (a scene's text: scene_from_dict(tomllib.loads(text)))" if isinstance(path, bytes) else ""
+        raise SceneError("path", f"expected a file path (str or path-like) or None for the built-in reference "
+                                 f"EMA, got {type(path).__name__}{hint}")
     path = default_scene_path() if path is None else Path(path)
     text = read_scene_text(path)
     try:
