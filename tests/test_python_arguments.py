@@ -120,8 +120,10 @@ def test_reference_names_a_bad_argument(call, key):
 
 
 def test_reference_converts_quantities_to_si():
-    sine = Reference.sine(2 * UREG.deg, 0.5 * UREG.kHz, offset=1 * UREG.mm)
-    assert (sine.amplitude, sine.frequency, sine.offset) == pytest.approx((math.radians(2.0), 500.0, 1e-3))
+    sine = Reference.sine(2 * UREG.deg, 0.5 * UREG.kHz, offset=1 * UREG.deg)
+    assert (sine.amplitude, sine.frequency, sine.offset) == pytest.approx((math.radians(2.0), 500.0, math.radians(1)))
+    travel = Reference.sine(2 * UREG.mm, 0.5 * UREG.kHz, offset=1 * UREG.mm)
+    assert (travel.amplitude, travel.offset) == pytest.approx((2e-3, 1e-3))
     assert Reference.ramp(90 * UREG.deg / UREG.s).amplitude == pytest.approx(math.pi / 2)
     assert Reference.move(10 * UREG.deg, 1.0, 10.0, 100.0).profile.distance == pytest.approx(math.radians(10.0))
 
@@ -206,3 +208,19 @@ def test_replacing_a_linkage_field_meets_its_geometry_s_rule(ema, field, value, 
 @pytest.mark.parametrize("path", [123, b"name = 'x'", ["ema.toml"]])
 def test_load_scene_names_a_path_of_another_type(path):
     assert "expected a file path" in _refused("path", lambda: st.load_scene(path))
+
+
+def test_a_reference_in_the_other_output_s_unit_is_named_before_the_run(ema, scenes_dir):
+    """1 mm read as 0.001 rad of a shaft angle is no command the user meant: a sine of a
+    length for the reference EMA's output angle, or of an angle for the EMPS cart's travel,
+    is refused naming ``reference``; a bare number (SI of the output) and the output's own
+    unit run."""
+    length, angle = Reference.sine(1 * UREG.mm, 8.0), Reference.sine(2 * UREG.deg, 8.0)
+    assert (length.position_unit, angle.position_unit, Reference.sine(0.03, 8.0).position_unit) == ("m", "rad", None)
+    assert "a travel (m)" in _refused("reference", lambda: simulate(ema[0], reference=length, duration=0.2))
+    emps = st.load_scene(scenes_dir / "emps.toml")
+    assert "an angle (rad)" in _refused("reference", lambda: simulate(emps, reference=angle, duration=0.2))
+    assert simulate(ema[0], reference=angle, duration=0.2).output_angle.size > 0
+    assert "where amplitude is a travel" in _refused("offset", lambda: Reference.sine(1 * UREG.mm, 8.0, 2 * UREG.deg))
+    assert "where distance is an angle" in _refused(
+        "v_max", lambda: Reference.move(1 * UREG.deg, 1 * UREG.mm / UREG.s, 1.0, 1.0))

@@ -306,6 +306,21 @@ def argument_value(value, unit, name: str, finite: bool = True) -> float:
     return result
 
 
+def quantity_unit(value, unit) -> str | None:
+    """The first of ``unit`` (a str or a tuple of str) whose dimension a pint Quantity
+    ``value`` fits, as :func:`argument_value` converts it; None for a bare number (in no unit
+    of its own) or a Quantity that fits none."""
+    if not isinstance(value, pint.Quantity):
+        return None
+    for u in ((unit,) if isinstance(unit, str) else tuple(unit)):
+        try:
+            argument_value(value, u, "value", finite=False)
+        except SceneError:
+            continue
+        return u
+    return None
+
+
 def argument_values(values, unit, name: str) -> np.ndarray:
     """A Python argument holding one value or a sequence of them (a list of numbers or of
     Quantities, an array, an array Quantity) as a float array in ``unit``, each value as

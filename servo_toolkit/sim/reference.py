@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.units import argument_value
+from ..core.units import argument_value, quantity_unit
 from ..errors import SceneError, SimulationError
 from ..loop.profile import MoveProfile
 from . import layout as lo
@@ -58,6 +58,10 @@ class Reference:
         A table's sample spacing (s).
     periodic : bool
         The table is one period of a command that repeats.
+    position_unit : {None, "rad", "m"}
+        The output a position argument given as a pint Quantity was in: an angle (rad) or a
+        travel (m); None when every position was a bare number (then in the output's SI
+        unit, whichever it is). A run refuses a reference in the other output's unit.
     """
 
     kind: str = "hold"
@@ -70,6 +74,7 @@ class Reference:
     samples: tuple = field(default=(), repr=False)
     spacing: float = 0.0
     periodic: bool = False
+    position_unit: str | None = field(default=None, compare=False)
     _packed: tuple = field(default=(), init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -100,17 +105,20 @@ class Reference:
         frequency = argument_value(frequency, "Hz", "frequency")
         if not frequency > 0:
             raise SceneError("frequency", f"must be positive (got {frequency:g} Hz)")
-        return cls("sine", argument_value(amplitude, POSITION, "amplitude"), frequency, _position(offset))
+        return cls("sine", argument_value(amplitude, POSITION, "amplitude"), frequency, _position(offset),
+                   position_unit=_unit_of(amplitude=amplitude, offset=offset))
 
     @classmethod
     def step(cls, size: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset, then offset + size from t = at (arguments as :meth:`sine`'s)."""
-        return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset), argument_value(at, "s", "at"))
+        return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset), argument_value(at, "s", "at"),
+                   position_unit=_unit_of(size=size, offset=offset))
 
     @classmethod
     def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset + rate * max(t - at, 0) (rad/s or m/s; arguments as :meth:`sine`'s)."""
-        return cls("ramp", argument_value(rate, RATE, "rate"), 0.0, _position(offset), argument_value(at, "s", "at"))
+        return cls("ramp", argument_value(rate, RATE, "rate"), 0.0, _position(offset), argument_value(at, "s", "at"),
+                   position_unit=_unit_of(rate=rate, offset=offset))
 
     @classmethod
     def move(cls, distance: float, v_max: float, a_max: float, j_max: float, at: float = 0.0,
@@ -120,7 +128,8 @@ class Reference:
         arguments as :meth:`sine`'s)."""
         profile = MoveProfile(*(argument_value(value, (f"rad{per}", f"m{per}"), name) for value, per, name in (
             (distance, "", "distance"), (v_max, "/s", "v_max"), (a_max, "/s^2", "a_max"), (j_max, "/s^3", "j_max"))))
-        return cls("move", profile.distance, 0.0, _position(offset), argument_value(at, "s", "at"), profile=profile)
+        return cls("move", profile.distance, 0.0, _position(offset), argument_value(at, "s", "at"), profile=profile,
+                   position_unit=_unit_of(distance=distance, v_max=v_max, a_max=a_max, j_max=j_max, offset=offset))
 
     @classmethod
     def table(cls, time_s, values, offset: float | None = None, periodic: bool = False) -> "Reference":
@@ -152,7 +161,7 @@ class Reference:
         from .reference_table import check_samples
         t0, step, v = check_samples(time_s, values, periodic=periodic)
         return cls("table", 0.0, 0.0, _position(offset), t0, samples=tuple(float(x) for x in v), spacing=step,
-                   periodic=bool(periodic))
+                   periodic=bool(periodic), position_unit=_unit_of(offset=offset))
 
     @classmethod
     def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
@@ -206,6 +215,30 @@ class Reference:
             out.update(samples=len(self.samples), step_s=self.spacing, periodic=self.periodic, duration_s=self.duration,
                        values_min=lo_, values_max=hi_)
         return out
+
+
+#: the output a position or a rate of it is in, by the unit its Quantity fits
+_OUTPUT_OF = {"rad": "rad", "m": "m", "rad/s": "rad", "m/s": "m", "rad/s^2": "rad", "m/s^2": "m",
+              "rad/s^3": "rad", "m/s^3": "m"}
+#: the units a position argument's Quantity may be in, by its name
+_ARGUMENT_UNITS = {"rate": RATE, "v_max": ("rad/s", "m/s"), "a_max": ("rad/s^2", "m/s^2"),
+                   "j_max": ("rad/s^3", "m/s^3")}
+
+
+def _unit_of(**arguments) -> str | None:
+    """The output (``"rad"`` or ``"m"``) the constructor's Quantity arguments are in (None
+    when all are bare numbers); SceneError naming the first that is in the other output's."""
+    found = None
+    for name, value in arguments.items():
+        unit = quantity_unit(value, _ARGUMENT_UNITS.get(name, POSITION))
+        if unit is None:
+            continue
+        output = _OUTPUT_OF[unit]
+        if found is not None and output != found[1]:
+            raise SceneError(name, f"{'a travel' if output == 'm' else 'an angle'} where {found[0]} is "
+                                   f"{'a travel' if found[1] == 'm' else 'an angle'}: give both for the same output")
+        found = found or (name, output)
+    return None if found is None else found[1]
 
 
 def _position(offset):

@@ -1,8 +1,10 @@
 """What a time run can resolve of a sine command: the one rule ``simulate`` (Python and
-command line), the sweeps, the reductions and the scene's sine studies apply before any work."""
+command line), the sweeps, the reductions and the scene's sine studies apply before any work;
+and whether a command given in units is one of the scene's output."""
 
 from __future__ import annotations
 
+from ..core.output_units import output_unit
 from ..errors import SceneError
 
 #: a sine command is tracked meaningfully up to this fraction of the controller's sample
@@ -54,4 +56,17 @@ def check_sine_frequency(frequency: float, sample_time: float, duration: float |
                               f"{min_periods:g} whole period(s) of the command (got {frequency:g} Hz)")
 
 
-__all__ = ["MIN_PERIODS", "NYQUIST_FRACTION", "check_sine_frequency"]
+def check_reference_output(position_unit: str | None, scene, key: str = "reference") -> None:
+    """SceneError naming ``key`` when a command's positions were given as Quantities of the
+    other output's unit than the scene's (``position_unit`` ``"m"`` for a shaft's angle,
+    ``"rad"`` for a carriage's travel): a bare number is in the output's SI unit either way,
+    but 1 mm read as 0.001 rad of a shaft angle is no command the user meant."""
+    wanted = output_unit(scene).si
+    if position_unit is None or position_unit == wanted:
+        return
+    words = {"m": "a travel (m)", "rad": "an angle (rad)"}
+    raise SceneError(key, f"its positions are {words[position_unit]} and this scene's output is "
+                          f"{words[wanted]}: give them in the output's unit")
+
+
+__all__ = ["MIN_PERIODS", "NYQUIST_FRACTION", "check_reference_output", "check_sine_frequency"]

@@ -12,7 +12,7 @@ from ..scene.argument import as_scene
 from .engine import run
 from .model import ModelOptions, build_model
 from .reference import Reference
-from .reference_checks import check_sine_frequency
+from .reference_checks import check_reference_output, check_sine_frequency
 
 
 #: the source of a designed controller whose linear closed loop is unstable
@@ -135,6 +135,8 @@ def simulate(scene, controller=None, *, reference: Reference | None = None, dura
     if reference is not None and not isinstance(reference, Reference):
         raise SceneError("reference", f"expected a Reference (servo_toolkit.sim.Reference.sine ...), "
                                       f"got {type(reference).__name__}")
+    if reference is not None:
+        check_reference_output(reference.position_unit, scene)
     if reference is not None and reference.kind == "sine":
         sample_time = scene.sensors.sample_time if controller is None else controller.sample_time
         check_sine_frequency(reference.frequency, sample_time, duration, "reference", duration_key="duration")
