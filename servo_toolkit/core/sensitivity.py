@@ -2,16 +2,31 @@
 in the tolerances, variance-based Sobol indices where it is not.
 
 Standardized regression coefficients (SRC) come from the variants already run: a least-
-squares fit y ~ b0 + sum_k b_k x_k (x_k in log where a tolerance is drawn log-uniformly),
-SRC_k = b_k sd(x_k) / sd(y). With independent tolerances SRC_k^2 is the share of the
-figure's variance that tolerance k explains and sum_k SRC_k^2 = R^2; when R^2 >=
+squares fit y ~ b0 + sum_k b_k x_k (x_k in log where a tolerance is drawn log-uniformly).
+The share of tolerance k is a population quantity, the part of the figure's variance over
+the built actuators that k's linear effect carries,
+
+    S_k = b_k^2 V_k / (sum_j b_j^2 V_j + s_e^2),
+
+with V_k the variance of the tolerance's own distribution (not of the columns drawn) and
+s_e^2 the fit's residual variance (what the linear part leaves: curvature, interactions).
+With independent tolerances the denominator is the population variance of the figure, the
+shares sum to the linear part's share of it (the fit's R^2 up to sampling) and never exceed
+100 %. Dividing by the sample's own sd(y) instead, the textbook SRC, mixes in the chance
+correlation between the drawn columns: at 256 variants a correlation of 0.1 moves a share
+by several per cent, and the shares of one sample can sum above 100 %. Signed,
+SRC_k = b_k sqrt(V_k) / sqrt(sum_j b_j^2 V_j + s_e^2) (its sign says which end of a tolerance
+worsens the figure) and S_k = SRC_k^2. Their intervals come from a pairs bootstrap over the
+variants (the fit, V_k aside, redone on :data:`RESAMPLES` resamples, percentile intervals of
+SRC_k, squared), so they hold the variation from one sample of the same size to another, not
+only the fit's on the one drawn; for a Latin hypercube or a scrambled Sobol sample, whose
+estimates vary less than independent draws', they are conservative. When R^2 >=
 :data:`R2_LINEAR` the shares account for nearly all of the spread and the figure is ranked
-by them (intervals from the regression's standard errors). Below it the response is
-nonlinear or has interactions, and the figure is ranked by Sobol indices
-(``scipy.stats.sobol_indices``, Saltelli 2010: first-order S_k, the share k explains alone,
-and total S_Tk, with its interactions), at n (d + 2) further evaluations, their intervals
-bootstrapped. A tolerance known not to enter the figure at all (it moves nothing the figure
-is computed from) gets exactly 0, stated as such, not estimated.
+by them. Below it the response is nonlinear or has interactions, and the figure is ranked by
+Sobol indices (``scipy.stats.sobol_indices``, Saltelli 2010: first-order S_k, the share k
+explains alone, and total S_Tk, with its interactions), at n (d + 2) further evaluations,
+their intervals bootstrapped. A tolerance known not to enter the figure at all (it moves
+nothing the figure is computed from) gets exactly 0, stated as such, not estimated.
 """
 
 from __future__ import annotations
@@ -24,6 +39,10 @@ import numpy as np
 
 #: R^2 of the linear fit at or above which the figure is ranked by standardized regression
 R2_LINEAR = 0.9
+#: bootstrap resamples of the standardized regression's intervals
+RESAMPLES = 1000
+#: numbers held at once by one chunk of bootstrap resamples
+_CHUNK_NUMBERS = 4_000_000
 
 
 @dataclass(frozen=True)
@@ -39,12 +58,13 @@ class Sensitivity:
     method : {"src", "sobol", "none"}
         ``"none"``: the figure does not vary over the variants (nothing to rank).
     share : numpy.ndarray
-        Per key, the share of the figure's variance: SRC^2, or the total Sobol index.
+        Per key, the share of the figure's variance: SRC^2 (of its population variance, see
+        the module notes), or the total Sobol index.
     low, high : numpy.ndarray
         Its confidence interval.
     src : numpy.ndarray
-        Signed standardized regression coefficients (always computed: their sign says
-        which end of a tolerance worsens the figure).
+        Signed standardized regression coefficients b_k sqrt(V_k) / sqrt(Var(y)) (always
+        computed: their sign says which end of a tolerance worsens the figure).
     first : numpy.ndarray or None
         First-order Sobol indices (Sobol only).
     r2 : float
@@ -95,17 +115,33 @@ class Sensitivity:
                             for k, s, lo, hi in self.ranking()]}
 
 
-def regression(X, y, confidence: float = 0.95):
-    """Standardized regression coefficients of ``y`` on the columns of ``X``.
+def regression(X, y, confidence: float = 0.95, *, variances=None, resamples: int = RESAMPLES, seed: int = 0):
+    """Standardized regression coefficients of ``y`` on the columns of ``X``, scaled by the
+    population variances (see the module notes).
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        (n, d) the regressors.
+    y : numpy.ndarray
+        (n,)
+    confidence : float
+    variances : array_like, optional
+        (d,) each column's population variance (its distribution's, of the logarithm for a
+        column regressed on it); default: the sample's own (recomputed in each resample).
+    resamples : int
+        Bootstrap resamples of the intervals.
+    seed : int
+        Seed of the resampling (the intervals are the same in every process).
 
     Returns
     -------
     src, low, high : numpy.ndarray
-        Coefficients and their intervals (normal approximation of the least-squares
-        standard errors).
+        Coefficients b_k sqrt(V_k) / sqrt(sum_j b_j^2 V_j + s_e^2) and their percentile
+        bootstrap intervals (pairs resampled over the rows).
     r2 : float
+        R^2 of the fit on the sample.
     """
-    from scipy.stats import norm
     X = np.asarray(X, float)
     y = np.asarray(y, float)
     n, d = X.shape
@@ -115,18 +151,59 @@ def regression(X, y, confidence: float = 0.95):
         return z, z, z, 0.0
     live = sx > 0
     Z = np.column_stack([np.ones(n), (X[:, live] - X[:, live].mean(axis=0)) / sx[live]])
-    coef, *_ = np.linalg.lstsq(Z, (y - y.mean()) / sy, rcond=None)
-    resid = (y - y.mean()) / sy - Z @ coef
-    dof = max(n - Z.shape[1], 1)
-    sigma2 = float(resid @ resid) / dof
-    cov = sigma2 * np.linalg.pinv(Z.T @ Z)
-    se = np.sqrt(np.clip(np.diag(cov)[1:], 0.0, None))
-    q = norm.ppf(0.5 + confidence / 2)
-    src = np.zeros(d)
-    width = np.zeros(d)
-    src[live], width[live] = coef[1:], q * se
-    r2 = float(1.0 - (resid @ resid) / n)
-    return src, src - width, src + width, r2
+    v = (y - y.mean()) / sy
+    coef, *_ = np.linalg.lstsq(Z, v, rcond=None)
+    resid = v - Z @ coef
+    dof = n - Z.shape[1]
+    scale = None if variances is None else np.sqrt(np.asarray(variances, float)[live]) / sx[live]
+    point = _scaled(coef[None, 1:], (resid @ resid / dof)[None], np.ones((1, Z.shape[1] - 1)) if scale is None
+                    else scale[None])[0]
+    boot = _bootstrap(Z, v, scale, dof, resamples, seed)
+    alpha = 50.0 * (1.0 - confidence)
+    lo, hi = np.percentile(boot, [alpha, 100.0 - alpha], axis=0)
+    src, low, high = np.zeros(d), np.zeros(d), np.zeros(d)
+    src[live], low[live], high[live] = point, np.minimum(lo, point), np.maximum(hi, point)
+    return src, low, high, float(1.0 - (resid @ resid) / n)
+
+
+def _scaled(beta, s2, scale):
+    """Per row: b_k sqrt(V_k) / sqrt(sum_j b_j^2 V_j + s_e^2) from the coefficients on the
+    sample-standardized columns ``beta``, the residual variance ``s2`` and ``scale`` =
+    sqrt(V_k) / sd_k."""
+    b = beta * scale
+    total = np.sum(b ** 2, axis=1) + np.clip(s2, 0.0, None)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total[:, None] > 0, b / np.sqrt(total)[:, None], 0.0)
+
+
+def _bootstrap(Z, v, scale, dof, resamples, seed):
+    """(resamples, p - 1) the scaled coefficients of resamples of the rows of (Z, v), each a
+    least-squares fit through its normal equations (weights: how often a row was drawn; one
+    product gives every resample's sums); ``scale`` None: each resample's own column sd's."""
+    n, p = Z.shape
+    rng = np.random.default_rng(seed)
+    # per row: Z Z^T, Z v, v^2, and the columns and their squares (the resample's variances)
+    F = np.column_stack([(Z[:, :, None] * Z[:, None, :]).reshape(n, p * p), Z * v[:, None], v ** 2,
+                         Z[:, 1:], Z[:, 1:] ** 2])
+    out = []
+    step = max(1, min(int(resamples), _CHUNK_NUMBERS // max(n, F.shape[1])))
+    for start in range(0, int(resamples), step):
+        m = min(step, int(resamples) - start)
+        idx = rng.integers(0, n, (m, n)) + n * np.arange(m)[:, None]
+        S = np.bincount(idx.ravel(), minlength=m * n).reshape(m, n).astype(float) @ F
+        A, g, vv = S[:, :p * p].reshape(m, p, p), S[:, p * p:p * p + p], S[:, p * p + p]
+        try:
+            beta = np.linalg.solve(A, g[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:  # a resample with too few distinct rows: the least-norm fit
+            beta = (np.linalg.pinv(A) @ g[:, :, None])[:, :, 0]
+        s2 = (vv - np.sum(beta * g, axis=1)) / dof
+        if scale is None:  # the resample's own column variances
+            mean, square = S[:, p * p + p + 1:p * p + 2 * p] / n, S[:, p * p + 2 * p:] / n
+            sc = np.sqrt(np.clip(square - mean ** 2, 0.0, None))
+        else:
+            sc = np.broadcast_to(scale, (m, p - 1))
+        out.append(_scaled(beta[:, 1:], s2, sc))
+    return np.concatenate(out)
 
 
 def _square_interval(lo, hi):
@@ -214,7 +291,7 @@ def _share_cap(high, share):
 
 
 def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys=None, confidence: float = 0.95,
-         sobol_run=None) -> Sensitivity:
+         sobol_run=None, variances=None, seed: int = 0) -> Sensitivity:
     """The ranking of ``keys`` on ``y`` (one value per row of ``X``; non-finite rows left
     out).
 
@@ -235,6 +312,11 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
         ``sobol_run(live)`` -> the :func:`sobol` dict of the figure over the keys ``live``
         (a mask), called when the linear fit explains less than :data:`R2_LINEAR`; without it
         the figure is ranked by its regression anyway and the reason says so.
+    variances : array_like, optional
+        Per key, the variance of its distribution (of its logarithm for a key in
+        ``log_keys``): the shares' V_k (default: the sample's, see the module notes).
+    seed : int
+        Seed of the regression's bootstrap.
     """
     keys = tuple(keys)
     d = len(keys)
@@ -261,11 +343,13 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
                                int(ok.sum()), confidence, short + ": not ranked" + left)
         r2 = math.nan
     else:
-        s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence)
+        s, lo, hi, r2 = regression(Xr[:, live], y[ok], confidence, seed=seed,
+                                   variances=None if variances is None else np.asarray(variances, float)[live])
         src[live], lo_src[live], hi_src[live] = s, lo, hi
     share_lo, share_hi = _square_interval(lo_src, hi_src)
     if not few and (r2 >= R2_LINEAR or sobol_run is None):
-        why = (f"near-linear (R^2 = {r2:.3f} >= {R2_LINEAR:g}): standardized regression, shares SRC^2"
+        why = (f"near-linear (R^2 = {r2:.3f} >= {R2_LINEAR:g}): standardized regression, shares SRC^2 of the "
+               f"population variance (bootstrap intervals over the variants)"
                if r2 >= R2_LINEAR else
                f"R^2 = {r2:.3f} < {R2_LINEAR:g}: nonlinear, ranked by standardized regression without "
                "variance-based indices (the shares explain only R^2 of the spread)")
@@ -285,4 +369,4 @@ def rank(figure: str, label: str, unit: str, keys, X, y, *, inert=None, log_keys
                        inert, res["n"] * (int(live.sum()) + 2), confidence, why + left + "." + notes)
 
 
-__all__ = ["R2_LINEAR", "Sensitivity", "rank", "regression", "sobol"]
+__all__ = ["R2_LINEAR", "RESAMPLES", "Sensitivity", "rank", "regression", "sobol"]

@@ -30,6 +30,8 @@ MIN_SPREAD = 1e-9
 IMPLICIT_CUT = 1e-3
 #: a half-normal's far truncation closer than this many sigma to its mean is shown in its description
 CHECKED_FAR = 6.0
+#: equal-probability midpoints a distribution's variance is computed on
+VARIANCE_POINTS = 1 << 16
 _PLUS_MINUS = re.compile(r"^\s*(\+-|\+/-|±)\s*(.+?)\s*$")
 _PERCENT = re.compile(r"^\s*([0-9.eE+-]+)\s*%\s*$")
 _FACTOR = re.compile(r"^\s*x\s*([0-9.eE+-]+)\s*$")
@@ -84,6 +86,14 @@ class Tolerance:
             x = self.low + u * (self.high - self.low)
         x = np.clip(x, self.low, self.high)
         return np.round(x) if self.integer else x
+
+    def variance(self, log: bool = False) -> float:
+        """The variance of the distribution's values (of their logarithm with ``log``): the
+        population's, not a sample's; from the inverse CDF at :data:`VARIANCE_POINTS`
+        equal-probability midpoints (a range's (hi - lo)^2 / 12 to 1e-9 relative; a
+        normal's truncation included; an integer key's steps to about 1e-4)."""
+        x = self.ppf((np.arange(VARIANCE_POINTS) + 0.5) / VARIANCE_POINTS)
+        return float(np.var(np.log(np.abs(x)) if log else x))
 
     @property
     def ends(self) -> tuple:

@@ -209,6 +209,12 @@ def _log_keys(tol):
     return np.array([t.distribution == "log_uniform" for t in tol.items])
 
 
+def _variances(tol):
+    """Each tolerance's population variance as the regression sees it (of its logarithm
+    for a log-uniform one): the shares' V_k (:mod:`servo_toolkit.core.sensitivity`)."""
+    return np.array([t.variance(log) for t, log in zip(tol.items, _log_keys(tol))])
+
+
 def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ctrl, f_req, zeta, sobol_runs, seed,
                    executor=None):
     """Ranking of the tolerances on each requirement's figure."""
@@ -216,6 +222,7 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
     keys = tol.keys
     X = np.column_stack([values[k] for k in keys])
     inert_linear = np.array([k in plants.inert for k in keys])
+    variances = _variances(tol)
     stable = figs["stable"]
     cache = {}
 
@@ -251,7 +258,7 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
         fig, label = FIGURES[r.name]
         y = np.where(stable, figs[fig], np.nan)
         out.append(rank(r.name, label, r.unit, keys, X, y, inert=inert_linear, log_keys=_log_keys(tol),
-                        confidence=tol.confidence, sobol_run=margin_sobol(r.name)))
+                        confidence=tol.confidence, sobol_run=margin_sobol(r.name), variances=variances, seed=seed))
     if runs is not None:
         inert_time = np.array([k in runs.rows.inert for k in keys])
         shown = {"tracking_error": (runs.tracking_error, "tracking error"), "peak_current": (runs.peak_current,
@@ -261,6 +268,7 @@ def _sensitivities(tol, values, figs, margins, runs, timed, plants, scene, p, ct
             unit = "A" if name == "peak_current" else ("mm" if scene.drivetrain.output_is_linear else "deg")
             out.append(rank(name, label, units.get(name, unit), keys, X, y,
                             inert=inert_time, log_keys=_log_keys(tol), confidence=tol.confidence,
+                            variances=variances, seed=seed,
                             sobol_run=None if not sobol_runs else _time_sobol(tol, scene, runs, name, sobol_runs,
                                                                               cache, seed, executor)))
     return tuple(out)
