@@ -510,7 +510,7 @@ def test_with_time_requirements_the_worst_corner_is_the_worst_over_them_too(tmp_
     assert w.time_figures["tracking_error"] == pytest.approx(err, rel=1e-4)
     assert w.score == pytest.approx(1.0 - err / 1.0, rel=1e-4) and w.score < 0
     assert err >= np.degrees(np.max(study.runs.tracking_error))
-    assert "worst corner over every requirement (margins and time runs) (4 evaluated): tracking_error margin" \
+    assert "worst corner over every requirement (margins and time runs) (4 corners evaluated): tracking_error margin" \
         in study.table()
     assert study.to_dict()["worst_corner"]["time_figures"]["tracking_error"] == pytest.approx(err, rel=1e-4)
 

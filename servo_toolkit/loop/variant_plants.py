@@ -135,7 +135,7 @@ def _exact_rows(keys, names, p, zeta):
 
 
 def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = SEPARABLE_RTOL,
-                 progress: bool = False) -> VariantPlants:
+                 progress: bool = False, exact: bool = False) -> VariantPlants:
     """Variants by scene key paths (see the module notes).
 
     Parameters
@@ -152,6 +152,9 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
     rtol : float
         Largest verified relative error of the maps (else every variant is built).
     progress : bool
+    exact : bool
+        Build every variant exactly, without fitting maps (a few variants, e.g. the corners
+        of a study whose maps did not verify).
     """
     from ..core.separable import fit
     from ..scene.tolerances import STIFFNESS_SCALE
@@ -171,10 +174,11 @@ def keyed_plants(scene, p, values: dict, zeta: float, keys=None, rtol: float = S
         evaluate = _exact_rows(keys, names, p, zeta)
         log_keys = np.array([np.all(X[:, j] > 0) and X[:, j].max() > 10 * X[:, j].min() for j in range(len(names))])
         integer = np.array([keys.resolve(k).integer for k in names])
-        f = fit(evaluate, x0, X, integer=integer, log_keys=log_keys, rtol=rtol)
-        spent, error = f.evaluations, f.error
-        inert += tuple(k for j, k in enumerate(names) if not np.any(f.moved[j]))
-        if error <= rtol:
+        if not exact:
+            f = fit(evaluate, x0, X, integer=integer, log_keys=log_keys, rtol=rtol)
+            spent, error = f.evaluations, f.error
+            inert += tuple(k for j, k in enumerate(names) if not np.any(f.moved[j]))
+        if f is not None and error <= rtol:
             Y, method = f(X), "separable"
         else:
             from ..core.progress import progress_bar

@@ -76,7 +76,7 @@ def tolerances_section(ctx) -> Section:
         run = f" {w.run_text()[0].upper()}{w.run_text()[1:]}." if w.run_text() else ""
         how = (f"smallest margin to a requirement {fmt(100 * w.score, 3)} % ({w.figure})" if np.isfinite(w.score)
                else w.verdict())
-        body += para(f"Worst corner over {w.basis} ({w.corners} corners evaluated): {at}; {how}. "
+        body += para(f"Worst corner over {w.basis} ({w.evaluated()}): {at}; {how}. "
                      f"python-control on its plant built exactly: gain margin "
                      f"{fmt(ref.get('gain_margin_db'), 4)} dB, phase margin {fmt(ref.get('phase_margin_deg'), 4)} deg "
                      f"(the vectorized study: {fmt(w.figures['gain_margin_db'], 4)} dB, "

@@ -1,5 +1,7 @@
 """The worst corner of a tolerance study: every corner of the tolerance box (each tolerance
-at an end: a range's ends, a normal's mean +- 3 sigma) through the linear study and, when
+at an end: a range's ends, a normal's mean +- 3 sigma; up to :data:`MAX_CORNERS`, on the
+variants' plant maps or, where those did not verify, built exactly as the variants were;
+beyond, the one corner the regression's signs point to) through the linear study and, when
 the study judges time requirements, through batched time runs too
 (:func:`~.time_runs.tolerance_runs`); the corner that misses a requirement by the most
 (each shortfall divided by its limit) is built exactly, its margins checked with
@@ -13,13 +15,9 @@ import math
 import numpy as np
 
 from ...errors import SceneError, SimulationError
-from .result import WorstCorner
+from .result import MAX_CORNERS, WorstCorner
 from .figures import FIGURES, physical_failures as _physical, relative_margin as _relative_margin, \
     time_shown as _time_shown
-
-#: corners evaluated one by one up to this many (2**10); beyond, the regression's signs choose
-MAX_CORNERS = 1024
-
 
 def _score(margins, figs, timed=(), shown=None, undecided=None):
     """Per variant: its smallest relative margin to a requirement (each shortfall divided by
@@ -44,13 +42,14 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
     (``timed``), over the corners' time runs too (each requirement's shortfall divided by its
     limit)."""
     from ...loop.robustness import variant_figures
+    from ...loop.variant_plants import keyed_plants
     timed = list(timed)
     inert = set(plants.inert) & (set(runs.rows.inert) if timed else set(plants.inert))
     live = [t for t in tol.items if t.key not in inert]
     nominal = {t.key: t.nominal for t in tol.items}
     if not live:
         return None
-    if 2 ** len(live) <= MAX_CORNERS and plants.mapper is not None:
+    if 2 ** len(live) <= MAX_CORNERS:
         combos = np.array(list(itertools.product(*[t.ends for t in live])), float)
         how = len(combos)
     else:
@@ -63,9 +62,13 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
         how = 1
     vals = {k: np.full(len(combos), v) for k, v in nominal.items()}
     vals.update({t.key: combos[:, j] for j, t in enumerate(live)})
-    cp = plants.mapper(vals) if plants.mapper is not None else None
+    # the variants' maps where they verified, else every corner built exactly as the variants were
+    cp = plants.mapper(vals) if plants.mapper is not None else keyed_plants(scene, p, vals, zeta, keys=keys, exact=True)
     cf = variant_figures(scene, p, ctrl, vals, f_req, plants=cp, progress=False, structural_damping=zeta)
     shown, undecided, reasons, notes = None, None, None, []
+    if plants.mapper is None:
+        notes.append(f"the worst corner's search built its {how} corner{'s' if how > 1 else ''} exactly, "
+                     f"as the variants were")
     if timed:
         from .time_runs import tolerance_runs
         cr = tolerance_runs(scene, vals, ctrl, keys=keys, executor=executor, progress=False, duration=runs.duration_s,
@@ -91,7 +94,7 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
         time_figures["failed"] = reasons[i]
     basis = "every requirement (margins and time runs)" if timed else "the linear figures"
     return WorstCorner(corner, float(score[i]), figure, how, figures, reference, simulation, failed, basis,
-                       time_figures, tuple(notes), {t.key: t.unit for t in tol.items})
+                       time_figures, tuple(notes), {t.key: t.unit for t in tol.items}, 2 ** len(live))
 
 
 def _split(corner):

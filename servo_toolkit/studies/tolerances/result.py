@@ -16,6 +16,8 @@ from ...display.units import DisplayUnits
 METHODS = {"src": "standardized regression", "sobol": "Sobol total indices"}
 #: the dimensionless units (shown without a unit)
 _NO_UNIT = ("", "1", "dimensionless")
+#: corners evaluated one by one up to this many (2**10); beyond, the regression's signs choose
+MAX_CORNERS = 1024
 
 
 def shown_unit(key: str, unit: str, display: DisplayUnits | None = None, linear: bool = False) -> tuple:
@@ -90,6 +92,9 @@ class WorstCorner:
     notes : tuple of str
     units : dict
         Key -> the SI unit of its value in :attr:`values`.
+    total : int
+        Corners of the tolerance box (2 ** the tolerances that enter a figure; 0: not
+        known).
     """
 
     values: dict
@@ -104,6 +109,17 @@ class WorstCorner:
     time_figures: dict = field(default_factory=dict)
     notes: tuple = ()
     units: dict = field(default_factory=dict)
+    total: int = 0
+
+    def evaluated(self) -> str:
+        """How many corners were evaluated, in words: ``16 corners evaluated``, or ``1 of
+        4096 corners evaluated, the one the regression's signs point to (every corner up to
+        1024)``."""
+        n = f"{self.corners} corner{'' if self.corners == 1 else 's'}"
+        if self.total > self.corners:
+            return (f"{self.corners} of {self.total} corners evaluated, the one the regression's signs point to "
+                    f"(every corner up to {MAX_CORNERS})")
+        return f"{n} evaluated"
 
     def run_figures(self) -> dict | None:
         """The corner's time run as ``max_tracking_error`` (SI: rad or m) and
@@ -138,7 +154,7 @@ class WorstCorner:
         """JSON-ready (the simulation as its two figures, SI)."""
         out = {"values": {k: float(v) for k, v in self.values.items()}, "score": self.score, "figure": self.figure,
                "units": dict(self.units),
-               "basis": self.basis, "corners_evaluated": self.corners,
+               "basis": self.basis, "corners_evaluated": self.corners, "corners_total": self.total,
                "figures": {k: float(v) for k, v in self.figures.items()}, "reference": self.reference}
         if self.time_figures:
             out["time_figures"] = dict(self.time_figures)
@@ -258,7 +274,7 @@ class ToleranceResult(RichDisplay):
                 lines.append(f"    does not enter it (0 exactly): {', '.join(inert)}")
         if self.worst is not None:
             w = self.worst
-            lines.append(f"  worst corner over {w.basis} ({w.corners} evaluated): {w.verdict()} at "
+            lines.append(f"  worst corner over {w.basis} ({w.evaluated()}): {w.verdict()} at "
                          f"{self.corner_text()}")
             if w.run_text():
                 lines.append(f"    {w.run_text()}")

@@ -16,8 +16,8 @@ peak current, each variant also runs in time on the nonlinear model
 - the *sensitivity* of each figure to each tolerance (:mod:`servo_toolkit.core.sensitivity`:
   standardized regression where the figure is near-linear, Sobol indices where not, a key
   that does not enter the figure exactly 0);
-- the *worst corner*: every corner of the tolerance box (each tolerance at an end) through
-  the linear study and, when the scene bounds a time figure, through batched time runs too;
+- the *worst corner*: every corner of the tolerance box (each tolerance at an end; up to
+  2^10, on the variants' maps or built exactly as they were) through the linear study and, when the scene bounds a time figure, through batched time runs too;
   the one with the smallest margin to a requirement (each shortfall divided by its limit,
   over every requirement judged) built exactly, its margins checked with python-control's arithmetic and
   its nonlinear closed loop run on its own.
