@@ -61,7 +61,7 @@ class ModelSetup:
 
 
 def model_setup(scene, controller, frequencies_hz, amplitudes, *, options=None, full: bool = False, base=None,
-                source: str | None = None, build: bool = True) -> ModelSetup:
+                source: str | None = None, build: bool = True, stiffness=None) -> ModelSetup:
     """The model a study at ``frequencies_hz`` and ``amplitudes`` runs with ``controller``.
 
     Parameters
@@ -82,6 +82,9 @@ def model_setup(scene, controller, frequencies_hz, amplitudes, *, options=None, 
     build : bool
         Build the model and note its notes and the friction's cost (a sine dwell's
         notes); False: only choose the options (``model`` None, no notes beyond the source).
+    stiffness : (float, float), optional
+        The factors on the series stiffness a study varies: the reduction keeps what they
+        act on (:func:`.reduce.estimates.plan_reduction`).
 
     Returns
     -------
@@ -97,7 +100,8 @@ def model_setup(scene, controller, frequencies_hz, amplitudes, *, options=None, 
     if options is None:
         options = base or ModelOptions(damping_ratio=DEFAULT_STRUCTURAL_DAMPING, friction="stick")
         if not full:
-            plan = plan_reduction(scene, controller, frequencies_hz, amplitudes, base=options)
+            plan = plan_reduction(scene, controller, frequencies_hz, amplitudes, base=options,
+                                  stiffness=stiffness)
             options = plan.options
             if build:
                 notes.append("reduced model (use full=True / --full for the full model)")

@@ -239,13 +239,17 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         controller, source = controller_for(scene)
         source = f"controller from {source}"
     controller = nominal_feedforward(with_feedforward(controller, feedforward, scene), scene)
-    options, notes = sine_run_options(scene, controller, reference, full, friction=friction)
+    options, notes = sine_run_options(scene, controller, reference, full, friction=friction,
+                                      stiffness=_factors(values.get("stiffness")))
     notes.insert(0, f"{source}, the same on every variant")
     notes += unvaried_tolerances(scene, values)
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
     if builder.fast and not builder.self_check(values):
         builder = replace(builder, fast=False)
     model = builder.model
+    if "stiffness" in values and model.rigid:
+        notes.append("the drivetrain is rigid (no stage has a stiffness): the stiffness factor acts on nothing, "
+                     "every stiffness gives the same figures")
     P0 = fill(model, reference)
     rows = None
     if not builder.fast:
@@ -269,6 +273,11 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
         notes=(*notes, *model.notes), runner=(builder, P0, reference, rows))
+
+
+def _factors(stiffness):
+    """(smallest, largest) of the stiffness factors a run varies, None when it varies none."""
+    return None if stiffness is None else (float(np.min(stiffness)), float(np.max(stiffness)))
 
 
 def fitted_rows(scene, builder, P0, values, reference):

@@ -100,6 +100,9 @@ class ReductionPlan(RichDisplay):
     chain_choice : ChainChoice or None
         Whether the drivetrain chain's modes above the first are kept
         (:func:`servo_toolkit.sim.chain_choice.choose_chain`); None for a chain with one mode.
+    kept : tuple of (str, str)
+        ``(effect, why)`` of each effect kept whatever its estimate (a study varying a
+        parameter that acts on it: :func:`~.estimates.plan_reduction`'s ``stiffness``).
     """
 
     effects: tuple
@@ -111,6 +114,7 @@ class ReductionPlan(RichDisplay):
     notes: tuple = ()
     output_unit: str = "rad"
     chain_choice: object = None
+    kept: tuple = ()
 
     @property
     def omitted(self) -> tuple:
@@ -126,14 +130,17 @@ class ReductionPlan(RichDisplay):
 
     def to_dict(self) -> dict:
         """JSON-ready."""
-        return {"effects": [e.to_dict() for e in self.effects],
-                "left_out": [e.effect for e in self.omitted],
-                "tolerance_relative": self.tolerance, "tolerance_dB": _db(self.tolerance),
-                "tolerance_deg": _deg(self.tolerance), "predicted_relative": self.predicted,
-                "frequencies_hz": self.frequencies_hz.tolist(),
-                OutputUnit(self.output_unit).key("amplitudes"):
-                    [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
-                "notes": list(self.notes)}
+        out = {"effects": [e.to_dict() for e in self.effects],
+               "left_out": [e.effect for e in self.omitted],
+               "tolerance_relative": self.tolerance, "tolerance_dB": _db(self.tolerance),
+               "tolerance_deg": _deg(self.tolerance), "predicted_relative": self.predicted,
+               "frequencies_hz": self.frequencies_hz.tolist(),
+               OutputUnit(self.output_unit).key("amplitudes"):
+                   [float(OutputUnit(self.output_unit).show(a)) for a in self.amplitudes_rad],
+               "notes": list(self.notes)}
+        if self.kept:
+            out["kept_whatever_the_estimate"] = [{"effect": e, "why": why} for e, why in self.kept]
+        return out
 
     def plot(self, ax=None):
         """Each effect's a-priori estimate (relative response error if left out), left out or
@@ -206,7 +213,7 @@ def chosen_options(base, effects):
     return opts
 
 
-def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice=None) -> ReductionPlan:
+def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice=None, keep=None) -> ReductionPlan:
     """The effects to leave out (module docstring) and the reduced model's options.
 
     Parameters
@@ -223,17 +230,22 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
         For the plan.
     choice : ChainChoice, optional
         ``simulate``'s rule for the chain's modes above the first.
+    keep : dict, optional
+        Switch -> why the study needs it (``{"compliance": "..."}``): effects with these
+        switches (``"chain"``: the chain's modes above the first) are kept whatever their
+        estimate, e.g. by a study that varies a parameter acting on them.
     """
+    keep = keep or {}
     budget = tol / 2
     used = 0.0
     chosen = set()
     modes = [e for e in effects if e.switch == "chain"]
-    if modes and choice is not None and choice.chain == "two_mass":
+    if modes and choice is not None and choice.chain == "two_mass" and "chain" not in keep:
         chosen.add(modes[0].effect)  # simulate's rule lumps them
         used += modes[0].estimate
     by_switch = [e for e in effects if e.switch is not None and e.switch != "chain"]
     backlash = [e for e in by_switch if e.switch == "backlash"]
-    if rigid_effect is not None:
+    if rigid_effect is not None and rigid_effect.switch not in keep:
         bl = backlash[0].estimate if backlash else 0.0
         if rigid_effect.estimate + bl <= budget:
             chosen.add(rigid_effect.effect)
@@ -241,7 +253,7 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
     for e in sorted(by_switch, key=lambda x: x.estimate):
         if rigid_effect is not None and rigid_effect.effect in chosen and e.switch in _WITH_COMPLIANCE:
             continue
-        if e.switch == "inductance" and limited:
+        if (e.switch == "inductance" and limited) or e.switch in keep:
             continue
         if used + e.estimate <= budget:
             chosen.add(e.effect)
@@ -256,6 +268,8 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
             out.append(replace(e, omitted=True, reason=f"left out: {why}"))
         elif rigid_effect is not None and rigid_effect.effect in chosen and e.switch in _WITH_COMPLIANCE:
             out.append(replace(e, omitted=True, reason="left out with the whole compliance"))
+        elif e.switch in keep:
+            out.append(replace(e, reason=f"kept: {keep[e.switch]}"))
         elif e.switch == "inductance" and limited:
             out.append(replace(e, reason="kept: limits reached, where the inductive voltage matters"))
         elif e.switch == "chain":
@@ -263,8 +277,10 @@ def choose(effects, rigid_effect, base, tol, limited, freqs, amps, notes, choice
         else:
             out.append(replace(e, reason=f"kept: {e.estimate:.2g} exceeds the remaining budget "
                                          f"{max(budget - used, 0):.2g}"))
+    kept = tuple((e.effect, keep[e.switch]) for e in out if e.switch in keep)
     return ReductionPlan(effects=tuple(out), options=chosen_options(base, out), tolerance=tol, predicted=used,
-                         frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes), chain_choice=choice)
+                         frequencies_hz=freqs, amplitudes_rad=amps, notes=tuple(notes), chain_choice=choice,
+                         kept=kept)
 
 
 __all__ = ["Effect", "ReductionPlan", "choose", "chosen_options", "options_without"]

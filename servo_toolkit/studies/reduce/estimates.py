@@ -107,7 +107,7 @@ def load_side_inertia(drive, q0: float) -> float:
 
 
 def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
-                   tolerance: float = DEFAULT_TOLERANCE) -> ReductionPlan:
+                   tolerance: float = DEFAULT_TOLERANCE, stiffness=None) -> ReductionPlan:
     """Judge each effect against a study's frequencies and amplitudes; choose what to leave out.
 
     Parameters
@@ -121,6 +121,11 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         The full model's options (its damping ratio is used for the linear loops).
     tolerance : float
         Bound on the relative response difference full/reduced.
+    stiffness : (float, float), optional
+        The smallest and largest factor on the series stiffness the study varies
+        (:func:`varied_stiffness`): the drivetrain compliance it acts on is kept whatever its
+        estimate, and so are the chain's modes above the first when lumping them costs more
+        than simulate's rule allows at the smallest factor.
 
     Returns
     -------
@@ -252,8 +257,33 @@ def plan_reduction(scene, controller, frequencies_hz, amplitudes, *, base=None,
         effects.append(Effect("small inertias", None, ", ".join(f"{lab} {s:.1e}" for lab, s in small) +
                               " of J", e, reason="kept: they add no state (J(q) is one table), nothing to gain"))
 
-    plan = choose(effects, rigid_effect, base, tolerance, limited.any(), freqs, amps, notes, choice)
+    keep = {} if stiffness is None else varied_stiffness(stiffness, rigid_effect, choice, tolerance / 2)
+    plan = choose(effects, rigid_effect, base, tolerance, limited.any(), freqs, amps, notes, choice, keep=keep)
     return replace(plan, output_unit=output_unit(scene).si)
+
+
+def varied_stiffness(factors, rigid_effect, choice, budget: float) -> dict:
+    """The effects a study varying the series stiffness by ``factors`` (its smallest and
+    largest factor) keeps whatever their estimates (switch -> why, :func:`~.choice.choose`).
+
+    The factor acts on the drivetrain compliance only: a model without it gives every factor
+    the same figures, so the compliance is kept (``rigid_effect``, None for a rigid chain).
+    The factor scales every spring of the chain, so the two-mass reduction of a scaled chain
+    is the scaled reduction; what lumping costs grows as the modes above the first fall, with
+    the square root of the factor. To first order in (study frequency / mode)^2 that cost
+    grows with the inverse of the factor: the modes are kept when ``choice.cost`` over the
+    smallest factor exceeds ``budget`` (simulate's rule for the nominal chain).
+    """
+    low, high = (float(min(factors)), float(max(factors)))
+    keep = {}
+    rng = f"{low:.4g}..{high:.4g} x nominal" if high > low else f"{low:.4g} x nominal"
+    if rigid_effect is not None:
+        keep[rigid_effect.switch] = f"the study varies the stiffness ({rng}), which acts on it alone"
+    if choice is not None and choice.chain == "two_mass" and low < 1 and choice.cost / low > budget:
+        keep["chain"] = (f"the study varies the stiffness ({rng}): lumping the modes costs ~{choice.cost / low:.2g} "
+                         f"at {low:.4g} x nominal (the nominal {choice.cost:.2g} over the factor: the modes fall "
+                         f"with its square root), more than {budget:g}")
+    return keep
 
 
 def friction_cost_note(scene, controller, frequencies_hz, amplitudes, options,

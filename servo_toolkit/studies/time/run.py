@@ -138,13 +138,16 @@ def check_friction(friction: str) -> str:
     return friction
 
 
-def sine_run_options(scene, controller, reference, full: bool = False, friction: str | None = None):
+def sine_run_options(scene, controller, reference, full: bool = False, friction: str | None = None,
+                     stiffness=None):
     """Model options of a closed-loop sine run: the reduced model for its frequency and
     amplitude (:func:`~.reduce_estimates.plan_reduction`), or the full one. Both start from
     friction that holds (``"stick"``) at every node; the reduction smooths it (the smooth
     model) only where its node-by-node estimate (:mod:`.reduce_friction`) is within the budget.
     A ``friction`` model given (``"stick"``, ``"smooth"``, ``"off"``) is kept in either: the
-    reduction judges the other effects.
+    reduction judges the other effects. ``stiffness``, the smallest and largest factor on the
+    series stiffness a study varies, keeps in the reduced model what the factor acts on
+    (:func:`~.reduce_estimates.plan_reduction`), and a note says so.
 
     Returns
     -------
@@ -165,19 +168,22 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
         options = replace(options, chain="full", friction=friction or options.friction)
         return options, ["full model (every modelled effect kept, every drivetrain mode, friction that holds)"] + chosen
     plan = model_setup(scene, controller, [reference.frequency], [abs(reference.amplitude)], base=options,
-                       build=False).plan
+                       build=False, stiffness=stiffness).plan
     left = [f"{e.effect} (estimate {e.estimate:.2g})" for e in plan.omitted]
     amp = abs(reference.amplitude)
     size = output_unit(scene).text(amp, 3)
     notes = [f"reduced model for {reference.frequency:g} Hz, {size}: left out {', '.join(left) or 'nothing'}; "
              f"a-priori bound {plan.tolerance:g} on the relative response (servo-toolkit reduce SCENE for "
              "the reasoning, --full for the full model)"]
+    estimate = {e.effect: e.estimate for e in plan.effects}
+    notes += [f"{effect} kept whatever its estimate ({estimate[effect]:.2g} at the nominal parameters): {why}"
+              for effect, why in plan.kept]
     fric = next((e for e in plan.effects if e.effect == FRICTION_EFFECT), None)
     if fric is not None and friction is None:
         notes.append(friction_note(fric.parts, fric.omitted))
     options = plan.options
-    if plan.chain_choice is not None and options.compliance:
-        # simulate's rule, with the steps and the cost; the model built on it carries the choice
+    if plan.chain_choice is not None and options.compliance and options.chain == plan.chain_choice.chain:
+        # simulate's rule (unless the modes are kept for a varied stiffness: noted above), with the steps and the cost; the model built on it carries the choice
         notes.append(plan.chain_choice.note)
         options = replace(options, chain_note=plan.chain_choice.note)
     if friction is not None:
