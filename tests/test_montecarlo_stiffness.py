@@ -121,3 +121,15 @@ def test_cli_prints_and_writes_what_it_kept(capsys):
     out = capsys.readouterr().out
     assert "note: drivetrain compliance kept whatever its estimate" in out
     assert not math.isclose(currents[0.02], currents[1.0])
+
+
+def test_the_modes_stay_lumped_when_the_full_chain_changes_form_within_the_load_range():
+    """On the reference EMA lumping costs 4.3e-5 at the nominal stiffness, ~0.043 at 1e-3 x:
+    the modes would be kept, but its full chain loses the load node at a load inertia of 0
+    (``--full`` refuses that range). The run lumps them and says what that costs."""
+    scene = load_scene(ROOT / "scenes" / "ema_reference.toml")
+    r = montecarlo(scene, {"load_inertia": np.array([0.0, 1.0]), "stiffness": np.array([1e-3, 1.0])},
+                   duration=0.01, progress=False)
+    note, = [n for n in r.notes if n.startswith("drivetrain modes above the first lumped")]
+    assert "costs ~0.043 at 0.001 x nominal" in note and "load_inertia = 0" in note
+    assert r.runner[0].options.chain == "two_mass" and r.runner[0].options.compliance

@@ -37,7 +37,7 @@ from ...sim.batch import F_CUR, F_ERR, F_SAT, F_STATUS, F_STEP
 from ...sim.batch_run import integrate_variants
 from ...sim.reference import fill, initial_state
 from ...sim.tables import frozen_tables
-from ...sim.variants import VariantBuilder
+from ...sim.variants import VariantBuilder, with_load_inertia
 from ...sim.tolerance_rows import ToleranceRows
 from ..time.reference import run_spec
 from ..batch_step import batch_step
@@ -241,6 +241,7 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
     controller = nominal_feedforward(with_feedforward(controller, feedforward, scene), scene)
     options, notes = sine_run_options(scene, controller, reference, full, friction=friction,
                                       stiffness=_factors(values.get("stiffness")))
+    options, notes = lumped_if_reshaped(scene, controller, options, notes, values)
     notes.insert(0, f"{source}, the same on every variant")
     notes += unvaried_tolerances(scene, values)
     builder = VariantBuilder.create(scene, controller, options, varied=tuple(values))
@@ -273,6 +274,30 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
                   "controller": model.controller,
                   "feedforward": None if controller.feedforward is None else controller.feedforward.to_dict()},
         notes=(*notes, *model.notes), runner=(builder, P0, reference, rows))
+
+
+#: the start of sine_run_options' note on the chain's modes kept for a varied stiffness
+MODES_KEPT = "drivetrain modes above the first kept whatever its estimate"
+
+
+def lumped_if_reshaped(scene, controller, options, notes, values):
+    """``(options, notes)`` with the chain's modes lumped again when they were kept for a
+    varied stiffness but the full chain changes form within the load range (a load node
+    without inertia at a load inertia of 0: ``--full`` refuses such a range); the note then
+    says that the softest variants carry the lumping's cost. Unchanged otherwise."""
+    i = next((j for j, n in enumerate(notes) if n.startswith(MODES_KEPT)), None)
+    if i is None or "load_inertia" not in values or options.chain != "full":
+        return options, notes
+    from ...sim import build_model
+    nominal = build_model(scene, controller, options)
+    light = build_model(with_load_inertia(scene, float(np.min(values["load_inertia"]))), controller, options)
+    if light.P.size == nominal.P.size and light.T.shape == nominal.T.shape:
+        return options, notes
+    why = notes[i][notes[i].index(": ") + 2:]
+    note = (f"drivetrain modes above the first lumped into the two-mass reduction although {why}: the full chain "
+            f"changes form at load_inertia = {float(np.min(values['load_inertia'])):.4g} (a node without "
+            "inertia), so the softest variants carry that cost")
+    return replace(options, chain="two_mass", chain_note=note), [*notes[:i], note, *notes[i + 1:]]
 
 
 def _factors(stiffness):
