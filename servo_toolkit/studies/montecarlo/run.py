@@ -285,19 +285,33 @@ def lumped_if_reshaped(scene, controller, options, notes, values):
     varied stiffness but the full chain changes form within the load range (a load node
     without inertia at a load inertia of 0: ``--full`` refuses such a range); the note then
     says that the softest variants carry the lumping's cost. Unchanged otherwise."""
-    i = next((j for j, n in enumerate(notes) if n.startswith(MODES_KEPT)), None)
-    if i is None or "load_inertia" not in values or options.chain != "full":
+    if "load_inertia" not in values:
         return options, notes
+    low = float(np.min(values["load_inertia"]))
+    return lumped_if_reshaped_at(scene, controller, options, notes,
+                                 {f"load_inertia = {low:.4g}": with_load_inertia(scene, low)}, "a node without inertia")
+
+
+def lumped_if_reshaped_at(scene, controller, options, notes, ends: dict, why_form: str):
+    """:func:`lumped_if_reshaped` at ``ends`` (label -> the scene at a varied key's end):
+    the chain's modes kept for a varied stiffness are lumped again when the full chain built
+    at one of them changes form (``why_form`` says how, in words) or does not build."""
     from ...sim import build_model
-    nominal = build_model(scene, controller, options)
-    light = build_model(with_load_inertia(scene, float(np.min(values["load_inertia"]))), controller, options)
-    if light.P.size == nominal.P.size and light.T.shape == nominal.T.shape:
+    i = next((j for j, n in enumerate(notes) if n.startswith(MODES_KEPT)), None)
+    if i is None or not ends or options.chain != "full":
         return options, notes
-    why = notes[i][notes[i].index(": ") + 2:]
-    note = (f"drivetrain modes above the first lumped into the two-mass reduction although {why}: the full chain "
-            f"changes form at load_inertia = {float(np.min(values['load_inertia'])):.4g} (a node without "
-            "inertia), so the softest variants carry that cost")
-    return replace(options, chain="two_mass", chain_note=note), [*notes[:i], note, *notes[i + 1:]]
+    nominal = build_model(scene, controller, options)
+    for label, end in ends.items():
+        try:
+            m = build_model(end, controller, options)
+        except (SceneError, SimulationError):
+            m = None
+        if m is None or m.P.size != nominal.P.size or m.T.shape != nominal.T.shape:
+            why = notes[i][notes[i].index(": ") + 2:]
+            note = (f"drivetrain modes above the first lumped into the two-mass reduction although {why}: the full "
+                    f"chain changes form at {label} ({why_form}), so the softest variants carry that cost")
+            return replace(options, chain="two_mass", chain_note=note), [*notes[:i], note, *notes[i + 1:]]
+    return options, notes
 
 
 def _factors(stiffness):

@@ -72,7 +72,7 @@ def worst_corner(scene, tol, values, figs, margins, plants, p, ctrl, f_req, keys
     if timed:
         from .time_runs import tolerance_runs
         cr = tolerance_runs(scene, vals, ctrl, keys=keys, executor=executor, progress=False, duration=runs.duration_s,
-                            dt=runs.dt_s, seed=seed)
+                            dt=runs.dt_s, seed=seed, spans=runs.spans)
         physical = _physical(cr, cf["stable"])
         undecided, reasons = cr.failed & ~physical, cr.reasons
         shown = {k: np.where(physical, np.nan, v) for k, v in _time_shown(scene, cr).items()}
@@ -132,10 +132,15 @@ def _corner_run(scene, keys, corner, ctrl, runs, duration):
     from ...sim.tolerance_rows import keep_effects
     from ..time.reference import run_spec
     from ..time.run import sine_run_options
+    from .time_runs import stiffness_factors
     values, scale = _split(corner)
     cs = keys.scene(values)
     reference, run_duration, *_ = run_spec(cs, None)
-    options, _ = sine_run_options(scene, ctrl, reference)
+    if runs is not None:  # the variants' model
+        options = runs.rows.options
+    else:
+        options, _ = sine_run_options(scene, ctrl, reference,
+                                      stiffness=stiffness_factors(scene, keys, {k: [v] for k, v in corner.items()}))
     options, _ = keep_effects(options, corner)
     options = replace(options, stiffness_scale=options.stiffness_scale * scale)
     try:
