@@ -85,3 +85,21 @@ def test_closed_loop_torque_depends_on_tilt_and_friction():
         peaks.append(res.max_abs_motor_torque)
     # G sin(170 deg) max|ds/dq| = 4 N * 0.174 * 0.07 m = 0.049 N*m more to carry at most
     assert abs(peaks[1] - peaks[0]) > 0.1 * peaks[0], peaks
+
+
+def test_the_automatic_step_reduces_a_run_that_went_non_finite():
+    """A slow ramp of the cam drive through its dwell: the automatic step (0.0025 s, the
+    duration / 200) goes non-finite at 0.395 s, where the stiffness along its records rose to
+    |lambda| = 4.6e4 1/s. Before, method='auto' raised there; now it reads the stiffness from
+    the run's finite records, reduces the step as for a run that leaves the stability region,
+    says so in its choice, and agrees with the stiff reference solver."""
+    scene = _scene(0, 0.001)
+    model = build_model(scene, default_controller(scene))
+    ref = Reference.ramp(0.2)
+    auto = run(model, ref, 0.5, "auto")
+    truth = run(model, ref, 0.5, "reference", rtol=1e-10, atol=1e-10)
+    choice = auto.to_dict()["choice"]
+    assert auto.to_dict()["method"] == "rk4" and auto.dt_s < 1e-4, choice
+    assert "the run at dt = 0.0025 s went non-finite" in choice and "reduced to dt" in choice
+    assert auto.max_abs_motor_torque == pytest.approx(truth.max_abs_motor_torque, rel=1e-3)
+    assert auto.output_angle[-1] == pytest.approx(truth.output_angle[-1], rel=1e-3)

@@ -1,6 +1,13 @@
 /* The fixed-step loops: classical RK4 and the cam paper's discrete scheme (seed 002); their
    Python driver, which runs them chunk by chunk, is servo_toolkit.sim.integrators.integrate.
 
+   RK4 with the smooth friction (no stick) splits a step whose motor speed passes through the
+   band of its smooth sign tanh(omega_m / w_s) into substeps (smooth_substeps): there the
+   smooth Coulomb friction and the drivetrain's loss switch within a fraction of a
+   millisecond, and at a step of 0.1 ms their switch, not the smooth motion between reversals,
+   made nearly all of a run's error. With friction that holds the switches are located instead
+   (split_step.h, switch_loop.h).
+
    Both loops hold the sampled controller's output between samples (zero-order hold), sample it
    every sub steps, record every rec_every steps, track the peak motor torque at every step,
    and stop with a status code on a non-finite state or on the stroke end. No allocation
@@ -112,6 +119,98 @@ static inline void snapshot(double *snap, long k, double p, double pd, double q,
     row[nx + 1] = iref;
 }
 
+/* The largest |N| of the stroke's ratio table: a bound that spares the exact ratio's
+   evaluation for a step far from the smooth signs' band. */
+static inline double ratio_bound(const double *P, Tab T)
+{
+    double m = 0.0;
+    long n = (long)P[TAB_N];
+    for (long k = 0; k < n; k++)
+        m = fmax(m, fabs(TAB(T, T_N, k)));
+    return m;
+}
+
+/* How many RK4 substeps a step of length dt of the smooth friction (no stick) takes (1: the
+   step as it is), from the output speed pd at its start and its slope there, pd_dot. A step
+   whose motor speed passes through the band of its smooth sign (the speed at the start and at
+   the end the slope predicts differ in sign, or the smaller is within SMOOTH_BAND of the
+   smoothing speed w_s: tanh(N p' / w_s) has not settled) and moves the sign's argument
+   N p' / w_s by more than SMOOTH_RESOLUTION is taken in SMOOTH_SUBSTEPS substeps: there the
+   smooth Coulomb friction and the drivetrain's loss switch within a fraction of a
+   millisecond. A step fine enough to resolve the band takes it as it is. The number of
+   substeps is fixed, so that the steps of a run at dt / 2 are those at dt halved (RK4's
+   fourth order holds for the whole scheme). */
+static inline long smooth_substeps(const double *P, Tab T, double n_max, double p, double pd, double pd_dot,
+                                   double dt)
+{
+    double pd_new = pd + dt * pd_dot;
+    double slow = fmin(fabs(pd), fabs(pd_new));
+    if (pd * pd_new > 0.0 && slow * n_max * P[WS] >= SMOOTH_BAND)
+        return 1;
+    double n, dn;
+    hermite(T, T_N, P, p, &n, &dn);
+    double an = fabs(n) * P[WS];
+    if (pd * pd_new > 0.0 && slow * an >= SMOOTH_BAND)
+        return 1;
+    return fabs(dt * pd_dot) * an > SMOOTH_RESOLUTION ? SMOOTH_SUBSTEPS : 1;
+}
+
+/* The step of length dt from t taken as m classical RK4 steps (m from smooth_substeps), with
+   the right-hand side inlined as in the loop and the continuous controller's command kept
+   between stages that share their time (cmd, as the loop keeps it). x[7:] (a continuous
+   controller's, the full chain's nodes) advance in place. */
+ST_NOINLINE PhysState refined_step(long m, double t, double dt, double p, double pd, double q, double qd, double cur,
+                                   double xi, double s, const double *P, Tab T, double iref, int cont, double *x,
+                                   long nx, double *xs, double *k1, double *k2, double *k3, double *k4, double *cmd)
+{
+    double h = dt / (double)m;
+    double sixth = h / 6.0;
+    double d[10];
+    for (long k = 0; k < m; k++) {
+        double tk = t + (double)k * h;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+        double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC unroll 4
+#endif
+        for (long stage = 0; stage < 4; stage++) {
+            double c, w;
+            rk4_coefficients(stage, h, &c, &w);
+            double *kout = stage == 0 ? k1 : (stage == 1 ? k2 : (stage == 2 ? k3 : k4));
+            if (cont && stage > 0) {
+                const double *kin = stage == 1 ? k1 : (stage == 2 ? k2 : k3);
+                for (long j = NX_PHYS; j < nx; j++)
+                    xs[j] = x[j] + c * kin[j];
+            }
+            rhs_phys_inline(tk + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+                            P, T, iref, stage == 0 ? x : xs, kout, d, cmd);
+            s0 = d[0];
+            s1 = d[1];
+            s2 = d[2];
+            s3 = d[3];
+            s4 = d[4];
+            s5 = d[5];
+            u0 += w * s0;
+            u1 += w * s1;
+            u2 += w * s2;
+            u3 += w * s3;
+            u4 += w * s4;
+            u5 += w * s5;
+        }
+        if (cont)
+            for (long j = NX_PHYS; j < nx; j++)
+                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+        p += sixth * u0;
+        pd += sixth * u1;
+        q += sixth * u2;
+        qd += sixth * u3;
+        cur += sixth * u4;
+        xi += sixth * u5;
+    }
+    PhysState r = {p, pd, q, qd, cur, xi};
+    return r;
+}
+
 /* Classical RK4 with the physical states x[0:7] held in local scalars (registers); exported as
    servo_toolkit.sim.integrators._rk4.
 
@@ -161,6 +260,10 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
     int cont = IX(P[CMODE]) == CONTINUOUS || P[NMID] > 0.0;
     int stick = P[STICK] > 0.0; /* friction that holds: speed reversals are located within the step */
     int lands = stick && P[NODE_FRIC] > 0.0; /* ... at the full chain's intermediate nodes too */
+    /* the smooth signs of the Coulomb friction and of the drivetrain's loss: a step through
+       their band is taken in substeps (smooth_substeps) */
+    int smooth = !stick && (P[TC] > 0.0 || P[ETA_MEAN] > 0.0);
+    double n_max = smooth ? ratio_bound(P, T) : 0.0;
     double p = x[0], pd = x[1], q = x[2], qd = x[3], cur = x[4], xi = x[5], s = x[6];
     long status = OK;
     double sixth = dt / 6.0;
@@ -191,6 +294,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
         double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
         double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
         int done = 0;
+        long m = 1; /* substeps of a step through the smooth signs' band */
         int turned = 0; /* a stage's speed left a node's direction (friction that holds) */
         /* the four stages unrolled: their coefficients and slope rows become constants */
 #if defined(__GNUC__) && !defined(__clang__)
@@ -252,6 +356,11 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
                     done = 1;
                     break;
                 }
+                if (smooth) {
+                    m = smooth_substeps(P, T, n_max, p, pd, s1, dt);
+                    if (m > 1)
+                        break;
+                }
             }
             u0 += w * s0;
             u1 += w * s1;
@@ -262,6 +371,17 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
         }
         if (done)
             break;
+        if (m > 1) {
+            PhysState r = refined_step(m, t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, nx, xs, k1, k2, k3, k4,
+                                       cmd);
+            p = r.p;
+            pd = r.pd;
+            q = r.q;
+            qd = r.qd;
+            cur = r.cur;
+            xi = r.xi;
+            continue;
+        }
         if (stick) {
             /* a node carrying friction may reverse or break away within the step (the motor side or
                the load: ends; the full chain's intermediate nodes: mask): split it there */
@@ -329,6 +449,9 @@ static inline LoopResult paper(double *x, long nx, const double *P, Tab T, doubl
     int err_mode = P[STROKE_MODE] == 0.0;
     long qi = P[RIGID] > 0.0 ? 0 : 2;
     double c = P[HALF_PLAY];
+    /* RK4's array form takes the register loop's substeps through the smooth signs' band */
+    int smooth = !paper_scheme && !(P[STICK] > 0.0) && (P[TC] > 0.0 || P[ETA_MEAN] > 0.0);
+    double n_max = smooth ? ratio_bound(P, T) : 0.0;
     long to_sample = 0;
     long to_record = 0;
     if (first > 0) {
@@ -372,6 +495,26 @@ static inline LoopResult paper(double *x, long nx, const double *P, Tab T, doubl
         }
         if (step == n_steps)
             break;
+        long m = smooth ? smooth_substeps(P, T, n_max, x[0], x[1], k1[1], dt) : 1;
+        if (m > 1) { /* through the smooth signs' band: m RK4 substeps, as rk4 takes them */
+            double h = dt / (double)m;
+            for (long k = 0; k < m; k++) {
+                double tk = t + (double)k * h;
+                if (k > 0)
+                    rhs(tk, x, nx, P, T, iref, k1, aux2);
+                for (long stage = 0; stage < 3; stage++) {
+                    double hs = stage == 2 ? h : 0.5 * h;
+                    double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);
+                    double *kout = stage == 0 ? k2 : (stage == 1 ? k3 : k4);
+                    for (long j = 0; j < nx; j++)
+                        xs[j] = x[j] + hs * kin[j];
+                    rhs(tk + hs, xs, nx, P, T, iref, kout, aux2);
+                }
+                for (long j = 0; j < nx; j++)
+                    x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
+            continue;
+        }
         for (long stage = 0; stage < 3; stage++) { /* stages 2-4 in one loop (see rk4) */
             double h = stage == 2 ? dt : half;
             double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);

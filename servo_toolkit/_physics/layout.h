@@ -162,6 +162,9 @@
 #define MAX_SWITCHES 4
 #define HELD 1e+300
 #define SEED 1e-290
+#define SMOOTH_BAND 3.0
+#define SMOOTH_RESOLUTION 0.1
+#define SMOOTH_SUBSTEPS 8
 #define C_IREF 0
 #define C_TO_SAMPLE 1
 #define C_TO_RECORD 2

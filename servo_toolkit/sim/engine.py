@@ -82,6 +82,16 @@ def _along_samples(states, aux, n=ALONG_SAMPLES):
 
 
 
+class Diverged(SimulationError):
+    """A fixed-step run went non-finite: the message names the states and the time; ``times``,
+    ``states`` and ``aux`` are its finite records before it (what ``method="auto"`` reads the
+    stiffness along the run from, to reduce its step)."""
+
+    def __init__(self, message: str, times, states, aux):
+        super().__init__(message)
+        self.times, self.states, self.aux = times, states, aux
+
+
 def _fixed(model, P, x0, duration, dt, output_dt, paper):
     n_steps, rec = _grid(model, duration, dt, output_dt)
     n_rec = n_steps // rec + 2
@@ -101,8 +111,9 @@ def _fixed(model, P, x0, duration, dt, output_dt, paper):
         row = out_x[k - 1] if k else x
         names = [model.state_names[j] for j in np.flatnonzero(~np.isfinite(x))] or \
                 [model.state_names[j] for j in np.flatnonzero(~np.isfinite(row))]
-        raise SimulationError(f"non-finite state {', '.join(names) or 'motor torque'} at t = "
-                              f"{t_fail:.6g} s (step {dt:.3g} s)")
+        finite = np.all(np.isfinite(out_x[:k]), axis=1) & np.all(np.isfinite(out_aux[:k]), axis=1)
+        raise Diverged(f"non-finite state {', '.join(names) or 'motor torque'} at t = "
+                       f"{t_fail:.6g} s (step {dt:.3g} s)", out_t[:k][finite], out_x[:k][finite], out_aux[:k][finite])
     if status == lo.STROKE_END:
         qi = 0 if model.rigid else 2
         lo_q, hi_q = model.stroke
@@ -282,10 +293,16 @@ def choose_step(model, P, x0, duration: float, dt: float | None = None, output_d
         try:
             fixed = _fixed(model, P, x0, duration, dt, output_dt, paper)
         except (SimulationError, StrokeEndReached) as exc:
-            if not stops_ok:
+            if reduce and check and isinstance(exc, Diverged) and len(exc.times) >= 2:
+                # the automatic step went non-finite: the stiffness along its finite records
+                # decides, as along a run that ends (below)
+                fixed = (exc.times, exc.states, exc.aux)
+                choice += f"; the run at dt = {dt:.4g} s went non-finite ({exc})"
+            elif not stops_ok:
                 raise
-            return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions), stopped=str(exc),
-                              **common)
+            else:
+                return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions),
+                                  stopped=str(exc), **common)
         times, states, aux = fixed[:3]
         if not check:  # nothing to check: the probe at the start stands for the run
             along = probe
@@ -295,6 +312,9 @@ def choose_step(model, P, x0, duration: float, dt: float | None = None, output_d
         if paper:
             along["dt_limit_s"] = paper_limit(along)
         if dt <= along["dt_limit_s"]:
+            if len(fixed) == 3:  # a non-finite run the stiffness along its records does not explain
+                raise SimulationError(f"{choice.split('; ')[-1]}: inside the stability region along its records "
+                                      f"(|lambda dt| up to {along['max_abs_lambda'] * dt:.3g})")
             break
         if not reduce:
             return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions), outside=along,

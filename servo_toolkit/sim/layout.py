@@ -199,6 +199,15 @@ MAX_SWITCHES = 4
 HELD = 1e300
 SEED = 1e-290
 
+# the smooth friction's steps through the band of its smooth sign (``servo_toolkit/_physics/
+# integrate.h``, smooth_substeps): a step whose motor speed changes sign or comes within
+# SMOOTH_BAND smoothing speeds of zero (tanh(3) = 0.995: beyond it the sign has settled), and
+# that moves the sign's argument N p' / w_s by more than SMOOTH_RESOLUTION, is taken in
+# SMOOTH_SUBSTEPS RK4 substeps
+SMOOTH_BAND = 3.0
+SMOOTH_RESOLUTION = 0.1
+SMOOTH_SUBSTEPS = 8
+
 # a fixed-step run advanced in chunks (:func:`servo_toolkit.sim.integrators.integrate`): the loops'
 # state carried from one chunk to the next: held current reference, steps to the next
 # controller sample and to the next record, records written, peak |motor torque|, and RK4's
