@@ -10,7 +10,7 @@ import pytest
 
 from servo_toolkit.loop.backlash_df import backlash_df, backlash_limit_cycle, quantization_ripple
 from servo_toolkit.loop.controller import CascadeController
-from servo_toolkit.loop.design import _delay_response
+from servo_toolkit.loop.nominal_search import _delay_response
 from servo_toolkit.loop.structures import Motion
 from servo_toolkit.plant.linear import current_loop_gains, plant_parameters
 from servo_toolkit.scene.loader import scene_from_dict

@@ -29,6 +29,7 @@ from servo_toolkit.loop.metrics import grid_closed_loop, grid_figures, grid_marg
 from .conftest import SCENES
 
 design_module = importlib.import_module("servo_toolkit.loop.design")  # the module, not the function
+search_module = importlib.import_module("servo_toolkit.loop.nominal_search")
 
 
 @pytest.fixture(scope="module")
@@ -157,16 +158,16 @@ def test_grid_figures_are_row_by_row():
 
 def test_the_design_search_holds_one_group_of_candidates_at_a_time(ema, monkeypatch):
     rows = []
-    real = design_module.grid_margins
+    real = search_module.grid_margins
 
     def recorded(w, L):
         rows.append(int(np.prod(np.shape(L)[:-1])))
         return real(w, L)
 
-    monkeypatch.setattr(design_module, "grid_margins", recorded)
+    monkeypatch.setattr(search_module, "grid_margins", recorded)
     r = design_module.design(ema)
     points = next(n for n in r.notes if n.startswith("designed on")).split()[2]
-    assert len(rows) > 10 and max(rows) <= len(design_module.GAIN_SCAN) * int(points)
+    assert len(rows) > 10 and max(rows) <= len(search_module.GAIN_SCAN) * int(points)
 
 
 def test_the_plants_along_the_stroke_are_computed_once_per_design(ema, monkeypatch):

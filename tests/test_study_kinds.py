@@ -24,7 +24,7 @@ BUILTIN = ("kv", "frequency_sweep", "simulate", "inverse_dynamics", "mechanism_s
 #: name, the cascade controller's speed gain ``kv``, the time-simulation function
 #: ``simulate``, the sizing's ``inverse_dynamics`` method and the function of that name
 OTHER_MEANINGS = {
-    "kv": {"cli", "cli.cmd_kv", "loop.design", "loop.design_file", "loop.structures", "loop.actuator_bounds",
+    "kv": {"cli", "cli.cmd_kv", "loop.nominal_search", "loop.design_file", "loop.structures", "loop.actuator_bounds",
            "loop.tuning", "loop.robust_design", "tuner.widget", "report.sections_loop"},
     "simulate": {"", "sim", "cli", "cli.cmd_simulate"},
     "inverse_dynamics": {"studies.sizing.run", "studies.mechanisms.inverse_dynamics"},
