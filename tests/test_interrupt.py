@@ -103,15 +103,15 @@ def test_variants_in_calls_of_a_few_give_the_numbers_of_one_call(monkeypatch, th
 
 _CHILD = textwrap.dedent("""
     import sys
-    from servo_toolkit.sim import engine
-    real = engine.integrate
+    from servo_toolkit.sim import fixed_run
+    real = fixed_run.integrate
 
     def integrate(*args, **kwargs):
         if args[5] > 1000:  # the run itself, not the zero-step warm-up
             print("long run started", file=sys.stderr, flush=True)
         return real(*args, **kwargs)
 
-    engine.integrate = integrate
+    fixed_run.integrate = integrate
     from servo_toolkit.cli import main
     sys.exit(main(sys.argv[1:]))
 """)

@@ -12,7 +12,7 @@ import pytest
 
 from servo_toolkit import SimulationError
 from servo_toolkit.sim import ModelOptions, Reference, build_model, default_controller, run
-from servo_toolkit.sim import engine
+from servo_toolkit.sim import engine, fixed_run
 
 from .conftest import SCENES, build, variant
 
@@ -92,15 +92,15 @@ def test_wall_time_excludes_the_first_call(monkeypatch):
     0.1 s, on any machine however busy."""
     from types import SimpleNamespace
     calls, clock = [], [0.0]
-    real = engine.integrate
+    real = fixed_run.integrate
 
     def counted(*args):
         clock[0] += 100.0 if not calls else 1e-3 * args[5]  # args[5]: n_steps
         calls.append(args[5])
         return real(*args)
 
-    monkeypatch.setattr(engine, "integrate", counted)
-    monkeypatch.setattr(engine, "time", SimpleNamespace(perf_counter=lambda: clock[0]))
+    monkeypatch.setattr(fixed_run, "integrate", counted)
+    monkeypatch.setattr(fixed_run, "time", SimpleNamespace(perf_counter=lambda: clock[0]))
     scene = build(BASE)
     model = build_model(scene, default_controller(scene))
     res = run(model, Reference.sine(math.radians(2.0), 8.0), 0.01, "rk4", 1e-4)

@@ -8,7 +8,7 @@ work (``--force`` lifts it); the library's study functions run what they are ask
 (a caller from Python has chosen the size).
 
 Memory needs no budget of its own: no array grows with an input without a bound. A time run
-keeps at most ``sim.engine.MAX_RECORDS`` records, the Monte Carlo keeps figures (not traces)
+keeps at most ``sim.fixed_run.MAX_RECORDS`` records, the Monte Carlo keeps figures (not traces)
 of at most 1,000,000 variants and steps them in chunks, the robustness margins evaluate their
 frequency grid chunk by chunk, and a sweep or Kv grid is refused by its run time long before
 its tables could fill the memory.

@@ -16,7 +16,8 @@ region there fails with that reason.
 from __future__ import annotations
 
 from ..errors import SceneError, SimulationError
-from ..sim.engine import AUTO_Z, MAX_REDUCTIONS, MAX_STEPS, choose_step, snap
+from ..sim.engine import AUTO_Z, MAX_REDUCTIONS, choose_step, snap
+from ..sim.fixed_run import MAX_STEPS
 
 
 def batch_step(model, P0, x0, duration: float, dt: float | None = None):
@@ -44,7 +45,7 @@ def batch_step(model, P0, x0, duration: float, dt: float | None = None):
     ------
     SceneError
         ``dt`` not positive, or outside the stability region along the nominal run; a step
-        that needs more than :data:`~servo_toolkit.sim.engine.MAX_STEPS` steps (``duration``).
+        that needs more than :data:`~servo_toolkit.sim.fixed_run.MAX_STEPS` steps (``duration``).
     SimulationError
         The study's own step still outside the region after
         :data:`~servo_toolkit.sim.engine.MAX_REDUCTIONS` reductions.

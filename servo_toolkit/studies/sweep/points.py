@@ -86,9 +86,9 @@ def check_sweep_frequencies(scene, frequencies, key: str, plan) -> None:
     (:func:`servo_toolkit.sim.reference_checks.check_sine_frequency`); below, a dwell lasts its
     settling and estimation cycles (``plan``, a :class:`~.sine_dwell.DwellPlan`), and a
     frequency whose dwell needs more fixed steps at the sample time than one run may take
-    (:data:`servo_toolkit.sim.engine.MAX_STEPS`) cannot run at all.
+    (:data:`servo_toolkit.sim.fixed_run.MAX_STEPS`) cannot run at all.
     """
-    from ...sim.engine import MAX_STEPS
+    from ...sim.fixed_run import MAX_STEPS
     from ...sim.reference_checks import check_sine_frequency
     ts = float(scene.sensors.sample_time)
     for f in frequencies:
