@@ -2,13 +2,12 @@
 a ``[tolerances]`` table varies), vectorized.
 
 Every variant's open loop is evaluated on one frequency grid as array arithmetic with the
-closed-form plant responses (:mod:`.response`) of its lumped plant
-(:mod:`.variant_plants`) and the designed controller's response, computed once;
-closed-loop stability comes from the eigenvalues of the batched closed-loop matrices
-(:mod:`.assembly`). :func:`reference_loop` builds one variant's loop as a state-space block
-by interconnection instead (what a robust design's worst case is confirmed on), and
-:func:`reference_margins` takes python-control's margins of it, for checks and for the
-benchmark.
+closed-form plant responses (:mod:`.response`) of its lumped plant (:mod:`.variant_plants`)
+and the designed controller's response, computed once (:mod:`.variant_loops`); closed-loop
+stability comes from the eigenvalues of the batched closed-loop matrices (:mod:`.assembly`).
+:func:`reference_loop` builds one variant's loop as a state-space block by interconnection
+instead (what a robust design's worst case is confirmed on), and :func:`reference_margins`
+takes python-control's margins of it, for checks and for the benchmark.
 """
 
 from __future__ import annotations
@@ -30,8 +29,8 @@ from .requirements import check
 from .robustness_result import RobustnessResult
 from .sampling import sample_variants as _sample
 from .vary import PARAMETERS
-from .variant_plants import (VariantLoops, mode_damping, batched_matrices, controller_blocks as _controller_blocks,
-                             variant_grid, variant_plants)
+from .variant_loops import VariantLoops, controller_blocks as _controller_blocks, variant_grid
+from .variant_plants import mode_damping, batched_matrices, variant_plants
 
 #: the ranges :func:`sample_variants` takes without a scene: the reference EMA's defaults (its
 #: load of 1 kg*m^2 from none to four times, the series stiffness +-30 %)
@@ -248,7 +247,7 @@ def variant_figures(scene, p, ctrl, values: dict, f_req: float, *, executor=None
     :class:`RobustnessResult` ``figures``). The frequency grid brackets every crossing, the
     sensitivity peak and the bandwidth; with ``refine`` (default) each is then solved to
     solver precision with the closed-form loop response, otherwise it is interpolated on
-    the grid. The grid is :func:`~.variant_plants.variant_grid` (fine over the variants'
+    the grid. The grid is :func:`~.variant_loops.variant_grid` (fine over the variants'
     drivetrain modes and the controller's lightly damped poles and zeros, coarse elsewhere),
     or ``points`` log-spaced frequencies from 0.01 Hz to 5 kHz.
 

@@ -36,7 +36,7 @@ from .margins import frequency_grid
 from .metrics import grid_figures
 from .requirements import Check, check, unstable_checks
 from .response import current_response, loop_response, mechanical_response
-from .variant_plants import controller_blocks as _controller_blocks, controller_response as _controller_response
+from .variant_loops import controller_blocks as _controller_blocks, controller_response as _controller_response
 from .schedule import crossover_hz
 from .stroke_plants import PlantScan, plants_at
 
