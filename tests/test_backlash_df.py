@@ -12,7 +12,8 @@ from servo_toolkit.loop.backlash_df import backlash_df, backlash_limit_cycle, qu
 from servo_toolkit.loop.controller import CascadeController
 from servo_toolkit.loop.nominal_search import _delay_response
 from servo_toolkit.loop.structures import Motion
-from servo_toolkit.plant.linear import current_loop_gains, plant_parameters
+from servo_toolkit.plant.current_loop import current_loop_gains
+from servo_toolkit.plant.linear import plant_parameters
 from servo_toolkit.scene.loader import scene_from_dict
 from servo_toolkit.sim import ModelOptions, Reference, simulate
 

@@ -13,7 +13,8 @@ from servo_toolkit.loop.controller import CascadeController
 from servo_toolkit.loop import evaluate, linear_closed_loop
 from servo_toolkit.loop.assembly import closed_loop_matrix, controller_matrices
 from servo_toolkit.loop.structures import Motion
-from servo_toolkit.plant.linear import current_controller, plant_matrices
+from servo_toolkit.plant.current_loop import current_controller
+from servo_toolkit.plant.linear import plant_matrices
 
 from .conftest import SCENES
 

@@ -17,7 +17,8 @@ import pytest
 import servo_toolkit as st
 from servo_toolkit.cli import main
 from servo_toolkit.loop.closed_loop import DELAY_SAMPLES
-from servo_toolkit.plant.linear import current_controller, plant, plant_parameters, sample_delay
+from servo_toolkit.plant.current_loop import current_controller, sample_delay
+from servo_toolkit.plant.linear import plant, plant_parameters
 
 from .conftest import SCENES
 

@@ -176,7 +176,8 @@ def test_feedback_refuses_a_loop_without_solution():
 
 def _ema_blocks(ema):
     from servo_toolkit.loop.closed_loop import DELAY_SAMPLES
-    from servo_toolkit.plant.linear import current_controller, plant, sample_delay
+    from servo_toolkit.plant.current_loop import current_controller, sample_delay
+    from servo_toolkit.plant.linear import plant
     scene, controller = ema
     g = plant(scene, None, inductance=True)
     cur = current_controller(controller.current_kp, controller.current_ki, scene.motor)

@@ -8,8 +8,8 @@ import pytest
 
 from servo_toolkit import load_scene
 from servo_toolkit.loop.response import plant_responses
-from servo_toolkit.plant.linear import (current_controller, mechanics, plant_parameters, rigid_plant,
-                                 sample_delay, two_mass_damping, two_mass_plant)
+from servo_toolkit.plant.current_loop import current_controller, sample_delay
+from servo_toolkit.plant.linear import mechanics, plant_parameters, rigid_plant, two_mass_damping, two_mass_plant
 
 from .conftest import SCENES
 

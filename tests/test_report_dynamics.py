@@ -13,7 +13,8 @@ import pytest
 from servo_toolkit import load_scene
 from servo_toolkit.display.html import fmt
 from servo_toolkit.loop import design
-from servo_toolkit.plant.linear import current_controller, plant, sample_delay
+from servo_toolkit.plant.current_loop import current_controller, sample_delay
+from servo_toolkit.plant.linear import plant
 from servo_toolkit.report import run_section
 from servo_toolkit.report import sections_disturbance as sd
 from servo_toolkit.report import sections_poles as sp

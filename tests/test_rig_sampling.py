@@ -18,7 +18,7 @@ from servo_toolkit.cli import main
 from servo_toolkit.identify.frf import estimate_frf, read_time_log
 from servo_toolkit.identify.model import plant_response
 from servo_toolkit.identify.noise import frequency_noise
-from servo_toolkit.plant.linear import current_loop_gains
+from servo_toolkit.plant.current_loop import current_loop_gains
 from servo_toolkit.plant.sampled import drive_plant_response, zero_order_hold
 
 #: a gearmotor (50:1) turning a flap inertia against a torsion spring, every effect linear;

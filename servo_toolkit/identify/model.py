@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SceneError
-from ..plant.linear import current_loop_gains, plant
+from ..plant.current_loop import current_loop_gains
+from ..plant.linear import plant
 from ..plant.sampled import drive_plant_response
 
 RESPONSES = ("plant", "closed_loop")

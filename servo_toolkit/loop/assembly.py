@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..plant.linear import current_loop_block, sample_delay_block
+from ..plant.current_loop import current_loop_block, sample_delay_block
 from .closed_loop import DELAY_SAMPLES
 
 

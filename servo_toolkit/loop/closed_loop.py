@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from ..lti.connect import interconnect
 from ..lti.system import StateSpace, as_system, ss
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, current_loop_block, plant_block, sample_delay_block
+from ..plant.current_loop import current_loop_block, sample_delay_block
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant_block
 
 #: Sampling is modelled as this many sample times of delay (ZOH half sample + computation).
 DELAY_SAMPLES = 1.5

@@ -21,8 +21,8 @@ import numpy as np
 from ..core.output_units import REQUIREMENT_SINE_HZ
 from ..lti.system import as_system
 from ..scene.argument import as_scene
-from ..plant.linear import (DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, friction_note, plant_block,
-                            plant_parameters)
+from ..plant.current_loop import current_loop_gains
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, friction_note, plant_block, plant_parameters
 from .actuator_bounds import bounded
 from .chain_margins import chain_margins
 from .closed_loop import closed_loop_block, open_loop_block

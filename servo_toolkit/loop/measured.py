@@ -53,7 +53,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import SceneError
-from ..plant.linear import sample_delay_block
+from ..plant.current_loop import sample_delay_block
 from .closed_loop import DELAY_SAMPLES
 from .crossings import response_of
 from .measured_interval import combined, crossing_sd, point_sd, sensitivity

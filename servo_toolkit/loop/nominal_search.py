@@ -42,7 +42,7 @@ GAIN_SCAN = np.logspace(-0.8, 0.5, 27)
 def _delay_polys(sample_time: float):
     """Numerator and denominator of :func:`plant.sample_delay` (None without a delay)."""
     from ..lti.convert import ss2tf
-    from ..plant.linear import sample_delay_block
+    from ..plant.current_loop import sample_delay_block
     d = sample_delay_block(sample_time, DELAY_SAMPLES)
     if d.nstates == 0:
         return None

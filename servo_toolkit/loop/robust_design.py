@@ -47,7 +47,8 @@ from ..core.progress import progress_bar
 
 from .controller import CascadeController
 from ..lti.convert import ss2tf
-from ..plant.linear import sample_delay_block, spring_damping
+from ..plant.current_loop import sample_delay_block
+from ..plant.linear import spring_damping
 from .assembly import closed_loop_matrix, controller_matrices
 from .closed_loop import DELAY_SAMPLES
 from .margins import frequency_grid

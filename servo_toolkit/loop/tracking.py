@@ -19,7 +19,8 @@ import warnings
 import control as ct
 import numpy as np
 
-from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, current_controller, plant, sample_delay
+from ..plant.current_loop import current_controller, sample_delay
+from ..plant.linear import DEFAULT_STRUCTURAL_DAMPING, plant
 from .closed_loop import DELAY_SAMPLES
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..plant.linear import sample_delay_block
+from ..plant.current_loop import sample_delay_block
 from .assembly import _abcd
 from .closed_loop import DELAY_SAMPLES
 from .response import loop_response, mechanical_response, state_space_response

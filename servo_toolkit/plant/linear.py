@@ -27,7 +27,8 @@ eta N Kt i / (eta J_before + J_after). ``model="chain"`` gives every node and mo
 
 Each block is built as the toolkit's own :class:`~servo_toolkit.lti.system.StateSpace`
 (``*_block``, what the loop's analyses use, without python-control); the public functions
-hand the same matrices and names over as python-control systems.
+hand the same matrices and names over as python-control systems. The current loop and the
+sampling delay are :mod:`.current_loop`'s (their names are kept here too).
 """
 
 from __future__ import annotations
@@ -42,10 +43,11 @@ from ..drivetrain.chain_damping import chain_damping
 from ..drivetrain.elements import stage_units
 from ..drivetrain.stage_friction import lumped_friction
 from ..errors import SceneError
-from ..lti.convert import pade, tf2ss
 from ..lti.system import StateSpace, ss
+# the current loop's and the sampling delay's names, kept here for code that imports them from here
+from .current_loop import (current_controller, current_loop_block, current_loop_gains,  # noqa: F401
+                           sample_delay, sample_delay_block)
 from .signals import DEFAULT_STRUCTURAL_DAMPING, PLANT_OUTPUTS
-
 
 
 @dataclass(frozen=True)
@@ -343,46 +345,6 @@ def plant_block(scene, q0=None, inductance: bool = True, model: str = "auto",
         model = "rigid"
     p = plant_parameters(scene, q0, model, structural_damping)
     return _plant(p, inductance, "rigid_plant" if p.rigid else "two_mass_plant")
-
-
-def current_loop_gains(motor, bandwidth_hz: float = 1000.0) -> tuple[float, float]:
-    """PI gains (V/A, V/(A*s)) cancelling the armature pole: kp = L*wc, ki = R*wc, so the
-    current loop (back-emf aside) is a first-order lag at ``bandwidth_hz``."""
-    wc = 2 * math.pi * bandwidth_hz
-    return motor.inductance * wc, motor.resistance * wc
-
-
-def current_controller(kp: float, ki: float, motor=None) -> "control.StateSpace":
-    """Analog current PI: inputs ``i_cmd``, ``i`` (A), ``omega_m`` (rad/s); output ``u`` (V);
-    state ``current_integral`` (V). With ``motor`` of zero inductance the loop is ideal:
-    u = R * i_cmd + Ke * omega_m (no state, no ``i`` input), as in :class:`CascadeController`."""
-    return current_loop_block(kp, ki, motor).to_control()
-
-
-def current_loop_block(kp: float, ki: float, motor=None) -> StateSpace:
-    """:func:`current_controller` as the toolkit's own state-space block."""
-    if motor is not None and motor.inductance == 0:
-        return ss([], [], [], [[motor.resistance, motor.back_emf_constant]],
-                  inputs=["i_cmd", "omega_m"], outputs=["u"], name="current_loop")
-    return ss([[0.0]], [[ki, -ki, 0.0]], [[1.0]], [[kp, -kp, 0.0]],
-              inputs=["i_cmd", "i", "omega_m"], outputs=["u"], states=["current_integral"],
-              name="current_loop")
-
-
-def sample_delay(sample_time: float, samples: float = 1.5, order: int = 2) -> "control.StateSpace":
-    """Sampling as a delay on the current command: ``samples`` * T (half a sample of
-    zero-order hold plus one of computation), Pade order ``order``; input ``i_ref``,
-    output ``i_cmd`` (A). A zero sample time gives a unit gain."""
-    return sample_delay_block(sample_time, samples, order).to_control()
-
-
-def sample_delay_block(sample_time: float, samples: float = 1.5, order: int = 2) -> StateSpace:
-    """:func:`sample_delay` as the toolkit's own state-space block."""
-    delay = samples * sample_time
-    if delay <= 0:
-        return ss([], [], [], [[1.0]], inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
-    num, den = pade(delay, order)
-    return tf2ss(num, den, inputs=["i_ref"], outputs=["i_cmd"], name="sample_delay")
 
 
 def mechanics(scene, q0=None, model: str = "auto",

@@ -28,7 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..lti.response import solved_response
-from .linear import DEFAULT_STRUCTURAL_DAMPING, current_loop_gains, mechanics_block
+from .current_loop import current_loop_gains
+from .linear import DEFAULT_STRUCTURAL_DAMPING, mechanics_block
 
 
 def _current_to_speed(scene, mech):
@@ -93,7 +94,7 @@ def drive_plant_response(scene, frequency_hz, q0=None, structural_damping: float
         (a continuous controller) gives the continuous ``Kt omega_m / tau_m``.
     current_gains : (float, float), optional
         The current PI's kp (V/A) and ki (V/(A*s)); default the design's,
-        :func:`~.linear.current_loop_gains` of the scene's motor.
+        :func:`~.current_loop.current_loop_gains` of the scene's motor.
     drive_motor : Motor, optional
         The motor whose winding (R, L, Ke) the current loop acts on (default the scene's): a
         fit holds the drive's as it is while the mechanics vary, so the winding's values do not

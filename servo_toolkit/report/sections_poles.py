@@ -104,7 +104,7 @@ def motion_loop_pair(design, motor):
     zero-order hold, adds one period of computation delay and runs the Tustin-sampled
     motion controller."""
     import control as ct
-    from ..plant.linear import current_controller
+    from ..plant.current_loop import current_controller
     c = design.controller
     ts = c.sample_time
     if ts <= 0:

@@ -191,7 +191,8 @@ def stability_limit(scene, controller, q0: float, model: str, damping: float) ->
     its current loop closed (a controller's current PI, as the compiled model integrates
     it), or the voltage-driven plant."""
     from ..lti.connect import interconnect
-    from ..plant.linear import current_loop_block, plant_block
+    from ..plant.current_loop import current_loop_block
+    from ..plant.linear import plant_block
     g = plant_block(scene, q0, model=model, structural_damping=damping)
     if controller is None:
         return max_stable_dt(np.linalg.eigvals(g.A))
