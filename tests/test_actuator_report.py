@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from servo_toolkit.report import run_section
 from servo_toolkit.report.context import Context
-from servo_toolkit.report.sections_loop import requirement_rows
+from servo_toolkit.report.sections_requirements import requirement_rows
 from servo_toolkit.report.sections_time import time_responses
 from servo_toolkit.scene.loader import scene_from_dict
 

@@ -56,7 +56,7 @@ def test_the_section_shows_both_margins_the_mismatch_and_the_bode_of_both(rig):
 
 
 def test_the_measured_rows_join_the_requirements(rig):
-    from servo_toolkit.report.sections_loop import _measured_rows
+    from servo_toolkit.report.sections_requirements import _measured_rows
     scene, data = rig
     ctx = Context(scene, plant_frf=data)
     rows = _measured_rows(ctx, ctx.design())

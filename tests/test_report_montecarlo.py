@@ -15,7 +15,7 @@ from servo_toolkit import load_scene
 from servo_toolkit.report.builder import SECTIONS
 from servo_toolkit.report.context import Context
 from servo_toolkit.report.section import NotApplicable
-from servo_toolkit.report.sections_loop import requirement_rows
+from servo_toolkit.report.sections_requirements import requirement_rows
 from servo_toolkit.report.sections_montecarlo import WORST, montecarlo_results, montecarlo_section
 from servo_toolkit.scene.loader import scene_from_dict
 

@@ -17,7 +17,8 @@ import scipy.signal
 from servo_toolkit import load_scene
 from servo_toolkit.report.context import Context
 from servo_toolkit.report.sections_closed import closed_loop, dynamic_stiffness, step_figures
-from servo_toolkit.report.sections_loop import controller, requirement_rows
+from servo_toolkit.report.sections_loop import controller
+from servo_toolkit.report.sections_requirements import requirement_rows
 from servo_toolkit.report.sections_robust import robustness
 from servo_toolkit.report.sections_stroke import binding_point, margins_along_stroke
 from servo_toolkit.report.sections_studies import peak_frequencies

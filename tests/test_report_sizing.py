@@ -6,7 +6,7 @@ from servo_toolkit import load_scene
 from servo_toolkit.errors import SimulationError
 from servo_toolkit.report.builder import SECTIONS, run_section
 from servo_toolkit.report.context import Context
-from servo_toolkit.report.sections_loop import requirement_rows
+from servo_toolkit.report.sections_requirements import requirement_rows
 
 from .conftest import SCENES
 

@@ -21,6 +21,7 @@ from . import sections_closed as closed
 from . import sections_command as command
 from . import sections_disturbance as disturbance
 from . import sections_poles as poles
+from . import sections_requirements as requirements_section
 from . import sections_limits as limits
 from . import sections_robust as robust
 from . import sections_sizing as sizing
@@ -64,7 +65,7 @@ SECTIONS = (
 )
 #: the section the study kinds' sections come before
 KIND_SECTIONS_BEFORE = "sizing"
-REQUIREMENTS = ("requirements", "Requirements", loop.requirements)
+REQUIREMENTS = ("requirements", "Requirements", requirements_section.requirements)
 #: the section of a measured plant response, after :data:`measured.AFTER`, in a report given one
 MEASURED = ("measured", "The loop on the measured plant", measured.measured_plant)
 
@@ -222,7 +223,7 @@ def build_report(scene, light: bool = True, executor=None, progress: bool = True
             built.append(run_section(key, title, builder, ctx, limit))
     req_section = built.pop(0)
     try:
-        rows = tuple(loop.requirement_rows(ctx))
+        rows = tuple(requirements_section.requirement_rows(ctx))
     except Exception:  # noqa: BLE001 - the section already shows why
         rows = ()
     stamp = _dt.datetime.now().strftime("%Y-%m-%d %H:%M")
