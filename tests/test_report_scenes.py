@@ -254,7 +254,7 @@ def test_a_section_stopped_by_its_time_limit_leaves_no_verdict_behind(monkeypatc
     monkeypatch.setattr(builder, "SECTIONS", (("a", "A", lambda c: Section("A", c.result("shared", slow))),))
     monkeypatch.setattr(builder, "REQUIREMENTS", ("requirements", "Requirements",
                                                   lambda c: Section("Requirements", str(rows(c)))))
-    monkeypatch.setattr(builder.loop, "requirement_rows", rows)
+    monkeypatch.setattr(builder.requirements_section, "requirement_rows", rows)
     report = builder.build_report(ctx.scene, progress=False, section_time_limit=0.2)
     assert report.section("requirements").status == "info" and report.requirements == ("row",)
     assert report.section("a").status == "info" and seen == ["verdict", "verdict"]
