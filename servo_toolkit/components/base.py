@@ -90,6 +90,20 @@ def made(cls, f, **fields):
         raise SceneError(key + bracket + index, exc.rule) from None
 
 
+def require_friction_values(f, values: dict, finite: tuple, unit: str = "") -> None:
+    """The scene table's friction values (read by ``f`` into ``values``) checked before the
+    component is made: each key of ``finite`` finite, and the breakaway level (the
+    ``static_friction``, or the ``coulomb_friction`` where none is given) finite and at least
+    the Coulomb level; ``unit`` shown after the figures. SceneError naming the table's key."""
+    for key in finite:
+        require(math.isfinite(values[key]), f.key(key), "must be finite")
+    coulomb = values["coulomb_friction"]
+    breakaway = coulomb if values["static_friction"] is None else values["static_friction"]
+    shown = f" {unit}" if unit else ""
+    require(math.isfinite(breakaway) and breakaway >= coulomb, f.key("static_friction"),
+            f"must be finite and at least the coulomb_friction {coulomb:g}{shown} (got {breakaway:g}{shown})")
+
+
 def check_breakaway(friction, key: str) -> None:
     """SceneError naming ``key`` unless ``friction``'s breakaway level (its
     ``static_friction``, or its ``coulomb_friction`` where none is given) is at least its

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from ..core.fields import Fields, require
-from .base import DAMPING_RATIO_RANGE, Jet, Spring, Stage, check_breakaway, check_fields
+from ..core.fields import Fields
+from .base import DAMPING_RATIO_RANGE, Jet, Spring, Stage, check_breakaway, check_fields, require_friction_values
 
 
 @dataclass(frozen=True)
@@ -123,11 +122,6 @@ class Load:
                       static_friction=(f.quantity("static_friction", units[1], rule="nonnegative")
                                        if f.has("static_friction") else None),
                       stribeck_speed=f.quantity("stribeck_speed", units[4], 0.0, rule="nonnegative"))
-        for key in ("inertia", "coulomb_friction", "stribeck_speed"):
-            require(math.isfinite(values[key]), f.key(key), "must be finite")
-        coulomb = values["coulomb_friction"]
-        breakaway = coulomb if values["static_friction"] is None else values["static_friction"]
-        require(math.isfinite(breakaway) and breakaway >= coulomb, f.key("static_friction"),
-                f"must be finite and at least the coulomb_friction {coulomb:g} (got {breakaway:g})")
+        require_friction_values(f, values, ("inertia", "coulomb_friction", "stribeck_speed"))
         f.check_unknown()
         return cls(**values)

@@ -4,11 +4,9 @@ moves with the stage's output coordinate (``[[drivetrain]]`` keys ``coulomb_fric
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from ..core.fields import require
-from .base import check_breakaway, check_fields
+from .base import check_breakaway, check_fields, require_friction_values
 
 #: the scene keys of a stage's friction
 KEYS = ("coulomb_friction", "static_friction", "stribeck_speed", "viscous_friction")
@@ -60,13 +58,7 @@ class StageFriction:
                                        if f.has("static_friction") else None),
                       stribeck_speed=f.quantity("stribeck_speed", units[1], 0.0, rule="nonnegative"),
                       viscous_friction=f.quantity("viscous_friction", units[2], 0.0, rule="nonnegative"))
-        for key in ("coulomb_friction", "stribeck_speed", "viscous_friction"):
-            require(math.isfinite(values[key]), f.key(key), "must be finite")
-        coulomb = values["coulomb_friction"]
-        breakaway = coulomb if values["static_friction"] is None else values["static_friction"]
-        require(math.isfinite(breakaway) and breakaway >= coulomb, f.key("static_friction"),
-                f"must be finite and at least the coulomb_friction {coulomb:g} {units[0]} "
-                f"(got {breakaway:g} {units[0]})")
+        require_friction_values(f, values, ("coulomb_friction", "stribeck_speed", "viscous_friction"), units[0])
         fr = cls(**values)
         return None if fr == cls() else fr
 
