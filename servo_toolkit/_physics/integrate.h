@@ -155,59 +155,19 @@ static inline long smooth_substeps(const double *P, Tab T, double n_max, double 
     return fabs(dt * pd_dot) * an > SMOOTH_RESOLUTION ? SMOOTH_SUBSTEPS : 1;
 }
 
-/* The step of length dt from t taken as m classical RK4 steps (m from smooth_substeps), with
-   the right-hand side inlined as in the loop and the continuous controller's command kept
-   between stages that share their time (cmd, as the loop keeps it). x[7:] (a continuous
-   controller's, the full chain's nodes) advance in place. */
+/* The step of length dt from t taken as m classical RK4 steps (m from smooth_substeps):
+   rk4_stages with the right-hand side inlined as in the loop and the continuous controller's
+   command kept between stages that share their time (cmd, as the loop keeps it). x[7:] (a
+   continuous controller's, the full chain's nodes) advance in place. */
 ST_NOINLINE PhysState refined_step(long m, double t, double dt, double p, double pd, double q, double qd, double cur,
                                    double xi, double s, const double *P, Tab T, double iref, int cont, double *x,
                                    long nx, double *xs, double *k1, double *k2, double *k3, double *k4, double *cmd)
 {
     double h = dt / (double)m;
-    double sixth = h / 6.0;
-    double d[10];
-    for (long k = 0; k < m; k++) {
-        double tk = t + (double)k * h;
-        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
-        double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC unroll 4
-#endif
-        for (long stage = 0; stage < 4; stage++) {
-            double c, w;
-            rk4_coefficients(stage, h, &c, &w);
-            double *kout = stage == 0 ? k1 : (stage == 1 ? k2 : (stage == 2 ? k3 : k4));
-            if (cont && stage > 0) {
-                const double *kin = stage == 1 ? k1 : (stage == 2 ? k2 : k3);
-                for (long j = NX_PHYS; j < nx; j++)
-                    xs[j] = x[j] + c * kin[j];
-            }
-            rhs_phys_inline(tk + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                            P, T, iref, stage == 0 ? x : xs, kout, d, cmd);
-            s0 = d[0];
-            s1 = d[1];
-            s2 = d[2];
-            s3 = d[3];
-            s4 = d[4];
-            s5 = d[5];
-            u0 += w * s0;
-            u1 += w * s1;
-            u2 += w * s2;
-            u3 += w * s3;
-            u4 += w * s4;
-            u5 += w * s5;
-        }
-        if (cont)
-            for (long j = NX_PHYS; j < nx; j++)
-                x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-        p += sixth * u0;
-        pd += sixth * u1;
-        q += sixth * u2;
-        qd += sixth * u3;
-        cur += sixth * u4;
-        xi += sixth * u5;
-    }
     PhysState r = {p, pd, q, qd, cur, xi};
+    for (long k = 0; k < m; k++)
+        r = rk4_stages(t + (double)k * h, h, r.p, r.pd, r.q, r.qd, r.cur, r.xi, s, P, T, iref, cont, x, nx, xs, k1, k2,
+                       k3, k4, cmd, 1, 0, NULL, NULL, NULL);
     return r;
 }
 

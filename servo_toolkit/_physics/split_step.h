@@ -71,14 +71,19 @@ static inline int stage_turns(double pd, double pd_stage, double qd, double qd_s
 }
 
 /* One classical RK4 step of length h from the physical state given as scalars (a continuous
-   controller's and the full chain's states x[7:] are advanced in place). Returns the advanced
-   (p, pd, q, qd, cur, xi), then (out pointers) the first stage's slopes of the node speeds and
-   whether a later stage's speeds left a node's direction at the step's start (stage_turns).
-   Called only where a step is split. */
-static inline PhysState _rk4_scalars(double t, double h, double p, double pd, double q, double qd, double cur,
-                                     double xi, double s, const double *P, Tab T, double iref, int cont,
-                                     double *x, long nx, double *xs, double *k1, double *k2, double *k3,
-                                     double *k4, double *g1_out, double *g3_out, int *turned_out)
+   controller's and the full chain's states x[7:] are advanced in place), shared by the steps
+   split at friction's switches (_rk4_scalars) and the substeps through the smooth signs' band
+   (integrate.h, refined_step). Returns the advanced (p, pd, q, qd, cur, xi), then (out
+   pointers, when track) the first stage's slopes of the node speeds and whether a later
+   stage's speeds left a node's direction at the step's start (stage_turns). inlined (a
+   constant at each call): the right-hand side inlined with the continuous controller's command
+   kept in cmd between stages that share their time (rhs_phys_inline), else the out-of-line
+   rhs_phys. */
+ST_ALWAYS_INLINE PhysState rk4_stages(double t, double h, double p, double pd, double q, double qd, double cur,
+                                      double xi, double s, const double *P, Tab T, double iref, int cont, double *x,
+                                      long nx, double *xs, double *k1, double *k2, double *k3, double *k4,
+                                      double *cmd, int inlined, int track, double *g1_out, double *g3_out,
+                                      int *turned_out)
 {
     double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
     double u0 = 0.0, u1 = 0.0, u2 = 0.0, u3 = 0.0, u4 = 0.0, u5 = 0.0;
@@ -94,10 +99,14 @@ static inline PhysState _rk4_scalars(double t, double h, double p, double pd, do
             for (long j = NX_PHYS; j < nx; j++)
                 xs[j] = x[j] + c * kin[j];
         }
-        if (stage > 0)
+        if (track && stage > 0)
             turned = turned || stage_turns(pd, pd + c * s1, qd, qd + c * s3);
-        rhs_phys(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
-                 P, T, iref, stage == 0 ? x : xs, kout, d);
+        if (inlined)
+            rhs_phys_inline(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+                            P, T, iref, stage == 0 ? x : xs, kout, d, cmd);
+        else
+            rhs_phys(t + c, p + c * s0, pd + c * s1, q + c * s2, qd + c * s3, cur + c * s4, xi + c * s5, s,
+                     P, T, iref, stage == 0 ? x : xs, kout, d);
         s0 = d[0];
         s1 = d[1];
         s2 = d[2];
@@ -119,12 +128,25 @@ static inline PhysState _rk4_scalars(double t, double h, double p, double pd, do
     if (cont)
         for (long j = NX_PHYS; j < nx; j++)
             x[j] += sixth * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-    *g1_out = g1;
-    *g3_out = g3;
-    *turned_out = turned;
+    if (track) {
+        *g1_out = g1;
+        *g3_out = g3;
+        *turned_out = turned;
+    }
     PhysState r = {p + sixth * u0, pd + sixth * u1, q + sixth * u2, qd + sixth * u3, cur + sixth * u4,
                    xi + sixth * u5};
     return r;
+}
+
+/* rk4_stages with the out-of-line right-hand side, tracking the node speeds' slopes and turns:
+   called only where a step is split at friction's switches. */
+static inline PhysState _rk4_scalars(double t, double h, double p, double pd, double q, double qd, double cur,
+                                     double xi, double s, const double *P, Tab T, double iref, int cont,
+                                     double *x, long nx, double *xs, double *k1, double *k2, double *k3,
+                                     double *k4, double *g1_out, double *g3_out, int *turned_out)
+{
+    return rk4_stages(t, h, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, nx, xs, k1, k2, k3, k4, NULL, 0, 1,
+                      g1_out, g3_out, turned_out);
 }
 
 /* One classical RK4 step (_rk4_scalars); returns the advanced (p, pd, q, qd, cur, xi). */
