@@ -334,12 +334,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
         if (m > 1) {
             PhysState r = refined_step(m, t, dt, p, pd, q, qd, cur, xi, s, P, T, iref, cont, x, nx, xs, k1, k2, k3, k4,
                                        cmd);
-            p = r.p;
-            pd = r.pd;
-            q = r.q;
-            qd = r.qd;
-            cur = r.cur;
-            xi = r.xi;
+            set_state(r, &p, &pd, &q, &qd, &cur, &xi);
             continue;
         }
         if (stick) {
@@ -352,12 +347,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
                 PhysState r = switched_step(t, dt, p, pd, q, qd, cur, xi, s, P, n_par, T, iref, cont, rigid, x, nx,
                                             xs, k1, k2, k3, k4, pd + sixth * u1, qd + sixth * u3, x0, PW, pw_stride,
                                             ends, mask);
-                p = r.p;
-                pd = r.pd;
-                q = r.q;
-                qd = r.qd;
-                cur = r.cur;
-                xi = r.xi;
+                set_state(r, &p, &pd, &q, &qd, &cur, &xi);
                 continue;
             }
         }

@@ -55,6 +55,17 @@ typedef struct {
     double p, pd, q, qd, cur, xi;
 } PhysState;
 
+/* The loop's scalars of the physical state set from r. */
+static inline void set_state(PhysState r, double *p, double *pd, double *q, double *qd, double *cur, double *xi)
+{
+    *p = r.p;
+    *pd = r.pd;
+    *q = r.q;
+    *qd = r.qd;
+    *cur = r.cur;
+    *xi = r.xi;
+}
+
 /* Classical RK4's stage k = 0..3: it evaluates at t + c_k from the state advanced by c_k times
    the previous stage's slopes, which enter the update with weight w_k (of dt / 6). */
 static inline void rk4_coefficients(long stage, double dt, double *c, double *w)
@@ -396,12 +407,7 @@ static inline int first_switch(double t, double dt, double p, double pd, double 
     }
     /* RK4 to tau (the continued motion, or held at rest), the node at rest there */
     r = _trial(t, tau, p, pd, q, qd, cur, xi, s, breakaway ? H : W, T, iref, cont, x, nx, x0, xs, k1, k2, k3, k4);
-    p = r.p;
-    pd = r.pd;
-    q = r.q;
-    qd = r.qd;
-    cur = r.cur;
-    xi = r.xi;
+    set_state(r, &p, &pd, &q, &qd, &cur, &xi);
     if (node == 0) {
         pd = 0.0;
         if (rigid)

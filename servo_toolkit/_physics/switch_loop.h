@@ -115,12 +115,7 @@ static inline PhysState switched_step(double t, double dt, double p, double pd, 
                               k3, k4, pd_new, qd_new, x0, PW, pw_stride, ends, mask, &r, &tau, &held);
         if (!split)
             return r;
-        p = r.p;
-        pd = r.pd;
-        q = r.q;
-        qd = r.qd;
-        cur = r.cur;
-        xi = r.xi;
+        set_state(r, &p, &pd, &q, &qd, &cur, &xi);
         n += 1;
         t += tau;
         dt -= tau;
