@@ -119,6 +119,13 @@ static inline void snapshot(double *snap, long k, double p, double pd, double q,
     row[nx + 1] = iref;
 }
 
+/* Whether a run of the smooth friction (no stick) has a smooth sign: the Coulomb torque's or
+   the drivetrain loss's, tanh(omega_m / w_s). */
+static inline int has_smooth_signs(const double *P)
+{
+    return !(P[STICK] > 0.0) && (P[TC] > 0.0 || P[ETA_MEAN] > 0.0);
+}
+
 /* The largest |N| of the stroke's ratio table: a bound that spares the exact ratio's
    evaluation for a step far from the smooth signs' band. */
 static inline double ratio_bound(const double *P, Tab T)
@@ -222,7 +229,7 @@ static inline LoopResult rk4(double *x, long nx, const double *P, long n_par, Ta
     int lands = stick && P[NODE_FRIC] > 0.0; /* ... at the full chain's intermediate nodes too */
     /* the smooth signs of the Coulomb friction and of the drivetrain's loss: a step through
        their band is taken in substeps (smooth_substeps) */
-    int smooth = !stick && (P[TC] > 0.0 || P[ETA_MEAN] > 0.0);
+    int smooth = has_smooth_signs(P);
     double n_max = smooth ? ratio_bound(P, T) : 0.0;
     double p = x[0], pd = x[1], q = x[2], qd = x[3], cur = x[4], xi = x[5], s = x[6];
     long status = OK;
@@ -395,12 +402,11 @@ static inline LoopResult paper(double *x, long nx, const double *P, Tab T, doubl
     double aux[NAUX], aux2[NAUX];
     long n_rec = 0;
     double max_tau = 0.0;
-    double half = 0.5 * dt;
     int err_mode = P[STROKE_MODE] == 0.0;
     long qi = P[RIGID] > 0.0 ? 0 : 2;
     double c = P[HALF_PLAY];
     /* RK4's array form takes the register loop's substeps through the smooth signs' band */
-    int smooth = !paper_scheme && !(P[STICK] > 0.0) && (P[TC] > 0.0 || P[ETA_MEAN] > 0.0);
+    int smooth = !paper_scheme && has_smooth_signs(P);
     double n_max = smooth ? ratio_bound(P, T) : 0.0;
     long to_sample = 0;
     long to_record = 0;
@@ -445,59 +451,47 @@ static inline LoopResult paper(double *x, long nx, const double *P, Tab T, doubl
         }
         if (step == n_steps)
             break;
+        /* through the smooth signs' band m RK4 substeps, as rk4 takes them; else (m = 1) the step */
         long m = smooth ? smooth_substeps(P, T, n_max, x[0], x[1], k1[1], dt) : 1;
-        if (m > 1) { /* through the smooth signs' band: m RK4 substeps, as rk4 takes them */
-            double h = dt / (double)m;
-            for (long k = 0; k < m; k++) {
-                double tk = t + (double)k * h;
-                if (k > 0)
-                    rhs(tk, x, nx, P, T, iref, k1, aux2);
-                for (long stage = 0; stage < 3; stage++) {
-                    double hs = stage == 2 ? h : 0.5 * h;
-                    double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);
-                    double *kout = stage == 0 ? k2 : (stage == 1 ? k3 : k4);
-                    for (long j = 0; j < nx; j++)
-                        xs[j] = x[j] + hs * kin[j];
-                    rhs(tk + hs, xs, nx, P, T, iref, kout, aux2);
+        double h = m == 1 ? dt : dt / (double)m;
+        for (long k = 0; k < m; k++) {
+            double tk = t + (double)k * h;
+            if (k > 0)
+                rhs(tk, x, nx, P, T, iref, k1, aux2);
+            for (long stage = 0; stage < 3; stage++) { /* stages 2-4 in one loop (see rk4) */
+                double hs = stage == 2 ? h : 0.5 * h;
+                double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);
+                double *kout = stage == 0 ? k2 : (stage == 1 ? k3 : k4);
+                if (paper_scheme) { /* frozen configuration: no position slope enters the later stages */
+                    kin[0] = 0.0;
+                    kin[2] = 0.0;
+                    kin[6] = 0.0;
                 }
                 for (long j = 0; j < nx; j++)
-                    x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+                    xs[j] = x[j] + hs * kin[j];
+                rhs(tk + hs, xs, nx, P, T, iref, kout, aux2);
             }
-            continue;
-        }
-        for (long stage = 0; stage < 3; stage++) { /* stages 2-4 in one loop (see rk4) */
-            double h = stage == 2 ? dt : half;
-            double *kin = stage == 0 ? k1 : (stage == 1 ? k2 : k3);
-            double *kout = stage == 0 ? k2 : (stage == 1 ? k3 : k4);
-            if (paper_scheme) { /* frozen configuration: no position slope enters the later stages */
-                kin[0] = 0.0;
-                kin[2] = 0.0;
-                kin[6] = 0.0;
-            }
+            double p_old = x[0];
+            double q_old = x[2];
+            double p_speed = x[1];
             for (long j = 0; j < nx; j++)
-                xs[j] = x[j] + h * kin[j];
-            rhs(t + h, xs, nx, P, T, iref, kout, aux2);
-        }
-        double p_old = x[0];
-        double q_old = x[2];
-        double p_speed = x[1];
-        for (long j = 0; j < nx; j++)
-            x[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-        if (P[STICK] > 0.0 && x[1] * p_speed < 0.0 && (P[TS_M] > 0.0 || P[TS_L] > 0.0)) {
-            /* friction that holds, in the fixed-configuration scheme: a speed reversal ends the
-               step at rest (Karnopp), where the friction decides between stick and slip */
-            x[1] = 0.0;
-            if (qi == 0)
-                x[3] = 0.0;
-        }
-        if (paper_scheme) { /* positions by summation from the new velocities (the RK4 sum above moved them) */
-            x[0] = p_old + dt * x[1];
-            x[2] = q_old + dt * x[3];
-            double p = x[0];
-            if (p > p_old && p > x[6] + c)
-                x[6] = p - c;
-            else if (p < p_old && p < x[6] - c)
-                x[6] = p + c;
+                x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            if (P[STICK] > 0.0 && x[1] * p_speed < 0.0 && (P[TS_M] > 0.0 || P[TS_L] > 0.0)) {
+                /* friction that holds, in the fixed-configuration scheme: a speed reversal ends the
+                   step at rest (Karnopp), where the friction decides between stick and slip */
+                x[1] = 0.0;
+                if (qi == 0)
+                    x[3] = 0.0;
+            }
+            if (paper_scheme) { /* positions by summation from the new velocities (the RK4 sum above moved them) */
+                x[0] = p_old + h * x[1];
+                x[2] = q_old + h * x[3];
+                double p = x[0];
+                if (p > p_old && p > x[6] + c)
+                    x[6] = p - c;
+                else if (p < p_old && p < x[6] - c)
+                    x[6] = p + c;
+            }
         }
     }
     carry[C_IREF] = iref;
