@@ -216,20 +216,22 @@ def choose_step(model, P, x0, duration: float, dt: float | None = None, output_d
     method = "paper" if paper else "rk4"
     reductions = []
     while True:
+        diverged = None
         try:
             fixed = _fixed(model, P, x0, duration, dt, output_dt, paper)
+            times, states, aux = fixed[:3]
         except (SimulationError, StrokeEndReached) as exc:
             if reduce and check and isinstance(exc, Diverged) and len(exc.times) >= 2:
                 # the automatic step went non-finite: the stiffness along its finite records
                 # decides, as along a run that ends (below)
-                fixed = (exc.times, exc.states, exc.aux)
-                choice += f"; the run at dt = {dt:.4g} s went non-finite ({exc})"
+                diverged = f"the run at dt = {dt:.4g} s went non-finite ({exc})"
+                times, states, aux = exc.times, exc.states, exc.aux
+                choice += f"; {diverged}"
             elif not stops_ok:
                 raise
             else:
                 return StepChoice(dt, method, choice, stability=probe, reductions=tuple(reductions),
                                   stopped=str(exc), **common)
-        times, states, aux = fixed[:3]
         if not check:  # nothing to check: the probe at the start stands for the run
             along = probe
             break
@@ -238,8 +240,8 @@ def choose_step(model, P, x0, duration: float, dt: float | None = None, output_d
         if paper:
             along["dt_limit_s"] = paper_limit(along)
         if dt <= along["dt_limit_s"]:
-            if len(fixed) == 3:  # a non-finite run the stiffness along its records does not explain
-                raise SimulationError(f"{choice.split('; ')[-1]}: inside the stability region along its records "
+            if diverged is not None:  # a non-finite run the stiffness along its records does not explain
+                raise SimulationError(f"{diverged}: inside the stability region along its records "
                                       f"(|lambda dt| up to {along['max_abs_lambda'] * dt:.3g})")
             break
         if not reduce:
