@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..core.output_units import OutputUnit, output_unit
+
 #: the ``check`` rows a position count must stay within (half a count below each bound)
 ROWS = ("position_error_at_rest", "limit_cycle")
 
@@ -34,20 +36,18 @@ class PositionCount:
         The output sensor's count (rad or m; 0: an ideal sensor).
     bounds : tuple of Bound
         The rows of :data:`ROWS` with their bounds (scene's or default).
-    unit : str
-        The shown unit of a position; ``factor`` takes SI to it.
-    factor : float
+    output : OutputUnit
+        The output's units (a position shown in deg or mm).
     """
 
     fmt: str
     lsb: float
     sensor_count: float
     bounds: tuple
-    unit: str
-    factor: float
+    output: OutputUnit
 
     def _shown(self, value: float) -> str:
-        return f"{value * self.factor:.3g} {self.unit}"
+        return self.output.text(value, 3)
 
     def failures(self) -> tuple:
         """Each row whose bound half a count reaches: named with both figures."""
@@ -86,12 +86,11 @@ def _source(bound) -> str:
 def position_count(quantized, scene, design_result) -> PositionCount:
     """The position count of ``quantized`` (a :class:`.quantize.Quantized`) judged against
     the rows of :data:`ROWS` of ``check`` for ``design_result`` on ``scene``."""
-    from ..core.output_units import output_unit
     from ..studies.actuator.spec import plan
     u = output_unit(scene)
     bounds = plan(scene, design_result).bounds
     return PositionCount(quantized.fmt, float(quantized.lsb["theta"]), float(scene.sensors.output_count(u.linear)),
-                         tuple(b for b in bounds if b.name in ROWS), u.shown, u.factor)
+                         tuple(b for b in bounds if b.name in ROWS), u)
 
 
 __all__ = ["PositionCount", "ROWS", "position_count"]
