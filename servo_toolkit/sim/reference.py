@@ -106,19 +106,19 @@ class Reference:
         if not frequency > 0:
             raise SceneError("frequency", f"must be positive (got {frequency:g} Hz)")
         return cls("sine", argument_value(amplitude, POSITION, "amplitude"), frequency, _position(offset),
-                   position_unit=_unit_of(amplitude=amplitude, offset=offset))
+                   position_unit=_unit_of(("amplitude", amplitude, POSITION), ("offset", offset, POSITION)))
 
     @classmethod
     def step(cls, size: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset, then offset + size from t = at (arguments as :meth:`sine`'s)."""
-        return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset), argument_value(at, "s", "at"),
-                   position_unit=_unit_of(size=size, offset=offset))
+        return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset),
+                   argument_value(at, "s", "at"), position_unit=_unit_of(("size", size, POSITION), ("offset", offset, POSITION)))
 
     @classmethod
     def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset + rate * max(t - at, 0) (rad/s or m/s; arguments as :meth:`sine`'s)."""
         return cls("ramp", argument_value(rate, RATE, "rate"), 0.0, _position(offset), argument_value(at, "s", "at"),
-                   position_unit=_unit_of(rate=rate, offset=offset))
+                   position_unit=_unit_of(("rate", rate, RATE), ("offset", offset, POSITION)))
 
     @classmethod
     def move(cls, distance: float, v_max: float, a_max: float, j_max: float, at: float = 0.0,
@@ -126,10 +126,11 @@ class Reference:
         """A jerk-limited move of ``distance`` from ``offset`` starting at ``at`` (s), within the
         speed, acceleration and jerk limits (:class:`~servo_toolkit.loop.profile.MoveProfile`;
         arguments as :meth:`sine`'s)."""
-        profile = MoveProfile(*(argument_value(value, (f"rad{per}", f"m{per}"), name) for value, per, name in (
-            (distance, "", "distance"), (v_max, "/s", "v_max"), (a_max, "/s^2", "a_max"), (j_max, "/s^3", "j_max"))))
+        given = tuple((name, value, (f"rad{per}", f"m{per}")) for value, per, name in (
+            (distance, "", "distance"), (v_max, "/s", "v_max"), (a_max, "/s^2", "a_max"), (j_max, "/s^3", "j_max")))
+        profile = MoveProfile(*(argument_value(value, units, name) for name, value, units in given))
         return cls("move", profile.distance, 0.0, _position(offset), argument_value(at, "s", "at"), profile=profile,
-                   position_unit=_unit_of(distance=distance, v_max=v_max, a_max=a_max, j_max=j_max, offset=offset))
+                   position_unit=_unit_of(*given, ("offset", offset, POSITION)))
 
     @classmethod
     def table(cls, time_s, values, offset: float | None = None, periodic: bool = False) -> "Reference":
@@ -161,7 +162,7 @@ class Reference:
         from .reference_table import check_samples
         t0, step, v = check_samples(time_s, values, periodic=periodic)
         return cls("table", 0.0, 0.0, _position(offset), t0, samples=tuple(float(x) for x in v), spacing=step,
-                   periodic=bool(periodic), position_unit=_unit_of(offset=offset))
+                   periodic=bool(periodic), position_unit=_unit_of(("offset", offset, POSITION)))
 
     @classmethod
     def voltage(cls, volts: float, swing: float = 0.0, frequency: float = 0.0) -> "Reference":
@@ -217,23 +218,17 @@ class Reference:
         return out
 
 
-#: the output a position or a rate of it is in, by the unit its Quantity fits
-_OUTPUT_OF = {"rad": "rad", "m": "m", "rad/s": "rad", "m/s": "m", "rad/s^2": "rad", "m/s^2": "m",
-              "rad/s^3": "rad", "m/s^3": "m"}
-#: the units a position argument's Quantity may be in, by its name
-_ARGUMENT_UNITS = {"rate": RATE, "v_max": ("rad/s", "m/s"), "a_max": ("rad/s^2", "m/s^2"),
-                   "j_max": ("rad/s^3", "m/s^3")}
-
-
-def _unit_of(**arguments) -> str | None:
-    """The output (``"rad"`` or ``"m"``) the constructor's Quantity arguments are in (None
-    when all are bare numbers); SceneError naming the first that is in the other output's."""
+def _unit_of(*arguments) -> str | None:
+    """The output (``"rad"`` or ``"m"``) a constructor's Quantity arguments are in, each
+    ``(name, value, units)`` with the units a Quantity of it may be in (a position or a rate of
+    it: the output is the unit's part before any ``/``); None when all are bare numbers.
+    SceneError naming the first that is in the other output's."""
     found = None
-    for name, value in arguments.items():
-        unit = quantity_unit(value, _ARGUMENT_UNITS.get(name, POSITION))
+    for name, value, units in arguments:
+        unit = quantity_unit(value, units)
         if unit is None:
             continue
-        output = _OUTPUT_OF[unit]
+        output = unit.split("/")[0]
         if found is not None and output != found[1]:
             raise SceneError(name, f"{'a travel' if output == 'm' else 'an angle'} where {found[0]} is "
                                    f"{'a travel' if found[1] == 'm' else 'an angle'}: give both for the same output")
