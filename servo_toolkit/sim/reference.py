@@ -112,7 +112,8 @@ class Reference:
     def step(cls, size: float, at: float = 0.0, offset: float | None = None) -> "Reference":
         """offset, then offset + size from t = at (arguments as :meth:`sine`'s)."""
         return cls("step", argument_value(size, POSITION, "size"), 0.0, _position(offset),
-                   argument_value(at, "s", "at"), position_unit=_unit_of(("size", size, POSITION), ("offset", offset, POSITION)))
+                   argument_value(at, "s", "at"),
+                   position_unit=_unit_of(("size", size, POSITION), ("offset", offset, POSITION)))
 
     @classmethod
     def ramp(cls, rate: float, at: float = 0.0, offset: float | None = None) -> "Reference":
