@@ -15,7 +15,7 @@ import pytest
 from servo_toolkit.drivetrain.operating_point import operating_point
 from servo_toolkit.scene.loader import load_scene
 from servo_toolkit.sim import controller_for
-from servo_toolkit.studies.montecarlo.run import MODES_KEPT
+from servo_toolkit.studies.time.run import MODES_KEPT
 from servo_toolkit.studies.tolerances.time_runs import key_spans, stiffness_factors, tolerance_runs
 
 from .conftest import ROOT

@@ -41,7 +41,7 @@ from ...sim.variants import VariantBuilder, with_load_inertia
 from ...sim.tolerance_rows import ToleranceRows
 from ..time.reference import run_spec
 from ..batch_step import batch_step
-from ..time.run import check_friction, sine_run_options
+from ..time.run import check_friction, lumped_if_reshaped_at, sine_run_options
 from .result import MonteCarloResult
 from .variant_step import step_check
 
@@ -276,10 +276,6 @@ def montecarlo(scene, variants=None, *, samples: int | None = None, seed: int | 
         notes=(*notes, *model.notes), runner=(builder, P0, reference, rows))
 
 
-#: the start of sine_run_options' note on the chain's modes kept for a varied stiffness
-MODES_KEPT = "drivetrain modes above the first kept whatever its estimate"
-
-
 def lumped_if_reshaped(scene, controller, options, notes, values):
     """``(options, notes)`` with the chain's modes lumped again when they were kept for a
     varied stiffness but the full chain changes form within the load range (a load node
@@ -290,28 +286,6 @@ def lumped_if_reshaped(scene, controller, options, notes, values):
     low = float(np.min(values["load_inertia"]))
     return lumped_if_reshaped_at(scene, controller, options, notes,
                                  {f"load_inertia = {low:.4g}": with_load_inertia(scene, low)}, "a node without inertia")
-
-
-def lumped_if_reshaped_at(scene, controller, options, notes, ends: dict, why_form: str):
-    """:func:`lumped_if_reshaped` at ``ends`` (label -> the scene at a varied key's end):
-    the chain's modes kept for a varied stiffness are lumped again when the full chain built
-    at one of them changes form (``why_form`` says how, in words) or does not build."""
-    from ...sim import build_model
-    i = next((j for j, n in enumerate(notes) if n.startswith(MODES_KEPT)), None)
-    if i is None or not ends or options.chain != "full":
-        return options, notes
-    nominal = build_model(scene, controller, options)
-    for label, end in ends.items():
-        try:
-            m = build_model(end, controller, options)
-        except (SceneError, SimulationError):
-            m = None
-        if m is None or m.P.size != nominal.P.size or m.T.shape != nominal.T.shape:
-            why = notes[i][notes[i].index(": ") + 2:]
-            note = (f"drivetrain modes above the first lumped into the two-mass reduction although {why}: the full "
-                    f"chain changes form at {label} ({why_form}), so the softest variants carry that cost")
-            return replace(options, chain="two_mass", chain_note=note), [*notes[:i], note, *notes[i + 1:]]
-    return options, notes
 
 
 def _factors(stiffness):

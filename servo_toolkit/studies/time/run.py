@@ -12,8 +12,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 from ...core.output_units import output_unit
-from ...errors import SceneError
-from ...sim import ModelOptions, controller_for, simulate
+from ...errors import SceneError, SimulationError
+from ...sim import ModelOptions, build_model, controller_for, simulate
 from ...sim.model_slots import FRICTION_CHOICES
 from ...sim.simulate import with_feedforward
 from .reference import run_spec
@@ -118,7 +118,6 @@ def resolve_method(method, study_method, dt, study_dt, key: str = "dt"):
         Named ``key``: a step given with a method that chooses its own (``"auto"``,
         ``"reference"``), where it would be ignored.
     """
-    from ...errors import SceneError
     if dt is not None and method is None and study_method is None:
         return "rk4", dt
     method = method or study_method or "auto"
@@ -183,9 +182,38 @@ def sine_run_options(scene, controller, reference, full: bool = False, friction:
         notes.append(friction_note(fric.parts, fric.omitted))
     options = plan.options
     if plan.chain_choice is not None and options.compliance and options.chain == plan.chain_choice.chain:
-        # simulate's rule (unless the modes are kept for a varied stiffness: noted above), with the steps and the cost; the model built on it carries the choice
+        # simulate's rule (unless the modes are kept for a varied stiffness: noted above), with
+        # the steps and the cost; the model built on it carries the choice
         notes.append(plan.chain_choice.note)
         options = replace(options, chain_note=plan.chain_choice.note)
     if friction is not None:
         return replace(options, friction=friction), notes + chosen
+    return options, notes
+
+
+#: the start of sine_run_options' note on the chain's modes kept for a varied stiffness
+MODES_KEPT = "drivetrain modes above the first kept whatever its estimate"
+
+
+def lumped_if_reshaped_at(scene, controller, options, notes, ends: dict, why_form: str):
+    """``(options, notes)`` at ``ends`` (label -> the scene at a varied key's end):
+    the chain's modes kept for a varied stiffness (the note :data:`MODES_KEPT`) are lumped
+    again when the full chain built at one of them changes form (``why_form`` says how, in
+    words) or does not build; the note then says that the softest variants carry the
+    lumping's cost. A Monte Carlo over the load inertia and a tolerance study over scene keys
+    call it at the ends of what they vary."""
+    i = next((j for j, n in enumerate(notes) if n.startswith(MODES_KEPT)), None)
+    if i is None or not ends or options.chain != "full":
+        return options, notes
+    nominal = build_model(scene, controller, options)
+    for label, end in ends.items():
+        try:
+            m = build_model(end, controller, options)
+        except (SceneError, SimulationError):
+            m = None
+        if m is None or m.P.size != nominal.P.size or m.T.shape != nominal.T.shape:
+            why = notes[i][notes[i].index(": ") + 2:]
+            note = (f"drivetrain modes above the first lumped into the two-mass reduction although {why}: the full "
+                    f"chain changes form at {label} ({why_form}), so the softest variants carry that cost")
+            return replace(options, chain="two_mass", chain_note=note), [*notes[:i], note, *notes[i + 1:]]
     return options, notes

@@ -34,7 +34,7 @@ from ...sim.tolerance_rows import ToleranceRows, keep_effects
 from ...scene.tolerances import STIFFNESS_SCALE
 from ..batch_step import batch_step
 from ..time.reference import run_spec
-from ..time.run import sine_run_options
+from ..time.run import MODES_KEPT, lumped_if_reshaped_at, sine_run_options
 
 #: variants per chunk (smaller when every variant carries its own stroke tables)
 CHUNK_SIZE = 2000
@@ -143,7 +143,6 @@ def tolerance_runs(scene, values: dict, controller, *, keys=None, reference=None
     if stiffness is not None and not full:
         options, notes = _stage_modes(scene, keys, controller, options, notes, spans, reference)
     if stiffness is not None and not full and options.chain == "full":
-        from ..montecarlo.run import lumped_if_reshaped_at
         options, notes = lumped_if_reshaped_at(scene, controller, options, notes, _key_ends(keys, spans),
                                                "its nodes or packed blocks differ")
     options, kept = keep_effects(options, values)
@@ -227,7 +226,6 @@ def _stage_modes(scene, keys, controller, options, notes, values, reference):
     """
     from ...sim.chain_choice import has_upper_modes, lumping_cost
     from ..reduce.estimates import DEFAULT_TOLERANCE
-    from ..montecarlo.run import MODES_KEPT
     stage = _stage_keys(values)
     if not stage or not options.compliance or options.chain != "two_mass":
         return options, notes
@@ -241,7 +239,8 @@ def _stage_modes(scene, keys, controller, options, notes, values, reference):
     if not cost > budget:
         return options, notes
     scaled = f", over the lowest stiffness_scale {low:.4g}" if low < 1 else ""
-    note = (f"{MODES_KEPT} (left out above, judged at the nominal stiffness): the study varies {', '.join(stage)}: lumping the modes costs ~{cost:.2g} with "
+    note = (f"{MODES_KEPT} (left out above, judged at the nominal stiffness): the study varies "
+            f"{', '.join(stage)}: lumping the modes costs ~{cost:.2g} with "
             f"{'each' if len(stage) > 1 else 'it'} at its lowest value (measured on that chain{scaled}), "
             f"more than {budget:g}")
     return replace(options, chain="full", chain_note=""), [*(n for n in notes if n != options.chain_note), note]
@@ -249,7 +248,7 @@ def _stage_modes(scene, keys, controller, options, notes, values, reference):
 
 def _key_ends(keys, values: dict) -> dict:
     """label -> the scene at each varied scene key's lowest and highest value (the others
-    nominal), for :func:`~..montecarlo.run.lumped_if_reshaped_at`."""
+    nominal), for :func:`~servo_toolkit.studies.time.run.lumped_if_reshaped_at`."""
     ends = {}
     for k in values:
         if k == STIFFNESS_SCALE:
